@@ -1,0 +1,66 @@
+// Quad Möller–Trumbore (Shumskiy & Parshin, sec. 3.1): the Möller–Trumbore solve of mt.glsl
+// for four triangles at once, one triangle per vec4 lane, no early exit inside a quad.
+// Data (src/encoding/quad_mt.rs): leaves hold quads of 4 triangles in SoA form (vec4 of the
+// four triangles' v0.x, v0.y, ...), the last quad of a leaf padded with degenerate triangles
+// (all vertices equal: det == 0, so they are rejected exactly and never hit).
+// Leaf `first` counts quads; quad q holds triangle slots 4q .. 4q+3.
+#ifndef TRILAB_INTERSECTOR
+#define TRILAB_INTERSECTOR
+
+#include "types.glsl"
+
+struct QuadMt {
+    vec4 v0x; vec4 v0y; vec4 v0z;
+    vec4 v1x; vec4 v1y; vec4 v1z;
+    vec4 v2x; vec4 v2y; vec4 v2z;
+};
+
+layout(std430, set = 0, binding = BINDING_PRIMS) readonly buffer QuadMts { QuadMt quad_mts[]; };
+
+// Accepts lane `c` (x, y, z or w) of the four results if it is a valid, nearer hit.
+#define QUAD_MT_LANE(c, k)                                                                     \
+    if (det.c != 0.0 && u.c >= 0.0 && v.c >= 0.0 && u.c + v.c <= 1.0 && t.c >= r.tmin &&      \
+        t.c <= h.t) {                                                                          \
+        h.t = t.c;                                                                             \
+        h.slot = 4u * qi + k;                                                                  \
+        h.u = u.c;                                                                             \
+        h.v = v.c;                                                                             \
+        found = true;                                                                          \
+    }
+
+bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
+    bool found = false;
+    uint end = first + (count + 3u) / 4u;
+    for (uint qi = first; qi < end; ++qi) {
+        QuadMt q = quad_mts[qi];
+        vec4 e1x = q.v1x - q.v0x, e1y = q.v1y - q.v0y, e1z = q.v1z - q.v0z;
+        vec4 e2x = q.v2x - q.v0x, e2y = q.v2y - q.v0y, e2z = q.v2z - q.v0z;
+        // P = D x E2
+        vec4 px = r.dir.y * e2z - r.dir.z * e2y;
+        vec4 py = r.dir.z * e2x - r.dir.x * e2z;
+        vec4 pz = r.dir.x * e2y - r.dir.y * e2x;
+        vec4 det = e1x * px + e1y * py + e1z * pz;
+        vec4 inv_det = 1.0 / det;
+        // T = O - V0
+        vec4 tx = r.origin.x - q.v0x, ty = r.origin.y - q.v0y, tz = r.origin.z - q.v0z;
+        vec4 u = (tx * px + ty * py + tz * pz) * inv_det;
+        // Q = T x E1
+        vec4 qx = ty * e1z - tz * e1y;
+        vec4 qy = tz * e1x - tx * e1z;
+        vec4 qz = tx * e1y - ty * e1x;
+        vec4 v = (r.dir.x * qx + r.dir.y * qy + r.dir.z * qz) * inv_det;
+        vec4 t = (e2x * qx + e2y * qy + e2z * qz) * inv_det;
+        QUAD_MT_LANE(x, 0u)
+        QUAD_MT_LANE(y, 1u)
+        QUAD_MT_LANE(z, 2u)
+        QUAD_MT_LANE(w, 3u)
+#ifdef ANY_HIT
+        if (found) {
+            return true;
+        }
+#endif
+    }
+    return found;
+}
+
+#endif

@@ -1,0 +1,56 @@
+// Quad unit triangle (Shumskiy & Parshin, sec. 3.1, applied to Woop's test of unit.glsl): four
+// triangles' affine maps in SoA form, the ray mapped into all four unit spaces at once.
+// Data (src/encoding/quad_unit.rs): per quad, for each of the three rows of [M | N], one vec4
+// per column holding that entry for the four triangles. Padding lanes store the map
+// row0 = row1 = (0,0,0,-1), row2 = (0,0,0,1): D'z = +-0 exactly for every ray, so the lane is
+// rejected by the exact test D'z != 0 (as Quad MT rejects det == 0), without relying on how a
+// driver treats the resulting inf/NaN (Vulkan leaves that to float controls).
+// Leaf `first` counts quads; quad q holds triangle slots 4q .. 4q+3.
+#ifndef TRILAB_INTERSECTOR
+#define TRILAB_INTERSECTOR
+
+#include "types.glsl"
+
+struct QuadUnit {
+    vec4 m0x; vec4 m0y; vec4 m0z; vec4 n0; // row 0 -> u
+    vec4 m1x; vec4 m1y; vec4 m1z; vec4 n1; // row 1 -> v
+    vec4 m2x; vec4 m2y; vec4 m2z; vec4 n2; // row 2 -> distance from the plane
+};
+
+layout(std430, set = 0, binding = BINDING_PRIMS) readonly buffer QuadUnits { QuadUnit quad_units[]; };
+
+#define QUAD_UNIT_LANE(c, k)                                                                   \
+    if (dz.c != 0.0 && t.c >= r.tmin && t.c <= h.t && u.c >= 0.0 && v.c >= 0.0 && u.c + v.c <= 1.0) {        \
+        h.t = t.c;                                                                             \
+        h.slot = 4u * qi + k;                                                                  \
+        h.u = u.c;                                                                             \
+        h.v = v.c;                                                                             \
+        found = true;                                                                          \
+    }
+
+bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
+    bool found = false;
+    uint end = first + (count + 3u) / 4u;
+    vec3 o = r.origin;
+    vec3 d = r.dir;
+    for (uint qi = first; qi < end; ++qi) {
+        QuadUnit q = quad_units[qi];
+        vec4 oz = q.m2x * o.x + q.m2y * o.y + q.m2z * o.z + q.n2;
+        vec4 dz = q.m2x * d.x + q.m2y * d.y + q.m2z * d.z;
+        vec4 t = -oz / dz;
+        vec4 u = (q.m0x * o.x + q.m0y * o.y + q.m0z * o.z + q.n0) + t * (q.m0x * d.x + q.m0y * d.y + q.m0z * d.z);
+        vec4 v = (q.m1x * o.x + q.m1y * o.y + q.m1z * o.z + q.n1) + t * (q.m1x * d.x + q.m1y * d.y + q.m1z * d.z);
+        QUAD_UNIT_LANE(x, 0u)
+        QUAD_UNIT_LANE(y, 1u)
+        QUAD_UNIT_LANE(z, 2u)
+        QUAD_UNIT_LANE(w, 3u)
+#ifdef ANY_HIT
+        if (found) {
+            return true;
+        }
+#endif
+    }
+    return found;
+}
+
+#endif

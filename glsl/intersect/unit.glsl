@@ -1,0 +1,55 @@
+// Woop's unit-triangle test (S. Woop, J. Schmittler, P. Slusallek, "RPU: A Programmable Ray
+// Processing Unit for Realtime Ray Tracing", SIGGRAPH 2005; S. Woop's thesis 2004, sec. 4.4):
+// each triangle stores the affine map T(x) = M x + N that takes it to the unit triangle
+// (0,0,0), (1,0,0), (0,1,0) in the z = 0 plane. The ray is mapped into that space
+// (O' = M O + N, D' = M D); then t = -O'z / D'z, u = O'x + t D'x, v = O'y + t D'y.
+// 48 bytes per triangle (three rows [M_i | N_i]); no vertex list is needed to intersect.
+// Data: src/encoding/unit.rs.
+#ifndef TRILAB_INTERSECTOR
+#define TRILAB_INTERSECTOR
+
+#include "types.glsl"
+
+struct UnitTriangle {
+    vec4 row0; // maps to u
+    vec4 row1; // maps to v
+    vec4 row2; // maps to the distance from the plane
+};
+
+layout(std430, set = 0, binding = BINDING_PRIMS) readonly buffer UnitTriangles { UnitTriangle unit_triangles[]; };
+
+bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
+    bool found = false;
+    for (uint s = first; s < first + count; ++s) {
+        vec4 r2 = unit_triangles[s].row2;
+        float oz = dot(r2.xyz, r.origin) + r2.w;
+        float dz = dot(r2.xyz, r.dir);
+        if (dz == 0.0) {
+            continue; // ray parallel to the plane
+        }
+        float t = -oz / dz;
+        if (!(t >= r.tmin && t <= h.t)) {
+            continue;
+        }
+        vec4 r0 = unit_triangles[s].row0;
+        float u = dot(r0.xyz, r.origin) + r0.w + t * dot(r0.xyz, r.dir);
+        if (!(u >= 0.0 && u <= 1.0)) {
+            continue;
+        }
+        vec4 r1 = unit_triangles[s].row1;
+        float v = dot(r1.xyz, r.origin) + r1.w + t * dot(r1.xyz, r.dir);
+        if (v >= 0.0 && u + v <= 1.0) {
+            h.t = t;
+            h.slot = s;
+            h.u = u;
+            h.v = v;
+            found = true;
+#ifdef ANY_HIT
+            return true;
+#endif
+        }
+    }
+    return found;
+}
+
+#endif

@@ -1,0 +1,38 @@
+#version 460
+// trilab:variants closest any=ANY_HIT
+// Ray casting: one ray per invocation, closest hit (t, u, v, OBJ triangle id) or, with ANY_HIT,
+// any hit in [tmin, tmax] (occlusion). The intersector is chosen per variant by build.rs.
+#extension GL_GOOGLE_include_directive : require
+
+#include "types.glsl"
+#include "intersector.glsl"
+#include "traverse.glsl"
+
+layout(local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= pc.ray_count) {
+        return;
+    }
+    Ray ray = rays[i];
+    HitState h;
+    h.t = ray.tmax;
+    h.slot = MISS_ID;
+    h.u = 0.0;
+    h.v = 0.0;
+    trace(make_trace_ray(ray), h);
+    Hit o;
+    if (h.slot == MISS_ID) {
+        o.t = uintBitsToFloat(0x7f800000u); // +inf
+        o.id = MISS_ID;
+        o.u = 0.0;
+        o.v = 0.0;
+    } else {
+        o.t = h.t;
+        o.id = slot_ids[h.slot];
+        o.u = h.u;
+        o.v = h.v;
+    }
+    hits[i] = o;
+}

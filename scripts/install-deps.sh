@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Installs the system packages trilab needs on Debian 12 (bookworm), only where missing:
+#   - lavapipe (Mesa's CPU Vulkan driver) from bookworm-backports: Mesa 25.0.x runs trilab's
+#     kernels 7-9x faster than bookworm's 22.3.6 and adds VK_KHR_ray_query;
+#   - the Vulkan loader and headers, the Khronos validation layers, vulkaninfo, spirv-tools;
+#   - cmake, python3 and g++ to build shaderc from source (crate feature build-from-source).
+# Safe to run repeatedly; needs root (or sudo).
+set -euo pipefail
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+
+base_pkgs=(libvulkan1 libvulkan-dev vulkan-validationlayers vulkan-tools spirv-tools cmake python3 g++ pkg-config)
+missing=()
+for p in "${base_pkgs[@]}"; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+
+# Mesa from backports: the installed mesa-vulkan-drivers must be 25.x, not bookworm's 22.3.6.
+mesa_ver=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true)
+need_mesa=1
+case "$mesa_ver" in 2[5-9].*|3*) need_mesa=0 ;; esac
+
+if [ ${#missing[@]} -eq 0 ] && [ $need_mesa -eq 0 ]; then
+  echo "install-deps: all system packages present (mesa-vulkan-drivers $mesa_ver)"
+  exit 0
+fi
+
+if [ $need_mesa -eq 1 ] && ! grep -rqs 'bookworm-backports' /etc/apt/sources.list /etc/apt/sources.list.d/; then
+  echo "install-deps: enabling bookworm-backports"
+  echo 'deb http://deb.debian.org/debian bookworm-backports main' | $SUDO tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
+fi
+
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "install-deps: installing ${missing[*]}"
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+if [ $need_mesa -eq 1 ]; then
+  echo "install-deps: installing mesa-vulkan-drivers from bookworm-backports"
+  $SUDO apt-get install -y -qq --no-install-recommends -t bookworm-backports mesa-vulkan-drivers >/dev/null
+fi
+echo "install-deps: mesa-vulkan-drivers $(dpkg-query -W -f='${Version}' mesa-vulkan-drivers)"

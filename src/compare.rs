@@ -1,0 +1,404 @@
+//! Checking GPU hits against the f64 reference.
+//!
+//! A ray agrees when both miss, or both hit the same triangle, or both hit with t within
+//! [`REL_T_TOL`] relative. Every other ray is a disagreement, and it is *explained* when the
+//! ray passes within [`EDGE_ULPS`] f32 ULPs of an edge of a triangle involved (the reference's
+//! for a GPU miss, the GPU's for a false hit, either for a different hit): there the f32
+//! kernels and the f64 reference may legitimately decide differently. Unexplained
+//! disagreements, impossible values (NaN, ids out of range, hits on zero-area triangles,
+//! t outside [tmin, tmax]) are failures.
+
+use glam::DVec3;
+use serde::Serialize;
+
+use crate::rays::{Hit, Ray};
+use crate::reference::{intersect, Ray64, RefHit};
+use crate::scene::Mesh;
+
+/// Relative t tolerance for two hits on different triangles to count as the same hit.
+pub const REL_T_TOL: f64 = 1e-5;
+
+/// How close (in f32 ULPs of the largest coordinate involved) a ray must pass to an edge for
+/// an f32/f64 disagreement to be explained by rounding.
+pub const EDGE_ULPS: f64 = 16.0;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum DisagreementKind {
+    /// The GPU missed a triangle the reference hit (a leak).
+    GpuMissed,
+    /// The GPU hit where the reference found nothing (a false hit).
+    GpuFalseHit,
+    /// Both hit, different triangles at different t.
+    DifferentHit,
+}
+
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Disagreement {
+    pub ray: usize,
+    pub kind: DisagreementKind,
+    pub gpu_t: f32,
+    pub gpu_id: u32,
+    pub ref_t: f64,
+    pub ref_id: u32,
+    /// Distance from the ray to the nearest edge of the triangle(s) involved, in f32 ULPs.
+    pub edge_ulps: f64,
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Agreement {
+    pub rays: usize,
+    pub agree: usize,
+    pub both_miss: usize,
+    pub reference_hits: usize,
+    pub disagreements: Vec<Disagreement>,
+    /// Disagreements not within [`EDGE_ULPS`] of an edge.
+    pub unexplained: usize,
+    /// Largest `edge_ulps` among the disagreements.
+    pub max_edge_ulps: f64,
+    /// Hits with NaN/inf t or barycentrics, ids out of range, zero-area triangles, t outside
+    /// the ray interval, or misses whose t is not +inf: (ray, what).
+    pub invalid: Vec<(usize, String)>,
+}
+
+impl Agreement {
+    pub fn fraction(&self) -> f64 {
+        if self.rays == 0 {
+            1.0
+        } else {
+            self.agree as f64 / self.rays as f64
+        }
+    }
+
+    /// Every disagreement is explained by an edge and no value is invalid.
+    pub fn all_explained(&self) -> bool {
+        self.unexplained == 0 && self.invalid.is_empty()
+    }
+
+    /// The foundation's acceptance rule (meaningful on large ray sets): at least
+    /// `min_fraction` agree and [`Agreement::all_explained`].
+    pub fn passes(&self, min_fraction: f64) -> bool {
+        self.fraction() >= min_fraction && self.all_explained()
+    }
+
+    pub fn summary(&self) -> String {
+        format!(
+            "{}/{} rays agree ({:.4}%), {} disagreements ({} unexplained, max {:.1} ULPs from an edge), {} invalid",
+            self.agree,
+            self.rays,
+            100.0 * self.fraction(),
+            self.disagreements.len(),
+            self.unexplained,
+            self.max_edge_ulps,
+            self.invalid.len()
+        )
+    }
+}
+
+/// f32 ULP at magnitude `x`.
+pub fn ulp_f32(x: f64) -> f64 {
+    let x = (x.abs() as f32).max(f32::MIN_POSITIVE);
+    (f32::from_bits(x.to_bits() + 1) - x) as f64
+}
+
+/// Distance from the line o + t d to the segment pq.
+fn line_segment_distance(o: DVec3, d: DVec3, p: DVec3, q: DVec3) -> f64 {
+    let dd = d.length_squared();
+    let perp = |x: DVec3| x - d * (d.dot(x) / dd);
+    let w = perp(o - p);
+    let v = perp(q - p);
+    let vv = v.length_squared();
+    let s = if vv > 0.0 {
+        (w.dot(v) / vv).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (w - v * s).length()
+}
+
+/// How close the ray passes to an edge of triangle `id`, in f32 ULPs of the largest
+/// coordinate magnitude among the triangle's vertices and the ray origin.
+pub fn edge_ulps(mesh: &Mesh, ray: &Ray, id: u32) -> f64 {
+    let r = Ray64::from(ray);
+    let [a, b, c] = mesh.vertices_f64(id as usize);
+    let dist = [(a, b), (b, c), (c, a)]
+        .iter()
+        .map(|&(p, q)| line_segment_distance(r.origin, r.dir, p, q))
+        .fold(f64::INFINITY, f64::min);
+    let scale = [r.origin, a, b, c]
+        .iter()
+        .map(|v| v.abs().max_element())
+        .fold(0.0, f64::max);
+    dist / ulp_f32(scale)
+}
+
+fn check_valid(mesh: &Mesh, ray: &Ray, h: &Hit) -> Option<String> {
+    if !h.is_hit() {
+        return (h.t != f32::INFINITY).then(|| format!("miss with t = {} (expected +inf)", h.t));
+    }
+    if h.id as usize >= mesh.triangle_count() {
+        return Some(format!("triangle id {} out of range", h.id));
+    }
+    if !(h.t.is_finite() && h.u.is_finite() && h.v.is_finite()) {
+        return Some(format!("non-finite hit t={} u={} v={}", h.t, h.u, h.v));
+    }
+    if mesh.is_degenerate(h.id as usize) {
+        return Some(format!("hit zero-area triangle {}", h.id));
+    }
+    if !(h.t >= ray.tmin && h.t <= ray.tmax) {
+        return Some(format!("t = {} outside [{}, {}]", h.t, ray.tmin, ray.tmax));
+    }
+    None
+}
+
+/// Compares closest hits from the GPU with the reference, ray by ray.
+pub fn compare_closest(mesh: &Mesh, rays: &[Ray], gpu: &[Hit], reference: &[RefHit]) -> Agreement {
+    assert_eq!(rays.len(), gpu.len());
+    assert_eq!(rays.len(), reference.len());
+    let mut a = Agreement {
+        rays: rays.len(),
+        ..Default::default()
+    };
+    for (i, ((ray, g), r)) in rays.iter().zip(gpu).zip(reference).enumerate() {
+        if let Some(why) = check_valid(mesh, ray, g) {
+            a.invalid.push((i, why));
+            continue;
+        }
+        a.reference_hits += r.is_hit() as usize;
+        let kind = match (g.is_hit(), r.is_hit()) {
+            (false, false) => {
+                a.both_miss += 1;
+                a.agree += 1;
+                continue;
+            }
+            (true, true)
+                if g.id == r.id || (g.t as f64 - r.t).abs() <= REL_T_TOL * r.t.abs().max(1e-30) =>
+            {
+                a.agree += 1;
+                continue;
+            }
+            (true, true) => DisagreementKind::DifferentHit,
+            (false, true) => DisagreementKind::GpuMissed,
+            (true, false) => DisagreementKind::GpuFalseHit,
+        };
+        let ulps = match kind {
+            DisagreementKind::GpuMissed => edge_ulps(mesh, ray, r.id),
+            DisagreementKind::GpuFalseHit => edge_ulps(mesh, ray, g.id),
+            DisagreementKind::DifferentHit => {
+                edge_ulps(mesh, ray, r.id).min(edge_ulps(mesh, ray, g.id))
+            }
+        };
+        a.max_edge_ulps = a.max_edge_ulps.max(ulps);
+        if ulps > EDGE_ULPS {
+            a.unexplained += 1;
+        }
+        a.disagreements.push(Disagreement {
+            ray: i,
+            kind,
+            gpu_t: g.t,
+            gpu_id: g.id,
+            ref_t: r.t,
+            ref_id: r.id,
+            edge_ulps: ulps,
+        });
+    }
+    a
+}
+
+/// Any-hit against closest-hit on the same rays.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct AnyHitCheck {
+    pub rays: usize,
+    /// Rays where one query hit and the other did not.
+    pub status_mismatch: Vec<usize>,
+    /// Any-hit results that are not a real intersection of the reported triangle within the
+    /// ray interval (f64, edge tolerance as for closest hits), or invalid values.
+    pub bogus: Vec<(usize, String)>,
+}
+
+impl AnyHitCheck {
+    pub fn passes(&self) -> bool {
+        self.status_mismatch.is_empty() && self.bogus.is_empty()
+    }
+}
+
+/// Any-hit must hit exactly when closest-hit does (both run the same triangle tests over the
+/// same BVH), and whatever it reports must be a genuine hit.
+pub fn compare_any(mesh: &Mesh, rays: &[Ray], closest: &[Hit], any: &[Hit]) -> AnyHitCheck {
+    let mut c = AnyHitCheck {
+        rays: rays.len(),
+        ..Default::default()
+    };
+    for (i, ((ray, cl), an)) in rays.iter().zip(closest).zip(any).enumerate() {
+        if cl.is_hit() != an.is_hit() {
+            c.status_mismatch.push(i);
+            continue;
+        }
+        if !an.is_hit() {
+            continue;
+        }
+        if let Some(why) = check_valid(mesh, ray, an) {
+            c.bogus.push((i, why));
+            continue;
+        }
+        // The triangle must really be hit within [tmin, tmax] (t itself can be ill-conditioned
+        // for rays starting next to the surface or grazing it; its accuracy is measured elsewhere).
+        let genuine = intersect(&Ray64::from(ray), mesh.vertices_f64(an.id as usize)).is_some();
+        if !genuine && edge_ulps(mesh, ray, an.id) > EDGE_ULPS {
+            c.bogus.push((
+                i,
+                format!("reported triangle {} at t = {} is not hit", an.id, an.t),
+            ));
+        }
+    }
+    c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mesh() -> Mesh {
+        Mesh::from_triangles(
+            vec![
+                [0.0, 0.0, 1.0],
+                [1.0, 0.0, 1.0],
+                [0.0, 1.0, 1.0],
+                [1.0, 1.0, 1.0],
+                [2.0, 2.0, 2.0],
+            ],
+            vec![[0, 1, 2], [1, 3, 2], [4, 4, 4]],
+        )
+    }
+
+    #[test]
+    fn ulp_values() {
+        assert_eq!(ulp_f32(1.0), f32::EPSILON as f64);
+        assert_eq!(ulp_f32(0.75), f32::EPSILON as f64 / 2.0);
+    }
+
+    #[test]
+    fn disagreements_on_edges_are_explained_others_are_not() {
+        let m = mesh();
+        // Ray 0 through the shared diagonal edge (x + y = 1) of triangles 0 and 1; ray 1 well
+        // inside triangle 0.
+        let rays = vec![
+            Ray::new([0.5, 0.5, 0.0], [0.0, 0.0, 1.0]),
+            Ray::new([0.2, 0.2, 0.0], [0.0, 0.0, 1.0]),
+        ];
+        let reference = vec![
+            RefHit {
+                t: 1.0,
+                id: 0,
+                u: 0.5,
+                v: 0.5,
+            },
+            RefHit {
+                t: 1.0,
+                id: 0,
+                u: 0.2,
+                v: 0.2,
+            },
+        ];
+        // GPU missed both: the first is an edge leak (explained), the second is not.
+        let gpu = vec![Hit::MISS, Hit::MISS];
+        let a = compare_closest(&m, &rays, &gpu, &reference);
+        assert_eq!(a.agree, 0);
+        assert_eq!(a.disagreements.len(), 2);
+        assert_eq!(a.unexplained, 1);
+        assert!(a.disagreements[0].edge_ulps < 1.0);
+        assert!(!a.passes(0.0));
+        // The neighbour at the same t counts as agreement.
+        let gpu = vec![
+            Hit {
+                t: 1.0,
+                id: 1,
+                u: 0.0,
+                v: 0.5,
+            },
+            Hit {
+                t: 1.0,
+                id: 0,
+                u: 0.2,
+                v: 0.2,
+            },
+        ];
+        let a = compare_closest(&m, &rays, &gpu, &reference);
+        assert!(a.passes(1.0), "{}", a.summary());
+    }
+
+    #[test]
+    fn impossible_values_are_invalid() {
+        let m = mesh();
+        let rays = vec![Ray::new([0.2, 0.2, 0.0], [0.0, 0.0, 1.0]); 4];
+        let reference = vec![
+            RefHit {
+                t: 1.0,
+                id: 0,
+                u: 0.2,
+                v: 0.2
+            };
+            4
+        ];
+        let gpu = vec![
+            Hit {
+                t: f32::NAN,
+                id: 0,
+                u: 0.2,
+                v: 0.2,
+            },
+            Hit {
+                t: 1.0,
+                id: 2,
+                u: 0.0,
+                v: 0.0,
+            },
+            Hit {
+                t: 1.0,
+                id: 7,
+                u: 0.0,
+                v: 0.0,
+            },
+            Hit {
+                t: 0.0,
+                ..Hit::MISS
+            },
+        ];
+        let a = compare_closest(&m, &rays, &gpu, &reference);
+        assert_eq!(a.invalid.len(), 4, "{:?}", a.invalid);
+    }
+
+    #[test]
+    fn any_hit_status_must_match() {
+        let m = mesh();
+        let rays = vec![Ray::new([0.2, 0.2, 0.0], [0.0, 0.0, 1.0]); 2];
+        let closest = vec![
+            Hit {
+                t: 1.0,
+                id: 0,
+                u: 0.2,
+                v: 0.2,
+            },
+            Hit::MISS,
+        ];
+        let good = compare_any(&m, &rays, &closest, &[closest[0], Hit::MISS]);
+        assert!(good.passes());
+        let bad = compare_any(&m, &rays, &closest, &[Hit::MISS, Hit::MISS]);
+        assert_eq!(bad.status_mismatch, vec![0]);
+        let bogus = compare_any(
+            &m,
+            &rays,
+            &closest,
+            &[
+                // Triangle 1 is not on this ray's path.
+                Hit {
+                    t: 1.0,
+                    id: 1,
+                    u: 0.0,
+                    v: 0.0,
+                },
+                Hit::MISS,
+            ],
+        );
+        assert_eq!(bogus.bogus.len(), 1);
+    }
+}

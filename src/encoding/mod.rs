@@ -1,0 +1,271 @@
+//! Triangle encodings: each method's GPU layout of the same BVH.
+//!
+//! | method | per-triangle data | leaf unit |
+//! |---|---|---|
+//! | [`Method::Mt`] | vertex list (vec4) + index triple and material (16 B) | triangle slot |
+//! | [`Method::Unit`] | Woop's affine map to the unit triangle, 3 x vec4 (48 B) | triangle slot |
+//! | [`Method::QuadMt`] | 4 triangles' vertices in SoA form (144 B per quad) | quad |
+//! | [`Method::QuadUnit`] | 4 triangles' affine maps in SoA form (192 B per quad) | quad |
+//!
+//! Every encoding also uploads the nodes (32 B each) and a slot -> OBJ triangle id table
+//! (4 B per slot), so hits report OBJ ids whatever order the BVH stores triangles in.
+//! Adding a method: one `glsl/intersect/<name>.glsl`, one [`Method`] arm, one encoder here.
+
+mod mt;
+mod quad_mt;
+mod quad_unit;
+mod unit;
+
+pub use mt::MtTriangle;
+pub use quad_mt::QuadMt;
+pub use quad_unit::QuadUnit;
+pub use unit::{unit_transform, UnitTriangle};
+
+use crate::bvh::{Bvh, BvhNode, PAD_SLOT};
+use crate::gpu::shared::{BINDING_NODES, BINDING_SLOT_IDS, MISS_ID};
+use crate::scene::Mesh;
+
+/// A ray-triangle intersection method (and with it, a GPU data layout).
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Hash,
+    PartialOrd,
+    Ord,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Möller–Trumbore, one triangle at a time.
+    Mt,
+    /// Woop's unit-triangle test, one triangle at a time.
+    Unit,
+    /// Möller–Trumbore on four triangles at once (SoA quads).
+    QuadMt,
+    /// Woop's unit-triangle test on four triangles at once (SoA quads).
+    QuadUnit,
+}
+
+impl Method {
+    pub const ALL: [Method; 4] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit];
+
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Mt => "mt",
+            Method::Unit => "unit",
+            Method::QuadMt => "quad-mt",
+            Method::QuadUnit => "quad-unit",
+        }
+    }
+
+    /// Name of the intersector file `glsl/intersect/<name>.glsl` (and of its kernels).
+    pub fn glsl_name(self) -> &'static str {
+        match self {
+            Method::Mt => "mt",
+            Method::Unit => "unit",
+            Method::QuadMt => "quad_mt",
+            Method::QuadUnit => "quad_unit",
+        }
+    }
+
+    /// The paper's column title.
+    pub fn title(self) -> &'static str {
+        match self {
+            Method::Mt => "Moller-Trumbore",
+            Method::Unit => "Unit Triangle",
+            Method::QuadMt => "Quad Moller-Trumbore",
+            Method::QuadUnit => "Quad Unit Triangle",
+        }
+    }
+
+    /// Triangles tested together (the SIMD width of the intersector).
+    pub fn group_size(self) -> usize {
+        match self {
+            Method::Mt | Method::Unit => 1,
+            Method::QuadMt | Method::QuadUnit => 4,
+        }
+    }
+
+    pub fn encode(self, mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
+        match self {
+            Method::Mt => mt::encode(mesh, bvh),
+            Method::Unit => unit::encode(mesh, bvh),
+            Method::QuadMt => quad_mt::encode(mesh, bvh),
+            Method::QuadUnit => quad_unit::encode(mesh, bvh),
+        }
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One storage buffer of an encoded scene.
+#[derive(Clone, Debug)]
+pub struct SceneBuffer {
+    /// Allocation name (shows up in allocator reports and validation messages).
+    pub name: &'static str,
+    pub binding: u32,
+    pub bytes: Vec<u8>,
+}
+
+/// A scene in one method's GPU layout.
+#[derive(Clone, Debug)]
+pub struct EncodedScene {
+    pub method: Method,
+    pub leaf_size: u32,
+    /// The BVH with leaf `left_or_first` in this encoding's units.
+    pub nodes: Vec<BvhNode>,
+    /// Slot -> OBJ triangle id (`MISS_ID` for padding slots).
+    pub slot_ids: Vec<u32>,
+    /// Method-specific buffers (bound at `BINDING_PRIMS`, and `BINDING_INDICES` for MT).
+    pub prims: Vec<SceneBuffer>,
+    /// Triangles that the encoding could not represent (their map overflows f32) and that
+    /// were replaced by padding. Empty for every real scene so far.
+    pub unrepresentable: Vec<u32>,
+}
+
+impl EncodedScene {
+    /// All buffers the kernels read, with their bindings.
+    pub fn buffers(&self) -> Vec<SceneBuffer> {
+        let mut v = vec![
+            SceneBuffer {
+                name: "bvh nodes",
+                binding: BINDING_NODES,
+                bytes: bytemuck::cast_slice(&self.nodes).to_vec(),
+            },
+            SceneBuffer {
+                name: "slot ids",
+                binding: BINDING_SLOT_IDS,
+                bytes: bytemuck::cast_slice(&self.slot_ids).to_vec(),
+            },
+        ];
+        v.extend(self.prims.iter().cloned());
+        v
+    }
+
+    /// Bytes the scene occupies on the GPU (the paper's "GPU Scene Size").
+    pub fn gpu_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<BvhNode>()
+            + self.slot_ids.len() * 4
+            + self.prims.iter().map(|b| b.bytes.len()).sum::<usize>()
+    }
+
+    /// Padding slots (quad encodings fill partial quads with never-hit triangles).
+    pub fn padding_slots(&self) -> usize {
+        self.slot_ids.iter().filter(|&&s| s == MISS_ID).count()
+    }
+}
+
+/// The OBJ id of a BVH slot, `MISS_ID` for padding.
+fn slot_id(prim: u32) -> u32 {
+    if prim == PAD_SLOT {
+        MISS_ID
+    } else {
+        prim
+    }
+}
+
+/// Per-slot encodings (MT, unit) keep the BVH's leaves as they are.
+fn slot_layout(bvh: &Bvh) -> (Vec<BvhNode>, Vec<u32>) {
+    (
+        bvh.nodes.clone(),
+        bvh.prim_ids.iter().map(|&p| slot_id(p)).collect(),
+    )
+}
+
+/// Quad encodings: every leaf's triangles in groups of four, the last group padded.
+/// Returns the nodes with leaf `left_or_first` counting quads, and 4 slots per quad
+/// (triangle id or `PAD_SLOT`).
+fn quad_layout(bvh: &Bvh) -> (Vec<BvhNode>, Vec<[u32; 4]>) {
+    let mut nodes = bvh.nodes.clone();
+    let mut quads = Vec::new();
+    for node in nodes.iter_mut().filter(|n| n.is_leaf()) {
+        let first = node.left_or_first as usize;
+        let prims = &bvh.prim_ids[first..first + node.count as usize];
+        node.left_or_first = quads.len() as u32;
+        for chunk in prims.chunks(4) {
+            let mut q = [PAD_SLOT; 4];
+            q[..chunk.len()].copy_from_slice(chunk);
+            quads.push(q);
+        }
+    }
+    (nodes, quads)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::BuildOptions;
+
+    fn mesh() -> Mesh {
+        let mut pos = Vec::new();
+        let mut tris = Vec::new();
+        for i in 0..97u32 {
+            let x = (i % 10) as f32;
+            let y = (i / 10) as f32;
+            pos.extend([[x, y, 0.0], [x + 0.9, y, 0.1], [x, y + 0.9, 0.2]]);
+            tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        Mesh::from_triangles(pos, tris)
+    }
+
+    #[test]
+    fn every_encoding_covers_every_triangle_once() {
+        let m = mesh();
+        for leaf in [1, 2, 3, 4, 8, 16] {
+            let bvh = Bvh::build(&m, &BuildOptions::new(leaf));
+            for method in Method::ALL {
+                let e = method.encode(&m, &bvh);
+                let mut ids: Vec<u32> = e
+                    .slot_ids
+                    .iter()
+                    .copied()
+                    .filter(|&s| s != MISS_ID)
+                    .collect();
+                ids.sort_unstable();
+                assert_eq!(ids, (0..97).collect::<Vec<_>>(), "{method} leaf {leaf}");
+                assert_eq!(e.slot_ids.len() % method.group_size(), 0);
+                // Leaves point inside the slot table in the method's units.
+                for n in e.nodes.iter().filter(|n| n.is_leaf()) {
+                    let groups = (n.count as usize).div_ceil(method.group_size());
+                    let end = (n.left_or_first as usize + groups) * method.group_size();
+                    assert!(end <= e.slot_ids.len());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn quads_pad_only_the_last_group_of_a_leaf() {
+        let m = mesh();
+        let bvh = Bvh::build(&m, &BuildOptions::new(4));
+        let e = Method::QuadMt.encode(&m, &bvh);
+        let leaves: Vec<_> = e.nodes.iter().filter(|n| n.is_leaf()).collect();
+        assert_eq!(e.slot_ids.len(), 4 * leaves.len());
+        let real: usize = leaves.iter().map(|n| n.count as usize).sum();
+        assert_eq!(e.padding_slots(), 4 * leaves.len() - real);
+    }
+
+    #[test]
+    fn sizes_add_up() {
+        let m = mesh();
+        let bvh = Bvh::build(&m, &BuildOptions::new(1));
+        let mt = Method::Mt.encode(&m, &bvh);
+        let nodes = bvh.nodes.len() * 32;
+        assert_eq!(
+            mt.gpu_bytes(),
+            nodes + 97 * 4 + m.positions.len() * 16 + 97 * 16
+        );
+        let unit = Method::Unit.encode(&m, &bvh);
+        assert_eq!(unit.gpu_bytes(), nodes + 97 * 4 + 97 * 48);
+    }
+}

@@ -1,0 +1,79 @@
+//! Quad unit-triangle layout: four triangles' affine maps per quad in SoA form
+//! (`glsl/intersect/quad_unit.glsl`).
+
+use bytemuck::{Pod, Zeroable};
+
+use super::unit::{unit_transform, PAD_ROWS};
+use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer};
+use crate::bvh::{Bvh, PAD_SLOT};
+use crate::gpu::shared::{BINDING_PRIMS, MISS_ID};
+use crate::scene::Mesh;
+
+/// GLSL `QuadUnit`: `m{r}{x,y,z}` and `n{r}` hold entry (r, column) of [M | N] for the four
+/// triangles, lane k = slot 4q + k (192 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct QuadUnit {
+    pub m0x: [f32; 4],
+    pub m0y: [f32; 4],
+    pub m0z: [f32; 4],
+    pub n0: [f32; 4],
+    pub m1x: [f32; 4],
+    pub m1y: [f32; 4],
+    pub m1z: [f32; 4],
+    pub n1: [f32; 4],
+    pub m2x: [f32; 4],
+    pub m2y: [f32; 4],
+    pub m2z: [f32; 4],
+    pub n2: [f32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<QuadUnit>() == 192);
+
+pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
+    let (nodes, quads) = quad_layout(bvh);
+    let mut slot_ids = Vec::with_capacity(4 * quads.len());
+    let mut unrepresentable = vec![];
+    let mut out = Vec::with_capacity(quads.len());
+    for q in &quads {
+        let mut quad = QuadUnit::default();
+        for (k, &p) in q.iter().enumerate() {
+            let mut id = slot_id(p);
+            let rows = match p {
+                PAD_SLOT => PAD_ROWS,
+                tri => {
+                    let [a, b, c] = mesh.vertices_f64(tri as usize);
+                    unit_transform(a, b, c).unwrap_or_else(|| {
+                        unrepresentable.push(tri);
+                        id = MISS_ID;
+                        PAD_ROWS
+                    })
+                }
+            };
+            slot_ids.push(id);
+            let cols = [
+                [&mut quad.m0x, &mut quad.m0y, &mut quad.m0z, &mut quad.n0],
+                [&mut quad.m1x, &mut quad.m1y, &mut quad.m1z, &mut quad.n1],
+                [&mut quad.m2x, &mut quad.m2y, &mut quad.m2z, &mut quad.n2],
+            ];
+            for (row, lanes) in rows.iter().zip(cols) {
+                for (col, lane) in lanes.into_iter().enumerate() {
+                    lane[k] = row[col];
+                }
+            }
+        }
+        out.push(quad);
+    }
+    EncodedScene {
+        method: Method::QuadUnit,
+        leaf_size: bvh.options.max_leaf_size,
+        nodes,
+        slot_ids,
+        prims: vec![SceneBuffer {
+            name: "quad unit",
+            binding: BINDING_PRIMS,
+            bytes: bytemuck::cast_slice(&out).to_vec(),
+        }],
+        unrepresentable,
+    }
+}

@@ -1,0 +1,268 @@
+//! Named GPU buffers, uploads, downloads and one-shot command submission.
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+
+use super::context::{Context, Device};
+use crate::error::{Error, Result, VkContext};
+
+/// A buffer and its memory; both are released on drop.
+pub struct Buffer {
+    device: Arc<Device>,
+    pub(crate) raw: vk::Buffer,
+    allocation: Option<Allocation>,
+    pub size: u64,
+    pub name: String,
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        // SAFETY: users of the buffer finish before it is dropped (every submit waits on its
+        // fence); the allocation came from this device's allocator.
+        unsafe { self.device.raw.destroy_buffer(self.raw, None) };
+        if let Some(a) = self.allocation.take() {
+            let _ = self.device.allocator.lock().unwrap().free(a);
+        }
+    }
+}
+
+impl Buffer {
+    pub fn mapped(&self) -> Option<&[u8]> {
+        self.allocation
+            .as_ref()
+            .and_then(|a| a.mapped_slice())
+            .map(|s| &s[..self.size as usize])
+    }
+
+    fn mapped_mut(&mut self) -> Option<&mut [u8]> {
+        let size = self.size as usize;
+        self.allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .map(|s| &mut s[..size])
+    }
+}
+
+impl Context {
+    /// Creates a buffer of `size` bytes (at least 4) with the allocation named `name`.
+    pub fn create_buffer(
+        &self,
+        name: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> Result<Buffer> {
+        let d = &self.device;
+        let size = size.max(4);
+        let info = vk::BufferCreateInfo::default()
+            .size(size)
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: valid device and create info.
+        let raw = unsafe { d.raw.create_buffer(&info, None) }
+            .during(&format!("creating buffer `{name}`"))?;
+        let requirements = unsafe { d.raw.get_buffer_memory_requirements(raw) };
+        let allocation = d.allocator.lock().unwrap().allocate(&AllocationCreateDesc {
+            name,
+            requirements,
+            location,
+            linear: true,
+            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+        });
+        let allocation = match allocation {
+            Ok(a) => a,
+            Err(source) => {
+                unsafe { d.raw.destroy_buffer(raw, None) };
+                return Err(Error::Allocation {
+                    name: name.into(),
+                    source,
+                });
+            }
+        };
+        // SAFETY: memory and offset come from an allocation made for these requirements.
+        if let Err(e) = unsafe {
+            d.raw
+                .bind_buffer_memory(raw, allocation.memory(), allocation.offset())
+        } {
+            unsafe { d.raw.destroy_buffer(raw, None) };
+            let _ = d.allocator.lock().unwrap().free(allocation);
+            return Err(e).during(&format!("binding memory of `{name}`"));
+        }
+        Ok(Buffer {
+            device: d.clone(),
+            raw,
+            allocation: Some(allocation),
+            size,
+            name: name.into(),
+        })
+    }
+
+    /// A device-local storage buffer holding `bytes`, filled through a staging buffer.
+    pub fn upload(&self, name: &str, bytes: &[u8], usage: vk::BufferUsageFlags) -> Result<Buffer> {
+        let buf = self.create_buffer(
+            name,
+            bytes.len() as u64,
+            usage | vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuOnly,
+        )?;
+        if bytes.is_empty() {
+            return Ok(buf);
+        }
+        let mut staging = self.create_buffer(
+            &format!("{name} (staging)"),
+            bytes.len() as u64,
+            vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryLocation::CpuToGpu,
+        )?;
+        staging.mapped_mut().ok_or_else(|| {
+            Error::NoDevice(format!("staging buffer for `{name}` is not host-visible"))
+        })?[..bytes.len()]
+            .copy_from_slice(bytes);
+        self.one_shot(&format!("uploading `{name}`"), |d, cmd| unsafe {
+            // SAFETY: both buffers are alive until one_shot returns (it waits for the fence).
+            d.cmd_copy_buffer(
+                cmd,
+                staging.raw,
+                buf.raw,
+                &[vk::BufferCopy::default().size(bytes.len() as u64)],
+            );
+            // Make the copy visible to any later shader read or write.
+            let barrier = vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::DependencyFlags::empty(),
+                &[barrier],
+                &[],
+                &[],
+            );
+        })?;
+        Ok(buf)
+    }
+
+    /// Copies `len` bytes from the start of a device buffer back to the host.
+    pub fn download(&self, buf: &Buffer, len: u64) -> Result<Vec<u8>> {
+        let readback = self.create_buffer(
+            &format!("{} (readback)", buf.name),
+            len,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )?;
+        self.one_shot(&format!("downloading `{}`", buf.name), |d, cmd| unsafe {
+            // SAFETY: both buffers outlive the wait in one_shot.
+            let before = vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+                .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[before],
+                &[],
+                &[],
+            );
+            d.cmd_copy_buffer(
+                cmd,
+                buf.raw,
+                readback.raw,
+                &[vk::BufferCopy::default().size(len)],
+            );
+            let after = vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::HOST_READ);
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &[after],
+                &[],
+                &[],
+            );
+        })?;
+        let bytes = readback.mapped().ok_or_else(|| {
+            Error::NoDevice(format!(
+                "readback buffer for `{}` is not host-visible",
+                buf.name
+            ))
+        })?;
+        Ok(bytes[..len as usize].to_vec())
+    }
+
+    /// Records commands with `record`, submits them and waits (with the submit timeout).
+    pub fn one_shot(
+        &self,
+        what: &str,
+        record: impl FnOnce(&ash::Device, vk::CommandBuffer),
+    ) -> Result<()> {
+        let cmd = self.allocate_command_buffers(1)?.remove(0);
+        let result = (|| {
+            let d = &self.device.raw;
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            // SAFETY: freshly allocated primary command buffer.
+            unsafe { d.begin_command_buffer(cmd, &begin) }.during(what)?;
+            record(d, cmd);
+            unsafe { d.end_command_buffer(cmd) }.during(what)?;
+            self.submit_and_wait(cmd, what)
+        })();
+        if !matches!(result, Err(Error::Timeout { .. })) {
+            // A timed-out buffer may still be executing: leak it rather than free it.
+            self.free_command_buffers(&[cmd]);
+        }
+        result
+    }
+
+    pub(crate) fn allocate_command_buffers(&self, n: u32) -> Result<Vec<vk::CommandBuffer>> {
+        let pool = self.device.command_pool.lock().unwrap();
+        let info = vk::CommandBufferAllocateInfo::default()
+            .command_pool(*pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(n);
+        // SAFETY: the pool is externally synchronised by the mutex.
+        unsafe { self.device.raw.allocate_command_buffers(&info) }
+            .during("allocating command buffers")
+    }
+
+    pub(crate) fn free_command_buffers(&self, cmds: &[vk::CommandBuffer]) {
+        let pool = self.device.command_pool.lock().unwrap();
+        // SAFETY: the buffers are not pending (every submit was waited for).
+        unsafe { self.device.raw.free_command_buffers(*pool, cmds) };
+    }
+
+    /// Submits one command buffer and waits for it, failing after the submit timeout.
+    pub(crate) fn submit_and_wait(&self, cmd: vk::CommandBuffer, what: &str) -> Result<()> {
+        let d = &self.device.raw;
+        // SAFETY: valid device; the fence is destroyed below after it is no longer in use.
+        let fence =
+            unsafe { d.create_fence(&vk::FenceCreateInfo::default(), None) }.during(what)?;
+        let cmds = [cmd];
+        let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+        let result = unsafe { d.queue_submit(self.device.queue, &submit, fence) }
+            .during(what)
+            .and_then(|_| {
+                match unsafe {
+                    d.wait_for_fences(&[fence], true, self.device.submit_timeout.as_nanos() as u64)
+                } {
+                    Ok(()) => Ok(()),
+                    Err(vk::Result::TIMEOUT) => Err(Error::Timeout {
+                        what: what.to_owned(),
+                        seconds: self.device.submit_timeout.as_secs_f64(),
+                    }),
+                    Err(e) => Err(e).during(what),
+                }
+            });
+        if !matches!(result, Err(Error::Timeout { .. })) {
+            // SAFETY: the fence is signalled or was never submitted.
+            unsafe { d.destroy_fence(fence, None) };
+        }
+        result
+    }
+}

@@ -1,0 +1,436 @@
+//! Instance, device, queue, allocator and the validation-message log, torn down in reverse
+//! order of creation after `vkDeviceWaitIdle`.
+//!
+//! Everything that owns a Vulkan object holds an `Arc<Device>`, so the device (and the
+//! instance inside it) can only be destroyed after the last buffer, pipeline or query pool.
+
+use std::ffi::{c_void, CStr, CString};
+use std::mem::ManuallyDrop;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+
+use super::device_info::{self, DeviceInfo};
+use crate::error::{Error, Result, VkContext};
+
+const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+/// Whether to load the Khronos validation layer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Validation {
+    Off,
+    /// Load it when installed (the default in debug builds).
+    IfAvailable,
+    /// Fail when it is not installed (tests).
+    Required,
+}
+
+#[derive(Clone, Debug)]
+pub struct ContextOptions {
+    /// Device index or a case-insensitive part of its name or driver; `None` picks a discrete
+    /// GPU if there is one, else the best other device (lavapipe on a CPU-only machine).
+    pub device: Option<String>,
+    pub validation: Validation,
+    /// Longest a single submit may run before its wait fails.
+    pub submit_timeout: Duration,
+}
+
+impl Default for ContextOptions {
+    fn default() -> Self {
+        ContextOptions {
+            device: None,
+            validation: if cfg!(debug_assertions) {
+                Validation::IfAvailable
+            } else {
+                Validation::Off
+            },
+            submit_timeout: Duration::from_secs(120),
+        }
+    }
+}
+
+/// Messages from the validation layer (warnings and errors), collected by the debug-utils
+/// callback. Tests fail if any arrive.
+#[derive(Debug, Default)]
+pub struct ValidationLog {
+    messages: Mutex<Vec<String>>,
+}
+
+impl ValidationLog {
+    pub fn messages(&self) -> Vec<String> {
+        self.messages.lock().unwrap().clone()
+    }
+
+    fn push(&self, m: String) {
+        self.messages.lock().unwrap().push(m);
+    }
+}
+
+unsafe extern "system" fn debug_callback(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    ty: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user: *mut c_void,
+) -> vk::Bool32 {
+    // SAFETY: `user` is the `ValidationLog` behind an Arc that `Device` keeps alive until after
+    // the messenger is destroyed; `data` is valid for the duration of the call (Vulkan spec).
+    let log = &*(user as *const ValidationLog);
+    let msg = if data.is_null() {
+        "<no data>".to_owned()
+    } else {
+        let d = &*data;
+        let id = d
+            .message_id_name_as_c_str()
+            .map(|c| c.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let text = d
+            .message_as_c_str()
+            .map(|c| c.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        format!("[{severity:?} {ty:?}] {id}: {text}")
+    };
+    log.push(msg);
+    vk::FALSE
+}
+
+/// The shared Vulkan objects. Dropped last, when nothing else refers to it.
+pub struct Device {
+    _entry: ash::Entry,
+    pub(crate) instance: ash::Instance,
+    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    pub(crate) raw: ash::Device,
+    pub(crate) queue: vk::Queue,
+    pub(crate) allocator: ManuallyDrop<Mutex<Allocator>>,
+    pub(crate) command_pool: Mutex<vk::CommandPool>,
+    pub(crate) info: DeviceInfo,
+    pub(crate) submit_timeout: Duration,
+    log: Arc<ValidationLog>,
+}
+
+impl Drop for Device {
+    fn drop(&mut self) {
+        // SAFETY: every object created from this device holds an Arc<Device>, so none is alive
+        // now; we wait for the queue to drain, then destroy in reverse order of creation:
+        // command pool, allocator memory, device, debug messenger, instance.
+        unsafe {
+            let _ = self.raw.device_wait_idle();
+            self.raw
+                .destroy_command_pool(*self.command_pool.get_mut().unwrap(), None);
+            ManuallyDrop::drop(&mut self.allocator);
+            self.raw.destroy_device(None);
+            if let Some((loader, messenger)) = self.debug.take() {
+                loader.destroy_debug_utils_messenger(messenger, None);
+            }
+            self.instance.destroy_instance(None);
+        }
+    }
+}
+
+/// Entry point to the GPU: a chosen device with one compute queue.
+#[derive(Clone)]
+pub struct Context {
+    pub(crate) device: Arc<Device>,
+}
+
+impl Context {
+    pub fn new(options: &ContextOptions) -> Result<Context> {
+        // SAFETY: loading the Vulkan loader library runs its initialisers; it is the system's
+        // libvulkan.so.1.
+        let entry = unsafe { ash::Entry::load() }.map_err(|e| Error::Loader(e.to_string()))?;
+        let log = Arc::new(ValidationLog::default());
+
+        // SAFETY: plain queries on a loaded entry.
+        let layers = unsafe { entry.enumerate_instance_layer_properties() }
+            .during("enumerating instance layers")?;
+        let have_validation = layers
+            .iter()
+            .any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
+        let want_validation = match options.validation {
+            Validation::Off => false,
+            Validation::IfAvailable => have_validation,
+            Validation::Required if !have_validation => {
+                return Err(Error::NoDevice(
+                    "the Vulkan validation layer (VK_LAYER_KHRONOS_validation) is required but not installed; \
+                     install vulkan-validationlayers (scripts/install-deps.sh)"
+                        .into(),
+                ))
+            }
+            Validation::Required => true,
+        };
+        let exts = unsafe { entry.enumerate_instance_extension_properties(None) }
+            .during("enumerating instance extensions")?;
+        let have_debug_utils = device_info::has_extension(&exts, ash::ext::debug_utils::NAME);
+
+        let app_name = CString::new("trilab").unwrap();
+        let app = vk::ApplicationInfo::default()
+            .application_name(&app_name)
+            .application_version(vk::make_api_version(0, 0, 1, 0))
+            .engine_name(&app_name)
+            .api_version(vk::API_VERSION_1_2);
+        let layer_ptrs: Vec<*const std::ffi::c_char> = if want_validation {
+            vec![VALIDATION_LAYER.as_ptr()]
+        } else {
+            vec![]
+        };
+        let use_debug = want_validation && have_debug_utils;
+        let ext_ptrs: Vec<*const std::ffi::c_char> = if use_debug {
+            vec![ash::ext::debug_utils::NAME.as_ptr()]
+        } else {
+            vec![]
+        };
+        let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+            .message_severity(
+                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                    | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+            )
+            .message_type(
+                vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                    | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                    | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+            )
+            .pfn_user_callback(Some(debug_callback))
+            .user_data(Arc::as_ptr(&log) as *mut c_void);
+        let mut create = vk::InstanceCreateInfo::default()
+            .application_info(&app)
+            .enabled_layer_names(&layer_ptrs)
+            .enabled_extension_names(&ext_ptrs);
+        if use_debug {
+            // Also catches messages from vkCreateInstance/vkDestroyInstance themselves.
+            create = create.push_next(&mut messenger_info);
+        }
+        // SAFETY: the create info and everything it points to live until the call returns.
+        let instance =
+            unsafe { entry.create_instance(&create, None) }.during("vkCreateInstance")?;
+        let mut guard = InstanceGuard {
+            instance: Some(instance),
+            debug: None,
+        };
+
+        if use_debug {
+            let loader = ash::ext::debug_utils::Instance::new(&entry, guard.instance());
+            // SAFETY: valid instance with the debug-utils extension enabled.
+            let messenger = unsafe { loader.create_debug_utils_messenger(&messenger_info, None) }
+                .during("vkCreateDebugUtilsMessengerEXT")?;
+            guard.debug = Some((loader, messenger));
+        }
+
+        let instance = guard.instance();
+        // SAFETY: valid instance.
+        let physicals = unsafe { instance.enumerate_physical_devices() }
+            .during("vkEnumeratePhysicalDevices")?;
+        let infos: Vec<DeviceInfo> = physicals
+            .iter()
+            .enumerate()
+            .map(|(i, &pd)| unsafe { device_info::query(instance, pd, i) })
+            .collect();
+        let chosen = choose_device(&infos, options.device.as_deref())?;
+        let info = infos[chosen].clone();
+        let physical = physicals[chosen];
+        let queue_family = info
+            .compute_queue_family
+            .expect("usable device has a compute queue");
+
+        let priorities = [1.0f32];
+        let queue_info = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(queue_family)
+            .queue_priorities(&priorities)];
+        let device_create = vk::DeviceCreateInfo::default().queue_create_infos(&queue_info);
+        // SAFETY: physical device from this instance; create info valid for the call.
+        let raw = unsafe { instance.create_device(physical, &device_create, None) }
+            .during("vkCreateDevice")?;
+        // SAFETY: queue family and index 0 were requested above.
+        let queue = unsafe { raw.get_device_queue(queue_family, 0) };
+        let pool_info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(queue_family)
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        let command_pool = match unsafe { raw.create_command_pool(&pool_info, None) } {
+            Ok(p) => p,
+            Err(e) => {
+                unsafe { raw.destroy_device(None) };
+                return Err(e).during("vkCreateCommandPool");
+            }
+        };
+        let allocator = match Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: raw.clone(),
+            physical_device: physical,
+            debug_settings: Default::default(),
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        }) {
+            Ok(a) => a,
+            Err(source) => {
+                unsafe {
+                    raw.destroy_command_pool(command_pool, None);
+                    raw.destroy_device(None);
+                }
+                return Err(Error::Allocation {
+                    name: "allocator".into(),
+                    source,
+                });
+            }
+        };
+        let (instance, debug) = guard.release();
+        Ok(Context {
+            device: Arc::new(Device {
+                _entry: entry,
+                instance,
+                debug,
+                raw,
+                queue,
+                allocator: ManuallyDrop::new(Mutex::new(allocator)),
+                command_pool: Mutex::new(command_pool),
+                info,
+                submit_timeout: options.submit_timeout,
+                log,
+            }),
+        })
+    }
+
+    /// Every device the loader reports, usable or not (`trilab devices`).
+    pub fn list_devices() -> Result<Vec<DeviceInfo>> {
+        let entry = unsafe { ash::Entry::load() }.map_err(|e| Error::Loader(e.to_string()))?;
+        let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_2);
+        let create = vk::InstanceCreateInfo::default().application_info(&app);
+        // SAFETY: minimal instance, destroyed below.
+        let instance =
+            unsafe { entry.create_instance(&create, None) }.during("vkCreateInstance")?;
+        let guard = InstanceGuard {
+            instance: Some(instance),
+            debug: None,
+        };
+        let physicals = unsafe { guard.instance().enumerate_physical_devices() }
+            .during("vkEnumeratePhysicalDevices")?;
+        Ok(physicals
+            .iter()
+            .enumerate()
+            .map(|(i, &pd)| unsafe { device_info::query(guard.instance(), pd, i) })
+            .collect())
+    }
+
+    pub fn info(&self) -> &DeviceInfo {
+        &self.device.info
+    }
+
+    /// Validation-layer warnings and errors so far (empty when the layer is off).
+    pub fn validation_messages(&self) -> Vec<String> {
+        self.device.log.messages()
+    }
+
+    /// The log itself, which outlives the context (teardown messages land there too).
+    pub fn validation_log(&self) -> Arc<ValidationLog> {
+        self.device.log.clone()
+    }
+
+    pub fn validation_enabled(&self) -> bool {
+        self.device.debug.is_some()
+    }
+}
+
+/// Destroys a half-built instance if context creation fails part-way.
+struct InstanceGuard {
+    instance: Option<ash::Instance>,
+    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+}
+
+impl InstanceGuard {
+    fn instance(&self) -> &ash::Instance {
+        self.instance.as_ref().unwrap()
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn release(
+        mut self,
+    ) -> (
+        ash::Instance,
+        Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    ) {
+        (self.instance.take().unwrap(), self.debug.take())
+    }
+}
+
+impl Drop for InstanceGuard {
+    fn drop(&mut self) {
+        // SAFETY: only reached on an error path, before any device was kept.
+        unsafe {
+            if let Some((loader, m)) = self.debug.take() {
+                loader.destroy_debug_utils_messenger(m, None);
+            }
+            if let Some(i) = self.instance.take() {
+                i.destroy_instance(None);
+            }
+        }
+    }
+}
+
+/// Picks the device: by `--device` (index or name/driver substring), else discrete GPU >
+/// integrated > virtual > CPU > other, lowest index first.
+pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize> {
+    let list = || {
+        infos
+            .iter()
+            .map(|d| format!("  [{}] {} ({})", d.index, d.name, d.driver_name))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    if infos.is_empty() {
+        return Err(Error::NoDevice(
+            "no Vulkan device found; on a machine without a GPU install Mesa's lavapipe \
+             (mesa-vulkan-drivers, see scripts/install-deps.sh)"
+                .into(),
+        ));
+    }
+    let pick = |i: usize| -> Result<usize> {
+        match &infos[i].unusable_reason {
+            None => Ok(i),
+            Some(r) => Err(Error::NoDevice(format!(
+                "device [{i}] {} cannot be used: {r}",
+                infos[i].name
+            ))),
+        }
+    };
+    if let Some(w) = wanted {
+        if let Ok(i) = w.parse::<usize>() {
+            return if i < infos.len() {
+                pick(i)
+            } else {
+                Err(Error::NoDevice(format!(
+                    "no device with index {i}; devices:\n{}",
+                    list()
+                )))
+            };
+        }
+        let lw = w.to_lowercase();
+        return match infos.iter().position(|d| {
+            d.name.to_lowercase().contains(&lw)
+                || d.driver_name.to_lowercase().contains(&lw)
+                || d.driver_id.to_lowercase().contains(&lw)
+        }) {
+            Some(i) => pick(i),
+            None => Err(Error::NoDevice(format!(
+                "no device matches `{w}`; devices:\n{}",
+                list()
+            ))),
+        };
+    }
+    let rank = |d: &DeviceInfo| match d.device_type.as_str() {
+        "DISCRETE_GPU" => 0,
+        "INTEGRATED_GPU" => 1,
+        "VIRTUAL_GPU" => 2,
+        "CPU" => 3,
+        _ => 4,
+    };
+    infos
+        .iter()
+        .filter(|d| d.usable)
+        .min_by_key(|d| (rank(d), d.index))
+        .map(|d| d.index)
+        .ok_or_else(|| {
+            Error::NoDevice(format!(
+                "no usable Vulkan 1.2 device with a compute queue; devices:\n{}",
+                list()
+            ))
+        })
+}

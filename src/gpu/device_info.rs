@@ -1,0 +1,340 @@
+//! What a physical device offers: the driver, and the features trilab's profiling and later
+//! kernels need. `trilab devices` prints this.
+
+use std::ffi::CStr;
+
+use ash::vk;
+use serde::Serialize;
+
+#[derive(Clone, Debug, Serialize)]
+pub struct FloatControls {
+    pub denorm_behavior_independence: String,
+    pub rounding_mode_independence: String,
+    pub signed_zero_inf_nan_preserve_f32: bool,
+    pub signed_zero_inf_nan_preserve_f64: bool,
+    pub denorm_preserve_f32: bool,
+    pub denorm_flush_to_zero_f32: bool,
+    pub rounding_mode_rte_f32: bool,
+    pub rounding_mode_rtz_f32: bool,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct DeviceInfo {
+    /// Index in `vkEnumeratePhysicalDevices` order (what `--device N` selects).
+    pub index: usize,
+    pub name: String,
+    pub device_type: String,
+    pub vendor_id: u32,
+    pub device_id: u32,
+    pub api_version: String,
+    pub driver_id: String,
+    pub driver_name: String,
+    pub driver_info: String,
+    /// Raw `driverVersion` (encoding is vendor-specific).
+    pub driver_version: u32,
+    /// "25.0.7" for Mesa drivers, parsed from `driver_info`.
+    pub mesa_version: Option<String>,
+    pub subgroup_size: u32,
+    /// `VK_EXT_subgroup_size_control` (or Vulkan 1.3): (min, max) subgroup size.
+    pub subgroup_size_control: Option<(u32, u32)>,
+    pub compute_full_subgroups: bool,
+    /// `VK_KHR_shader_clock`: (subgroup clock, device clock).
+    pub shader_clock: Option<(bool, bool)>,
+    /// Valid bits of timestamps on the compute queue (0: no timestamps).
+    pub timestamp_valid_bits: u32,
+    /// Nanoseconds per timestamp tick.
+    pub timestamp_period_ns: f32,
+    pub pipeline_statistics_query: bool,
+    /// `VK_KHR_ray_query` with `rayQuery` (and `VK_KHR_acceleration_structure`).
+    pub ray_query: bool,
+    /// `VK_KHR_pipeline_executable_properties` with `pipelineExecutableInfo`.
+    pub pipeline_executable_properties: bool,
+    pub shader_float64: bool,
+    pub shader_int64: bool,
+    pub float_controls: FloatControls,
+    pub max_storage_buffer_range: u32,
+    pub min_storage_buffer_offset_alignment: u64,
+    pub max_compute_workgroup_invocations: u32,
+    pub max_compute_workgroup_count: [u32; 3],
+    /// Queue family used for compute.
+    pub compute_queue_family: Option<u32>,
+    pub usable: bool,
+    /// Why the device cannot be used, if it cannot.
+    pub unusable_reason: Option<String>,
+}
+
+fn cstr(bytes: &[std::ffi::c_char]) -> String {
+    // SAFETY-free: Vulkan fixed-size strings are NUL-terminated; fall back to the whole array.
+    let b: Vec<u8> = bytes.iter().map(|&c| c as u8).collect();
+    CStr::from_bytes_until_nul(&b)
+        .map(|c| c.to_string_lossy().into_owned())
+        .unwrap_or_else(|_| String::from_utf8_lossy(&b).into_owned())
+}
+
+fn version(v: u32) -> String {
+    format!(
+        "{}.{}.{}",
+        vk::api_version_major(v),
+        vk::api_version_minor(v),
+        vk::api_version_patch(v)
+    )
+}
+
+fn mesa_version(driver_info: &str) -> Option<String> {
+    let rest = driver_info.split("Mesa ").nth(1)?;
+    let v: String = rest
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.')
+        .collect();
+    (!v.is_empty()).then_some(v)
+}
+
+pub(crate) fn has_extension(exts: &[vk::ExtensionProperties], name: &CStr) -> bool {
+    exts.iter()
+        .any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == name))
+}
+
+/// Queries everything `DeviceInfo` reports.
+///
+/// # Safety
+/// `instance` must be a live instance and `pd` one of its physical devices.
+pub(crate) unsafe fn query(
+    instance: &ash::Instance,
+    pd: vk::PhysicalDevice,
+    index: usize,
+) -> DeviceInfo {
+    let base = instance.get_physical_device_properties(pd);
+    let exts = instance
+        .enumerate_device_extension_properties(pd)
+        .unwrap_or_default();
+    let api = base.api_version;
+    let v13 = api >= vk::API_VERSION_1_3;
+    let has = |n: &CStr| has_extension(&exts, n);
+
+    let mut v11 = vk::PhysicalDeviceVulkan11Properties::default();
+    let mut v12 = vk::PhysicalDeviceVulkan12Properties::default();
+    let mut ssc = vk::PhysicalDeviceSubgroupSizeControlProperties::default();
+    let has_ssc = v13 || has(ash::ext::subgroup_size_control::NAME);
+    let mut props2 = vk::PhysicalDeviceProperties2::default();
+    if api >= vk::API_VERSION_1_2 {
+        props2 = props2.push_next(&mut v11).push_next(&mut v12);
+        if has_ssc {
+            props2 = props2.push_next(&mut ssc);
+        }
+        instance.get_physical_device_properties2(pd, &mut props2);
+    }
+
+    let mut clock = vk::PhysicalDeviceShaderClockFeaturesKHR::default();
+    let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
+    let mut pep = vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default();
+    let mut sscf = vk::PhysicalDeviceSubgroupSizeControlFeatures::default();
+    let has_clock = has(ash::khr::shader_clock::NAME);
+    let has_rq = has(ash::khr::ray_query::NAME) && has(ash::khr::acceleration_structure::NAME);
+    let has_pep = has(ash::khr::pipeline_executable_properties::NAME);
+    let mut f2 = vk::PhysicalDeviceFeatures2::default();
+    if has_clock {
+        f2 = f2.push_next(&mut clock);
+    }
+    if has_rq {
+        f2 = f2.push_next(&mut rq);
+    }
+    if has_pep {
+        f2 = f2.push_next(&mut pep);
+    }
+    if has_ssc {
+        f2 = f2.push_next(&mut sscf);
+    }
+    instance.get_physical_device_features2(pd, &mut f2);
+    let features = f2.features;
+
+    let families = instance.get_physical_device_queue_family_properties(pd);
+    let compute_family = families
+        .iter()
+        .position(|f| {
+            f.queue_flags.contains(vk::QueueFlags::COMPUTE)
+                && !f.queue_flags.contains(vk::QueueFlags::GRAPHICS)
+        })
+        .or_else(|| {
+            families
+                .iter()
+                .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+        })
+        .map(|i| i as u32);
+    let ts_bits = compute_family
+        .map(|f| families[f as usize].timestamp_valid_bits)
+        .unwrap_or(0);
+
+    let unusable_reason = if api < vk::API_VERSION_1_2 {
+        Some(format!("Vulkan {} < 1.2", version(api)))
+    } else if compute_family.is_none() {
+        Some("no compute queue".into())
+    } else {
+        None
+    };
+    let driver_info = cstr(&v12.driver_info);
+    let limits = base.limits;
+    DeviceInfo {
+        index,
+        name: cstr(&base.device_name),
+        device_type: format!("{:?}", base.device_type),
+        vendor_id: base.vendor_id,
+        device_id: base.device_id,
+        api_version: version(api),
+        driver_id: format!("{:?}", v12.driver_id),
+        driver_name: cstr(&v12.driver_name),
+        mesa_version: mesa_version(&driver_info),
+        driver_info,
+        driver_version: base.driver_version,
+        subgroup_size: v11.subgroup_size,
+        subgroup_size_control: (has_ssc && sscf.subgroup_size_control == vk::TRUE)
+            .then_some((ssc.min_subgroup_size, ssc.max_subgroup_size)),
+        compute_full_subgroups: sscf.compute_full_subgroups == vk::TRUE,
+        shader_clock: has_clock.then_some((
+            clock.shader_subgroup_clock == vk::TRUE,
+            clock.shader_device_clock == vk::TRUE,
+        )),
+        timestamp_valid_bits: ts_bits,
+        timestamp_period_ns: limits.timestamp_period,
+        pipeline_statistics_query: features.pipeline_statistics_query == vk::TRUE,
+        ray_query: has_rq && rq.ray_query == vk::TRUE,
+        pipeline_executable_properties: has_pep && pep.pipeline_executable_info == vk::TRUE,
+        shader_float64: features.shader_float64 == vk::TRUE,
+        shader_int64: features.shader_int64 == vk::TRUE,
+        float_controls: FloatControls {
+            denorm_behavior_independence: format!("{:?}", v12.denorm_behavior_independence),
+            rounding_mode_independence: format!("{:?}", v12.rounding_mode_independence),
+            signed_zero_inf_nan_preserve_f32: v12.shader_signed_zero_inf_nan_preserve_float32
+                == vk::TRUE,
+            signed_zero_inf_nan_preserve_f64: v12.shader_signed_zero_inf_nan_preserve_float64
+                == vk::TRUE,
+            denorm_preserve_f32: v12.shader_denorm_preserve_float32 == vk::TRUE,
+            denorm_flush_to_zero_f32: v12.shader_denorm_flush_to_zero_float32 == vk::TRUE,
+            rounding_mode_rte_f32: v12.shader_rounding_mode_rte_float32 == vk::TRUE,
+            rounding_mode_rtz_f32: v12.shader_rounding_mode_rtz_float32 == vk::TRUE,
+        },
+        max_storage_buffer_range: limits.max_storage_buffer_range,
+        min_storage_buffer_offset_alignment: limits.min_storage_buffer_offset_alignment,
+        max_compute_workgroup_invocations: limits.max_compute_work_group_invocations,
+        max_compute_workgroup_count: limits.max_compute_work_group_count,
+        compute_queue_family: compute_family,
+        usable: unusable_reason.is_none(),
+        unusable_reason,
+    }
+}
+
+impl DeviceInfo {
+    /// "llvmpipe (LLVM 15.0.6, 256 bits)" -> short label for tables and directories.
+    pub fn label(&self) -> String {
+        format!("{} ({})", self.name, self.driver_label())
+    }
+
+    /// The driver and its version as users recognise it: "llvmpipe, Mesa 25.0.7".
+    pub fn driver_label(&self) -> String {
+        if self.driver_info.is_empty() {
+            self.driver_name.clone()
+        } else {
+            format!("{} {}", self.driver_name, self.driver_info)
+        }
+    }
+
+    pub fn is_lavapipe(&self) -> bool {
+        self.driver_id.contains("LLVMPIPE")
+    }
+
+    /// Human-readable multi-line report (`trilab devices`).
+    pub fn report(&self) -> String {
+        let yn = |b: bool| if b { "yes" } else { "no" };
+        let opt = |o: Option<String>| o.unwrap_or_else(|| "unsupported".into());
+        let mut s = String::new();
+        use std::fmt::Write;
+        let _ = writeln!(
+            s,
+            "[{}] {} ({}, Vulkan {})",
+            self.index, self.name, self.device_type, self.api_version
+        );
+        if let Some(r) = &self.unusable_reason {
+            let _ = writeln!(s, "    not usable: {r}");
+        }
+        let _ = writeln!(
+            s,
+            "    driver:                   {} ({}) {}",
+            self.driver_name, self.driver_id, self.driver_info
+        );
+        let _ = writeln!(s, "    subgroup size:            {}", self.subgroup_size);
+        let _ = writeln!(
+            s,
+            "    subgroup size control:    {}",
+            opt(self.subgroup_size_control.map(|(a, b)| format!(
+                "{a}..{b} (full subgroups: {})",
+                yn(self.compute_full_subgroups)
+            )))
+        );
+        let _ = writeln!(
+            s,
+            "    shader clock:             {}",
+            opt(self.shader_clock.map(|(sg, dev)| format!(
+                "subgroup {}, device {}",
+                yn(sg),
+                yn(dev)
+            )))
+        );
+        let _ = writeln!(
+            s,
+            "    timestamps (compute):     {}",
+            if self.timestamp_valid_bits > 0 {
+                format!(
+                    "{} bits, {} ns/tick",
+                    self.timestamp_valid_bits, self.timestamp_period_ns
+                )
+            } else {
+                "unsupported".into()
+            }
+        );
+        let _ = writeln!(
+            s,
+            "    pipeline statistics:      {}",
+            yn(self.pipeline_statistics_query)
+        );
+        let _ = writeln!(s, "    ray query:                {}", yn(self.ray_query));
+        let _ = writeln!(
+            s,
+            "    pipeline executable info: {}",
+            yn(self.pipeline_executable_properties)
+        );
+        let _ = writeln!(
+            s,
+            "    shaderFloat64/Int64:      {}/{}",
+            yn(self.shader_float64),
+            yn(self.shader_int64)
+        );
+        let fc = &self.float_controls;
+        let _ = writeln!(
+            s,
+            "    float controls (f32):     signed zero/inf/nan preserve {}, denorm preserve {}, flush {}, RTE {}, RTZ {}",
+            yn(fc.signed_zero_inf_nan_preserve_f32),
+            yn(fc.denorm_preserve_f32),
+            yn(fc.denorm_flush_to_zero_f32),
+            yn(fc.rounding_mode_rte_f32),
+            yn(fc.rounding_mode_rtz_f32)
+        );
+        let _ = writeln!(
+            s,
+            "    maxStorageBufferRange:    {} bytes ({} MiB)",
+            self.max_storage_buffer_range,
+            self.max_storage_buffer_range >> 20
+        );
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn mesa_version_is_parsed() {
+        assert_eq!(
+            super::mesa_version("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)").as_deref(),
+            Some("25.0.7")
+        );
+        assert_eq!(super::mesa_version("535.104.05"), None);
+    }
+}

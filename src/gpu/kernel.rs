@@ -1,0 +1,171 @@
+//! Compute pipelines built from the kernels' own reflection data: descriptor-set layout,
+//! push-constant range and workgroup size all come from the SPIR-V (rspirv-reflect).
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use ash::vk;
+
+use super::context::{Context, Device};
+use crate::error::{Error, Result, VkContext};
+use crate::kernels::KernelSource;
+use crate::spirv::reflect::{reflect, KernelLayout};
+
+/// A compute pipeline with its layouts; destroyed on drop.
+pub struct Kernel {
+    device: Arc<Device>,
+    pub name: &'static str,
+    pub layout: KernelLayout,
+    module: vk::ShaderModule,
+    pub(crate) set_layout: vk::DescriptorSetLayout,
+    pub(crate) pipeline_layout: vk::PipelineLayout,
+    pub(crate) pipeline: vk::Pipeline,
+}
+
+impl Drop for Kernel {
+    fn drop(&mut self) {
+        // SAFETY: submits using this pipeline were waited for; reverse order of creation.
+        unsafe {
+            let d = &self.device.raw;
+            d.destroy_pipeline(self.pipeline, None);
+            d.destroy_pipeline_layout(self.pipeline_layout, None);
+            d.destroy_descriptor_set_layout(self.set_layout, None);
+            d.destroy_shader_module(self.module, None);
+        }
+    }
+}
+
+impl Kernel {
+    /// Descriptor types of set 0 by binding.
+    pub fn bindings(&self) -> BTreeMap<u32, vk::DescriptorType> {
+        self.layout
+            .sets
+            .get(&0)
+            .map(|s| s.iter().map(|(&b, d)| (b, d.ty)).collect())
+            .unwrap_or_default()
+    }
+}
+
+impl Context {
+    pub fn create_kernel(&self, src: &KernelSource) -> Result<Kernel> {
+        let words = src.words();
+        let layout = reflect(src.name, &words)?;
+        if layout.sets.keys().any(|&s| s != 0) {
+            return Err(Error::Spirv {
+                kernel: src.name.into(),
+                message: "only descriptor set 0 is supported".into(),
+            });
+        }
+        let d = &self.device.raw;
+        let what = |s: &str| format!("{s} for kernel {}", src.name);
+
+        let bindings: Vec<vk::DescriptorSetLayoutBinding> = layout
+            .sets
+            .get(&0)
+            .map(|set| {
+                set.iter()
+                    .map(|(&binding, info)| {
+                        vk::DescriptorSetLayoutBinding::default()
+                            .binding(binding)
+                            .descriptor_type(info.ty)
+                            .descriptor_count(1)
+                            .stage_flags(vk::ShaderStageFlags::COMPUTE)
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
+        // SAFETY: the words are a SPIR-V module compiled for Vulkan 1.2 by build.rs.
+        let module = unsafe { d.create_shader_module(&module_info, None) }
+            .during(&what("vkCreateShaderModule"))?;
+        let mut objects = Objects {
+            device: Some(self.device.clone()),
+            module,
+            ..Default::default()
+        };
+        let set_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
+        objects.set_layout = unsafe { d.create_descriptor_set_layout(&set_info, None) }
+            .during(&what("vkCreateDescriptorSetLayout"))?;
+        let ranges: Vec<vk::PushConstantRange> = layout
+            .push_constants
+            .iter()
+            .map(|&(offset, size)| {
+                vk::PushConstantRange::default()
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+                    .offset(offset)
+                    .size(size)
+            })
+            .collect();
+        let set_layouts = [objects.set_layout];
+        let pl_info = vk::PipelineLayoutCreateInfo::default()
+            .set_layouts(&set_layouts)
+            .push_constant_ranges(&ranges);
+        objects.pipeline_layout = unsafe { d.create_pipeline_layout(&pl_info, None) }
+            .during(&what("vkCreatePipelineLayout"))?;
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(module)
+            .name(c"main");
+        let info = [vk::ComputePipelineCreateInfo::default()
+            .stage(stage)
+            .layout(objects.pipeline_layout)];
+        // SAFETY: layouts and module are valid; the create info lives for the call.
+        objects.pipeline =
+            unsafe { d.create_compute_pipelines(vk::PipelineCache::null(), &info, None) }
+                .map_err(|(_, e)| e)
+                .during(&what("vkCreateComputePipelines"))?[0];
+        let (module, set_layout, pipeline_layout, pipeline) = objects.release();
+        Ok(Kernel {
+            device: self.device.clone(),
+            name: src.name,
+            layout,
+            module,
+            set_layout,
+            pipeline_layout,
+            pipeline,
+        })
+    }
+}
+
+/// Destroys what was created if pipeline creation fails part-way.
+#[derive(Default)]
+struct Objects {
+    device: Option<Arc<Device>>,
+    module: vk::ShaderModule,
+    set_layout: vk::DescriptorSetLayout,
+    pipeline_layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+}
+
+impl Objects {
+    fn release(
+        mut self,
+    ) -> (
+        vk::ShaderModule,
+        vk::DescriptorSetLayout,
+        vk::PipelineLayout,
+        vk::Pipeline,
+    ) {
+        self.device = None;
+        (
+            self.module,
+            self.set_layout,
+            self.pipeline_layout,
+            self.pipeline,
+        )
+    }
+}
+
+impl Drop for Objects {
+    fn drop(&mut self) {
+        if let Some(dev) = &self.device {
+            // SAFETY: null handles are ignored by vkDestroy*; nothing has used these objects.
+            unsafe {
+                dev.raw.destroy_pipeline(self.pipeline, None);
+                dev.raw.destroy_pipeline_layout(self.pipeline_layout, None);
+                dev.raw.destroy_descriptor_set_layout(self.set_layout, None);
+                dev.raw.destroy_shader_module(self.module, None);
+            }
+        }
+    }
+}

@@ -1,0 +1,395 @@
+//! Ray casting on the GPU: upload a scene once, then dispatch rays in batches, each its own
+//! submit (short enough for a display GPU's watchdog) with a pair of timestamps.
+
+use std::time::Instant;
+
+use ash::vk;
+
+use super::buffer::Buffer;
+use super::context::Context;
+use super::kernel::Kernel;
+use super::shared::{BINDING_HITS, BINDING_RAYS};
+use crate::encoding::{EncodedScene, Method};
+use crate::error::{Error, Result, VkContext};
+use crate::rays::{Hit, Ray};
+
+/// A scene's buffers on the GPU.
+pub struct GpuScene {
+    pub method: Method,
+    pub leaf_size: u32,
+    /// (binding, buffer)
+    buffers: Vec<(u32, Buffer)>,
+    pub bytes: usize,
+}
+
+impl GpuScene {
+    pub fn upload(ctx: &Context, scene: &EncodedScene) -> Result<GpuScene> {
+        let max = ctx.info().max_storage_buffer_range as usize;
+        let mut buffers = Vec::new();
+        for b in scene.buffers() {
+            if b.bytes.len() > max {
+                return Err(Error::Usage(format!(
+                    "scene buffer `{}` is {} bytes, more than this device's maxStorageBufferRange ({max} bytes)",
+                    b.name,
+                    b.bytes.len()
+                )));
+            }
+            buffers.push((
+                b.binding,
+                ctx.upload(b.name, &b.bytes, vk::BufferUsageFlags::STORAGE_BUFFER)?,
+            ));
+        }
+        Ok(GpuScene {
+            method: scene.method,
+            leaf_size: scene.leaf_size,
+            buffers,
+            bytes: scene.gpu_bytes(),
+        })
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct RaycastOptions {
+    /// Untimed runs before the timed ones.
+    pub warmup: usize,
+    /// Timed runs (at least 1).
+    pub repeat: usize,
+    /// Most rays per dispatch/submit.
+    pub batch_rays: usize,
+}
+
+impl Default for RaycastOptions {
+    fn default() -> Self {
+        RaycastOptions {
+            warmup: 1,
+            repeat: 1,
+            batch_rays: 1 << 20,
+        }
+    }
+}
+
+/// Hits and kernel times of one `raycast` call.
+#[derive(Clone, Debug)]
+pub struct RaycastResult {
+    pub hits: Vec<Hit>,
+    /// GPU time of each timed run (sum over its dispatches), milliseconds; empty when the
+    /// device has no timestamps on its compute queue.
+    pub kernel_ms: Vec<f64>,
+    /// Host wall time of each timed run (submits and waits included), milliseconds.
+    pub wall_ms: Vec<f64>,
+    pub batches: usize,
+}
+
+/// Median, min and max of a sample.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Summary {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+    pub runs: usize,
+}
+
+impl Summary {
+    pub fn of(xs: &[f64]) -> Option<Summary> {
+        if xs.is_empty() {
+            return None;
+        }
+        let mut v = xs.to_vec();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        };
+        Some(Summary {
+            median,
+            min: v[0],
+            max: v[n - 1],
+            runs: n,
+        })
+    }
+}
+
+impl RaycastResult {
+    /// Kernel time summary (GPU timestamps), or host wall time where there are none.
+    pub fn time_ms(&self) -> Summary {
+        Summary::of(&self.kernel_ms)
+            .or_else(|| Summary::of(&self.wall_ms))
+            .expect("at least one timed run")
+    }
+
+    pub fn timed_on_gpu(&self) -> bool {
+        !self.kernel_ms.is_empty()
+    }
+}
+
+/// Everything one batched run needs; destroyed on drop (after all its submits finished).
+struct Dispatch<'a> {
+    ctx: &'a Context,
+    pool: vk::DescriptorPool,
+    queries: vk::QueryPool,
+    cmds: Vec<vk::CommandBuffer>,
+}
+
+impl Drop for Dispatch<'_> {
+    fn drop(&mut self) {
+        let d = &self.ctx.device.raw;
+        if !self.cmds.is_empty() {
+            self.ctx.free_command_buffers(&self.cmds);
+        }
+        // SAFETY: all submits using these objects were waited for (or never made).
+        unsafe {
+            d.destroy_query_pool(self.queries, None);
+            d.destroy_descriptor_pool(self.pool, None);
+        }
+    }
+}
+
+/// Casts `rays` with `kernel` over `scene`: `warmup` untimed runs, then `repeat` timed ones.
+/// The hits are those of the last run.
+pub fn raycast(
+    ctx: &Context,
+    kernel: &Kernel,
+    scene: &GpuScene,
+    rays: &[Ray],
+    opts: &RaycastOptions,
+) -> Result<RaycastResult> {
+    if rays.is_empty() {
+        return Ok(RaycastResult {
+            hits: vec![],
+            kernel_ms: vec![],
+            wall_ms: vec![],
+            batches: 0,
+        });
+    }
+    let info = ctx.info();
+    let dev = &ctx.device.raw;
+    let local = kernel.layout.local_size.0 as usize;
+    // Batch: within the watchdog budget, the storage-buffer range, the dispatch limit, and a
+    // multiple of 256 rays so every sub-range offset is aligned (256 * 16 B >= any
+    // minStorageBufferOffsetAlignment, which the spec caps at 256).
+    let by_range = info.max_storage_buffer_range as usize / std::mem::size_of::<Ray>();
+    let by_groups = info.max_compute_workgroup_count[0] as usize * local;
+    let batch = (opts.batch_rays.min(by_range).min(by_groups) / 256 * 256).max(256);
+    let nbatches = rays.len().div_ceil(batch);
+
+    let ray_buf = ctx.upload(
+        "rays",
+        bytemuck::cast_slice(rays),
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+    )?;
+    let hit_bytes = (rays.len() * std::mem::size_of::<Hit>()) as u64;
+    let hit_buf = ctx.create_buffer(
+        "hits",
+        hit_bytes,
+        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
+        gpu_allocator::MemoryLocation::GpuOnly,
+    )?;
+
+    let bindings = kernel.bindings();
+    let pool_sizes: Vec<vk::DescriptorPoolSize> = bindings
+        .values()
+        .map(|&ty| {
+            vk::DescriptorPoolSize::default()
+                .ty(ty)
+                .descriptor_count(nbatches as u32)
+        })
+        .collect();
+    let pool_info = vk::DescriptorPoolCreateInfo::default()
+        .max_sets(nbatches as u32)
+        .pool_sizes(&pool_sizes);
+    // SAFETY: valid device and create infos; objects are owned by `Dispatch` and destroyed
+    // after the last wait.
+    let pool = unsafe { dev.create_descriptor_pool(&pool_info, None) }
+        .during("creating the descriptor pool")?;
+    let timestamps = info.timestamp_valid_bits > 0;
+    let qinfo = vk::QueryPoolCreateInfo::default()
+        .query_type(vk::QueryType::TIMESTAMP)
+        .query_count(2 * nbatches as u32);
+    let queries = match unsafe { dev.create_query_pool(&qinfo, None) } {
+        Ok(q) => q,
+        Err(e) => {
+            unsafe { dev.destroy_descriptor_pool(pool, None) };
+            return Err(e).during("creating the timestamp query pool");
+        }
+    };
+    let mut dispatch = Dispatch {
+        ctx,
+        pool,
+        queries,
+        cmds: vec![],
+    };
+
+    let layouts = vec![kernel.set_layout; nbatches];
+    let alloc = vk::DescriptorSetAllocateInfo::default()
+        .descriptor_pool(pool)
+        .set_layouts(&layouts);
+    let sets =
+        unsafe { dev.allocate_descriptor_sets(&alloc) }.during("allocating descriptor sets")?;
+    let scene_buffers: std::collections::BTreeMap<u32, &Buffer> =
+        scene.buffers.iter().map(|(b, buf)| (*b, buf)).collect();
+    for (bi, &set) in sets.iter().enumerate() {
+        let first = bi * batch;
+        let count = batch.min(rays.len() - first);
+        let mut infos: Vec<(u32, vk::DescriptorBufferInfo)> = Vec::new();
+        for &binding in bindings.keys() {
+            let bi = match binding {
+                BINDING_RAYS => vk::DescriptorBufferInfo::default()
+                    .buffer(ray_buf.raw)
+                    .offset((first * 32) as u64)
+                    .range((count * 32) as u64),
+                BINDING_HITS => vk::DescriptorBufferInfo::default()
+                    .buffer(hit_buf.raw)
+                    .offset((first * 16) as u64)
+                    .range((count * 16) as u64),
+                b => {
+                    let buf = scene_buffers.get(&b).ok_or_else(|| {
+                        Error::Usage(format!(
+                            "kernel {} reads binding {b}, which the {} encoding does not provide",
+                            kernel.name, scene.method
+                        ))
+                    })?;
+                    vk::DescriptorBufferInfo::default()
+                        .buffer(buf.raw)
+                        .offset(0)
+                        .range(vk::WHOLE_SIZE)
+                }
+            };
+            infos.push((binding, bi));
+        }
+        let writes: Vec<vk::WriteDescriptorSet> = infos
+            .iter()
+            .map(|(binding, bi)| {
+                vk::WriteDescriptorSet::default()
+                    .dst_set(set)
+                    .dst_binding(*binding)
+                    .descriptor_type(bindings[binding])
+                    .buffer_info(std::slice::from_ref(bi))
+            })
+            .collect();
+        // SAFETY: the sets and buffers are alive; no set is in use yet.
+        unsafe { dev.update_descriptor_sets(&writes, &[]) };
+    }
+
+    dispatch.cmds = ctx.allocate_command_buffers(nbatches as u32)?;
+    for (bi, (&cmd, &set)) in dispatch.cmds.iter().zip(&sets).enumerate() {
+        let count = batch.min(rays.len() - bi * batch) as u32;
+        let q = 2 * bi as u32;
+        // SAFETY: recording into freshly allocated command buffers; every object referenced
+        // outlives the submits (all waited for before this function returns).
+        unsafe {
+            dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
+                .during("recording a dispatch")?;
+            dev.cmd_reset_query_pool(cmd, queries, q, 2);
+            // The previous run's dispatch wrote the same hit range (and uploads came before).
+            let barrier = vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
+            dev.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::DependencyFlags::empty(),
+                &[barrier],
+                &[],
+                &[],
+            );
+            dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, queries, q);
+            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
+            dev.cmd_bind_descriptor_sets(
+                cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                kernel.pipeline_layout,
+                0,
+                &[set],
+                &[],
+            );
+            if let Some((offset, size)) = kernel.layout.push_constants {
+                debug_assert_eq!((offset, size), (0, 4));
+                dev.cmd_push_constants(
+                    cmd,
+                    kernel.pipeline_layout,
+                    vk::ShaderStageFlags::COMPUTE,
+                    0,
+                    &count.to_le_bytes(),
+                );
+            }
+            dev.cmd_dispatch(cmd, count.div_ceil(local as u32), 1, 1);
+            dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, queries, q + 1);
+            dev.end_command_buffer(cmd).during("recording a dispatch")?;
+        }
+    }
+
+    let mut kernel_ms = Vec::new();
+    let mut wall_ms = Vec::new();
+    let runs = opts.warmup + opts.repeat.max(1);
+    for run in 0..runs {
+        let t0 = Instant::now();
+        for (bi, &cmd) in dispatch.cmds.iter().enumerate() {
+            ctx.submit_and_wait(
+                cmd,
+                &format!(
+                    "{} dispatch {}/{} ({} rays per dispatch)",
+                    kernel.name,
+                    bi + 1,
+                    nbatches,
+                    batch
+                ),
+            )?;
+        }
+        let wall = t0.elapsed().as_secs_f64() * 1e3;
+        if run < opts.warmup {
+            continue;
+        }
+        wall_ms.push(wall);
+        if timestamps {
+            let mut ts = vec![0u64; 2 * nbatches];
+            // SAFETY: all queries were written by the completed submits.
+            unsafe {
+                dev.get_query_pool_results(
+                    queries,
+                    0,
+                    &mut ts,
+                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                )
+            }
+            .during("reading timestamps")?;
+            let mask = if info.timestamp_valid_bits >= 64 {
+                u64::MAX
+            } else {
+                (1u64 << info.timestamp_valid_bits) - 1
+            };
+            let ticks: u64 = ts
+                .chunks_exact(2)
+                .map(|p| (p[1].wrapping_sub(p[0])) & mask)
+                .sum();
+            kernel_ms.push(ticks as f64 * info.timestamp_period_ns as f64 * 1e-6);
+        }
+    }
+    let bytes = ctx.download(&hit_buf, hit_bytes)?;
+    drop(dispatch);
+    let hits = bytes
+        .chunks_exact(16)
+        .map(bytemuck::pod_read_unaligned)
+        .collect();
+    Ok(RaycastResult {
+        hits,
+        kernel_ms,
+        wall_ms,
+        batches: nbatches,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Summary;
+
+    #[test]
+    fn summary_median_min_max() {
+        let s = Summary::of(&[3.0, 1.0, 2.0]).unwrap();
+        assert_eq!((s.median, s.min, s.max, s.runs), (2.0, 1.0, 3.0, 3));
+        assert_eq!(Summary::of(&[4.0, 1.0, 2.0, 3.0]).unwrap().median, 2.5);
+        assert!(Summary::of(&[]).is_none());
+    }
+}

@@ -1,0 +1,73 @@
+//! The SPIR-V modules build.rs compiled from `glsl/`, embedded in the binary: one per
+//! kernel x intersector x variant, named `<kernel>.<method>.<variant>` (`raycast.mt.closest`).
+
+use crate::encoding::Method;
+
+/// One compiled kernel variant.
+#[derive(Debug)]
+pub struct KernelSource {
+    /// `<kernel>.<method>.<variant>`; also the file name under `spirv/`.
+    pub name: &'static str,
+    /// The `glsl/<kernel>.comp` it came from.
+    pub kernel: &'static str,
+    /// The intersector, `glsl/intersect/<method>.glsl`.
+    pub method: &'static str,
+    /// The variant from the kernel's `// trilab:variants` line.
+    pub variant: &'static str,
+    /// SPIR-V words, little-endian bytes.
+    pub spirv: &'static [u8],
+}
+
+include!(concat!(env!("OUT_DIR"), "/kernels.rs"));
+
+impl KernelSource {
+    /// The module as words (`include_bytes!` gives no alignment guarantee).
+    pub fn words(&self) -> Vec<u32> {
+        self.spirv
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    }
+}
+
+/// The raycast kernel for a method: closest hit or, with `any_hit`, occlusion.
+pub fn raycast(method: Method, any_hit: bool) -> &'static KernelSource {
+    find("raycast", method, if any_hit { "any" } else { "closest" })
+}
+
+/// Looks a variant up; every `Method` has every variant of every kernel (build.rs compiles
+/// each kernel for each intersector file; `tests` below checks the two lists agree).
+pub fn find(kernel: &str, method: Method, variant: &str) -> &'static KernelSource {
+    KERNELS
+        .iter()
+        .find(|k| k.kernel == kernel && k.method == method.glsl_name() && k.variant == variant)
+        .unwrap_or_else(|| {
+            panic!(
+                "no kernel {kernel}.{}.{variant} was compiled",
+                method.glsl_name()
+            )
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_method_has_its_kernels_and_every_kernel_a_method() {
+        for m in Method::ALL {
+            for any in [false, true] {
+                let k = raycast(m, any);
+                assert_eq!(k.spirv.len() % 4, 0);
+                assert_eq!(k.words()[0], 0x0723_0203, "SPIR-V magic");
+            }
+        }
+        for k in KERNELS {
+            assert!(
+                Method::ALL.iter().any(|m| m.glsl_name() == k.method),
+                "glsl/intersect/{}.glsl has no Method arm",
+                k.method
+            );
+        }
+    }
+}

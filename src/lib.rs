@@ -1,0 +1,24 @@
+//! trilab: GPU ray-triangle intersection laboratory.
+//!
+//! Data flows one way, one module per stage:
+//! [`scene`] (OBJ/MTL -> mesh) -> [`bvh`] (SAH build, 32-byte nodes) -> [`encoding`] (each
+//! method's GPU layout) -> [`gpu`] (buffers, pipelines, dispatch, timing) -> results
+//! ([`rays`] hit files, [`compare`] against the f64 [`reference`], [`report`] tables).
+//! The kernels live in `glsl/`; [`kernels`] embeds their SPIR-V and [`spirv`] counts and
+//! reflects it.
+
+pub mod bench;
+pub mod bvh;
+pub mod compare;
+pub mod encoding;
+pub mod error;
+pub mod gpu;
+pub mod io;
+pub mod kernels;
+pub mod rays;
+pub mod reference;
+pub mod report;
+pub mod scene;
+pub mod spirv;
+
+pub use error::{Error, Result};

@@ -1,0 +1,639 @@
+//! `trilab`: the command-line tool. Each subcommand is a thin layer over the library.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use serde_json::json;
+
+use trilab::bench::{self, BenchOptions};
+use trilab::bvh::{BuildOptions, Builder, Bvh, MAX_LEAF_SIZE};
+use trilab::compare::{compare_any, compare_closest};
+use trilab::encoding::Method;
+use trilab::error::{Error, Result};
+use trilab::gpu::{raycast, Context, ContextOptions, GpuScene, RaycastOptions, Validation};
+use trilab::rays::{self, Camera};
+use trilab::reference::Reference;
+use trilab::report::Table;
+use trilab::scene::load_obj;
+
+#[derive(Parser)]
+#[command(
+    name = "trilab",
+    version,
+    about = "GPU ray-triangle intersection laboratory (Vulkan compute, BVH, four intersection methods)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Args, Clone)]
+struct GpuArgs {
+    /// Vulkan device: index or part of its name/driver (see `trilab devices`). Default: a
+    /// discrete GPU if present, else the best other device.
+    #[arg(long, global = true)]
+    device: Option<String>,
+    /// Load the Khronos validation layer (default: on in debug builds only).
+    #[arg(long, global = true)]
+    validation: bool,
+}
+
+/// The validation log of the context a command made, checked before exit.
+static VALIDATION_LOG: std::sync::OnceLock<std::sync::Arc<trilab::gpu::ValidationLog>> =
+    std::sync::OnceLock::new();
+
+impl GpuArgs {
+    fn context(&self) -> Result<Context> {
+        let mut o = ContextOptions {
+            device: self.device.clone(),
+            ..Default::default()
+        };
+        if self.validation {
+            o.validation = Validation::Required;
+        }
+        let ctx = Context::new(&o)?;
+        let _ = VALIDATION_LOG.set(ctx.validation_log());
+        Ok(ctx)
+    }
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// List Vulkan devices, their drivers and the features trilab uses.
+    Devices {
+        #[arg(long)]
+        json: bool,
+    },
+    /// Make a ray file (../shared/formats.md).
+    Rays {
+        #[command(subcommand)]
+        kind: RaysCmd,
+    },
+    /// Cast rays from a ray file; write hits and report kernel time.
+    Raycast(RaycastArgs),
+    /// Build the BVH and report its statistics (nodes, depth, leaf sizes, SAH cost, time).
+    Bvh {
+        #[arg(long)]
+        scene: PathBuf,
+        /// Max triangles per leaf; repeat or omit for 1, 2, 3, 4, 8, 16.
+        #[arg(long = "leaf-size")]
+        leaf_sizes: Vec<u32>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// SPIR-V instruction counts of every kernel variant; `--write DIR` refreshes spirv/.
+    Spirv {
+        #[arg(long)]
+        write: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Ray-casting benchmark: primary, diffuse and random rays, every method, validated against
+    /// the f64 reference, optionally beside the Embree peer.
+    Bench(BenchArgs),
+}
+
+#[derive(Subcommand)]
+enum RaysCmd {
+    /// One ray per pixel from a camera framing the scene.
+    Primary {
+        #[command(flatten)]
+        common: RaysCommon,
+        #[arg(long, default_value_t = 800)]
+        width: u32,
+        #[arg(long, default_value_t = 600)]
+        height: u32,
+    },
+    /// Cosine-distributed bounces off the primary hits (hits from the f64 reference).
+    Diffuse {
+        #[command(flatten)]
+        common: RaysCommon,
+        #[arg(long, default_value_t = 800)]
+        width: u32,
+        #[arg(long, default_value_t = 600)]
+        height: u32,
+        /// Rays per primary hit.
+        #[arg(long, default_value_t = 8)]
+        per_hit: u32,
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+    },
+    /// Rays from a sphere around the scene towards random points in its box.
+    Random {
+        #[command(flatten)]
+        common: RaysCommon,
+        #[arg(long, default_value_t = 1_000_000)]
+        count: usize,
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+    },
+}
+
+#[derive(Args)]
+struct RaysCommon {
+    #[arg(long)]
+    scene: PathBuf,
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+struct RaycastArgs {
+    #[arg(long)]
+    scene: PathBuf,
+    #[arg(long)]
+    rays: PathBuf,
+    /// Hit file to write (../shared/formats.md).
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, value_enum, default_value_t = Method::Mt)]
+    method: Method,
+    /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    /// Occlusion query: any hit in [tmin, tmax] instead of the closest.
+    #[arg(long)]
+    any_hit: bool,
+    /// Timed runs after one warm-up; the median is reported.
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Most rays per dispatch (each dispatch is its own submit).
+    #[arg(long, default_value_t = 1 << 20)]
+    batch_rays: usize,
+    /// Also check every hit against the f64 reference and report agreement.
+    #[arg(long)]
+    validate: bool,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// Scenes (OBJ files); default: the bundled bunny.
+    #[arg(long, value_delimiter = ',')]
+    scenes: Vec<PathBuf>,
+    #[arg(long, value_enum, value_delimiter = ',')]
+    methods: Vec<Method>,
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    #[arg(long, default_value_t = 800)]
+    width: u32,
+    #[arg(long, default_value_t = 600)]
+    height: u32,
+    #[arg(long, default_value_t = 8)]
+    diffuse_per_hit: u32,
+    #[arg(long, default_value_t = 1_000_000)]
+    random_rays: usize,
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Read <scene>.{primary,diffuse,random}.rays from this directory instead of generating.
+    #[arg(long)]
+    rays_dir: Option<PathBuf>,
+    /// The Embree peer (`embree_rays` from scripts/embree-peer.sh), run on the same rays.
+    #[arg(long)]
+    embree: Option<PathBuf>,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    json_out: Option<PathBuf>,
+    /// Write the tables as Markdown here.
+    #[arg(long)]
+    md_out: Option<PathBuf>,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = run(cli);
+    // Contexts are gone by now, so teardown messages are in the log too.
+    let messages = VALIDATION_LOG
+        .get()
+        .map(|l| l.messages())
+        .unwrap_or_default();
+    for m in &messages {
+        eprintln!("trilab: validation: {m}");
+    }
+    match result {
+        Err(e) => {
+            eprintln!("trilab: error: {e}");
+            ExitCode::FAILURE
+        }
+        Ok(()) if !messages.is_empty() => {
+            eprintln!("trilab: error: {} validation message(s)", messages.len());
+            ExitCode::FAILURE
+        }
+        Ok(()) => ExitCode::SUCCESS,
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Cmd::Devices { json } => devices(json),
+        Cmd::Rays { kind } => make_rays(kind),
+        Cmd::Raycast(a) => raycast_cmd(a),
+        Cmd::Bvh {
+            scene,
+            leaf_sizes,
+            json,
+        } => bvh_cmd(&scene, leaf_sizes, json),
+        Cmd::Spirv { write, json } => spirv_cmd(write, json),
+        Cmd::Bench(a) => bench_cmd(a),
+    }
+}
+
+fn check_leaf_size(n: u32) -> Result<()> {
+    if (1..=MAX_LEAF_SIZE).contains(&n) {
+        Ok(())
+    } else {
+        Err(Error::Usage(format!(
+            "--leaf-size {n}: must be 1..={MAX_LEAF_SIZE}"
+        )))
+    }
+}
+
+fn devices(json: bool) -> Result<()> {
+    let list = Context::list_devices()?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&list).unwrap());
+        return Ok(());
+    }
+    if list.is_empty() {
+        println!("no Vulkan devices");
+    }
+    let chosen = trilab::gpu::context::choose_device(&list, None).ok();
+    for d in &list {
+        print!("{}", d.report());
+        if Some(d.index) == chosen {
+            println!("    (default choice)");
+        }
+    }
+    Ok(())
+}
+
+fn make_rays(kind: RaysCmd) -> Result<()> {
+    let (common, rays) = match kind {
+        RaysCmd::Primary {
+            common,
+            width,
+            height,
+        } => {
+            let mesh = load_obj(&common.scene)?;
+            let r = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
+            (common, r)
+        }
+        RaysCmd::Diffuse {
+            common,
+            width,
+            height,
+            per_hit,
+            seed,
+        } => {
+            let mesh = load_obj(&common.scene)?;
+            let primary = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
+            let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+            let r =
+                rays::diffuse_rays(&mesh, &Reference::new(&mesh, &bvh), &primary, per_hit, seed);
+            (common, r)
+        }
+        RaysCmd::Random {
+            common,
+            count,
+            seed,
+        } => {
+            let mesh = load_obj(&common.scene)?;
+            (common, rays::random_rays(&mesh.bounds(), count, seed))
+        }
+    };
+    trilab::io::ensure_not_input(&common.out, &[&common.scene])?;
+    rays::write_rays(&common.out, &rays)?;
+    println!("wrote {} rays to {}", rays.len(), common.out.display());
+    Ok(())
+}
+
+fn raycast_cmd(a: RaycastArgs) -> Result<()> {
+    check_leaf_size(a.leaf_size)?;
+    trilab::io::ensure_not_input(&a.out, &[&a.scene, &a.rays])?;
+    let mesh = load_obj(&a.scene)?;
+    let rays = rays::read_rays(&a.rays)?;
+    let bvh = Bvh::build(&mesh, &BuildOptions::new(a.leaf_size));
+    let encoded = a.method.encode(&mesh, &bvh);
+    if !encoded.unrepresentable.is_empty() {
+        eprintln!(
+            "trilab: warning: {} triangles cannot be represented by {} (their map overflows f32) and are never hit, e.g. id {}",
+            encoded.unrepresentable.len(),
+            a.method,
+            encoded.unrepresentable[0]
+        );
+    }
+    let ctx = a.gpu.context()?;
+    let kernel = ctx.create_kernel(trilab::kernels::raycast(a.method, a.any_hit))?;
+    let scene = GpuScene::upload(&ctx, &encoded)?;
+    let opts = RaycastOptions {
+        warmup: 1,
+        repeat: a.repeat.max(1),
+        batch_rays: a.batch_rays,
+    };
+    let res = raycast(&ctx, &kernel, &scene, &rays, &opts)?;
+    rays::write_hits(&a.out, &res.hits)?;
+
+    let t = res.time_ms();
+    let mrays = |ms: f64| rays.len() as f64 / (ms * 1e-3) / 1e6;
+    let hits = res.hits.iter().filter(|h| h.is_hit()).count();
+    let validation = if a.validate {
+        let reference = Reference::new(&mesh, &bvh);
+        if a.any_hit {
+            let closest = reference
+                .trace_all(&rays, false)
+                .iter()
+                .map(|h| h.to_hit())
+                .collect::<Vec<_>>();
+            let c = compare_any(&mesh, &rays, &closest, &res.hits);
+            Some(
+                json!({"any_hit_status_mismatches": c.status_mismatch.len(), "bogus": c.bogus.len(), "passes": c.passes()}),
+            )
+        } else {
+            let agreement =
+                compare_closest(&mesh, &rays, &res.hits, &reference.trace_all(&rays, false));
+            Some(json!({
+                "agreement": agreement.fraction(),
+                "disagreements": agreement.disagreements.len(),
+                "unexplained": agreement.unexplained,
+                "max_edge_ulps": agreement.max_edge_ulps,
+                "invalid": agreement.invalid.len(),
+                "passes": agreement.all_explained(),
+                "summary": agreement.summary(),
+            }))
+        }
+    } else {
+        None
+    };
+    let info = ctx.info();
+    if a.json {
+        let out = json!({
+            "method": a.method,
+            "leaf_size": a.leaf_size,
+            "any_hit": a.any_hit,
+            "rays": rays.len(),
+            "hits": hits,
+            "kernel_ms": t.median,
+            "kernel_ms_min": t.min,
+            "kernel_ms_max": t.max,
+            "runs": t.runs,
+            "timed_with": if res.timed_on_gpu() { "gpu timestamps" } else { "host wall clock" },
+            "mrays_per_s": mrays(t.median),
+            "batches": res.batches,
+            "scene_bytes": scene.bytes,
+            "triangles": mesh.triangle_count(),
+            "degenerate_triangles": bvh.degenerate_excluded,
+            "device": info.name,
+            "driver": info.driver_label(),
+            "mesa_version": info.mesa_version,
+            "validation": validation,
+        });
+        println!("{}", serde_json::to_string_pretty(&out).unwrap());
+    } else {
+        println!("device:    {} ({})", info.name, info.driver_label());
+        println!(
+            "scene:     {} ({} triangles, {} degenerate never hit), {} leaf size {}, {:.2} MB on the GPU",
+            a.scene.display(),
+            mesh.triangle_count(),
+            bvh.degenerate_excluded,
+            a.method,
+            a.leaf_size,
+            scene.bytes as f64 / 1e6
+        );
+        println!(
+            "rays:      {} ({} hit) -> {}",
+            rays.len(),
+            hits,
+            a.out.display()
+        );
+        println!(
+            "kernel:    {:.3} ms median of {} (min {:.3}, max {:.3}; {}), {:.2} Mrays/s",
+            t.median,
+            t.runs,
+            t.min,
+            t.max,
+            if res.timed_on_gpu() {
+                "GPU timestamps"
+            } else {
+                "host wall clock"
+            },
+            mrays(t.median)
+        );
+        if let Some(v) = &validation {
+            println!("reference: {v}");
+        }
+    }
+    if let Some(v) = validation {
+        if v["passes"] == json!(false) {
+            return Err(Error::Usage(
+                "hits disagree with the f64 reference (see above)".into(),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, json: bool) -> Result<()> {
+    let mesh = load_obj(scene)?;
+    let leaf_sizes = if leaf_sizes.is_empty() {
+        vec![1, 2, 3, 4, 8, 16]
+    } else {
+        leaf_sizes
+    };
+    let mut stats = vec![];
+    for &leaf in &leaf_sizes {
+        check_leaf_size(leaf)?;
+        for builder in [Builder::default(), Builder::Sweep] {
+            let bvh = Bvh::build(
+                &mesh,
+                &BuildOptions {
+                    builder,
+                    ..BuildOptions::new(leaf)
+                },
+            );
+            let mut sizes = serde_json::Map::new();
+            for m in Method::ALL {
+                sizes.insert(m.name().into(), json!(m.encode(&mesh, &bvh).gpu_bytes()));
+            }
+            stats.push((bvh.stats(), sizes));
+        }
+    }
+    if json {
+        let v: Vec<_> = stats
+            .iter()
+            .map(|(s, sizes)| json!({"stats": s, "gpu_scene_bytes": sizes}))
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&v).unwrap());
+        return Ok(());
+    }
+    println!(
+        "{}: {} triangles, {} vertices",
+        scene.display(),
+        mesh.triangle_count(),
+        mesh.positions.len()
+    );
+    let mut t = Table::new([
+        "leaf",
+        "builder",
+        "nodes",
+        "depth",
+        "SAH cost",
+        "build ms",
+        "leaf sizes (count:leaves)",
+        "MB mt",
+        "MB unit",
+        "MB quad-mt",
+        "MB quad-unit",
+    ]);
+    for (s, sizes) in &stats {
+        let hist: Vec<String> = s
+            .leaf_histogram
+            .iter()
+            .enumerate()
+            .filter(|(_, &n)| n > 0)
+            .map(|(k, n)| format!("{k}:{n}"))
+            .collect();
+        let mb = |m: &str| format!("{:.2}", sizes[m].as_u64().unwrap() as f64 / 1e6);
+        t.row([
+            s.max_leaf_size.to_string(),
+            s.builder.clone(),
+            s.nodes.to_string(),
+            s.depth.to_string(),
+            format!("{:.2}", s.sah_cost),
+            format!("{:.1}", s.build_ms),
+            hist.join(" "),
+            mb("mt"),
+            mb("unit"),
+            mb("quad-mt"),
+            mb("quad-unit"),
+        ]);
+    }
+    print!("{}", t.to_text());
+    Ok(())
+}
+
+fn spirv_cmd(write: Option<PathBuf>, json: bool) -> Result<()> {
+    if let Some(dir) = write {
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        let files = trilab::spirv::review_files();
+        let keep: Vec<&String> = files.iter().map(|(n, _)| n).collect();
+        // Remove stale files of variants that no longer exist.
+        for e in std::fs::read_dir(&dir)
+            .map_err(|e| Error::io(&dir, e))?
+            .flatten()
+        {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if (name.ends_with(".spvasm") || name == "instruction_counts.csv")
+                && !keep.contains(&&name)
+            {
+                std::fs::remove_file(e.path()).map_err(|err| Error::io(&e.path(), err))?;
+            }
+        }
+        for (name, text) in &files {
+            trilab::io::write_atomic(&dir.join(name), text.as_bytes())?;
+        }
+        println!("wrote {} files to {}", files.len(), dir.display());
+        return Ok(());
+    }
+    let counts = trilab::spirv::all_counts();
+    if json {
+        let v: Vec<_> = counts
+            .iter()
+            .map(|(k, c)| json!({"variant": k.name, "counts": c}))
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&v).unwrap());
+        return Ok(());
+    }
+    let mut t = Table::new([
+        "variant",
+        "module",
+        "functions",
+        "arithmetic",
+        "memory",
+        "control flow",
+        "conversion",
+        "other",
+    ]);
+    for (k, c) in counts {
+        t.row([
+            k.name.to_string(),
+            c.module.to_string(),
+            c.functions.to_string(),
+            c.arithmetic.to_string(),
+            c.memory.to_string(),
+            c.control_flow.to_string(),
+            c.conversion.to_string(),
+            c.other.to_string(),
+        ]);
+    }
+    print!("{}", t.to_text());
+    Ok(())
+}
+
+fn bench_cmd(a: BenchArgs) -> Result<()> {
+    check_leaf_size(a.leaf_size)?;
+    let scenes = if a.scenes.is_empty() {
+        vec![PathBuf::from("scenes/bunny.obj")]
+    } else {
+        a.scenes.clone()
+    };
+    let methods = if a.methods.is_empty() {
+        Method::ALL.to_vec()
+    } else {
+        a.methods.clone()
+    };
+    for out in [&a.json_out, &a.md_out].into_iter().flatten() {
+        let inputs: Vec<&Path> = scenes.iter().map(PathBuf::as_path).collect();
+        trilab::io::ensure_not_input(out, &inputs)?;
+    }
+    let o = BenchOptions {
+        scenes,
+        methods,
+        leaf_size: a.leaf_size,
+        repeat: a.repeat.max(1),
+        width: a.width,
+        height: a.height,
+        diffuse_per_hit: a.diffuse_per_hit,
+        random_rays: a.random_rays,
+        seed: a.seed,
+        rays_dir: a.rays_dir.clone(),
+        embree: a.embree.clone(),
+        ..Default::default()
+    };
+    let ctx = a.gpu.context()?;
+    let report = bench::run(&ctx, &o, |m| eprintln!("  {m}"))?;
+    let lp = report
+        .lp_num_threads
+        .as_deref()
+        .map(|n| format!(", LP_NUM_THREADS={n}"))
+        .unwrap_or_default();
+    let header = format!(
+        "device: {} ({}); host CPUs: {}{lp}; leaf size {}; median of {} runs after 1 warm-up (GPU timestamps)",
+        report.device, report.driver, report.host_cpus, o.leaf_size, o.repeat
+    );
+    println!("{header}\n");
+    print!("{}", report.table().to_text());
+    if !report.embree.is_empty() {
+        println!();
+        print!("{}", report.embree_table().to_text());
+    }
+    if let Some(p) = &a.json_out {
+        trilab::io::write_atomic(p, serde_json::to_string_pretty(&report).unwrap().as_bytes())?;
+    }
+    if let Some(p) = &a.md_out {
+        let mut md = format!("{header}\n\n{}", report.table().to_markdown());
+        if !report.embree.is_empty() {
+            md += &format!("\n{}", report.embree_table().to_markdown());
+        }
+        trilab::io::write_atomic(p, md.as_bytes())?;
+    }
+    Ok(())
+}

@@ -1,0 +1,186 @@
+//! Ray sets: primary (pinhole camera), diffuse (cosine bounces off primary hits) and random
+//! (from a sphere around the scene towards points in its box).
+//!
+//! They follow the distributions of the Embree peer in ../shared/peers (same camera, same
+//! offsets), so trilab's numbers can be set beside the peer's; all are deterministic for a seed.
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg32;
+use rayon::prelude::*;
+
+use super::Ray;
+use crate::bvh::Aabb;
+use crate::reference::Reference;
+use crate::scene::Mesh;
+
+/// A pinhole camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub eye: Vec3,
+    pub forward: Vec3,
+    pub right: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view, radians.
+    pub fov_y: f32,
+}
+
+impl Camera {
+    /// Looks at the box centre from direction (0.3, 0.25, 1), 45 degree vertical field of view,
+    /// framing the bounding sphere (as the peer's `gen-primary`).
+    pub fn framing(bounds: &Aabb) -> Camera {
+        let c = bounds.center();
+        let radius = 0.5 * bounds.extent().length();
+        let fov_y = 45f32.to_radians();
+        let forward = -Vec3::new(0.3, 0.25, 1.0).normalize();
+        let eye = c - forward * (radius / (fov_y / 2.0).tan() * 0.9);
+        Camera::look(eye, forward, Vec3::Y, fov_y)
+    }
+
+    /// A camera at `eye` looking along `forward` with `up` roughly up.
+    pub fn look(eye: Vec3, forward: Vec3, up: Vec3, fov_y: f32) -> Camera {
+        let forward = forward.normalize();
+        let right = forward.cross(up).normalize();
+        let up = right.cross(forward);
+        Camera {
+            eye,
+            forward,
+            right,
+            up,
+            fov_y,
+        }
+    }
+
+    /// The ray through the centre of pixel (x, y) of a w x h image (y down).
+    pub fn ray(&self, x: u32, y: u32, w: u32, h: u32) -> Ray {
+        let th = (self.fov_y / 2.0).tan();
+        let aspect = w as f32 / h as f32;
+        let px = (2.0 * (x as f32 + 0.5) / w as f32 - 1.0) * th * aspect;
+        let py = (1.0 - 2.0 * (y as f32 + 0.5) / h as f32) * th;
+        let d = (self.forward + self.right * px + self.up * py).normalize();
+        Ray::new(self.eye.to_array(), d.to_array())
+    }
+}
+
+/// One ray per pixel of a w x h image, row by row.
+pub fn primary_rays(camera: &Camera, w: u32, h: u32) -> Vec<Ray> {
+    (0..h)
+        .flat_map(|y| (0..w).map(move |x| camera.ray(x, y, w, h)))
+        .collect()
+}
+
+/// For every primary ray that hits, `per_hit` cosine-distributed rays leaving the hit point on
+/// the side the ray came from, offset along the normal by 1e-4 of the scene's largest
+/// coordinate magnitude (the peer's offset). Hits come from the f64 reference.
+pub fn diffuse_rays(
+    mesh: &Mesh,
+    reference: &Reference,
+    primary: &[Ray],
+    per_hit: u32,
+    seed: u64,
+) -> Vec<Ray> {
+    let b = mesh.bounds();
+    let scale = b.min.abs().max(b.max.abs()).max_element();
+    let hits = reference.trace_all(primary, false);
+    // One generator per primary ray, derived from the seed, so the set does not depend on
+    // thread scheduling.
+    let per_ray: Vec<Vec<Ray>> = primary
+        .par_iter()
+        .zip(&hits)
+        .enumerate()
+        .map(|(i, (r, h))| {
+            if !h.is_hit() {
+                return Vec::new();
+            }
+            let mut rng =
+                Pcg32::seed_from_u64(seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+            let [a, b, c] = mesh.vertices(h.id as usize);
+            let d = Vec3::from_array(r.dir);
+            let mut n = (b - a).cross(c - a).normalize();
+            if n.dot(d) > 0.0 {
+                n = -n;
+            }
+            let p = a + (b - a) * h.u as f32 + (c - a) * h.v as f32 + n * (1e-4 * scale);
+            let tx = if n.x.abs() > 0.5 {
+                n.cross(Vec3::Y)
+            } else {
+                n.cross(Vec3::X)
+            }
+            .normalize();
+            let ty = n.cross(tx);
+            (0..per_hit)
+                .map(|_| {
+                    let (u1, u2): (f32, f32) = (rng.random(), rng.random());
+                    let r1 = u1.sqrt();
+                    let phi = std::f32::consts::TAU * u2;
+                    let dir = (tx * (r1 * phi.cos())
+                        + ty * (r1 * phi.sin())
+                        + n * (1.0 - u1).max(0.0).sqrt())
+                    .normalize();
+                    Ray::new(p.to_array(), dir.to_array())
+                })
+                .collect()
+        })
+        .collect();
+    per_ray.into_iter().flatten().collect()
+}
+
+/// `n` rays from uniform points on the sphere of 1.5x the bounding radius towards uniform
+/// points in the bounding box.
+pub fn random_rays(bounds: &Aabb, n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Pcg32::seed_from_u64(seed);
+    let c = bounds.center();
+    let radius = 0.5 * bounds.extent().length();
+    (0..n)
+        .map(|_| {
+            let z: f32 = 2.0 * rng.random::<f32>() - 1.0;
+            let phi = std::f32::consts::TAU * rng.random::<f32>();
+            let s = (1.0 - z * z).max(0.0).sqrt();
+            let o = c + Vec3::new(s * phi.cos(), s * phi.sin(), z) * (1.5 * radius);
+            let t =
+                bounds.min + bounds.extent() * Vec3::new(rng.random(), rng.random(), rng.random());
+            Ray::new(o.to_array(), (t - o).normalize().to_array())
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn primary_rays_cover_the_image_and_look_at_the_scene() {
+        let b = Aabb {
+            min: Vec3::splat(-1.0),
+            max: Vec3::splat(1.0),
+        };
+        let cam = Camera::framing(&b);
+        let rays = primary_rays(&cam, 8, 6);
+        assert_eq!(rays.len(), 48);
+        // The centre pixels point (almost) at the box centre.
+        let centre = Vec3::from_array(cam.ray(4, 3, 8, 6).dir);
+        let to_c = (b.center() - cam.eye).normalize();
+        assert!(centre.dot(to_c) > 0.99);
+        // Top-left pixel is up and left of forward.
+        let tl = Vec3::from_array(rays[0].dir);
+        assert!(tl.dot(cam.up) > 0.0 && tl.dot(cam.right) < 0.0);
+    }
+
+    #[test]
+    fn random_rays_are_deterministic_and_aim_into_the_box() {
+        let b = Aabb {
+            min: Vec3::new(0.0, 1.0, 2.0),
+            max: Vec3::new(1.0, 3.0, 2.5),
+        };
+        let a = random_rays(&b, 500, 7);
+        assert_eq!(a, random_rays(&b, 500, 7));
+        assert_ne!(a, random_rays(&b, 500, 8));
+        let radius = 0.5 * b.extent().length();
+        for r in &a {
+            let o = Vec3::from_array(r.origin);
+            assert!(((o - b.center()).length() - 1.5 * radius).abs() < 1e-4);
+            assert!((Vec3::from_array(r.dir).length() - 1.0).abs() < 1e-5);
+            assert!(r.problem().is_none());
+        }
+    }
+}

@@ -1,0 +1,208 @@
+//! Ray and hit files (../shared/formats.md) and ray-set generators.
+//!
+//! Both formats are headerless little-endian records, so the structs below are the records:
+//! [`Ray`] (32 bytes) and [`Hit`] (16 bytes) are also the GPU's buffer layouts.
+
+mod generate;
+
+pub use generate::{diffuse_rays, primary_rays, random_rays, Camera};
+
+use std::path::Path;
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::error::{Error, Result};
+use crate::gpu::shared::MISS_ID;
+
+/// `origin.xyz, tmin, direction.xyz, tmax`. Hits are reported for `tmin <= t <= tmax`; `t` is
+/// in units of the direction's length (directions need not be normalised).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Ray {
+    pub origin: [f32; 3],
+    pub tmin: f32,
+    pub dir: [f32; 3],
+    pub tmax: f32,
+}
+
+const _: () = assert!(std::mem::size_of::<Ray>() == 32);
+
+/// `t, triangle id, u, v`; a miss is `t = +inf, id = 0xFFFFFFFF`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Hit {
+    pub t: f32,
+    pub id: u32,
+    pub u: f32,
+    pub v: f32,
+}
+
+const _: () = assert!(std::mem::size_of::<Hit>() == 16);
+
+impl Hit {
+    pub const MISS: Hit = Hit {
+        t: f32::INFINITY,
+        id: MISS_ID,
+        u: 0.0,
+        v: 0.0,
+    };
+
+    pub fn is_hit(&self) -> bool {
+        self.id != MISS_ID
+    }
+}
+
+impl Ray {
+    pub fn new(origin: [f32; 3], dir: [f32; 3]) -> Ray {
+        Ray {
+            origin,
+            tmin: 0.0,
+            dir,
+            tmax: f32::INFINITY,
+        }
+    }
+
+    /// Why this ray cannot be traced, if it cannot: NaN anywhere, an infinite origin or
+    /// direction component, an infinite tmin, tmax = -inf, or a zero direction.
+    pub fn problem(&self) -> Option<String> {
+        let names = [
+            "origin.x",
+            "origin.y",
+            "origin.z",
+            "tmin",
+            "direction.x",
+            "direction.y",
+            "direction.z",
+            "tmax",
+        ];
+        let vals: &[f32; 8] = bytemuck::cast_ref(self);
+        for (name, v) in names.iter().zip(vals) {
+            if v.is_nan() {
+                return Some(format!("{name} is NaN"));
+            }
+            if v.is_infinite() && !(*name == "tmax" && *v > 0.0) {
+                return Some(format!("{name} is {v}"));
+            }
+        }
+        if self.dir == [0.0; 3] {
+            return Some("direction is zero".into());
+        }
+        None
+    }
+}
+
+/// Reads a `.rays` file, rejecting a size that is not a multiple of 32 bytes and any ray that
+/// [`Ray::problem`] rejects (the error names the ray and the field).
+pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if bytes.len() % 32 != 0 {
+        return Err(Error::bad_input(
+            path,
+            None,
+            format!(
+                "size {} bytes is not a multiple of 32 (one ray = 8 f32); not a ray file?",
+                bytes.len()
+            ),
+        ));
+    }
+    if bytes.is_empty() {
+        return Err(Error::bad_input(path, None, "holds no rays (empty file)"));
+    }
+    let rays: Vec<Ray> = bytes
+        .chunks_exact(32)
+        .map(bytemuck::pod_read_unaligned)
+        .collect();
+    if let Some((i, why)) = rays
+        .iter()
+        .enumerate()
+        .find_map(|(i, r)| r.problem().map(|p| (i, p)))
+    {
+        return Err(Error::bad_input(
+            path,
+            None,
+            format!("ray {i} (byte offset {}): {why}", i * 32),
+        ));
+    }
+    Ok(rays)
+}
+
+pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
+    crate::io::write_atomic(path, bytemuck::cast_slice(rays))
+}
+
+pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if bytes.len() % 16 != 0 {
+        return Err(Error::bad_input(
+            path,
+            None,
+            format!(
+                "size {} bytes is not a multiple of 16 (one hit record)",
+                bytes.len()
+            ),
+        ));
+    }
+    Ok(bytes
+        .chunks_exact(16)
+        .map(bytemuck::pod_read_unaligned)
+        .collect())
+}
+
+pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
+    crate::io::write_atomic(path, bytemuck::cast_slice(hits))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn record_layout_matches_formats_md() {
+        let r = Ray {
+            origin: [1.0, 2.0, 3.0],
+            tmin: 4.0,
+            dir: [5.0, 6.0, 7.0],
+            tmax: f32::INFINITY,
+        };
+        let b: &[u8] = bytemuck::bytes_of(&r);
+        assert_eq!(&b[12..16], &4.0f32.to_le_bytes());
+        assert_eq!(&b[16..20], &5.0f32.to_le_bytes());
+        assert_eq!(&b[28..32], &f32::INFINITY.to_le_bytes());
+        let h = Hit::MISS;
+        let b: &[u8] = bytemuck::bytes_of(&h);
+        assert_eq!(&b[0..4], &f32::INFINITY.to_le_bytes());
+        assert_eq!(&b[4..8], &[0xff; 4]);
+    }
+
+    #[test]
+    fn bad_ray_files_are_rejected_with_the_reason() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("r.rays");
+        std::fs::write(&p, [0u8; 33]).unwrap();
+        let e = read_rays(&p).unwrap_err().to_string();
+        assert!(e.contains("not a multiple of 32"), "{e}");
+        std::fs::write(&p, []).unwrap();
+        assert!(read_rays(&p).unwrap_err().to_string().contains("no rays"));
+        for (field, value, expect) in [
+            (1, f32::NAN, "origin.y is NaN"),
+            (4, f32::INFINITY, "direction.x is inf"),
+            (3, f32::NEG_INFINITY, "tmin is -inf"),
+            (7, f32::NAN, "tmax is NaN"),
+            (7, f32::NEG_INFINITY, "tmax is -inf"),
+        ] {
+            let mut rays = vec![Ray::new([0.0; 3], [0.0, 0.0, 1.0]); 3];
+            bytemuck::cast_mut::<Ray, [f32; 8]>(&mut rays[2])[field] = value;
+            write_rays(&p, &rays).unwrap();
+            let e = read_rays(&p).unwrap_err().to_string();
+            assert!(e.contains("ray 2") && e.contains(expect), "{e}");
+        }
+        write_rays(&p, &[Ray::new([0.0; 3], [0.0; 3])]).unwrap();
+        assert!(read_rays(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("direction is zero"));
+        // tmax = +inf is the normal case.
+        write_rays(&p, &[Ray::new([0.0; 3], [0.0, 1.0, 0.0])]).unwrap();
+        assert_eq!(read_rays(&p).unwrap().len(), 1);
+    }
+}

@@ -1,0 +1,107 @@
+//! Plain-text and Markdown tables for command output and results files.
+
+/// A table of strings; numeric-looking columns are right-aligned in text output.
+#[derive(Clone, Debug, Default)]
+pub struct Table {
+    pub headers: Vec<String>,
+    pub rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    pub fn new<S: Into<String>>(headers: impl IntoIterator<Item = S>) -> Table {
+        Table {
+            headers: headers.into_iter().map(Into::into).collect(),
+            rows: vec![],
+        }
+    }
+
+    pub fn row<S: Into<String>>(&mut self, cells: impl IntoIterator<Item = S>) {
+        let r: Vec<String> = cells.into_iter().map(Into::into).collect();
+        assert_eq!(r.len(), self.headers.len(), "row width");
+        self.rows.push(r);
+    }
+
+    fn numeric(&self, col: usize) -> bool {
+        self.rows.iter().all(|r| {
+            let c = r[col].trim_end_matches('%');
+            c.is_empty()
+                || c == "-"
+                || c.split(['(', ' ', '/'])
+                    .next()
+                    .is_some_and(|x| x.parse::<f64>().is_ok())
+        })
+    }
+
+    pub fn to_text(&self) -> String {
+        let n = self.headers.len();
+        let widths: Vec<usize> = (0..n)
+            .map(|c| {
+                self.rows
+                    .iter()
+                    .map(|r| r[c].chars().count())
+                    .chain([self.headers[c].chars().count()])
+                    .max()
+                    .unwrap()
+            })
+            .collect();
+        let right: Vec<bool> = (0..n).map(|c| self.numeric(c)).collect();
+        let fmt = |cells: &[String]| {
+            let parts: Vec<String> = cells
+                .iter()
+                .enumerate()
+                .map(|(c, s)| {
+                    if right[c] {
+                        format!("{s:>w$}", w = widths[c])
+                    } else {
+                        format!("{s:<w$}", w = widths[c])
+                    }
+                })
+                .collect();
+            parts.join("  ").trim_end().to_owned()
+        };
+        let mut out = fmt(&self.headers) + "\n";
+        out += &widths
+            .iter()
+            .map(|&w| "-".repeat(w))
+            .collect::<Vec<_>>()
+            .join("  ");
+        out.push('\n');
+        for r in &self.rows {
+            out += &fmt(r);
+            out.push('\n');
+        }
+        out
+    }
+
+    pub fn to_markdown(&self) -> String {
+        let right: Vec<bool> = (0..self.headers.len()).map(|c| self.numeric(c)).collect();
+        let mut out = format!("| {} |\n", self.headers.join(" | "));
+        out += &format!(
+            "|{}|\n",
+            right
+                .iter()
+                .map(|&r| if r { "---:" } else { "---" })
+                .collect::<Vec<_>>()
+                .join("|")
+        );
+        for r in &self.rows {
+            out += &format!("| {} |\n", r.join(" | "));
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn aligns_text_and_renders_markdown() {
+        let mut t = Table::new(["method", "Mrays/s"]);
+        t.row(["mt", "12.5"]);
+        t.row(["quad-unit", "3.25"]);
+        let text = t.to_text();
+        assert_eq!(text.lines().nth(2).unwrap(), "mt            12.5");
+        assert!(t.to_markdown().contains("|---|---:|"));
+    }
+}

@@ -1,0 +1,108 @@
+//! Scenes: triangle meshes loaded from OBJ+MTL.
+//!
+//! Triangle ids are OBJ face order after fan triangulation, across all objects and groups in
+//! file order (../shared/formats.md); every later stage keeps them.
+
+mod obj;
+
+pub use obj::load_obj;
+
+use std::path::PathBuf;
+
+use glam::{DVec3, Vec3};
+
+use crate::bvh::Aabb;
+
+/// A material as far as ray casting needs it (the path tracer extends this).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: String,
+    pub diffuse: [f32; 3],
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Material {
+            name: "default".into(),
+            diffuse: [0.8, 0.8, 0.8],
+        }
+    }
+}
+
+/// An indexed triangle mesh.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    /// Where it came from (for messages); empty for synthetic meshes.
+    pub source: PathBuf,
+    pub positions: Vec<[f32; 3]>,
+    /// Vertex indices per triangle, in triangle-id order.
+    pub triangles: Vec<[u32; 3]>,
+    /// Material index per triangle.
+    pub material_ids: Vec<u32>,
+    pub materials: Vec<Material>,
+}
+
+impl Mesh {
+    /// A mesh from raw data with one default material (synthetic scenes and tests).
+    /// Panics if an index is out of range: callers build the data themselves.
+    pub fn from_triangles(positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Mesh {
+        let n = positions.len() as u32;
+        assert!(
+            triangles.iter().flatten().all(|&i| i < n),
+            "vertex index out of range"
+        );
+        let material_ids = vec![0; triangles.len()];
+        Mesh {
+            source: PathBuf::new(),
+            positions,
+            triangles,
+            material_ids,
+            materials: vec![Material::default()],
+        }
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// The three vertices of triangle `id`.
+    pub fn vertices(&self, id: usize) -> [Vec3; 3] {
+        self.triangles[id].map(|i| Vec3::from_array(self.positions[i as usize]))
+    }
+
+    /// The three vertices of triangle `id`, widened to f64 (exactly).
+    pub fn vertices_f64(&self, id: usize) -> [DVec3; 3] {
+        self.triangles[id].map(|i| Vec3::from_array(self.positions[i as usize]).as_dvec3())
+    }
+
+    /// True when the triangle has zero area: its vertices are collinear or repeated.
+    ///
+    /// Decided exactly: the edges of f32 vertices are exact in f64, their products are exact,
+    /// and a difference of two doubles is zero only when they are equal, so the f64 cross
+    /// product is zero exactly when the f32 triangle is degenerate (for coordinates whose
+    /// exponents differ by less than 29, which covers every real scene).
+    pub fn is_degenerate(&self, id: usize) -> bool {
+        let [a, b, c] = self.vertices_f64(id);
+        (b - a).cross(c - a) == DVec3::ZERO
+    }
+
+    /// Ids of all zero-area triangles. They are kept in the mesh (ids stay stable), left out
+    /// of the BVH, and can never be hit.
+    pub fn degenerate_ids(&self) -> Vec<u32> {
+        (0..self.triangles.len())
+            .filter(|&i| self.is_degenerate(i))
+            .map(|i| i as u32)
+            .collect()
+    }
+
+    /// Bounds of all vertices referenced by triangles.
+    pub fn bounds(&self) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for t in &self.triangles {
+            for &i in t {
+                b.grow_point(Vec3::from_array(self.positions[i as usize]));
+            }
+        }
+        b
+    }
+}

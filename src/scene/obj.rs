@@ -1,0 +1,364 @@
+//! OBJ+MTL loading through `tobj`, with errors that name the file, the line and the problem.
+//!
+//! tobj reports what went wrong but not where; when it fails, [`locate`] re-reads the file
+//! with the same rules to find the first offending line.
+
+use std::cell::RefCell;
+use std::fs::File;
+use std::io::{BufReader, Read};
+use std::path::{Path, PathBuf};
+
+use super::{Material, Mesh};
+use crate::error::{Error, Result};
+
+/// Loads an OBJ file (and the MTL files it names, relative to its directory), fan-triangulating
+/// polygons. Points and lines are ignored. Errors: missing or unreadable file, unparsable line,
+/// face index out of range, NaN/Inf coordinate, no triangles, missing or malformed MTL.
+pub fn load_obj(path: &Path) -> Result<Mesh> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let meta = file.metadata().map_err(|e| Error::io(path, e))?;
+    if meta.is_dir() {
+        return Err(Error::bad_input(
+            path,
+            None,
+            "is a directory, not an OBJ file",
+        ));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    BufReader::new(file)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let line = 1 + e.as_bytes()[..e.utf8_error().valid_up_to()]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count();
+        Error::bad_input(path, Some(line), "not UTF-8 text (is this an OBJ file?)")
+    })?;
+    parse_obj(path, &text)
+}
+
+fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
+    let dir = path.parent().map(Path::to_owned).unwrap_or_default();
+    let mtl_failure: RefCell<Option<(PathBuf, tobj::LoadError)>> = RefCell::new(None);
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let mut reader = BufReader::new(text.as_bytes());
+    // tobj indexes with unchecked integer arithmetic on some hostile inputs; contain any panic
+    // and report it as bad input rather than crashing the tool.
+    let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        tobj::load_obj_buf(&mut reader, &options, |mtl| {
+            let full = dir.join(mtl);
+            let result = tobj::load_mtl(&full);
+            if let Err(e) = &result {
+                mtl_failure.borrow_mut().get_or_insert((full, *e));
+            }
+            result
+        })
+    }));
+    let (models, materials) = match loaded {
+        Ok(Ok(m)) => m,
+        Ok(Err(e)) => return Err(locate(path, text, Some(e))),
+        Err(_) => return Err(locate(path, text, None)),
+    };
+
+    let mut materials = match materials {
+        Ok(m) => m,
+        Err(_) => {
+            let (mtl, e) = mtl_failure
+                .into_inner()
+                .unwrap_or_else(|| (PathBuf::from("<mtllib>"), tobj::LoadError::GenericFailure));
+            let what = match e {
+                tobj::LoadError::OpenFileFailed => "cannot open it".to_owned(),
+                other => format!("{other}"),
+            };
+            return Err(Error::bad_input(
+                &mtl,
+                None,
+                format!(
+                    "material library named by {} (mtllib): {what}",
+                    path.display()
+                ),
+            ));
+        }
+    }
+    .into_iter()
+    .map(|m| Material {
+        name: m.name,
+        diffuse: m.diffuse.unwrap_or(Material::default().diffuse),
+    })
+    .collect::<Vec<_>>();
+    let default_material = materials.len() as u32;
+    let mut need_default = false;
+
+    let mut mesh = Mesh {
+        source: path.to_owned(),
+        ..Default::default()
+    };
+    for model in models {
+        let m = model.mesh;
+        let base = mesh.positions.len() as u32;
+        let nverts = m.positions.len() / 3;
+        mesh.positions
+            .extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        let mat = match m.material_id {
+            Some(id) => id as u32,
+            None => {
+                need_default = true;
+                default_material
+            }
+        };
+        for t in m.indices.chunks_exact(3) {
+            if t.iter().any(|&i| i as usize >= nverts) {
+                return Err(locate(
+                    path,
+                    text,
+                    Some(tobj::LoadError::FaceVertexOutOfBounds),
+                ));
+            }
+            mesh.triangles.push([base + t[0], base + t[1], base + t[2]]);
+            mesh.material_ids.push(mat);
+        }
+    }
+    if need_default || materials.is_empty() {
+        materials.push(Material::default());
+    }
+    mesh.materials = materials;
+
+    if mesh.positions.iter().flatten().any(|c| !c.is_finite()) {
+        return Err(locate_non_finite(path, text));
+    }
+    if mesh.triangles.is_empty() {
+        return Err(Error::bad_input(
+            path,
+            None,
+            "contains no triangles (no `f` lines with 3 or more vertices)",
+        ));
+    }
+    Ok(mesh)
+}
+
+/// Finds the first line that breaks tobj's rules, to turn its error into "file:line: problem".
+fn locate(path: &Path, text: &str, err: Option<tobj::LoadError>) -> Error {
+    let mut positions = 0usize;
+    for (n, line) in text.lines().enumerate() {
+        let lineno = n + 1;
+        let mut words = line.split_whitespace();
+        let show = line.trim();
+        let show = if show.len() > 80 {
+            format!("{}...", &show[..show.floor_char_boundary(77)])
+        } else {
+            show.to_owned()
+        };
+        match words.next() {
+            Some("v") => {
+                let vals: Vec<&str> = words.collect();
+                let ok = vals.len() >= 3 && vals[..3].iter().all(|w| w.parse::<f32>().is_ok());
+                if !ok {
+                    return Error::bad_input(
+                        path,
+                        Some(lineno),
+                        format!("cannot parse vertex position `{show}` (need three numbers)"),
+                    );
+                }
+                if vals.len() == 4 && vals[3].parse::<f32>().map_or(true, |w| w == 0.0) {
+                    return Error::bad_input(
+                        path,
+                        Some(lineno),
+                        format!("bad vertex weight w in `{show}`"),
+                    );
+                }
+                if vals.len() == 5 || vals.len() > 6 {
+                    return Error::bad_input(
+                        path,
+                        Some(lineno),
+                        format!(
+                            "vertex has {} values; expected 3, 4 or 6: `{show}`",
+                            vals.len()
+                        ),
+                    );
+                }
+                positions += 1;
+            }
+            Some("vt") | Some("vn") => {}
+            Some("f") => {
+                for w in words {
+                    let first = w.split('/').next().unwrap_or("");
+                    match first.parse::<i64>() {
+                        Err(_) => {
+                            return Error::bad_input(
+                                path,
+                                Some(lineno),
+                                format!("cannot parse face vertex `{w}` in `{show}`"),
+                            )
+                        }
+                        Ok(i) => {
+                            let in_range = (i > 0 && (i as u64) <= positions as u64)
+                                || (i < 0 && i.unsigned_abs() <= positions as u64);
+                            if !in_range {
+                                return Error::bad_input(
+                                    path,
+                                    Some(lineno),
+                                    format!("face vertex index {i} is out of range: {positions} vertices are defined before this line"),
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+            Some("usemtl") if line.split_once(' ').map_or("", |x| x.1).trim().is_empty() => {
+                return Error::bad_input(path, Some(lineno), "usemtl without a material name");
+            }
+            _ => {}
+        }
+    }
+    let what = match err {
+        Some(e) => format!("cannot be parsed as OBJ ({e})"),
+        None => "cannot be parsed as OBJ (the parser failed on malformed input)".to_owned(),
+    };
+    Error::bad_input(path, None, what)
+}
+
+fn locate_non_finite(path: &Path, text: &str) -> Error {
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() == Some("v") {
+            let vals: Vec<f32> = words.take(4).filter_map(|w| w.parse().ok()).collect();
+            let xyz: Vec<f32> = match vals.as_slice() {
+                [x, y, z, w] => vec![x / w, y / w, z / w],
+                v => v.iter().take(3).copied().collect(),
+            };
+            if xyz.iter().any(|c| !c.is_finite()) {
+                return Error::bad_input(
+                    path,
+                    Some(n + 1),
+                    format!("vertex coordinate is NaN or infinite: `{}`", line.trim()),
+                );
+            }
+        }
+    }
+    Error::bad_input(path, None, "a vertex coordinate is NaN or infinite")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Mesh> {
+        parse_obj(Path::new("test.obj"), text)
+    }
+
+    fn err(text: &str) -> String {
+        parse(text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn fan_triangulation_keeps_face_order() {
+        let m =
+            parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4 5\nf 1 2 5\n").unwrap();
+        // (v0 v1 v2), (v0 v2 v3), (v0 v3 v4), then the triangle.
+        let tri = |i: usize| m.triangles[i].map(|k| m.positions[k as usize]);
+        assert_eq!(m.triangles.len(), 4);
+        assert_eq!(tri(0), [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.]]);
+        assert_eq!(tri(1), [[0., 0., 0.], [1., 1., 0.], [0., 1., 0.]]);
+        assert_eq!(tri(2), [[0., 0., 0.], [0., 1., 0.], [0., 0., 1.]]);
+        assert_eq!(tri(3), [[0., 0., 0.], [1., 0., 0.], [0., 0., 1.]]);
+    }
+
+    #[test]
+    fn ids_follow_file_order_across_groups() {
+        let m =
+            parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\no a\nf 1 2 3\ng b\nf 1 3 4\no c\nf 2 3 4\n")
+                .unwrap();
+        assert_eq!(m.triangles.len(), 3);
+        let tri = |i: usize| m.triangles[i].map(|k| m.positions[k as usize]);
+        assert_eq!(tri(1), [[0., 0., 0.], [0., 1., 0.], [0., 0., 1.]]);
+        assert_eq!(tri(2), [[1., 0., 0.], [0., 1., 0.], [0., 0., 1.]]);
+    }
+
+    #[test]
+    fn negative_indices_are_relative() {
+        let m = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n").unwrap();
+        assert_eq!(m.triangles.len(), 1);
+        assert!(!m.is_degenerate(0));
+    }
+
+    #[test]
+    fn bad_inputs_name_line_and_problem() {
+        let e = err("v 0 0 0\nv 1 zero 0\nv 0 1 0\nf 1 2 3\n");
+        assert!(
+            e.starts_with("test.obj:2:") && e.contains("cannot parse vertex position"),
+            "{e}"
+        );
+        let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
+        assert!(
+            e.starts_with("test.obj:4:") && e.contains("out of range"),
+            "{e}"
+        );
+        let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n");
+        assert!(
+            e.starts_with("test.obj:4:") && e.contains("out of range"),
+            "{e}"
+        );
+        let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n");
+        assert!(
+            e.starts_with("test.obj:4:") && e.contains("cannot parse face vertex"),
+            "{e}"
+        );
+        let e = err("v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n");
+        assert!(
+            e.starts_with("test.obj:2:") && e.contains("NaN or infinite"),
+            "{e}"
+        );
+        let e = err("v 0 0 0\nv 1 0 inf\nv 0 1 0\nf 1 2 3\n");
+        assert!(
+            e.starts_with("test.obj:2:") && e.contains("NaN or infinite"),
+            "{e}"
+        );
+        let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+        assert!(e.contains("no triangles"), "{e}");
+        let e = err("# nothing\n");
+        assert!(e.contains("no triangles"), "{e}");
+        let e = err("v 0 0 0\nv 1 0 0\nf 1 2\n");
+        assert!(e.contains("no triangles"), "{e}");
+    }
+
+    #[test]
+    fn hostile_index_does_not_panic() {
+        let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9223372036854775808\n");
+        assert!(e.starts_with("test.obj:4:"), "{e}");
+        let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999999\n");
+        assert!(e.starts_with("test.obj:4:"), "{e}");
+    }
+
+    #[test]
+    fn missing_files_are_named() {
+        let e = load_obj(Path::new("/nonexistent/x.obj"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("/nonexistent/x.obj"), "{e}");
+        let dir = tempfile::tempdir().unwrap();
+        let obj = dir.path().join("a.obj");
+        std::fs::write(
+            &obj,
+            "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        let e = load_obj(&obj).unwrap_err().to_string();
+        assert!(
+            e.contains("missing.mtl") && e.contains("cannot open"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn degenerate_triangles_are_kept_and_detected() {
+        let m = parse("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\nf 1 1 4\n").unwrap();
+        assert_eq!(m.triangles.len(), 3);
+        assert_eq!(m.degenerate_ids(), vec![0, 2]);
+    }
+}

@@ -1,0 +1,188 @@
+//! Reflection: what a kernel binds (rspirv-reflect) and how its buffer structs are laid out
+//! (the `Offset` and `ArrayStride` decorations, read with rspirv).
+
+use std::collections::BTreeMap;
+
+use ash::vk;
+use rspirv::dr::Operand;
+use rspirv::spirv::{Decoration, Op};
+
+use crate::error::{Error, Result};
+
+#[derive(Clone, Debug)]
+pub struct DescriptorBinding {
+    pub ty: vk::DescriptorType,
+    pub name: String,
+}
+
+/// What a compute kernel needs from its pipeline layout.
+#[derive(Clone, Debug)]
+pub struct KernelLayout {
+    /// set -> binding -> descriptor.
+    pub sets: BTreeMap<u32, BTreeMap<u32, DescriptorBinding>>,
+    /// (offset, size) of the push-constant block.
+    pub push_constants: Option<(u32, u32)>,
+    pub local_size: (u32, u32, u32),
+}
+
+pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
+    let err = |m: String| Error::Spirv {
+        kernel: kernel.into(),
+        message: m,
+    };
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let r =
+        rspirv_reflect::Reflection::new_from_spirv(&bytes).map_err(|e| err(format!("{e:?}")))?;
+    let sets = r
+        .get_descriptor_sets()
+        .map_err(|e| err(format!("{e:?}")))?
+        .into_iter()
+        .map(|(set, bindings)| {
+            let b = bindings
+                .into_iter()
+                .map(|(binding, info)| {
+                    (
+                        binding,
+                        DescriptorBinding {
+                            ty: vk::DescriptorType::from_raw(info.ty.0 as i32),
+                            name: info.name,
+                        },
+                    )
+                })
+                .collect();
+            (set, b)
+        })
+        .collect();
+    let push_constants = r
+        .get_push_constant_range()
+        .map_err(|e| err(format!("{e:?}")))?
+        .map(|p| (p.offset, p.size));
+    let local_size = r
+        .get_compute_group_size()
+        .ok_or_else(|| err("no LocalSize execution mode".into()))?;
+    Ok(KernelLayout {
+        sets,
+        push_constants,
+        local_size,
+    })
+}
+
+/// The layout of the runtime array a storage buffer (or the push-constant block) holds, as the
+/// SPIR-V declares it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BufferLayout {
+    /// `ArrayStride` of the block's runtime-array member (`None` for a plain block).
+    pub array_stride: Option<u32>,
+    /// `Offset` of each member of the array element if it is a struct (or of the block itself
+    /// when it holds no array).
+    pub member_offsets: Vec<u32>,
+}
+
+/// Layout of every storage buffer by binding (set 0), plus the push-constant block under
+/// `u32::MAX`. Shaderc's performance level strips debug names, so structs are found through
+/// the variables' `Binding` decorations, not by name.
+pub fn buffer_layouts(words: &[u32]) -> std::result::Result<BTreeMap<u32, BufferLayout>, String> {
+    let m = rspirv::dr::load_words(words).map_err(|e| e.to_string())?;
+    let lit = |o: &Operand| match o {
+        Operand::LiteralBit32(x) => Some(*x),
+        _ => None,
+    };
+    let idref = |o: &Operand| match o {
+        Operand::IdRef(i) => Some(*i),
+        _ => None,
+    };
+    let mut offsets: BTreeMap<u32, BTreeMap<u32, u32>> = BTreeMap::new();
+    let mut strides: BTreeMap<u32, u32> = BTreeMap::new();
+    let mut binding_of: BTreeMap<u32, u32> = BTreeMap::new();
+    for i in &m.annotations {
+        match (i.class.opcode, i.operands.as_slice()) {
+            (Op::MemberDecorate, [t, idx, Operand::Decoration(Decoration::Offset), off]) => {
+                let (Some(t), Some(idx), Some(off)) = (idref(t), lit(idx), lit(off)) else {
+                    continue;
+                };
+                offsets.entry(t).or_default().insert(idx, off);
+            }
+            (Op::Decorate, [t, Operand::Decoration(Decoration::ArrayStride), s]) => {
+                if let (Some(t), Some(s)) = (idref(t), lit(s)) {
+                    strides.insert(t, s);
+                }
+            }
+            (Op::Decorate, [t, Operand::Decoration(Decoration::Binding), b]) => {
+                if let (Some(t), Some(b)) = (idref(t), lit(b)) {
+                    binding_of.insert(t, b);
+                }
+            }
+            _ => {}
+        }
+    }
+    let defs: BTreeMap<u32, &rspirv::dr::Instruction> = m
+        .types_global_values
+        .iter()
+        .filter_map(|i| i.result_id.map(|id| (id, i)))
+        .collect();
+    let struct_offsets = |id: u32| -> Vec<u32> {
+        let n = defs
+            .get(&id)
+            .filter(|d| d.class.opcode == Op::TypeStruct)
+            .map_or(0, |d| d.operands.len());
+        (0..n as u32)
+            .map(|k| {
+                offsets
+                    .get(&id)
+                    .and_then(|o| o.get(&k))
+                    .copied()
+                    .unwrap_or(u32::MAX)
+            })
+            .collect()
+    };
+    let layout_of_block = |block: u32| -> BufferLayout {
+        let first = defs
+            .get(&block)
+            .and_then(|d| d.operands.first())
+            .and_then(idref);
+        match first.and_then(|f| defs.get(&f).map(|d| (f, d))) {
+            Some((arr, d)) if d.class.opcode == Op::TypeRuntimeArray => BufferLayout {
+                array_stride: strides.get(&arr).copied(),
+                member_offsets: d
+                    .operands
+                    .first()
+                    .and_then(idref)
+                    .map(struct_offsets)
+                    .unwrap_or_default(),
+            },
+            _ => BufferLayout {
+                array_stride: None,
+                member_offsets: struct_offsets(block),
+            },
+        }
+    };
+    let mut out = BTreeMap::new();
+    for i in &m.types_global_values {
+        if i.class.opcode != Op::Variable {
+            continue;
+        }
+        let (Some(var), Some(ptr)) = (i.result_id, i.result_type) else {
+            continue;
+        };
+        let class = i.operands.first();
+        // Pointer type: OpTypePointer <storage class> <pointee>.
+        let Some(pointee) = defs
+            .get(&ptr)
+            .and_then(|p| p.operands.get(1))
+            .and_then(idref)
+        else {
+            continue;
+        };
+        if let Some(&b) = binding_of.get(&var) {
+            out.insert(b, layout_of_block(pointee));
+        } else if matches!(
+            class,
+            Some(Operand::StorageClass(
+                rspirv::spirv::StorageClass::PushConstant
+            ))
+        ) {
+            out.insert(u32::MAX, layout_of_block(pointee));
+        }
+    }
+    Ok(out)
+}
