@@ -16,24 +16,14 @@ fn main() {
         return;
     }
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let scenes = std::env::var("TRILAB_BENCH_SCENES")
-        .map(|s| s.split(',').map(PathBuf::from).collect())
-        .unwrap_or_else(|_| {
-            ["bunny", "dragon", "buddha"]
-                .iter()
-                .map(|s| root.join("scenes").join(format!("{s}.obj")))
-                .collect()
+    let scenes =
+        std::env::var("TRILAB_BENCH_SCENES").map(|s| s.split(',').map(PathBuf::from).collect()).unwrap_or_else(|_| {
+            ["bunny", "dragon", "buddha"].iter().map(|s| root.join("scenes").join(format!("{s}.obj"))).collect()
         });
-    let opts = BenchOptions {
-        scenes,
-        embree: std::env::var("TRILAB_EMBREE").ok().map(PathBuf::from),
-        ..Default::default()
-    };
-    let ctx = Context::new(&ContextOptions {
-        validation: Validation::Off,
-        ..Default::default()
-    })
-    .expect("a Vulkan device");
+    let opts =
+        BenchOptions { scenes, embree: std::env::var("TRILAB_EMBREE").ok().map(PathBuf::from), ..Default::default() };
+    let ctx =
+        Context::new(&ContextOptions { validation: Validation::Off, ..Default::default() }).expect("a Vulkan device");
     let report = run(&ctx, &opts, |m| eprintln!("  {m}")).expect("benchmark");
     println!("device: {} ({})\n", report.device, report.driver);
     print!("{}", report.table().to_text());

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::bvh::{BuildOptions, Bvh};
+use crate::bvh::{BuildOptions, Bvh, LeafPolicy};
 use crate::compare::compare_closest;
 use crate::encoding::Method;
 use crate::error::{Error, Result};
@@ -24,6 +24,7 @@ pub struct BenchOptions {
     pub scenes: Vec<PathBuf>,
     pub methods: Vec<Method>,
     pub leaf_size: u32,
+    pub leaf_policy: LeafPolicy,
     pub warmup: usize,
     pub repeat: usize,
     pub width: u32,
@@ -45,6 +46,7 @@ impl Default for BenchOptions {
             scenes: vec![],
             methods: Method::ALL.to_vec(),
             leaf_size: 4,
+            leaf_policy: LeafPolicy::Fill,
             warmup: 1,
             repeat: 5,
             width: 800,
@@ -120,30 +122,16 @@ impl BenchReport {
                 format!("{:.2}", r.mrays_per_s),
                 format!("{:.2}..{:.2}", r.mrays_per_s_min, r.mrays_per_s_max),
                 format!("{:.4}", 100.0 * r.agreement),
-                r.embree_mrays_per_s
-                    .map(|e| format!("{e:.2}"))
-                    .unwrap_or_else(|| "-".into()),
+                r.embree_mrays_per_s.map(|e| format!("{e:.2}")).unwrap_or_else(|| "-".into()),
             ]);
         }
         t
     }
 
     pub fn embree_table(&self) -> Table {
-        let mut t = Table::new([
-            "scene",
-            "set",
-            "Embree Mrays/s",
-            "best trilab Mrays/s",
-            "trilab / Embree",
-        ]);
+        let mut t = Table::new(["scene", "set", "Embree Mrays/s", "best trilab Mrays/s", "trilab / Embree"]);
         for (s, set, e, b, ratio) in &self.embree {
-            t.row([
-                s.clone(),
-                set.clone(),
-                format!("{e:.2}"),
-                format!("{b:.2}"),
-                format!("{ratio:.2}"),
-            ]);
+            t.row([s.clone(), set.clone(), format!("{e:.2}"), format!("{b:.2}"), format!("{ratio:.2}")]);
         }
         t
     }
@@ -154,30 +142,15 @@ pub fn ray_sets(mesh: &Mesh, name: &str, o: &BenchOptions) -> Result<Vec<(String
     if let Some(dir) = &o.rays_dir {
         return ["primary", "diffuse", "random"]
             .iter()
-            .map(|set| {
-                Ok((
-                    set.to_string(),
-                    rays::read_rays(&dir.join(format!("{name}.{set}.rays")))?,
-                ))
-            })
+            .map(|set| Ok((set.to_string(), rays::read_rays(&dir.join(format!("{name}.{set}.rays")))?)))
             .collect();
     }
     let bounds = mesh.bounds();
     let primary = rays::primary_rays(&Camera::framing(&bounds), o.width, o.height);
     let bvh = Bvh::build(mesh, &BuildOptions::new(4));
-    let diffuse = rays::diffuse_rays(
-        mesh,
-        &Reference::new(mesh, &bvh),
-        &primary,
-        o.diffuse_per_hit,
-        o.seed,
-    );
+    let diffuse = rays::diffuse_rays(mesh, &Reference::new(mesh, &bvh), &primary, o.diffuse_per_hit, o.seed);
     let random = rays::random_rays(&bounds, o.random_rays, o.seed);
-    Ok(vec![
-        ("primary".into(), primary),
-        ("diffuse".into(), diffuse),
-        ("random".into(), random),
-    ])
+    Ok(vec![("primary".into(), primary), ("diffuse".into(), diffuse), ("random".into(), random)])
 }
 
 /// Runs the Embree peer on a ray file; returns its best Mrays/s.
@@ -201,12 +174,7 @@ fn run_embree(bin: &Path, scene: &Path, rays: &Path, out: &Path, repeat: usize) 
     }
     text.split_whitespace()
         .find_map(|w| w.strip_prefix("mrays_per_s=").and_then(|v| v.parse().ok()))
-        .ok_or_else(|| {
-            Error::Usage(format!(
-                "cannot read Mrays/s from {}: {text}",
-                bin.display()
-            ))
-        })
+        .ok_or_else(|| Error::Usage(format!("cannot read Mrays/s from {}: {text}", bin.display())))
 }
 
 pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
@@ -216,50 +184,29 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         driver: info.driver_label(),
         mesa_version: info.mesa_version.clone(),
         lp_num_threads: std::env::var("LP_NUM_THREADS").ok(),
-        host_cpus: std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1),
+        host_cpus: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
         rows: vec![],
         embree: vec![],
     };
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
-    let kernels: Vec<_> = o
-        .methods
-        .iter()
-        .map(|&m| ctx.create_kernel(crate::kernels::raycast(m, false)))
-        .collect::<Result<_>>()?;
+    let kernels: Vec<_> =
+        o.methods.iter().map(|&m| ctx.create_kernel(crate::kernels::raycast(m, false))).collect::<Result<_>>()?;
     for scene_path in &o.scenes {
-        let name = scene_path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
+        let name = scene_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let mesh = load_obj(scene_path)?;
-        progress(&format!(
-            "{name}: {} triangles; making ray sets",
-            mesh.triangle_count()
-        ));
+        progress(&format!("{name}: {} triangles; making ray sets", mesh.triangle_count()));
         let t = Instant::now();
         let sets = ray_sets(&mesh, &name, o)?;
-        let bvh = Bvh::build(&mesh, &BuildOptions::new(o.leaf_size));
+        let bvh = Bvh::build(&mesh, &BuildOptions { leaf_policy: o.leaf_policy, ..BuildOptions::new(o.leaf_size) });
         let reference = Reference::new(&mesh, &bvh);
-        progress(&format!(
-            "{name}: ray sets ready in {:.1} s",
-            t.elapsed().as_secs_f64()
-        ));
-        let scenes: Vec<GpuScene> = o
-            .methods
-            .iter()
-            .map(|m| GpuScene::upload(ctx, &m.encode(&mesh, &bvh)))
-            .collect::<Result<_>>()?;
+        progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
+        let scenes: Vec<GpuScene> =
+            o.methods.iter().map(|m| GpuScene::upload(ctx, &m.encode(&mesh, &bvh))).collect::<Result<_>>()?;
         for (set, rays) in &sets {
             let ref_hits = reference.trace_all(rays, false);
             let mut best: f64 = 0.0;
             for ((method, kernel), gscene) in o.methods.iter().zip(&kernels).zip(&scenes) {
-                let opts = RaycastOptions {
-                    warmup: o.warmup,
-                    repeat: o.repeat,
-                    batch_rays: o.batch_rays,
-                };
+                let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: o.batch_rays };
                 let res = raycast(ctx, kernel, gscene, rays, &opts)?;
                 let agreement = compare_closest(&mesh, rays, &res.hits, &ref_hits);
                 let ms = res.time_ms();
@@ -298,27 +245,12 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             if let Some(bin) = &o.embree {
                 let rays_file = tmp.path().join(format!("{name}.{set}.rays"));
                 rays::write_rays(&rays_file, rays)?;
-                let e = run_embree(
-                    bin,
-                    scene_path,
-                    &rays_file,
-                    &tmp.path().join("embree.hits"),
-                    o.repeat.max(3),
-                )?;
-                progress(&format!(
-                    "{name} {set} Embree: {e:.2} Mrays/s; best trilab / Embree = {:.2}",
-                    best / e
-                ));
-                for r in report
-                    .rows
-                    .iter_mut()
-                    .filter(|r| r.scene == name && &r.ray_set == set)
-                {
+                let e = run_embree(bin, scene_path, &rays_file, &tmp.path().join("embree.hits"), o.repeat.max(3))?;
+                progress(&format!("{name} {set} Embree: {e:.2} Mrays/s; best trilab / Embree = {:.2}", best / e));
+                for r in report.rows.iter_mut().filter(|r| r.scene == name && &r.ray_set == set) {
                     r.embree_mrays_per_s = Some(e);
                 }
-                report
-                    .embree
-                    .push((name.clone(), set.clone(), e, best, best / e));
+                report.embree.push((name.clone(), set.clone(), e, best, best / e));
             }
         }
     }

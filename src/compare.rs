@@ -107,11 +107,7 @@ fn line_segment_distance(o: DVec3, d: DVec3, p: DVec3, q: DVec3) -> f64 {
     let w = perp(o - p);
     let v = perp(q - p);
     let vv = v.length_squared();
-    let s = if vv > 0.0 {
-        (w.dot(v) / vv).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
+    let s = if vv > 0.0 { (w.dot(v) / vv).clamp(0.0, 1.0) } else { 0.0 };
     (w - v * s).length()
 }
 
@@ -124,10 +120,7 @@ pub fn edge_ulps(mesh: &Mesh, ray: &Ray, id: u32) -> f64 {
         .iter()
         .map(|&(p, q)| line_segment_distance(r.origin, r.dir, p, q))
         .fold(f64::INFINITY, f64::min);
-    let scale = [r.origin, a, b, c]
-        .iter()
-        .map(|v| v.abs().max_element())
-        .fold(0.0, f64::max);
+    let scale = [r.origin, a, b, c].iter().map(|v| v.abs().max_element()).fold(0.0, f64::max);
     dist / ulp_f32(scale)
 }
 
@@ -154,10 +147,7 @@ fn check_valid(mesh: &Mesh, ray: &Ray, h: &Hit) -> Option<String> {
 pub fn compare_closest(mesh: &Mesh, rays: &[Ray], gpu: &[Hit], reference: &[RefHit]) -> Agreement {
     assert_eq!(rays.len(), gpu.len());
     assert_eq!(rays.len(), reference.len());
-    let mut a = Agreement {
-        rays: rays.len(),
-        ..Default::default()
-    };
+    let mut a = Agreement { rays: rays.len(), ..Default::default() };
     for (i, ((ray, g), r)) in rays.iter().zip(gpu).zip(reference).enumerate() {
         if let Some(why) = check_valid(mesh, ray, g) {
             a.invalid.push((i, why));
@@ -170,9 +160,7 @@ pub fn compare_closest(mesh: &Mesh, rays: &[Ray], gpu: &[Hit], reference: &[RefH
                 a.agree += 1;
                 continue;
             }
-            (true, true)
-                if g.id == r.id || (g.t as f64 - r.t).abs() <= REL_T_TOL * r.t.abs().max(1e-30) =>
-            {
+            (true, true) if g.id == r.id || (g.t as f64 - r.t).abs() <= REL_T_TOL * r.t.abs().max(1e-30) => {
                 a.agree += 1;
                 continue;
             }
@@ -183,9 +171,7 @@ pub fn compare_closest(mesh: &Mesh, rays: &[Ray], gpu: &[Hit], reference: &[RefH
         let ulps = match kind {
             DisagreementKind::GpuMissed => edge_ulps(mesh, ray, r.id),
             DisagreementKind::GpuFalseHit => edge_ulps(mesh, ray, g.id),
-            DisagreementKind::DifferentHit => {
-                edge_ulps(mesh, ray, r.id).min(edge_ulps(mesh, ray, g.id))
-            }
+            DisagreementKind::DifferentHit => edge_ulps(mesh, ray, r.id).min(edge_ulps(mesh, ray, g.id)),
         };
         a.max_edge_ulps = a.max_edge_ulps.max(ulps);
         if ulps > EDGE_ULPS {
@@ -224,10 +210,7 @@ impl AnyHitCheck {
 /// Any-hit must hit exactly when closest-hit does (both run the same triangle tests over the
 /// same BVH), and whatever it reports must be a genuine hit.
 pub fn compare_any(mesh: &Mesh, rays: &[Ray], closest: &[Hit], any: &[Hit]) -> AnyHitCheck {
-    let mut c = AnyHitCheck {
-        rays: rays.len(),
-        ..Default::default()
-    };
+    let mut c = AnyHitCheck { rays: rays.len(), ..Default::default() };
     for (i, ((ray, cl), an)) in rays.iter().zip(closest).zip(any).enumerate() {
         if cl.is_hit() != an.is_hit() {
             c.status_mismatch.push(i);
@@ -244,10 +227,7 @@ pub fn compare_any(mesh: &Mesh, rays: &[Ray], closest: &[Hit], any: &[Hit]) -> A
         // for rays starting next to the surface or grazing it; its accuracy is measured elsewhere).
         let genuine = intersect(&Ray64::from(ray), mesh.vertices_f64(an.id as usize)).is_some();
         if !genuine && edge_ulps(mesh, ray, an.id) > EDGE_ULPS {
-            c.bogus.push((
-                i,
-                format!("reported triangle {} at t = {} is not hit", an.id, an.t),
-            ));
+            c.bogus.push((i, format!("reported triangle {} at t = {} is not hit", an.id, an.t)));
         }
     }
     c
@@ -259,13 +239,7 @@ mod tests {
 
     fn mesh() -> Mesh {
         Mesh::from_triangles(
-            vec![
-                [0.0, 0.0, 1.0],
-                [1.0, 0.0, 1.0],
-                [0.0, 1.0, 1.0],
-                [1.0, 1.0, 1.0],
-                [2.0, 2.0, 2.0],
-            ],
+            vec![[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]],
             vec![[0, 1, 2], [1, 3, 2], [4, 4, 4]],
         )
     }
@@ -281,24 +255,8 @@ mod tests {
         let m = mesh();
         // Ray 0 through the shared diagonal edge (x + y = 1) of triangles 0 and 1; ray 1 well
         // inside triangle 0.
-        let rays = vec![
-            Ray::new([0.5, 0.5, 0.0], [0.0, 0.0, 1.0]),
-            Ray::new([0.2, 0.2, 0.0], [0.0, 0.0, 1.0]),
-        ];
-        let reference = vec![
-            RefHit {
-                t: 1.0,
-                id: 0,
-                u: 0.5,
-                v: 0.5,
-            },
-            RefHit {
-                t: 1.0,
-                id: 0,
-                u: 0.2,
-                v: 0.2,
-            },
-        ];
+        let rays = vec![Ray::new([0.5, 0.5, 0.0], [0.0, 0.0, 1.0]), Ray::new([0.2, 0.2, 0.0], [0.0, 0.0, 1.0])];
+        let reference = vec![RefHit { t: 1.0, id: 0, u: 0.5, v: 0.5 }, RefHit { t: 1.0, id: 0, u: 0.2, v: 0.2 }];
         // GPU missed both: the first is an edge leak (explained), the second is not.
         let gpu = vec![Hit::MISS, Hit::MISS];
         let a = compare_closest(&m, &rays, &gpu, &reference);
@@ -308,20 +266,7 @@ mod tests {
         assert!(a.disagreements[0].edge_ulps < 1.0);
         assert!(!a.passes(0.0));
         // The neighbour at the same t counts as agreement.
-        let gpu = vec![
-            Hit {
-                t: 1.0,
-                id: 1,
-                u: 0.0,
-                v: 0.5,
-            },
-            Hit {
-                t: 1.0,
-                id: 0,
-                u: 0.2,
-                v: 0.2,
-            },
-        ];
+        let gpu = vec![Hit { t: 1.0, id: 1, u: 0.0, v: 0.5 }, Hit { t: 1.0, id: 0, u: 0.2, v: 0.2 }];
         let a = compare_closest(&m, &rays, &gpu, &reference);
         assert!(a.passes(1.0), "{}", a.summary());
     }
@@ -330,38 +275,12 @@ mod tests {
     fn impossible_values_are_invalid() {
         let m = mesh();
         let rays = vec![Ray::new([0.2, 0.2, 0.0], [0.0, 0.0, 1.0]); 4];
-        let reference = vec![
-            RefHit {
-                t: 1.0,
-                id: 0,
-                u: 0.2,
-                v: 0.2
-            };
-            4
-        ];
+        let reference = vec![RefHit { t: 1.0, id: 0, u: 0.2, v: 0.2 }; 4];
         let gpu = vec![
-            Hit {
-                t: f32::NAN,
-                id: 0,
-                u: 0.2,
-                v: 0.2,
-            },
-            Hit {
-                t: 1.0,
-                id: 2,
-                u: 0.0,
-                v: 0.0,
-            },
-            Hit {
-                t: 1.0,
-                id: 7,
-                u: 0.0,
-                v: 0.0,
-            },
-            Hit {
-                t: 0.0,
-                ..Hit::MISS
-            },
+            Hit { t: f32::NAN, id: 0, u: 0.2, v: 0.2 },
+            Hit { t: 1.0, id: 2, u: 0.0, v: 0.0 },
+            Hit { t: 1.0, id: 7, u: 0.0, v: 0.0 },
+            Hit { t: 0.0, ..Hit::MISS },
         ];
         let a = compare_closest(&m, &rays, &gpu, &reference);
         assert_eq!(a.invalid.len(), 4, "{:?}", a.invalid);
@@ -371,15 +290,7 @@ mod tests {
     fn any_hit_status_must_match() {
         let m = mesh();
         let rays = vec![Ray::new([0.2, 0.2, 0.0], [0.0, 0.0, 1.0]); 2];
-        let closest = vec![
-            Hit {
-                t: 1.0,
-                id: 0,
-                u: 0.2,
-                v: 0.2,
-            },
-            Hit::MISS,
-        ];
+        let closest = vec![Hit { t: 1.0, id: 0, u: 0.2, v: 0.2 }, Hit::MISS];
         let good = compare_any(&m, &rays, &closest, &[closest[0], Hit::MISS]);
         assert!(good.passes());
         let bad = compare_any(&m, &rays, &closest, &[Hit::MISS, Hit::MISS]);
@@ -390,12 +301,7 @@ mod tests {
             &closest,
             &[
                 // Triangle 1 is not on this ray's path.
-                Hit {
-                    t: 1.0,
-                    id: 1,
-                    u: 0.0,
-                    v: 0.0,
-                },
+                Hit { t: 1.0, id: 1, u: 0.0, v: 0.0 },
                 Hit::MISS,
             ],
         );

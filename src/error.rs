@@ -19,11 +19,7 @@ pub enum Error {
 
     /// An input file is malformed. `line` is 1-based where the problem is on one line.
     #[error("{}{}: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
-    BadInput {
-        path: PathBuf,
-        line: Option<usize>,
-        message: String,
-    },
+    BadInput { path: PathBuf, line: Option<usize>, message: String },
 
     /// A request the tool cannot satisfy (bad option combination, output over an input, ...).
     #[error("{0}")]
@@ -60,27 +56,17 @@ pub enum Error {
 
 impl From<vk::Result> for Error {
     fn from(result: vk::Result) -> Self {
-        Error::Vulkan {
-            result,
-            during: "a Vulkan call".into(),
-        }
+        Error::Vulkan { result, during: "a Vulkan call".into() }
     }
 }
 
 impl Error {
     pub fn bad_input(path: &Path, line: Option<usize>, message: impl Into<String>) -> Self {
-        Error::BadInput {
-            path: path.to_owned(),
-            line,
-            message: message.into(),
-        }
+        Error::BadInput { path: path.to_owned(), line, message: message.into() }
     }
 
     pub fn io(path: &Path, source: std::io::Error) -> Self {
-        Error::Io {
-            path: path.to_owned(),
-            source,
-        }
+        Error::Io { path: path.to_owned(), source }
     }
 }
 
@@ -91,9 +77,6 @@ pub trait VkContext<T> {
 
 impl<T> VkContext<T> for std::result::Result<T, vk::Result> {
     fn during(self, what: &str) -> Result<T> {
-        self.map_err(|result| Error::Vulkan {
-            result,
-            during: what.to_owned(),
-        })
+        self.map_err(|result| Error::Vulkan { result, during: what.to_owned() })
     }
 }

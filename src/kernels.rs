@@ -23,10 +23,7 @@ include!(concat!(env!("OUT_DIR"), "/kernels.rs"));
 impl KernelSource {
     /// The module as words (`include_bytes!` gives no alignment guarantee).
     pub fn words(&self) -> Vec<u32> {
-        self.spirv
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect()
+        self.spirv.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
     }
 }
 
@@ -41,12 +38,7 @@ pub fn find(kernel: &str, method: Method, variant: &str) -> &'static KernelSourc
     KERNELS
         .iter()
         .find(|k| k.kernel == kernel && k.method == method.glsl_name() && k.variant == variant)
-        .unwrap_or_else(|| {
-            panic!(
-                "no kernel {kernel}.{}.{variant} was compiled",
-                method.glsl_name()
-            )
-        })
+        .unwrap_or_else(|| panic!("no kernel {kernel}.{}.{variant} was compiled", method.glsl_name()))
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand};
 use serde_json::json;
 
 use trilab::bench::{self, BenchOptions};
-use trilab::bvh::{BuildOptions, Builder, Bvh, MAX_LEAF_SIZE};
+use trilab::bvh::{BuildOptions, Builder, Bvh, LeafPolicy, MAX_LEAF_SIZE};
 use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::Method;
 use trilab::error::{Error, Result};
@@ -40,15 +40,11 @@ struct GpuArgs {
 }
 
 /// The validation log of the context a command made, checked before exit.
-static VALIDATION_LOG: std::sync::OnceLock<std::sync::Arc<trilab::gpu::ValidationLog>> =
-    std::sync::OnceLock::new();
+static VALIDATION_LOG: std::sync::OnceLock<std::sync::Arc<trilab::gpu::ValidationLog>> = std::sync::OnceLock::new();
 
 impl GpuArgs {
     fn context(&self) -> Result<Context> {
-        let mut o = ContextOptions {
-            device: self.device.clone(),
-            ..Default::default()
-        };
+        let mut o = ContextOptions { device: self.device.clone(), ..Default::default() };
         if self.validation {
             o.validation = Validation::Required;
         }
@@ -79,6 +75,8 @@ enum Cmd {
         /// Max triangles per leaf; repeat or omit for 1, 2, 3, 4, 8, 16.
         #[arg(long = "leaf-size")]
         leaf_sizes: Vec<u32>,
+        #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+        leaf_policy: LeafPolicy,
         #[arg(long)]
         json: bool,
     },
@@ -152,6 +150,10 @@ struct RaycastArgs {
     /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
+    /// `fill`: nodes with <= leaf-size triangles become leaves (the paper's); `sah`: the SAH
+    /// decides and leaf-size is only a cap.
+    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    leaf_policy: LeafPolicy,
     /// Occlusion query: any hit in [tmin, tmax] instead of the closest.
     #[arg(long)]
     any_hit: bool,
@@ -180,6 +182,8 @@ struct BenchArgs {
     methods: Vec<Method>,
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
+    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    leaf_policy: LeafPolicy,
     #[arg(long, default_value_t = 5)]
     repeat: usize,
     #[arg(long, default_value_t = 800)]
@@ -212,10 +216,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = run(cli);
     // Contexts are gone by now, so teardown messages are in the log too.
-    let messages = VALIDATION_LOG
-        .get()
-        .map(|l| l.messages())
-        .unwrap_or_default();
+    let messages = VALIDATION_LOG.get().map(|l| l.messages()).unwrap_or_default();
     for m in &messages {
         eprintln!("trilab: validation: {m}");
     }
@@ -237,11 +238,7 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Devices { json } => devices(json),
         Cmd::Rays { kind } => make_rays(kind),
         Cmd::Raycast(a) => raycast_cmd(a),
-        Cmd::Bvh {
-            scene,
-            leaf_sizes,
-            json,
-        } => bvh_cmd(&scene, leaf_sizes, json),
+        Cmd::Bvh { scene, leaf_sizes, leaf_policy, json } => bvh_cmd(&scene, leaf_sizes, leaf_policy, json),
         Cmd::Spirv { write, json } => spirv_cmd(write, json),
         Cmd::Bench(a) => bench_cmd(a),
     }
@@ -251,9 +248,7 @@ fn check_leaf_size(n: u32) -> Result<()> {
     if (1..=MAX_LEAF_SIZE).contains(&n) {
         Ok(())
     } else {
-        Err(Error::Usage(format!(
-            "--leaf-size {n}: must be 1..={MAX_LEAF_SIZE}"
-        )))
+        Err(Error::Usage(format!("--leaf-size {n}: must be 1..={MAX_LEAF_SIZE}")))
     }
 }
 
@@ -278,34 +273,19 @@ fn devices(json: bool) -> Result<()> {
 
 fn make_rays(kind: RaysCmd) -> Result<()> {
     let (common, rays) = match kind {
-        RaysCmd::Primary {
-            common,
-            width,
-            height,
-        } => {
+        RaysCmd::Primary { common, width, height } => {
             let mesh = load_obj(&common.scene)?;
             let r = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
             (common, r)
         }
-        RaysCmd::Diffuse {
-            common,
-            width,
-            height,
-            per_hit,
-            seed,
-        } => {
+        RaysCmd::Diffuse { common, width, height, per_hit, seed } => {
             let mesh = load_obj(&common.scene)?;
             let primary = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
             let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-            let r =
-                rays::diffuse_rays(&mesh, &Reference::new(&mesh, &bvh), &primary, per_hit, seed);
+            let r = rays::diffuse_rays(&mesh, &Reference::new(&mesh, &bvh), &primary, per_hit, seed);
             (common, r)
         }
-        RaysCmd::Random {
-            common,
-            count,
-            seed,
-        } => {
+        RaysCmd::Random { common, count, seed } => {
             let mesh = load_obj(&common.scene)?;
             (common, rays::random_rays(&mesh.bounds(), count, seed))
         }
@@ -321,7 +301,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     trilab::io::ensure_not_input(&a.out, &[&a.scene, &a.rays])?;
     let mesh = load_obj(&a.scene)?;
     let rays = rays::read_rays(&a.rays)?;
-    let bvh = Bvh::build(&mesh, &BuildOptions::new(a.leaf_size));
+    let bvh = Bvh::build(&mesh, &BuildOptions { leaf_policy: a.leaf_policy, ..BuildOptions::new(a.leaf_size) });
     let encoded = a.method.encode(&mesh, &bvh);
     if !encoded.unrepresentable.is_empty() {
         eprintln!(
@@ -334,11 +314,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     let ctx = a.gpu.context()?;
     let kernel = ctx.create_kernel(trilab::kernels::raycast(a.method, a.any_hit))?;
     let scene = GpuScene::upload(&ctx, &encoded)?;
-    let opts = RaycastOptions {
-        warmup: 1,
-        repeat: a.repeat.max(1),
-        batch_rays: a.batch_rays,
-    };
+    let opts = RaycastOptions { warmup: 1, repeat: a.repeat.max(1), batch_rays: a.batch_rays };
     let res = raycast(&ctx, &kernel, &scene, &rays, &opts)?;
     rays::write_hits(&a.out, &res.hits)?;
 
@@ -348,18 +324,13 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     let validation = if a.validate {
         let reference = Reference::new(&mesh, &bvh);
         if a.any_hit {
-            let closest = reference
-                .trace_all(&rays, false)
-                .iter()
-                .map(|h| h.to_hit())
-                .collect::<Vec<_>>();
+            let closest = reference.trace_all(&rays, false).iter().map(|h| h.to_hit()).collect::<Vec<_>>();
             let c = compare_any(&mesh, &rays, &closest, &res.hits);
             Some(
                 json!({"any_hit_status_mismatches": c.status_mismatch.len(), "bogus": c.bogus.len(), "passes": c.passes()}),
             )
         } else {
-            let agreement =
-                compare_closest(&mesh, &rays, &res.hits, &reference.trace_all(&rays, false));
+            let agreement = compare_closest(&mesh, &rays, &res.hits, &reference.trace_all(&rays, false));
             Some(json!({
                 "agreement": agreement.fraction(),
                 "disagreements": agreement.disagreements.len(),
@@ -408,23 +379,14 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
             a.leaf_size,
             scene.bytes as f64 / 1e6
         );
-        println!(
-            "rays:      {} ({} hit) -> {}",
-            rays.len(),
-            hits,
-            a.out.display()
-        );
+        println!("rays:      {} ({} hit) -> {}", rays.len(), hits, a.out.display());
         println!(
             "kernel:    {:.3} ms median of {} (min {:.3}, max {:.3}; {}), {:.2} Mrays/s",
             t.median,
             t.runs,
             t.min,
             t.max,
-            if res.timed_on_gpu() {
-                "GPU timestamps"
-            } else {
-                "host wall clock"
-            },
+            if res.timed_on_gpu() { "GPU timestamps" } else { "host wall clock" },
             mrays(t.median)
         );
         if let Some(v) = &validation {
@@ -433,32 +395,20 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     }
     if let Some(v) = validation {
         if v["passes"] == json!(false) {
-            return Err(Error::Usage(
-                "hits disagree with the f64 reference (see above)".into(),
-            ));
+            return Err(Error::Usage("hits disagree with the f64 reference (see above)".into()));
         }
     }
     Ok(())
 }
 
-fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, json: bool) -> Result<()> {
+fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, json: bool) -> Result<()> {
     let mesh = load_obj(scene)?;
-    let leaf_sizes = if leaf_sizes.is_empty() {
-        vec![1, 2, 3, 4, 8, 16]
-    } else {
-        leaf_sizes
-    };
+    let leaf_sizes = if leaf_sizes.is_empty() { vec![1, 2, 3, 4, 8, 16] } else { leaf_sizes };
     let mut stats = vec![];
     for &leaf in &leaf_sizes {
         check_leaf_size(leaf)?;
         for builder in [Builder::default(), Builder::Sweep] {
-            let bvh = Bvh::build(
-                &mesh,
-                &BuildOptions {
-                    builder,
-                    ..BuildOptions::new(leaf)
-                },
-            );
+            let bvh = Bvh::build(&mesh, &BuildOptions { builder, leaf_policy, ..BuildOptions::new(leaf) });
             let mut sizes = serde_json::Map::new();
             for m in Method::ALL {
                 sizes.insert(m.name().into(), json!(m.encode(&mesh, &bvh).gpu_bytes()));
@@ -467,19 +417,11 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, json: bool) -> Result<()> {
         }
     }
     if json {
-        let v: Vec<_> = stats
-            .iter()
-            .map(|(s, sizes)| json!({"stats": s, "gpu_scene_bytes": sizes}))
-            .collect();
+        let v: Vec<_> = stats.iter().map(|(s, sizes)| json!({"stats": s, "gpu_scene_bytes": sizes})).collect();
         println!("{}", serde_json::to_string_pretty(&v).unwrap());
         return Ok(());
     }
-    println!(
-        "{}: {} triangles, {} vertices",
-        scene.display(),
-        mesh.triangle_count(),
-        mesh.positions.len()
-    );
+    println!("{}: {} triangles, {} vertices", scene.display(), mesh.triangle_count(), mesh.positions.len());
     let mut t = Table::new([
         "leaf",
         "builder",
@@ -494,13 +436,8 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, json: bool) -> Result<()> {
         "MB quad-unit",
     ]);
     for (s, sizes) in &stats {
-        let hist: Vec<String> = s
-            .leaf_histogram
-            .iter()
-            .enumerate()
-            .filter(|(_, &n)| n > 0)
-            .map(|(k, n)| format!("{k}:{n}"))
-            .collect();
+        let hist: Vec<String> =
+            s.leaf_histogram.iter().enumerate().filter(|(_, &n)| n > 0).map(|(k, n)| format!("{k}:{n}")).collect();
         let mb = |m: &str| format!("{:.2}", sizes[m].as_u64().unwrap() as f64 / 1e6);
         t.row([
             s.max_leaf_size.to_string(),
@@ -526,14 +463,9 @@ fn spirv_cmd(write: Option<PathBuf>, json: bool) -> Result<()> {
         let files = trilab::spirv::review_files();
         let keep: Vec<&String> = files.iter().map(|(n, _)| n).collect();
         // Remove stale files of variants that no longer exist.
-        for e in std::fs::read_dir(&dir)
-            .map_err(|e| Error::io(&dir, e))?
-            .flatten()
-        {
+        for e in std::fs::read_dir(&dir).map_err(|e| Error::io(&dir, e))?.flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
-            if (name.ends_with(".spvasm") || name == "instruction_counts.csv")
-                && !keep.contains(&&name)
-            {
+            if (name.ends_with(".spvasm") || name == "instruction_counts.csv") && !keep.contains(&&name) {
                 std::fs::remove_file(e.path()).map_err(|err| Error::io(&e.path(), err))?;
             }
         }
@@ -545,23 +477,12 @@ fn spirv_cmd(write: Option<PathBuf>, json: bool) -> Result<()> {
     }
     let counts = trilab::spirv::all_counts();
     if json {
-        let v: Vec<_> = counts
-            .iter()
-            .map(|(k, c)| json!({"variant": k.name, "counts": c}))
-            .collect();
+        let v: Vec<_> = counts.iter().map(|(k, c)| json!({"variant": k.name, "counts": c})).collect();
         println!("{}", serde_json::to_string_pretty(&v).unwrap());
         return Ok(());
     }
-    let mut t = Table::new([
-        "variant",
-        "module",
-        "functions",
-        "arithmetic",
-        "memory",
-        "control flow",
-        "conversion",
-        "other",
-    ]);
+    let mut t =
+        Table::new(["variant", "module", "functions", "arithmetic", "memory", "control flow", "conversion", "other"]);
     for (k, c) in counts {
         t.row([
             k.name.to_string(),
@@ -580,16 +501,8 @@ fn spirv_cmd(write: Option<PathBuf>, json: bool) -> Result<()> {
 
 fn bench_cmd(a: BenchArgs) -> Result<()> {
     check_leaf_size(a.leaf_size)?;
-    let scenes = if a.scenes.is_empty() {
-        vec![PathBuf::from("scenes/bunny.obj")]
-    } else {
-        a.scenes.clone()
-    };
-    let methods = if a.methods.is_empty() {
-        Method::ALL.to_vec()
-    } else {
-        a.methods.clone()
-    };
+    let scenes = if a.scenes.is_empty() { vec![PathBuf::from("scenes/bunny.obj")] } else { a.scenes.clone() };
+    let methods = if a.methods.is_empty() { Method::ALL.to_vec() } else { a.methods.clone() };
     for out in [&a.json_out, &a.md_out].into_iter().flatten() {
         let inputs: Vec<&Path> = scenes.iter().map(PathBuf::as_path).collect();
         trilab::io::ensure_not_input(out, &inputs)?;
@@ -598,6 +511,7 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         scenes,
         methods,
         leaf_size: a.leaf_size,
+        leaf_policy: a.leaf_policy,
         repeat: a.repeat.max(1),
         width: a.width,
         height: a.height,
@@ -610,11 +524,7 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
     };
     let ctx = a.gpu.context()?;
     let report = bench::run(&ctx, &o, |m| eprintln!("  {m}"))?;
-    let lp = report
-        .lp_num_threads
-        .as_deref()
-        .map(|n| format!(", LP_NUM_THREADS={n}"))
-        .unwrap_or_default();
+    let lp = report.lp_num_threads.as_deref().map(|n| format!(", LP_NUM_THREADS={n}")).unwrap_or_default();
     let header = format!(
         "device: {} ({}); host CPUs: {}{lp}; leaf size {}; median of {} runs after 1 warm-up (GPU timestamps)",
         report.device, report.driver, report.host_cpus, o.leaf_size, o.repeat

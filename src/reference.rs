@@ -24,12 +24,7 @@ pub struct RefHit {
 }
 
 impl RefHit {
-    pub const MISS: RefHit = RefHit {
-        t: f64::INFINITY,
-        id: MISS_ID,
-        u: 0.0,
-        v: 0.0,
-    };
+    pub const MISS: RefHit = RefHit { t: f64::INFINITY, id: MISS_ID, u: 0.0, v: 0.0 };
 
     pub fn is_hit(&self) -> bool {
         self.id != MISS_ID
@@ -38,12 +33,7 @@ impl RefHit {
     /// Rounded to a hit record.
     pub fn to_hit(&self) -> Hit {
         if self.is_hit() {
-            Hit {
-                t: self.t as f32,
-                id: self.id,
-                u: self.u as f32,
-                v: self.v as f32,
-            }
+            Hit { t: self.t as f32, id: self.id, u: self.u as f32, v: self.v as f32 }
         } else {
             Hit::MISS
         }
@@ -96,12 +86,7 @@ pub fn brute_force(mesh: &Mesh, ray: &Ray) -> RefHit {
     for id in 0..mesh.triangle_count() {
         if let Some((t, u, v)) = intersect(&r, mesh.vertices_f64(id)) {
             if t < best.t {
-                best = RefHit {
-                    t,
-                    id: id as u32,
-                    u,
-                    v,
-                };
+                best = RefHit { t, id: id as u32, u, v };
                 r.tmax = t;
             }
         }
@@ -197,44 +182,21 @@ mod tests {
 
     #[test]
     fn intersect_known_values() {
-        let tri = [
-            DVec3::new(0.0, 0.0, 1.0),
-            DVec3::new(1.0, 0.0, 1.0),
-            DVec3::new(0.0, 1.0, 1.0),
-        ];
-        let r = Ray64 {
-            origin: DVec3::new(0.25, 0.5, 0.0),
-            dir: DVec3::Z,
-            tmin: 0.0,
-            tmax: f64::INFINITY,
-        };
+        let tri = [DVec3::new(0.0, 0.0, 1.0), DVec3::new(1.0, 0.0, 1.0), DVec3::new(0.0, 1.0, 1.0)];
+        let r = Ray64 { origin: DVec3::new(0.25, 0.5, 0.0), dir: DVec3::Z, tmin: 0.0, tmax: f64::INFINITY };
         let (t, u, v) = intersect(&r, tri).unwrap();
         assert_eq!((t, u, v), (1.0, 0.25, 0.5));
         // t in units of the direction's length.
-        let r2 = Ray64 {
-            dir: DVec3::new(0.0, 0.0, 2.0),
-            ..r
-        };
+        let r2 = Ray64 { dir: DVec3::new(0.0, 0.0, 2.0), ..r };
         assert_eq!(intersect(&r2, tri).unwrap().0, 0.5);
         // tmax before the surface, tmin after it.
         assert!(intersect(&Ray64 { tmax: 0.99, ..r }, tri).is_none());
         assert!(intersect(&Ray64 { tmin: 1.01, ..r }, tri).is_none());
         // Outside the triangle, and parallel to it.
-        assert!(intersect(
-            &Ray64 {
-                origin: DVec3::new(0.6, 0.6, 0.0),
-                ..r
-            },
-            tri
-        )
-        .is_none());
+        assert!(intersect(&Ray64 { origin: DVec3::new(0.6, 0.6, 0.0), ..r }, tri).is_none());
         assert!(intersect(&Ray64 { dir: DVec3::X, ..r }, tri).is_none());
         // Both sides hit (no culling).
-        let back = Ray64 {
-            origin: DVec3::new(0.25, 0.5, 2.0),
-            dir: -DVec3::Z,
-            ..r
-        };
+        let back = Ray64 { origin: DVec3::new(0.25, 0.5, 2.0), dir: -DVec3::Z, ..r };
         assert_eq!(intersect(&back, tri).unwrap().0, 1.0);
     }
 
@@ -244,9 +206,7 @@ mod tests {
         let mut tris = Vec::new();
         let mut s = 12345u64;
         let mut rnd = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             ((s >> 40) as f32) / (1u64 << 24) as f32
         };
         for _ in 0..400 {

@@ -9,10 +9,7 @@ pub struct Table {
 
 impl Table {
     pub fn new<S: Into<String>>(headers: impl IntoIterator<Item = S>) -> Table {
-        Table {
-            headers: headers.into_iter().map(Into::into).collect(),
-            rows: vec![],
-        }
+        Table { headers: headers.into_iter().map(Into::into).collect(), rows: vec![] }
     }
 
     pub fn row<S: Into<String>>(&mut self, cells: impl IntoIterator<Item = S>) {
@@ -24,11 +21,7 @@ impl Table {
     fn numeric(&self, col: usize) -> bool {
         self.rows.iter().all(|r| {
             let c = r[col].trim_end_matches('%');
-            c.is_empty()
-                || c == "-"
-                || c.split(['(', ' ', '/'])
-                    .next()
-                    .is_some_and(|x| x.parse::<f64>().is_ok())
+            c.is_empty() || c == "-" || c.split(['(', ' ', '/']).next().is_some_and(|x| x.parse::<f64>().is_ok())
         })
     }
 
@@ -36,12 +29,7 @@ impl Table {
         let n = self.headers.len();
         let widths: Vec<usize> = (0..n)
             .map(|c| {
-                self.rows
-                    .iter()
-                    .map(|r| r[c].chars().count())
-                    .chain([self.headers[c].chars().count()])
-                    .max()
-                    .unwrap()
+                self.rows.iter().map(|r| r[c].chars().count()).chain([self.headers[c].chars().count()]).max().unwrap()
             })
             .collect();
         let right: Vec<bool> = (0..n).map(|c| self.numeric(c)).collect();
@@ -49,22 +37,20 @@ impl Table {
             let parts: Vec<String> = cells
                 .iter()
                 .enumerate()
-                .map(|(c, s)| {
-                    if right[c] {
-                        format!("{s:>w$}", w = widths[c])
-                    } else {
-                        format!("{s:<w$}", w = widths[c])
-                    }
-                })
+                .map(
+                    |(c, s)| {
+                        if right[c] {
+                            format!("{s:>w$}", w = widths[c])
+                        } else {
+                            format!("{s:<w$}", w = widths[c])
+                        }
+                    },
+                )
                 .collect();
             parts.join("  ").trim_end().to_owned()
         };
         let mut out = fmt(&self.headers) + "\n";
-        out += &widths
-            .iter()
-            .map(|&w| "-".repeat(w))
-            .collect::<Vec<_>>()
-            .join("  ");
+        out += &widths.iter().map(|&w| "-".repeat(w)).collect::<Vec<_>>().join("  ");
         out.push('\n');
         for r in &self.rows {
             out += &fmt(r);
@@ -76,14 +62,7 @@ impl Table {
     pub fn to_markdown(&self) -> String {
         let right: Vec<bool> = (0..self.headers.len()).map(|c| self.numeric(c)).collect();
         let mut out = format!("| {} |\n", self.headers.join(" | "));
-        out += &format!(
-            "|{}|\n",
-            right
-                .iter()
-                .map(|&r| if r { "---:" } else { "---" })
-                .collect::<Vec<_>>()
-                .join("|")
-        );
+        out += &format!("|{}|\n", right.iter().map(|&r| if r { "---:" } else { "---" }).collect::<Vec<_>>().join("|"));
         for r in &self.rows {
             out += &format!("| {} |\n", r.join(" | "));
         }

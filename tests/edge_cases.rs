@@ -33,17 +33,9 @@ fn check(
         let reference = Reference::new(mesh, &bvh).trace_all(rays, false);
         for method in Method::ALL {
             let scene = GpuScene::upload(ctx, &method.encode(mesh, &bvh)).unwrap();
-            let opts = RaycastOptions {
-                warmup: 0,
-                repeat: 1,
-                batch_rays,
-            };
-            let closest = ctx
-                .create_kernel(trilab::kernels::raycast(method, false))
-                .unwrap();
-            let any = ctx
-                .create_kernel(trilab::kernels::raycast(method, true))
-                .unwrap();
+            let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
+            let closest = ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap();
+            let any = ctx.create_kernel(trilab::kernels::raycast(method, true)).unwrap();
             let c = raycast(ctx, &closest, &scene, rays, &opts).unwrap();
             let a = raycast(ctx, &any, &scene, rays, &opts).unwrap();
             let agreement = compare_closest(mesh, rays, &c.hits, &reference);
@@ -84,11 +76,7 @@ fn axis_parallel_rays() {
                         let mut o = b.center().to_array();
                         o[u] = b.min[u] + (b.max[u] - b.min[u]) * (i as f32 + 0.5) / n as f32;
                         o[v] = b.min[v] + (b.max[v] - b.min[v]) * (j as f32 + 0.5) / n as f32;
-                        o[axis] = if sign > 0.0 {
-                            b.min[axis] - 0.1
-                        } else {
-                            b.max[axis] + 0.1
-                        };
+                        o[axis] = if sign > 0.0 { b.min[axis] - 0.1 } else { b.max[axis] + 0.1 };
                         rays.push(Ray::new(o, dir));
                         // The same ray with -0.0 in the zero components.
                         let mut nd = dir;
@@ -104,11 +92,7 @@ fn axis_parallel_rays() {
         }
         let results = check(ctx, &mesh, &rays, &[1, 4, 16], 1 << 20);
         let hits = results[0].2.iter().filter(|h| h.is_hit()).count();
-        assert!(
-            hits > rays.len() / 4,
-            "axis-parallel rays should hit the bunny often ({hits}/{})",
-            rays.len()
-        );
+        assert!(hits > rays.len() / 4, "axis-parallel rays should hit the bunny often ({hits}/{})", rays.len());
     });
 }
 
@@ -121,11 +105,7 @@ fn rays_starting_inside_the_mesh_and_box() {
         let rays: Vec<Ray> = (0..20_000)
             .map(|_| {
                 let o = b.min + b.extent() * Vec3::new(rng.random(), rng.random(), rng.random());
-                let d = Vec3::new(
-                    rng.random::<f32>() - 0.5,
-                    rng.random::<f32>() - 0.5,
-                    rng.random::<f32>() - 0.5,
-                );
+                let d = Vec3::new(rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5);
                 Ray::new(o.to_array(), d.to_array())
             })
             .collect();
@@ -156,14 +136,8 @@ fn rays_missing_the_scene_box_and_empty_intervals_always_miss() {
         }
         for (method, leaf, hits) in check(ctx, &mesh, &rays, &[4], 1 << 20) {
             let n = hits.iter().filter(|h| h.is_hit()).count();
-            assert_eq!(
-                n, 0,
-                "{method} leaf {leaf}: {n} hits on rays that cannot hit"
-            );
-            assert!(
-                hits.iter().all(|h| *h == Hit::MISS),
-                "{method}: misses must be (inf, 0xFFFFFFFF, 0, 0)"
-            );
+            assert_eq!(n, 0, "{method} leaf {leaf}: {n} hits on rays that cannot hit");
+            assert!(hits.iter().all(|h| *h == Hit::MISS), "{method}: misses must be (inf, 0xFFFFFFFF, 0, 0)");
         }
     });
 }
@@ -176,52 +150,24 @@ fn ray_interval_before_and_after_the_surface() {
         let base = trilab::rays::random_rays(&mesh.bounds(), 4000, 99);
         let reference = Reference::new(&mesh, &bvh).trace_all(&base, false);
         let mut rays = vec![];
-        for (r, h) in base
-            .iter()
-            .zip(&reference)
-            .filter(|(_, h)| h.is_hit())
-            .take(1000)
-        {
+        for (r, h) in base.iter().zip(&reference).filter(|(_, h)| h.is_hit()).take(1000) {
             let t = h.t as f32;
             // tmax ends well before the surface: must miss.
-            rays.push(Ray {
-                tmax: 0.5 * t,
-                ..*r
-            });
+            rays.push(Ray { tmax: 0.5 * t, ..*r });
             // tmax just past it: must hit.
-            rays.push(Ray {
-                tmax: t * 1.001,
-                ..*r
-            });
+            rays.push(Ray { tmax: t * 1.001, ..*r });
             // tmin past the first surface: the next one or nothing.
-            rays.push(Ray {
-                tmin: t * 1.001,
-                ..*r
-            });
+            rays.push(Ray { tmin: t * 1.001, ..*r });
             // Direction scaled by 3: t in units of the direction's length.
-            rays.push(Ray {
-                dir: [r.dir[0] * 3.0, r.dir[1] * 3.0, r.dir[2] * 3.0],
-                ..*r
-            });
+            rays.push(Ray { dir: [r.dir[0] * 3.0, r.dir[1] * 3.0, r.dir[2] * 3.0], ..*r });
         }
         for (method, _, hits) in check(ctx, &mesh, &rays, &[1, 4, 16], 1 << 20) {
             for (i, h) in hits.chunks_exact(4).enumerate() {
                 assert!(!h[0].is_hit(), "{method}: hit before tmax ended (ray {i})");
-                assert!(
-                    h[1].is_hit(),
-                    "{method}: missed with tmax just past the surface (ray {i})"
-                );
-                assert!(
-                    h[2].t > h[1].t || !h[2].is_hit(),
-                    "{method}: tmin ignored (ray {i})"
-                );
+                assert!(h[1].is_hit(), "{method}: missed with tmax just past the surface (ray {i})");
+                assert!(h[2].t > h[1].t || !h[2].is_hit(), "{method}: tmin ignored (ray {i})");
                 let rel = (h[3].t * 3.0 - h[1].t).abs() / h[1].t;
-                assert!(
-                    rel < 1e-5,
-                    "{method}: t not in units of the direction length ({} vs {})",
-                    h[3].t,
-                    h[1].t
-                );
+                assert!(rel < 1e-5, "{method}: t not in units of the direction length ({} vs {})", h[3].t, h[1].t);
             }
         }
     });
@@ -275,20 +221,10 @@ fn degenerate_triangles_are_never_hit() {
             }
         }
         for (method, leaf, hits) in check(ctx, &mesh, &rays, &[1, 2, 3, 4, 8, 16], 1 << 20) {
-            let bad = hits
-                .iter()
-                .filter(|h| h.is_hit() && degenerate.contains(&h.id))
-                .count();
-            assert_eq!(
-                bad, 0,
-                "{method} leaf {leaf}: {bad} hits on degenerate triangles"
-            );
+            let bad = hits.iter().filter(|h| h.is_hit() && degenerate.contains(&h.id)).count();
+            assert_eq!(bad, 0, "{method} leaf {leaf}: {bad} hits on degenerate triangles");
             let n = hits.iter().filter(|h| h.is_hit()).count();
-            assert!(
-                n > rays.len() / 2,
-                "{method} leaf {leaf}: rays through the grid should hit ({n}/{})",
-                rays.len()
-            );
+            assert!(n > rays.len() / 2, "{method} leaf {leaf}: rays through the grid should hit ({n}/{})", rays.len());
         }
     });
 }
@@ -305,10 +241,7 @@ fn scene_of_only_degenerate_triangles_misses_everything() {
             .chain((0..64).map(|i| Ray::new([-1.0, 0.0, 0.0], [1.0, 0.0, i as f32 * 1e-3])))
             .collect();
         for (method, leaf, hits) in check(ctx, &mesh, &rays, &[1, 4], 1 << 20) {
-            assert!(
-                hits.iter().all(|h| *h == Hit::MISS),
-                "{method} leaf {leaf}: a degenerate-only scene was hit"
-            );
+            assert!(hits.iter().all(|h| *h == Hit::MISS), "{method} leaf {leaf}: a degenerate-only scene was hit");
         }
     });
 }
@@ -329,11 +262,7 @@ fn bvh_at_the_depth_limit_traverses_correctly() {
         }
         let mesh = Mesh::from_triangles(pos, tris);
         let bvh = Bvh::build(&mesh, &BuildOptions::new(1));
-        assert_eq!(
-            bvh.stats().depth,
-            MAX_DEPTH,
-            "the scene must reach the depth limit"
-        );
+        assert_eq!(bvh.stats().depth, MAX_DEPTH, "the scene must reach the depth limit");
         // Rays through the origin from x < 0, where every nested box meets: with
         // |y0| + |z0| > 0.1 they pass inside the boxes but beside the triangles all the way
         // down (a full-depth traversal that misses); with less they hit the first triangle

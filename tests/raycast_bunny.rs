@@ -22,12 +22,8 @@ fn every_method_and_leaf_size_matches_the_f64_reference_on_the_bunny() {
         let kernels: Vec<_> = Method::ALL
             .iter()
             .map(|&m| {
-                let closest = ctx
-                    .create_kernel(trilab::kernels::raycast(m, false))
-                    .unwrap();
-                let any = ctx
-                    .create_kernel(trilab::kernels::raycast(m, true))
-                    .unwrap();
+                let closest = ctx.create_kernel(trilab::kernels::raycast(m, false)).unwrap();
+                let any = ctx.create_kernel(trilab::kernels::raycast(m, true)).unwrap();
                 (m, closest, any)
             })
             .collect();
@@ -38,17 +34,10 @@ fn every_method_and_leaf_size_matches_the_f64_reference_on_the_bunny() {
             bvh.validate(&mesh).unwrap();
             let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
             let ref_hits = reference.iter().filter(|h| h.is_hit()).count();
-            assert!(
-                ref_hits > 20_000 && ref_hits < 80_000,
-                "random rays should hit about half the time ({ref_hits})"
-            );
+            assert!(ref_hits > 20_000 && ref_hits < 80_000, "random rays should hit about half the time ({ref_hits})");
             for (method, closest, any) in &kernels {
                 let scene = GpuScene::upload(ctx, &method.encode(&mesh, &bvh)).unwrap();
-                let opts = RaycastOptions {
-                    warmup: 0,
-                    repeat: 1,
-                    batch_rays: 1 << 20,
-                };
+                let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
                 let c = raycast(ctx, closest, &scene, &rays, &opts).unwrap();
                 let a = raycast(ctx, any, &scene, &rays, &opts).unwrap();
                 let agreement = compare_closest(&mesh, &rays, &c.hits, &reference);

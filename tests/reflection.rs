@@ -14,10 +14,7 @@ use trilab::rays::{Hit, Ray};
 use trilab::spirv::reflect::{buffer_layouts, reflect, BufferLayout};
 
 fn array_of(size: usize, offsets: &[usize]) -> BufferLayout {
-    BufferLayout {
-        array_stride: Some(size as u32),
-        member_offsets: offsets.iter().map(|&o| o as u32).collect(),
-    }
+    BufferLayout { array_stride: Some(size as u32), member_offsets: offsets.iter().map(|&o| o as u32).collect() }
 }
 
 /// What the host writes at each binding of a kernel for `method` (glsl name).
@@ -25,21 +22,11 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
     match (method, binding) {
         (_, BINDING_RAYS) => array_of(
             size_of::<Ray>(),
-            &[
-                offset_of!(Ray, origin),
-                offset_of!(Ray, tmin),
-                offset_of!(Ray, dir),
-                offset_of!(Ray, tmax),
-            ],
+            &[offset_of!(Ray, origin), offset_of!(Ray, tmin), offset_of!(Ray, dir), offset_of!(Ray, tmax)],
         ),
         (_, BINDING_HITS) => array_of(
             size_of::<Hit>(),
-            &[
-                offset_of!(Hit, t),
-                offset_of!(Hit, id),
-                offset_of!(Hit, u),
-                offset_of!(Hit, v),
-            ],
+            &[offset_of!(Hit, t), offset_of!(Hit, id), offset_of!(Hit, u), offset_of!(Hit, v)],
         ),
         (_, BINDING_NODES) => array_of(
             size_of::<BvhNode>(),
@@ -52,17 +39,12 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         ),
         (_, BINDING_SLOT_IDS) => array_of(size_of::<u32>(), &[]),
         ("mt", BINDING_PRIMS) => array_of(size_of::<[f32; 4]>(), &[]),
-        ("mt", BINDING_INDICES) => array_of(
-            size_of::<MtTriangle>(),
-            &[offset_of!(MtTriangle, v), offset_of!(MtTriangle, material)],
-        ),
+        ("mt", BINDING_INDICES) => {
+            array_of(size_of::<MtTriangle>(), &[offset_of!(MtTriangle, v), offset_of!(MtTriangle, material)])
+        }
         ("unit", BINDING_PRIMS) => array_of(
             size_of::<UnitTriangle>(),
-            &[
-                offset_of!(UnitTriangle, row0),
-                offset_of!(UnitTriangle, row1),
-                offset_of!(UnitTriangle, row2),
-            ],
+            &[offset_of!(UnitTriangle, row0), offset_of!(UnitTriangle, row1), offset_of!(UnitTriangle, row2)],
         ),
         ("quad_mt", BINDING_PRIMS) => array_of(
             size_of::<QuadMt>(),
@@ -111,19 +93,12 @@ fn rust_structs_match_spirv_offsets_and_strides() {
                 continue;
             }
             let host = host_layout(k.method, binding);
-            assert_eq!(
-                spirv, &host,
-                "{}: binding {binding}: SPIR-V declares {spirv:?}, host writes {host:?}",
-                k.name
-            );
+            assert_eq!(spirv, &host, "{}: binding {binding}: SPIR-V declares {spirv:?}, host writes {host:?}", k.name);
             checked_structs += !host.member_offsets.is_empty() as usize;
         }
     }
     // Guard against a vacuous pass (e.g. the decorations moving): struct layouts were compared.
-    assert!(
-        checked_structs >= 4 * KERNELS.len(),
-        "only {checked_structs} struct layouts checked"
-    );
+    assert!(checked_structs >= 4 * KERNELS.len(), "only {checked_structs} struct layouts checked");
 }
 
 #[test]
@@ -131,71 +106,30 @@ fn kernels_bind_what_the_host_provides() {
     for k in KERNELS {
         let l = reflect(k.name, &k.words()).unwrap();
         assert_eq!(l.local_size, (WORKGROUP_SIZE, 1, 1), "{}", k.name);
-        assert_eq!(
-            l.push_constants,
-            Some((0, 4)),
-            "{}: push constants are one u32 (ray count)",
-            k.name
-        );
-        assert_eq!(
-            l.sets.keys().copied().collect::<Vec<_>>(),
-            vec![0],
-            "{}",
-            k.name
-        );
+        assert_eq!(l.push_constants, Some((0, 4)), "{}: push constants are one u32 (ray count)", k.name);
+        assert_eq!(l.sets.keys().copied().collect::<Vec<_>>(), vec![0], "{}", k.name);
         let set = &l.sets[&0];
-        let mut expected = vec![
-            BINDING_RAYS,
-            BINDING_HITS,
-            BINDING_NODES,
-            BINDING_SLOT_IDS,
-            BINDING_PRIMS,
-        ];
+        let mut expected = vec![BINDING_RAYS, BINDING_HITS, BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS];
         if k.method == "mt" {
             expected.push(BINDING_INDICES);
         }
         expected.sort();
-        assert_eq!(
-            set.keys().copied().collect::<Vec<_>>(),
-            expected,
-            "{} bindings",
-            k.name
-        );
-        assert!(
-            set.values()
-                .all(|b| b.ty == vk::DescriptorType::STORAGE_BUFFER),
-            "{}",
-            k.name
-        );
+        assert_eq!(set.keys().copied().collect::<Vec<_>>(), expected, "{} bindings", k.name);
+        assert!(set.values().all(|b| b.ty == vk::DescriptorType::STORAGE_BUFFER), "{}", k.name);
     }
 }
 
 #[test]
 fn every_encoding_provides_every_binding_its_kernels_read() {
-    let mesh = trilab::scene::Mesh::from_triangles(
-        vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
-        vec![[0, 1, 2]],
-    );
+    let mesh = trilab::scene::Mesh::from_triangles(vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]);
     let bvh = trilab::bvh::Bvh::build(&mesh, &trilab::bvh::BuildOptions::new(4));
     for m in trilab::encoding::Method::ALL {
-        let provided: Vec<u32> = m
-            .encode(&mesh, &bvh)
-            .buffers()
-            .iter()
-            .map(|b| b.binding)
-            .collect();
+        let provided: Vec<u32> = m.encode(&mesh, &bvh).buffers().iter().map(|b| b.binding).collect();
         for any in [false, true] {
             let k = trilab::kernels::raycast(m, any);
             let l = reflect(k.name, &k.words()).unwrap();
-            for b in l.sets[&0]
-                .keys()
-                .filter(|&&b| b != BINDING_RAYS && b != BINDING_HITS)
-            {
-                assert!(
-                    provided.contains(b),
-                    "{}: binding {b} not provided by the {m} encoding",
-                    k.name
-                );
+            for b in l.sets[&0].keys().filter(|&&b| b != BINDING_RAYS && b != BINDING_HITS) {
+                assert!(provided.contains(b), "{}: binding {b} not provided by the {m} encoding", k.name);
             }
         }
     }

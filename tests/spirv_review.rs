@@ -27,11 +27,7 @@ fn committed_spirv_matches_the_kernels() {
             stale.push(format!("{name} has no kernel variant"));
         }
     }
-    assert!(
-        stale.is_empty(),
-        "spirv/ is out of date ({}); refresh it with `{REFRESH}` and commit",
-        stale.join(", ")
-    );
+    assert!(stale.is_empty(), "spirv/ is out of date ({}); refresh it with `{REFRESH}` and commit", stale.join(", "));
 }
 
 fn tool(name: &str) -> String {
@@ -46,59 +42,23 @@ fn tool(name: &str) -> String {
 fn counts_agree_with_spirv_dis() {
     let dis = tool("spirv-dis");
     let dir = tempfile::tempdir().unwrap();
-    for k in KERNELS
-        .iter()
-        .filter(|k| k.name == "raycast.mt.closest" || k.name == "raycast.quad_unit.any")
-    {
+    for k in KERNELS.iter().filter(|k| k.name == "raycast.mt.closest" || k.name == "raycast.quad_unit.any") {
         let path = dir.path().join(format!("{}.spv", k.name));
         std::fs::write(&path, k.spirv).unwrap();
-        let out = Command::new(&dis)
-            .arg("--raw-id")
-            .arg(&path)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "spirv-dis failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let out = Command::new(&dis).arg("--raw-id").arg(&path).output().unwrap();
+        assert!(out.status.success(), "spirv-dis failed: {}", String::from_utf8_lossy(&out.stderr));
         let text = String::from_utf8(out.stdout).unwrap();
-        let lines: Vec<&str> = text
-            .lines()
-            .map(str::trim)
-            .filter(|l| !l.is_empty() && !l.starts_with(';'))
-            .collect();
+        let lines: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with(';')).collect();
         let c = trilab::spirv::count(&k.words()).unwrap();
-        assert_eq!(
-            lines.len() as u32,
-            c.module,
-            "{}: instructions in the module",
-            k.name
-        );
-        let start = lines
-            .iter()
-            .position(|l| l.contains("OpFunction "))
-            .unwrap();
-        let end = lines
-            .iter()
-            .rposition(|l| l.contains("OpFunctionEnd"))
-            .unwrap();
+        assert_eq!(lines.len() as u32, c.module, "{}: instructions in the module", k.name);
+        let start = lines.iter().position(|l| l.contains("OpFunction ")).unwrap();
+        let end = lines.iter().rposition(|l| l.contains("OpFunctionEnd")).unwrap();
         // Functions are contiguous at the end of a module.
-        assert_eq!(
-            (end - start + 1) as u32,
-            c.functions,
-            "{}: instructions in function bodies",
-            k.name
-        );
-        let loads = lines[start..=end]
-            .iter()
-            .filter(|l| l.contains("= OpLoad ") || l.contains("= OpAccessChain "))
-            .count() as u32;
-        assert!(
-            loads <= c.memory,
-            "{}: memory class holds every load and access chain",
-            k.name
-        );
+        assert_eq!((end - start + 1) as u32, c.functions, "{}: instructions in function bodies", k.name);
+        let loads =
+            lines[start..=end].iter().filter(|l| l.contains("= OpLoad ") || l.contains("= OpAccessChain ")).count()
+                as u32;
+        assert!(loads <= c.memory, "{}: memory class holds every load and access chain", k.name);
     }
 }
 
@@ -109,16 +69,7 @@ fn every_module_passes_spirv_val() {
     for k in KERNELS {
         let path = dir.path().join(format!("{}.spv", k.name));
         std::fs::write(&path, k.spirv).unwrap();
-        let out = Command::new(&val)
-            .args(["--target-env", "vulkan1.2"])
-            .arg(&path)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}: {}",
-            k.name,
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let out = Command::new(&val).args(["--target-env", "vulkan1.2"]).arg(&path).output().unwrap();
+        assert!(out.status.success(), "{}: {}", k.name, String::from_utf8_lossy(&out.stderr));
     }
 }

@@ -10,10 +10,7 @@ pub struct Aabb {
 
 impl Aabb {
     /// Contains nothing; growing it by a point gives that point's box.
-    pub const EMPTY: Aabb = Aabb {
-        min: Vec3::splat(f32::INFINITY),
-        max: Vec3::splat(f32::NEG_INFINITY),
-    };
+    pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
 
     pub fn from_points(points: &[Vec3]) -> Aabb {
         let mut b = Aabb::EMPTY;

@@ -48,10 +48,34 @@ impl std::fmt::Display for Builder {
     }
 }
 
+/// When a node becomes a leaf.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum LeafPolicy {
+    /// The paper's: a node with at most `max_leaf_size` triangles is a leaf, so leaves hold
+    /// close to that many ("try to fill BVH with four triangles per node", sec. 3.1); SAH
+    /// chooses the split planes above that.
+    #[default]
+    Fill,
+    /// SAH decides: a node is a leaf when that is cheaper than its best split (or it holds one
+    /// triangle); `max_leaf_size` is only an upper bound.
+    Sah,
+}
+
+impl std::fmt::Display for LeafPolicy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            LeafPolicy::Fill => "fill",
+            LeafPolicy::Sah => "sah",
+        })
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct BuildOptions {
     /// Most triangles in one leaf (1..=16).
     pub max_leaf_size: u32,
+    pub leaf_policy: LeafPolicy,
     pub builder: Builder,
     /// SAH cost of one traversal step, relative to `cost_intersect`.
     pub cost_traversal: f32,
@@ -63,6 +87,7 @@ impl BuildOptions {
     pub fn new(max_leaf_size: u32) -> Self {
         BuildOptions {
             max_leaf_size,
+            leaf_policy: LeafPolicy::default(),
             builder: Builder::default(),
             cost_traversal: 1.0,
             cost_intersect: 1.0,
@@ -79,32 +104,19 @@ struct Prim {
 
 enum Split {
     /// Primitives whose centroid falls in bins `0..=bin` along `axis` go left.
-    Bin {
-        axis: usize,
-        bin: usize,
-        bins: usize,
-        lo: f32,
-        scale: f32,
-    },
+    Bin { axis: usize, bin: usize, bins: usize, lo: f32, scale: f32 },
     /// After sorting by centroid along `axis`, the first `left` go left.
     Sorted { axis: usize, left: usize },
 }
 
 pub(super) fn build(mesh: &Mesh, options: &BuildOptions) -> Bvh {
-    assert!(
-        (1..=MAX_LEAF_SIZE).contains(&options.max_leaf_size),
-        "max_leaf_size must be 1..={MAX_LEAF_SIZE}"
-    );
+    assert!((1..=MAX_LEAF_SIZE).contains(&options.max_leaf_size), "max_leaf_size must be 1..={MAX_LEAF_SIZE}");
     let start = Instant::now();
     let mut prims: Vec<Prim> = (0..mesh.triangle_count())
         .filter(|&i| !mesh.is_degenerate(i))
         .map(|i| {
             let b = Aabb::from_points(&mesh.vertices(i));
-            Prim {
-                bounds: b,
-                centroid: b.center(),
-                id: i as u32,
-            }
+            Prim { bounds: b, centroid: b.center(), id: i as u32 }
         })
         .collect();
     let excluded = mesh.triangle_count() - prims.len();
@@ -113,12 +125,7 @@ pub(super) fn build(mesh: &Mesh, options: &BuildOptions) -> Bvh {
         // Nothing can be hit. One leaf over a single padding slot (a degenerate triangle every
         // encoding rejects exactly) keeps the GPU path uniform.
         let p = mesh.positions.first().copied().unwrap_or([0.0; 3]);
-        let root = BvhNode {
-            min: p,
-            left_or_first: 0,
-            max: p,
-            count: 1,
-        };
+        let root = BvhNode { min: p, left_or_first: 0, max: p, count: 1 };
         return Bvh {
             nodes: vec![root],
             prim_ids: vec![PAD_SLOT],
@@ -190,22 +197,22 @@ fn choose_split(
         debug_assert!(n <= o.max_leaf_size as usize);
         return None;
     }
+    let fits = n <= o.max_leaf_size as usize;
+    if fits && o.leaf_policy == LeafPolicy::Fill {
+        return None;
+    }
     let leaf_cost = o.cost_intersect as f64 * n as f64;
     let best = match o.builder {
         Builder::Binned { bins } => best_binned(range, bounds, cbounds, bins as usize, o),
         Builder::Sweep => best_sweep(range, bounds, o, scratch),
     };
-    let fits = n <= o.max_leaf_size as usize;
     if fits && best.as_ref().is_none_or(|(c, _)| leaf_cost <= *c) {
         return None;
     }
-    let left = best
-        .map(|(_, s)| apply(range, &s))
-        .filter(|&k| k > 0 && k < n);
+    let left = best.map(|(_, s)| apply(range, &s)).filter(|&k| k > 0 && k < n);
     let levels_left = MAX_DEPTH - depth - 1; // for each child
     let ok = |k: usize| {
-        levels_needed(k, o.max_leaf_size) <= levels_left
-            && levels_needed(n - k, o.max_leaf_size) <= levels_left
+        levels_needed(k, o.max_leaf_size) <= levels_left && levels_needed(n - k, o.max_leaf_size) <= levels_left
     };
     match left {
         Some(k) if ok(k) => Some(k),
@@ -220,27 +227,16 @@ fn median_split(range: &mut [Prim], cbounds: &Aabb) -> usize {
     let mid = range.len() / 2;
     let axis = cbounds.largest_axis();
     if cbounds.extent()[axis] > 0.0 {
-        range.select_nth_unstable_by(mid, |a, b| {
-            a.centroid[axis]
-                .total_cmp(&b.centroid[axis])
-                .then(a.id.cmp(&b.id))
-        });
+        range.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]).then(a.id.cmp(&b.id)));
     }
     mid
 }
 
 fn sah(o: &BuildOptions, parent_area: f64, la: f64, ln: usize, ra: f64, rn: usize) -> f64 {
-    o.cost_traversal as f64
-        + o.cost_intersect as f64 * (la * ln as f64 + ra * rn as f64) / parent_area
+    o.cost_traversal as f64 + o.cost_intersect as f64 * (la * ln as f64 + ra * rn as f64) / parent_area
 }
 
-fn best_binned(
-    range: &[Prim],
-    bounds: &Aabb,
-    cbounds: &Aabb,
-    bins: usize,
-    o: &BuildOptions,
-) -> Option<(f64, Split)> {
+fn best_binned(range: &[Prim], bounds: &Aabb, cbounds: &Aabb, bins: usize, o: &BuildOptions) -> Option<(f64, Split)> {
     let parent_area = bounds.area().max(f64::MIN_POSITIVE);
     let mut best: Option<(f64, Split)> = None;
     let mut bin_bounds = vec![Aabb::EMPTY; bins];
@@ -278,25 +274,9 @@ fn best_binned(
             if cnt == 0 || right_count[b] == 0 {
                 continue;
             }
-            let c = sah(
-                o,
-                parent_area,
-                acc.area(),
-                cnt,
-                right_area[b],
-                right_count[b],
-            );
+            let c = sah(o, parent_area, acc.area(), cnt, right_area[b], right_count[b]);
             if best.as_ref().is_none_or(|(bc, _)| c < *bc) {
-                best = Some((
-                    c,
-                    Split::Bin {
-                        axis,
-                        bin: b,
-                        bins,
-                        lo,
-                        scale,
-                    },
-                ));
+                best = Some((c, Split::Bin { axis, bin: b, bins, lo, scale }));
             }
         }
     }
@@ -308,19 +288,10 @@ fn bin_index(c: f32, lo: f32, scale: f32, bins: usize) -> usize {
 }
 
 fn sort_axis(range: &mut [Prim], axis: usize) {
-    range.sort_unstable_by(|a, b| {
-        a.centroid[axis]
-            .total_cmp(&b.centroid[axis])
-            .then(a.id.cmp(&b.id))
-    });
+    range.sort_unstable_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]).then(a.id.cmp(&b.id)));
 }
 
-fn best_sweep(
-    range: &mut [Prim],
-    bounds: &Aabb,
-    o: &BuildOptions,
-    right: &mut Vec<Aabb>,
-) -> Option<(f64, Split)> {
+fn best_sweep(range: &mut [Prim], bounds: &Aabb, o: &BuildOptions, right: &mut Vec<Aabb>) -> Option<(f64, Split)> {
     let n = range.len();
     let parent_area = bounds.area().max(f64::MIN_POSITIVE);
     let mut best: Option<(f64, Split)> = None;
@@ -347,13 +318,7 @@ fn best_sweep(
 /// Reorders `range` for the split; returns how many primitives go left.
 fn apply(range: &mut [Prim], split: &Split) -> usize {
     match *split {
-        Split::Bin {
-            axis,
-            bin,
-            bins,
-            lo,
-            scale,
-        } => {
+        Split::Bin { axis, bin, bins, lo, scale } => {
             let mut i = 0;
             let mut j = range.len();
             while i < j {

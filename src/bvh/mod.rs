@@ -10,7 +10,7 @@ pub mod builder;
 mod node;
 
 pub use aabb::Aabb;
-pub use builder::{BuildOptions, Builder, MAX_DEPTH, MAX_LEAF_SIZE};
+pub use builder::{BuildOptions, Builder, LeafPolicy, MAX_DEPTH, MAX_LEAF_SIZE};
 pub use node::BvhNode;
 
 use crate::scene::Mesh;
@@ -35,6 +35,7 @@ pub struct Bvh {
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct BvhStats {
     pub builder: String,
+    pub leaf_policy: String,
     pub max_leaf_size: u32,
     pub triangles: usize,
     pub degenerate_excluded: usize,
@@ -82,6 +83,7 @@ impl Bvh {
         let root_area = self.nodes[0].aabb().area().max(f64::MIN_POSITIVE);
         let mut s = BvhStats {
             builder: o.builder.to_string(),
+            leaf_policy: o.leaf_policy.to_string(),
             max_leaf_size: o.max_leaf_size,
             triangles: self.triangle_count(),
             degenerate_excluded: self.degenerate_excluded,
@@ -127,10 +129,7 @@ impl Bvh {
                 err = Some(format!("node {i} at depth {d} > {MAX_DEPTH}"));
             } else if n.is_leaf() {
                 if n.count > self.options.max_leaf_size {
-                    err = Some(format!(
-                        "leaf {i} holds {} > {}",
-                        n.count, self.options.max_leaf_size
-                    ));
+                    err = Some(format!("leaf {i} holds {} > {}", n.count, self.options.max_leaf_size));
                 }
                 for s in n.left_or_first..n.left_or_first + n.count {
                     let Some(flag) = seen.get_mut(s as usize) else {
@@ -141,11 +140,7 @@ impl Bvh {
                         err = Some(format!("slot {s} in two leaves"));
                     }
                     let id = self.prim_ids[s as usize];
-                    if id != PAD_SLOT
-                        && !n
-                            .aabb()
-                            .contains(&Aabb::from_points(&mesh.vertices(id as usize)))
-                    {
+                    if id != PAD_SLOT && !n.aabb().contains(&Aabb::from_points(&mesh.vertices(id as usize))) {
                         err = Some(format!("leaf {i} box does not contain triangle {id}"));
                     }
                 }
@@ -153,9 +148,7 @@ impl Bvh {
                 let l = n.left_or_first as usize;
                 if l + 1 >= self.nodes.len() || l <= i {
                     err = Some(format!("node {i} has bad children {l}"));
-                } else if !n.aabb().contains(&self.nodes[l].aabb())
-                    || !n.aabb().contains(&self.nodes[l + 1].aabb())
-                {
+                } else if !n.aabb().contains(&self.nodes[l].aabb()) || !n.aabb().contains(&self.nodes[l + 1].aabb()) {
                     err = Some(format!("node {i} box does not contain its children"));
                 }
             }
@@ -166,16 +159,10 @@ impl Bvh {
         if let Some(s) = seen.iter().position(|&x| !x) {
             return Err(format!("slot {s} in no leaf"));
         }
-        let mut ids: Vec<u32> = self
-            .prim_ids
-            .iter()
-            .copied()
-            .filter(|&p| p != PAD_SLOT)
-            .collect();
+        let mut ids: Vec<u32> = self.prim_ids.iter().copied().filter(|&p| p != PAD_SLOT).collect();
         ids.sort_unstable();
-        let expected: Vec<u32> = (0..mesh.triangle_count() as u32)
-            .filter(|&i| !mesh.is_degenerate(i as usize))
-            .collect();
+        let expected: Vec<u32> =
+            (0..mesh.triangle_count() as u32).filter(|&i| !mesh.is_degenerate(i as usize)).collect();
         if ids != expected {
             return Err("leaves do not hold exactly the non-degenerate triangles".into());
         }
@@ -207,27 +194,35 @@ mod tests {
         let mesh = grid(2000);
         for leaf in [1, 2, 3, 4, 8, 16] {
             for builder in [Builder::Binned { bins: 32 }, Builder::Sweep] {
-                let bvh = Bvh::build(
-                    &mesh,
-                    &BuildOptions {
-                        builder,
-                        ..BuildOptions::new(leaf)
-                    },
-                );
-                bvh.validate(&mesh)
-                    .unwrap_or_else(|e| panic!("leaf {leaf} {builder}: {e}"));
+                let bvh = Bvh::build(&mesh, &BuildOptions { builder, ..BuildOptions::new(leaf) });
+                bvh.validate(&mesh).unwrap_or_else(|e| panic!("leaf {leaf} {builder}: {e}"));
                 let s = bvh.stats();
-                assert_eq!(
-                    s.leaf_histogram
-                        .iter()
-                        .enumerate()
-                        .map(|(k, n)| k * n)
-                        .sum::<usize>(),
-                    2000
-                );
+                assert_eq!(s.leaf_histogram.iter().enumerate().map(|(k, n)| k * n).sum::<usize>(), 2000);
                 assert_eq!(s.nodes, s.inner_nodes + s.leaves);
                 assert_eq!(s.leaves, s.inner_nodes + 1);
             }
+        }
+    }
+
+    #[test]
+    fn fill_policy_fills_leaves_and_sah_policy_only_caps_them() {
+        let mesh = grid(2000);
+        for leaf in [2, 4, 8, 16] {
+            let fill = Bvh::build(&mesh, &BuildOptions::new(leaf));
+            // Fill: no inner node holds <= leaf triangles (it would have been a leaf).
+            let mut under = vec![0usize; fill.nodes.len()];
+            for i in (0..fill.nodes.len()).rev() {
+                let n = &fill.nodes[i];
+                under[i] = if n.is_leaf() {
+                    n.count as usize
+                } else {
+                    under[n.left_or_first as usize] + under[n.left_or_first as usize + 1]
+                };
+                assert!(n.is_leaf() || under[i] > leaf as usize, "leaf {leaf}: inner node {i} holds only {}", under[i]);
+            }
+            let sah = Bvh::build(&mesh, &BuildOptions { leaf_policy: LeafPolicy::Sah, ..BuildOptions::new(leaf) });
+            sah.validate(&mesh).unwrap();
+            assert!(sah.stats().leaves >= fill.stats().leaves, "SAH termination never makes fewer leaves");
         }
     }
 
@@ -237,15 +232,8 @@ mod tests {
         // greedy tree should not cost much more (greedy choices can differ, so allow 2%).
         let mesh = grid(3000);
         let binned = Bvh::build(&mesh, &BuildOptions::new(4)).stats().sah_cost;
-        let sweep = Bvh::build(
-            &mesh,
-            &BuildOptions {
-                builder: Builder::Sweep,
-                ..BuildOptions::new(4)
-            },
-        )
-        .stats()
-        .sah_cost;
+        let sweep =
+            Bvh::build(&mesh, &BuildOptions { builder: Builder::Sweep, ..BuildOptions::new(4) }).stats().sah_cost;
         assert!(sweep <= binned * 1.02, "sweep {sweep} binned {binned}");
     }
 
@@ -269,13 +257,7 @@ mod tests {
         let mesh = exponent_range_scene();
         for leaf in [1, 4, 16] {
             for builder in [Builder::Binned { bins: 32 }, Builder::Sweep] {
-                let bvh = Bvh::build(
-                    &mesh,
-                    &BuildOptions {
-                        builder,
-                        ..BuildOptions::new(leaf)
-                    },
-                );
+                let bvh = Bvh::build(&mesh, &BuildOptions { builder, ..BuildOptions::new(leaf) });
                 bvh.validate(&mesh).unwrap();
                 let depth = bvh.stats().depth;
                 assert!(depth <= MAX_DEPTH, "leaf {leaf} {builder}: depth {depth}");
@@ -307,12 +289,7 @@ mod tests {
     #[test]
     fn degenerate_triangles_are_left_out() {
         let mesh = Mesh::from_triangles(
-            vec![
-                [0.0, 0.0, 0.0],
-                [1.0, 0.0, 0.0],
-                [2.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-            ],
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
             vec![[0, 1, 2], [0, 1, 3], [3, 3, 3]],
         );
         let bvh = Bvh::build(&mesh, &BuildOptions::new(4));

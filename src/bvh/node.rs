@@ -26,10 +26,7 @@ impl BvhNode {
     }
 
     pub fn aabb(&self) -> Aabb {
-        Aabb {
-            min: Vec3::from_array(self.min),
-            max: Vec3::from_array(self.max),
-        }
+        Aabb { min: Vec3::from_array(self.min), max: Vec3::from_array(self.max) }
     }
 
     pub fn set_aabb(&mut self, b: &Aabb) {

@@ -27,17 +27,7 @@ use crate::scene::Mesh;
 
 /// A ray-triangle intersection method (and with it, a GPU data layout).
 #[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Hash,
-    PartialOrd,
-    Ord,
-    clap::ValueEnum,
-    serde::Serialize,
-    serde::Deserialize,
+    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, clap::ValueEnum, serde::Serialize, serde::Deserialize,
 )]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
@@ -176,10 +166,7 @@ fn slot_id(prim: u32) -> u32 {
 
 /// Per-slot encodings (MT, unit) keep the BVH's leaves as they are.
 fn slot_layout(bvh: &Bvh) -> (Vec<BvhNode>, Vec<u32>) {
-    (
-        bvh.nodes.clone(),
-        bvh.prim_ids.iter().map(|&p| slot_id(p)).collect(),
-    )
+    (bvh.nodes.clone(), bvh.prim_ids.iter().map(|&p| slot_id(p)).collect())
 }
 
 /// Quad encodings: every leaf's triangles in groups of four, the last group padded.
@@ -225,12 +212,7 @@ mod tests {
             let bvh = Bvh::build(&m, &BuildOptions::new(leaf));
             for method in Method::ALL {
                 let e = method.encode(&m, &bvh);
-                let mut ids: Vec<u32> = e
-                    .slot_ids
-                    .iter()
-                    .copied()
-                    .filter(|&s| s != MISS_ID)
-                    .collect();
+                let mut ids: Vec<u32> = e.slot_ids.iter().copied().filter(|&s| s != MISS_ID).collect();
                 ids.sort_unstable();
                 assert_eq!(ids, (0..97).collect::<Vec<_>>(), "{method} leaf {leaf}");
                 assert_eq!(e.slot_ids.len() % method.group_size(), 0);
@@ -261,10 +243,7 @@ mod tests {
         let bvh = Bvh::build(&m, &BuildOptions::new(1));
         let mt = Method::Mt.encode(&m, &bvh);
         let nodes = bvh.nodes.len() * 32;
-        assert_eq!(
-            mt.gpu_bytes(),
-            nodes + 97 * 4 + m.positions.len() * 16 + 97 * 16
-        );
+        assert_eq!(mt.gpu_bytes(), nodes + 97 * 4 + m.positions.len() * 16 + 97 * 16);
         let unit = Method::Unit.encode(&m, &bvh);
         assert_eq!(unit.gpu_bytes(), nodes + 97 * 4 + 97 * 48);
     }

@@ -20,11 +20,7 @@ const _: () = assert!(std::mem::size_of::<MtTriangle>() == 16);
 
 pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
     let (nodes, slot_ids) = slot_layout(bvh);
-    let mut vertices: Vec<[f32; 4]> = mesh
-        .positions
-        .iter()
-        .map(|p| [p[0], p[1], p[2], 1.0])
-        .collect();
+    let mut vertices: Vec<[f32; 4]> = mesh.positions.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect();
     if vertices.is_empty() {
         vertices.push([0.0, 0.0, 0.0, 1.0]);
     }
@@ -33,14 +29,8 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
         .prim_ids
         .iter()
         .map(|&p| match p {
-            PAD_SLOT => MtTriangle {
-                v: [0; 3],
-                material: 0,
-            },
-            id => MtTriangle {
-                v: mesh.triangles[id as usize],
-                material: mesh.material_ids[id as usize],
-            },
+            PAD_SLOT => MtTriangle { v: [0; 3], material: 0 },
+            id => MtTriangle { v: mesh.triangles[id as usize], material: mesh.material_ids[id as usize] },
         })
         .collect();
     EncodedScene {

@@ -22,11 +22,7 @@ const _: () = assert!(std::mem::size_of::<UnitTriangle>() == 48);
 
 /// Rows of a padding triangle: D'z is exactly zero for every ray (rejected by `dz != 0`),
 /// and u = -1 besides.
-pub(super) const PAD_ROWS: [[f32; 4]; 3] = [
-    [0.0, 0.0, 0.0, -1.0],
-    [0.0, 0.0, 0.0, -1.0],
-    [0.0, 0.0, 0.0, 1.0],
-];
+pub(super) const PAD_ROWS: [[f32; 4]; 3] = [[0.0, 0.0, 0.0, -1.0], [0.0, 0.0, 0.0, -1.0], [0.0, 0.0, 0.0, 1.0]];
 
 /// The rows of T(x) = M x + N taking triangle (a, b, c) to the unit triangle, computed in f64
 /// (Woop 2004): with e1 = b - a, e2 = c - a, n = e1 x e2, M = [e1 e2 n]^-1, whose rows are
@@ -65,11 +61,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
                     })
                 }
             };
-            UnitTriangle {
-                row0: rows[0],
-                row1: rows[1],
-                row2: rows[2],
-            }
+            UnitTriangle { row0: rows[0], row1: rows[1], row2: rows[2] }
         })
         .collect();
     EncodedScene {
@@ -96,23 +88,11 @@ mod tests {
 
     #[test]
     fn maps_vertices_to_the_unit_triangle() {
-        let (a, b, c) = (
-            DVec3::new(1.0, 2.0, 3.0),
-            DVec3::new(4.0, 2.5, 3.0),
-            DVec3::new(1.5, 5.0, 2.0),
-        );
+        let (a, b, c) = (DVec3::new(1.0, 2.0, 3.0), DVec3::new(4.0, 2.5, 3.0), DVec3::new(1.5, 5.0, 2.0));
         let m = unit_transform(a, b, c).unwrap();
-        for (p, want) in [
-            (a, [0.0, 0.0, 0.0]),
-            (b, [1.0, 0.0, 0.0]),
-            (c, [0.0, 1.0, 0.0]),
-        ] {
+        for (p, want) in [(a, [0.0, 0.0, 0.0]), (b, [1.0, 0.0, 0.0]), (c, [0.0, 1.0, 0.0])] {
             for r in 0..3 {
-                assert!(
-                    (apply(m[r], p) - want[r]).abs() < 1e-6,
-                    "row {r} at {p}: {}",
-                    apply(m[r], p)
-                );
+                assert!((apply(m[r], p) - want[r]).abs() < 1e-6, "row {r} at {p}: {}", apply(m[r], p));
             }
         }
         // A point off the plane has a nonzero third coordinate.

@@ -31,18 +31,12 @@ impl Drop for Buffer {
 
 impl Buffer {
     pub fn mapped(&self) -> Option<&[u8]> {
-        self.allocation
-            .as_ref()
-            .and_then(|a| a.mapped_slice())
-            .map(|s| &s[..self.size as usize])
+        self.allocation.as_ref().and_then(|a| a.mapped_slice()).map(|s| &s[..self.size as usize])
     }
 
     fn mapped_mut(&mut self) -> Option<&mut [u8]> {
         let size = self.size as usize;
-        self.allocation
-            .as_mut()
-            .and_then(|a| a.mapped_slice_mut())
-            .map(|s| &mut s[..size])
+        self.allocation.as_mut().and_then(|a| a.mapped_slice_mut()).map(|s| &mut s[..size])
     }
 }
 
@@ -57,13 +51,9 @@ impl Context {
     ) -> Result<Buffer> {
         let d = &self.device;
         let size = size.max(4);
-        let info = vk::BufferCreateInfo::default()
-            .size(size)
-            .usage(usage)
-            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let info = vk::BufferCreateInfo::default().size(size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
         // SAFETY: valid device and create info.
-        let raw = unsafe { d.raw.create_buffer(&info, None) }
-            .during(&format!("creating buffer `{name}`"))?;
+        let raw = unsafe { d.raw.create_buffer(&info, None) }.during(&format!("creating buffer `{name}`"))?;
         let requirements = unsafe { d.raw.get_buffer_memory_requirements(raw) };
         let allocation = d.allocator.lock().unwrap().allocate(&AllocationCreateDesc {
             name,
@@ -76,28 +66,16 @@ impl Context {
             Ok(a) => a,
             Err(source) => {
                 unsafe { d.raw.destroy_buffer(raw, None) };
-                return Err(Error::Allocation {
-                    name: name.into(),
-                    source,
-                });
+                return Err(Error::Allocation { name: name.into(), source });
             }
         };
         // SAFETY: memory and offset come from an allocation made for these requirements.
-        if let Err(e) = unsafe {
-            d.raw
-                .bind_buffer_memory(raw, allocation.memory(), allocation.offset())
-        } {
+        if let Err(e) = unsafe { d.raw.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) } {
             unsafe { d.raw.destroy_buffer(raw, None) };
             let _ = d.allocator.lock().unwrap().free(allocation);
             return Err(e).during(&format!("binding memory of `{name}`"));
         }
-        Ok(Buffer {
-            device: d.clone(),
-            raw,
-            allocation: Some(allocation),
-            size,
-            name: name.into(),
-        })
+        Ok(Buffer { device: d.clone(), raw, allocation: Some(allocation), size, name: name.into() })
     }
 
     /// A device-local storage buffer holding `bytes`, filled through a staging buffer.
@@ -117,18 +95,13 @@ impl Context {
             vk::BufferUsageFlags::TRANSFER_SRC,
             MemoryLocation::CpuToGpu,
         )?;
-        staging.mapped_mut().ok_or_else(|| {
-            Error::NoDevice(format!("staging buffer for `{name}` is not host-visible"))
-        })?[..bytes.len()]
+        staging
+            .mapped_mut()
+            .ok_or_else(|| Error::NoDevice(format!("staging buffer for `{name}` is not host-visible")))?[..bytes.len()]
             .copy_from_slice(bytes);
         self.one_shot(&format!("uploading `{name}`"), |d, cmd| unsafe {
             // SAFETY: both buffers are alive until one_shot returns (it waits for the fence).
-            d.cmd_copy_buffer(
-                cmd,
-                staging.raw,
-                buf.raw,
-                &[vk::BufferCopy::default().size(bytes.len() as u64)],
-            );
+            d.cmd_copy_buffer(cmd, staging.raw, buf.raw, &[vk::BufferCopy::default().size(bytes.len() as u64)]);
             // Make the copy visible to any later shader read or write.
             let barrier = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
@@ -168,12 +141,7 @@ impl Context {
                 &[],
                 &[],
             );
-            d.cmd_copy_buffer(
-                cmd,
-                buf.raw,
-                readback.raw,
-                &[vk::BufferCopy::default().size(len)],
-            );
+            d.cmd_copy_buffer(cmd, buf.raw, readback.raw, &[vk::BufferCopy::default().size(len)]);
             let after = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
                 .dst_access_mask(vk::AccessFlags::HOST_READ);
@@ -187,26 +155,18 @@ impl Context {
                 &[],
             );
         })?;
-        let bytes = readback.mapped().ok_or_else(|| {
-            Error::NoDevice(format!(
-                "readback buffer for `{}` is not host-visible",
-                buf.name
-            ))
-        })?;
+        let bytes = readback
+            .mapped()
+            .ok_or_else(|| Error::NoDevice(format!("readback buffer for `{}` is not host-visible", buf.name)))?;
         Ok(bytes[..len as usize].to_vec())
     }
 
     /// Records commands with `record`, submits them and waits (with the submit timeout).
-    pub fn one_shot(
-        &self,
-        what: &str,
-        record: impl FnOnce(&ash::Device, vk::CommandBuffer),
-    ) -> Result<()> {
+    pub fn one_shot(&self, what: &str, record: impl FnOnce(&ash::Device, vk::CommandBuffer)) -> Result<()> {
         let cmd = self.allocate_command_buffers(1)?.remove(0);
         let result = (|| {
             let d = &self.device.raw;
-            let begin = vk::CommandBufferBeginInfo::default()
-                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
             // SAFETY: freshly allocated primary command buffer.
             unsafe { d.begin_command_buffer(cmd, &begin) }.during(what)?;
             record(d, cmd);
@@ -227,8 +187,7 @@ impl Context {
             .level(vk::CommandBufferLevel::PRIMARY)
             .command_buffer_count(n);
         // SAFETY: the pool is externally synchronised by the mutex.
-        unsafe { self.device.raw.allocate_command_buffers(&info) }
-            .during("allocating command buffers")
+        unsafe { self.device.raw.allocate_command_buffers(&info) }.during("allocating command buffers")
     }
 
     pub(crate) fn free_command_buffers(&self, cmds: &[vk::CommandBuffer]) {
@@ -241,24 +200,18 @@ impl Context {
     pub(crate) fn submit_and_wait(&self, cmd: vk::CommandBuffer, what: &str) -> Result<()> {
         let d = &self.device.raw;
         // SAFETY: valid device; the fence is destroyed below after it is no longer in use.
-        let fence =
-            unsafe { d.create_fence(&vk::FenceCreateInfo::default(), None) }.during(what)?;
+        let fence = unsafe { d.create_fence(&vk::FenceCreateInfo::default(), None) }.during(what)?;
         let cmds = [cmd];
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
-        let result = unsafe { d.queue_submit(self.device.queue, &submit, fence) }
-            .during(what)
-            .and_then(|_| {
-                match unsafe {
-                    d.wait_for_fences(&[fence], true, self.device.submit_timeout.as_nanos() as u64)
-                } {
-                    Ok(()) => Ok(()),
-                    Err(vk::Result::TIMEOUT) => Err(Error::Timeout {
-                        what: what.to_owned(),
-                        seconds: self.device.submit_timeout.as_secs_f64(),
-                    }),
-                    Err(e) => Err(e).during(what),
+        let result = unsafe { d.queue_submit(self.device.queue, &submit, fence) }.during(what).and_then(|_| {
+            match unsafe { d.wait_for_fences(&[fence], true, self.device.submit_timeout.as_nanos() as u64) } {
+                Ok(()) => Ok(()),
+                Err(vk::Result::TIMEOUT) => {
+                    Err(Error::Timeout { what: what.to_owned(), seconds: self.device.submit_timeout.as_secs_f64() })
                 }
-            });
+                Err(e) => Err(e).during(what),
+            }
+        });
         if !matches!(result, Err(Error::Timeout { .. })) {
             // SAFETY: the fence is signalled or was never submitted.
             unsafe { d.destroy_fence(fence, None) };

@@ -41,11 +41,7 @@ impl Default for ContextOptions {
     fn default() -> Self {
         ContextOptions {
             device: None,
-            validation: if cfg!(debug_assertions) {
-                Validation::IfAvailable
-            } else {
-                Validation::Off
-            },
+            validation: if cfg!(debug_assertions) { Validation::IfAvailable } else { Validation::Off },
             submit_timeout: Duration::from_secs(120),
         }
     }
@@ -81,14 +77,8 @@ unsafe extern "system" fn debug_callback(
         "<no data>".to_owned()
     } else {
         let d = &*data;
-        let id = d
-            .message_id_name_as_c_str()
-            .map(|c| c.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let text = d
-            .message_as_c_str()
-            .map(|c| c.to_string_lossy().into_owned())
-            .unwrap_or_default();
+        let id = d.message_id_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
+        let text = d.message_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
         format!("[{severity:?} {ty:?}] {id}: {text}")
     };
     log.push(msg);
@@ -116,8 +106,7 @@ impl Drop for Device {
         // command pool, allocator memory, device, debug messenger, instance.
         unsafe {
             let _ = self.raw.device_wait_idle();
-            self.raw
-                .destroy_command_pool(*self.command_pool.get_mut().unwrap(), None);
+            self.raw.destroy_command_pool(*self.command_pool.get_mut().unwrap(), None);
             ManuallyDrop::drop(&mut self.allocator);
             self.raw.destroy_device(None);
             if let Some((loader, messenger)) = self.debug.take() {
@@ -142,11 +131,8 @@ impl Context {
         let log = Arc::new(ValidationLog::default());
 
         // SAFETY: plain queries on a loaded entry.
-        let layers = unsafe { entry.enumerate_instance_layer_properties() }
-            .during("enumerating instance layers")?;
-        let have_validation = layers
-            .iter()
-            .any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
+        let layers = unsafe { entry.enumerate_instance_layer_properties() }.during("enumerating instance layers")?;
+        let have_validation = layers.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
         let want_validation = match options.validation {
             Validation::Off => false,
             Validation::IfAvailable => have_validation,
@@ -159,8 +145,8 @@ impl Context {
             }
             Validation::Required => true,
         };
-        let exts = unsafe { entry.enumerate_instance_extension_properties(None) }
-            .during("enumerating instance extensions")?;
+        let exts =
+            unsafe { entry.enumerate_instance_extension_properties(None) }.during("enumerating instance extensions")?;
         let have_debug_utils = device_info::has_extension(&exts, ash::ext::debug_utils::NAME);
 
         let app_name = CString::new("trilab").unwrap();
@@ -169,21 +155,14 @@ impl Context {
             .application_version(vk::make_api_version(0, 0, 1, 0))
             .engine_name(&app_name)
             .api_version(vk::API_VERSION_1_2);
-        let layer_ptrs: Vec<*const std::ffi::c_char> = if want_validation {
-            vec![VALIDATION_LAYER.as_ptr()]
-        } else {
-            vec![]
-        };
+        let layer_ptrs: Vec<*const std::ffi::c_char> =
+            if want_validation { vec![VALIDATION_LAYER.as_ptr()] } else { vec![] };
         let use_debug = want_validation && have_debug_utils;
-        let ext_ptrs: Vec<*const std::ffi::c_char> = if use_debug {
-            vec![ash::ext::debug_utils::NAME.as_ptr()]
-        } else {
-            vec![]
-        };
+        let ext_ptrs: Vec<*const std::ffi::c_char> =
+            if use_debug { vec![ash::ext::debug_utils::NAME.as_ptr()] } else { vec![] };
         let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
             .message_severity(
-                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
-                    | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
             )
             .message_type(
                 vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
@@ -201,12 +180,8 @@ impl Context {
             create = create.push_next(&mut messenger_info);
         }
         // SAFETY: the create info and everything it points to live until the call returns.
-        let instance =
-            unsafe { entry.create_instance(&create, None) }.during("vkCreateInstance")?;
-        let mut guard = InstanceGuard {
-            instance: Some(instance),
-            debug: None,
-        };
+        let instance = unsafe { entry.create_instance(&create, None) }.during("vkCreateInstance")?;
+        let mut guard = InstanceGuard { instance: Some(instance), debug: None };
 
         if use_debug {
             let loader = ash::ext::debug_utils::Instance::new(&entry, guard.instance());
@@ -218,28 +193,20 @@ impl Context {
 
         let instance = guard.instance();
         // SAFETY: valid instance.
-        let physicals = unsafe { instance.enumerate_physical_devices() }
-            .during("vkEnumeratePhysicalDevices")?;
-        let infos: Vec<DeviceInfo> = physicals
-            .iter()
-            .enumerate()
-            .map(|(i, &pd)| unsafe { device_info::query(instance, pd, i) })
-            .collect();
+        let physicals = unsafe { instance.enumerate_physical_devices() }.during("vkEnumeratePhysicalDevices")?;
+        let infos: Vec<DeviceInfo> =
+            physicals.iter().enumerate().map(|(i, &pd)| unsafe { device_info::query(instance, pd, i) }).collect();
         let chosen = choose_device(&infos, options.device.as_deref())?;
         let info = infos[chosen].clone();
         let physical = physicals[chosen];
-        let queue_family = info
-            .compute_queue_family
-            .expect("usable device has a compute queue");
+        let queue_family = info.compute_queue_family.expect("usable device has a compute queue");
 
         let priorities = [1.0f32];
-        let queue_info = [vk::DeviceQueueCreateInfo::default()
-            .queue_family_index(queue_family)
-            .queue_priorities(&priorities)];
+        let queue_info =
+            [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
         let device_create = vk::DeviceCreateInfo::default().queue_create_infos(&queue_info);
         // SAFETY: physical device from this instance; create info valid for the call.
-        let raw = unsafe { instance.create_device(physical, &device_create, None) }
-            .during("vkCreateDevice")?;
+        let raw = unsafe { instance.create_device(physical, &device_create, None) }.during("vkCreateDevice")?;
         // SAFETY: queue family and index 0 were requested above.
         let queue = unsafe { raw.get_device_queue(queue_family, 0) };
         let pool_info = vk::CommandPoolCreateInfo::default()
@@ -266,10 +233,7 @@ impl Context {
                     raw.destroy_command_pool(command_pool, None);
                     raw.destroy_device(None);
                 }
-                return Err(Error::Allocation {
-                    name: "allocator".into(),
-                    source,
-                });
+                return Err(Error::Allocation { name: "allocator".into(), source });
             }
         };
         let (instance, debug) = guard.release();
@@ -295,14 +259,10 @@ impl Context {
         let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_2);
         let create = vk::InstanceCreateInfo::default().application_info(&app);
         // SAFETY: minimal instance, destroyed below.
-        let instance =
-            unsafe { entry.create_instance(&create, None) }.during("vkCreateInstance")?;
-        let guard = InstanceGuard {
-            instance: Some(instance),
-            debug: None,
-        };
-        let physicals = unsafe { guard.instance().enumerate_physical_devices() }
-            .during("vkEnumeratePhysicalDevices")?;
+        let instance = unsafe { entry.create_instance(&create, None) }.during("vkCreateInstance")?;
+        let guard = InstanceGuard { instance: Some(instance), debug: None };
+        let physicals =
+            unsafe { guard.instance().enumerate_physical_devices() }.during("vkEnumeratePhysicalDevices")?;
         Ok(physicals
             .iter()
             .enumerate()
@@ -341,12 +301,7 @@ impl InstanceGuard {
     }
 
     #[allow(clippy::type_complexity)]
-    fn release(
-        mut self,
-    ) -> (
-        ash::Instance,
-        Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
-    ) {
+    fn release(mut self) -> (ash::Instance, Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>) {
         (self.instance.take().unwrap(), self.debug.take())
     }
 }
@@ -369,11 +324,7 @@ impl Drop for InstanceGuard {
 /// integrated > virtual > CPU > other, lowest index first.
 pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize> {
     let list = || {
-        infos
-            .iter()
-            .map(|d| format!("  [{}] {} ({})", d.index, d.name, d.driver_name))
-            .collect::<Vec<_>>()
-            .join("\n")
+        infos.iter().map(|d| format!("  [{}] {} ({})", d.index, d.name, d.driver_name)).collect::<Vec<_>>().join("\n")
     };
     if infos.is_empty() {
         return Err(Error::NoDevice(
@@ -385,10 +336,7 @@ pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize
     let pick = |i: usize| -> Result<usize> {
         match &infos[i].unusable_reason {
             None => Ok(i),
-            Some(r) => Err(Error::NoDevice(format!(
-                "device [{i}] {} cannot be used: {r}",
-                infos[i].name
-            ))),
+            Some(r) => Err(Error::NoDevice(format!("device [{i}] {} cannot be used: {r}", infos[i].name))),
         }
     };
     if let Some(w) = wanted {
@@ -396,10 +344,7 @@ pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize
             return if i < infos.len() {
                 pick(i)
             } else {
-                Err(Error::NoDevice(format!(
-                    "no device with index {i}; devices:\n{}",
-                    list()
-                )))
+                Err(Error::NoDevice(format!("no device with index {i}; devices:\n{}", list())))
             };
         }
         let lw = w.to_lowercase();
@@ -409,10 +354,7 @@ pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize
                 || d.driver_id.to_lowercase().contains(&lw)
         }) {
             Some(i) => pick(i),
-            None => Err(Error::NoDevice(format!(
-                "no device matches `{w}`; devices:\n{}",
-                list()
-            ))),
+            None => Err(Error::NoDevice(format!("no device matches `{w}`; devices:\n{}", list()))),
         };
     }
     let rank = |d: &DeviceInfo| match d.device_type.as_str() {
@@ -422,15 +364,7 @@ pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize
         "CPU" => 3,
         _ => 4,
     };
-    infos
-        .iter()
-        .filter(|d| d.usable)
-        .min_by_key(|d| (rank(d), d.index))
-        .map(|d| d.index)
-        .ok_or_else(|| {
-            Error::NoDevice(format!(
-                "no usable Vulkan 1.2 device with a compute queue; devices:\n{}",
-                list()
-            ))
-        })
+    infos.iter().filter(|d| d.usable).min_by_key(|d| (rank(d), d.index)).map(|d| d.index).ok_or_else(|| {
+        Error::NoDevice(format!("no usable Vulkan 1.2 device with a compute queue; devices:\n{}", list()))
+    })
 }

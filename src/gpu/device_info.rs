@@ -51,6 +51,8 @@ pub struct DeviceInfo {
     pub pipeline_executable_properties: bool,
     pub shader_float64: bool,
     pub shader_int64: bool,
+    /// Vulkan 1.2 `bufferDeviceAddress` (required: the kernels read scenes through it).
+    pub buffer_device_address: bool,
     pub float_controls: FloatControls,
     pub max_storage_buffer_range: u32,
     pub min_storage_buffer_offset_alignment: u64,
@@ -72,41 +74,26 @@ fn cstr(bytes: &[std::ffi::c_char]) -> String {
 }
 
 fn version(v: u32) -> String {
-    format!(
-        "{}.{}.{}",
-        vk::api_version_major(v),
-        vk::api_version_minor(v),
-        vk::api_version_patch(v)
-    )
+    format!("{}.{}.{}", vk::api_version_major(v), vk::api_version_minor(v), vk::api_version_patch(v))
 }
 
 fn mesa_version(driver_info: &str) -> Option<String> {
     let rest = driver_info.split("Mesa ").nth(1)?;
-    let v: String = rest
-        .chars()
-        .take_while(|c| c.is_ascii_digit() || *c == '.')
-        .collect();
+    let v: String = rest.chars().take_while(|c| c.is_ascii_digit() || *c == '.').collect();
     (!v.is_empty()).then_some(v)
 }
 
 pub(crate) fn has_extension(exts: &[vk::ExtensionProperties], name: &CStr) -> bool {
-    exts.iter()
-        .any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == name))
+    exts.iter().any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == name))
 }
 
 /// Queries everything `DeviceInfo` reports.
 ///
 /// # Safety
 /// `instance` must be a live instance and `pd` one of its physical devices.
-pub(crate) unsafe fn query(
-    instance: &ash::Instance,
-    pd: vk::PhysicalDevice,
-    index: usize,
-) -> DeviceInfo {
+pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, index: usize) -> DeviceInfo {
     let base = instance.get_physical_device_properties(pd);
-    let exts = instance
-        .enumerate_device_extension_properties(pd)
-        .unwrap_or_default();
+    let exts = instance.enumerate_device_extension_properties(pd).unwrap_or_default();
     let api = base.api_version;
     let v13 = api >= vk::API_VERSION_1_3;
     let has = |n: &CStr| has_extension(&exts, n);
@@ -128,10 +115,14 @@ pub(crate) unsafe fn query(
     let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
     let mut pep = vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default();
     let mut sscf = vk::PhysicalDeviceSubgroupSizeControlFeatures::default();
+    let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
     let has_clock = has(ash::khr::shader_clock::NAME);
     let has_rq = has(ash::khr::ray_query::NAME) && has(ash::khr::acceleration_structure::NAME);
     let has_pep = has(ash::khr::pipeline_executable_properties::NAME);
     let mut f2 = vk::PhysicalDeviceFeatures2::default();
+    if api >= vk::API_VERSION_1_2 {
+        f2 = f2.push_next(&mut f12);
+    }
     if has_clock {
         f2 = f2.push_next(&mut clock);
     }
@@ -151,18 +142,11 @@ pub(crate) unsafe fn query(
     let compute_family = families
         .iter()
         .position(|f| {
-            f.queue_flags.contains(vk::QueueFlags::COMPUTE)
-                && !f.queue_flags.contains(vk::QueueFlags::GRAPHICS)
+            f.queue_flags.contains(vk::QueueFlags::COMPUTE) && !f.queue_flags.contains(vk::QueueFlags::GRAPHICS)
         })
-        .or_else(|| {
-            families
-                .iter()
-                .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
-        })
+        .or_else(|| families.iter().position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE)))
         .map(|i| i as u32);
-    let ts_bits = compute_family
-        .map(|f| families[f as usize].timestamp_valid_bits)
-        .unwrap_or(0);
+    let ts_bits = compute_family.map(|f| families[f as usize].timestamp_valid_bits).unwrap_or(0);
 
     let unusable_reason = if api < vk::API_VERSION_1_2 {
         Some(format!("Vulkan {} < 1.2", version(api)))
@@ -189,10 +173,8 @@ pub(crate) unsafe fn query(
         subgroup_size_control: (has_ssc && sscf.subgroup_size_control == vk::TRUE)
             .then_some((ssc.min_subgroup_size, ssc.max_subgroup_size)),
         compute_full_subgroups: sscf.compute_full_subgroups == vk::TRUE,
-        shader_clock: has_clock.then_some((
-            clock.shader_subgroup_clock == vk::TRUE,
-            clock.shader_device_clock == vk::TRUE,
-        )),
+        shader_clock: has_clock
+            .then_some((clock.shader_subgroup_clock == vk::TRUE, clock.shader_device_clock == vk::TRUE)),
         timestamp_valid_bits: ts_bits,
         timestamp_period_ns: limits.timestamp_period,
         pipeline_statistics_query: features.pipeline_statistics_query == vk::TRUE,
@@ -200,13 +182,12 @@ pub(crate) unsafe fn query(
         pipeline_executable_properties: has_pep && pep.pipeline_executable_info == vk::TRUE,
         shader_float64: features.shader_float64 == vk::TRUE,
         shader_int64: features.shader_int64 == vk::TRUE,
+        buffer_device_address: f12.buffer_device_address == vk::TRUE,
         float_controls: FloatControls {
             denorm_behavior_independence: format!("{:?}", v12.denorm_behavior_independence),
             rounding_mode_independence: format!("{:?}", v12.rounding_mode_independence),
-            signed_zero_inf_nan_preserve_f32: v12.shader_signed_zero_inf_nan_preserve_float32
-                == vk::TRUE,
-            signed_zero_inf_nan_preserve_f64: v12.shader_signed_zero_inf_nan_preserve_float64
-                == vk::TRUE,
+            signed_zero_inf_nan_preserve_f32: v12.shader_signed_zero_inf_nan_preserve_float32 == vk::TRUE,
+            signed_zero_inf_nan_preserve_f64: v12.shader_signed_zero_inf_nan_preserve_float64 == vk::TRUE,
             denorm_preserve_f32: v12.shader_denorm_preserve_float32 == vk::TRUE,
             denorm_flush_to_zero_f32: v12.shader_denorm_flush_to_zero_float32 == vk::TRUE,
             rounding_mode_rte_f32: v12.shader_rounding_mode_rte_float32 == vk::TRUE,
@@ -247,66 +228,38 @@ impl DeviceInfo {
         let opt = |o: Option<String>| o.unwrap_or_else(|| "unsupported".into());
         let mut s = String::new();
         use std::fmt::Write;
-        let _ = writeln!(
-            s,
-            "[{}] {} ({}, Vulkan {})",
-            self.index, self.name, self.device_type, self.api_version
-        );
+        let _ = writeln!(s, "[{}] {} ({}, Vulkan {})", self.index, self.name, self.device_type, self.api_version);
         if let Some(r) = &self.unusable_reason {
             let _ = writeln!(s, "    not usable: {r}");
         }
-        let _ = writeln!(
-            s,
-            "    driver:                   {} ({}) {}",
-            self.driver_name, self.driver_id, self.driver_info
-        );
+        let _ =
+            writeln!(s, "    driver:                   {} ({}) {}", self.driver_name, self.driver_id, self.driver_info);
         let _ = writeln!(s, "    subgroup size:            {}", self.subgroup_size);
         let _ = writeln!(
             s,
             "    subgroup size control:    {}",
-            opt(self.subgroup_size_control.map(|(a, b)| format!(
-                "{a}..{b} (full subgroups: {})",
-                yn(self.compute_full_subgroups)
-            )))
+            opt(self
+                .subgroup_size_control
+                .map(|(a, b)| format!("{a}..{b} (full subgroups: {})", yn(self.compute_full_subgroups))))
         );
         let _ = writeln!(
             s,
             "    shader clock:             {}",
-            opt(self.shader_clock.map(|(sg, dev)| format!(
-                "subgroup {}, device {}",
-                yn(sg),
-                yn(dev)
-            )))
+            opt(self.shader_clock.map(|(sg, dev)| format!("subgroup {}, device {}", yn(sg), yn(dev))))
         );
         let _ = writeln!(
             s,
             "    timestamps (compute):     {}",
             if self.timestamp_valid_bits > 0 {
-                format!(
-                    "{} bits, {} ns/tick",
-                    self.timestamp_valid_bits, self.timestamp_period_ns
-                )
+                format!("{} bits, {} ns/tick", self.timestamp_valid_bits, self.timestamp_period_ns)
             } else {
                 "unsupported".into()
             }
         );
-        let _ = writeln!(
-            s,
-            "    pipeline statistics:      {}",
-            yn(self.pipeline_statistics_query)
-        );
+        let _ = writeln!(s, "    pipeline statistics:      {}", yn(self.pipeline_statistics_query));
         let _ = writeln!(s, "    ray query:                {}", yn(self.ray_query));
-        let _ = writeln!(
-            s,
-            "    pipeline executable info: {}",
-            yn(self.pipeline_executable_properties)
-        );
-        let _ = writeln!(
-            s,
-            "    shaderFloat64/Int64:      {}/{}",
-            yn(self.shader_float64),
-            yn(self.shader_int64)
-        );
+        let _ = writeln!(s, "    pipeline executable info: {}", yn(self.pipeline_executable_properties));
+        let _ = writeln!(s, "    shaderFloat64/Int64:      {}/{}", yn(self.shader_float64), yn(self.shader_int64));
         let fc = &self.float_controls;
         let _ = writeln!(
             s,
@@ -331,10 +284,7 @@ impl DeviceInfo {
 mod tests {
     #[test]
     fn mesa_version_is_parsed() {
-        assert_eq!(
-            super::mesa_version("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)").as_deref(),
-            Some("25.0.7")
-        );
+        assert_eq!(super::mesa_version("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)").as_deref(), Some("25.0.7"));
         assert_eq!(super::mesa_version("535.104.05"), None);
     }
 }

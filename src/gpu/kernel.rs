@@ -38,11 +38,7 @@ impl Drop for Kernel {
 impl Kernel {
     /// Descriptor types of set 0 by binding.
     pub fn bindings(&self) -> BTreeMap<u32, vk::DescriptorType> {
-        self.layout
-            .sets
-            .get(&0)
-            .map(|s| s.iter().map(|(&b, d)| (b, d.ty)).collect())
-            .unwrap_or_default()
+        self.layout.sets.get(&0).map(|s| s.iter().map(|(&b, d)| (b, d.ty)).collect()).unwrap_or_default()
     }
 }
 
@@ -51,10 +47,7 @@ impl Context {
         let words = src.words();
         let layout = reflect(src.name, &words)?;
         if layout.sets.keys().any(|&s| s != 0) {
-            return Err(Error::Spirv {
-                kernel: src.name.into(),
-                message: "only descriptor set 0 is supported".into(),
-            });
+            return Err(Error::Spirv { kernel: src.name.into(), message: "only descriptor set 0 is supported".into() });
         }
         let d = &self.device.raw;
         let what = |s: &str| format!("{s} for kernel {}", src.name);
@@ -76,44 +69,31 @@ impl Context {
             .unwrap_or_default();
         let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
         // SAFETY: the words are a SPIR-V module compiled for Vulkan 1.2 by build.rs.
-        let module = unsafe { d.create_shader_module(&module_info, None) }
-            .during(&what("vkCreateShaderModule"))?;
-        let mut objects = Objects {
-            device: Some(self.device.clone()),
-            module,
-            ..Default::default()
-        };
+        let module = unsafe { d.create_shader_module(&module_info, None) }.during(&what("vkCreateShaderModule"))?;
+        let mut objects = Objects { device: Some(self.device.clone()), module, ..Default::default() };
         let set_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
-        objects.set_layout = unsafe { d.create_descriptor_set_layout(&set_info, None) }
-            .during(&what("vkCreateDescriptorSetLayout"))?;
+        objects.set_layout =
+            unsafe { d.create_descriptor_set_layout(&set_info, None) }.during(&what("vkCreateDescriptorSetLayout"))?;
         let ranges: Vec<vk::PushConstantRange> = layout
             .push_constants
             .iter()
             .map(|&(offset, size)| {
-                vk::PushConstantRange::default()
-                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
-                    .offset(offset)
-                    .size(size)
+                vk::PushConstantRange::default().stage_flags(vk::ShaderStageFlags::COMPUTE).offset(offset).size(size)
             })
             .collect();
         let set_layouts = [objects.set_layout];
-        let pl_info = vk::PipelineLayoutCreateInfo::default()
-            .set_layouts(&set_layouts)
-            .push_constant_ranges(&ranges);
-        objects.pipeline_layout = unsafe { d.create_pipeline_layout(&pl_info, None) }
-            .during(&what("vkCreatePipelineLayout"))?;
+        let pl_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges);
+        objects.pipeline_layout =
+            unsafe { d.create_pipeline_layout(&pl_info, None) }.during(&what("vkCreatePipelineLayout"))?;
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module)
             .name(c"main");
-        let info = [vk::ComputePipelineCreateInfo::default()
-            .stage(stage)
-            .layout(objects.pipeline_layout)];
+        let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(objects.pipeline_layout)];
         // SAFETY: layouts and module are valid; the create info lives for the call.
-        objects.pipeline =
-            unsafe { d.create_compute_pipelines(vk::PipelineCache::null(), &info, None) }
-                .map_err(|(_, e)| e)
-                .during(&what("vkCreateComputePipelines"))?[0];
+        objects.pipeline = unsafe { d.create_compute_pipelines(vk::PipelineCache::null(), &info, None) }
+            .map_err(|(_, e)| e)
+            .during(&what("vkCreateComputePipelines"))?[0];
         let (module, set_layout, pipeline_layout, pipeline) = objects.release();
         Ok(Kernel {
             device: self.device.clone(),
@@ -138,21 +118,9 @@ struct Objects {
 }
 
 impl Objects {
-    fn release(
-        mut self,
-    ) -> (
-        vk::ShaderModule,
-        vk::DescriptorSetLayout,
-        vk::PipelineLayout,
-        vk::Pipeline,
-    ) {
+    fn release(mut self) -> (vk::ShaderModule, vk::DescriptorSetLayout, vk::PipelineLayout, vk::Pipeline) {
         self.device = None;
-        (
-            self.module,
-            self.set_layout,
-            self.pipeline_layout,
-            self.pipeline,
-        )
+        (self.module, self.set_layout, self.pipeline_layout, self.pipeline)
     }
 }
 

@@ -34,17 +34,9 @@ impl GpuScene {
                     b.bytes.len()
                 )));
             }
-            buffers.push((
-                b.binding,
-                ctx.upload(b.name, &b.bytes, vk::BufferUsageFlags::STORAGE_BUFFER)?,
-            ));
+            buffers.push((b.binding, ctx.upload(b.name, &b.bytes, vk::BufferUsageFlags::STORAGE_BUFFER)?));
         }
-        Ok(GpuScene {
-            method: scene.method,
-            leaf_size: scene.leaf_size,
-            buffers,
-            bytes: scene.gpu_bytes(),
-        })
+        Ok(GpuScene { method: scene.method, leaf_size: scene.leaf_size, buffers, bytes: scene.gpu_bytes() })
     }
 }
 
@@ -60,11 +52,7 @@ pub struct RaycastOptions {
 
 impl Default for RaycastOptions {
     fn default() -> Self {
-        RaycastOptions {
-            warmup: 1,
-            repeat: 1,
-            batch_rays: 1 << 20,
-        }
+        RaycastOptions { warmup: 1, repeat: 1, batch_rays: 1 << 20 }
     }
 }
 
@@ -97,26 +85,15 @@ impl Summary {
         let mut v = xs.to_vec();
         v.sort_by(f64::total_cmp);
         let n = v.len();
-        let median = if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            0.5 * (v[n / 2 - 1] + v[n / 2])
-        };
-        Some(Summary {
-            median,
-            min: v[0],
-            max: v[n - 1],
-            runs: n,
-        })
+        let median = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
+        Some(Summary { median, min: v[0], max: v[n - 1], runs: n })
     }
 }
 
 impl RaycastResult {
     /// Kernel time summary (GPU timestamps), or host wall time where there are none.
     pub fn time_ms(&self) -> Summary {
-        Summary::of(&self.kernel_ms)
-            .or_else(|| Summary::of(&self.wall_ms))
-            .expect("at least one timed run")
+        Summary::of(&self.kernel_ms).or_else(|| Summary::of(&self.wall_ms)).expect("at least one timed run")
     }
 
     pub fn timed_on_gpu(&self) -> bool {
@@ -156,12 +133,7 @@ pub fn raycast(
     opts: &RaycastOptions,
 ) -> Result<RaycastResult> {
     if rays.is_empty() {
-        return Ok(RaycastResult {
-            hits: vec![],
-            kernel_ms: vec![],
-            wall_ms: vec![],
-            batches: 0,
-        });
+        return Ok(RaycastResult { hits: vec![], kernel_ms: vec![], wall_ms: vec![], batches: 0 });
     }
     let info = ctx.info();
     let dev = &ctx.device.raw;
@@ -174,11 +146,7 @@ pub fn raycast(
     let batch = (opts.batch_rays.min(by_range).min(by_groups) / 256 * 256).max(256);
     let nbatches = rays.len().div_ceil(batch);
 
-    let ray_buf = ctx.upload(
-        "rays",
-        bytemuck::cast_slice(rays),
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-    )?;
+    let ray_buf = ctx.upload("rays", bytemuck::cast_slice(rays), vk::BufferUsageFlags::STORAGE_BUFFER)?;
     let hit_bytes = (rays.len() * std::mem::size_of::<Hit>()) as u64;
     let hit_buf = ctx.create_buffer(
         "hits",
@@ -190,23 +158,15 @@ pub fn raycast(
     let bindings = kernel.bindings();
     let pool_sizes: Vec<vk::DescriptorPoolSize> = bindings
         .values()
-        .map(|&ty| {
-            vk::DescriptorPoolSize::default()
-                .ty(ty)
-                .descriptor_count(nbatches as u32)
-        })
+        .map(|&ty| vk::DescriptorPoolSize::default().ty(ty).descriptor_count(nbatches as u32))
         .collect();
-    let pool_info = vk::DescriptorPoolCreateInfo::default()
-        .max_sets(nbatches as u32)
-        .pool_sizes(&pool_sizes);
+    let pool_info = vk::DescriptorPoolCreateInfo::default().max_sets(nbatches as u32).pool_sizes(&pool_sizes);
     // SAFETY: valid device and create infos; objects are owned by `Dispatch` and destroyed
     // after the last wait.
-    let pool = unsafe { dev.create_descriptor_pool(&pool_info, None) }
-        .during("creating the descriptor pool")?;
+    let pool = unsafe { dev.create_descriptor_pool(&pool_info, None) }.during("creating the descriptor pool")?;
     let timestamps = info.timestamp_valid_bits > 0;
-    let qinfo = vk::QueryPoolCreateInfo::default()
-        .query_type(vk::QueryType::TIMESTAMP)
-        .query_count(2 * nbatches as u32);
+    let qinfo =
+        vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2 * nbatches as u32);
     let queries = match unsafe { dev.create_query_pool(&qinfo, None) } {
         Ok(q) => q,
         Err(e) => {
@@ -214,19 +174,11 @@ pub fn raycast(
             return Err(e).during("creating the timestamp query pool");
         }
     };
-    let mut dispatch = Dispatch {
-        ctx,
-        pool,
-        queries,
-        cmds: vec![],
-    };
+    let mut dispatch = Dispatch { ctx, pool, queries, cmds: vec![] };
 
     let layouts = vec![kernel.set_layout; nbatches];
-    let alloc = vk::DescriptorSetAllocateInfo::default()
-        .descriptor_pool(pool)
-        .set_layouts(&layouts);
-    let sets =
-        unsafe { dev.allocate_descriptor_sets(&alloc) }.during("allocating descriptor sets")?;
+    let alloc = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts);
+    let sets = unsafe { dev.allocate_descriptor_sets(&alloc) }.during("allocating descriptor sets")?;
     let scene_buffers: std::collections::BTreeMap<u32, &Buffer> =
         scene.buffers.iter().map(|(b, buf)| (*b, buf)).collect();
     for (bi, &set) in sets.iter().enumerate() {
@@ -250,10 +202,7 @@ pub fn raycast(
                             kernel.name, scene.method
                         ))
                     })?;
-                    vk::DescriptorBufferInfo::default()
-                        .buffer(buf.raw)
-                        .offset(0)
-                        .range(vk::WHOLE_SIZE)
+                    vk::DescriptorBufferInfo::default().buffer(buf.raw).offset(0).range(vk::WHOLE_SIZE)
                 }
             };
             infos.push((binding, bi));
@@ -279,8 +228,7 @@ pub fn raycast(
         // SAFETY: recording into freshly allocated command buffers; every object referenced
         // outlives the submits (all waited for before this function returns).
         unsafe {
-            dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
-                .during("recording a dispatch")?;
+            dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default()).during("recording a dispatch")?;
             dev.cmd_reset_query_pool(cmd, queries, q, 2);
             // The previous run's dispatch wrote the same hit range (and uploads came before).
             let barrier = vk::MemoryBarrier::default()
@@ -297,14 +245,7 @@ pub fn raycast(
             );
             dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, queries, q);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-            dev.cmd_bind_descriptor_sets(
-                cmd,
-                vk::PipelineBindPoint::COMPUTE,
-                kernel.pipeline_layout,
-                0,
-                &[set],
-                &[],
-            );
+            dev.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline_layout, 0, &[set], &[]);
             if let Some((offset, size)) = kernel.layout.push_constants {
                 debug_assert_eq!((offset, size), (0, 4));
                 dev.cmd_push_constants(
@@ -329,13 +270,7 @@ pub fn raycast(
         for (bi, &cmd) in dispatch.cmds.iter().enumerate() {
             ctx.submit_and_wait(
                 cmd,
-                &format!(
-                    "{} dispatch {}/{} ({} rays per dispatch)",
-                    kernel.name,
-                    bi + 1,
-                    nbatches,
-                    batch
-                ),
+                &format!("{} dispatch {}/{} ({} rays per dispatch)", kernel.name, bi + 1, nbatches, batch),
             )?;
         }
         let wall = t0.elapsed().as_secs_f64() * 1e3;
@@ -355,30 +290,15 @@ pub fn raycast(
                 )
             }
             .during("reading timestamps")?;
-            let mask = if info.timestamp_valid_bits >= 64 {
-                u64::MAX
-            } else {
-                (1u64 << info.timestamp_valid_bits) - 1
-            };
-            let ticks: u64 = ts
-                .chunks_exact(2)
-                .map(|p| (p[1].wrapping_sub(p[0])) & mask)
-                .sum();
+            let mask = if info.timestamp_valid_bits >= 64 { u64::MAX } else { (1u64 << info.timestamp_valid_bits) - 1 };
+            let ticks: u64 = ts.chunks_exact(2).map(|p| (p[1].wrapping_sub(p[0])) & mask).sum();
             kernel_ms.push(ticks as f64 * info.timestamp_period_ns as f64 * 1e-6);
         }
     }
     let bytes = ctx.download(&hit_buf, hit_bytes)?;
     drop(dispatch);
-    let hits = bytes
-        .chunks_exact(16)
-        .map(bytemuck::pod_read_unaligned)
-        .collect();
-    Ok(RaycastResult {
-        hits,
-        kernel_ms,
-        wall_ms,
-        batches: nbatches,
-    })
+    let hits = bytes.chunks_exact(16).map(bytemuck::pod_read_unaligned).collect();
+    Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches })
 }
 
 #[cfg(test)]

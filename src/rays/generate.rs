@@ -42,13 +42,7 @@ impl Camera {
         let forward = forward.normalize();
         let right = forward.cross(up).normalize();
         let up = right.cross(forward);
-        Camera {
-            eye,
-            forward,
-            right,
-            up,
-            fov_y,
-        }
+        Camera { eye, forward, right, up, fov_y }
     }
 
     /// The ray through the centre of pixel (x, y) of a w x h image (y down).
@@ -64,21 +58,13 @@ impl Camera {
 
 /// One ray per pixel of a w x h image, row by row.
 pub fn primary_rays(camera: &Camera, w: u32, h: u32) -> Vec<Ray> {
-    (0..h)
-        .flat_map(|y| (0..w).map(move |x| camera.ray(x, y, w, h)))
-        .collect()
+    (0..h).flat_map(|y| (0..w).map(move |x| camera.ray(x, y, w, h))).collect()
 }
 
 /// For every primary ray that hits, `per_hit` cosine-distributed rays leaving the hit point on
 /// the side the ray came from, offset along the normal by 1e-4 of the scene's largest
 /// coordinate magnitude (the peer's offset). Hits come from the f64 reference.
-pub fn diffuse_rays(
-    mesh: &Mesh,
-    reference: &Reference,
-    primary: &[Ray],
-    per_hit: u32,
-    seed: u64,
-) -> Vec<Ray> {
+pub fn diffuse_rays(mesh: &Mesh, reference: &Reference, primary: &[Ray], per_hit: u32, seed: u64) -> Vec<Ray> {
     let b = mesh.bounds();
     let scale = b.min.abs().max(b.max.abs()).max_element();
     let hits = reference.trace_all(primary, false);
@@ -92,8 +78,7 @@ pub fn diffuse_rays(
             if !h.is_hit() {
                 return Vec::new();
             }
-            let mut rng =
-                Pcg32::seed_from_u64(seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+            let mut rng = Pcg32::seed_from_u64(seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
             let [a, b, c] = mesh.vertices(h.id as usize);
             let d = Vec3::from_array(r.dir);
             let mut n = (b - a).cross(c - a).normalize();
@@ -101,22 +86,15 @@ pub fn diffuse_rays(
                 n = -n;
             }
             let p = a + (b - a) * h.u as f32 + (c - a) * h.v as f32 + n * (1e-4 * scale);
-            let tx = if n.x.abs() > 0.5 {
-                n.cross(Vec3::Y)
-            } else {
-                n.cross(Vec3::X)
-            }
-            .normalize();
+            let tx = if n.x.abs() > 0.5 { n.cross(Vec3::Y) } else { n.cross(Vec3::X) }.normalize();
             let ty = n.cross(tx);
             (0..per_hit)
                 .map(|_| {
                     let (u1, u2): (f32, f32) = (rng.random(), rng.random());
                     let r1 = u1.sqrt();
                     let phi = std::f32::consts::TAU * u2;
-                    let dir = (tx * (r1 * phi.cos())
-                        + ty * (r1 * phi.sin())
-                        + n * (1.0 - u1).max(0.0).sqrt())
-                    .normalize();
+                    let dir =
+                        (tx * (r1 * phi.cos()) + ty * (r1 * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalize();
                     Ray::new(p.to_array(), dir.to_array())
                 })
                 .collect()
@@ -137,8 +115,7 @@ pub fn random_rays(bounds: &Aabb, n: usize, seed: u64) -> Vec<Ray> {
             let phi = std::f32::consts::TAU * rng.random::<f32>();
             let s = (1.0 - z * z).max(0.0).sqrt();
             let o = c + Vec3::new(s * phi.cos(), s * phi.sin(), z) * (1.5 * radius);
-            let t =
-                bounds.min + bounds.extent() * Vec3::new(rng.random(), rng.random(), rng.random());
+            let t = bounds.min + bounds.extent() * Vec3::new(rng.random(), rng.random(), rng.random());
             Ray::new(o.to_array(), (t - o).normalize().to_array())
         })
         .collect()
@@ -150,10 +127,7 @@ mod tests {
 
     #[test]
     fn primary_rays_cover_the_image_and_look_at_the_scene() {
-        let b = Aabb {
-            min: Vec3::splat(-1.0),
-            max: Vec3::splat(1.0),
-        };
+        let b = Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) };
         let cam = Camera::framing(&b);
         let rays = primary_rays(&cam, 8, 6);
         assert_eq!(rays.len(), 48);
@@ -168,10 +142,7 @@ mod tests {
 
     #[test]
     fn random_rays_are_deterministic_and_aim_into_the_box() {
-        let b = Aabb {
-            min: Vec3::new(0.0, 1.0, 2.0),
-            max: Vec3::new(1.0, 3.0, 2.5),
-        };
+        let b = Aabb { min: Vec3::new(0.0, 1.0, 2.0), max: Vec3::new(1.0, 3.0, 2.5) };
         let a = random_rays(&b, 500, 7);
         assert_eq!(a, random_rays(&b, 500, 7));
         assert_ne!(a, random_rays(&b, 500, 8));

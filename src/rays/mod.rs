@@ -40,12 +40,7 @@ pub struct Hit {
 const _: () = assert!(std::mem::size_of::<Hit>() == 16);
 
 impl Hit {
-    pub const MISS: Hit = Hit {
-        t: f32::INFINITY,
-        id: MISS_ID,
-        u: 0.0,
-        v: 0.0,
-    };
+    pub const MISS: Hit = Hit { t: f32::INFINITY, id: MISS_ID, u: 0.0, v: 0.0 };
 
     pub fn is_hit(&self) -> bool {
         self.id != MISS_ID
@@ -54,27 +49,13 @@ impl Hit {
 
 impl Ray {
     pub fn new(origin: [f32; 3], dir: [f32; 3]) -> Ray {
-        Ray {
-            origin,
-            tmin: 0.0,
-            dir,
-            tmax: f32::INFINITY,
-        }
+        Ray { origin, tmin: 0.0, dir, tmax: f32::INFINITY }
     }
 
     /// Why this ray cannot be traced, if it cannot: NaN anywhere, an infinite origin or
     /// direction component, an infinite tmin, tmax = -inf, or a zero direction.
     pub fn problem(&self) -> Option<String> {
-        let names = [
-            "origin.x",
-            "origin.y",
-            "origin.z",
-            "tmin",
-            "direction.x",
-            "direction.y",
-            "direction.z",
-            "tmax",
-        ];
+        let names = ["origin.x", "origin.y", "origin.z", "tmin", "direction.x", "direction.y", "direction.z", "tmax"];
         let vals: &[f32; 8] = bytemuck::cast_ref(self);
         for (name, v) in names.iter().zip(vals) {
             if v.is_nan() {
@@ -99,29 +80,15 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
         return Err(Error::bad_input(
             path,
             None,
-            format!(
-                "size {} bytes is not a multiple of 32 (one ray = 8 f32); not a ray file?",
-                bytes.len()
-            ),
+            format!("size {} bytes is not a multiple of 32 (one ray = 8 f32); not a ray file?", bytes.len()),
         ));
     }
     if bytes.is_empty() {
         return Err(Error::bad_input(path, None, "holds no rays (empty file)"));
     }
-    let rays: Vec<Ray> = bytes
-        .chunks_exact(32)
-        .map(bytemuck::pod_read_unaligned)
-        .collect();
-    if let Some((i, why)) = rays
-        .iter()
-        .enumerate()
-        .find_map(|(i, r)| r.problem().map(|p| (i, p)))
-    {
-        return Err(Error::bad_input(
-            path,
-            None,
-            format!("ray {i} (byte offset {}): {why}", i * 32),
-        ));
+    let rays: Vec<Ray> = bytes.chunks_exact(32).map(bytemuck::pod_read_unaligned).collect();
+    if let Some((i, why)) = rays.iter().enumerate().find_map(|(i, r)| r.problem().map(|p| (i, p))) {
+        return Err(Error::bad_input(path, None, format!("ray {i} (byte offset {}): {why}", i * 32)));
     }
     Ok(rays)
 }
@@ -136,16 +103,10 @@ pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
         return Err(Error::bad_input(
             path,
             None,
-            format!(
-                "size {} bytes is not a multiple of 16 (one hit record)",
-                bytes.len()
-            ),
+            format!("size {} bytes is not a multiple of 16 (one hit record)", bytes.len()),
         ));
     }
-    Ok(bytes
-        .chunks_exact(16)
-        .map(bytemuck::pod_read_unaligned)
-        .collect())
+    Ok(bytes.chunks_exact(16).map(bytemuck::pod_read_unaligned).collect())
 }
 
 pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
@@ -158,12 +119,7 @@ mod tests {
 
     #[test]
     fn record_layout_matches_formats_md() {
-        let r = Ray {
-            origin: [1.0, 2.0, 3.0],
-            tmin: 4.0,
-            dir: [5.0, 6.0, 7.0],
-            tmax: f32::INFINITY,
-        };
+        let r = Ray { origin: [1.0, 2.0, 3.0], tmin: 4.0, dir: [5.0, 6.0, 7.0], tmax: f32::INFINITY };
         let b: &[u8] = bytemuck::bytes_of(&r);
         assert_eq!(&b[12..16], &4.0f32.to_le_bytes());
         assert_eq!(&b[16..20], &5.0f32.to_le_bytes());
@@ -197,10 +153,7 @@ mod tests {
             assert!(e.contains("ray 2") && e.contains(expect), "{e}");
         }
         write_rays(&p, &[Ray::new([0.0; 3], [0.0; 3])]).unwrap();
-        assert!(read_rays(&p)
-            .unwrap_err()
-            .to_string()
-            .contains("direction is zero"));
+        assert!(read_rays(&p).unwrap_err().to_string().contains("direction is zero"));
         // tmax = +inf is the normal case.
         write_rays(&p, &[Ray::new([0.0; 3], [0.0, 1.0, 0.0])]).unwrap();
         assert_eq!(read_rays(&p).unwrap().len(), 1);

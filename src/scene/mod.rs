@@ -22,10 +22,7 @@ pub struct Material {
 
 impl Default for Material {
     fn default() -> Self {
-        Material {
-            name: "default".into(),
-            diffuse: [0.8, 0.8, 0.8],
-        }
+        Material { name: "default".into(), diffuse: [0.8, 0.8, 0.8] }
     }
 }
 
@@ -47,18 +44,9 @@ impl Mesh {
     /// Panics if an index is out of range: callers build the data themselves.
     pub fn from_triangles(positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Mesh {
         let n = positions.len() as u32;
-        assert!(
-            triangles.iter().flatten().all(|&i| i < n),
-            "vertex index out of range"
-        );
+        assert!(triangles.iter().flatten().all(|&i| i < n), "vertex index out of range");
         let material_ids = vec![0; triangles.len()];
-        Mesh {
-            source: PathBuf::new(),
-            positions,
-            triangles,
-            material_ids,
-            materials: vec![Material::default()],
-        }
+        Mesh { source: PathBuf::new(), positions, triangles, material_ids, materials: vec![Material::default()] }
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -89,10 +77,7 @@ impl Mesh {
     /// Ids of all zero-area triangles. They are kept in the mesh (ids stay stable), left out
     /// of the BVH, and can never be hit.
     pub fn degenerate_ids(&self) -> Vec<u32> {
-        (0..self.triangles.len())
-            .filter(|&i| self.is_degenerate(i))
-            .map(|i| i as u32)
-            .collect()
+        (0..self.triangles.len()).filter(|&i| self.is_degenerate(i)).map(|i| i as u32).collect()
     }
 
     /// Bounds of all vertices referenced by triangles.

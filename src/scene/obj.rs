@@ -18,21 +18,12 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let meta = file.metadata().map_err(|e| Error::io(path, e))?;
     if meta.is_dir() {
-        return Err(Error::bad_input(
-            path,
-            None,
-            "is a directory, not an OBJ file",
-        ));
+        return Err(Error::bad_input(path, None, "is a directory, not an OBJ file"));
     }
     let mut bytes = Vec::with_capacity(meta.len() as usize);
-    BufReader::new(file)
-        .read_to_end(&mut bytes)
-        .map_err(|e| Error::io(path, e))?;
+    BufReader::new(file).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
     let text = String::from_utf8(bytes).map_err(|e| {
-        let line = 1 + e.as_bytes()[..e.utf8_error().valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count();
+        let line = 1 + e.as_bytes()[..e.utf8_error().valid_up_to()].iter().filter(|&&b| b == b'\n').count();
         Error::bad_input(path, Some(line), "not UTF-8 text (is this an OBJ file?)")
     })?;
     parse_obj(path, &text)
@@ -41,12 +32,7 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
 fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
     let dir = path.parent().map(Path::to_owned).unwrap_or_default();
     let mtl_failure: RefCell<Option<(PathBuf, tobj::LoadError)>> = RefCell::new(None);
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-    };
+    let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = BufReader::new(text.as_bytes());
     // tobj indexes with unchecked integer arithmetic on some hostile inputs; contain any panic
     // and report it as bad input rather than crashing the tool.
@@ -79,32 +65,22 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
             return Err(Error::bad_input(
                 &mtl,
                 None,
-                format!(
-                    "material library named by {} (mtllib): {what}",
-                    path.display()
-                ),
+                format!("material library named by {} (mtllib): {what}", path.display()),
             ));
         }
     }
     .into_iter()
-    .map(|m| Material {
-        name: m.name,
-        diffuse: m.diffuse.unwrap_or(Material::default().diffuse),
-    })
+    .map(|m| Material { name: m.name, diffuse: m.diffuse.unwrap_or(Material::default().diffuse) })
     .collect::<Vec<_>>();
     let default_material = materials.len() as u32;
     let mut need_default = false;
 
-    let mut mesh = Mesh {
-        source: path.to_owned(),
-        ..Default::default()
-    };
+    let mut mesh = Mesh { source: path.to_owned(), ..Default::default() };
     for model in models {
         let m = model.mesh;
         let base = mesh.positions.len() as u32;
         let nverts = m.positions.len() / 3;
-        mesh.positions
-            .extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        mesh.positions.extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
         let mat = match m.material_id {
             Some(id) => id as u32,
             None => {
@@ -114,11 +90,7 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         };
         for t in m.indices.chunks_exact(3) {
             if t.iter().any(|&i| i as usize >= nverts) {
-                return Err(locate(
-                    path,
-                    text,
-                    Some(tobj::LoadError::FaceVertexOutOfBounds),
-                ));
+                return Err(locate(path, text, Some(tobj::LoadError::FaceVertexOutOfBounds)));
             }
             mesh.triangles.push([base + t[0], base + t[1], base + t[2]]);
             mesh.material_ids.push(mat);
@@ -133,11 +105,7 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         return Err(locate_non_finite(path, text));
     }
     if mesh.triangles.is_empty() {
-        return Err(Error::bad_input(
-            path,
-            None,
-            "contains no triangles (no `f` lines with 3 or more vertices)",
-        ));
+        return Err(Error::bad_input(path, None, "contains no triangles (no `f` lines with 3 or more vertices)"));
     }
     Ok(mesh)
 }
@@ -149,11 +117,8 @@ fn locate(path: &Path, text: &str, err: Option<tobj::LoadError>) -> Error {
         let lineno = n + 1;
         let mut words = line.split_whitespace();
         let show = line.trim();
-        let show = if show.len() > 80 {
-            format!("{}...", &show[..show.floor_char_boundary(77)])
-        } else {
-            show.to_owned()
-        };
+        let show =
+            if show.len() > 80 { format!("{}...", &show[..show.floor_char_boundary(77)]) } else { show.to_owned() };
         match words.next() {
             Some("v") => {
                 let vals: Vec<&str> = words.collect();
@@ -166,20 +131,13 @@ fn locate(path: &Path, text: &str, err: Option<tobj::LoadError>) -> Error {
                     );
                 }
                 if vals.len() == 4 && vals[3].parse::<f32>().map_or(true, |w| w == 0.0) {
-                    return Error::bad_input(
-                        path,
-                        Some(lineno),
-                        format!("bad vertex weight w in `{show}`"),
-                    );
+                    return Error::bad_input(path, Some(lineno), format!("bad vertex weight w in `{show}`"));
                 }
                 if vals.len() == 5 || vals.len() > 6 {
                     return Error::bad_input(
                         path,
                         Some(lineno),
-                        format!(
-                            "vertex has {} values; expected 3, 4 or 6: `{show}`",
-                            vals.len()
-                        ),
+                        format!("vertex has {} values; expected 3, 4 or 6: `{show}`", vals.len()),
                     );
                 }
                 positions += 1;
@@ -258,8 +216,7 @@ mod tests {
 
     #[test]
     fn fan_triangulation_keeps_face_order() {
-        let m =
-            parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4 5\nf 1 2 5\n").unwrap();
+        let m = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4 5\nf 1 2 5\n").unwrap();
         // (v0 v1 v2), (v0 v2 v3), (v0 v3 v4), then the triangle.
         let tri = |i: usize| m.triangles[i].map(|k| m.positions[k as usize]);
         assert_eq!(m.triangles.len(), 4);
@@ -271,9 +228,7 @@ mod tests {
 
     #[test]
     fn ids_follow_file_order_across_groups() {
-        let m =
-            parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\no a\nf 1 2 3\ng b\nf 1 3 4\no c\nf 2 3 4\n")
-                .unwrap();
+        let m = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\no a\nf 1 2 3\ng b\nf 1 3 4\no c\nf 2 3 4\n").unwrap();
         assert_eq!(m.triangles.len(), 3);
         let tri = |i: usize| m.triangles[i].map(|k| m.positions[k as usize]);
         assert_eq!(tri(1), [[0., 0., 0.], [0., 1., 0.], [0., 0., 1.]]);
@@ -290,35 +245,17 @@ mod tests {
     #[test]
     fn bad_inputs_name_line_and_problem() {
         let e = err("v 0 0 0\nv 1 zero 0\nv 0 1 0\nf 1 2 3\n");
-        assert!(
-            e.starts_with("test.obj:2:") && e.contains("cannot parse vertex position"),
-            "{e}"
-        );
+        assert!(e.starts_with("test.obj:2:") && e.contains("cannot parse vertex position"), "{e}");
         let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
-        assert!(
-            e.starts_with("test.obj:4:") && e.contains("out of range"),
-            "{e}"
-        );
+        assert!(e.starts_with("test.obj:4:") && e.contains("out of range"), "{e}");
         let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n");
-        assert!(
-            e.starts_with("test.obj:4:") && e.contains("out of range"),
-            "{e}"
-        );
+        assert!(e.starts_with("test.obj:4:") && e.contains("out of range"), "{e}");
         let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n");
-        assert!(
-            e.starts_with("test.obj:4:") && e.contains("cannot parse face vertex"),
-            "{e}"
-        );
+        assert!(e.starts_with("test.obj:4:") && e.contains("cannot parse face vertex"), "{e}");
         let e = err("v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n");
-        assert!(
-            e.starts_with("test.obj:2:") && e.contains("NaN or infinite"),
-            "{e}"
-        );
+        assert!(e.starts_with("test.obj:2:") && e.contains("NaN or infinite"), "{e}");
         let e = err("v 0 0 0\nv 1 0 inf\nv 0 1 0\nf 1 2 3\n");
-        assert!(
-            e.starts_with("test.obj:2:") && e.contains("NaN or infinite"),
-            "{e}"
-        );
+        assert!(e.starts_with("test.obj:2:") && e.contains("NaN or infinite"), "{e}");
         let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
         assert!(e.contains("no triangles"), "{e}");
         let e = err("# nothing\n");
@@ -337,22 +274,13 @@ mod tests {
 
     #[test]
     fn missing_files_are_named() {
-        let e = load_obj(Path::new("/nonexistent/x.obj"))
-            .unwrap_err()
-            .to_string();
+        let e = load_obj(Path::new("/nonexistent/x.obj")).unwrap_err().to_string();
         assert!(e.contains("/nonexistent/x.obj"), "{e}");
         let dir = tempfile::tempdir().unwrap();
         let obj = dir.path().join("a.obj");
-        std::fs::write(
-            &obj,
-            "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
-        )
-        .unwrap();
+        std::fs::write(&obj, "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
         let e = load_obj(&obj).unwrap_err().to_string();
-        assert!(
-            e.contains("missing.mtl") && e.contains("cannot open"),
-            "{e}"
-        );
+        assert!(e.contains("missing.mtl") && e.contains("cannot open"), "{e}");
     }
 
     #[test]

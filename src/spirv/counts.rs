@@ -33,9 +33,7 @@ pub fn classify(op: u32) -> OpClass {
         || between(op, Op::SDot, Op::SUDotAccSat)
     {
         OpClass::Arithmetic
-    } else if between(op, Op::Variable, Op::InBoundsPtrAccessChain)
-        || between(op, Op::AtomicLoad, Op::AtomicXor)
-    {
+    } else if between(op, Op::Variable, Op::InBoundsPtrAccessChain) || between(op, Op::AtomicLoad, Op::AtomicXor) {
         OpClass::Memory
     } else if op == Op::FunctionCall as u32
         || between(op, Op::Phi, Op::LifetimeStop)
@@ -126,16 +124,7 @@ mod tests {
         let c = count(&w).unwrap();
         assert_eq!(c.module, 12);
         assert_eq!(c.functions, 10);
-        assert_eq!(
-            (
-                c.arithmetic,
-                c.memory,
-                c.control_flow,
-                c.conversion,
-                c.other
-            ),
-            (3, 1, 2, 1, 3)
-        );
+        assert_eq!((c.arithmetic, c.memory, c.control_flow, c.conversion, c.other), (3, 1, 2, 1, 3));
     }
 
     #[test]

@@ -14,7 +14,8 @@ use rspirv::binary::Disassemble;
 use crate::kernels::{KernelSource, KERNELS};
 
 /// Header of `spirv/instruction_counts.csv`.
-pub const CSV_HEADER: &str = "variant,module_instructions,function_instructions,arithmetic,memory,control_flow,conversion,other";
+pub const CSV_HEADER: &str =
+    "variant,module_instructions,function_instructions,arithmetic,memory,control_flow,conversion,other";
 
 /// The rspirv disassembly of a module (deterministic for a given Cargo.lock).
 pub fn disassemble(words: &[u32]) -> Result<String, String> {
@@ -26,13 +27,7 @@ pub fn disassemble(words: &[u32]) -> Result<String, String> {
 pub fn all_counts() -> Vec<(&'static KernelSource, InstructionCounts)> {
     KERNELS
         .iter()
-        .map(|k| {
-            (
-                k,
-                count(&k.words())
-                    .unwrap_or_else(|e| panic!("embedded kernel {} is malformed: {e}", k.name)),
-            )
-        })
+        .map(|k| (k, count(&k.words()).unwrap_or_else(|e| panic!("embedded kernel {} is malformed: {e}", k.name))))
         .collect()
 }
 
@@ -56,8 +51,8 @@ pub fn review_files() -> Vec<(String, String)> {
     let mut files: Vec<(String, String)> = KERNELS
         .iter()
         .map(|k| {
-            let text = disassemble(&k.words())
-                .unwrap_or_else(|e| panic!("embedded kernel {} is malformed: {e}", k.name));
+            let text =
+                disassemble(&k.words()).unwrap_or_else(|e| panic!("embedded kernel {} is malformed: {e}", k.name));
             (format!("{}.spvasm", k.name), text)
         })
         .collect();

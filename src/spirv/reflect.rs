@@ -26,13 +26,9 @@ pub struct KernelLayout {
 }
 
 pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
-    let err = |m: String| Error::Spirv {
-        kernel: kernel.into(),
-        message: m,
-    };
+    let err = |m: String| Error::Spirv { kernel: kernel.into(), message: m };
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    let r =
-        rspirv_reflect::Reflection::new_from_spirv(&bytes).map_err(|e| err(format!("{e:?}")))?;
+    let r = rspirv_reflect::Reflection::new_from_spirv(&bytes).map_err(|e| err(format!("{e:?}")))?;
     let sets = r
         .get_descriptor_sets()
         .map_err(|e| err(format!("{e:?}")))?
@@ -41,30 +37,15 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
             let b = bindings
                 .into_iter()
                 .map(|(binding, info)| {
-                    (
-                        binding,
-                        DescriptorBinding {
-                            ty: vk::DescriptorType::from_raw(info.ty.0 as i32),
-                            name: info.name,
-                        },
-                    )
+                    (binding, DescriptorBinding { ty: vk::DescriptorType::from_raw(info.ty.0 as i32), name: info.name })
                 })
                 .collect();
             (set, b)
         })
         .collect();
-    let push_constants = r
-        .get_push_constant_range()
-        .map_err(|e| err(format!("{e:?}")))?
-        .map(|p| (p.offset, p.size));
-    let local_size = r
-        .get_compute_group_size()
-        .ok_or_else(|| err("no LocalSize execution mode".into()))?;
-    Ok(KernelLayout {
-        sets,
-        push_constants,
-        local_size,
-    })
+    let push_constants = r.get_push_constant_range().map_err(|e| err(format!("{e:?}")))?.map(|p| (p.offset, p.size));
+    let local_size = r.get_compute_group_size().ok_or_else(|| err("no LocalSize execution mode".into()))?;
+    Ok(KernelLayout { sets, push_constants, local_size })
 }
 
 /// The layout of the runtime array a storage buffer (or the push-constant block) holds, as the
@@ -115,45 +96,20 @@ pub fn buffer_layouts(words: &[u32]) -> std::result::Result<BTreeMap<u32, Buffer
             _ => {}
         }
     }
-    let defs: BTreeMap<u32, &rspirv::dr::Instruction> = m
-        .types_global_values
-        .iter()
-        .filter_map(|i| i.result_id.map(|id| (id, i)))
-        .collect();
+    let defs: BTreeMap<u32, &rspirv::dr::Instruction> =
+        m.types_global_values.iter().filter_map(|i| i.result_id.map(|id| (id, i))).collect();
     let struct_offsets = |id: u32| -> Vec<u32> {
-        let n = defs
-            .get(&id)
-            .filter(|d| d.class.opcode == Op::TypeStruct)
-            .map_or(0, |d| d.operands.len());
-        (0..n as u32)
-            .map(|k| {
-                offsets
-                    .get(&id)
-                    .and_then(|o| o.get(&k))
-                    .copied()
-                    .unwrap_or(u32::MAX)
-            })
-            .collect()
+        let n = defs.get(&id).filter(|d| d.class.opcode == Op::TypeStruct).map_or(0, |d| d.operands.len());
+        (0..n as u32).map(|k| offsets.get(&id).and_then(|o| o.get(&k)).copied().unwrap_or(u32::MAX)).collect()
     };
     let layout_of_block = |block: u32| -> BufferLayout {
-        let first = defs
-            .get(&block)
-            .and_then(|d| d.operands.first())
-            .and_then(idref);
+        let first = defs.get(&block).and_then(|d| d.operands.first()).and_then(idref);
         match first.and_then(|f| defs.get(&f).map(|d| (f, d))) {
             Some((arr, d)) if d.class.opcode == Op::TypeRuntimeArray => BufferLayout {
                 array_stride: strides.get(&arr).copied(),
-                member_offsets: d
-                    .operands
-                    .first()
-                    .and_then(idref)
-                    .map(struct_offsets)
-                    .unwrap_or_default(),
+                member_offsets: d.operands.first().and_then(idref).map(struct_offsets).unwrap_or_default(),
             },
-            _ => BufferLayout {
-                array_stride: None,
-                member_offsets: struct_offsets(block),
-            },
+            _ => BufferLayout { array_stride: None, member_offsets: struct_offsets(block) },
         }
     };
     let mut out = BTreeMap::new();
@@ -166,21 +122,12 @@ pub fn buffer_layouts(words: &[u32]) -> std::result::Result<BTreeMap<u32, Buffer
         };
         let class = i.operands.first();
         // Pointer type: OpTypePointer <storage class> <pointee>.
-        let Some(pointee) = defs
-            .get(&ptr)
-            .and_then(|p| p.operands.get(1))
-            .and_then(idref)
-        else {
+        let Some(pointee) = defs.get(&ptr).and_then(|p| p.operands.get(1)).and_then(idref) else {
             continue;
         };
         if let Some(&b) = binding_of.get(&var) {
             out.insert(b, layout_of_block(pointee));
-        } else if matches!(
-            class,
-            Some(Operand::StorageClass(
-                rspirv::spirv::StorageClass::PushConstant
-            ))
-        ) {
+        } else if matches!(class, Some(Operand::StorageClass(rspirv::spirv::StorageClass::PushConstant))) {
             out.insert(u32::MAX, layout_of_block(pointee));
         }
     }

@@ -20,18 +20,14 @@ pub fn bunny() -> Mesh {
 /// wall-clock limit (lavapipe has no watchdog: a hung kernel must fail the test, not CI).
 /// Fails (never skips) when there is no device or no validation layer, and when the layer
 /// reported anything, teardown included.
-pub fn with_gpu<T: Send + 'static>(
-    timeout_s: u64,
-    f: impl FnOnce(&Context) -> T + Send + 'static,
-) -> T {
+pub fn with_gpu<T: Send + 'static>(timeout_s: u64, f: impl FnOnce(&Context) -> T + Send + 'static) -> T {
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {
         let ctx = Context::new(&ContextOptions { validation: Validation::Required, ..Default::default() })
-            .unwrap_or_else(|e| panic!("GPU tests need a Vulkan device and the validation layer (they fail, never skip): {e}"));
-        assert!(
-            ctx.validation_enabled(),
-            "validation layer and debug messenger must be active in tests"
-        );
+            .unwrap_or_else(|e| {
+                panic!("GPU tests need a Vulkan device and the validation layer (they fail, never skip): {e}")
+            });
+        assert!(ctx.validation_enabled(), "validation layer and debug messenger must be active in tests");
         let log = ctx.validation_log();
         let out = f(&ctx);
         drop(ctx);
@@ -39,12 +35,7 @@ pub fn with_gpu<T: Send + 'static>(
     });
     match rx.recv_timeout(Duration::from_secs(timeout_s)) {
         Ok((out, messages)) => {
-            assert!(
-                messages.is_empty(),
-                "{} validation message(s):\n{}",
-                messages.len(),
-                messages.join("\n")
-            );
+            assert!(messages.is_empty(), "{} validation message(s):\n{}", messages.len(), messages.join("\n"));
             out
         }
         Err(RecvTimeoutError::Timeout) => panic!("GPU test did not finish within {timeout_s} s"),
