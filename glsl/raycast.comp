@@ -5,6 +5,14 @@
 #extension GL_GOOGLE_include_directive : require
 
 #include "types.glsl"
+
+layout(std430, set = 0, binding = BINDING_RAYS) readonly buffer Rays { Ray rays[]; };
+layout(std430, set = 0, binding = BINDING_HITS) writeonly buffer Hits { Hit hits[]; };
+
+layout(push_constant) uniform Push {
+    uint ray_count; // rays in this dispatch (the bound ray/hit ranges hold exactly these)
+} pc;
+
 #include "intersector.glsl"
 #include "traverse.glsl"
 
@@ -30,7 +38,7 @@ void main() {
         o.v = 0.0;
     } else {
         o.t = h.t;
-        o.id = slot_ids[h.slot];
+        o.id = load_slot_id(h.slot);
         o.u = h.u;
         o.v = h.v;
     }

@@ -40,7 +40,7 @@ bool hit_box(TraceRay r, vec3 bmin, vec3 bmax, float tfar, out float tnear) {
 // With ANY_HIT defined it returns at the first accepted intersection.
 void trace(TraceRay r, inout HitState h) {
     float troot;
-    BvhNode current = nodes[0];
+    BvhNode current = load_node(0u);
     if (!hit_box(r, current.bmin, current.bmax, h.t, troot)) {
         return;
     }
@@ -58,11 +58,11 @@ void trace(TraceRay r, inout HitState h) {
             if (sp == 0u) {
                 return;
             }
-            current = nodes[stack[--sp]];
+            current = load_node(stack[--sp]);
         } else {
             uint left = current.left_or_first;
-            BvhNode l = nodes[left];
-            BvhNode rr = nodes[left + 1u];
+            BvhNode l = load_node(left);
+            BvhNode rr = load_node(left + 1u);
             float tl, tr;
             bool want_l = hit_box(r, l.bmin, l.bmax, h.t, tl);
             bool want_r = hit_box(r, rr.bmin, rr.bmax, h.t, tr);
@@ -82,7 +82,7 @@ void trace(TraceRay r, inout HitState h) {
                 if (sp == 0u) {
                     return;
                 }
-                current = nodes[stack[--sp]];
+                current = load_node(stack[--sp]);
             }
         }
     }

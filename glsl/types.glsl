@@ -1,5 +1,12 @@
-// Buffer layouts shared by every kernel. Each struct has a #[repr(C)] twin in Rust with the same
-// std430 offsets; tests/reflection.rs checks them against the Offset/ArrayStride decorations.
+// Data layouts shared by every kernel. Each struct has a #[repr(C)] twin in Rust with the same
+// bytes; tests/reflection.rs checks the std430 offsets, and tests/probe.rs checks that the
+// load_* functions below return exactly the bytes the encoders wrote.
+//
+// The scene is read from storage texel buffers (imageLoad of 16-byte texels), not storage
+// buffers: on lavapipe (Mesa 25.0) a storage-buffer load at lane-varying addresses is done lane
+// by lane, with a branch and a bounds check per lane and per 32-bit word, while an imageLoad is
+// one branch-free 16-byte load per lane (measured: about 1.8x faster traversal on random rays);
+// on GPUs it goes through the texture path. Every scene struct is a whole number of texels.
 #ifndef TRILAB_TYPES
 #define TRILAB_TYPES
 
@@ -21,8 +28,8 @@ struct Hit {
     float v;   // barycentric weight of vertex 2
 };
 
-// The paper's 32-byte BVH node. Inner node: count == 0, children at left_or_first and
-// left_or_first + 1. Leaf: count > 0 triangles starting at left_or_first (in the encoding's
+// The paper's 32-byte BVH node (two texels). Inner node: count == 0, children at left_or_first
+// and left_or_first + 1. Leaf: count > 0 triangles starting at left_or_first (in the encoding's
 // own units: triangle slots, or quads for the Quad encodings).
 struct BvhNode {
     vec3 bmin;
@@ -31,21 +38,30 @@ struct BvhNode {
     uint count;
 };
 
-layout(std430, set = 0, binding = BINDING_RAYS) readonly buffer Rays { Ray rays[]; };
-layout(std430, set = 0, binding = BINDING_HITS) writeonly buffer Hits { Hit hits[]; };
-layout(std430, set = 0, binding = BINDING_NODES) readonly buffer Nodes { BvhNode nodes[]; };
+layout(set = 0, binding = BINDING_NODES, rgba32ui) uniform readonly restrict uimageBuffer scene_nodes;
 // Triangle slot (the encoding's storage order) -> OBJ triangle id.
-layout(std430, set = 0, binding = BINDING_SLOT_IDS) readonly buffer SlotIds { uint slot_ids[]; };
+layout(set = 0, binding = BINDING_SLOT_IDS, r32ui) uniform readonly restrict uimageBuffer scene_slot_ids;
 
-layout(push_constant) uniform Push {
-    uint ray_count;  // rays in this dispatch (the bound ray/hit ranges hold exactly these)
-} pc;
+BvhNode load_node(uint i) {
+    uvec4 lo = imageLoad(scene_nodes, int(2u * i));
+    uvec4 hi = imageLoad(scene_nodes, int(2u * i + 1u));
+    BvhNode n;
+    n.bmin = uintBitsToFloat(lo.xyz);
+    n.left_or_first = lo.w;
+    n.bmax = uintBitsToFloat(hi.xyz);
+    n.count = hi.w;
+    return n;
+}
+
+uint load_slot_id(uint slot) {
+    return imageLoad(scene_slot_ids, int(slot)).x;
+}
 
 // The ray as traversal sees it.
 struct TraceRay {
     vec3 origin;
     vec3 dir;
-    vec3 inv_dir;      // 1/dir, with zero components replaced by a tiny signed value
+    vec3 inv_dir;       // 1/dir, with zero components replaced by a tiny signed value
     vec3 origin_scaled; // origin * inv_dir, for the slab test
     float tmin;
 };

@@ -17,8 +17,19 @@ fn array_of(size: usize, offsets: &[usize]) -> BufferLayout {
     BufferLayout { array_stride: Some(size as u32), member_offsets: offsets.iter().map(|&o| o as u32).collect() }
 }
 
-/// What the host writes at each binding of a kernel for `method` (glsl name).
+/// What the host writes at (raycast) or reads from (probe) each storage-buffer binding.
 fn host_layout(method: &str, binding: u32) -> BufferLayout {
+    let node = || {
+        array_of(
+            size_of::<BvhNode>(),
+            &[
+                offset_of!(BvhNode, min),
+                offset_of!(BvhNode, left_or_first),
+                offset_of!(BvhNode, max),
+                offset_of!(BvhNode, count),
+            ],
+        )
+    };
     match (method, binding) {
         (_, BINDING_RAYS) => array_of(
             size_of::<Ray>(),
@@ -28,25 +39,16 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
             size_of::<Hit>(),
             &[offset_of!(Hit, t), offset_of!(Hit, id), offset_of!(Hit, u), offset_of!(Hit, v)],
         ),
-        (_, BINDING_NODES) => array_of(
-            size_of::<BvhNode>(),
-            &[
-                offset_of!(BvhNode, min),
-                offset_of!(BvhNode, left_or_first),
-                offset_of!(BvhNode, max),
-                offset_of!(BvhNode, count),
-            ],
-        ),
-        (_, BINDING_SLOT_IDS) => array_of(size_of::<u32>(), &[]),
-        ("mt", BINDING_PRIMS) => array_of(size_of::<[f32; 4]>(), &[]),
-        ("mt", BINDING_INDICES) => {
+        (_, BINDING_PROBE_NODES) => node(),
+        (_, BINDING_PROBE_SLOT_IDS) => array_of(size_of::<u32>(), &[]),
+        ("mt", BINDING_PROBE_PRIMS) => {
             array_of(size_of::<MtTriangle>(), &[offset_of!(MtTriangle, v), offset_of!(MtTriangle, material)])
         }
-        ("unit", BINDING_PRIMS) => array_of(
+        ("unit", BINDING_PROBE_PRIMS) => array_of(
             size_of::<UnitTriangle>(),
             &[offset_of!(UnitTriangle, row0), offset_of!(UnitTriangle, row1), offset_of!(UnitTriangle, row2)],
         ),
-        ("quad_mt", BINDING_PRIMS) => array_of(
+        ("quad_mt", BINDING_PROBE_PRIMS) => array_of(
             size_of::<QuadMt>(),
             &[
                 offset_of!(QuadMt, v0x),
@@ -60,7 +62,7 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
                 offset_of!(QuadMt, v2z),
             ],
         ),
-        ("quad_unit", BINDING_PRIMS) => array_of(
+        ("quad_unit", BINDING_PROBE_PRIMS) => array_of(
             size_of::<QuadUnit>(),
             &[
                 offset_of!(QuadUnit, m0x),
@@ -77,7 +79,16 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
                 offset_of!(QuadUnit, n2),
             ],
         ),
-        (m, b) => panic!("no host layout for binding {b} of method {m}"),
+        (m, b) => panic!("no host layout for storage-buffer binding {b} of method {m}"),
+    }
+}
+
+/// Push constants: the raycast kernels take the ray count (`u32`); probe takes three counts.
+fn host_push(kernel: &str) -> Vec<u32> {
+    match kernel {
+        "raycast" => vec![0],
+        "probe" => vec![0, 4, 8],
+        k => panic!("unknown kernel {k}"),
     }
 }
 
@@ -88,17 +99,17 @@ fn rust_structs_match_spirv_offsets_and_strides() {
         let layouts = buffer_layouts(&k.words()).unwrap();
         for (&binding, spirv) in &layouts {
             if binding == u32::MAX {
-                // Push constants: one u32 ray count at offset 0, written as 4 bytes.
-                assert_eq!(spirv.member_offsets, vec![0], "{}: push constants", k.name);
+                assert_eq!(spirv.member_offsets, host_push(k.kernel), "{}: push constants", k.name);
                 continue;
             }
             let host = host_layout(k.method, binding);
-            assert_eq!(spirv, &host, "{}: binding {binding}: SPIR-V declares {spirv:?}, host writes {host:?}", k.name);
+            assert_eq!(spirv, &host, "{}: binding {binding}: SPIR-V declares {spirv:?}, host uses {host:?}", k.name);
             checked_structs += !host.member_offsets.is_empty() as usize;
         }
     }
-    // Guard against a vacuous pass (e.g. the decorations moving): struct layouts were compared.
-    assert!(checked_structs >= 4 * KERNELS.len(), "only {checked_structs} struct layouts checked");
+    // Guard against a vacuous pass: Ray and Hit in every raycast kernel, BvhNode and the
+    // primitive struct in every probe kernel.
+    assert!(checked_structs >= 2 * KERNELS.len(), "only {checked_structs} struct layouts checked");
 }
 
 #[test]
@@ -106,21 +117,36 @@ fn kernels_bind_what_the_host_provides() {
     for k in KERNELS {
         let l = reflect(k.name, &k.words()).unwrap();
         assert_eq!(l.local_size, (WORKGROUP_SIZE, 1, 1), "{}", k.name);
-        assert_eq!(l.push_constants, Some((0, 4)), "{}: push constants are one u32 (ray count)", k.name);
+        let push_bytes = 4 * host_push(k.kernel).len() as u32;
+        assert_eq!(l.push_constants, Some((0, push_bytes)), "{}: push constants", k.name);
         assert_eq!(l.sets.keys().copied().collect::<Vec<_>>(), vec![0], "{}", k.name);
         let set = &l.sets[&0];
-        let mut expected = vec![BINDING_RAYS, BINDING_HITS, BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS];
-        if k.method == "mt" {
-            expected.push(BINDING_INDICES);
-        }
+        let texels = match (k.kernel, k.method) {
+            ("raycast", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES],
+            // The MT probe loads triangles (index triples), not vertices.
+            ("probe", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_INDICES],
+            _ => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS],
+        };
+        let buffers = match k.kernel {
+            "raycast" => vec![BINDING_RAYS, BINDING_HITS],
+            _ => vec![BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS],
+        };
+        let mut expected: Vec<u32> = texels.iter().chain(&buffers).copied().collect();
         expected.sort();
         assert_eq!(set.keys().copied().collect::<Vec<_>>(), expected, "{} bindings", k.name);
-        assert!(set.values().all(|b| b.ty == vk::DescriptorType::STORAGE_BUFFER), "{}", k.name);
+        for (b, d) in set {
+            let want = if texels.contains(b) {
+                vk::DescriptorType::STORAGE_TEXEL_BUFFER
+            } else {
+                vk::DescriptorType::STORAGE_BUFFER
+            };
+            assert_eq!(d.ty, want, "{}: binding {b}", k.name);
+        }
     }
 }
 
 #[test]
-fn every_encoding_provides_every_binding_its_kernels_read() {
+fn every_encoding_provides_every_scene_binding_its_kernels_read() {
     let mesh = trilab::scene::Mesh::from_triangles(vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]);
     let bvh = trilab::bvh::Bvh::build(&mesh, &trilab::bvh::BuildOptions::new(4));
     for m in trilab::encoding::Method::ALL {

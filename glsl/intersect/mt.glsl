@@ -2,8 +2,8 @@
 // minimum storage ray-triangle intersection", JGT 2(1), 1997): solves
 //   [t u v]^T = 1/(P.E1) [Q.E2, P.T, Q.D]^T,  E1 = V1-V0, E2 = V2-V0, T = O-V0, P = D x E2, Q = T x E1,
 // rejecting as early as the algorithm allows.
-// Data (src/encoding/mt.rs): the vertex list (vec4, w unused) and one uvec4 per triangle slot
-// (vertex indices, material index), slots in BVH leaf order.
+// Data (src/encoding/mt.rs): the vertex list (one rgba32f texel per vertex, w unused) and one
+// rgba32ui texel per triangle slot (vertex indices, material index), slots in BVH leaf order.
 #ifndef TRILAB_INTERSECTOR
 #define TRILAB_INTERSECTOR
 
@@ -14,16 +14,29 @@ struct MtTriangle {
     uint material;
 };
 
-layout(std430, set = 0, binding = BINDING_PRIMS) readonly buffer MtVertices { vec4 mt_vertices[]; };
-layout(std430, set = 0, binding = BINDING_INDICES) readonly buffer MtTriangles { MtTriangle mt_triangles[]; };
+layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer mt_vertices;
+layout(set = 0, binding = BINDING_INDICES, rgba32ui) uniform readonly restrict uimageBuffer mt_triangles;
+
+#define PRIM_STRUCT MtTriangle
+MtTriangle load_prim(uint slot) {
+    uvec4 t = imageLoad(mt_triangles, int(slot));
+    MtTriangle r;
+    r.v = t.xyz;
+    r.material = t.w;
+    return r;
+}
+
+vec3 load_vertex(uint i) {
+    return imageLoad(mt_vertices, int(i)).xyz;
+}
 
 bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
     bool found = false;
     for (uint s = first; s < first + count; ++s) {
-        uvec3 idx = mt_triangles[s].v;
-        vec3 v0 = mt_vertices[idx.x].xyz;
-        vec3 e1 = mt_vertices[idx.y].xyz - v0;
-        vec3 e2 = mt_vertices[idx.z].xyz - v0;
+        uvec3 idx = imageLoad(mt_triangles, int(s)).xyz;
+        vec3 v0 = load_vertex(idx.x);
+        vec3 e1 = load_vertex(idx.y) - v0;
+        vec3 e2 = load_vertex(idx.z) - v0;
         vec3 p = cross(r.dir, e2);
         float det = dot(e1, p);
         if (det == 0.0) {

@@ -15,7 +15,24 @@ struct QuadMt {
     vec4 v2x; vec4 v2y; vec4 v2z;
 };
 
-layout(std430, set = 0, binding = BINDING_PRIMS) readonly buffer QuadMts { QuadMt quad_mts[]; };
+// Nine rgba32f texels per quad, in member order.
+layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer quad_mts;
+
+#define PRIM_STRUCT QuadMt
+QuadMt load_prim(uint qi) {
+    int b = int(9u * qi);
+    QuadMt q;
+    q.v0x = imageLoad(quad_mts, b + 0);
+    q.v0y = imageLoad(quad_mts, b + 1);
+    q.v0z = imageLoad(quad_mts, b + 2);
+    q.v1x = imageLoad(quad_mts, b + 3);
+    q.v1y = imageLoad(quad_mts, b + 4);
+    q.v1z = imageLoad(quad_mts, b + 5);
+    q.v2x = imageLoad(quad_mts, b + 6);
+    q.v2y = imageLoad(quad_mts, b + 7);
+    q.v2z = imageLoad(quad_mts, b + 8);
+    return q;
+}
 
 // Accepts lane `c` (x, y, z or w) of the four results if it is a valid, nearer hit.
 #define QUAD_MT_LANE(c, k)                                                                     \
@@ -32,7 +49,7 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
     bool found = false;
     uint end = first + (count + 3u) / 4u;
     for (uint qi = first; qi < end; ++qi) {
-        QuadMt q = quad_mts[qi];
+        QuadMt q = load_prim(qi);
         vec4 e1x = q.v1x - q.v0x, e1y = q.v1y - q.v0y, e1z = q.v1z - q.v0z;
         vec4 e2x = q.v2x - q.v0x, e2y = q.v2y - q.v0y, e2z = q.v2z - q.v0z;
         // P = D x E2

@@ -17,7 +17,27 @@ struct QuadUnit {
     vec4 m2x; vec4 m2y; vec4 m2z; vec4 n2; // row 2 -> distance from the plane
 };
 
-layout(std430, set = 0, binding = BINDING_PRIMS) readonly buffer QuadUnits { QuadUnit quad_units[]; };
+// Twelve rgba32f texels per quad, in member order.
+layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer quad_units;
+
+#define PRIM_STRUCT QuadUnit
+QuadUnit load_prim(uint qi) {
+    int b = int(12u * qi);
+    QuadUnit q;
+    q.m0x = imageLoad(quad_units, b + 0);
+    q.m0y = imageLoad(quad_units, b + 1);
+    q.m0z = imageLoad(quad_units, b + 2);
+    q.n0 = imageLoad(quad_units, b + 3);
+    q.m1x = imageLoad(quad_units, b + 4);
+    q.m1y = imageLoad(quad_units, b + 5);
+    q.m1z = imageLoad(quad_units, b + 6);
+    q.n1 = imageLoad(quad_units, b + 7);
+    q.m2x = imageLoad(quad_units, b + 8);
+    q.m2y = imageLoad(quad_units, b + 9);
+    q.m2z = imageLoad(quad_units, b + 10);
+    q.n2 = imageLoad(quad_units, b + 11);
+    return q;
+}
 
 #define QUAD_UNIT_LANE(c, k)                                                                   \
     if (dz.c != 0.0 && t.c >= r.tmin && t.c <= h.t && u.c >= 0.0 && v.c >= 0.0 && u.c + v.c <= 1.0) {        \
@@ -34,7 +54,7 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
     vec3 o = r.origin;
     vec3 d = r.dir;
     for (uint qi = first; qi < end; ++qi) {
-        QuadUnit q = quad_units[qi];
+        QuadUnit q = load_prim(qi);
         vec4 oz = q.m2x * o.x + q.m2y * o.y + q.m2z * o.z + q.n2;
         vec4 dz = q.m2x * d.x + q.m2y * d.y + q.m2z * d.z;
         vec4 t = -oz / dz;

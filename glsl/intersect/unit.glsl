@@ -3,8 +3,8 @@
 // each triangle stores the affine map T(x) = M x + N that takes it to the unit triangle
 // (0,0,0), (1,0,0), (0,1,0) in the z = 0 plane. The ray is mapped into that space
 // (O' = M O + N, D' = M D); then t = -O'z / D'z, u = O'x + t D'x, v = O'y + t D'y.
-// 48 bytes per triangle (three rows [M_i | N_i]); no vertex list is needed to intersect.
-// Data: src/encoding/unit.rs.
+// 48 bytes per triangle (three rgba32f texels, the rows [M_i | N_i]); no vertex list is needed
+// to intersect. Data: src/encoding/unit.rs.
 #ifndef TRILAB_INTERSECTOR
 #define TRILAB_INTERSECTOR
 
@@ -16,12 +16,25 @@ struct UnitTriangle {
     vec4 row2; // maps to the distance from the plane
 };
 
-layout(std430, set = 0, binding = BINDING_PRIMS) readonly buffer UnitTriangles { UnitTriangle unit_triangles[]; };
+layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer unit_triangles;
+
+vec4 load_unit_row(uint slot, uint row) {
+    return imageLoad(unit_triangles, int(3u * slot + row));
+}
+
+#define PRIM_STRUCT UnitTriangle
+UnitTriangle load_prim(uint slot) {
+    UnitTriangle t;
+    t.row0 = load_unit_row(slot, 0u);
+    t.row1 = load_unit_row(slot, 1u);
+    t.row2 = load_unit_row(slot, 2u);
+    return t;
+}
 
 bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
     bool found = false;
     for (uint s = first; s < first + count; ++s) {
-        vec4 r2 = unit_triangles[s].row2;
+        vec4 r2 = load_unit_row(s, 2u);
         float oz = dot(r2.xyz, r.origin) + r2.w;
         float dz = dot(r2.xyz, r.dir);
         if (dz == 0.0) {
@@ -31,12 +44,12 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
         if (!(t >= r.tmin && t <= h.t)) {
             continue;
         }
-        vec4 r0 = unit_triangles[s].row0;
+        vec4 r0 = load_unit_row(s, 0u);
         float u = dot(r0.xyz, r.origin) + r0.w + t * dot(r0.xyz, r.dir);
         if (!(u >= 0.0 && u <= 1.0)) {
             continue;
         }
-        vec4 r1 = unit_triangles[s].row1;
+        vec4 r1 = load_unit_row(s, 1u);
         float v = dot(r1.xyz, r.origin) + r1.w + t * dot(r1.xyz, r.dir);
         if (v >= 0.0 && u + v <= 1.0) {
             h.t = t;

@@ -22,7 +22,7 @@ pub use quad_unit::QuadUnit;
 pub use unit::{unit_transform, UnitTriangle};
 
 use crate::bvh::{Bvh, BvhNode, PAD_SLOT};
-use crate::gpu::shared::{BINDING_NODES, BINDING_SLOT_IDS, MISS_ID};
+use crate::gpu::shared::{BINDING_INDICES, BINDING_NODES, BINDING_PRIMS, BINDING_SLOT_IDS, MISS_ID};
 use crate::scene::Mesh;
 
 /// A ray-triangle intersection method (and with it, a GPU data layout).
@@ -98,12 +98,33 @@ impl std::fmt::Display for Method {
     }
 }
 
-/// One storage buffer of an encoded scene.
+/// How the kernels read a scene buffer: as texels of this format (`glsl/types.glsl`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Texel {
+    /// 16 bytes, four u32 (`rgba32ui`).
+    Rgba32Uint,
+    /// 16 bytes, four f32 (`rgba32f`).
+    Rgba32Float,
+    /// 4 bytes, one u32 (`r32ui`).
+    R32Uint,
+}
+
+impl Texel {
+    pub fn size(self) -> usize {
+        match self {
+            Texel::Rgba32Uint | Texel::Rgba32Float => 16,
+            Texel::R32Uint => 4,
+        }
+    }
+}
+
+/// One buffer of an encoded scene.
 #[derive(Clone, Debug)]
 pub struct SceneBuffer {
     /// Allocation name (shows up in allocator reports and validation messages).
     pub name: &'static str,
     pub binding: u32,
+    pub texel: Texel,
     pub bytes: Vec<u8>,
 }
 
@@ -117,6 +138,7 @@ pub struct EncodedScene {
     /// Slot -> OBJ triangle id (`MISS_ID` for padding slots).
     pub slot_ids: Vec<u32>,
     /// Method-specific buffers (bound at `BINDING_PRIMS`, and `BINDING_INDICES` for MT).
+    /// Every struct in them is a whole number of 16-byte texels.
     pub prims: Vec<SceneBuffer>,
     /// Triangles that the encoding could not represent (their map overflows f32) and that
     /// were replaced by padding. Empty for every real scene so far.
@@ -130,11 +152,13 @@ impl EncodedScene {
             SceneBuffer {
                 name: "bvh nodes",
                 binding: BINDING_NODES,
+                texel: Texel::Rgba32Uint,
                 bytes: bytemuck::cast_slice(&self.nodes).to_vec(),
             },
             SceneBuffer {
                 name: "slot ids",
                 binding: BINDING_SLOT_IDS,
+                texel: Texel::R32Uint,
                 bytes: bytemuck::cast_slice(&self.slot_ids).to_vec(),
             },
         ];
@@ -147,6 +171,18 @@ impl EncodedScene {
         self.nodes.len() * std::mem::size_of::<BvhNode>()
             + self.slot_ids.len() * 4
             + self.prims.iter().map(|b| b.bytes.len()).sum::<usize>()
+    }
+
+    /// The buffer of the method's primitive structs (`PRIM_STRUCT` in its intersector):
+    /// `MtTriangle` for MT, `UnitTriangle`, `QuadMt`, `QuadUnit` for the others.
+    pub fn prim_structs(&self) -> (&SceneBuffer, usize) {
+        let (binding, size) = match self.method {
+            Method::Mt => (BINDING_INDICES, std::mem::size_of::<MtTriangle>()),
+            Method::Unit => (BINDING_PRIMS, std::mem::size_of::<UnitTriangle>()),
+            Method::QuadMt => (BINDING_PRIMS, std::mem::size_of::<QuadMt>()),
+            Method::QuadUnit => (BINDING_PRIMS, std::mem::size_of::<QuadUnit>()),
+        };
+        (self.prims.iter().find(|b| b.binding == binding).expect("every encoding has its primitive buffer"), size)
     }
 
     /// Padding slots (quad encodings fill partial quads with never-hit triangles).

@@ -3,7 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{slot_layout, EncodedScene, Method, SceneBuffer};
+use super::{slot_layout, EncodedScene, Method, SceneBuffer, Texel};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::gpu::shared::{BINDING_INDICES, BINDING_PRIMS};
 use crate::scene::Mesh;
@@ -42,11 +42,13 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
             SceneBuffer {
                 name: "mt vertices",
                 binding: BINDING_PRIMS,
+                texel: Texel::Rgba32Float,
                 bytes: bytemuck::cast_slice(&vertices).to_vec(),
             },
             SceneBuffer {
                 name: "mt triangles",
                 binding: BINDING_INDICES,
+                texel: Texel::Rgba32Uint,
                 bytes: bytemuck::cast_slice(&triangles).to_vec(),
             },
         ],

@@ -3,7 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer};
+use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer, Texel};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::gpu::shared::BINDING_PRIMS;
 use crate::scene::Mesh;
@@ -63,6 +63,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
         prims: vec![SceneBuffer {
             name: "quad mt",
             binding: BINDING_PRIMS,
+            texel: Texel::Rgba32Float,
             bytes: bytemuck::cast_slice(&out).to_vec(),
         }],
         unrepresentable: vec![],

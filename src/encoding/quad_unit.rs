@@ -4,7 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::unit::{unit_transform, PAD_ROWS};
-use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer};
+use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer, Texel};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::gpu::shared::{BINDING_PRIMS, MISS_ID};
 use crate::scene::Mesh;
@@ -72,6 +72,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
         prims: vec![SceneBuffer {
             name: "quad unit",
             binding: BINDING_PRIMS,
+            texel: Texel::Rgba32Float,
             bytes: bytemuck::cast_slice(&out).to_vec(),
         }],
         unrepresentable,

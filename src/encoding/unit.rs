@@ -4,7 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{slot_layout, EncodedScene, Method, SceneBuffer};
+use super::{slot_layout, EncodedScene, Method, SceneBuffer, Texel};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::gpu::shared::BINDING_PRIMS;
 use crate::scene::Mesh;
@@ -72,6 +72,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
         prims: vec![SceneBuffer {
             name: "unit triangles",
             binding: BINDING_PRIMS,
+            texel: Texel::Rgba32Float,
             bytes: bytemuck::cast_slice(&tris).to_vec(),
         }],
         unrepresentable,

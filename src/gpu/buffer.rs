@@ -7,11 +7,12 @@ use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 
 use super::context::{Context, Device};
+use crate::encoding::Texel;
 use crate::error::{Error, Result, VkContext};
 
 /// A buffer and its memory; both are released on drop.
 pub struct Buffer {
-    device: Arc<Device>,
+    pub(crate) device: Arc<Device>,
     pub(crate) raw: vk::Buffer,
     allocation: Option<Allocation>,
     pub size: u64,
@@ -40,7 +41,59 @@ impl Buffer {
     }
 }
 
+/// A buffer read by kernels as texels (a storage texel buffer): the buffer and its view.
+pub struct TexelBuffer {
+    pub buffer: Buffer,
+    pub(crate) view: vk::BufferView,
+    pub texel: Texel,
+    pub texels: u64,
+}
+
+impl Drop for TexelBuffer {
+    fn drop(&mut self) {
+        // SAFETY: no pending submit uses the view (all were waited for); the buffer field is
+        // dropped after this, so the view goes first.
+        unsafe { self.buffer.device.raw.destroy_buffer_view(self.view, None) };
+    }
+}
+
+fn texel_format(t: Texel) -> vk::Format {
+    match t {
+        Texel::Rgba32Uint => vk::Format::R32G32B32A32_UINT,
+        Texel::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
+        Texel::R32Uint => vk::Format::R32_UINT,
+    }
+}
+
 impl Context {
+    /// Uploads `bytes` as a storage texel buffer of `texel`s (device-local, named `name`).
+    pub fn upload_texels(&self, name: &str, bytes: &[u8], texel: Texel) -> Result<TexelBuffer> {
+        assert_eq!(bytes.len() % texel.size(), 0, "`{name}` is not a whole number of texels");
+        let texels = (bytes.len() / texel.size()).max(1) as u64;
+        let limit = self.info().max_texel_buffer_elements as u64;
+        if texels > limit {
+            return Err(Error::Usage(format!(
+                "scene buffer `{name}` has {texels} texels, more than this device's maxTexelBufferElements ({limit})"
+            )));
+        }
+        let buffer = if bytes.is_empty() {
+            // Views need at least one texel; an empty scene buffer gets one zero texel.
+            self.upload(name, &vec![0u8; texel.size()], vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER)?
+        } else {
+            self.upload(name, bytes, vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER)?
+        };
+        let info = vk::BufferViewCreateInfo::default()
+            .buffer(buffer.raw)
+            .format(texel_format(texel))
+            .offset(0)
+            .range(vk::WHOLE_SIZE);
+        // SAFETY: the buffer was created with STORAGE_TEXEL_BUFFER usage and is bound to memory;
+        // the format is one every Vulkan device supports for storage texel buffers.
+        let view = unsafe { self.device.raw.create_buffer_view(&info, None) }
+            .during(&format!("creating the texel view of `{name}`"))?;
+        Ok(TexelBuffer { buffer, view, texel, texels })
+    }
+
     /// Creates a buffer of `size` bytes (at least 4) with the allocation named `name`.
     pub fn create_buffer(
         &self,

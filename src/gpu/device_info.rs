@@ -55,6 +55,7 @@ pub struct DeviceInfo {
     pub buffer_device_address: bool,
     pub float_controls: FloatControls,
     pub max_storage_buffer_range: u32,
+    pub max_texel_buffer_elements: u32,
     pub min_storage_buffer_offset_alignment: u64,
     pub max_compute_workgroup_invocations: u32,
     pub max_compute_workgroup_count: [u32; 3],
@@ -194,6 +195,7 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
             rounding_mode_rtz_f32: v12.shader_rounding_mode_rtz_float32 == vk::TRUE,
         },
         max_storage_buffer_range: limits.max_storage_buffer_range,
+        max_texel_buffer_elements: limits.max_texel_buffer_elements,
         min_storage_buffer_offset_alignment: limits.min_storage_buffer_offset_alignment,
         max_compute_workgroup_invocations: limits.max_compute_work_group_invocations,
         max_compute_workgroup_count: limits.max_compute_work_group_count,
@@ -276,6 +278,7 @@ impl DeviceInfo {
             self.max_storage_buffer_range,
             self.max_storage_buffer_range >> 20
         );
+        let _ = writeln!(s, "    maxTexelBufferElements:   {}", self.max_texel_buffer_elements);
         s
     }
 }

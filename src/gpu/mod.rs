@@ -2,12 +2,14 @@
 //!
 //! - [`context`]: instance, device, queue, allocator, validation log, teardown.
 //! - [`device_info`]: what a device and its driver offer (`trilab devices`).
-//! - [`buffer`]: named buffers, uploads, downloads, one-shot submits.
+//! - [`buffer`]: named buffers and texel buffers, uploads, downloads, one-shot submits.
+//! - [`descriptors`]: descriptor sets checked against the kernel's reflected bindings.
 //! - [`kernel`]: compute pipelines built from SPIR-V reflection.
 //! - [`raycast`]: batched ray casting with timestamp queries.
 
 pub mod buffer;
 pub mod context;
+pub mod descriptors;
 pub mod device_info;
 pub mod kernel;
 pub mod raycast;
@@ -17,8 +19,9 @@ pub mod shared {
     include!(concat!(env!("OUT_DIR"), "/shared_consts.rs"));
 }
 
-pub use buffer::Buffer;
+pub use buffer::{Buffer, TexelBuffer};
 pub use context::{Context, ContextOptions, Validation, ValidationLog};
+pub use descriptors::Resource;
 pub use device_info::DeviceInfo;
 pub use kernel::Kernel;
 pub use raycast::{raycast, GpuScene, RaycastOptions, RaycastResult, Summary};

@@ -5,38 +5,37 @@ use std::time::Instant;
 
 use ash::vk;
 
-use super::buffer::Buffer;
+use super::buffer::TexelBuffer;
 use super::context::Context;
+use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;
 use super::shared::{BINDING_HITS, BINDING_RAYS};
 use crate::encoding::{EncodedScene, Method};
-use crate::error::{Error, Result, VkContext};
+use crate::error::{Result, VkContext};
 use crate::rays::{Hit, Ray};
 
-/// A scene's buffers on the GPU.
+/// A scene's buffers on the GPU, each bound as a storage texel buffer.
 pub struct GpuScene {
     pub method: Method,
     pub leaf_size: u32,
     /// (binding, buffer)
-    buffers: Vec<(u32, Buffer)>,
+    buffers: Vec<(u32, TexelBuffer)>,
     pub bytes: usize,
 }
 
 impl GpuScene {
     pub fn upload(ctx: &Context, scene: &EncodedScene) -> Result<GpuScene> {
-        let max = ctx.info().max_storage_buffer_range as usize;
-        let mut buffers = Vec::new();
-        for b in scene.buffers() {
-            if b.bytes.len() > max {
-                return Err(Error::Usage(format!(
-                    "scene buffer `{}` is {} bytes, more than this device's maxStorageBufferRange ({max} bytes)",
-                    b.name,
-                    b.bytes.len()
-                )));
-            }
-            buffers.push((b.binding, ctx.upload(b.name, &b.bytes, vk::BufferUsageFlags::STORAGE_BUFFER)?));
-        }
+        let buffers = scene
+            .buffers()
+            .into_iter()
+            .map(|b| Ok((b.binding, ctx.upload_texels(b.name, &b.bytes, b.texel)?)))
+            .collect::<Result<Vec<_>>>()?;
         Ok(GpuScene { method: scene.method, leaf_size: scene.leaf_size, buffers, bytes: scene.gpu_bytes() })
+    }
+
+    /// The scene's bindings, for a descriptor set.
+    pub fn resources(&self) -> impl Iterator<Item = (u32, Resource<'_>)> {
+        self.buffers.iter().map(|(b, t)| (*b, Resource::Texels(t)))
     }
 }
 
@@ -101,25 +100,21 @@ impl RaycastResult {
     }
 }
 
-/// Everything one batched run needs; destroyed on drop (after all its submits finished).
+/// Command buffers and queries of one batched run; destroyed on drop (after all its submits
+/// finished).
 struct Dispatch<'a> {
     ctx: &'a Context,
-    pool: vk::DescriptorPool,
     queries: vk::QueryPool,
     cmds: Vec<vk::CommandBuffer>,
 }
 
 impl Drop for Dispatch<'_> {
     fn drop(&mut self) {
-        let d = &self.ctx.device.raw;
         if !self.cmds.is_empty() {
             self.ctx.free_command_buffers(&self.cmds);
         }
-        // SAFETY: all submits using these objects were waited for (or never made).
-        unsafe {
-            d.destroy_query_pool(self.queries, None);
-            d.destroy_descriptor_pool(self.pool, None);
-        }
+        // SAFETY: all submits using the queries were waited for (or never made).
+        unsafe { self.ctx.device.raw.destroy_query_pool(self.queries, None) };
     }
 }
 
@@ -155,71 +150,21 @@ pub fn raycast(
         gpu_allocator::MemoryLocation::GpuOnly,
     )?;
 
-    let bindings = kernel.bindings();
-    let pool_sizes: Vec<vk::DescriptorPoolSize> = bindings
-        .values()
-        .map(|&ty| vk::DescriptorPoolSize::default().ty(ty).descriptor_count(nbatches as u32))
-        .collect();
-    let pool_info = vk::DescriptorPoolCreateInfo::default().max_sets(nbatches as u32).pool_sizes(&pool_sizes);
-    // SAFETY: valid device and create infos; objects are owned by `Dispatch` and destroyed
-    // after the last wait.
-    let pool = unsafe { dev.create_descriptor_pool(&pool_info, None) }.during("creating the descriptor pool")?;
+    let (_pool, sets) = DescriptorPool::new(ctx, kernel, nbatches as u32)?;
+    for (bi, &set) in sets.iter().enumerate() {
+        let first = (bi * batch) as u64;
+        let count = batch.min(rays.len() - bi * batch) as u64;
+        let mut resources: Vec<(u32, Resource)> = scene.resources().collect();
+        resources.push((BINDING_RAYS, Resource::Buffer { buffer: &ray_buf, offset: first * 32, range: count * 32 }));
+        resources.push((BINDING_HITS, Resource::Buffer { buffer: &hit_buf, offset: first * 16, range: count * 16 }));
+        write_set(ctx, kernel, set, &resources)?;
+    }
     let timestamps = info.timestamp_valid_bits > 0;
     let qinfo =
         vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2 * nbatches as u32);
-    let queries = match unsafe { dev.create_query_pool(&qinfo, None) } {
-        Ok(q) => q,
-        Err(e) => {
-            unsafe { dev.destroy_descriptor_pool(pool, None) };
-            return Err(e).during("creating the timestamp query pool");
-        }
-    };
-    let mut dispatch = Dispatch { ctx, pool, queries, cmds: vec![] };
-
-    let layouts = vec![kernel.set_layout; nbatches];
-    let alloc = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts);
-    let sets = unsafe { dev.allocate_descriptor_sets(&alloc) }.during("allocating descriptor sets")?;
-    let scene_buffers: std::collections::BTreeMap<u32, &Buffer> =
-        scene.buffers.iter().map(|(b, buf)| (*b, buf)).collect();
-    for (bi, &set) in sets.iter().enumerate() {
-        let first = bi * batch;
-        let count = batch.min(rays.len() - first);
-        let mut infos: Vec<(u32, vk::DescriptorBufferInfo)> = Vec::new();
-        for &binding in bindings.keys() {
-            let bi = match binding {
-                BINDING_RAYS => vk::DescriptorBufferInfo::default()
-                    .buffer(ray_buf.raw)
-                    .offset((first * 32) as u64)
-                    .range((count * 32) as u64),
-                BINDING_HITS => vk::DescriptorBufferInfo::default()
-                    .buffer(hit_buf.raw)
-                    .offset((first * 16) as u64)
-                    .range((count * 16) as u64),
-                b => {
-                    let buf = scene_buffers.get(&b).ok_or_else(|| {
-                        Error::Usage(format!(
-                            "kernel {} reads binding {b}, which the {} encoding does not provide",
-                            kernel.name, scene.method
-                        ))
-                    })?;
-                    vk::DescriptorBufferInfo::default().buffer(buf.raw).offset(0).range(vk::WHOLE_SIZE)
-                }
-            };
-            infos.push((binding, bi));
-        }
-        let writes: Vec<vk::WriteDescriptorSet> = infos
-            .iter()
-            .map(|(binding, bi)| {
-                vk::WriteDescriptorSet::default()
-                    .dst_set(set)
-                    .dst_binding(*binding)
-                    .descriptor_type(bindings[binding])
-                    .buffer_info(std::slice::from_ref(bi))
-            })
-            .collect();
-        // SAFETY: the sets and buffers are alive; no set is in use yet.
-        unsafe { dev.update_descriptor_sets(&writes, &[]) };
-    }
+    // SAFETY: valid device and create info; destroyed by `Dispatch` after the last wait.
+    let queries = unsafe { dev.create_query_pool(&qinfo, None) }.during("creating the timestamp query pool")?;
+    let mut dispatch = Dispatch { ctx, queries, cmds: vec![] };
 
     dispatch.cmds = ctx.allocate_command_buffers(nbatches as u32)?;
     for (bi, (&cmd, &set)) in dispatch.cmds.iter().zip(&sets).enumerate() {
@@ -246,16 +191,8 @@ pub fn raycast(
             dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, queries, q);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
             dev.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline_layout, 0, &[set], &[]);
-            if let Some((offset, size)) = kernel.layout.push_constants {
-                debug_assert_eq!((offset, size), (0, 4));
-                dev.cmd_push_constants(
-                    cmd,
-                    kernel.pipeline_layout,
-                    vk::ShaderStageFlags::COMPUTE,
-                    0,
-                    &count.to_le_bytes(),
-                );
-            }
+            // `Push { uint ray_count; }` in raycast.comp (checked by tests/reflection.rs).
+            dev.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, &count.to_le_bytes());
             dev.cmd_dispatch(cmd, count.div_ceil(local as u32), 1, 1);
             dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, queries, q + 1);
             dev.end_command_buffer(cmd).during("recording a dispatch")?;

@@ -60,7 +60,7 @@ pub struct BufferLayout {
 }
 
 /// Layout of every storage buffer by binding (set 0), plus the push-constant block under
-/// `u32::MAX`. Shaderc's performance level strips debug names, so structs are found through
+/// `u32::MAX` (images and other descriptors are not listed). Shaderc's performance level strips debug names, so structs are found through
 /// the variables' `Binding` decorations, not by name.
 pub fn buffer_layouts(words: &[u32]) -> std::result::Result<BTreeMap<u32, BufferLayout>, String> {
     let m = rspirv::dr::load_words(words).map_err(|e| e.to_string())?;
@@ -125,10 +125,16 @@ pub fn buffer_layouts(words: &[u32]) -> std::result::Result<BTreeMap<u32, Buffer
         let Some(pointee) = defs.get(&ptr).and_then(|p| p.operands.get(1)).and_then(idref) else {
             continue;
         };
-        if let Some(&b) = binding_of.get(&var) {
-            out.insert(b, layout_of_block(pointee));
-        } else if matches!(class, Some(Operand::StorageClass(rspirv::spirv::StorageClass::PushConstant))) {
-            out.insert(u32::MAX, layout_of_block(pointee));
+        match class {
+            Some(Operand::StorageClass(rspirv::spirv::StorageClass::StorageBuffer)) => {
+                if let Some(&b) = binding_of.get(&var) {
+                    out.insert(b, layout_of_block(pointee));
+                }
+            }
+            Some(Operand::StorageClass(rspirv::spirv::StorageClass::PushConstant)) => {
+                out.insert(u32::MAX, layout_of_block(pointee));
+            }
+            _ => {}
         }
     }
     Ok(out)
