@@ -36,20 +36,31 @@ bool hit_box(TraceRay r, vec3 bmin, vec3 bmax, float tfar, out float tnear) {
     return tnear <= tf;
 }
 
+// What traversal keeps of a node once its box has been tested: (left_or_first << 5) | count.
+// The stack holds these, so popping a node costs no memory access (the paper's stack holds node
+// indices and re-reads the node). count <= 16 (MAX_LEAF_SIZE) fits in 5 bits; the host checks
+// that every left_or_first fits in 27 (EncodedScene::check_limits).
+uint pack_node(BvhNode n) {
+    return (n.left_or_first << 5u) | n.count;
+}
+
 // Traces `r` through the BVH, updating `h` (h.t must start at the ray's tmax).
 // With ANY_HIT defined it returns at the first accepted intersection.
 void trace(TraceRay r, inout HitState h) {
     float troot;
-    BvhNode current = load_node(0u);
-    if (!hit_box(r, current.bmin, current.bmax, h.t, troot)) {
+    BvhNode root = load_node(0u);
+    if (!hit_box(r, root.bmin, root.bmax, h.t, troot)) {
         return;
     }
+    uint current = pack_node(root);
     uint stack[STACK_SIZE];
     uint sp = 0u;
     while (true) {
-        if (current.count > 0u) {
+        uint count = current & 31u;
+        uint first = current >> 5u;
+        if (count > 0u) {
             // Leaf.
-            bool found = intersect_leaf(r, current.left_or_first, current.count, h);
+            bool found = intersect_leaf(r, first, count, h);
 #ifdef ANY_HIT
             if (found) {
                 return;
@@ -58,31 +69,24 @@ void trace(TraceRay r, inout HitState h) {
             if (sp == 0u) {
                 return;
             }
-            current = load_node(stack[--sp]);
+            current = stack[--sp];
         } else {
-            uint left = current.left_or_first;
-            BvhNode l = load_node(left);
-            BvhNode rr = load_node(left + 1u);
+            BvhNode l = load_node(first);
+            BvhNode rr = load_node(first + 1u);
             float tl, tr;
             bool want_l = hit_box(r, l.bmin, l.bmax, h.t, tl);
             bool want_r = hit_box(r, rr.bmin, rr.bmax, h.t, tr);
             if (want_l && want_r) {
-                if (tl <= tr) {
-                    stack[sp++] = left + 1u;
-                    current = l;
-                } else {
-                    stack[sp++] = left;
-                    current = rr;
-                }
-            } else if (want_l) {
-                current = l;
-            } else if (want_r) {
-                current = rr;
+                bool left_first = tl <= tr;
+                stack[sp++] = pack_node(left_first ? rr : l);
+                current = pack_node(left_first ? l : rr);
+            } else if (want_l || want_r) {
+                current = pack_node(want_l ? l : rr);
             } else {
                 if (sp == 0u) {
                     return;
                 }
-                current = load_node(stack[--sp]);
+                current = stack[--sp];
             }
         }
     }

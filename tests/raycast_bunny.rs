@@ -37,7 +37,7 @@ fn every_method_and_leaf_size_matches_the_f64_reference_on_the_bunny() {
             assert!(ref_hits > 20_000 && ref_hits < 80_000, "random rays should hit about half the time ({ref_hits})");
             for (method, closest, any) in &kernels {
                 let scene = GpuScene::upload(ctx, &method.encode(&mesh, &bvh)).unwrap();
-                let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
+                let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20, ..Default::default() };
                 let c = raycast(ctx, closest, &scene, &rays, &opts).unwrap();
                 let a = raycast(ctx, any, &scene, &rays, &opts).unwrap();
                 let agreement = compare_closest(&mesh, &rays, &c.hits, &reference);

@@ -185,6 +185,23 @@ impl EncodedScene {
         (self.prims.iter().find(|b| b.binding == binding).expect("every encoding has its primitive buffer"), size)
     }
 
+    /// Checks what the kernels assume about the data: traversal packs a node's `left_or_first`
+    /// into 27 bits and its `count` into 5 (`pack_node` in `glsl/traverse.glsl`).
+    pub fn check_limits(&self) -> Result<(), String> {
+        const MAX_INDEX: usize = 1 << 27;
+        if self.nodes.len() > MAX_INDEX || self.slot_ids.len() > MAX_INDEX {
+            return Err(format!(
+                "{} nodes and {} triangle slots: the kernels address at most {MAX_INDEX} of each",
+                self.nodes.len(),
+                self.slot_ids.len()
+            ));
+        }
+        if let Some(n) = self.nodes.iter().find(|n| n.count >= 32) {
+            return Err(format!("a leaf holds {} triangles; the kernels allow at most 31", n.count));
+        }
+        Ok(())
+    }
+
     /// Padding slots (quad encodings fill partial quads with never-hit triangles).
     pub fn padding_slots(&self) -> usize {
         self.slot_ids.iter().filter(|&&s| s == MISS_ID).count()

@@ -25,6 +25,9 @@ pub struct GpuScene {
 
 impl GpuScene {
     pub fn upload(ctx: &Context, scene: &EncodedScene) -> Result<GpuScene> {
+        scene.check_limits().map_err(|e| {
+            crate::error::Error::Usage(format!("scene too large for the {} kernels: {e}", scene.method))
+        })?;
         let buffers = scene
             .buffers()
             .into_iter()
