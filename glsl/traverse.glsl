@@ -20,15 +20,14 @@ TraceRay make_trace_ray(Ray r) {
     vec3 s = mix(vec3(1.0), vec3(-1.0), lessThan(r.dir, vec3(0.0)));
     vec3 safe = s * max(abs(r.dir), vec3(TINY_DIR));
     tr.inv_dir = 1.0 / safe;
-    tr.origin_scaled = r.origin * tr.inv_dir;
     tr.tmin = r.tmin;
     return tr;
 }
 
 // Slab test against [tmin, tfar]; returns the entry distance in `tnear`.
 bool hit_box(TraceRay r, vec3 bmin, vec3 bmax, float tfar, out float tnear) {
-    vec3 t0 = bmin * r.inv_dir - r.origin_scaled;
-    vec3 t1 = bmax * r.inv_dir - r.origin_scaled;
+    vec3 t0 = (bmin - r.origin) * r.inv_dir;
+    vec3 t1 = (bmax - r.origin) * r.inv_dir;
     vec3 lo = min(t0, t1);
     vec3 hi = max(t0, t1);
     tnear = max(max(lo.x, lo.y), max(lo.z, r.tmin));

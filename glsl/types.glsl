@@ -62,7 +62,6 @@ struct TraceRay {
     vec3 origin;
     vec3 dir;
     vec3 inv_dir;       // 1/dir, with zero components replaced by a tiny signed value
-    vec3 origin_scaled; // origin * inv_dir, for the slab test
     float tmin;
 };
 

@@ -335,7 +335,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
                 "agreement": agreement.fraction(),
                 "disagreements": agreement.disagreements.len(),
                 "unexplained": agreement.unexplained,
-                "max_edge_ulps": agreement.max_edge_ulps,
+                "max_ambiguity_ulps": agreement.max_ambiguity_ulps,
                 "invalid": agreement.invalid.len(),
                 "passes": agreement.all_explained(),
                 "summary": agreement.summary(),

@@ -33,7 +33,7 @@ fn check(
         let reference = Reference::new(mesh, &bvh).trace_all(rays, false);
         for method in Method::ALL {
             let scene = GpuScene::upload(ctx, &method.encode(mesh, &bvh)).unwrap();
-            let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays, ..Default::default() };
+            let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
             let closest = ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap();
             let any = ctx.create_kernel(trilab::kernels::raycast(method, true)).unwrap();
             let c = raycast(ctx, &closest, &scene, rays, &opts).unwrap();
