@@ -20,5 +20,6 @@ pub mod reference;
 pub mod report;
 pub mod scene;
 pub mod spirv;
+pub mod traversal;
 
 pub use error::{Error, Result};

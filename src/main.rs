@@ -80,6 +80,23 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Traversal work per ray (CPU mirror of the kernels' loop): steps, triangle tests, and the
+    /// iterations SIMD lock-step costs at each width.
+    Steps {
+        #[arg(long)]
+        scene: PathBuf,
+        #[arg(long)]
+        rays: PathBuf,
+        #[arg(long, default_value_t = 4)]
+        leaf_size: u32,
+        #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+        leaf_policy: LeafPolicy,
+        /// SIMD widths to model (lavapipe: 8, or 4 with LP_NATIVE_VECTOR_WIDTH=128).
+        #[arg(long, value_delimiter = ',', default_values_t = [1usize, 4, 8, 32])]
+        widths: Vec<usize>,
+        #[arg(long)]
+        json: bool,
+    },
     /// SPIR-V instruction counts of every kernel variant; `--write DIR` refreshes spirv/.
     Spirv {
         #[arg(long)]
@@ -240,6 +257,9 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Raycast(a) => raycast_cmd(a),
         Cmd::Bvh { scene, leaf_sizes, leaf_policy, json } => bvh_cmd(&scene, leaf_sizes, leaf_policy, json),
         Cmd::Spirv { write, json } => spirv_cmd(write, json),
+        Cmd::Steps { scene, rays, leaf_size, leaf_policy, widths, json } => {
+            steps_cmd(&scene, &rays, leaf_size, leaf_policy, &widths, json)
+        }
         Cmd::Bench(a) => bench_cmd(a),
     }
 }
@@ -451,6 +471,53 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, json: bo
             mb("unit"),
             mb("quad-mt"),
             mb("quad-unit"),
+        ]);
+    }
+    print!("{}", t.to_text());
+    Ok(())
+}
+
+fn steps_cmd(
+    scene: &Path,
+    rays: &Path,
+    leaf: u32,
+    leaf_policy: LeafPolicy,
+    widths: &[usize],
+    json: bool,
+) -> Result<()> {
+    check_leaf_size(leaf)?;
+    if widths.contains(&0) {
+        return Err(Error::Usage("--widths: a SIMD width must be at least 1".into()));
+    }
+    let mesh = load_obj(scene)?;
+    let rays = rays::read_rays(rays)?;
+    let bvh = Bvh::build(&mesh, &BuildOptions { leaf_policy, ..BuildOptions::new(leaf) });
+    let stats: Vec<_> = widths.iter().map(|&w| trilab::traversal::step_stats(&mesh, &bvh, &rays, w)).collect();
+    if json {
+        println!("{}", serde_json::to_string_pretty(&stats).unwrap());
+        return Ok(());
+    }
+    let s0 = &stats[0];
+    println!(
+        "{} rays, leaf size {leaf} ({leaf_policy}); per ray alone: {:.2} iterations ({:.2} inner, {:.2} leaf), {:.2} triangle tests",
+        s0.rays, s0.iterations, s0.inner, s0.leaves, s0.triangles
+    );
+    let mut t = Table::new([
+        "SIMD width",
+        "iterations/ray",
+        "x alone",
+        "inner code/ray",
+        "leaf code/ray",
+        "triangle slots/ray",
+    ]);
+    for s in &stats {
+        t.row([
+            s.width.to_string(),
+            format!("{:.2}", s.simd_iterations),
+            format!("{:.2}", s.lockstep_overhead()),
+            format!("{:.2}", s.simd_inner),
+            format!("{:.2}", s.simd_leaf),
+            format!("{:.2}", s.simd_triangles),
         ]);
     }
     print!("{}", t.to_text());

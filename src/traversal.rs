@@ -1,0 +1,293 @@
+//! A CPU mirror of `glsl/traverse.glsl` that counts work: the same while-if loop, visit order
+//! (nearer child first, ties to the left) and f32 slab test, one ray at a time, plus a model of
+//! SIMD lock-step: a group of `width` consecutive rays runs as many loop iterations as its
+//! slowest ray, and an iteration pays for the leaf code when any lane is at a leaf (as many
+//! triangle tests as the fullest such leaf) and for the inner-node code when any lane is at an
+//! inner node. This is how lavapipe (8 lanes, or 4 with `LP_NATIVE_VECTOR_WIDTH=128`) and GPU
+//! subgroups execute the kernels, and it says how much of a kernel's time is lanes waiting.
+//!
+//! Triangle tests use the f64 reference, so the counts are those of an exact kernel; f32
+//! kernels differ only on rays within a few ULPs of an edge.
+
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::bvh::{Bvh, PAD_SLOT};
+use crate::rays::Ray;
+use crate::reference::{intersect, Ray64};
+use crate::scene::Mesh;
+
+/// Work of one ray.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct RaySteps {
+    /// Loop iterations at inner nodes (each reads both children).
+    pub inner: u32,
+    /// Loop iterations at leaves.
+    pub leaves: u32,
+    /// Triangles tested (padding excluded).
+    pub triangles: u32,
+}
+
+impl RaySteps {
+    pub fn iterations(&self) -> u32 {
+        self.inner + self.leaves
+    }
+}
+
+/// Per-ray means and the lock-step totals for one SIMD width.
+#[derive(Clone, Debug, Serialize)]
+pub struct StepStats {
+    pub rays: usize,
+    pub width: usize,
+    /// Means per ray.
+    pub inner: f64,
+    pub leaves: f64,
+    pub triangles: f64,
+    /// Loop iterations per ray if every ray ran alone.
+    pub iterations: f64,
+    /// Loop iterations per ray in lock-step groups of `width` rays.
+    pub simd_iterations: f64,
+    /// Of those, iterations per ray that run the inner-node code / the leaf code.
+    pub simd_inner: f64,
+    pub simd_leaf: f64,
+    /// Triangle-test slots per ray in lock-step (the fullest leaf among the lanes at a leaf).
+    pub simd_triangles: f64,
+    pub max_iterations: u32,
+}
+
+impl StepStats {
+    /// Lock-step iterations over solo iterations: 1.0 means no lane ever waits.
+    pub fn lockstep_overhead(&self) -> f64 {
+        self.simd_iterations / self.iterations.max(1e-9)
+    }
+}
+
+/// The state of one ray in the while-if loop.
+struct Walk<'a> {
+    mesh: &'a Mesh,
+    bvh: &'a Bvh,
+    origin: Vec3,
+    inv_dir: Vec3,
+    tmin: f32,
+    ray: Ray64,
+    /// Packed like the kernel: (first, count) of the node to visit next.
+    current: Option<(u32, u32)>,
+    stack: Vec<(u32, u32)>,
+    steps: RaySteps,
+}
+
+impl<'a> Walk<'a> {
+    fn new(mesh: &'a Mesh, bvh: &'a Bvh, ray: &Ray) -> Walk<'a> {
+        // Same guard against zero direction components as make_trace_ray().
+        let d = Vec3::from_array(ray.dir);
+        let safe = Vec3::select(d.cmplt(Vec3::ZERO), -Vec3::ONE, Vec3::ONE) * d.abs().max(Vec3::splat(1e-30));
+        let mut w = Walk {
+            mesh,
+            bvh,
+            origin: Vec3::from_array(ray.origin),
+            inv_dir: Vec3::ONE / safe,
+            tmin: ray.tmin,
+            ray: Ray64::from(ray),
+            current: None,
+            stack: Vec::with_capacity(64),
+            steps: RaySteps::default(),
+        };
+        let root = &bvh.nodes[0];
+        if w.hit_box(root.min, root.max).is_some() {
+            w.current = Some((root.left_or_first, root.count));
+        }
+        w
+    }
+
+    /// hit_box() of traverse.glsl, against the closest hit so far.
+    fn hit_box(&self, bmin: [f32; 3], bmax: [f32; 3]) -> Option<f32> {
+        let t0 = (Vec3::from_array(bmin) - self.origin) * self.inv_dir;
+        let t1 = (Vec3::from_array(bmax) - self.origin) * self.inv_dir;
+        let tnear = t0.min(t1).max_element().max(self.tmin);
+        let tfar = t0.max(t1).min_element().min(self.ray.tmax as f32) * 1.000_000_4;
+        (tnear <= tfar).then_some(tnear)
+    }
+
+    fn pop(&mut self) {
+        self.current = self.stack.pop();
+    }
+
+    /// One loop iteration; returns the leaf size it tested (0 at an inner node).
+    fn step(&mut self) -> u32 {
+        let Some((first, count)) = self.current else { return 0 };
+        if count > 0 {
+            self.steps.leaves += 1;
+            for &id in &self.bvh.prim_ids[first as usize..(first + count) as usize] {
+                if id == PAD_SLOT {
+                    continue;
+                }
+                self.steps.triangles += 1;
+                if let Some((t, _, _)) = intersect(&self.ray, self.mesh.vertices_f64(id as usize)) {
+                    self.ray.tmax = self.ray.tmax.min(t);
+                }
+            }
+            self.pop();
+            count
+        } else {
+            self.steps.inner += 1;
+            let (l, r) = (&self.bvh.nodes[first as usize], &self.bvh.nodes[first as usize + 1]);
+            match (self.hit_box(l.min, l.max), self.hit_box(r.min, r.max)) {
+                (Some(tl), Some(tr)) => {
+                    let (near, far) = if tl <= tr { (l, r) } else { (r, l) };
+                    self.stack.push((far.left_or_first, far.count));
+                    self.current = Some((near.left_or_first, near.count));
+                }
+                (Some(_), None) => self.current = Some((l.left_or_first, l.count)),
+                (None, Some(_)) => self.current = Some((r.left_or_first, r.count)),
+                (None, None) => self.pop(),
+            }
+            0
+        }
+    }
+
+    fn at_leaf(&self) -> Option<u32> {
+        self.current.filter(|c| c.1 > 0).map(|c| c.1)
+    }
+}
+
+/// Work of each ray, traced alone.
+pub fn ray_steps(mesh: &Mesh, bvh: &Bvh, rays: &[Ray]) -> Vec<RaySteps> {
+    use rayon::prelude::*;
+    rays.par_iter()
+        .map(|r| {
+            let mut w = Walk::new(mesh, bvh, r);
+            while w.current.is_some() {
+                w.step();
+            }
+            w.steps
+        })
+        .collect()
+}
+
+/// Totals of one lock-step group.
+#[derive(Default)]
+struct GroupTotals {
+    solo: RaySteps,
+    iterations: u64,
+    inner: u64,
+    leaf: u64,
+    triangle_slots: u64,
+    max_iterations: u32,
+}
+
+/// Per-ray means and lock-step totals for groups of `width` consecutive rays (closest hit).
+pub fn step_stats(mesh: &Mesh, bvh: &Bvh, rays: &[Ray], width: usize) -> StepStats {
+    use rayon::prelude::*;
+    assert!(width > 0);
+    let groups: Vec<GroupTotals> = rays
+        .par_chunks(width)
+        .map(|group| {
+            let mut lanes: Vec<Walk> = group.iter().map(|r| Walk::new(mesh, bvh, r)).collect();
+            let (mut iters, mut inner, mut leaf, mut tris) = (0u64, 0u64, 0u64, 0u64);
+            loop {
+                let active: Vec<usize> = (0..lanes.len()).filter(|&i| lanes[i].current.is_some()).collect();
+                if active.is_empty() {
+                    break;
+                }
+                iters += 1;
+                let fullest = active.iter().filter_map(|&i| lanes[i].at_leaf()).max();
+                if let Some(n) = fullest {
+                    leaf += 1;
+                    tris += n as u64;
+                }
+                if active.iter().any(|&i| lanes[i].at_leaf().is_none()) {
+                    inner += 1;
+                }
+                for &i in &active {
+                    lanes[i].step();
+                }
+            }
+            let sum = lanes.iter().fold(RaySteps::default(), |a, w| RaySteps {
+                inner: a.inner + w.steps.inner,
+                leaves: a.leaves + w.steps.leaves,
+                triangles: a.triangles + w.steps.triangles,
+            });
+            let max_iterations = lanes.iter().map(|w| w.steps.iterations()).max().unwrap_or(0);
+            GroupTotals { solo: sum, iterations: iters, inner, leaf, triangle_slots: tris, max_iterations }
+        })
+        .collect();
+    let n = rays.len().max(1) as f64;
+    let total = |f: &dyn Fn(&GroupTotals) -> u64| groups.iter().map(f).sum::<u64>() as f64 / n;
+    // Lock-step totals are per group; a group of `width` lanes advances `width` rays.
+    let per_ray = |f: &dyn Fn(&GroupTotals) -> u64| groups.iter().map(|g| f(g) * width as u64).sum::<u64>() as f64 / n;
+    StepStats {
+        rays: rays.len(),
+        width,
+        inner: total(&|g| g.solo.inner as u64),
+        leaves: total(&|g| g.solo.leaves as u64),
+        triangles: total(&|g| g.solo.triangles as u64),
+        iterations: total(&|g| g.solo.iterations() as u64),
+        simd_iterations: per_ray(&|g| g.iterations),
+        simd_inner: per_ray(&|g| g.inner),
+        simd_leaf: per_ray(&|g| g.leaf),
+        simd_triangles: per_ray(&|g| g.triangle_slots),
+        max_iterations: groups.iter().map(|g| g.max_iterations).max().unwrap_or(0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::BuildOptions;
+    use crate::reference::Reference;
+
+    /// Two far-apart unit squares (two triangles each) in z = 0 and z = 10.
+    fn two_squares() -> Mesh {
+        let mut pos = vec![];
+        let mut tris = vec![];
+        for (x, z) in [(0.0f32, 0.0f32), (100.0, 10.0)] {
+            let b = pos.len() as u32;
+            pos.extend([[x, 0.0, z], [x + 1.0, 0.0, z], [x + 1.0, 1.0, z], [x, 1.0, z]]);
+            tris.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+        }
+        Mesh::from_triangles(pos, tris)
+    }
+
+    #[test]
+    fn counts_on_a_hand_built_tree() {
+        let mesh = two_squares();
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(2));
+        // Root with two leaves of two triangles each.
+        assert_eq!(bvh.stats().leaves, 2);
+        let hit = Ray::new([0.3, 0.2, -1.0], [0.0, 0.0, 1.0]);
+        let miss_box = Ray::new([50.0, 50.0, -1.0], [0.0, 0.0, 1.0]);
+        let steps = ray_steps(&mesh, &bvh, &[hit, miss_box]);
+        // hit: root (inner), then the near leaf; the far leaf's box is never entered.
+        assert_eq!(steps[0], RaySteps { inner: 1, leaves: 1, triangles: 2 });
+        assert_eq!(steps[1], RaySteps::default());
+        // Lock-step: the missing lane waits for the hitting one.
+        let s = step_stats(&mesh, &bvh, &[hit, miss_box], 2);
+        assert_eq!((s.iterations, s.simd_iterations, s.lockstep_overhead()), (1.0, 2.0, 2.0));
+        assert_eq!((s.simd_inner, s.simd_leaf, s.simd_triangles), (1.0, 1.0, 2.0));
+    }
+
+    #[test]
+    fn the_mirror_finds_the_reference_hits() {
+        // The walk must visit every node the closest hit needs: its final tmax equals the
+        // reference's closest t on random rays.
+        let mesh =
+            crate::scene::load_obj(std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny.obj")))
+                .unwrap();
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+        let rays = crate::rays::random_rays(&mesh.bounds(), 2000, 5);
+        let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
+        for (r, h) in rays.iter().zip(&reference) {
+            let mut w = Walk::new(&mesh, &bvh, r);
+            while w.current.is_some() {
+                w.step();
+            }
+            if h.is_hit() {
+                assert_eq!(w.ray.tmax, h.t, "ray {r:?}");
+            } else {
+                assert_eq!(w.ray.tmax, f64::INFINITY);
+            }
+        }
+        let s = step_stats(&mesh, &bvh, &rays, 8);
+        assert!(s.simd_iterations >= s.iterations && s.lockstep_overhead() > 1.2, "{s:?}");
+    }
+}
