@@ -369,6 +369,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
         let out = json!({
             "method": a.method,
             "leaf_size": a.leaf_size,
+            "leaf_policy": a.leaf_policy.to_string(),
             "any_hit": a.any_hit,
             "rays": rays.len(),
             "hits": hits,
@@ -391,12 +392,13 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     } else {
         println!("device:    {} ({})", info.name, info.driver_label());
         println!(
-            "scene:     {} ({} triangles, {} degenerate never hit), {} leaf size {}, {:.2} MB on the GPU",
+            "scene:     {} ({} triangles, {} degenerate never hit), {} leaf size {} ({}), {:.2} MB on the GPU",
             a.scene.display(),
             mesh.triangle_count(),
             bvh.degenerate_excluded,
             a.method,
             a.leaf_size,
+            a.leaf_policy,
             scene.bytes as f64 / 1e6
         );
         println!("rays:      {} ({} hit) -> {}", rays.len(), hits, a.out.display());
