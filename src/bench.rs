@@ -137,8 +137,9 @@ impl BenchReport {
     }
 }
 
-/// The three ray sets for a scene: generated, or read from `rays_dir`.
-pub fn ray_sets(mesh: &Mesh, name: &str, o: &BenchOptions) -> Result<Vec<(String, Vec<Ray>)>> {
+/// The three ray sets for a scene: generated (diffuse bounces from the f64 reference over
+/// `reference`), or read from `rays_dir`.
+pub fn ray_sets(mesh: &Mesh, name: &str, reference: &Reference, o: &BenchOptions) -> Result<Vec<(String, Vec<Ray>)>> {
     if let Some(dir) = &o.rays_dir {
         return ["primary", "diffuse", "random"]
             .iter()
@@ -147,8 +148,7 @@ pub fn ray_sets(mesh: &Mesh, name: &str, o: &BenchOptions) -> Result<Vec<(String
     }
     let bounds = mesh.bounds();
     let primary = rays::primary_rays(&Camera::framing(&bounds), o.width, o.height);
-    let bvh = Bvh::build(mesh, &BuildOptions::new(4));
-    let diffuse = rays::diffuse_rays(mesh, &Reference::new(mesh, &bvh), &primary, o.diffuse_per_hit, o.seed);
+    let diffuse = rays::diffuse_rays(mesh, reference, &primary, o.diffuse_per_hit, o.seed);
     let random = rays::random_rays(&bounds, o.random_rays, o.seed);
     Ok(vec![("primary".into(), primary), ("diffuse".into(), diffuse), ("random".into(), random)])
 }
@@ -196,9 +196,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let mesh = load_obj(scene_path)?;
         progress(&format!("{name}: {} triangles; making ray sets", mesh.triangle_count()));
         let t = Instant::now();
-        let sets = ray_sets(&mesh, &name, o)?;
         let bvh = Bvh::build(&mesh, &BuildOptions { leaf_policy: o.leaf_policy, ..BuildOptions::new(o.leaf_size) });
         let reference = Reference::new(&mesh, &bvh);
+        let sets = ray_sets(&mesh, &name, &reference, o)?;
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
         let scenes: Vec<GpuScene> =
             o.methods.iter().map(|m| GpuScene::upload(ctx, &m.encode(&mesh, &bvh))).collect::<Result<_>>()?;

@@ -206,11 +206,6 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
 }
 
 impl DeviceInfo {
-    /// "llvmpipe (LLVM 15.0.6, 256 bits)" -> short label for tables and directories.
-    pub fn label(&self) -> String {
-        format!("{} ({})", self.name, self.driver_label())
-    }
-
     /// The driver and its version as users recognise it: "llvmpipe, Mesa 25.0.7".
     pub fn driver_label(&self) -> String {
         if self.driver_info.is_empty() {
@@ -218,10 +213,6 @@ impl DeviceInfo {
         } else {
             format!("{} {}", self.driver_name, self.driver_info)
         }
-    }
-
-    pub fn is_lavapipe(&self) -> bool {
-        self.driver_id.contains("LLVMPIPE")
     }
 
     /// Human-readable multi-line report (`trilab devices`).
