@@ -6,6 +6,8 @@
 //! - `intersect/<method>.glsl` are the intersectors. Every kernel is compiled once per
 //!   intersector × variant; inside a kernel `#include "intersector.glsl"` resolves to the
 //!   intersector of that variant, and `METHOD_<METHOD>` is defined.
+//! - A kernel whose first lines say `// trilab:intersector none` uses no intersector (the BSDF
+//!   probe, say): it is compiled once per variant, with method `none`.
 //! - `shared.glsl` holds the constants shared with Rust: every `#define NAME <integer>` becomes
 //!   `pub const NAME: u32` in `$OUT_DIR/shared_consts.rs`.
 //!
@@ -68,7 +70,10 @@ fn main() {
         let kernel = kernel_path.file_stem().unwrap().to_string_lossy().into_owned();
         let source = fs::read_to_string(kernel_path).unwrap();
         let variants = parse_variants(kernel_path, &source);
-        for method in &methods {
+        let no_intersector = source.lines().any(|l| l.trim() == "// trilab:intersector none");
+        let none = [String::from("none")];
+        let kernel_methods: &[String] = if no_intersector { &none } else { &methods };
+        for method in kernel_methods {
             for variant in &variants {
                 let name = format!("{kernel}.{method}.{}", variant.name);
                 match compile(&compiler, &glsl_dir, kernel_path, &source, method, variant) {
@@ -174,7 +179,9 @@ fn resolve_include(
     requested: &str,
     requesting: &str,
 ) -> Result<shaderc::ResolvedInclude, String> {
-    let rel = if requested == "intersector.glsl" {
+    let rel = if requested == "intersector.glsl" && method == "none" {
+        return Err(format!("{requesting}: `// trilab:intersector none` kernels cannot include intersector.glsl"));
+    } else if requested == "intersector.glsl" {
         PathBuf::from("intersect").join(format!("{method}.glsl"))
     } else {
         PathBuf::from(requested)

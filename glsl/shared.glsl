@@ -23,6 +23,30 @@
 #define BINDING_PROBE_PRIMS 7
 #define BINDING_PROBE_SLOT_IDS 8
 
+// Path tracing (pathtrace.comp). Scene-side texel buffers:
+#define BINDING_MATERIALS 9
+#define BINDING_SHADING 10
+#define BINDING_LIGHTS 11
+// Per-render uniform parameters, the accumulation image and counters.
+#define BINDING_PARAMS 12
+#define BINDING_ACCUM 13
+#define BINDING_STATS 14
+// bsdf_probe.comp's input and output buffers.
+#define BINDING_BSDF_PROBE_IN 15
+#define BINDING_BSDF_PROBE_OUT 16
+
+// BSDF kinds (Material.kind; one file each in bsdf/). A kernel's BSDF_MASK has bit (1 << kind)
+// set for every kind it carries.
+#define BSDF_LAMBERT 0
+#define BSDF_OREN_NAYAR 1
+#define BSDF_PHONG 2
+#define BSDF_BLINN_PHONG 3
+#define BSDF_ASHIKHMIN_SHIRLEY 4
+#define BSDF_GLASS 5
+#define BSDF_MIRROR 6
+#define BSDF_COUNT 7
+#define BSDF_MASK_ALL 0x7F
+
 // Triangle id of a miss (../shared/formats.md).
 #define MISS_ID 0xFFFFFFFFu
 

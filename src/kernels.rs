@@ -10,7 +10,8 @@ pub struct KernelSource {
     pub name: &'static str,
     /// The `glsl/<kernel>.comp` it came from.
     pub kernel: &'static str,
-    /// The intersector, `glsl/intersect/<method>.glsl`.
+    /// The intersector, `glsl/intersect/<method>.glsl`, or `none` for kernels that trace no rays
+    /// (`// trilab:intersector none`).
     pub method: &'static str,
     /// The variant from the kernel's `// trilab:variants` line.
     pub variant: &'static str,
@@ -56,7 +57,7 @@ mod tests {
         }
         for k in KERNELS {
             assert!(
-                Method::ALL.iter().any(|m| m.glsl_name() == k.method),
+                k.method == "none" || Method::ALL.iter().any(|m| m.glsl_name() == k.method),
                 "glsl/intersect/{}.glsl has no Method arm",
                 k.method
             );

@@ -3,8 +3,10 @@
 //! Triangle ids are OBJ face order after fan triangulation, across all objects and groups in
 //! file order (../shared/formats.md); every later stage keeps them.
 
+mod material;
 mod obj;
 
+pub use material::{BsdfKind, GpuMaterial};
 pub use obj::load_obj;
 
 use std::path::PathBuf;
