@@ -16,6 +16,12 @@ layout(push_constant) uniform Push {
 #include "intersector.glsl"
 #include "traverse.glsl"
 
+#ifdef ANY_HIT
+const bool ANY = true;
+#else
+const bool ANY = false;
+#endif
+
 layout(local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
 
 void main() {
@@ -29,7 +35,7 @@ void main() {
     h.slot = MISS_ID;
     h.u = 0.0;
     h.v = 0.0;
-    trace(make_trace_ray(ray), h);
+    trace(make_trace_ray(ray), h, ANY);
     Hit o;
     if (h.slot == MISS_ID) {
         o.t = uintBitsToFloat(0x7f800000u); // +inf

@@ -44,8 +44,9 @@ uint pack_node(BvhNode n) {
 }
 
 // Traces `r` through the BVH, updating `h` (h.t must start at the ray's tmax).
-// With ANY_HIT defined it returns at the first accepted intersection.
-void trace(TraceRay r, inout HitState h) {
+// With `any_hit` it returns at the first accepted intersection (occlusion). Pass a constant:
+// every call site is inlined and specialised by the compiler.
+void trace(TraceRay r, inout HitState h, bool any_hit) {
     float troot;
     BvhNode root = load_node(0u);
     if (!hit_box(r, root.bmin, root.bmax, h.t, troot)) {
@@ -59,12 +60,10 @@ void trace(TraceRay r, inout HitState h) {
         uint first = current >> 5u;
         if (count > 0u) {
             // Leaf.
-            bool found = intersect_leaf(r, first, count, h);
-#ifdef ANY_HIT
-            if (found) {
+            bool found = intersect_leaf(r, first, count, h, any_hit);
+            if (any_hit && found) {
                 return;
             }
-#endif
             if (sp == 0u) {
                 return;
             }

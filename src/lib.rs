@@ -3,7 +3,8 @@
 //! Data flows one way, one module per stage:
 //! [`scene`] (OBJ/MTL -> mesh) -> [`bvh`] (SAH build, 32-byte nodes) -> [`encoding`] (each
 //! method's GPU layout) -> [`gpu`] (buffers, pipelines, dispatch, timing) -> results
-//! ([`rays`] hit files, [`compare`] against the f64 [`reference`], [`report`] tables).
+//! ([`rays`] hit files, [`compare`] against the f64 [`reference`], [`report`] tables,
+//! [`render`] path-traced images).
 //! The kernels live in `glsl/`; [`kernels`] embeds their SPIR-V and [`spirv`] counts and
 //! reflects it.
 
@@ -17,6 +18,7 @@ pub mod io;
 pub mod kernels;
 pub mod rays;
 pub mod reference;
+pub mod render;
 pub mod report;
 pub mod scene;
 pub mod spirv;

@@ -14,6 +14,7 @@ use trilab::error::{Error, Result};
 use trilab::gpu::{raycast, Context, ContextOptions, GpuScene, RaycastOptions, Validation};
 use trilab::rays::{self, Camera};
 use trilab::reference::Reference;
+use trilab::render::{self as pt, KernelChoice, PathtraceKernel, RenderScene, RenderSettings};
 use trilab::report::Table;
 use trilab::scene::load_obj;
 
@@ -107,6 +108,8 @@ enum Cmd {
     /// Ray-casting benchmark: primary, diffuse and random rays, every method, validated against
     /// the f64 reference, optionally beside the Embree peer.
     Bench(BenchArgs),
+    /// Path-trace a scene: linear RGBA EXR, a tone-mapped sRGB PNG and a JSON sidecar.
+    Render(RenderArgs),
 }
 
 #[derive(Subcommand)]
@@ -229,6 +232,57 @@ struct BenchArgs {
     gpu: GpuArgs,
 }
 
+#[derive(Args)]
+struct RenderArgs {
+    #[arg(long)]
+    scene: PathBuf,
+    #[arg(long, value_enum, default_value_t = Method::Mt)]
+    method: Method,
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    leaf_policy: LeafPolicy,
+    #[arg(long, default_value_t = 800)]
+    width: u32,
+    #[arg(long, default_value_t = 600)]
+    height: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 500)]
+    spp: u32,
+    /// Most scattering events per path.
+    #[arg(long, default_value_t = 16)]
+    max_depth: u32,
+    /// Russian roulette from this many scattering events on.
+    #[arg(long, default_value_t = 3)]
+    rr_depth: u32,
+    #[arg(long, default_value_t = 1)]
+    seed: u32,
+    /// `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,fov_y_degrees`; default: frames
+    /// the scene as the ray generators do.
+    #[arg(long, allow_hyphen_values = true)]
+    camera: Option<String>,
+    /// Constant environment radiance `r,g,b` (or one value).
+    #[arg(long, default_value = "1")]
+    env: String,
+    /// PNG exposure in stops (the EXR is not scaled).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    exposure: f32,
+    /// `specialised`: only the BSDFs the scene uses; `general`: the all-BSDF kernel.
+    #[arg(long, value_enum, default_value_t = KernelChoice::Specialised)]
+    kernel: KernelChoice,
+    /// Wall-clock target per GPU submit, milliseconds (keeps each submit far from a watchdog).
+    #[arg(long, default_value_t = 250.0)]
+    submit_ms: f64,
+    /// Output OpenEXR file; the PNG and JSON are written beside it (same stem).
+    #[arg(long)]
+    out: PathBuf,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = run(cli);
@@ -261,6 +315,7 @@ fn run(cli: Cli) -> Result<()> {
             steps_cmd(&scene, &rays, leaf_size, leaf_policy, &widths, json)
         }
         Cmd::Bench(a) => bench_cmd(a),
+        Cmd::Render(a) => render_cmd(a),
     }
 }
 
@@ -614,5 +669,145 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         }
         trilab::io::write_atomic(p, md.as_bytes())?;
     }
+    Ok(())
+}
+
+fn parse_floats(what: &str, s: &str, n: &[usize]) -> Result<Vec<f32>> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| Error::Usage(format!("--{what} `{s}`: {e}")))?;
+    if !n.contains(&v.len()) || v.iter().any(|x| !x.is_finite()) {
+        return Err(Error::Usage(format!("--{what} `{s}`: expected {n:?} finite comma-separated numbers")));
+    }
+    Ok(v)
+}
+
+fn render_cmd(a: RenderArgs) -> Result<()> {
+    check_leaf_size(a.leaf_size)?;
+    if a.out.extension().and_then(|e| e.to_str()) != Some("exr") {
+        return Err(Error::Usage(format!("--out {}: the output must be an .exr file", a.out.display())));
+    }
+    let (png_path, json_path) = pt::output::sidecar_paths(&a.out);
+    let mesh = load_obj(&a.scene)?;
+    let mut inputs: Vec<&Path> = vec![&a.scene];
+    inputs.extend(mesh.mtl_files.iter().map(PathBuf::as_path));
+    for out in [&a.out, &png_path, &json_path] {
+        trilab::io::ensure_not_input(out, &inputs)?;
+    }
+    for w in &mesh.warnings {
+        eprintln!("trilab: warning: {w}");
+    }
+    let mut settings = RenderSettings::paper(&mesh);
+    settings.width = a.width;
+    settings.height = a.height;
+    settings.spp = a.spp;
+    settings.max_depth = a.max_depth;
+    settings.rr_depth = a.rr_depth;
+    settings.seed = a.seed;
+    settings.submit_ms = a.submit_ms;
+    let env = parse_floats("env", &a.env, &[1, 3])?;
+    settings.env = if env.len() == 1 { [env[0]; 3] } else { [env[0], env[1], env[2]] };
+    if let Some(c) = &a.camera {
+        let v = parse_floats("camera", c, &[10])?;
+        let eye = glam::Vec3::new(v[0], v[1], v[2]);
+        let target = glam::Vec3::new(v[3], v[4], v[5]);
+        let up = glam::Vec3::new(v[6], v[7], v[8]);
+        settings.camera = Camera::look(eye, target - eye, up, v[9].to_radians());
+    }
+
+    let t_build = std::time::Instant::now();
+    let bvh = Bvh::build(&mesh, &BuildOptions { leaf_policy: a.leaf_policy, ..BuildOptions::new(a.leaf_size) });
+    let encoded = a.method.encode(&mesh, &bvh);
+    let scene = RenderScene::new(&mesh, &encoded);
+    let build_ms = t_build.elapsed().as_secs_f64() * 1e3;
+    let kernel = PathtraceKernel::choose(a.method, scene.bsdf_mask, a.kernel);
+    let ctx = a.gpu.context()?;
+    let gpu = GpuScene::upload(&ctx, &encoded)?;
+
+    let interrupted = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    {
+        let flag = interrupted.clone();
+        // Ctrl-C: finish the pass in flight, then write what has accumulated.
+        let _ = ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::SeqCst));
+    }
+    let bar = if a.quiet { indicatif::ProgressBar::hidden() } else { indicatif::ProgressBar::new(settings.spp as u64) };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} spp  {msg}  ETA {eta}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let pixels = settings.pixels() as f64;
+    let result = pt::render(&ctx, &gpu, &scene, kernel, &settings, &mut |p| {
+        bar.set_position(p.spp_done as u64);
+        bar.set_message(format!("{:.3} Msamples/s", p.spp_done as f64 * pixels / p.seconds * 1e-6));
+        !interrupted.load(std::sync::atomic::Ordering::SeqCst)
+    })?;
+    bar.finish_and_clear();
+
+    let image = result.image();
+    let exr = pt::output::encode_exr(result.width, result.height, &image)?;
+    let png = pt::output::encode_png(result.width, result.height, &image, a.exposure)?;
+    let info = ctx.info();
+    let report = json!({
+        "scene": a.scene.display().to_string(),
+        "scene_sha256": pt::output::scene_hash(&mesh),
+        "triangles": mesh.triangle_count(),
+        "method": a.method.name(),
+        "leaf_size": a.leaf_size,
+        "leaf_policy": a.leaf_policy,
+        "kernel": result.kernel,
+        "kernel_choice": a.kernel,
+        "bsdfs_in_kernel": kernel.bsdfs(),
+        "bsdfs_in_scene": trilab::scene::BsdfKind::ALL.iter().filter(|k| scene.bsdf_mask & k.bit() != 0).map(|k| k.name()).collect::<Vec<_>>(),
+        "settings": settings,
+        "camera": {
+            "eye": settings.camera.eye.to_array(),
+            "forward": settings.camera.forward.to_array(),
+            "up": settings.camera.up.to_array(),
+            "fov_y_degrees": settings.camera.fov_y.to_degrees(),
+        },
+        "emissive_triangles": scene.light_count,
+        "device": info.name,
+        "driver": info.driver_label(),
+        "spp_done": result.spp,
+        "interrupted": result.interrupted,
+        "build_ms": build_ms,
+        "gpu_ms": result.gpu_ms,
+        "wall_ms": result.wall_ms,
+        "submits": result.submits,
+        "samples": result.samples(),
+        "samples_per_second": result.samples_per_second(),
+        "closest_rays": result.closest_rays,
+        "shadow_rays": result.shadow_rays,
+        "mrays_per_second": result.mrays_per_second(),
+        "ray_definition": "every BVH traversal counts: camera and bounce rays (closest hit) and next-event occlusion rays (any hit); rates use GPU timestamp time when available, else wall time",
+        "dropped_samples_nan_or_inf": result.dropped_samples,
+        "warnings": mesh.warnings,
+    });
+    trilab::io::write_atomic(&a.out, &exr)?;
+    trilab::io::write_atomic(&png_path, &png)?;
+    trilab::io::write_atomic(&json_path, serde_json::to_string_pretty(&report).unwrap().as_bytes())?;
+    if result.dropped_samples > 0 {
+        eprintln!(
+            "trilab: warning: {} samples had NaN or infinite radiance and were left out of the image",
+            result.dropped_samples
+        );
+    }
+    println!(
+        "{}: {}x{}, {} spp{} with {} ({}), {:.1} s: {:.3} Msamples/s, {:.2} Mrays/s{}",
+        a.out.display(),
+        result.width,
+        result.height,
+        result.spp,
+        if result.interrupted { format!(" of {} (interrupted)", settings.spp) } else { String::new() },
+        result.kernel,
+        kernel.bsdfs().join("+"),
+        result.seconds(),
+        result.samples_per_second() * 1e-6,
+        result.mrays_per_second(),
+        if result.gpu_ms.is_some() { " (GPU time)" } else { " (wall time)" },
+    );
     Ok(())
 }

@@ -11,6 +11,7 @@ use trilab::encoding::{MtTriangle, QuadMt, QuadUnit, UnitTriangle};
 use trilab::gpu::shared::*;
 use trilab::kernels::KERNELS;
 use trilab::rays::{Hit, Ray};
+use trilab::render::{GpuParams, PathtracePush};
 use trilab::spirv::reflect::{buffer_layouts, reflect, BufferLayout};
 
 fn array_of(size: usize, offsets: &[usize]) -> BufferLayout {
@@ -79,6 +80,29 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
                 offset_of!(QuadUnit, n2),
             ],
         ),
+        (_, BINDING_PARAMS) => BufferLayout {
+            array_stride: None,
+            member_offsets: [
+                offset_of!(GpuParams, cam_eye),
+                offset_of!(GpuParams, cam_right),
+                offset_of!(GpuParams, cam_up),
+                offset_of!(GpuParams, cam_forward),
+                offset_of!(GpuParams, env),
+                offset_of!(GpuParams, width),
+                offset_of!(GpuParams, height),
+                offset_of!(GpuParams, max_depth),
+                offset_of!(GpuParams, rr_depth),
+                offset_of!(GpuParams, seed),
+                offset_of!(GpuParams, light_count),
+                offset_of!(GpuParams, ray_eps),
+                offset_of!(GpuParams, scene_extent),
+            ]
+            .iter()
+            .map(|&o| o as u32)
+            .collect(),
+        },
+        (_, BINDING_ACCUM) => array_of(size_of::<[f32; 4]>(), &[]),
+        (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
         (m, b) => panic!("no host layout for storage-buffer binding {b} of method {m}"),
     }
 }
@@ -88,6 +112,12 @@ fn host_push(kernel: &str) -> Vec<u32> {
     match kernel {
         "raycast" => vec![0],
         "probe" => vec![0, 4, 8],
+        "pathtrace" => vec![
+            offset_of!(PathtracePush, sample_first) as u32,
+            offset_of!(PathtracePush, sample_count) as u32,
+            offset_of!(PathtracePush, pixel_first) as u32,
+            offset_of!(PathtracePush, pixel_count) as u32,
+        ],
         k => panic!("unknown kernel {k}"),
     }
 }
@@ -108,8 +138,10 @@ fn rust_structs_match_spirv_offsets_and_strides() {
         }
     }
     // Guard against a vacuous pass: Ray and Hit in every raycast kernel, BvhNode and the
-    // primitive struct in every probe kernel.
-    assert!(checked_structs >= 2 * KERNELS.len(), "only {checked_structs} struct layouts checked");
+    // primitive struct in every probe kernel,
+    // pathtrace: the Params block (its other buffers are arrays of vectors and scalars).
+    let expected: usize = KERNELS.iter().map(|k| if k.kernel == "pathtrace" { 1 } else { 2 }).sum();
+    assert!(checked_structs >= expected, "only {checked_structs} of {expected} struct layouts checked");
 }
 
 #[test]
@@ -123,12 +155,18 @@ fn kernels_bind_what_the_host_provides() {
         let set = &l.sets[&0];
         let texels = match (k.kernel, k.method) {
             ("raycast", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES],
+            // The path tracer shades by slot and never reads the slot -> OBJ id table.
+            ("pathtrace", "mt") => {
+                vec![BINDING_NODES, BINDING_PRIMS, BINDING_INDICES, BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS]
+            }
+            ("pathtrace", _) => vec![BINDING_NODES, BINDING_PRIMS, BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS],
             // The MT probe loads triangles (index triples), not vertices.
             ("probe", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_INDICES],
             _ => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS],
         };
         let buffers = match k.kernel {
             "raycast" => vec![BINDING_RAYS, BINDING_HITS],
+            "pathtrace" => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             _ => vec![BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS],
         };
         let mut expected: Vec<u32> = texels.iter().chain(&buffers).copied().collect();
@@ -137,6 +175,8 @@ fn kernels_bind_what_the_host_provides() {
         for (b, d) in set {
             let want = if texels.contains(b) {
                 vk::DescriptorType::STORAGE_TEXEL_BUFFER
+            } else if *b == BINDING_PARAMS {
+                vk::DescriptorType::UNIFORM_BUFFER
             } else {
                 vk::DescriptorType::STORAGE_BUFFER
             };

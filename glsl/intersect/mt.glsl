@@ -30,7 +30,7 @@ vec3 load_vertex(uint i) {
     return imageLoad(mt_vertices, int(i)).xyz;
 }
 
-bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
+bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
     bool found = false;
     for (uint s = first; s < first + count; ++s) {
         uvec3 idx = imageLoad(mt_triangles, int(s)).xyz;
@@ -60,9 +60,9 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
             h.u = u;
             h.v = v;
             found = true;
-#ifdef ANY_HIT
-            return true;
-#endif
+            if (any_hit) {
+                return true;
+            }
         }
     }
     return found;

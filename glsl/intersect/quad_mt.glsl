@@ -45,7 +45,7 @@ QuadMt load_prim(uint qi) {
         found = true;                                                                          \
     }
 
-bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
+bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
     bool found = false;
     uint end = first + (count + 3u) / 4u;
     for (uint qi = first; qi < end; ++qi) {
@@ -71,11 +71,9 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
         QUAD_MT_LANE(y, 1u)
         QUAD_MT_LANE(z, 2u)
         QUAD_MT_LANE(w, 3u)
-#ifdef ANY_HIT
-        if (found) {
+        if (any_hit && found) {
             return true;
         }
-#endif
     }
     return found;
 }

@@ -48,7 +48,7 @@ QuadUnit load_prim(uint qi) {
         found = true;                                                                          \
     }
 
-bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
+bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
     bool found = false;
     uint end = first + (count + 3u) / 4u;
     vec3 o = r.origin;
@@ -64,11 +64,9 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
         QUAD_UNIT_LANE(y, 1u)
         QUAD_UNIT_LANE(z, 2u)
         QUAD_UNIT_LANE(w, 3u)
-#ifdef ANY_HIT
-        if (found) {
+        if (any_hit && found) {
             return true;
         }
-#endif
     }
     return found;
 }

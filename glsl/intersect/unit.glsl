@@ -31,7 +31,7 @@ UnitTriangle load_prim(uint slot) {
     return t;
 }
 
-bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
+bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
     bool found = false;
     for (uint s = first; s < first + count; ++s) {
         vec4 r2 = load_unit_row(s, 2u);
@@ -57,9 +57,9 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h) {
             h.u = u;
             h.v = v;
             found = true;
-#ifdef ANY_HIT
-            return true;
-#endif
+            if (any_hit) {
+                return true;
+            }
         }
     }
     return found;

@@ -40,12 +40,15 @@ pub(crate) fn write_set(
     for (binding, r) in resources {
         let Some(&ty) = bindings.get(binding) else { continue };
         match r {
-            Resource::Buffer { buffer, offset, range } if ty == vk::DescriptorType::STORAGE_BUFFER => buffer_infos
-                .push((
+            Resource::Buffer { buffer, offset, range }
+                if ty == vk::DescriptorType::STORAGE_BUFFER || ty == vk::DescriptorType::UNIFORM_BUFFER =>
+            {
+                buffer_infos.push((
                     *binding,
                     ty,
                     vk::DescriptorBufferInfo::default().buffer(buffer.raw).offset(*offset).range(*range),
-                )),
+                ))
+            }
             Resource::Texels(t) if ty == vk::DescriptorType::STORAGE_TEXEL_BUFFER => views.push((*binding, ty, t.view)),
             _ => {
                 return Err(Error::Usage(format!(

@@ -44,6 +44,11 @@ impl Kernel {
 
 impl Context {
     pub fn create_kernel(&self, src: &KernelSource) -> Result<Kernel> {
+        self.create_kernel_specialized(src, &[])
+    }
+
+    /// A pipeline with specialisation constants set: `(constant_id, 32-bit value)` pairs.
+    pub fn create_kernel_specialized(&self, src: &KernelSource, constants: &[(u32, u32)]) -> Result<Kernel> {
         let words = src.words();
         let layout = reflect(src.name, &words)?;
         if layout.sets.keys().any(|&s| s != 0) {
@@ -85,10 +90,20 @@ impl Context {
         let pl_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges);
         objects.pipeline_layout =
             unsafe { d.create_pipeline_layout(&pl_info, None) }.during(&what("vkCreatePipelineLayout"))?;
-        let stage = vk::PipelineShaderStageCreateInfo::default()
+        let entries: Vec<vk::SpecializationMapEntry> = constants
+            .iter()
+            .enumerate()
+            .map(|(i, &(id, _))| vk::SpecializationMapEntry::default().constant_id(id).offset(4 * i as u32).size(4))
+            .collect();
+        let data: Vec<u8> = constants.iter().flat_map(|&(_, v)| v.to_le_bytes()).collect();
+        let spec = vk::SpecializationInfo::default().map_entries(&entries).data(&data);
+        let mut stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module)
             .name(c"main");
+        if !constants.is_empty() {
+            stage = stage.specialization_info(&spec);
+        }
         let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(objects.pipeline_layout)];
         // SAFETY: layouts and module are valid; the create info lives for the call.
         objects.pipeline = unsafe { d.create_compute_pipelines(vk::PipelineCache::null(), &info, None) }

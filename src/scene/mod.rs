@@ -6,7 +6,7 @@
 mod material;
 mod obj;
 
-pub use material::{BsdfKind, GpuMaterial};
+pub use material::{BsdfKind, GpuMaterial, Material};
 pub use obj::load_obj;
 
 use std::path::PathBuf;
@@ -14,19 +14,6 @@ use std::path::PathBuf;
 use glam::{DVec3, Vec3};
 
 use crate::bvh::Aabb;
-
-/// A material as far as ray casting needs it (the path tracer extends this).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Material {
-    pub name: String,
-    pub diffuse: [f32; 3],
-}
-
-impl Default for Material {
-    fn default() -> Self {
-        Material { name: "default".into(), diffuse: [0.8, 0.8, 0.8] }
-    }
-}
 
 /// An indexed triangle mesh.
 #[derive(Clone, Debug, Default)]
@@ -39,6 +26,10 @@ pub struct Mesh {
     /// Material index per triangle.
     pub material_ids: Vec<u32>,
     pub materials: Vec<Material>,
+    /// MTL files read (outputs must never overwrite them).
+    pub mtl_files: Vec<PathBuf>,
+    /// What loading ignored or could not represent ("file: material `m`: `key` problem").
+    pub warnings: Vec<String>,
 }
 
 impl Mesh {
@@ -48,7 +39,15 @@ impl Mesh {
         let n = positions.len() as u32;
         assert!(triangles.iter().flatten().all(|&i| i < n), "vertex index out of range");
         let material_ids = vec![0; triangles.len()];
-        Mesh { source: PathBuf::new(), positions, triangles, material_ids, materials: vec![Material::default()] }
+        Mesh {
+            source: PathBuf::new(),
+            positions,
+            triangles,
+            material_ids,
+            materials: vec![Material::default()],
+            mtl_files: vec![],
+            warnings: vec![],
+        }
     }
 
     pub fn triangle_count(&self) -> usize {

@@ -32,6 +32,8 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
 fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
     let dir = path.parent().map(Path::to_owned).unwrap_or_default();
     let mtl_failure: RefCell<Option<(PathBuf, tobj::LoadError)>> = RefCell::new(None);
+    // Each MTL file read, with how many materials it gave (tobj appends them in this order).
+    let mtl_files: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = BufReader::new(text.as_bytes());
     // tobj indexes with unchecked integer arithmetic on some hostile inputs; contain any panic
@@ -40,8 +42,11 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         tobj::load_obj_buf(&mut reader, &options, |mtl| {
             let full = dir.join(mtl);
             let result = tobj::load_mtl(&full);
-            if let Err(e) = &result {
-                mtl_failure.borrow_mut().get_or_insert((full, *e));
+            match &result {
+                Ok((mats, _)) => mtl_files.borrow_mut().push((full, mats.len())),
+                Err(e) => {
+                    mtl_failure.borrow_mut().get_or_insert((full, *e));
+                }
             }
             result
         })
@@ -52,7 +57,7 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         Err(_) => return Err(locate(path, text, None)),
     };
 
-    let mut materials = match materials {
+    let materials = match materials {
         Ok(m) => m,
         Err(_) => {
             let (mtl, e) = mtl_failure
@@ -68,10 +73,21 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
                 format!("material library named by {} (mtllib): {what}", path.display()),
             ));
         }
-    }
-    .into_iter()
-    .map(|m| Material { name: m.name, diffuse: m.diffuse.unwrap_or(Material::default().diffuse) })
-    .collect::<Vec<_>>();
+    };
+    let mut warnings = Vec::new();
+    let files = mtl_files.into_inner();
+    let file_of = |i: usize| {
+        let mut end = 0;
+        for (f, n) in &files {
+            end += n;
+            if i < end {
+                return f.clone();
+            }
+        }
+        PathBuf::from("<mtllib>")
+    };
+    let mut materials: Vec<Material> =
+        materials.iter().enumerate().map(|(i, m)| Material::from_mtl(m, &file_of(i), &mut warnings)).collect();
     let default_material = materials.len() as u32;
     let mut need_default = false;
 
@@ -100,6 +116,8 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         materials.push(Material::default());
     }
     mesh.materials = materials;
+    mesh.warnings = warnings;
+    mesh.mtl_files = files.into_iter().map(|(f, _)| f).collect();
 
     if mesh.positions.iter().flatten().any(|c| !c.is_finite()) {
         return Err(locate_non_finite(path, text));

@@ -126,7 +126,9 @@ pub fn buffer_layouts(words: &[u32]) -> std::result::Result<BTreeMap<u32, Buffer
             continue;
         };
         match class {
-            Some(Operand::StorageClass(rspirv::spirv::StorageClass::StorageBuffer)) => {
+            Some(Operand::StorageClass(
+                rspirv::spirv::StorageClass::StorageBuffer | rspirv::spirv::StorageClass::Uniform,
+            )) => {
                 if let Some(&b) = binding_of.get(&var) {
                     out.insert(b, layout_of_block(pointee));
                 }

@@ -1,0 +1,282 @@
+#version 460
+// trilab:variants all lambert=BSDF_MASK:0x1u oren_nayar=BSDF_MASK:0x2u phong=BSDF_MASK:0x4u blinn_phong=BSDF_MASK:0x8u ashikhmin_shirley=BSDF_MASK:0x10u glass=BSDF_MASK:0x20u mirror=BSDF_MASK:0x40u
+// Unidirectional path tracer, one pixel per invocation, `pc.sample_count` samples per dispatch
+// accumulated in sample order (so the image does not depend on how samples are batched).
+//
+// Per vertex: closest hit (the variant's intersector and traverse.glsl, as in raycast.comp),
+// emission weighted by MIS, next-event estimation towards one emissive triangle with an
+// occlusion ray, BSDF sampling, Russian roulette. Lights: a constant environment (reached by
+// BSDF sampling only) and emissive triangles (sampled by area x mean emitted radiance).
+// MIS: power heuristic, beta = 2 (Veach & Guibas, SIGGRAPH 1995).
+//
+// Variants: `all` carries every BSDF; the others carry one each (BSDF_MASK). SPEC_BSDF_MASK,
+// a specialisation constant, narrows `all` to a scene's set at pipeline creation, so the driver
+// drops the BSDFs the scene does not use.
+#extension GL_GOOGLE_include_directive : require
+
+#include "types.glsl"
+#include "rng.glsl"
+
+layout(constant_id = 0) const uint SPEC_BSDF_MASK = BSDF_MASK_ALL;
+#ifndef BSDF_MASK
+#define BSDF_MASK BSDF_MASK_ALL
+#endif
+#include "bsdf.glsl"
+
+// Per-render parameters (Rust twin: render::GpuParams).
+layout(std140, set = 0, binding = BINDING_PARAMS) uniform Params {
+    vec4 cam_eye;       // xyz: eye; w: tan(fov_y / 2)
+    vec4 cam_right;     // xyz: unit right; w: width / height
+    vec4 cam_up;        // xyz: unit up
+    vec4 cam_forward;   // xyz: unit forward
+    vec4 env;           // rgb: constant environment radiance; w: total light weight (sum over emissive triangles of area * mean Ke)
+    uint width;
+    uint height;
+    uint max_depth;     // most scattering events per path
+    uint rr_depth;      // Russian roulette from this many scattering events on
+    uint seed;
+    uint light_count;   // emissive triangles
+    float ray_eps;      // spawn offset, relative to max(|p|, scene_extent)
+    float scene_extent; // largest side of the scene's bounds
+} params;
+
+// Sum of radiance (rgb) and of primary-ray coverage (a) per pixel, over all samples so far.
+layout(std430, set = 0, binding = BINDING_ACCUM) buffer Accum { vec4 accum[]; };
+// Counters for the current submit: closest-hit rays, occlusion rays, samples dropped because
+// their radiance was NaN or infinite.
+layout(std430, set = 0, binding = BINDING_STATS) buffer Stats { uint stats[]; };
+
+// Per triangle slot: geometric normal (unit, from the vertex order) and material, one texel.
+layout(set = 0, binding = BINDING_SHADING, rgba32f) uniform readonly restrict imageBuffer scene_shading;
+// Emissive triangles, three texels each: (v0, cdf), (e1 = v1 - v0, material), (e2 = v2 - v0, area).
+layout(set = 0, binding = BINDING_LIGHTS, rgba32f) uniform readonly restrict imageBuffer scene_lights;
+
+layout(push_constant) uniform Push {
+    uint sample_first;  // first sample index of this dispatch
+    uint sample_count;  // samples per pixel in this dispatch
+    uint pixel_first;   // first pixel (y * width + x) of this dispatch
+    uint pixel_count;   // pixels in this dispatch
+} pc;
+
+#include "intersector.glsl"
+#include "traverse.glsl"
+
+layout(local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
+
+// Draws per scattering event (dimension = DIMS_PER_VERTEX * depth + one of the offsets below).
+const uint DIMS_PER_VERTEX = 10u;
+const uint DIM_PIXEL_X = 0u;
+const uint DIM_PIXEL_Y = 1u;
+const uint DIM_LIGHT_PICK = 2u;
+const uint DIM_LIGHT_U = 3u;
+const uint DIM_LIGHT_V = 4u;
+const uint DIM_BSDF = 5u; // three draws
+const uint DIM_RR = 8u;
+
+float mean3(vec3 c) {
+    return (c.x + c.y + c.z) * (1.0 / 3.0);
+}
+
+float max3(vec3 c) {
+    return max(c.x, max(c.y, c.z));
+}
+
+float power_heuristic(float f, float g) {
+    float f2 = f * f;
+    float g2 = g * g;
+    return f2 + g2 > 0.0 ? f2 / (f2 + g2) : 0.0;
+}
+
+// Origin for a ray leaving `p` on the side of `n` that `dir` goes to.
+vec3 spawn(vec3 p, vec3 n, vec3 dir) {
+    vec3 a = abs(p);
+    float eps = params.ray_eps * max(max(a.x, max(a.y, a.z)), params.scene_extent);
+    return p + (dot(n, dir) >= 0.0 ? eps : -eps) * n;
+}
+
+HitState trace_closest(vec3 o, vec3 d) {
+    Ray ray;
+    ray.origin = o;
+    ray.tmin = 0.0;
+    ray.dir = d;
+    ray.tmax = uintBitsToFloat(0x7f800000u);
+    HitState h;
+    h.t = ray.tmax;
+    h.slot = MISS_ID;
+    h.u = 0.0;
+    h.v = 0.0;
+    trace(make_trace_ray(ray), h, false);
+    return h;
+}
+
+bool occluded(vec3 o, vec3 d, float tmax) {
+    Ray ray;
+    ray.origin = o;
+    ray.tmin = 0.0;
+    ray.dir = d;
+    ray.tmax = tmax;
+    HitState h;
+    h.t = tmax;
+    h.slot = MISS_ID;
+    h.u = 0.0;
+    h.v = 0.0;
+    trace(make_trace_ray(ray), h, true);
+    return h.slot != MISS_ID;
+}
+
+// Light selection: the first light whose cdf exceeds u (binary search).
+uint pick_light(float u) {
+    uint lo = 0u;
+    uint hi = params.light_count - 1u;
+    while (lo < hi) {
+        uint mid = (lo + hi) / 2u;
+        if (imageLoad(scene_lights, int(3u * mid)).w > u) {
+            hi = mid;
+        } else {
+            lo = mid + 1u;
+        }
+    }
+    return lo;
+}
+
+// Area density of next-event estimation choosing a point on a triangle emitting `ke`:
+// (area * mean(ke) / total) / area.
+float light_area_pdf(vec3 ke) {
+    return mean3(ke) / params.env.w;
+}
+
+void main() {
+    uint gid = gl_GlobalInvocationID.x;
+    if (gid >= pc.pixel_count) {
+        return;
+    }
+    uint pixel = pc.pixel_first + gid;
+    uint px = pixel % params.width;
+    uint py = pixel / params.width;
+    vec4 acc = accum[pixel];
+    uint closest_rays = 0u;
+    uint shadow_rays = 0u;
+    uint dropped = 0u;
+    bool lights = params.light_count > 0u;
+
+    for (uint si = 0u; si < pc.sample_count; ++si) {
+        uint key = path_key(params.seed, pixel, pc.sample_first + si);
+        // Camera ray through a uniformly jittered point of the pixel (y down in the image).
+        float sx = (float(px) + rand01(key, DIM_PIXEL_X)) / float(params.width);
+        float sy = (float(py) + rand01(key, DIM_PIXEL_Y)) / float(params.height);
+        vec2 ndc = vec2(2.0 * sx - 1.0, 1.0 - 2.0 * sy);
+        float th = params.cam_eye.w;
+        vec3 dir = normalize(params.cam_forward.xyz + ndc.x * th * params.cam_right.w * params.cam_right.xyz +
+                             ndc.y * th * params.cam_up.xyz);
+        vec3 origin = params.cam_eye.xyz;
+
+        vec3 radiance = vec3(0.0);
+        vec3 beta = vec3(1.0);
+        float prev_pdf = 0.0;
+        bool prev_delta = true; // the camera vertex: emission seen directly gets full weight
+        float coverage = 0.0;
+        for (uint depth = 0u;; ++depth) {
+            HitState h = trace_closest(origin, dir);
+            ++closest_rays;
+            if (h.slot == MISS_ID) {
+                radiance += beta * params.env.rgb;
+                break;
+            }
+            if (depth == 0u) {
+                coverage = 1.0;
+            }
+            vec4 sh = imageLoad(scene_shading, int(h.slot));
+            vec3 n = sh.xyz;
+            Material m = load_material(floatBitsToUint(sh.w));
+            vec3 p = origin + h.t * dir;
+
+            // Emission (one-sided: the front face is the one the vertex order winds
+            // counter-clockwise around), weighted against next-event estimation.
+            float cos_l = -dot(n, dir);
+            if (cos_l > 0.0 && max3(m.emission) > 0.0) {
+                float w = 1.0;
+                if (lights && !prev_delta) {
+                    float light_pdf = light_area_pdf(m.emission) * h.t * h.t / cos_l;
+                    w = power_heuristic(prev_pdf, light_pdf);
+                }
+                radiance += beta * m.emission * w;
+            }
+            if (depth >= params.max_depth) {
+                break;
+            }
+
+            vec3 tx, ty;
+            basis_from(n, tx, ty);
+            vec3 wo = vec3(dot(-dir, tx), dot(-dir, ty), dot(-dir, n));
+            uint dim = DIMS_PER_VERTEX * depth;
+
+            // Next-event estimation: one point on one emissive triangle.
+            if (lights && !bsdf_is_delta(m.kind)) {
+                uint li = pick_light(rand01(key, dim + DIM_LIGHT_PICK));
+                vec4 l0 = imageLoad(scene_lights, int(3u * li));
+                vec4 l1 = imageLoad(scene_lights, int(3u * li + 1u));
+                vec4 l2 = imageLoad(scene_lights, int(3u * li + 2u));
+                float a = rand01(key, dim + DIM_LIGHT_U);
+                float b = rand01(key, dim + DIM_LIGHT_V);
+                if (a + b > 1.0) {
+                    a = 1.0 - a;
+                    b = 1.0 - b;
+                }
+                vec3 lp = l0.xyz + a * l1.xyz + b * l2.xyz;
+                vec3 ln = normalize(cross(l1.xyz, l2.xyz));
+                vec3 o = spawn(p, n, lp - p);
+                vec3 to_light = lp - o;
+                float dist2 = dot(to_light, to_light);
+                float dist = sqrt(dist2);
+                vec3 wl = to_light / dist;
+                float cos_light = -dot(ln, wl);
+                vec3 wi = vec3(dot(wl, tx), dot(wl, ty), dot(wl, n));
+                Material lm = load_material(floatBitsToUint(l1.w));
+                vec3 f = bsdf_eval(m, wo, wi);
+                if (cos_light > 0.0 && max3(f) > 0.0 && max3(lm.emission) > 0.0) {
+                    float light_pdf = light_area_pdf(lm.emission) * dist2 / cos_light;
+                    float bsdf_pdf_v = bsdf_pdf(m, wo, wi);
+                    ++shadow_rays;
+                    if (!occluded(o, wl, dist * (1.0 - 1.0e-4))) {
+                        float w = power_heuristic(light_pdf, bsdf_pdf_v);
+                        radiance += beta * f * abs(wi.z) * lm.emission * (w / light_pdf);
+                    }
+                }
+            }
+
+            // Continue the path by sampling the BSDF.
+            BsdfSample s;
+            vec3 u = vec3(rand01(key, dim + DIM_BSDF), rand01(key, dim + DIM_BSDF + 1u),
+                          rand01(key, dim + DIM_BSDF + 2u));
+            if (!bsdf_sample(m, wo, u, s)) {
+                break;
+            }
+            beta *= s.weight;
+            prev_pdf = s.pdf;
+            prev_delta = s.delta;
+            dir = normalize(s.wi.x * tx + s.wi.y * ty + s.wi.z * n);
+            origin = spawn(p, n, dir);
+
+            // Russian roulette on the throughput (pbrt-v3 style, survival at most 0.95).
+            if (depth + 1u >= params.rr_depth) {
+                float q = min(max3(beta), 0.95);
+                if (!(rand01(key, dim + DIM_RR) < q)) {
+                    break;
+                }
+                beta /= q;
+            }
+        }
+        if (any(isnan(radiance)) || any(isinf(radiance))) {
+            ++dropped;
+        } else {
+            acc.rgb += radiance;
+        }
+        acc.a += coverage;
+    }
+    accum[pixel] = acc;
+    atomicAdd(stats[0], closest_rays);
+    atomicAdd(stats[1], shadow_rays);
+    if (dropped > 0u) {
+        atomicAdd(stats[2], dropped);
+    }
+}

@@ -1,0 +1,608 @@
+//! Path tracing (`glsl/pathtrace.comp`): what a render needs besides the encoded scene, the
+//! kernel chosen for the scene's materials, and the batched render loop.
+//!
+//! - [`RenderScene`]: per-slot shading records (geometric normal and material), the materials,
+//!   and the emissive triangles with their sampling distribution; only what the scene uses.
+//! - [`KernelChoice`]: the BSDF set the kernel carries. `Specialised` (the default) picks the
+//!   single-BSDF variant when a scene uses one BSDF, and otherwise the all-BSDF variant narrowed
+//!   by a specialisation constant; `General` is the all-BSDF kernel as compiled.
+//! - [`render`]: one dispatch per submit, each a pass of `k` samples over a range of pixels,
+//!   sized to a wall-clock target so no submit comes near a GPU watchdog; samples accumulate
+//!   in sample order, so the image does not depend on the batching.
+
+pub mod output;
+pub mod rng;
+
+use std::time::Instant;
+
+use ash::vk;
+use glam::{DVec3, Vec3};
+
+use crate::encoding::{EncodedScene, Method, Texel};
+use crate::error::{Error, Result, VkContext};
+use crate::gpu::descriptors::{write_set, DescriptorPool, Resource};
+use crate::gpu::shared::{
+    BINDING_ACCUM, BINDING_LIGHTS, BINDING_MATERIALS, BINDING_PARAMS, BINDING_SHADING, BINDING_STATS, BSDF_MASK_ALL,
+    MISS_ID,
+};
+use crate::gpu::{Context, GpuScene};
+use crate::kernels::{self, KernelSource};
+use crate::rays::Camera;
+use crate::scene::{BsdfKind, GpuMaterial, Mesh};
+
+/// Everything a render is asked for.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Most scattering events per path.
+    pub max_depth: u32,
+    /// Russian roulette from this many scattering events on.
+    pub rr_depth: u32,
+    pub seed: u32,
+    #[serde(skip)]
+    pub camera: Camera,
+    /// Constant environment radiance (linear RGB).
+    pub env: [f32; 3],
+    /// Ray spawn offset, relative to max(|p|, scene extent).
+    pub ray_eps: f32,
+    /// Wall-clock target per submit, milliseconds.
+    pub submit_ms: f64,
+}
+
+impl RenderSettings {
+    /// The paper's setting (800x600, 500 spp, depth 16) with the default camera for `mesh`.
+    pub fn paper(mesh: &Mesh) -> RenderSettings {
+        RenderSettings {
+            width: 800,
+            height: 600,
+            spp: 500,
+            max_depth: 16,
+            rr_depth: 3,
+            seed: 1,
+            camera: Camera::framing(&mesh.bounds()),
+            env: [1.0; 3],
+            ray_eps: 1e-5,
+            submit_ms: 250.0,
+        }
+    }
+
+    pub fn pixels(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
+    fn check(&self) -> Result<()> {
+        let bad = |m: String| Err(Error::Usage(m));
+        if self.width == 0 || self.height == 0 || self.pixels() > u32::MAX as u64 / 2 {
+            return bad(format!("image size {}x{} is empty or too large", self.width, self.height));
+        }
+        if self.spp == 0 {
+            return bad("--spp must be at least 1".into());
+        }
+        if !self.env.iter().all(|c| c.is_finite() && *c >= 0.0) {
+            return bad(format!("environment radiance {:?} must be finite and non-negative", self.env));
+        }
+        let c = &self.camera;
+        let finite = [c.eye, c.forward, c.right, c.up].iter().all(|v| v.is_finite());
+        if !(finite && c.fov_y > 0.0 && c.fov_y < std::f32::consts::PI) {
+            return bad("camera: eye, target and up must be finite, target != eye, up not along the view direction, 0 < fov < 180 degrees".into());
+        }
+        if !((0.0..1.0).contains(&self.ray_eps) && self.submit_ms.is_finite() && self.submit_ms > 0.0) {
+            return bad("ray offset must be in [0, 1) and the submit target positive".into());
+        }
+        Ok(())
+    }
+}
+
+/// The kernel's BSDF set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum KernelChoice {
+    /// Only the BSDFs the scene's materials use.
+    Specialised,
+    /// Every BSDF, whatever the scene uses.
+    General,
+}
+
+/// A path-trace kernel: its SPIR-V variant and the BSDF mask given as specialisation constant.
+#[derive(Clone, Copy, Debug)]
+pub struct PathtraceKernel {
+    pub source: &'static KernelSource,
+    pub spec_mask: u32,
+}
+
+impl PathtraceKernel {
+    /// The kernel for `method` and a scene whose materials use the BSDFs in `mask`.
+    pub fn choose(method: Method, mask: u32, choice: KernelChoice) -> PathtraceKernel {
+        let single = BsdfKind::ALL.into_iter().find(|k| k.bit() == mask);
+        match (choice, single) {
+            (KernelChoice::Specialised, Some(kind)) => PathtraceKernel {
+                source: kernels::find("pathtrace", method, &kind.name().replace('-', "_")),
+                spec_mask: mask,
+            },
+            (KernelChoice::Specialised, None) => {
+                PathtraceKernel { source: kernels::find("pathtrace", method, "all"), spec_mask: mask.max(1) }
+            }
+            (KernelChoice::General, _) => {
+                PathtraceKernel { source: kernels::find("pathtrace", method, "all"), spec_mask: BSDF_MASK_ALL }
+            }
+        }
+    }
+
+    /// BSDFs carried, by name.
+    pub fn bsdfs(&self) -> Vec<&'static str> {
+        BsdfKind::ALL.iter().filter(|k| self.spec_mask & k.bit() != 0).map(|k| k.name()).collect()
+    }
+}
+
+/// What the path tracer reads besides the encoded scene.
+#[derive(Clone, Debug)]
+pub struct RenderScene {
+    /// Per triangle slot of the encoding: unit geometric normal and material index (as bits).
+    pub shading: Vec<[f32; 4]>,
+    pub materials: Vec<GpuMaterial>,
+    /// Emissive triangles, three texels each (see `glsl/pathtrace.comp`).
+    pub lights: Vec<[f32; 4]>,
+    pub light_count: u32,
+    /// Sum over emissive triangles of area x mean emitted radiance.
+    pub light_weight: f32,
+    /// BSDFs used by at least one (non-degenerate) triangle, one bit per `BsdfKind::code()`.
+    pub bsdf_mask: u32,
+    /// Largest side of the scene's bounds.
+    pub extent: f32,
+}
+
+impl RenderScene {
+    pub fn new(mesh: &Mesh, encoded: &EncodedScene) -> RenderScene {
+        let normal = |id: usize| -> Option<Vec3> {
+            let [a, b, c] = mesh.vertices_f64(id);
+            let n: DVec3 = (b - a).cross(c - a);
+            (n != DVec3::ZERO).then(|| n.normalize().as_vec3())
+        };
+        let shading = encoded
+            .slot_ids
+            .iter()
+            .map(|&id| {
+                if id == MISS_ID {
+                    return [0.0; 4];
+                }
+                let n = normal(id as usize).unwrap_or(Vec3::ZERO);
+                [n.x, n.y, n.z, f32::from_bits(mesh.material_ids[id as usize])]
+            })
+            .collect();
+        let mut bsdf_mask = 0;
+        let mut lights = Vec::new();
+        let mut weights = Vec::new();
+        for id in 0..mesh.triangle_count() {
+            if mesh.is_degenerate(id) {
+                continue;
+            }
+            let mi = mesh.material_ids[id] as usize;
+            let m = &mesh.materials[mi];
+            bsdf_mask |= m.kind.bit();
+            if !m.is_emissive() {
+                continue;
+            }
+            let [a, b, c] = mesh.vertices_f64(id);
+            let area = 0.5 * (b - a).cross(c - a).length();
+            let mean = m.gpu.emission.iter().map(|&e| e as f64).sum::<f64>() / 3.0;
+            let (e1, e2) = ((b - a).as_vec3(), (c - a).as_vec3());
+            let a = a.as_vec3();
+            lights.extend([
+                [a.x, a.y, a.z, 0.0],
+                [e1.x, e1.y, e1.z, f32::from_bits(mi as u32)],
+                [e2.x, e2.y, e2.z, area as f32],
+            ]);
+            weights.push(area * mean);
+        }
+        let total: f64 = weights.iter().sum();
+        let mut acc = 0.0;
+        for (i, w) in weights.iter().enumerate() {
+            acc += w;
+            // The last cdf is exactly 1 so the search always finds a light.
+            lights[3 * i][3] = if i + 1 == weights.len() { 1.0 } else { (acc / total) as f32 };
+        }
+        let light_count = weights.len() as u32;
+        if lights.is_empty() {
+            lights.push([0.0; 4]); // a binding cannot be empty; never read (light_count = 0)
+        }
+        RenderScene {
+            shading,
+            materials: mesh.materials.iter().map(|m| m.gpu).collect(),
+            lights,
+            light_count,
+            light_weight: total as f32,
+            bsdf_mask,
+            extent: mesh.bounds().extent().max_element(),
+        }
+    }
+
+    /// GPU bytes beyond the encoded scene.
+    pub fn gpu_bytes(&self) -> usize {
+        16 * (self.shading.len() + self.lights.len()) + 64 * self.materials.len()
+    }
+}
+
+/// `uniform Params` in `glsl/pathtrace.comp` (std140; every member is 16-byte or 4-byte
+/// aligned as laid out here).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuParams {
+    pub cam_eye: [f32; 4],
+    pub cam_right: [f32; 4],
+    pub cam_up: [f32; 4],
+    pub cam_forward: [f32; 4],
+    pub env: [f32; 4],
+    pub width: u32,
+    pub height: u32,
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    pub seed: u32,
+    pub light_count: u32,
+    pub ray_eps: f32,
+    pub scene_extent: f32,
+}
+
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 112);
+
+impl GpuParams {
+    pub fn new(s: &RenderSettings, scene: &RenderScene) -> GpuParams {
+        let c = &s.camera;
+        let v4 = |v: Vec3, w: f32| [v.x, v.y, v.z, w];
+        GpuParams {
+            cam_eye: v4(c.eye, (c.fov_y / 2.0).tan()),
+            cam_right: v4(c.right, s.width as f32 / s.height as f32),
+            cam_up: v4(c.up, 0.0),
+            cam_forward: v4(c.forward, 0.0),
+            env: [s.env[0], s.env[1], s.env[2], scene.light_weight],
+            width: s.width,
+            height: s.height,
+            max_depth: s.max_depth,
+            rr_depth: s.rr_depth,
+            seed: s.seed,
+            light_count: scene.light_count,
+            ray_eps: s.ray_eps,
+            scene_extent: scene.extent,
+        }
+    }
+}
+
+/// Random-number dimensions of one path vertex (`DIMS_PER_VERTEX` and `DIM_*` in
+/// `glsl/pathtrace.comp`): draw `DIMS_PER_VERTEX * depth + DIM_*`.
+pub const DIMS_PER_VERTEX: u32 = 10;
+pub const DIM_PIXEL_X: u32 = 0;
+pub const DIM_PIXEL_Y: u32 = 1;
+
+/// The camera ray of sample `sample` of pixel (`px`, `py`), computed as `pathtrace.comp` does
+/// (same draws, same f32 operations in the same order; the GPU's `normalize` may differ in
+/// the last bits).
+pub fn camera_ray(s: &RenderSettings, px: u32, py: u32, sample: u32) -> crate::rays::Ray {
+    let key = rng::path_key(s.seed, py * s.width + px, sample);
+    let sx = (px as f32 + rng::rand01(key, DIM_PIXEL_X)) / s.width as f32;
+    let sy = (py as f32 + rng::rand01(key, DIM_PIXEL_Y)) / s.height as f32;
+    let (nx, ny) = (2.0 * sx - 1.0, 1.0 - 2.0 * sy);
+    let c = &s.camera;
+    let th = (c.fov_y / 2.0).tan();
+    let aspect = s.width as f32 / s.height as f32;
+    let d = (c.forward + c.right * (nx * th * aspect) + c.up * (ny * th)).normalize();
+    crate::rays::Ray::new(c.eye.to_array(), d.to_array())
+}
+
+/// `Push` in `glsl/pathtrace.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PathtracePush {
+    pub sample_first: u32,
+    pub sample_count: u32,
+    pub pixel_first: u32,
+    pub pixel_count: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<PathtracePush>() == 16);
+
+/// Where a render stands, after each completed pass over the image.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    pub spp_done: u32,
+    pub spp_total: u32,
+    pub seconds: f64,
+}
+
+/// A finished (or interrupted) render.
+#[derive(Clone, Debug)]
+pub struct RenderResult {
+    pub width: u32,
+    pub height: u32,
+    /// Sum over samples of radiance (rgb) and primary coverage (a), per pixel, row by row.
+    pub accum: Vec<[f32; 4]>,
+    /// Samples per pixel completed (every pixel has the same count).
+    pub spp: u32,
+    /// Stopped early by the progress callback (Ctrl-C).
+    pub interrupted: bool,
+    /// Closest-hit rays (camera and bounce rays) and occlusion rays traced.
+    pub closest_rays: u64,
+    pub shadow_rays: u64,
+    /// Samples dropped because their radiance was NaN or infinite.
+    pub dropped_samples: u64,
+    /// Sum of the dispatches' GPU times (timestamps), ms; `None` without timestamps.
+    pub gpu_ms: Option<f64>,
+    /// Wall time of the render loop (submits and waits), ms.
+    pub wall_ms: f64,
+    pub submits: usize,
+    pub kernel: &'static str,
+    pub spec_mask: u32,
+}
+
+impl RenderResult {
+    /// Mean radiance (rgb) and coverage (a) per pixel.
+    pub fn image(&self) -> Vec<[f32; 4]> {
+        let inv = 1.0 / self.spp.max(1) as f32;
+        self.accum.iter().map(|p| p.map(|c| c * inv)).collect()
+    }
+
+    /// Time the rates are computed over: GPU time when measured, else wall time.
+    pub fn seconds(&self) -> f64 {
+        self.gpu_ms.unwrap_or(self.wall_ms) * 1e-3
+    }
+
+    pub fn samples(&self) -> u64 {
+        self.width as u64 * self.height as u64 * self.spp as u64
+    }
+
+    pub fn samples_per_second(&self) -> f64 {
+        self.samples() as f64 / self.seconds()
+    }
+
+    /// Rays per second, counting every traversal: camera, bounce and occlusion rays.
+    pub fn mrays_per_second(&self) -> f64 {
+        (self.closest_rays + self.shadow_rays) as f64 / self.seconds() * 1e-6
+    }
+}
+
+/// Renders `scene` (already uploaded as `gpu`) with `kernel`. `progress` is called after each
+/// pass over the image; returning `false` stops the render there, keeping what it has.
+pub fn render(
+    ctx: &Context,
+    gpu: &GpuScene,
+    scene: &RenderScene,
+    kernel: PathtraceKernel,
+    s: &RenderSettings,
+    progress: &mut dyn FnMut(Progress) -> bool,
+) -> Result<RenderResult> {
+    s.check()?;
+    let k = ctx.create_kernel_specialized(kernel.source, &[(0, kernel.spec_mask)])?;
+    let pixels = s.pixels() as usize;
+    let materials = ctx.upload_texels("materials", bytemuck::cast_slice(&scene.materials), Texel::Rgba32Float)?;
+    let shading = ctx.upload_texels("shading", bytemuck::cast_slice(&scene.shading), Texel::Rgba32Float)?;
+    let lights = ctx.upload_texels("lights", bytemuck::cast_slice(&scene.lights), Texel::Rgba32Float)?;
+    let params = GpuParams::new(s, scene);
+    let params_buf = ctx.upload("render params", bytemuck::bytes_of(&params), vk::BufferUsageFlags::UNIFORM_BUFFER)?;
+    let zeros = vec![0u8; pixels * 16];
+    let accum = ctx.upload(
+        "accumulation image",
+        &zeros,
+        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
+    )?;
+    drop(zeros);
+    const STATS: u64 = 4;
+    let stats = ctx.create_buffer(
+        "render counters",
+        4 * STATS,
+        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST,
+        gpu_allocator::MemoryLocation::GpuOnly,
+    )?;
+    let readback = ctx.create_buffer(
+        "render counters (readback)",
+        4 * STATS,
+        vk::BufferUsageFlags::TRANSFER_DST,
+        gpu_allocator::MemoryLocation::GpuToCpu,
+    )?;
+
+    let (_pool, sets) = DescriptorPool::new(ctx, &k, 1)?;
+    let mut resources: Vec<(u32, Resource)> = gpu.resources().collect();
+    resources.extend([
+        (BINDING_MATERIALS, Resource::Texels(&materials)),
+        (BINDING_SHADING, Resource::Texels(&shading)),
+        (BINDING_LIGHTS, Resource::Texels(&lights)),
+        (BINDING_PARAMS, Resource::whole(&params_buf)),
+        (BINDING_ACCUM, Resource::whole(&accum)),
+        (BINDING_STATS, Resource::whole(&stats)),
+    ]);
+    write_set(ctx, &k, sets[0], &resources)?;
+    let set = sets[0];
+
+    let info = ctx.info();
+    let timestamps = info.timestamp_valid_bits > 0;
+    let qinfo = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
+    let dev = &ctx.device.raw;
+    // SAFETY: valid device and create info; destroyed by `Queries` after the last wait.
+    let queries = unsafe { dev.create_query_pool(&qinfo, None) }.during("creating the timestamp query pool")?;
+    let queries = Queries { ctx, pool: queries };
+    let local = k.layout.local_size.0;
+    let max_groups = info.max_compute_workgroup_count[0] as u64;
+
+    let mut result = RenderResult {
+        width: s.width,
+        height: s.height,
+        accum: vec![],
+        spp: 0,
+        interrupted: false,
+        closest_rays: 0,
+        shadow_rays: 0,
+        dropped_samples: 0,
+        gpu_ms: timestamps.then_some(0.0),
+        wall_ms: 0.0,
+        submits: 0,
+        kernel: kernel.source.name,
+        spec_mask: kernel.spec_mask,
+    };
+    let start = Instant::now();
+    // Seconds per pixel-sample, measured; the first pass runs 1 spp in chunks of at most
+    // 65,536 pixels to measure it safely.
+    let mut cost: Option<f64> = None;
+    let target = s.submit_ms * 1e-3;
+    while result.spp < s.spp {
+        let remaining = s.spp - result.spp;
+        let (samples, chunk) = match cost {
+            None => (1, 65_536u64),
+            Some(c) => {
+                let per_pass = c * pixels as f64;
+                let samples = ((target / per_pass).floor() as u64).clamp(1, remaining as u64) as u32;
+                let chunk = if per_pass > target { ((target / c) as u64).max(local as u64) } else { pixels as u64 };
+                (samples, chunk)
+            }
+        };
+        let chunk = chunk.min(max_groups * local as u64).max(1);
+        let mut first = 0u64;
+        while first < pixels as u64 {
+            let count = chunk.min(pixels as u64 - first);
+            let push = PathtracePush {
+                sample_first: result.spp,
+                sample_count: samples,
+                pixel_first: first as u32,
+                pixel_count: count as u32,
+            };
+            let what = format!(
+                "{} dispatch {} (samples {}..{}, pixels {}..{})",
+                k.name,
+                result.submits + 1,
+                push.sample_first,
+                push.sample_first + samples,
+                first,
+                first + count
+            );
+            let t0 = Instant::now();
+            let cmd = ctx.allocate_command_buffers(1)?[0];
+            let cmds = CommandBuffers { ctx, cmds: vec![cmd] };
+            // SAFETY: recording into a fresh command buffer; every object it references lives
+            // until the wait below returns.
+            unsafe {
+                dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default()).during(&what)?;
+                dev.cmd_reset_query_pool(cmd, queries.pool, 0, 2);
+                dev.cmd_fill_buffer(cmd, stats.raw, 0, vk::WHOLE_SIZE, 0);
+                // The fill, and the previous dispatch's accumulation, before this dispatch.
+                let before = vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
+                dev.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::DependencyFlags::empty(),
+                    &[before],
+                    &[],
+                    &[],
+                );
+                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, queries.pool, 0);
+                dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, k.pipeline);
+                dev.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, k.pipeline_layout, 0, &[set], &[]);
+                dev.cmd_push_constants(
+                    cmd,
+                    k.pipeline_layout,
+                    vk::ShaderStageFlags::COMPUTE,
+                    0,
+                    bytemuck::bytes_of(&push),
+                );
+                dev.cmd_dispatch(cmd, (count as u32).div_ceil(local), 1, 1);
+                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, queries.pool, 1);
+                let after = vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
+                dev.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::DependencyFlags::empty(),
+                    &[after],
+                    &[],
+                    &[],
+                );
+                dev.cmd_copy_buffer(cmd, stats.raw, readback.raw, &[vk::BufferCopy::default().size(4 * STATS)]);
+                let host = vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::HOST_READ);
+                dev.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::PipelineStageFlags::HOST,
+                    vk::DependencyFlags::empty(),
+                    &[host],
+                    &[],
+                    &[],
+                );
+                dev.end_command_buffer(cmd).during(&what)?;
+            }
+            ctx.submit_and_wait(cmd, &what)?;
+            drop(cmds);
+            let seconds = t0.elapsed().as_secs_f64();
+            if timestamps {
+                let mut ts = [0u64; 2];
+                // SAFETY: both queries were written by the completed submit.
+                unsafe {
+                    dev.get_query_pool_results(
+                        queries.pool,
+                        0,
+                        &mut ts,
+                        vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                    )
+                }
+                .during("reading timestamps")?;
+                let mask =
+                    if info.timestamp_valid_bits >= 64 { u64::MAX } else { (1u64 << info.timestamp_valid_bits) - 1 };
+                let ms = (ts[1].wrapping_sub(ts[0]) & mask) as f64 * info.timestamp_period_ns as f64 * 1e-6;
+                *result.gpu_ms.as_mut().unwrap() += ms;
+            }
+            let counters: [u32; STATS as usize] = bytemuck::pod_read_unaligned(
+                readback.mapped().ok_or_else(|| Error::NoDevice("readback buffer is not host-visible".into()))?,
+            );
+            result.closest_rays += counters[0] as u64;
+            result.shadow_rays += counters[1] as u64;
+            result.dropped_samples += counters[2] as u64;
+            result.submits += 1;
+            let c = seconds / (count as f64 * samples as f64);
+            cost = Some(match cost {
+                None => c,
+                Some(old) => 0.5 * (old + c),
+            });
+            first += count;
+        }
+        result.spp += samples;
+        let keep_going =
+            progress(Progress { spp_done: result.spp, spp_total: s.spp, seconds: start.elapsed().as_secs_f64() });
+        if !keep_going && result.spp < s.spp {
+            result.interrupted = true;
+            break;
+        }
+    }
+    result.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    let bytes = ctx.download(&accum, pixels as u64 * 16)?;
+    result.accum = bytes.chunks_exact(16).map(bytemuck::pod_read_unaligned).collect();
+    Ok(result)
+}
+
+/// A query pool destroyed on drop (after every submit using it was waited for).
+struct Queries<'a> {
+    ctx: &'a Context,
+    pool: vk::QueryPool,
+}
+
+impl Drop for Queries<'_> {
+    fn drop(&mut self) {
+        // SAFETY: every submit using the pool was waited for.
+        unsafe { self.ctx.device.raw.destroy_query_pool(self.pool, None) };
+    }
+}
+
+/// Command buffers freed on drop (after their submit was waited for, or if recording failed).
+struct CommandBuffers<'a> {
+    ctx: &'a Context,
+    cmds: Vec<vk::CommandBuffer>,
+}
+
+impl Drop for CommandBuffers<'_> {
+    fn drop(&mut self) {
+        self.ctx.free_command_buffers(&self.cmds);
+    }
+}
