@@ -163,3 +163,91 @@ fn devices_lists_at_least_one_device_with_its_driver() {
     assert!(text.contains("driver:") && text.contains("maxStorageBufferRange"), "{text}");
     assert!(text.contains("(default choice)"), "{text}");
 }
+
+#[test]
+fn render_writes_exr_png_and_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bunny.exr");
+    let scene = common::root().join("scenes/bunny.obj");
+    let o = trilab(
+        &["render", "--scene", &s(&scene), "--width", "24", "--height", "18", "--spp", "2", "--quiet", "--validation"]
+            .iter()
+            .copied()
+            .chain(["--method", "quad-unit", "--out", &s(&out)])
+            .collect::<Vec<_>>(),
+        120,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let exr = std::fs::read(&out).unwrap();
+    assert_eq!(&exr[..4], &[0x76, 0x2f, 0x31, 0x01], "OpenEXR magic");
+    let png = image::open(dir.path().join("bunny.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (24, 18));
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("bunny.json")).unwrap()).unwrap();
+    assert_eq!(j["kernel"], "pathtrace.quad_unit.lambert");
+    assert_eq!(j["spp_done"], 2);
+    assert_eq!(j["interrupted"], false);
+    assert_eq!(j["dropped_samples_nan_or_inf"], 0);
+    assert_eq!(j["scene_sha256"].as_str().unwrap().len(), 64);
+    for key in ["device", "driver", "gpu_ms", "samples_per_second", "mrays_per_second", "ray_definition", "settings"] {
+        assert!(!j[key].is_null(), "JSON sidecar lacks {key}: {j}");
+    }
+    assert!(j["closest_rays"].as_u64().unwrap() >= 24 * 18 * 2, "every sample traces a camera ray");
+}
+
+#[test]
+fn render_refuses_bad_requests() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = common::root().join("scenes/bunny.obj");
+    let base = ["render", "--scene", &s(&scene), "--width", "8", "--height", "8", "--spp", "1", "--quiet"];
+    let run = |extra: &[&str]| trilab(&base.iter().copied().chain(extra.iter().copied()).collect::<Vec<_>>(), 60);
+    expect_error(&run(&["--out", &s(&dir.path().join("x.png"))]), &["x.png", "must be an .exr"]);
+    expect_error(&run(&["--out", &s(&dir.path().join("x.exr")), "--camera", "0,0,1,0,0,0,0,1"]), &["--camera", "10"]);
+    expect_error(&run(&["--out", &s(&dir.path().join("x.exr")), "--camera", "0,0,1,0,0,1,0,1,0,45"]), &["camera"]);
+    expect_error(&run(&["--out", &s(&dir.path().join("x.exr")), "--spp", "0"]), &["--spp"]);
+    // A scene whose name is the JSON sidecar's: refused before anything is written.
+    let sneaky = dir.path().join("r.json");
+    std::fs::copy(common::root().join("scenes/bunny.obj"), &sneaky).unwrap();
+    std::fs::copy(common::root().join("scenes/bunny.mtl"), dir.path().join("bunny.mtl")).unwrap();
+    let before = std::fs::read(&sneaky).unwrap();
+    let o = trilab(
+        &["render", "--scene", &s(&sneaky), "--spp", "1", "--quiet", "--out", &s(&dir.path().join("r.exr"))],
+        60,
+    );
+    expect_error(&o, &["r.json", "refusing to overwrite an input"]);
+    assert_eq!(std::fs::read(&sneaky).unwrap(), before);
+    assert!(!dir.path().join("r.exr").exists());
+}
+
+/// Ctrl-C (SIGINT) during a long render: the pass in flight finishes, and what accumulated is
+/// written (EXR, PNG, JSON saying how many samples it holds).
+#[test]
+fn ctrl_c_writes_what_has_accumulated() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("long.exr");
+    let scene = common::root().join("scenes/bunny.obj");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
+        .args(["render", "--scene", &s(&scene), "--width", "64", "--height", "48", "--spp", "100000", "--quiet"])
+        .args(["--submit-ms", "50", "--out", &s(&out)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(3));
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(kill.success());
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("render did not stop within 60 s of SIGINT");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("long.json")).unwrap()).unwrap();
+    assert_eq!(j["interrupted"], true);
+    let done = j["spp_done"].as_u64().unwrap();
+    assert!(done > 0 && done < 100_000, "spp_done {done}");
+    assert!(std::fs::read(&out).unwrap().len() > 1000);
+}

@@ -50,6 +50,9 @@ pub struct RenderSettings {
     pub ray_eps: f32,
     /// Wall-clock target per submit, milliseconds.
     pub submit_ms: f64,
+    /// Next-event estimation towards emissive triangles (with MIS). Off: emitters are found
+    /// by BSDF sampling alone (unbiased too, much noisier; tests compare the two).
+    pub next_event: bool,
 }
 
 impl RenderSettings {
@@ -66,6 +69,7 @@ impl RenderSettings {
             env: [1.0; 3],
             ray_eps: 1e-5,
             submit_ms: 250.0,
+            next_event: true,
         }
     }
 
@@ -262,7 +266,7 @@ impl GpuParams {
             max_depth: s.max_depth,
             rr_depth: s.rr_depth,
             seed: s.seed,
-            light_count: scene.light_count,
+            light_count: if s.next_event { scene.light_count } else { 0 },
             ray_eps: s.ray_eps,
             scene_extent: scene.extent,
         }
