@@ -110,6 +110,8 @@ enum Cmd {
     Bench(BenchArgs),
     /// Path-trace a scene: linear RGBA EXR, a tone-mapped sRGB PNG and a JSON sidecar.
     Render(RenderArgs),
+    /// Path-tracing benchmark: samples/s and rays/s per scene, method and kernel choice.
+    BenchRender(BenchRenderArgs),
 }
 
 #[derive(Subcommand)]
@@ -233,6 +235,37 @@ struct BenchArgs {
 }
 
 #[derive(Args)]
+struct BenchRenderArgs {
+    /// Scenes (OBJ files); default: the bundled bunny, dragon and buddha.
+    #[arg(long, value_delimiter = ',')]
+    scenes: Vec<PathBuf>,
+    #[arg(long, value_enum, value_delimiter = ',')]
+    methods: Vec<Method>,
+    /// Kernel choices to time (specialised, general).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "specialised")]
+    kernels: Vec<KernelChoice>,
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    #[arg(long, default_value_t = 200)]
+    width: u32,
+    #[arg(long, default_value_t = 150)]
+    height: u32,
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    #[arg(long, default_value_t = 16)]
+    max_depth: u32,
+    /// Timed renders per configuration (after one warm-up).
+    #[arg(long, default_value_t = 3)]
+    repeat: usize,
+    #[arg(long)]
+    json_out: Option<PathBuf>,
+    #[arg(long)]
+    md_out: Option<PathBuf>,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+#[derive(Args)]
 struct RenderArgs {
     #[arg(long)]
     scene: PathBuf,
@@ -316,6 +349,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Cmd::Bench(a) => bench_cmd(a),
         Cmd::Render(a) => render_cmd(a),
+        Cmd::BenchRender(a) => bench_render_cmd(a),
     }
 }
 
@@ -809,5 +843,49 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         result.mrays_per_second(),
         if result.gpu_ms.is_some() { " (GPU time)" } else { " (wall time)" },
     );
+    Ok(())
+}
+
+fn bench_render_cmd(a: BenchRenderArgs) -> Result<()> {
+    check_leaf_size(a.leaf_size)?;
+    let scenes = if a.scenes.is_empty() {
+        ["bunny", "dragon", "buddha"].iter().map(|s| PathBuf::from(format!("scenes/{s}.obj"))).collect()
+    } else {
+        a.scenes
+    };
+    let opts = pt::bench::RenderBenchOptions {
+        scenes,
+        methods: if a.methods.is_empty() { Method::ALL.to_vec() } else { a.methods },
+        kernels: a.kernels,
+        leaf_size: a.leaf_size,
+        width: a.width,
+        height: a.height,
+        spp: a.spp,
+        max_depth: a.max_depth,
+        env: None,
+        repeat: a.repeat,
+    };
+    let ctx = a.gpu.context()?;
+    let report = pt::bench::run(&ctx, &opts, |m| eprintln!("  {m}"))?;
+    let head = format!(
+        "device: {} ({})\n{}x{}, {} spp, max depth {}, leaf size {}, median (min-max) of {} renders after a warm-up, {} time\n",
+        report.device,
+        report.driver,
+        report.width,
+        report.height,
+        report.spp,
+        report.max_depth,
+        report.leaf_size,
+        a.repeat.max(1),
+        if report.timed_on_gpu { "GPU timestamp" } else { "wall" }
+    );
+    let table = report.table();
+    println!("{head}\n{}", table.to_text());
+    if let Some(p) = &a.md_out {
+        trilab::io::write_atomic(p, format!("{head}\n{}", table.to_markdown()).as_bytes())?;
+    }
+    if let Some(p) = &a.json_out {
+        trilab::io::write_atomic(p, serde_json::to_string_pretty(&report).unwrap().as_bytes())?;
+    }
     Ok(())
 }

@@ -10,6 +10,7 @@
 //!   sized to a wall-clock target so no submit comes near a GPU watchdog; samples accumulate
 //!   in sample order, so the image does not depend on the batching.
 
+pub mod bench;
 pub mod output;
 pub mod rng;
 

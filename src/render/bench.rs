@@ -1,0 +1,188 @@
+//! The path-tracing benchmark: scenes x methods x kernel choice, each configuration rendered
+//! once to warm up and then `repeat` times, reporting median / min / max samples per second and
+//! rays per second from GPU timestamps. Every render is validated before its speed counts: no
+//! dropped (NaN/Inf) samples, and an image mean within 2 % of the Möller–Trumbore render of the
+//! same scene (the methods trace the same paths).
+
+use std::path::PathBuf;
+
+use super::{render, KernelChoice, PathtraceKernel, RenderResult, RenderScene, RenderSettings};
+use crate::bvh::{BuildOptions, Bvh};
+use crate::encoding::Method;
+use crate::error::{Error, Result};
+use crate::gpu::{Context, GpuScene, Summary};
+use crate::report::Table;
+use crate::scene::{load_obj, BsdfKind};
+
+#[derive(Clone, Debug)]
+pub struct RenderBenchOptions {
+    pub scenes: Vec<PathBuf>,
+    pub methods: Vec<Method>,
+    pub kernels: Vec<KernelChoice>,
+    pub leaf_size: u32,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    /// Environment radiance; `None`: white, or black for scenes with emitters.
+    pub env: Option<[f32; 3]>,
+    pub repeat: usize,
+}
+
+impl Default for RenderBenchOptions {
+    fn default() -> Self {
+        RenderBenchOptions {
+            scenes: vec![],
+            methods: Method::ALL.to_vec(),
+            kernels: vec![KernelChoice::Specialised],
+            leaf_size: 4,
+            width: 200,
+            height: 150,
+            spp: 16,
+            max_depth: 16,
+            env: None,
+            repeat: 3,
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderBenchRow {
+    pub scene: String,
+    pub triangles: usize,
+    pub method: Method,
+    pub kernel_choice: KernelChoice,
+    pub kernel: &'static str,
+    pub bsdfs: Vec<&'static str>,
+    /// SPIR-V instructions: whole module, and inside function bodies.
+    pub spirv_module: u32,
+    pub spirv_functions: u32,
+    pub msamples_per_s: Summary,
+    pub mrays_per_s: Summary,
+    pub ms: Summary,
+    /// Rays per sample (closest + occlusion).
+    pub rays_per_sample: f64,
+    pub image_mean: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderBenchReport {
+    pub device: String,
+    pub driver: String,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    pub leaf_size: u32,
+    pub timed_on_gpu: bool,
+    pub rows: Vec<RenderBenchRow>,
+}
+
+impl RenderBenchReport {
+    pub fn table(&self) -> Table {
+        let mut t = Table::new([
+            "scene",
+            "method",
+            "kernel",
+            "BSDFs",
+            "SPIR-V (fn)",
+            "Msamples/s median (min-max)",
+            "Mrays/s median",
+            "rays/sample",
+        ]);
+        for r in &self.rows {
+            let s = r.msamples_per_s;
+            t.row([
+                r.scene.clone(),
+                r.method.name().to_owned(),
+                r.kernel.to_owned(),
+                if r.bsdfs.len() == BsdfKind::ALL.len() { "all 7".to_owned() } else { r.bsdfs.join("+") },
+                format!("{} ({})", r.spirv_module, r.spirv_functions),
+                format!("{:.3} ({:.3}-{:.3})", s.median, s.min, s.max),
+                format!("{:.2}", r.mrays_per_s.median),
+                format!("{:.2}", r.rays_per_sample),
+            ]);
+        }
+        t
+    }
+}
+
+fn image_mean(r: &RenderResult) -> f64 {
+    let img = r.image();
+    img.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>() / (3 * img.len()) as f64
+}
+
+pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)) -> Result<RenderBenchReport> {
+    let info = ctx.info();
+    let mut report = RenderBenchReport {
+        device: info.name.clone(),
+        driver: info.driver_label(),
+        width: o.width,
+        height: o.height,
+        spp: o.spp,
+        max_depth: o.max_depth,
+        leaf_size: o.leaf_size,
+        timed_on_gpu: info.timestamp_valid_bits > 0,
+        rows: vec![],
+    };
+    for path in &o.scenes {
+        let mesh = load_obj(path)?;
+        let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(o.leaf_size));
+        let mut settings = RenderSettings::paper(&mesh);
+        settings.width = o.width;
+        settings.height = o.height;
+        settings.spp = o.spp;
+        settings.max_depth = o.max_depth;
+        let emissive = mesh.materials.iter().any(|m| m.is_emissive());
+        settings.env = o.env.unwrap_or(if emissive { [0.0; 3] } else { [1.0; 3] });
+        let mut reference_mean: Option<f64> = None;
+        for &method in &o.methods {
+            let encoded = method.encode(&mesh, &bvh);
+            let scene = RenderScene::new(&mesh, &encoded);
+            let gpu = GpuScene::upload(ctx, &encoded)?;
+            for &choice in &o.kernels {
+                let kernel = PathtraceKernel::choose(method, scene.bsdf_mask, choice);
+                progress(&format!("{name}: {} ({})", kernel.source.name, kernel.bsdfs().join("+")));
+                let warm = RenderSettings { spp: 1, ..settings.clone() };
+                render(ctx, &gpu, &scene, kernel, &warm, &mut |_| true)?;
+                let mut runs = vec![];
+                for _ in 0..o.repeat.max(1) {
+                    runs.push(render(ctx, &gpu, &scene, kernel, &settings, &mut |_| true)?);
+                }
+                let last = runs.last().unwrap();
+                let mean = image_mean(last);
+                let bad = runs.iter().map(|r| r.dropped_samples).sum::<u64>();
+                if bad > 0 || !mean.is_finite() {
+                    return Err(Error::Usage(format!("{name} {}: {bad} NaN/Inf samples", kernel.source.name)));
+                }
+                let base = *reference_mean.get_or_insert(mean);
+                if (mean - base).abs() > 0.02 * base.abs().max(1e-6) {
+                    return Err(Error::Usage(format!(
+                        "{name} {}: image mean {mean} differs from the first method's {base} by more than 2 %",
+                        kernel.source.name
+                    )));
+                }
+                let counts = crate::spirv::count(&kernel.source.words())
+                    .map_err(|e| Error::Spirv { kernel: kernel.source.name.into(), message: e })?;
+                let rate = |f: &dyn Fn(&RenderResult) -> f64| Summary::of(&runs.iter().map(f).collect::<Vec<_>>());
+                report.rows.push(RenderBenchRow {
+                    scene: name.clone(),
+                    triangles: mesh.triangle_count(),
+                    method,
+                    kernel_choice: choice,
+                    kernel: kernel.source.name,
+                    bsdfs: kernel.bsdfs(),
+                    spirv_module: counts.module,
+                    spirv_functions: counts.functions,
+                    msamples_per_s: rate(&|r| r.samples_per_second() * 1e-6).unwrap(),
+                    mrays_per_s: rate(&|r| r.mrays_per_second()).unwrap(),
+                    ms: rate(&|r| r.seconds() * 1e3).unwrap(),
+                    rays_per_sample: (last.closest_rays + last.shadow_rays) as f64 / last.samples() as f64,
+                    image_mean: mean,
+                });
+            }
+        }
+    }
+    Ok(report)
+}
