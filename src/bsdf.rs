@@ -81,8 +81,14 @@ pub struct Probe<'a> {
 }
 
 impl<'a> Probe<'a> {
+    /// The probe with every BSDF kind compiled in.
     pub fn new(ctx: &'a Context, materials: &[GpuMaterial]) -> Result<Probe<'a>> {
-        let kernel = ctx.create_kernel(crate::kernels::find_no_intersector("bsdf_probe", "main"))?;
+        Probe::with_variant(ctx, materials, "main")
+    }
+
+    /// The probe's `variant` (`bsdf_probe.comp`: `main`, every kind; `lambert`, BSDF_MASK = 1).
+    pub fn with_variant(ctx: &'a Context, materials: &[GpuMaterial], variant: &str) -> Result<Probe<'a>> {
+        let kernel = ctx.create_kernel(crate::kernels::find_no_intersector("bsdf_probe", variant))?;
         let materials =
             ctx.upload_texels("bsdf probe materials", bytemuck::cast_slice(materials), Texel::Rgba32Float)?;
         Ok(Probe { ctx, kernel, materials })

@@ -462,3 +462,33 @@ fn mirror_reflects_exactly() {
     });
     assert!(fails.is_empty(), "{} failure(s):\n{}", fails.len(), fails.join("\n"));
 }
+
+/// BSDF_MASK: a kernel compiled with Lambert only still runs Lambert, and every other kind
+/// (and an unknown kind) evaluates to 0 and never samples.
+#[test]
+fn kinds_left_out_of_bsdf_mask_are_black() {
+    let mut materials: Vec<GpuMaterial> = BsdfKind::ALL.iter().map(|&k| GpuMaterial::new(k)).collect();
+    materials.push(GpuMaterial { kind: 99, ..GpuMaterial::new(BsdfKind::Lambert) });
+    let fails = common::with_gpu(TIMEOUT_S, move |ctx| {
+        let probe = Probe::with_variant(ctx, &materials, "lambert").unwrap();
+        let wo = to_f32(direction(0.5, 1.0));
+        let wi = [to_f32(direction(0.3, 2.0))];
+        let mut fails = vec![];
+        for (m, mat) in materials.iter().enumerate() {
+            let name =
+                BsdfKind::ALL.iter().find(|k| k.code() == mat.kind).map_or("unknown kind".into(), |k| k.to_string());
+            let s = probe.sample(m as u32, wo, &uniforms(64, 1)).unwrap();
+            let e = probe.eval(m as u32, wo, &wi).unwrap();
+            let ok = s.iter().filter(|s| s.flags & FLAG_OK != 0).count();
+            if mat.kind == BsdfKind::Lambert.code() {
+                if ok != 64 || e[0].f[0] <= 0.0 || e[0].pdf <= 0.0 {
+                    fails.push(format!("{name} (compiled in): {ok}/64 samples, f {:?}, pdf {}", e[0].f, e[0].pdf));
+                }
+            } else if ok != 0 || e[0].f != [0.0; 3] || e[0].pdf != 0.0 {
+                fails.push(format!("{name} (left out): {ok}/64 samples, f {:?}, pdf {}", e[0].f, e[0].pdf));
+            }
+        }
+        fails
+    });
+    assert!(fails.is_empty(), "{} failure(s):\n{}", fails.len(), fails.join("\n"));
+}
