@@ -334,8 +334,8 @@ pub fn reflect(wo: [f64; 3]) -> [f64; 3] {
 }
 
 /// f64 reference: exact unpolarised Fresnel reflectance of a smooth dielectric for light
-/// arriving at `cos_i > 0` on the side of index eta_i, with `eta` = eta_t / eta_i (pbrt-v3 eq.
-/// 8.3 and 8.4). 1 under total internal reflection.
+/// arriving at `cos_i > 0` on the side of index eta_i, with `eta` = eta_t / eta_i (pbrt-v3
+/// section 8.2.1). 1 under total internal reflection.
 pub fn fresnel_dielectric(cos_i: f64, eta: f64) -> f64 {
     let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
     if sin2_t >= 1.0 {

@@ -1,15 +1,15 @@
 // Ashikhmin-Shirley: M. Ashikhmin and P. Shirley, "An anisotropic Phong BRDF model", Journal of
 // Graphics Tools 5(2), 2000. With h = normalize(wo + wi), k = wo (or wi: k.h is the same) and
 // the tangent frame u = +x, v = +y:
-//   specular (eq. 4): sqrt((nu + 1)(nv + 1)) / (8 pi)
-//                     * (n.h)^((nu (h.u)^2 + nv (h.v)^2) / (1 - (n.h)^2)) / ((h.k) max(n.wo, n.wi)) * F(h.k),
-//   Schlick Fresnel (eq. 5): F(c) = Rs + (1 - Rs)(1 - c)^5,
-//   diffuse (eq. 5):  28 Rd / (23 pi) (1 - Rs) (1 - (1 - n.wo / 2)^5) (1 - (1 - n.wi / 2)^5).
+//   specular: sqrt((nu + 1)(nv + 1)) / (8 pi)
+//             * (n.h)^((nu (h.u)^2 + nv (h.v)^2) / (1 - (n.h)^2)) / ((h.k) max(n.wo, n.wi)) * F(h.k),
+//   Schlick Fresnel: F(c) = Rs + (1 - Rs)(1 - c)^5,
+//   diffuse: 28 Rd / (23 pi) (1 - Rs) (1 - (1 - n.wo / 2)^5) (1 - (1 - n.wi / 2)^5).
 // Rs = specular, Rd = diffuse, nu = exponent, nv = exponent_v.
-// Sampling (section 5): h by eq. 9 (phi = atan(sqrt((nu + 1)/(nv + 1)) tan(pi xi1 / 2)) per
-// quadrant, cos theta_h = (1 - xi2)^(1 / (nu cos^2 phi + nv sin^2 phi + 1))), whose density is
+// Sampling (as in the paper): h with phi = atan(sqrt((nu + 1)/(nv + 1)) tan(pi xi1 / 2)) per
+// quadrant and cos theta_h = (1 - xi2)^(1 / (nu cos^2 phi + nv sin^2 phi + 1)), whose density is
 // p_h = sqrt((nu + 1)(nv + 1)) / (2 pi) (n.h)^(nu cos^2 phi + nv sin^2 phi) exactly; wi = wo reflected
-// about h, p(wi) = p_h / (4 wo.h) (eq. 8); a wi below the horizon is no sample (absorbed).
+// about h, p(wi) = p_h / (4 wo.h); a wi below the horizon is no sample (absorbed).
 // Lobe choice: diffuse or specular with probability 1/2 each (as pbrt-v2's FresnelBlend), or
 // always specular when Rd is black: the specular lobe is never zero (F >= (1 - c)^5), so it must
 // always be sampled.
@@ -65,7 +65,7 @@ float ashikhmin_shirley_pdf(Material m, vec3 wo, vec3 wi) {
     return (1.0 - ps) * wi.z * INV_PI + ps * glossy;
 }
 
-// Eq. 9 in the first quadrant: phi in [0, pi/2) from u1, then cos theta_h from u2.
+// The paper's half-vector sampling in the first quadrant: phi in [0, pi/2) from u1, then cos theta_h from u2.
 vec2 ashikhmin_shirley_first_quadrant(Material m, float u1, float u2) {
     float phi = 0.5 * PI * u1;
     if (m.exponent != m.exponent_v) {

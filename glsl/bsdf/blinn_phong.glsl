@@ -9,7 +9,7 @@
 // distribution, not the BRDF, and overshoots by up to 4x.)
 // Sampling: lobe chosen as for Phong (lobes.glsl); glossy: h with density (n + 1) / (2 pi)
 // cos^n(theta_h), wi = wo reflected about h, pdf (n + 1) / (2 pi) cos^n(theta_h) / (4 wo.h)
-// (Walter et al. 2007, eq. 14); a wi below the horizon is no sample (absorbed).
+// (the reflection Jacobian 1 / (4 wo.h): Walter et al., "Microfacet models for refraction", EGSR 2007); a wi below the horizon is no sample (absorbed).
 // Reads: diffuse, specular, exponent. Opaque; wo.z > 0 (bsdf.glsl flips).
 #ifndef TRILAB_BSDF_BLINN_PHONG
 #define TRILAB_BSDF_BLINN_PHONG

@@ -1,5 +1,5 @@
 // Glass: a smooth dielectric interface (pbrt-v3 section 8.2, FresnelSpecular). The exact
-// unpolarised dielectric Fresnel reflectance (pbrt-v3 eq. 8.3 and 8.4, FrDielectric)
+// unpolarised dielectric Fresnel reflectance (pbrt-v3 section 8.2.1, FrDielectric)
 //   r_par  = (eta cos_i - cos_t) / (eta cos_i + cos_t),
 //   r_perp = (cos_i - eta cos_t) / (cos_i + eta cos_t),   F = (r_par^2 + r_perp^2) / 2,
 // eta = eta_t / eta_i, picks reflection with probability F and refraction (Snell's law) with

@@ -1,5 +1,5 @@
 // Oren-Nayar: the qualitative model of M. Oren and S. K. Nayar, "Generalization of Lambert's
-// Reflectance Model", SIGGRAPH 1994 (eq. 30, without the inter-reflection term), in the form of
+// Reflectance Model", SIGGRAPH 1994 (its qualitative model, no inter-reflection term), in the form of
 // pbrt-v3 section 8.4.2 (OrenNayar):
 //   f = Kd / pi * (A + B max(0, cos(phi_i - phi_o)) sin(alpha) tan(beta)),
 //   A = 1 - sigma^2 / (2 (sigma^2 + 0.33)), B = 0.45 sigma^2 / (sigma^2 + 0.09),
