@@ -1,5 +1,5 @@
 #version 460
-// trilab:variants all lambert=BSDF_MASK:0x1u oren_nayar=BSDF_MASK:0x2u phong=BSDF_MASK:0x4u blinn_phong=BSDF_MASK:0x8u ashikhmin_shirley=BSDF_MASK:0x10u glass=BSDF_MASK:0x20u mirror=BSDF_MASK:0x40u
+// trilab:variants all lambert=BSDF_MASK:0x1 oren_nayar=BSDF_MASK:0x2 phong=BSDF_MASK:0x4 blinn_phong=BSDF_MASK:0x8 ashikhmin_shirley=BSDF_MASK:0x10 glass=BSDF_MASK:0x20 mirror=BSDF_MASK:0x40
 // Unidirectional path tracer, one pixel per invocation, `pc.sample_count` samples per dispatch
 // accumulated in sample order (so the image does not depend on how samples are batched).
 //
@@ -18,9 +18,7 @@
 #include "rng.glsl"
 
 layout(constant_id = 0) const uint SPEC_BSDF_MASK = BSDF_MASK_ALL;
-#ifndef BSDF_MASK
-#define BSDF_MASK BSDF_MASK_ALL
-#endif
+#define BSDF_SPEC_MASK SPEC_BSDF_MASK
 #include "bsdf.glsl"
 
 // Per-render parameters (Rust twin: render::GpuParams).

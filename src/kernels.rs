@@ -42,6 +42,15 @@ pub fn find(kernel: &str, method: Method, variant: &str) -> &'static KernelSourc
         .unwrap_or_else(|| panic!("no kernel {kernel}.{}.{variant} was compiled", method.glsl_name()))
 }
 
+/// Looks up a variant of a kernel that uses no intersector (`// trilab:intersector none`, method
+/// `none`), such as the BSDF probe.
+pub fn find_no_intersector(kernel: &str, variant: &str) -> &'static KernelSource {
+    KERNELS
+        .iter()
+        .find(|k| k.kernel == kernel && k.method == "none" && k.variant == variant)
+        .unwrap_or_else(|| panic!("no kernel {kernel}.none.{variant} was compiled"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,6 +9,7 @@
 //! reflects it.
 
 pub mod bench;
+pub mod bsdf;
 pub mod bvh;
 pub mod compare;
 pub mod encoding;

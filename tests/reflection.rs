@@ -6,6 +6,7 @@
 use std::mem::{offset_of, size_of};
 
 use ash::vk;
+use trilab::bsdf::{ProbeIn, ProbeOut, ProbePush};
 use trilab::bvh::BvhNode;
 use trilab::encoding::{MtTriangle, QuadMt, QuadUnit, UnitTriangle};
 use trilab::gpu::shared::*;
@@ -103,11 +104,27 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         },
         (_, BINDING_ACCUM) => array_of(size_of::<[f32; 4]>(), &[]),
         (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
+        ("none", BINDING_BSDF_PROBE_IN) => array_of(
+            size_of::<ProbeIn>(),
+            &[offset_of!(ProbeIn, wo), offset_of!(ProbeIn, material), offset_of!(ProbeIn, v), offset_of!(ProbeIn, pad)],
+        ),
+        ("none", BINDING_BSDF_PROBE_OUT) => array_of(
+            size_of::<ProbeOut>(),
+            &[
+                offset_of!(ProbeOut, wi),
+                offset_of!(ProbeOut, pdf),
+                offset_of!(ProbeOut, weight),
+                offset_of!(ProbeOut, flags),
+                offset_of!(ProbeOut, f),
+                offset_of!(ProbeOut, eval_pdf),
+            ],
+        ),
         (m, b) => panic!("no host layout for storage-buffer binding {b} of method {m}"),
     }
 }
 
-/// Push constants: the raycast kernels take the ray count (`u32`); probe takes three counts.
+/// Push constants: the raycast kernels take the ray count (`u32`); probe takes three counts;
+/// bsdf_probe a `ProbePush` (mode, count).
 fn host_push(kernel: &str) -> Vec<u32> {
     match kernel {
         "raycast" => vec![0],
@@ -118,6 +135,9 @@ fn host_push(kernel: &str) -> Vec<u32> {
             offset_of!(PathtracePush, pixel_first) as u32,
             offset_of!(PathtracePush, pixel_count) as u32,
         ],
+        "bsdf_probe" => {
+            vec![offset_of!(ProbePush, mode) as u32, offset_of!(ProbePush, count) as u32]
+        }
         k => panic!("unknown kernel {k}"),
     }
 }
@@ -138,8 +158,8 @@ fn rust_structs_match_spirv_offsets_and_strides() {
         }
     }
     // Guard against a vacuous pass: Ray and Hit in every raycast kernel, BvhNode and the
-    // primitive struct in every probe kernel,
-    // pathtrace: the Params block (its other buffers are arrays of vectors and scalars).
+    // primitive struct in every probe kernel, ProbeIn and ProbeOut in bsdf_probe; pathtrace:
+    // the Params block (its other buffers are arrays of vectors and scalars).
     let expected: usize = KERNELS.iter().map(|k| if k.kernel == "pathtrace" { 1 } else { 2 }).sum();
     assert!(checked_structs >= expected, "only {checked_structs} of {expected} struct layouts checked");
 }
@@ -149,11 +169,16 @@ fn kernels_bind_what_the_host_provides() {
     for k in KERNELS {
         let l = reflect(k.name, &k.words()).unwrap();
         assert_eq!(l.local_size, (WORKGROUP_SIZE, 1, 1), "{}", k.name);
-        let push_bytes = 4 * host_push(k.kernel).len() as u32;
+        let push_bytes = match k.kernel {
+            "bsdf_probe" => size_of::<ProbePush>() as u32,
+            _ => 4 * host_push(k.kernel).len() as u32,
+        };
         assert_eq!(l.push_constants, Some((0, push_bytes)), "{}: push constants", k.name);
         assert_eq!(l.sets.keys().copied().collect::<Vec<_>>(), vec![0], "{}", k.name);
         let set = &l.sets[&0];
         let texels = match (k.kernel, k.method) {
+            // The BSDF probe reads only materials.
+            ("bsdf_probe", _) => vec![BINDING_MATERIALS],
             ("raycast", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES],
             // The path tracer shades by slot and never reads the slot -> OBJ id table.
             ("pathtrace", "mt") => {
@@ -167,6 +192,7 @@ fn kernels_bind_what_the_host_provides() {
         let buffers = match k.kernel {
             "raycast" => vec![BINDING_RAYS, BINDING_HITS],
             "pathtrace" => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
+            "bsdf_probe" => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
             _ => vec![BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS],
         };
         let mut expected: Vec<u32> = texels.iter().chain(&buffers).copied().collect();

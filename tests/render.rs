@@ -208,3 +208,35 @@ fn next_event_estimation_agrees_with_bsdf_sampling() {
         assert!(rel < 0.025, "channel {c}: NEE+MIS {} vs BSDF sampling {} ({:.1} %)", a[c], b[c], 100.0 * rel);
     }
 }
+
+/// The specialisation constant really narrows the all-BSDF kernel: given a mask without the
+/// scene's BSDF, the driver-specialised pipeline treats it as black (no sample), and with the
+/// right mask it does not.
+#[test]
+fn specialisation_constant_selects_the_bsdfs() {
+    let mut mesh = bunny();
+    let mut glass = trilab::scene::GpuMaterial::new(BsdfKind::Glass);
+    glass.ior = 1.5;
+    mesh.materials = vec![Material { name: "glass".into(), kind: BsdfKind::Glass, gpu: glass }];
+    let s = RenderSettings { max_depth: 8, ..small(&mesh, 24, 18, 2) };
+    let (right, wrong) = with_gpu(120, move |ctx| {
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+        let encoded = Method::Mt.encode(&mesh, &bvh);
+        let scene = RenderScene::new(&mesh, &encoded);
+        let gpu = GpuScene::upload(ctx, &encoded).unwrap();
+        let all = trilab::kernels::find("pathtrace", Method::Mt, "all");
+        let run = |mask| {
+            let k = PathtraceKernel { source: all, spec_mask: mask };
+            render::render(ctx, &gpu, &scene, k, &s, &mut |_| true).unwrap().image()
+        };
+        (run(BsdfKind::Glass.bit()), run(BsdfKind::Lambert.bit() | BsdfKind::Mirror.bit()))
+    });
+    let covered: Vec<usize> = (0..right.len()).filter(|&i| right[i][3] == 1.0).collect();
+    assert!(covered.len() > 20);
+    // Glass under a white environment transmits and reflects everything: most pixels are bright
+    // (some paths stay trapped inside longer than 8 events and come back black).
+    let lit = covered.iter().filter(|&&i| right[i][1] > 0.5).count();
+    assert!(lit * 4 >= covered.len() * 3, "glass: {lit} of {} covered pixels lit", covered.len());
+    // Without glass in the kernel every path ends at its first hit: black.
+    assert!(covered.iter().all(|&i| wrong[i][..3] == [0.0; 3]), "glass rendered though the kernel lacks it");
+}

@@ -9,7 +9,7 @@
 #ifndef TRILAB_BSDF_COMMON
 #define TRILAB_BSDF_COMMON
 
-#include "shared.glsl"
+#include "shared.glsl"  // includes resolve from glsl/ (build.rs), not from this file
 
 const float PI = 3.14159265358979323846;
 const float INV_PI = 0.31830988618379067154;
