@@ -124,7 +124,7 @@ cornell.write("cornell", ROOM_MTL, "# Cornell-style box for trilab (scripts/make
 SPHERES = [
     ("s_lambert", "Kd 0.8 0.8 0.8\ntrilab_bsdf lambert"),
     ("s_oren_nayar", "Kd 0.8 0.6 0.4\ntrilab_bsdf oren-nayar sigma=0.5"),
-    ("s_phong", "Kd 0.3 0.3 0.6\nKs 0.5 0.5 0.5\nNs 60\ntrilab_bsdf phong"),
+    ("s_phong", "Kd 0.3 0.3 0.45\nKs 0.5 0.5 0.5\nNs 60\ntrilab_bsdf phong"),
     ("s_blinn_phong", "Kd 0.6 0.2 0.2\nKs 0.3 0.3 0.3\nNs 200\ntrilab_bsdf blinn-phong"),
     ("s_ashikhmin_shirley", "Kd 0.2 0.4 0.2\nKs 0.4 0.4 0.4\ntrilab_bsdf ashikhmin-shirley nu=400 nv=10"),
     ("s_glass", "Ni 1.5\nillum 7"),

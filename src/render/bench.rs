@@ -83,6 +83,7 @@ impl RenderBenchReport {
         let mut t = Table::new([
             "scene",
             "method",
+            "choice",
             "kernel",
             "BSDFs",
             "SPIR-V (fn)",
@@ -95,6 +96,10 @@ impl RenderBenchReport {
             t.row([
                 r.scene.clone(),
                 r.method.name().to_owned(),
+                match r.kernel_choice {
+                    KernelChoice::Specialised => "specialised".to_owned(),
+                    KernelChoice::General => "general".to_owned(),
+                },
                 r.kernel.to_owned(),
                 if r.bsdfs.len() == BsdfKind::ALL.len() { "all 7".to_owned() } else { r.bsdfs.join("+") },
                 format!("{} ({})", r.spirv_module, r.spirv_functions),
