@@ -758,7 +758,7 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
     let build_ms = t_build.elapsed().as_secs_f64() * 1e3;
     let kernel = PathtraceKernel::choose(a.method, scene.bsdf_mask, a.kernel);
     let ctx = a.gpu.context()?;
-    let gpu = GpuScene::upload(&ctx, &encoded)?;
+    let gpu = GpuScene::upload_for(&ctx, &encoded, kernel.source)?;
 
     let interrupted = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     {
@@ -803,6 +803,7 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
             "fov_y_degrees": settings.camera.fov_y.to_degrees(),
         },
         "emissive_triangles": scene.light_count,
+        "gpu_scene_bytes": gpu.bytes + scene.gpu_bytes(),
         "device": info.name,
         "driver": info.driver_label(),
         "spp_done": result.spp,

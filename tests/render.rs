@@ -24,8 +24,9 @@ fn render_mesh(ctx: &Context, mesh: &Mesh, method: Method, s: &RenderSettings) -
     let bvh = Bvh::build(mesh, &BuildOptions::new(4));
     let encoded = method.encode(mesh, &bvh);
     let scene = RenderScene::new(mesh, &encoded);
-    let gpu = GpuScene::upload(ctx, &encoded).unwrap();
     let kernel = PathtraceKernel::choose(method, scene.bsdf_mask, KernelChoice::Specialised);
+    let gpu = GpuScene::upload_for(ctx, &encoded, kernel.source).unwrap();
+    assert_eq!(gpu.bytes, encoded.gpu_bytes() - 4 * encoded.slot_ids.len(), "uploads all but the slot id table");
     let r = render::render(ctx, &gpu, &scene, kernel, s, &mut |_| true).unwrap();
     assert_eq!(r.spp, s.spp);
     assert!(!r.interrupted);

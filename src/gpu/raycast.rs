@@ -20,20 +20,35 @@ pub struct GpuScene {
     pub leaf_size: u32,
     /// (binding, buffer)
     buffers: Vec<(u32, TexelBuffer)>,
+    /// Bytes uploaded.
     pub bytes: usize,
 }
 
 impl GpuScene {
     pub fn upload(ctx: &Context, scene: &EncodedScene) -> Result<GpuScene> {
+        Self::upload_filtered(ctx, scene, |_| true)
+    }
+
+    /// Uploads only the buffers `kernel` reads (the path tracer, say, never reads the slot ->
+    /// OBJ id table).
+    pub fn upload_for(ctx: &Context, scene: &EncodedScene, kernel: &crate::kernels::KernelSource) -> Result<GpuScene> {
+        let layout = crate::spirv::reflect::reflect(kernel.name, &kernel.words())?;
+        let read = layout.sets.get(&0).cloned().unwrap_or_default();
+        Self::upload_filtered(ctx, scene, |b| read.contains_key(&b))
+    }
+
+    fn upload_filtered(ctx: &Context, scene: &EncodedScene, keep: impl Fn(u32) -> bool) -> Result<GpuScene> {
         scene.check_limits().map_err(|e| {
             crate::error::Error::Usage(format!("scene too large for the {} kernels: {e}", scene.method))
         })?;
-        let buffers = scene
+        let buffers: Vec<(u32, TexelBuffer)> = scene
             .buffers()
             .into_iter()
+            .filter(|b| keep(b.binding))
             .map(|b| Ok((b.binding, ctx.upload_texels(b.name, &b.bytes, b.texel)?)))
             .collect::<Result<Vec<_>>>()?;
-        Ok(GpuScene { method: scene.method, leaf_size: scene.leaf_size, buffers, bytes: scene.gpu_bytes() })
+        let bytes = buffers.iter().map(|(_, t)| t.buffer.size as usize).sum();
+        Ok(GpuScene { method: scene.method, leaf_size: scene.leaf_size, buffers, bytes })
     }
 
     /// The scene's bindings, for a descriptor set.

@@ -145,7 +145,11 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
         for &method in &o.methods {
             let encoded = method.encode(&mesh, &bvh);
             let scene = RenderScene::new(&mesh, &encoded);
-            let gpu = GpuScene::upload(ctx, &encoded)?;
+            let gpu = GpuScene::upload_for(
+                ctx,
+                &encoded,
+                PathtraceKernel::choose(method, scene.bsdf_mask, o.kernels[0]).source,
+            )?;
             for &choice in &o.kernels {
                 let kernel = PathtraceKernel::choose(method, scene.bsdf_mask, choice);
                 progress(&format!("{name}: {} ({})", kernel.source.name, kernel.bsdfs().join("+")));

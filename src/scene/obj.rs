@@ -92,8 +92,12 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
     let mut need_default = false;
 
     let mut mesh = Mesh { source: path.to_owned(), ..Default::default() };
+    let mut has_normals = false;
+    let mut has_texcoords = false;
     for model in models {
         let m = model.mesh;
+        has_normals |= !m.normals.is_empty();
+        has_texcoords |= !m.texcoords.is_empty();
         let base = mesh.positions.len() as u32;
         let nverts = m.positions.len() / 3;
         mesh.positions.extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
@@ -116,6 +120,16 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         materials.push(Material::default());
     }
     mesh.materials = materials;
+    if has_normals {
+        warnings.push(format!(
+            "{}: vertex normals (`vn`) are ignored: shading uses each triangle's geometric normal",
+            path.display()
+        ));
+    }
+    if has_texcoords {
+        warnings
+            .push(format!("{}: texture coordinates (`vt`) are ignored: textures are not supported", path.display()));
+    }
     mesh.warnings = warnings;
     mesh.mtl_files = files.into_iter().map(|(f, _)| f).collect();
 
@@ -299,6 +313,15 @@ mod tests {
         std::fs::write(&obj, "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
         let e = load_obj(&obj).unwrap_err().to_string();
         assert!(e.contains("missing.mtl") && e.contains("cannot open"), "{e}");
+    }
+
+    #[test]
+    fn ignored_vertex_data_is_reported() {
+        let m = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvt 0 0\nf 1/1/1 2/1/1 3/1/1\n").unwrap();
+        assert_eq!(m.warnings.len(), 2, "{:?}", m.warnings);
+        assert!(m.warnings[0].starts_with("test.obj: vertex normals (`vn`) are ignored"), "{:?}", m.warnings);
+        assert!(m.warnings[1].contains("texture coordinates (`vt`) are ignored"), "{:?}", m.warnings);
+        assert!(parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap().warnings.is_empty());
     }
 
     #[test]
