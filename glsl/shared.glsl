@@ -34,6 +34,8 @@
 // bsdf_probe.comp's input and output buffers.
 #define BINDING_BSDF_PROBE_IN 15
 #define BINDING_BSDF_PROBE_OUT 16
+// rng_probe.comp's output.
+#define BINDING_RNG_PROBE_OUT 17
 
 // BSDF kinds (Material.kind; one file each in bsdf/). A kernel's BSDF_MASK has bit (1 << kind)
 // set for every kind it carries.

@@ -103,6 +103,8 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
             .collect(),
         },
         (_, BINDING_ACCUM) => array_of(size_of::<[f32; 4]>(), &[]),
+        // rng_probe: draws as uvec4 bits, then as vec4 floats (read back as words in tests/render.rs).
+        ("none", BINDING_RNG_PROBE_OUT) => array_of(32, &[0, 16]),
         (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
         ("none", BINDING_BSDF_PROBE_IN) => array_of(
             size_of::<ProbeIn>(),
@@ -135,6 +137,7 @@ fn host_push(kernel: &str) -> Vec<u32> {
             offset_of!(PathtracePush, pixel_first) as u32,
             offset_of!(PathtracePush, pixel_count) as u32,
         ],
+        "rng_probe" => vec![0, 4],
         "bsdf_probe" => {
             vec![offset_of!(ProbePush, mode) as u32, offset_of!(ProbePush, count) as u32]
         }
@@ -160,7 +163,9 @@ fn rust_structs_match_spirv_offsets_and_strides() {
     // Guard against a vacuous pass: Ray and Hit in every raycast kernel, BvhNode and the
     // primitive struct in every probe kernel, ProbeIn and ProbeOut in bsdf_probe; pathtrace:
     // the Params block (its other buffers are arrays of vectors and scalars).
-    let expected: usize = KERNELS.iter().map(|k| if k.kernel == "pathtrace" { 1 } else { 2 }).sum();
+    // rng_probe: its one output struct.
+    let expected: usize =
+        KERNELS.iter().map(|k| if k.kernel == "pathtrace" || k.kernel == "rng_probe" { 1 } else { 2 }).sum();
     assert!(checked_structs >= expected, "only {checked_structs} of {expected} struct layouts checked");
 }
 
@@ -179,6 +184,7 @@ fn kernels_bind_what_the_host_provides() {
         let texels = match (k.kernel, k.method) {
             // The BSDF probe reads only materials.
             ("bsdf_probe", _) => vec![BINDING_MATERIALS],
+            ("rng_probe", _) => vec![],
             ("raycast", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES],
             // The path tracer shades by slot and never reads the slot -> OBJ id table.
             ("pathtrace", "mt") => {
@@ -193,6 +199,7 @@ fn kernels_bind_what_the_host_provides() {
             "raycast" => vec![BINDING_RAYS, BINDING_HITS],
             "pathtrace" => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             "bsdf_probe" => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
+            "rng_probe" => vec![BINDING_RNG_PROBE_OUT],
             _ => vec![BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS],
         };
         let mut expected: Vec<u32> = texels.iter().chain(&buffers).copied().collect();

@@ -35,6 +35,42 @@ fn render_mesh(ctx: &Context, mesh: &Mesh, method: Method, s: &RenderSettings) -
     r
 }
 
+/// The kernels' random numbers equal render::rng's bit for bit (glsl/rng_probe.comp runs
+/// rng.glsl for 2^16 paths, four draws each, as bits and as floats in [0, 1)).
+#[test]
+fn gpu_random_numbers_match_the_host_mirror_bit_for_bit() {
+    use trilab::gpu::Resource;
+    use trilab::render::rng;
+    const N: u32 = 1 << 16;
+    for seed in [0u32, 1, 0xdead_beef] {
+        let out = with_gpu(60, move |ctx| {
+            let src = trilab::kernels::find_no_intersector("rng_probe", "main");
+            let k = ctx.create_kernel(src).unwrap();
+            let buf = ctx
+                .create_buffer(
+                    "rng probe out",
+                    N as u64 * 32,
+                    ash::vk::BufferUsageFlags::STORAGE_BUFFER | ash::vk::BufferUsageFlags::TRANSFER_SRC,
+                    gpu_allocator::MemoryLocation::GpuOnly,
+                )
+                .unwrap();
+            let push: Vec<u8> = [seed, N].iter().flat_map(|x| x.to_le_bytes()).collect();
+            ctx.dispatch(&k, &[(trilab::gpu::shared::BINDING_RNG_PROBE_OUT, Resource::whole(&buf))], &push, N / 64)
+                .unwrap();
+            ctx.download(&buf, N as u64 * 32).unwrap()
+        });
+        let words: Vec<u32> = out.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+        for i in 0..N {
+            let key = rng::path_key(seed, i, 7 * i + 3);
+            let w = &words[8 * i as usize..8 * i as usize + 8];
+            for d in 0..4u32 {
+                assert_eq!(w[d as usize], rng::rand_u32(key, d), "seed {seed}, path {i}, draw {d}: bits");
+                assert_eq!(w[4 + d as usize], rng::rand01(key, d).to_bits(), "seed {seed}, path {i}, draw {d}: float");
+            }
+        }
+    }
+}
+
 /// With no bounces (max depth 0) a sample is the environment on a miss and black on a hit, so
 /// each pixel's coverage is a count of its primary rays that hit. The host replays every
 /// camera ray from the same random numbers (render::rng mirrors glsl/rng.glsl) and traces it in
