@@ -128,32 +128,55 @@ fn white_furnace_renders_the_environment() {
 }
 
 /// Same seed, same scene: the four methods find the same hits, so they trace the same paths.
-/// Any difference comes from t rounding differently (a slightly different hit point) and is
-/// reported and bounded.
+/// Any difference comes from t rounding differently (a slightly different hit point, so a
+/// slightly different next ray) and is reported and bounded: on the bunny (Lambert, white
+/// environment), and on the seven-BSDF box (glossy lobes, glass and a mirror magnify a change
+/// of direction, and a light makes shadow rays matter).
 #[test]
 fn four_methods_render_the_same_image() {
-    let mesh = bunny();
-    let s = small(&mesh, 40, 30, 4);
-    let images = with_gpu(300, move |ctx| {
-        Method::ALL.iter().map(|&m| (m, render_mesh(ctx, &mesh, m, &s).image())).collect::<Vec<_>>()
+    let bunny_mesh = bunny();
+    let box_mesh = trilab::scene::load_obj(&common::root().join("scenes/bsdfs.obj")).unwrap();
+    let s_bunny = small(&bunny_mesh, 40, 30, 4);
+    let mut s_box = cornell_settings(&box_mesh, 8);
+    s_box.width = 48;
+    s_box.height = 32;
+    let results = with_gpu(300, move |ctx| {
+        let mut out = vec![];
+        for (name, mesh, s) in [("bunny", &bunny_mesh, &s_bunny), ("bsdfs", &box_mesh, &s_box)] {
+            let images: Vec<_> = Method::ALL.iter().map(|&m| (m, render_mesh(ctx, mesh, m, s).image())).collect();
+            out.push((name, images));
+        }
+        out
     });
-    let (_, base) = &images[0];
-    for (m, img) in &images[1..] {
-        let differing = img.iter().zip(base).filter(|(a, b)| a != b).count();
-        let max_diff =
-            img.iter().zip(base).flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs())).fold(0f32, f32::max);
-        let mean_diff =
-            img.iter().zip(base).map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).sum::<f32>()).sum::<f32>()
-                / (3 * img.len()) as f32;
-        eprintln!(
-            "{m} vs mt: {differing}/{} pixels differ, max |diff| {max_diff:.4}, mean |diff| {mean_diff:.6}",
-            img.len()
-        );
-        assert!(differing * 10 <= img.len(), "{m}: {differing} of {} pixels differ from mt", img.len());
-        assert!(mean_diff < 0.01, "{m}: mean difference {mean_diff}");
-        // Coverage is decided by the primary hit alone.
-        let cov = img.iter().zip(base).filter(|(a, b)| a[3] != b[3]).count();
-        assert!(cov <= 2, "{m}: coverage differs in {cov} pixels");
+    for (scene, images) in &results {
+        let (_, base) = &images[0];
+        for (m, img) in &images[1..] {
+            let differing = img.iter().zip(base).filter(|(a, b)| a != b).count();
+            // Differences a viewer could see: more than 1e-3 in some channel.
+            let visible = img.iter().zip(base).filter(|(a, b)| (0..3).any(|c| (a[c] - b[c]).abs() > 1e-3)).count();
+            let max_diff =
+                img.iter().zip(base).flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs())).fold(0f32, f32::max);
+            let mean =
+                |im: &[[f32; 4]]| im.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>() / (3 * im.len()) as f64;
+            let rel_mean = (mean(img) - mean(base)).abs() / mean(base);
+            eprintln!(
+                "{scene}: {m} vs mt: {differing}/{} pixels differ, {visible} by more than 1e-3, max |diff| {max_diff:.2e}, \
+                 image mean differs by {:.4} %",
+                img.len(),
+                100.0 * rel_mean
+            );
+            // Measured: MT and Quad MT identical; unit and Quad unit differ from MT in about 45 %
+            // of the box's pixels, by at most 1e-6. The bounds leave a margin.
+            assert!(
+                visible * 100 <= img.len(),
+                "{scene} {m}: {visible} of {} pixels differ visibly from mt",
+                img.len()
+            );
+            assert!(rel_mean < 1e-3, "{scene} {m}: image mean differs by {:.3} %", 100.0 * rel_mean);
+            // Coverage is decided by the primary hit alone.
+            let cov = img.iter().zip(base).filter(|(a, b)| a[3] != b[3]).count();
+            assert!(cov <= 2, "{scene} {m}: coverage differs in {cov} pixels");
+        }
     }
 }
 
