@@ -460,6 +460,11 @@ pub fn render(
             }
         };
         let chunk = chunk.min(max_groups * local as u64).max(1);
+        // The kernel counts rays in 32-bit counters per submit: a sample traces at most
+        // 2 (max_depth + 1) rays, so keep pixels x samples of one submit below 2^32 / that.
+        let max_work = (u32::MAX as u64 / (2 * (s.max_depth as u64 + 1))).max(1);
+        let samples = (samples as u64).min((max_work / chunk.min(pixels as u64)).max(1)) as u32;
+        let chunk = chunk.min(max_work / samples as u64).max(1);
         let mut first = 0u64;
         while first < pixels as u64 {
             let count = chunk.min(pixels as u64 - first);
