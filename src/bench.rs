@@ -25,6 +25,8 @@ pub struct BenchOptions {
     pub methods: Vec<Method>,
     pub leaf_size: u32,
     pub leaf_policy: LeafPolicy,
+    /// `BuildOptions::sah_group`: 4 prices leaves in quads.
+    pub sah_group: u32,
     pub warmup: usize,
     pub repeat: usize,
     pub width: u32,
@@ -47,6 +49,7 @@ impl Default for BenchOptions {
             methods: Method::ALL.to_vec(),
             leaf_size: 4,
             leaf_policy: LeafPolicy::Fill,
+            sah_group: 1,
             warmup: 1,
             repeat: 5,
             width: 800,
@@ -69,6 +72,8 @@ pub struct BenchRow {
     pub rays: usize,
     pub method: Method,
     pub leaf_size: u32,
+    /// Triangles the BVH's SAH priced as one test (4: quad-aware).
+    pub sah_group: u32,
     pub scene_bytes: usize,
     /// Kernel time (GPU timestamps), milliseconds.
     pub kernel_ms: Summary,
@@ -196,7 +201,10 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let mesh = load_obj(scene_path)?;
         progress(&format!("{name}: {} triangles; making ray sets", mesh.triangle_count()));
         let t = Instant::now();
-        let bvh = Bvh::build(&mesh, &BuildOptions { leaf_policy: o.leaf_policy, ..BuildOptions::new(o.leaf_size) });
+        let bvh = Bvh::build(
+            &mesh,
+            &BuildOptions { leaf_policy: o.leaf_policy, sah_group: o.sah_group, ..BuildOptions::new(o.leaf_size) },
+        );
         let reference = Reference::new(&mesh, &bvh);
         let sets = ray_sets(&mesh, &name, &reference, o)?;
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
@@ -231,6 +239,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                     rays: rays.len(),
                     method: *method,
                     leaf_size: o.leaf_size,
+                    sah_group: o.sah_group,
                     scene_bytes: gscene.bytes,
                     kernel_ms: ms,
                     mrays_per_s: mr(ms.median),

@@ -78,6 +78,10 @@ enum Cmd {
         leaf_sizes: Vec<u32>,
         #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
         leaf_policy: LeafPolicy,
+        /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
+        /// Quad kernels test them.
+        #[arg(long, default_value_t = 1)]
+        sah_group: u32,
         #[arg(long)]
         json: bool,
     },
@@ -176,6 +180,10 @@ struct RaycastArgs {
     /// decides and leaf-size is only a cap.
     #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
     leaf_policy: LeafPolicy,
+    /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
+    /// Quad kernels test them.
+    #[arg(long, default_value_t = 1)]
+    sah_group: u32,
     /// Occlusion query: any hit in [tmin, tmax] instead of the closest.
     #[arg(long)]
     any_hit: bool,
@@ -206,6 +214,10 @@ struct BenchArgs {
     leaf_size: u32,
     #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
     leaf_policy: LeafPolicy,
+    /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
+    /// Quad kernels test them.
+    #[arg(long, default_value_t = 1)]
+    sah_group: u32,
     #[arg(long, default_value_t = 5)]
     repeat: usize,
     #[arg(long, default_value_t = 800)]
@@ -275,6 +287,10 @@ struct RenderArgs {
     leaf_size: u32,
     #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
     leaf_policy: LeafPolicy,
+    /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
+    /// Quad kernels test them.
+    #[arg(long, default_value_t = 1)]
+    sah_group: u32,
     #[arg(long, default_value_t = 800)]
     width: u32,
     #[arg(long, default_value_t = 600)]
@@ -342,7 +358,9 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Devices { json } => devices(json),
         Cmd::Rays { kind } => make_rays(kind),
         Cmd::Raycast(a) => raycast_cmd(a),
-        Cmd::Bvh { scene, leaf_sizes, leaf_policy, json } => bvh_cmd(&scene, leaf_sizes, leaf_policy, json),
+        Cmd::Bvh { scene, leaf_sizes, leaf_policy, sah_group, json } => {
+            bvh_cmd(&scene, leaf_sizes, leaf_policy, sah_group, json)
+        }
         Cmd::Spirv { write, json } => spirv_cmd(write, json),
         Cmd::Steps { scene, rays, leaf_size, leaf_policy, widths, json } => {
             steps_cmd(&scene, &rays, leaf_size, leaf_policy, &widths, json)
@@ -350,6 +368,14 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Bench(a) => bench_cmd(a),
         Cmd::Render(a) => render_cmd(a),
         Cmd::BenchRender(a) => bench_render_cmd(a),
+    }
+}
+
+fn check_sah_group(g: u32) -> Result<()> {
+    if (1..=MAX_LEAF_SIZE).contains(&g) {
+        Ok(())
+    } else {
+        Err(Error::Usage(format!("--sah-group {g}: must be 1..={MAX_LEAF_SIZE} (4 prices leaves in quads)")))
     }
 }
 
@@ -410,7 +436,11 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     trilab::io::ensure_not_input(&a.out, &[&a.scene, &a.rays])?;
     let mesh = load_obj(&a.scene)?;
     let rays = rays::read_rays(&a.rays)?;
-    let bvh = Bvh::build(&mesh, &BuildOptions { leaf_policy: a.leaf_policy, ..BuildOptions::new(a.leaf_size) });
+    check_sah_group(a.sah_group)?;
+    let bvh = Bvh::build(
+        &mesh,
+        &BuildOptions { leaf_policy: a.leaf_policy, sah_group: a.sah_group, ..BuildOptions::new(a.leaf_size) },
+    );
     let encoded = a.method.encode(&mesh, &bvh);
     if !encoded.unrepresentable.is_empty() {
         eprintln!(
@@ -459,6 +489,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
             "method": a.method,
             "leaf_size": a.leaf_size,
             "leaf_policy": a.leaf_policy.to_string(),
+            "sah_group": a.sah_group,
             "any_hit": a.any_hit,
             "rays": rays.len(),
             "hits": hits,
@@ -512,14 +543,15 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     Ok(())
 }
 
-fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, json: bool) -> Result<()> {
+fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, sah_group: u32, json: bool) -> Result<()> {
+    check_sah_group(sah_group)?;
     let mesh = load_obj(scene)?;
     let leaf_sizes = if leaf_sizes.is_empty() { vec![1, 2, 3, 4, 8, 16] } else { leaf_sizes };
     let mut stats = vec![];
     for &leaf in &leaf_sizes {
         check_leaf_size(leaf)?;
         for builder in [Builder::default(), Builder::Sweep] {
-            let bvh = Bvh::build(&mesh, &BuildOptions { builder, leaf_policy, ..BuildOptions::new(leaf) });
+            let bvh = Bvh::build(&mesh, &BuildOptions { builder, leaf_policy, sah_group, ..BuildOptions::new(leaf) });
             let mut sizes = serde_json::Map::new();
             for m in Method::ALL {
                 sizes.insert(m.name().into(), json!(m.encode(&mesh, &bvh).gpu_bytes()));
@@ -532,13 +564,20 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, json: bo
         println!("{}", serde_json::to_string_pretty(&v).unwrap());
         return Ok(());
     }
-    println!("{}: {} triangles, {} vertices", scene.display(), mesh.triangle_count(), mesh.positions.len());
+    println!(
+        "{}: {} triangles, {} vertices; SAH with {} triangle(s) per test, leaf policy {leaf_policy}",
+        scene.display(),
+        mesh.triangle_count(),
+        mesh.positions.len(),
+        sah_group
+    );
     let mut t = Table::new([
         "leaf",
         "builder",
         "nodes",
         "depth",
         "SAH cost",
+        "quad padding",
         "build ms",
         "leaf sizes (count:leaves)",
         "MB mt",
@@ -556,6 +595,7 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, json: bo
             s.nodes.to_string(),
             s.depth.to_string(),
             format!("{:.2}", s.sah_cost),
+            s.quad_padding.to_string(),
             format!("{:.1}", s.build_ms),
             hist.join(" "),
             mb("mt"),
@@ -670,6 +710,7 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         methods,
         leaf_size: a.leaf_size,
         leaf_policy: a.leaf_policy,
+        sah_group: a.sah_group,
         repeat: a.repeat.max(1),
         width: a.width,
         height: a.height,
@@ -752,7 +793,11 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
     }
 
     let t_build = std::time::Instant::now();
-    let bvh = Bvh::build(&mesh, &BuildOptions { leaf_policy: a.leaf_policy, ..BuildOptions::new(a.leaf_size) });
+    check_sah_group(a.sah_group)?;
+    let bvh = Bvh::build(
+        &mesh,
+        &BuildOptions { leaf_policy: a.leaf_policy, sah_group: a.sah_group, ..BuildOptions::new(a.leaf_size) },
+    );
     let encoded = a.method.encode(&mesh, &bvh);
     let scene = RenderScene::new(&mesh, &encoded);
     let build_ms = t_build.elapsed().as_secs_f64() * 1e3;
@@ -791,6 +836,7 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         "method": a.method.name(),
         "leaf_size": a.leaf_size,
         "leaf_policy": a.leaf_policy,
+        "sah_group": a.sah_group,
         "kernel": result.kernel,
         "kernel_choice": a.kernel,
         "bsdfs_in_kernel": kernel.bsdfs(),

@@ -47,8 +47,12 @@ pub struct BvhStats {
     /// `leaf_histogram[k]` = number of leaves holding `k` triangles.
     pub leaf_histogram: Vec<usize>,
     /// SAH cost with the build's costs: sum over inner nodes of C_t A(n)/A(root) plus sum over
-    /// leaves of C_i |n| A(n)/A(root).
+    /// leaves of C_i ceil(|n| / g) A(n)/A(root), g = the build's `sah_group` (1: classic SAH).
     pub sah_cost: f64,
+    /// Triangles priced as one test by the build's SAH (4: quad-aware).
+    pub sah_group: u32,
+    /// Padding slots a 4-wide (Quad) encoding adds to fill partial quads.
+    pub quad_padding: usize,
     pub build_ms: f64,
     pub node_bytes: usize,
 }
@@ -78,9 +82,25 @@ impl Bvh {
         }
     }
 
+    /// The SAH cost of this tree priced with `o`'s costs and `sah_group` (so trees built
+    /// with different options can be compared on one scale).
+    pub fn sah_cost(&self, o: &BuildOptions) -> f64 {
+        let root_area = self.nodes[0].aabb().area().max(f64::MIN_POSITIVE);
+        let mut cost = 0.0;
+        self.visit(|i, _| {
+            let n = &self.nodes[i];
+            let rel = n.aabb().area() / root_area;
+            cost += if n.is_leaf() {
+                o.cost_intersect as f64 * o.tests(n.count as usize) * rel
+            } else {
+                o.cost_traversal as f64 * rel
+            };
+        });
+        cost
+    }
+
     pub fn stats(&self) -> BvhStats {
         let o = &self.options;
-        let root_area = self.nodes[0].aabb().area().max(f64::MIN_POSITIVE);
         let mut s = BvhStats {
             builder: o.builder.to_string(),
             leaf_policy: o.leaf_policy.to_string(),
@@ -92,13 +112,14 @@ impl Bvh {
             leaves: 0,
             depth: 0,
             leaf_histogram: vec![0; o.max_leaf_size as usize + 1],
-            sah_cost: 0.0,
+            sah_cost: self.sah_cost(o),
+            sah_group: o.sah_group,
+            quad_padding: 0,
             build_ms: self.build_seconds * 1e3,
             node_bytes: self.nodes.len() * std::mem::size_of::<BvhNode>(),
         };
         self.visit(|i, d| {
             let n = &self.nodes[i];
-            let rel = n.aabb().area() / root_area;
             s.depth = s.depth.max(d);
             if n.is_leaf() {
                 s.leaves += 1;
@@ -107,10 +128,9 @@ impl Bvh {
                     s.leaf_histogram.resize(c + 1, 0);
                 }
                 s.leaf_histogram[c] += 1;
-                s.sah_cost += o.cost_intersect as f64 * c as f64 * rel;
+                s.quad_padding += c.div_ceil(4) * 4 - c;
             } else {
                 s.inner_nodes += 1;
-                s.sah_cost += o.cost_traversal as f64 * rel;
             }
         });
         s
@@ -224,6 +244,36 @@ mod tests {
             sah.validate(&mesh).unwrap();
             assert!(sah.stats().leaves >= fill.stats().leaves, "SAH termination never makes fewer leaves");
         }
+    }
+
+    #[test]
+    fn quad_aware_sah_prices_leaves_in_quads() {
+        let mesh = grid(3000);
+        for leaf in [4, 8, 16] {
+            for leaf_policy in [LeafPolicy::Fill, LeafPolicy::Sah] {
+                let plain = Bvh::build(&mesh, &BuildOptions { leaf_policy, ..BuildOptions::new(leaf) });
+                let o4 = BuildOptions { leaf_policy, sah_group: 4, ..BuildOptions::new(leaf) };
+                let quad = Bvh::build(&mesh, &o4);
+                quad.validate(&mesh).unwrap();
+                let (p, q) = (plain.stats(), quad.stats());
+                eprintln!(
+                    "leaf {leaf} {leaf_policy}: quad-priced SAH {:.2} -> {:.2}, padding {} -> {}",
+                    plain.sah_cost(&o4),
+                    q.sah_cost,
+                    p.quad_padding,
+                    q.quad_padding
+                );
+                assert_eq!(q.sah_group, 4);
+                assert!((q.sah_cost - quad.sah_cost(&o4)).abs() < 1e-9);
+                // Greedy top-down builds are not optimal, but pricing what the kernel pays
+                // must not make the tree worse by that price.
+                assert!(q.sah_cost <= plain.sah_cost(&o4) * 1.01, "leaf {leaf} {leaf_policy}");
+            }
+        }
+        // ceil(n / 4) tests per leaf.
+        let o = BuildOptions { sah_group: 4, ..BuildOptions::new(8) };
+        assert_eq!([1, 4, 5, 8].map(|n| o.tests(n)), [1.0, 1.0, 2.0, 2.0]);
+        assert_eq!(BuildOptions::new(8).tests(5), 5.0);
     }
 
     #[test]
