@@ -809,7 +809,9 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
     {
         let flag = interrupted.clone();
         // Ctrl-C: finish the pass in flight, then write what has accumulated.
-        let _ = ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::SeqCst));
+        if let Err(e) = ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::SeqCst)) {
+            eprintln!("trilab: warning: cannot catch Ctrl-C ({e}); interrupting will not save the partial image");
+        }
     }
     let bar = if a.quiet { indicatif::ProgressBar::hidden() } else { indicatif::ProgressBar::new(settings.spp as u64) };
     bar.set_style(
@@ -840,7 +842,7 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         "kernel": result.kernel,
         "kernel_choice": a.kernel,
         "bsdfs_in_kernel": kernel.bsdfs(),
-        "bsdfs_in_scene": trilab::scene::BsdfKind::ALL.iter().filter(|k| scene.bsdf_mask & k.bit() != 0).map(|k| k.name()).collect::<Vec<_>>(),
+        "bsdfs_in_scene": trilab::scene::BsdfKind::in_mask(scene.bsdf_mask).map(|k| k.name()).collect::<Vec<_>>(),
         "settings": settings,
         "camera": {
             "eye": settings.camera.eye.to_array(),

@@ -156,17 +156,11 @@ impl Context {
             // SAFETY: both buffers are alive until one_shot returns (it waits for the fence).
             d.cmd_copy_buffer(cmd, staging.raw, buf.raw, &[vk::BufferCopy::default().size(bytes.len() as u64)]);
             // Make the copy visible to any later shader read or write.
-            let barrier = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
-            d.cmd_pipeline_barrier(
+            memory_barrier(
+                d,
                 cmd,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::COMPUTE_SHADER,
-                vk::DependencyFlags::empty(),
-                &[barrier],
-                &[],
-                &[],
+                (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
             );
         })?;
         Ok(buf)
@@ -182,31 +176,7 @@ impl Context {
         )?;
         self.one_shot(&format!("downloading `{}`", buf.name), |d, cmd| unsafe {
             // SAFETY: both buffers outlive the wait in one_shot.
-            let before = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-                .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
-            d.cmd_pipeline_barrier(
-                cmd,
-                vk::PipelineStageFlags::COMPUTE_SHADER,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::DependencyFlags::empty(),
-                &[before],
-                &[],
-                &[],
-            );
-            d.cmd_copy_buffer(cmd, buf.raw, readback.raw, &[vk::BufferCopy::default().size(len)]);
-            let after = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::HOST_READ);
-            d.cmd_pipeline_barrier(
-                cmd,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::HOST,
-                vk::DependencyFlags::empty(),
-                &[after],
-                &[],
-                &[],
-            );
+            read_back(d, cmd, buf, &readback, len);
         })?;
         let bytes = readback
             .mapped()
@@ -271,4 +241,39 @@ impl Context {
         }
         result
     }
+}
+
+/// Records one global memory barrier: `src` (stages, accesses) before `dst`.
+///
+/// # Safety
+/// `cmd` is a command buffer of `d` in the recording state.
+pub(crate) unsafe fn memory_barrier(
+    d: &ash::Device,
+    cmd: vk::CommandBuffer,
+    src: (vk::PipelineStageFlags, vk::AccessFlags),
+    dst: (vk::PipelineStageFlags, vk::AccessFlags),
+) {
+    let barrier = vk::MemoryBarrier::default().src_access_mask(src.1).dst_access_mask(dst.1);
+    d.cmd_pipeline_barrier(cmd, src.0, dst.0, vk::DependencyFlags::empty(), &[barrier], &[], &[]);
+}
+
+/// Records a copy of the first `len` bytes of `buf` (last written by a compute shader) into the
+/// host-visible `readback`, made visible to the host once the submit completes.
+///
+/// # Safety
+/// As [`memory_barrier`]; both buffers outlive the submit.
+pub(crate) unsafe fn read_back(d: &ash::Device, cmd: vk::CommandBuffer, buf: &Buffer, readback: &Buffer, len: u64) {
+    memory_barrier(
+        d,
+        cmd,
+        (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_WRITE),
+        (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_READ),
+    );
+    d.cmd_copy_buffer(cmd, buf.raw, readback.raw, &[vk::BufferCopy::default().size(len)]);
+    memory_barrier(
+        d,
+        cmd,
+        (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+        (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
+    );
 }

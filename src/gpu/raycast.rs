@@ -5,11 +5,12 @@ use std::time::Instant;
 
 use ash::vk;
 
-use super::buffer::TexelBuffer;
+use super::buffer::{memory_barrier, TexelBuffer};
 use super::context::Context;
 use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;
 use super::shared::{BINDING_HITS, BINDING_RAYS};
+use super::timestamps::Timestamps;
 use crate::encoding::{EncodedScene, Method};
 use crate::error::{Result, VkContext};
 use crate::rays::{Hit, Ray};
@@ -118,11 +119,9 @@ impl RaycastResult {
     }
 }
 
-/// Command buffers and queries of one batched run; destroyed on drop (after all its submits
-/// finished).
+/// Command buffers of one batched run; freed on drop (after all its submits finished).
 struct Dispatch<'a> {
     ctx: &'a Context,
-    queries: vk::QueryPool,
     cmds: Vec<vk::CommandBuffer>,
 }
 
@@ -131,8 +130,6 @@ impl Drop for Dispatch<'_> {
         if !self.cmds.is_empty() {
             self.ctx.free_command_buffers(&self.cmds);
         }
-        // SAFETY: all submits using the queries were waited for (or never made).
-        unsafe { self.ctx.device.raw.destroy_query_pool(self.queries, None) };
     }
 }
 
@@ -177,42 +174,36 @@ pub fn raycast(
         resources.push((BINDING_HITS, Resource::Buffer { buffer: &hit_buf, offset: first * 16, range: count * 16 }));
         write_set(ctx, kernel, set, &resources)?;
     }
-    let timestamps = info.timestamp_valid_bits > 0;
-    let qinfo =
-        vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2 * nbatches as u32);
-    // SAFETY: valid device and create info; destroyed by `Dispatch` after the last wait.
-    let queries = unsafe { dev.create_query_pool(&qinfo, None) }.during("creating the timestamp query pool")?;
-    let mut dispatch = Dispatch { ctx, queries, cmds: vec![] };
+    let timestamps = Timestamps::supported(ctx);
+    let queries = Timestamps::new(ctx, nbatches as u32)?;
+    let mut dispatch = Dispatch { ctx, cmds: vec![] };
 
     dispatch.cmds = ctx.allocate_command_buffers(nbatches as u32)?;
     for (bi, (&cmd, &set)) in dispatch.cmds.iter().zip(&sets).enumerate() {
         let count = batch.min(rays.len() - bi * batch) as u32;
-        let q = 2 * bi as u32;
+        let q = bi as u32;
         // SAFETY: recording into freshly allocated command buffers; every object referenced
         // outlives the submits (all waited for before this function returns).
         unsafe {
             dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default()).during("recording a dispatch")?;
-            dev.cmd_reset_query_pool(cmd, queries, q, 2);
+            queries.reset(dev, cmd, q);
             // The previous run's dispatch wrote the same hit range (and uploads came before).
-            let barrier = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
-            dev.cmd_pipeline_barrier(
+            memory_barrier(
+                dev,
                 cmd,
-                vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::COMPUTE_SHADER,
-                vk::DependencyFlags::empty(),
-                &[barrier],
-                &[],
-                &[],
+                (
+                    vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE,
+                ),
+                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
             );
-            dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, queries, q);
+            queries.start(dev, cmd, q);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
             dev.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline_layout, 0, &[set], &[]);
             // `Push { uint ray_count; }` in raycast.comp (checked by tests/reflection.rs).
             dev.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, &count.to_le_bytes());
             dev.cmd_dispatch(cmd, count.div_ceil(local as u32), 1, 1);
-            dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, queries, q + 1);
+            queries.end(dev, cmd, q);
             dev.end_command_buffer(cmd).during("recording a dispatch")?;
         }
     }
@@ -234,24 +225,12 @@ pub fn raycast(
         }
         wall_ms.push(wall);
         if timestamps {
-            let mut ts = vec![0u64; 2 * nbatches];
-            // SAFETY: all queries were written by the completed submits.
-            unsafe {
-                dev.get_query_pool_results(
-                    queries,
-                    0,
-                    &mut ts,
-                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
-                )
-            }
-            .during("reading timestamps")?;
-            let mask = if info.timestamp_valid_bits >= 64 { u64::MAX } else { (1u64 << info.timestamp_valid_bits) - 1 };
-            let ticks: u64 = ts.chunks_exact(2).map(|p| (p[1].wrapping_sub(p[0])) & mask).sum();
-            kernel_ms.push(ticks as f64 * info.timestamp_period_ns as f64 * 1e-6);
+            kernel_ms.push(queries.read_ms()?.iter().sum());
         }
     }
     let bytes = ctx.download(&hit_buf, hit_bytes)?;
     drop(dispatch);
+    drop(queries);
     let hits = bytes.chunks_exact(16).map(bytemuck::pod_read_unaligned).collect();
     Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches })
 }

@@ -145,11 +145,9 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
         for &method in &o.methods {
             let encoded = method.encode(&mesh, &bvh);
             let scene = RenderScene::new(&mesh, &encoded);
-            let gpu = GpuScene::upload_for(
-                ctx,
-                &encoded,
-                PathtraceKernel::choose(method, scene.bsdf_mask, o.kernels[0]).source,
-            )?;
+            // Every path-trace variant reads the same bindings.
+            let reads = PathtraceKernel::choose(method, scene.bsdf_mask, KernelChoice::General).source;
+            let gpu = GpuScene::upload_for(ctx, &encoded, reads)?;
             for &choice in &o.kernels {
                 let kernel = PathtraceKernel::choose(method, scene.bsdf_mask, choice);
                 progress(&format!("{name}: {} ({})", kernel.source.name, kernel.bsdfs().join("+")));

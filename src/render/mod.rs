@@ -20,12 +20,14 @@ use ash::vk;
 use glam::{DVec3, Vec3};
 
 use crate::encoding::{EncodedScene, Method, Texel};
-use crate::error::{Error, Result, VkContext};
+use crate::error::{Error, Result};
+use crate::gpu::buffer::{memory_barrier, read_back};
 use crate::gpu::descriptors::{write_set, DescriptorPool, Resource};
 use crate::gpu::shared::{
     BINDING_ACCUM, BINDING_LIGHTS, BINDING_MATERIALS, BINDING_PARAMS, BINDING_SHADING, BINDING_STATS, BSDF_MASK_ALL,
     MISS_ID,
 };
+use crate::gpu::timestamps::Timestamps;
 use crate::gpu::{Context, GpuScene};
 use crate::kernels::{self, KernelSource};
 use crate::rays::Camera;
@@ -138,7 +140,7 @@ impl PathtraceKernel {
 
     /// BSDFs carried, by name.
     pub fn bsdfs(&self) -> Vec<&'static str> {
-        BsdfKind::ALL.iter().filter(|k| self.spec_mask & k.bit() != 0).map(|k| k.name()).collect()
+        BsdfKind::in_mask(self.spec_mask).map(BsdfKind::name).collect()
     }
 }
 
@@ -419,12 +421,8 @@ pub fn render(
     let set = sets[0];
 
     let info = ctx.info();
-    let timestamps = info.timestamp_valid_bits > 0;
-    let qinfo = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
-    let dev = &ctx.device.raw;
-    // SAFETY: valid device and create info; destroyed by `Queries` after the last wait.
-    let queries = unsafe { dev.create_query_pool(&qinfo, None) }.during("creating the timestamp query pool")?;
-    let queries = Queries { ctx, pool: queries };
+    let timestamps = Timestamps::supported(ctx);
+    let queries = Timestamps::new(ctx, 1)?;
     let local = k.layout.local_size.0;
     let max_groups = info.max_compute_workgroup_count[0] as u64;
 
@@ -484,85 +482,50 @@ pub fn render(
                 first + count
             );
             let t0 = Instant::now();
-            let cmd = ctx.allocate_command_buffers(1)?[0];
-            let cmds = CommandBuffers { ctx, cmds: vec![cmd] };
-            // SAFETY: recording into a fresh command buffer; every object it references lives
-            // until the wait below returns.
-            unsafe {
-                dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default()).during(&what)?;
-                dev.cmd_reset_query_pool(cmd, queries.pool, 0, 2);
-                dev.cmd_fill_buffer(cmd, stats.raw, 0, vk::WHOLE_SIZE, 0);
-                // The fill, and the previous dispatch's accumulation, before this dispatch.
-                let before = vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
-                dev.cmd_pipeline_barrier(
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::DependencyFlags::empty(),
-                    &[before],
-                    &[],
-                    &[],
-                );
-                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, queries.pool, 0);
-                dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, k.pipeline);
-                dev.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, k.pipeline_layout, 0, &[set], &[]);
-                dev.cmd_push_constants(
-                    cmd,
-                    k.pipeline_layout,
-                    vk::ShaderStageFlags::COMPUTE,
-                    0,
-                    bytemuck::bytes_of(&push),
-                );
-                dev.cmd_dispatch(cmd, (count as u32).div_ceil(local), 1, 1);
-                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, queries.pool, 1);
-                let after = vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
-                dev.cmd_pipeline_barrier(
-                    cmd,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::DependencyFlags::empty(),
-                    &[after],
-                    &[],
-                    &[],
-                );
-                dev.cmd_copy_buffer(cmd, stats.raw, readback.raw, &[vk::BufferCopy::default().size(4 * STATS)]);
-                let host = vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::HOST_READ);
-                dev.cmd_pipeline_barrier(
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::PipelineStageFlags::HOST,
-                    vk::DependencyFlags::empty(),
-                    &[host],
-                    &[],
-                    &[],
-                );
-                dev.end_command_buffer(cmd).during(&what)?;
-            }
-            ctx.submit_and_wait(cmd, &what)?;
-            drop(cmds);
-            let seconds = t0.elapsed().as_secs_f64();
-            if timestamps {
-                let mut ts = [0u64; 2];
-                // SAFETY: both queries were written by the completed submit.
+            ctx.one_shot(&what, |dev, cmd| {
+                // SAFETY: one_shot records into a fresh command buffer and waits for it; every
+                // object recorded here outlives that wait.
                 unsafe {
-                    dev.get_query_pool_results(
-                        queries.pool,
+                    queries.reset(dev, cmd, 0);
+                    dev.cmd_fill_buffer(cmd, stats.raw, 0, vk::WHOLE_SIZE, 0);
+                    // The fill, and the previous dispatch's accumulation, before this dispatch.
+                    memory_barrier(
+                        dev,
+                        cmd,
+                        (
+                            vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER,
+                            vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE,
+                        ),
+                        (
+                            vk::PipelineStageFlags::COMPUTE_SHADER,
+                            vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                        ),
+                    );
+                    queries.start(dev, cmd, 0);
+                    dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, k.pipeline);
+                    dev.cmd_bind_descriptor_sets(
+                        cmd,
+                        vk::PipelineBindPoint::COMPUTE,
+                        k.pipeline_layout,
                         0,
-                        &mut ts,
-                        vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
-                    )
+                        &[set],
+                        &[],
+                    );
+                    dev.cmd_push_constants(
+                        cmd,
+                        k.pipeline_layout,
+                        vk::ShaderStageFlags::COMPUTE,
+                        0,
+                        bytemuck::bytes_of(&push),
+                    );
+                    dev.cmd_dispatch(cmd, (count as u32).div_ceil(local), 1, 1);
+                    queries.end(dev, cmd, 0);
+                    read_back(dev, cmd, &stats, &readback, 4 * STATS);
                 }
-                .during("reading timestamps")?;
-                let mask =
-                    if info.timestamp_valid_bits >= 64 { u64::MAX } else { (1u64 << info.timestamp_valid_bits) - 1 };
-                let ms = (ts[1].wrapping_sub(ts[0]) & mask) as f64 * info.timestamp_period_ns as f64 * 1e-6;
-                *result.gpu_ms.as_mut().unwrap() += ms;
+            })?;
+            let seconds = t0.elapsed().as_secs_f64();
+            if let Some(gpu_ms) = result.gpu_ms.as_mut() {
+                *gpu_ms += queries.read_ms()?[0];
             }
             let counters: [u32; STATS as usize] = bytemuck::pod_read_unaligned(
                 readback.mapped().ok_or_else(|| Error::NoDevice("readback buffer is not host-visible".into()))?,
@@ -590,29 +553,4 @@ pub fn render(
     let bytes = ctx.download(&accum, pixels as u64 * 16)?;
     result.accum = bytes.chunks_exact(16).map(bytemuck::pod_read_unaligned).collect();
     Ok(result)
-}
-
-/// A query pool destroyed on drop (after every submit using it was waited for).
-struct Queries<'a> {
-    ctx: &'a Context,
-    pool: vk::QueryPool,
-}
-
-impl Drop for Queries<'_> {
-    fn drop(&mut self) {
-        // SAFETY: every submit using the pool was waited for.
-        unsafe { self.ctx.device.raw.destroy_query_pool(self.pool, None) };
-    }
-}
-
-/// Command buffers freed on drop (after their submit was waited for, or if recording failed).
-struct CommandBuffers<'a> {
-    ctx: &'a Context,
-    cmds: Vec<vk::CommandBuffer>,
-}
-
-impl Drop for CommandBuffers<'_> {
-    fn drop(&mut self) {
-        self.ctx.free_command_buffers(&self.cmds);
-    }
 }

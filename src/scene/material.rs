@@ -87,6 +87,11 @@ impl BsdfKind {
     pub fn bit(self) -> u32 {
         1 << self.code()
     }
+
+    /// The kinds whose bit is set in `mask`, in `ALL` order.
+    pub fn in_mask(mask: u32) -> impl Iterator<Item = BsdfKind> {
+        BsdfKind::ALL.into_iter().filter(move |k| mask & k.bit() != 0)
+    }
 }
 
 impl std::fmt::Display for BsdfKind {
@@ -160,7 +165,7 @@ impl Material {
                     }
                 }
                 "Tr" => {
-                    if v.trim().parse::<f32>().is_ok_and(|t| t != 0.0) || v.trim().parse::<f32>().is_err() {
+                    if v.trim().parse::<f32>() != Ok(0.0) {
                         warn("Tr", format!("{v}: partial transparency is not supported; rendered opaque"));
                     }
                 }
