@@ -3,14 +3,15 @@
 #   - lavapipe (Mesa's CPU Vulkan driver) from bookworm-backports: Mesa 25.0.x runs trilab's
 #     kernels 7-9x faster than bookworm's 22.3.6 and adds VK_KHR_ray_query;
 #   - the Vulkan loader and headers, the Khronos validation layers, vulkaninfo, spirv-tools;
-#   - cmake, python3 and g++ to build shaderc from source (crate feature build-from-source).
+#   - cmake, python3 and g++ to build shaderc from source (crate feature build-from-source);
+#   - procps, for the `kill` the Ctrl-C test sends SIGINT with.
 # Safe to run repeatedly; needs root (or sudo).
 set -euo pipefail
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
-base_pkgs=(libvulkan1 libvulkan-dev vulkan-validationlayers vulkan-tools spirv-tools cmake python3 g++ pkg-config)
+base_pkgs=(libvulkan1 libvulkan-dev vulkan-validationlayers vulkan-tools spirv-tools cmake python3 g++ pkg-config procps)
 missing=()
 for p in "${base_pkgs[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
