@@ -86,6 +86,38 @@ unsafe extern "system" fn debug_callback(
 }
 
 /// The shared Vulkan objects. Dropped last, when nothing else refers to it.
+/// Optional device features trilab enables when the device has them. Anything that needs one
+/// checks here and reports "unsupported" when it is off, never a fallback that pretends.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct EnabledFeatures {
+    pub pipeline_statistics_query: bool,
+    /// `VK_KHR_shader_clock` with `shaderSubgroupClock`.
+    pub shader_clock: bool,
+    /// `VK_EXT_subgroup_size_control` (core in 1.3) with `subgroupSizeControl`.
+    pub subgroup_size_control: bool,
+    /// `VK_KHR_pipeline_executable_properties` with `pipelineExecutableInfo`.
+    pub pipeline_executable_properties: bool,
+    /// `VK_KHR_ray_query` + `VK_KHR_acceleration_structure` (+ deferred host operations and
+    /// `bufferDeviceAddress`, which acceleration structures need).
+    pub ray_query: bool,
+    pub shader_float64: bool,
+    pub shader_int64: bool,
+}
+
+impl EnabledFeatures {
+    pub fn for_device(info: &DeviceInfo) -> EnabledFeatures {
+        EnabledFeatures {
+            pipeline_statistics_query: info.pipeline_statistics_query,
+            shader_clock: info.shader_clock.is_some_and(|(subgroup, _)| subgroup),
+            subgroup_size_control: info.subgroup_size_control.is_some(),
+            pipeline_executable_properties: info.pipeline_executable_properties,
+            ray_query: info.ray_query && info.buffer_device_address,
+            shader_float64: info.shader_float64,
+            shader_int64: info.shader_int64,
+        }
+    }
+}
+
 pub struct Device {
     _entry: ash::Entry,
     pub(crate) instance: ash::Instance,
@@ -95,6 +127,7 @@ pub struct Device {
     pub(crate) allocator: ManuallyDrop<Mutex<Allocator>>,
     pub(crate) command_pool: Mutex<vk::CommandPool>,
     pub(crate) info: DeviceInfo,
+    pub(crate) enabled: EnabledFeatures,
     pub(crate) submit_timeout: Duration,
     log: Arc<ValidationLog>,
 }
@@ -204,7 +237,48 @@ impl Context {
         let priorities = [1.0f32];
         let queue_info =
             [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
-        let device_create = vk::DeviceCreateInfo::default().queue_create_infos(&queue_info);
+        // Optional features the profiling, ray-query and f64 kernels use, enabled wherever the
+        // device has them (DeviceInfo says which); `Context::enabled` tells callers which are on.
+        let enabled = EnabledFeatures::for_device(&info);
+        let mut ext_names: Vec<*const std::ffi::c_char> = Vec::new();
+        let core = vk::PhysicalDeviceFeatures::default()
+            .pipeline_statistics_query(enabled.pipeline_statistics_query)
+            .shader_float64(enabled.shader_float64)
+            .shader_int64(enabled.shader_int64);
+        let mut f12 = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(enabled.ray_query);
+        let mut clock = vk::PhysicalDeviceShaderClockFeaturesKHR::default().shader_subgroup_clock(true);
+        let mut ssc = vk::PhysicalDeviceSubgroupSizeControlFeatures::default()
+            .subgroup_size_control(true)
+            .compute_full_subgroups(info.compute_full_subgroups);
+        let mut pep =
+            vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default().pipeline_executable_info(true);
+        let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
+        let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
+        let mut features2 = vk::PhysicalDeviceFeatures2::default().features(core).push_next(&mut f12);
+        if enabled.shader_clock {
+            ext_names.push(ash::khr::shader_clock::NAME.as_ptr());
+            features2 = features2.push_next(&mut clock);
+        }
+        if enabled.subgroup_size_control && info.api_version_raw < vk::API_VERSION_1_3 {
+            ext_names.push(ash::ext::subgroup_size_control::NAME.as_ptr());
+        }
+        if enabled.subgroup_size_control {
+            features2 = features2.push_next(&mut ssc);
+        }
+        if enabled.pipeline_executable_properties {
+            ext_names.push(ash::khr::pipeline_executable_properties::NAME.as_ptr());
+            features2 = features2.push_next(&mut pep);
+        }
+        if enabled.ray_query {
+            ext_names.push(ash::khr::acceleration_structure::NAME.as_ptr());
+            ext_names.push(ash::khr::ray_query::NAME.as_ptr());
+            ext_names.push(ash::khr::deferred_host_operations::NAME.as_ptr());
+            features2 = features2.push_next(&mut accel).push_next(&mut rq);
+        }
+        let device_create = vk::DeviceCreateInfo::default()
+            .queue_create_infos(&queue_info)
+            .enabled_extension_names(&ext_names)
+            .push_next(&mut features2);
         // SAFETY: physical device from this instance; create info valid for the call.
         let raw = unsafe { instance.create_device(physical, &device_create, None) }.during("vkCreateDevice")?;
         // SAFETY: queue family and index 0 were requested above.
@@ -224,7 +298,7 @@ impl Context {
             device: raw.clone(),
             physical_device: physical,
             debug_settings: Default::default(),
-            buffer_device_address: false,
+            buffer_device_address: enabled.ray_query,
             allocation_sizes: Default::default(),
         }) {
             Ok(a) => a,
@@ -247,6 +321,7 @@ impl Context {
                 allocator: ManuallyDrop::new(Mutex::new(allocator)),
                 command_pool: Mutex::new(command_pool),
                 info,
+                enabled,
                 submit_timeout: options.submit_timeout,
                 log,
             }),
@@ -272,6 +347,11 @@ impl Context {
 
     pub fn info(&self) -> &DeviceInfo {
         &self.device.info
+    }
+
+    /// The optional features this context enabled.
+    pub fn enabled(&self) -> &EnabledFeatures {
+        &self.device.enabled
     }
 
     /// Validation-layer warnings and errors so far (empty when the layer is off).

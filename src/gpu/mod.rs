@@ -22,7 +22,7 @@ pub mod shared {
 }
 
 pub use buffer::{Buffer, TexelBuffer};
-pub use context::{Context, ContextOptions, Validation, ValidationLog};
+pub use context::{Context, ContextOptions, EnabledFeatures, Validation, ValidationLog};
 pub use descriptors::Resource;
 pub use device_info::DeviceInfo;
 pub use kernel::Kernel;
