@@ -182,6 +182,62 @@ fn run_embree(bin: &Path, scene: &Path, rays: &Path, out: &Path, repeat: usize) 
         .ok_or_else(|| Error::Usage(format!("cannot read Mrays/s from {}: {text}", bin.display())))
 }
 
+/// Compares GPU hits with the f64 reference; an error (never a reported speed) when fewer than
+/// 99.99 % agree, any disagreement is unexplained (not an edge, vertex or tie case) or any hit is
+/// invalid.
+pub fn validate_hits(
+    mesh: &Mesh,
+    rays: &[Ray],
+    hits: &[crate::rays::Hit],
+    ref_hits: &[crate::reference::RefHit],
+) -> Result<crate::compare::Agreement> {
+    let agreement = compare_closest(mesh, rays, hits, ref_hits);
+    if !agreement.passes(0.9999) {
+        return Err(Error::Usage(format!(
+            "results disagree with the f64 reference ({}); not reporting a speed",
+            agreement.summary()
+        )));
+    }
+    Ok(agreement)
+}
+
+/// Mrays/s from a kernel-time summary: the median run's rate, and min/max from the slowest and
+/// fastest runs.
+pub fn mrays_summary(rays: usize, ms: Summary) -> Summary {
+    let mr = |ms: f64| rays as f64 / (ms * 1e-3) / 1e6;
+    Summary { median: mr(ms.median), min: mr(ms.max), max: mr(ms.min), runs: ms.runs }
+}
+
+/// One validated ray-casting measurement.
+#[derive(Clone, Debug)]
+pub struct RayMeasure {
+    /// GPU kernel time per run (or host wall time where the queue has no timestamps), ms.
+    pub kernel_ms: Summary,
+    /// Mrays/s at the median, slowest and fastest run (so `min` comes from `kernel_ms.max`).
+    pub mrays_per_s: Summary,
+    pub agreement: crate::compare::Agreement,
+    pub hits: Vec<crate::rays::Hit>,
+}
+
+/// Casts `rays` (`opts.warmup` untimed runs, then `opts.repeat` timed ones) and validates the
+/// hits against the f64 reference before the time counts: fewer than 99.99 % agreeing rays, an
+/// unexplained disagreement or an invalid hit is an error, never a reported speed.
+pub fn measure_rays(
+    ctx: &Context,
+    kernel: &crate::gpu::Kernel,
+    scene: &GpuScene,
+    mesh: &Mesh,
+    rays: &[Ray],
+    ref_hits: &[crate::reference::RefHit],
+    opts: &RaycastOptions,
+) -> Result<RayMeasure> {
+    let res = raycast(ctx, kernel, scene, rays, opts)?;
+    let agreement = validate_hits(mesh, rays, &res.hits, ref_hits)?;
+    let ms = res.time_ms();
+    let mrays_per_s = mrays_summary(rays.len(), ms);
+    Ok(RayMeasure { kernel_ms: ms, mrays_per_s, agreement, hits: res.hits })
+}
+
 pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
     let info = ctx.info();
     let mut report = BenchReport {
@@ -215,23 +271,16 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             let mut best: f64 = 0.0;
             for ((method, kernel), gscene) in o.methods.iter().zip(&kernels).zip(&scenes) {
                 let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: o.batch_rays };
-                let res = raycast(ctx, kernel, gscene, rays, &opts)?;
-                let agreement = compare_closest(&mesh, rays, &res.hits, &ref_hits);
-                let ms = res.time_ms();
-                let mr = |ms: f64| rays.len() as f64 / (ms * 1e-3) / 1e6;
+                let m = measure_rays(ctx, kernel, gscene, &mesh, rays, &ref_hits, &opts)
+                    .map_err(|e| Error::Usage(format!("{name} {set} {method}: {e}")))?;
+                let (ms, mr, agreement) = (m.kernel_ms, m.mrays_per_s, m.agreement);
                 progress(&format!(
                     "{name} {set} {method}: {:.2} Mrays/s ({:.1} ms), {}",
-                    mr(ms.median),
+                    mr.median,
                     ms.median,
                     agreement.summary()
                 ));
-                if !agreement.passes(0.9999) {
-                    return Err(Error::Usage(format!(
-                        "{name} {set} {method}: results disagree with the f64 reference ({}); not reporting a speed",
-                        agreement.summary()
-                    )));
-                }
-                best = best.max(mr(ms.median));
+                best = best.max(mr.median);
                 report.rows.push(BenchRow {
                     scene: name.clone(),
                     triangles: mesh.triangle_count(),
@@ -242,9 +291,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                     sah_group: o.sah_group,
                     scene_bytes: gscene.bytes,
                     kernel_ms: ms,
-                    mrays_per_s: mr(ms.median),
-                    mrays_per_s_min: mr(ms.max),
-                    mrays_per_s_max: mr(ms.min),
+                    mrays_per_s: mr.median,
+                    mrays_per_s_min: mr.min,
+                    mrays_per_s_max: mr.max,
                     agreement: agreement.fraction(),
                     unexplained_disagreements: agreement.unexplained,
                     invalid: agreement.invalid.len(),

@@ -23,6 +23,7 @@ pub mod render;
 pub mod report;
 pub mod scene;
 pub mod spirv;
+pub mod study;
 pub mod traversal;
 
 pub use error::{Error, Result};

@@ -17,6 +17,7 @@ use trilab::reference::Reference;
 use trilab::render::{self as pt, KernelChoice, PathtraceKernel, RenderScene, RenderSettings};
 use trilab::report::Table;
 use trilab::scene::load_obj;
+use trilab::study::{Preset, StudyOptions};
 
 #[derive(Parser)]
 #[command(
@@ -116,6 +117,37 @@ enum Cmd {
     Render(RenderArgs),
     /// Path-tracing benchmark: samples/s and rays/s per scene, method and kernel choice.
     BenchRender(BenchRenderArgs),
+    /// The paper's study on this device: scene x leaf size {1,2,3,4,8,16} x method, path-trace
+    /// seconds and Mrays/s per ray set, validated; writes study.csv/json/md and plots.
+    Study(StudyArgs),
+}
+
+#[derive(Args)]
+struct StudyArgs {
+    /// Scenes: names of bundled scenes (bunny, dragon, buddha) or OBJ paths. Default: the
+    /// preset's (bunny, dragon, buddha; the smoke preset only the bunny).
+    #[arg(long, value_delimiter = ',')]
+    scenes: Vec<String>,
+    /// paper: 800x600, 500 spp, depth 16; lavapipe: scaled to about 20 minutes on 2 CPU cores;
+    /// smoke: seconds, for CI.
+    #[arg(long, value_enum, default_value_t = Preset::Lavapipe)]
+    preset: Preset,
+    /// Output directory. Default: results/<device>/study/ (lavapipe, or the device name).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Leaf sizes (default: 1,2,3,4,8,16).
+    #[arg(long, value_delimiter = ',')]
+    leaf_sizes: Vec<u32>,
+    #[arg(long, value_enum, value_delimiter = ',')]
+    methods: Vec<Method>,
+    /// Timed rounds after the warm-up round (default: the preset's).
+    #[arg(long)]
+    repeat: Option<usize>,
+    /// Triangles the SAH prices as one test: 1 (the paper's SAH) or 4 (quad-aware).
+    #[arg(long, default_value_t = 1)]
+    sah_group: u32,
+    #[command(flatten)]
+    gpu: GpuArgs,
 }
 
 #[derive(Subcommand)]
@@ -368,6 +400,7 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Bench(a) => bench_cmd(a),
         Cmd::Render(a) => render_cmd(a),
         Cmd::BenchRender(a) => bench_render_cmd(a),
+        Cmd::Study(a) => study_cmd(a),
     }
 }
 
@@ -935,6 +968,63 @@ fn bench_render_cmd(a: BenchRenderArgs) -> Result<()> {
     }
     if let Some(p) = &a.json_out {
         trilab::io::write_atomic(p, serde_json::to_string_pretty(&report).unwrap().as_bytes())?;
+    }
+    Ok(())
+}
+
+fn study_cmd(a: StudyArgs) -> Result<()> {
+    let mut o = StudyOptions::preset(a.preset);
+    if !a.scenes.is_empty() {
+        o.scenes = a
+            .scenes
+            .iter()
+            .map(|s| {
+                let p = PathBuf::from(s);
+                if p.extension().is_none() && p.components().count() == 1 {
+                    PathBuf::from(format!("scenes/{s}.obj"))
+                } else {
+                    p
+                }
+            })
+            .collect();
+    }
+    if !a.leaf_sizes.is_empty() {
+        o.leaf_sizes = a.leaf_sizes.clone();
+    }
+    for &l in &o.leaf_sizes {
+        check_leaf_size(l)?;
+    }
+    if !a.methods.is_empty() {
+        o.methods = a.methods.clone();
+    }
+    if let Some(r) = a.repeat {
+        o.repeat = r.max(1);
+    }
+    if ![1, 4].contains(&a.sah_group) {
+        return Err(Error::Usage(format!("--sah-group {}: expected 1 or 4", a.sah_group)));
+    }
+    o.sah_group = a.sah_group;
+    for scene in &o.scenes {
+        if !scene.is_file() {
+            return Err(Error::Usage(format!("study: scene {} does not exist", scene.display())));
+        }
+    }
+    let ctx = a.gpu.context()?;
+    let out =
+        a.out.clone().unwrap_or_else(|| PathBuf::from("results").join(trilab::study::device_slug(&ctx)).join("study"));
+    let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
+    for f in ["study.csv", "study.json", "study.md"] {
+        trilab::io::ensure_not_input(&out.join(f), &inputs)?;
+    }
+    eprintln!("study: {}", o.scaling());
+    let report = trilab::study::run(&ctx, &o, |m| eprintln!("  {m}"))?;
+    print!("{}", trilab::study::table::paper_table(&report).to_text());
+    println!();
+    print!("{}", trilab::study::claims::markdown(&report));
+    let written = trilab::study::write(&report, &out)?;
+    eprintln!("study took {:.0} s; wrote:", report.seconds);
+    for w in written {
+        eprintln!("  {}", w.display());
     }
     Ok(())
 }

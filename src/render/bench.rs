@@ -112,7 +112,39 @@ impl RenderBenchReport {
     }
 }
 
-fn image_mean(r: &RenderResult) -> f64 {
+/// Timed renders of one configuration, summarised and checked.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderMeasure {
+    pub msamples_per_s: Summary,
+    pub mrays_per_s: Summary,
+    /// GPU time per render (host wall time where there are no timestamps), ms.
+    pub ms: Summary,
+    /// Rays per sample (closest + occlusion).
+    pub rays_per_sample: f64,
+    /// Mean of the last render's RGB.
+    pub image_mean: f64,
+}
+
+/// Summarises timed renders of one configuration; an error when any sample was NaN/Inf (dropped)
+/// or the image mean is not finite, so a broken kernel never reports a speed.
+pub fn summarise_renders(runs: &[RenderResult]) -> Result<RenderMeasure> {
+    let last = runs.last().ok_or_else(|| Error::Usage("no timed renders".into()))?;
+    let mean = image_mean(last);
+    let bad = runs.iter().map(|r| r.dropped_samples).sum::<u64>();
+    if bad > 0 || !mean.is_finite() {
+        return Err(Error::Usage(format!("{bad} NaN/Inf samples (image mean {mean})")));
+    }
+    let rate = |f: &dyn Fn(&RenderResult) -> f64| Summary::of(&runs.iter().map(f).collect::<Vec<_>>()).unwrap();
+    Ok(RenderMeasure {
+        msamples_per_s: rate(&|r| r.samples_per_second() * 1e-6),
+        mrays_per_s: rate(&|r| r.mrays_per_second()),
+        ms: rate(&|r| r.seconds() * 1e3),
+        rays_per_sample: (last.closest_rays + last.shadow_rays) as f64 / last.samples() as f64,
+        image_mean: mean,
+    })
+}
+
+pub fn image_mean(r: &RenderResult) -> f64 {
     let img = r.image();
     img.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>() / (3 * img.len()) as f64
 }
@@ -157,12 +189,9 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
                 for _ in 0..o.repeat.max(1) {
                     runs.push(render(ctx, &gpu, &scene, kernel, &settings, &mut |_| true)?);
                 }
-                let last = runs.last().unwrap();
-                let mean = image_mean(last);
-                let bad = runs.iter().map(|r| r.dropped_samples).sum::<u64>();
-                if bad > 0 || !mean.is_finite() {
-                    return Err(Error::Usage(format!("{name} {}: {bad} NaN/Inf samples", kernel.source.name)));
-                }
+                let m = summarise_renders(&runs)
+                    .map_err(|e| Error::Usage(format!("{name} {}: {e}", kernel.source.name)))?;
+                let mean = m.image_mean;
                 let base = *reference_mean.get_or_insert(mean);
                 if (mean - base).abs() > 0.02 * base.abs().max(1e-6) {
                     return Err(Error::Usage(format!(
@@ -172,7 +201,6 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
                 }
                 let counts = crate::spirv::count(&kernel.source.words())
                     .map_err(|e| Error::Spirv { kernel: kernel.source.name.into(), message: e })?;
-                let rate = |f: &dyn Fn(&RenderResult) -> f64| Summary::of(&runs.iter().map(f).collect::<Vec<_>>());
                 report.rows.push(RenderBenchRow {
                     scene: name.clone(),
                     triangles: mesh.triangle_count(),
@@ -182,10 +210,10 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
                     bsdfs: kernel.bsdfs(),
                     spirv_module: counts.module,
                     spirv_functions: counts.functions,
-                    msamples_per_s: rate(&|r| r.samples_per_second() * 1e-6).unwrap(),
-                    mrays_per_s: rate(&|r| r.mrays_per_second()).unwrap(),
-                    ms: rate(&|r| r.seconds() * 1e3).unwrap(),
-                    rays_per_sample: (last.closest_rays + last.shadow_rays) as f64 / last.samples() as f64,
+                    msamples_per_s: m.msamples_per_s,
+                    mrays_per_s: m.mrays_per_s,
+                    ms: m.ms,
+                    rays_per_sample: m.rays_per_sample,
                     image_mean: mean,
                 });
             }
