@@ -6,7 +6,8 @@
 //! f64, so its closest t (which shortens the ray and culls boxes) can differ from the kernel's
 //! f32 t on rays within a few ULPs of an edge or a box face. At most 0.1 % of rays may have any
 //! counter differ, and the mean nodes visited and triangles tested per ray must agree within
-//! 0.5 %. The stats variant must return exactly the closest variant's hits.
+//! 0.5 %. The stats variant must return exactly the closest variant's hits. Observed on
+//! lavapipe: at most 1 ray of 40,000 (random) or 43,200 (primary) differs, in any method.
 
 mod common;
 
