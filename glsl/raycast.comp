@@ -1,7 +1,8 @@
 #version 460
-// trilab:variants closest any=ANY_HIT
+// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS
 // Ray casting: one ray per invocation, closest hit (t, u, v, OBJ triangle id) or, with ANY_HIT,
 // any hit in [tmin, tmax] (occlusion). The intersector is chosen per variant by build.rs.
+// With TRAVERSAL_STATS (closest hit) it also writes each ray's traversal work (traverse.glsl).
 #extension GL_GOOGLE_include_directive : require
 
 #include "types.glsl"
@@ -15,6 +16,10 @@ layout(push_constant) uniform Push {
 
 #include "intersector.glsl"
 #include "traverse.glsl"
+
+#ifdef TRAVERSAL_STATS
+layout(std430, set = 0, binding = BINDING_TRAVERSAL_STATS) writeonly buffer Counts { TraversalCounts counts[]; };
+#endif
 
 #ifdef ANY_HIT
 const bool ANY = true;
@@ -49,4 +54,7 @@ void main() {
         o.v = h.v;
     }
     hits[i] = o;
+#ifdef TRAVERSAL_STATS
+    counts[i] = trav_counts;
+#endif
 }

@@ -13,6 +13,40 @@ const float TINY_DIR = 1.0e-30;
 // rounding never culls a box the ray grazes (Pharr, Jakob & Humphreys, PBR 3rd ed., 3.9.2).
 const float SLAB_FAR_SCALE = 1.0000003576;
 
+#ifdef TRAVERSAL_STATS
+#ifdef ANY_HIT
+#error "TRAVERSAL_STATS counts closest-hit traversal; an any-hit leaf stops at its first hit"
+#endif
+#ifndef PRIM_TRIANGLES
+#error "TRAVERSAL_STATS needs the intersector's PRIM_TRIANGLES"
+#endif
+// The work trace() did for this invocation's ray (16 bytes; Rust twin gpu::TraversalCounts).
+// A leaf's `count` is its triangles (padding slots are not counted in it), and the closest-hit
+// intersectors test every one, so:
+//   inner:     loop iterations at an inner node (each loads and slab-tests both children);
+//   leaves:    loop iterations at a leaf (each calls intersect_leaf once);
+//   triangles: sum of `count` over the leaves visited: real triangles tested;
+//   slots:     triangle slots evaluated: `count` rounded up to a whole primitive
+//              (PRIM_TRIANGLES: 4 for the Quad intersectors, whose padding lanes are computed
+//              too; equal to `triangles` for the one-triangle intersectors).
+// A ray that misses the root box does no work (all zero).
+struct TraversalCounts {
+    uint inner;
+    uint leaves;
+    uint triangles;
+    uint slots;
+};
+TraversalCounts trav_counts = TraversalCounts(0u, 0u, 0u, 0u);
+#define COUNT_INNER() trav_counts.inner += 1u
+#define COUNT_LEAF(count)                                                                      \
+    trav_counts.leaves += 1u;                                                                  \
+    trav_counts.triangles += (count);                                                          \
+    trav_counts.slots += ((count) + PRIM_TRIANGLES - 1u) / PRIM_TRIANGLES * PRIM_TRIANGLES
+#else
+#define COUNT_INNER()
+#define COUNT_LEAF(count)
+#endif
+
 TraceRay make_trace_ray(Ray r) {
     TraceRay tr;
     tr.origin = r.origin;
@@ -60,6 +94,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
         uint first = current >> 5u;
         if (count > 0u) {
             // Leaf.
+            COUNT_LEAF(count);
             bool found = intersect_leaf(r, first, count, h, any_hit);
             if (any_hit && found) {
                 return;
@@ -69,6 +104,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
             }
             current = stack[--sp];
         } else {
+            COUNT_INNER();
             BvhNode l = load_node(first);
             BvhNode rr = load_node(first + 1u);
             float tl, tr;

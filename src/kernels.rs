@@ -33,6 +33,12 @@ pub fn raycast(method: Method, any_hit: bool) -> &'static KernelSource {
     find("raycast", method, if any_hit { "any" } else { "closest" })
 }
 
+/// The raycast kernel that also writes each ray's traversal work (closest hit; the `stats`
+/// variant, `TRAVERSAL_STATS` in `glsl/traverse.glsl`).
+pub fn raycast_stats(method: Method) -> &'static KernelSource {
+    find("raycast", method, "stats")
+}
+
 /// Looks a variant up; every `Method` has every variant of every kernel (build.rs compiles
 /// each kernel for each intersector file; `tests` below checks the two lists agree).
 pub fn find(kernel: &str, method: Method, variant: &str) -> &'static KernelSource {
@@ -63,6 +69,7 @@ mod tests {
                 assert_eq!(k.spirv.len() % 4, 0);
                 assert_eq!(k.words()[0], 0x0723_0203, "SPIR-V magic");
             }
+            assert_eq!(raycast_stats(m).variant, "stats");
         }
         for k in KERNELS {
             assert!(

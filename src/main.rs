@@ -11,7 +11,10 @@ use trilab::bvh::{BuildOptions, Builder, Bvh, LeafPolicy, MAX_LEAF_SIZE};
 use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::Method;
 use trilab::error::{Error, Result};
-use trilab::gpu::{raycast, Context, ContextOptions, GpuScene, RaycastOptions, Validation};
+use trilab::gpu::{
+    raycast, raycast_stats, Context, ContextOptions, GpuScene, RaycastOptions, TraversalCounts, TraversalSummary,
+    Validation,
+};
 use trilab::rays::{self, Camera};
 use trilab::reference::Reference;
 use trilab::render::{self as pt, KernelChoice, PathtraceKernel, RenderScene, RenderSettings};
@@ -70,7 +73,8 @@ enum Cmd {
     },
     /// Cast rays from a ray file; write hits and report kernel time.
     Raycast(RaycastArgs),
-    /// Build the BVH and report its statistics (nodes, depth, leaf sizes, SAH cost, time).
+    /// Build the BVH and report its statistics (nodes, depth, leaf sizes, SAH cost, end-point
+    /// overlap, time).
     Bvh {
         #[arg(long)]
         scene: PathBuf,
@@ -87,22 +91,8 @@ enum Cmd {
         json: bool,
     },
     /// Traversal work per ray (CPU mirror of the kernels' loop): steps, triangle tests, and the
-    /// iterations SIMD lock-step costs at each width.
-    Steps {
-        #[arg(long)]
-        scene: PathBuf,
-        #[arg(long)]
-        rays: PathBuf,
-        #[arg(long, default_value_t = 4)]
-        leaf_size: u32,
-        #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
-        leaf_policy: LeafPolicy,
-        /// SIMD widths to model (lavapipe: 8, or 4 with LP_NATIVE_VECTOR_WIDTH=128).
-        #[arg(long, value_delimiter = ',', default_values_t = [1usize, 4, 8, 32])]
-        widths: Vec<usize>,
-        #[arg(long)]
-        json: bool,
-    },
+    /// iterations SIMD lock-step costs at each width; `--gpu` adds the kernels' own counts.
+    Steps(StepsArgs),
     /// SPIR-V instruction counts of every kernel variant; `--write DIR` refreshes spirv/.
     Spirv {
         #[arg(long)]
@@ -148,6 +138,32 @@ struct StudyArgs {
     sah_group: u32,
     #[command(flatten)]
     gpu: GpuArgs,
+}
+
+#[derive(Args)]
+struct StepsArgs {
+    #[arg(long)]
+    scene: PathBuf,
+    #[arg(long)]
+    rays: PathBuf,
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    leaf_policy: LeafPolicy,
+    /// SIMD widths to model (lavapipe: 8, or 4 with LP_NATIVE_VECTOR_WIDTH=128).
+    #[arg(long, value_delimiter = ',', default_values_t = [1usize, 4, 8, 32])]
+    widths: Vec<usize>,
+    /// Also run each method's traversal-statistics kernel (`raycast.<method>.stats`) and report
+    /// its per-ray nodes visited and triangles tested (mean, max) beside the CPU mirror's.
+    #[arg(long)]
+    gpu: bool,
+    /// Methods for `--gpu` (comma-separated; default all).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    methods: Vec<Method>,
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    gpu_args: GpuArgs,
 }
 
 #[derive(Subcommand)]
@@ -394,9 +410,7 @@ fn run(cli: Cli) -> Result<()> {
             bvh_cmd(&scene, leaf_sizes, leaf_policy, sah_group, json)
         }
         Cmd::Spirv { write, json } => spirv_cmd(write, json),
-        Cmd::Steps { scene, rays, leaf_size, leaf_policy, widths, json } => {
-            steps_cmd(&scene, &rays, leaf_size, leaf_policy, &widths, json)
-        }
+        Cmd::Steps(a) => steps_cmd(a),
         Cmd::Bench(a) => bench_cmd(a),
         Cmd::Render(a) => render_cmd(a),
         Cmd::BenchRender(a) => bench_render_cmd(a),
@@ -589,7 +603,7 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, sah_grou
             for m in Method::ALL {
                 sizes.insert(m.name().into(), json!(m.encode(&mesh, &bvh).gpu_bytes()));
             }
-            stats.push((bvh.stats(), sizes));
+            stats.push((bvh.stats_with_epo(&mesh), sizes));
         }
     }
     if json {
@@ -610,6 +624,8 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, sah_grou
         "nodes",
         "depth",
         "SAH cost",
+        "EPO",
+        "EPO ms",
         "quad padding",
         "build ms",
         "leaf sizes (count:leaves)",
@@ -628,6 +644,8 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, sah_grou
             s.nodes.to_string(),
             s.depth.to_string(),
             format!("{:.2}", s.sah_cost),
+            s.epo.map_or("-".into(), |e| format!("{e:.3}")),
+            s.epo_ms.map_or("-".into(), |t| format!("{t:.0}")),
             s.quad_padding.to_string(),
             format!("{:.1}", s.build_ms),
             hist.join(" "),
@@ -641,24 +659,31 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, sah_grou
     Ok(())
 }
 
-fn steps_cmd(
-    scene: &Path,
-    rays: &Path,
-    leaf: u32,
-    leaf_policy: LeafPolicy,
-    widths: &[usize],
-    json: bool,
-) -> Result<()> {
-    check_leaf_size(leaf)?;
-    if widths.contains(&0) {
+fn steps_cmd(a: StepsArgs) -> Result<()> {
+    check_leaf_size(a.leaf_size)?;
+    if a.widths.contains(&0) {
         return Err(Error::Usage("--widths: a SIMD width must be at least 1".into()));
     }
-    let mesh = load_obj(scene)?;
-    let rays = rays::read_rays(rays)?;
+    if !a.methods.is_empty() && !a.gpu {
+        return Err(Error::Usage("--methods: only with --gpu".into()));
+    }
+    let (leaf, leaf_policy) = (a.leaf_size, a.leaf_policy);
+    let mesh = load_obj(&a.scene)?;
+    let rays = rays::read_rays(&a.rays)?;
     let bvh = Bvh::build(&mesh, &BuildOptions { leaf_policy, ..BuildOptions::new(leaf) });
-    let stats: Vec<_> = widths.iter().map(|&w| trilab::traversal::step_stats(&mesh, &bvh, &rays, w)).collect();
-    if json {
-        println!("{}", serde_json::to_string_pretty(&stats).unwrap());
+    let stats: Vec<_> = a.widths.iter().map(|&w| trilab::traversal::step_stats(&mesh, &bvh, &rays, w)).collect();
+    let gpu = if a.gpu { Some(gpu_steps(&a, &mesh, &bvh, &rays)?) } else { None };
+    if a.json {
+        let v = match &gpu {
+            None => json!(stats),
+            Some((cpu, rows)) => json!({
+                "cpu": stats,
+                "cpu_summary": cpu,
+                "gpu": rows.iter().map(|(m, s, d)| json!({"method": m, "summary": s, "rays_differing_from_cpu": d}))
+                    .collect::<Vec<_>>(),
+            }),
+        };
+        println!("{}", serde_json::to_string_pretty(&v).unwrap());
         return Ok(());
     }
     let s0 = &stats[0];
@@ -685,7 +710,67 @@ fn steps_cmd(
         ]);
     }
     print!("{}", t.to_text());
+    if let Some((cpu, rows)) = &gpu {
+        println!("\nper ray, GPU stats kernels beside the CPU mirror (nodes = inner + leaf iterations; slots include quad padding):");
+        let mut t = Table::new([
+            "source",
+            "nodes mean",
+            "nodes max",
+            "inner mean",
+            "leaf mean",
+            "triangles mean",
+            "triangles max",
+            "slots mean",
+            "slots max",
+            "rays differing",
+        ]);
+        let row = |name: String, s: &TraversalSummary, slots: bool, differing: String| {
+            [
+                name,
+                format!("{:.2}", s.nodes.mean),
+                s.nodes.max.to_string(),
+                format!("{:.2}", s.inner.mean),
+                format!("{:.2}", s.leaves.mean),
+                format!("{:.2}", s.triangles.mean),
+                s.triangles.max.to_string(),
+                if slots { format!("{:.2}", s.slots.mean) } else { "-".into() },
+                if slots { s.slots.max.to_string() } else { "-".into() },
+                differing,
+            ]
+        };
+        t.row(row("CPU mirror".into(), cpu, false, "-".into()));
+        for (m, s, d) in rows {
+            t.row(row(format!("GPU {m}"), s, true, d.to_string()));
+        }
+        print!("{}", t.to_text());
+    }
     Ok(())
+}
+
+/// Per-method summaries of the GPU traversal counters, each with the number of rays whose
+/// counts differ from the CPU mirror's, and the mirror's own summary.
+type GpuSteps = (TraversalSummary, Vec<(Method, TraversalSummary, usize)>);
+
+fn gpu_steps(a: &StepsArgs, mesh: &trilab::scene::Mesh, bvh: &Bvh, rays: &[rays::Ray]) -> Result<GpuSteps> {
+    let cpu: Vec<TraversalCounts> = trilab::traversal::ray_steps(mesh, bvh, rays)
+        .iter()
+        .map(|s| TraversalCounts { inner: s.inner, leaves: s.leaves, triangles: s.triangles, slots: 0 })
+        .collect();
+    let methods = if a.methods.is_empty() { Method::ALL.to_vec() } else { a.methods.clone() };
+    let ctx = a.gpu_args.context()?;
+    let mut rows = vec![];
+    for m in methods {
+        let kernel = ctx.create_kernel(trilab::kernels::raycast_stats(m))?;
+        let scene = GpuScene::upload(&ctx, &m.encode(mesh, bvh))?;
+        let (_, counts) = raycast_stats(&ctx, &kernel, &scene, rays)?;
+        let differing = counts
+            .iter()
+            .zip(&cpu)
+            .filter(|(g, c)| (g.inner, g.leaves, g.triangles) != (c.inner, c.leaves, c.triangles))
+            .count();
+        rows.push((m, TraversalSummary::of(&counts), differing));
+    }
+    Ok((TraversalSummary::of(&cpu), rows))
 }
 
 fn spirv_cmd(write: Option<PathBuf>, json: bool) -> Result<()> {

@@ -251,3 +251,37 @@ fn ctrl_c_writes_what_has_accumulated() {
     assert!(done > 0 && done < 100_000, "spp_done {done}");
     assert!(std::fs::read(&out).unwrap().len() > 1000);
 }
+
+#[test]
+fn steps_gpu_reports_kernel_counts_beside_the_mirror_and_bvh_reports_epo() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = s(&common::root().join("scenes/bunny.obj"));
+    let rays = dir.path().join("r.rays");
+    let o = trilab(&["rays", "random", "--scene", &scene, "--out", &s(&rays), "--count", "3000", "--seed", "5"], 120);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = trilab(&["steps", "--scene", &scene, "--rays", &s(&rays), "--gpu", "--json", "--validation"], 300);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    let cpu_nodes = v["cpu_summary"]["nodes"]["mean"].as_f64().unwrap();
+    assert!(cpu_nodes > 5.0, "{v}");
+    let gpu = v["gpu"].as_array().unwrap();
+    assert_eq!(gpu.len(), 4, "every method by default: {v}");
+    for g in gpu {
+        let nodes = g["summary"]["nodes"]["mean"].as_f64().unwrap();
+        assert!((nodes - cpu_nodes).abs() <= 0.005 * cpu_nodes, "{g}");
+        assert!(g["rays_differing_from_cpu"].as_u64().unwrap() <= 3, "{g}");
+        assert!(g["summary"]["slots"]["max"].as_u64().unwrap() >= g["summary"]["triangles"]["max"].as_u64().unwrap());
+    }
+    let text = trilab(&["steps", "--scene", &scene, "--rays", &s(&rays), "--gpu", "--methods", "quad-unit"], 300);
+    let out = String::from_utf8_lossy(&text.stdout);
+    assert!(text.status.success() && out.contains("GPU quad-unit") && out.contains("CPU mirror"), "{out}");
+    expect_error(&trilab(&["steps", "--scene", &scene, "--rays", &s(&rays), "--methods", "mt"], 60), &["--gpu"]);
+
+    let o = trilab(&["bvh", "--scene", &scene, "--leaf-size", "4", "--json"], 120);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for row in v.as_array().unwrap() {
+        let epo = row["stats"]["epo"].as_f64().unwrap();
+        assert!(epo > 0.0 && epo < row["stats"]["sah_cost"].as_f64().unwrap(), "{row}");
+    }
+}

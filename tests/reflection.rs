@@ -10,6 +10,7 @@ use trilab::bsdf::{ProbeIn, ProbeOut, ProbePush};
 use trilab::bvh::BvhNode;
 use trilab::encoding::{MtTriangle, QuadMt, QuadUnit, UnitTriangle};
 use trilab::gpu::shared::*;
+use trilab::gpu::TraversalCounts;
 use trilab::kernels::KERNELS;
 use trilab::rays::{Hit, Ray};
 use trilab::render::{GpuParams, PathtracePush};
@@ -40,6 +41,15 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         (_, BINDING_HITS) => array_of(
             size_of::<Hit>(),
             &[offset_of!(Hit, t), offset_of!(Hit, id), offset_of!(Hit, u), offset_of!(Hit, v)],
+        ),
+        (_, BINDING_TRAVERSAL_STATS) => array_of(
+            size_of::<TraversalCounts>(),
+            &[
+                offset_of!(TraversalCounts, inner),
+                offset_of!(TraversalCounts, leaves),
+                offset_of!(TraversalCounts, triangles),
+                offset_of!(TraversalCounts, slots),
+            ],
         ),
         (_, BINDING_PROBE_NODES) => node(),
         (_, BINDING_PROBE_SLOT_IDS) => array_of(size_of::<u32>(), &[]),
@@ -163,9 +173,15 @@ fn rust_structs_match_spirv_offsets_and_strides() {
     // Guard against a vacuous pass: Ray and Hit in every raycast kernel, BvhNode and the
     // primitive struct in every probe kernel, ProbeIn and ProbeOut in bsdf_probe; pathtrace:
     // the Params block (its other buffers are arrays of vectors and scalars).
-    // rng_probe: its one output struct.
-    let expected: usize =
-        KERNELS.iter().map(|k| if k.kernel == "pathtrace" || k.kernel == "rng_probe" { 1 } else { 2 }).sum();
+    // rng_probe: its one output struct. The raycast `stats` variants add TraversalCounts.
+    let expected: usize = KERNELS
+        .iter()
+        .map(|k| match (k.kernel, k.variant) {
+            ("pathtrace" | "rng_probe", _) => 1,
+            ("raycast", "stats") => 3,
+            _ => 2,
+        })
+        .sum();
     assert!(checked_structs >= expected, "only {checked_structs} of {expected} struct layouts checked");
 }
 
@@ -195,11 +211,12 @@ fn kernels_bind_what_the_host_provides() {
             ("probe", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_INDICES],
             _ => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS],
         };
-        let buffers = match k.kernel {
-            "raycast" => vec![BINDING_RAYS, BINDING_HITS],
-            "pathtrace" => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
-            "bsdf_probe" => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
-            "rng_probe" => vec![BINDING_RNG_PROBE_OUT],
+        let buffers = match (k.kernel, k.variant) {
+            ("raycast", "stats") => vec![BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS],
+            ("raycast", _) => vec![BINDING_RAYS, BINDING_HITS],
+            ("pathtrace", _) => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
+            ("bsdf_probe", _) => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
+            ("rng_probe", _) => vec![BINDING_RNG_PROBE_OUT],
             _ => vec![BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS],
         };
         let mut expected: Vec<u32> = texels.iter().chain(&buffers).copied().collect();
@@ -224,10 +241,12 @@ fn every_encoding_provides_every_scene_binding_its_kernels_read() {
     let bvh = trilab::bvh::Bvh::build(&mesh, &trilab::bvh::BuildOptions::new(4));
     for m in trilab::encoding::Method::ALL {
         let provided: Vec<u32> = m.encode(&mesh, &bvh).buffers().iter().map(|b| b.binding).collect();
-        for any in [false, true] {
-            let k = trilab::kernels::raycast(m, any);
+        for k in
+            [trilab::kernels::raycast(m, false), trilab::kernels::raycast(m, true), trilab::kernels::raycast_stats(m)]
+        {
             let l = reflect(k.name, &k.words()).unwrap();
-            for b in l.sets[&0].keys().filter(|&&b| b != BINDING_RAYS && b != BINDING_HITS) {
+            let per_ray = [BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS];
+            for b in l.sets[&0].keys().filter(|b| !per_ray.contains(b)) {
                 assert!(provided.contains(b), "{}: binding {b} not provided by the {m} encoding", k.name);
             }
         }

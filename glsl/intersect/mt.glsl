@@ -18,6 +18,8 @@ layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imag
 layout(set = 0, binding = BINDING_INDICES, rgba32ui) uniform readonly restrict uimageBuffer mt_triangles;
 
 #define PRIM_STRUCT MtTriangle
+// Triangle slots one primitive holds (one triangle per slot).
+#define PRIM_TRIANGLES 1u
 MtTriangle load_prim(uint slot) {
     uvec4 t = imageLoad(mt_triangles, int(slot));
     MtTriangle r;

@@ -19,6 +19,8 @@ struct QuadMt {
 layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer quad_mts;
 
 #define PRIM_STRUCT QuadMt
+// Triangle slots one primitive holds (a quad of four slots, padding included).
+#define PRIM_TRIANGLES 4u
 QuadMt load_prim(uint qi) {
     int b = int(9u * qi);
     QuadMt q;

@@ -21,6 +21,8 @@ struct QuadUnit {
 layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer quad_units;
 
 #define PRIM_STRUCT QuadUnit
+// Triangle slots one primitive holds (a quad of four slots, padding included).
+#define PRIM_TRIANGLES 4u
 QuadUnit load_prim(uint qi) {
     int b = int(12u * qi);
     QuadUnit q;

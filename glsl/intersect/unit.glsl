@@ -23,6 +23,8 @@ vec4 load_unit_row(uint slot, uint row) {
 }
 
 #define PRIM_STRUCT UnitTriangle
+// Triangle slots one primitive holds (one triangle per slot).
+#define PRIM_TRIANGLES 1u
 UnitTriangle load_prim(uint slot) {
     UnitTriangle t;
     t.row0 = load_unit_row(slot, 0u);

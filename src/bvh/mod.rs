@@ -3,10 +3,12 @@
 //! - `Aabb`: boxes.
 //! - `BvhNode`: the 32-byte node shared with the kernels.
 //! - `builder`: binned and full-sweep SAH construction with a depth bound.
-//! - `BvhStats`: nodes, depth, leaf-size histogram, SAH cost, build time.
+//! - `BvhStats`: nodes, depth, leaf-size histogram, SAH cost, build time, and (with the mesh)
+//!   end-point overlap ([`epo`]).
 
 mod aabb;
 pub mod builder;
+pub mod epo;
 mod node;
 
 pub use aabb::Aabb;
@@ -55,6 +57,11 @@ pub struct BvhStats {
     pub quad_padding: usize,
     pub build_ms: f64,
     pub node_bytes: usize,
+    /// End-point overlap (Aila, Karras & Laine, HPG 2013; [`epo`]) with the build's node costs;
+    /// `None` unless computed ([`Bvh::stats_with_epo`]).
+    pub epo: Option<f64>,
+    /// Time computing `epo`, milliseconds.
+    pub epo_ms: Option<f64>,
 }
 
 impl Bvh {
@@ -117,6 +124,8 @@ impl Bvh {
             quad_padding: 0,
             build_ms: self.build_seconds * 1e3,
             node_bytes: self.nodes.len() * std::mem::size_of::<BvhNode>(),
+            epo: None,
+            epo_ms: None,
         };
         self.visit(|i, d| {
             let n = &self.nodes[i];
@@ -134,6 +143,13 @@ impl Bvh {
             }
         });
         s
+    }
+
+    /// [`Bvh::stats`] plus the end-point overlap, which needs the triangles.
+    pub fn stats_with_epo(&self, mesh: &Mesh) -> BvhStats {
+        let t0 = std::time::Instant::now();
+        let epo = epo::epo(mesh, self);
+        BvhStats { epo: Some(epo), epo_ms: Some(t0.elapsed().as_secs_f64() * 1e3), ..self.stats() }
     }
 
     /// Checks the structural invariants every consumer relies on; returns the first violation.

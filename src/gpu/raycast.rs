@@ -9,8 +9,9 @@ use super::buffer::{memory_barrier, TexelBuffer};
 use super::context::Context;
 use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;
-use super::shared::{BINDING_HITS, BINDING_RAYS};
+use super::shared::{BINDING_HITS, BINDING_RAYS, BINDING_TRAVERSAL_STATS};
 use super::timestamps::Timestamps;
+use super::traversal_stats::TraversalCounts;
 use crate::encoding::{EncodedScene, Method};
 use crate::error::{Result, VkContext};
 use crate::rays::{Hit, Ray};
@@ -84,6 +85,9 @@ pub struct RaycastResult {
     /// Host wall time of each timed run (submits and waits included), milliseconds.
     pub wall_ms: Vec<f64>,
     pub batches: usize,
+    /// Per-ray traversal work of the last run, when the kernel is a `stats` variant (it declares
+    /// `BINDING_TRAVERSAL_STATS`); `None` for the others.
+    pub traversal: Option<Vec<TraversalCounts>>,
 }
 
 /// Median, min and max of a sample.
@@ -134,7 +138,8 @@ impl Drop for Dispatch<'_> {
 }
 
 /// Casts `rays` with `kernel` over `scene`: `warmup` untimed runs, then `repeat` timed ones.
-/// The hits are those of the last run.
+/// The hits are those of the last run; so are the per-ray traversal counts when `kernel` is a
+/// `stats` variant (`kernels::raycast_stats`).
 pub fn raycast(
     ctx: &Context,
     kernel: &Kernel,
@@ -143,7 +148,8 @@ pub fn raycast(
     opts: &RaycastOptions,
 ) -> Result<RaycastResult> {
     if rays.is_empty() {
-        return Ok(RaycastResult { hits: vec![], kernel_ms: vec![], wall_ms: vec![], batches: 0 });
+        let traversal = kernel.bindings().contains_key(&BINDING_TRAVERSAL_STATS).then(Vec::new);
+        return Ok(RaycastResult { hits: vec![], kernel_ms: vec![], wall_ms: vec![], batches: 0, traversal });
     }
     let info = ctx.info();
     let dev = &ctx.device.raw;
@@ -157,13 +163,20 @@ pub fn raycast(
     let nbatches = rays.len().div_ceil(batch);
 
     let ray_buf = ctx.upload("rays", bytemuck::cast_slice(rays), vk::BufferUsageFlags::STORAGE_BUFFER)?;
-    let hit_bytes = (rays.len() * std::mem::size_of::<Hit>()) as u64;
-    let hit_buf = ctx.create_buffer(
-        "hits",
-        hit_bytes,
-        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
-        gpu_allocator::MemoryLocation::GpuOnly,
-    )?;
+    // Per-ray outputs: (binding, bytes per ray, buffer); hits, and the counters of a stats kernel.
+    let output = |name: &str, per_ray: usize| {
+        ctx.create_buffer(
+            name,
+            (rays.len() * per_ray) as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
+            gpu_allocator::MemoryLocation::GpuOnly,
+        )
+    };
+    let mut outputs = vec![(BINDING_HITS, std::mem::size_of::<Hit>() as u64, output("hits", 16)?)];
+    if kernel.bindings().contains_key(&BINDING_TRAVERSAL_STATS) {
+        let size = std::mem::size_of::<TraversalCounts>();
+        outputs.push((BINDING_TRAVERSAL_STATS, size as u64, output("traversal counts", size)?));
+    }
 
     let (_pool, sets) = DescriptorPool::new(ctx, kernel, nbatches as u32)?;
     for (bi, &set) in sets.iter().enumerate() {
@@ -171,7 +184,9 @@ pub fn raycast(
         let count = batch.min(rays.len() - bi * batch) as u64;
         let mut resources: Vec<(u32, Resource)> = scene.resources().collect();
         resources.push((BINDING_RAYS, Resource::Buffer { buffer: &ray_buf, offset: first * 32, range: count * 32 }));
-        resources.push((BINDING_HITS, Resource::Buffer { buffer: &hit_buf, offset: first * 16, range: count * 16 }));
+        for (binding, size, buf) in &outputs {
+            resources.push((*binding, Resource::Buffer { buffer: buf, offset: first * size, range: count * size }));
+        }
         write_set(ctx, kernel, set, &resources)?;
     }
     let timestamps = Timestamps::supported(ctx);
@@ -187,7 +202,7 @@ pub fn raycast(
         unsafe {
             dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default()).during("recording a dispatch")?;
             queries.reset(dev, cmd, q);
-            // The previous run's dispatch wrote the same hit range (and uploads came before).
+            // The previous run's dispatch wrote the same output ranges (and uploads came before).
             memory_barrier(
                 dev,
                 cmd,
@@ -228,11 +243,17 @@ pub fn raycast(
             kernel_ms.push(queries.read_ms()?.iter().sum());
         }
     }
-    let bytes = ctx.download(&hit_buf, hit_bytes)?;
+    let mut downloads = Vec::new();
+    for (_, size, buf) in &outputs {
+        downloads.push(ctx.download(buf, rays.len() as u64 * size)?);
+    }
     drop(dispatch);
     drop(queries);
-    let hits = bytes.chunks_exact(16).map(bytemuck::pod_read_unaligned).collect();
-    Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches })
+    let hits = downloads[0].chunks_exact(16).map(bytemuck::pod_read_unaligned).collect();
+    let traversal = downloads
+        .get(1)
+        .map(|b| b.chunks_exact(std::mem::size_of::<TraversalCounts>()).map(bytemuck::pod_read_unaligned).collect());
+    Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches, traversal })
 }
 
 #[cfg(test)]
