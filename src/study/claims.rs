@@ -20,6 +20,8 @@ pub enum Verdict {
     /// Holds only where the differences are real; elsewhere within the run-to-run spread.
     HoldsWithinNoise,
     Partly,
+    /// Every difference lies within the run-to-run spread and the medians do not side with it.
+    Inconclusive,
     DoesNotHold,
     /// The study lacks the cells the claim needs.
     NotMeasured,
@@ -31,6 +33,7 @@ impl Verdict {
             Verdict::Holds => "holds",
             Verdict::HoldsWithinNoise => "holds within noise",
             Verdict::Partly => "partly holds",
+            Verdict::Inconclusive => "inconclusive (all differences within the run-to-run spread)",
             Verdict::DoesNotHold => "does not hold",
             Verdict::NotMeasured => "not measured",
         }
@@ -144,8 +147,10 @@ pub fn mt_faster_than_unit(report: &StudyReport) -> Claim {
         Verdict::NotMeasured
     } else if unit_wins == 0 && mt_wins == n {
         Verdict::Holds
-    } else if unit_wins == 0 && mt_wins > 0 {
+    } else if unit_wins == 0 && ratios.iter().all(|&r| r >= 1.0) {
         Verdict::HoldsWithinNoise
+    } else if mt_wins == 0 && unit_wins == 0 {
+        Verdict::Inconclusive
     } else if mt_wins == 0 {
         Verdict::DoesNotHold
     } else {
@@ -237,4 +242,130 @@ pub fn markdown(report: &StudyReport) -> String {
         s.push('\n');
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::bench::RenderMeasure;
+    use crate::study::{BvhQuality, Preset, Provenance, StudyOptions};
+
+    fn s(median: f64, spread: f64) -> Summary {
+        Summary { median, min: median - spread, max: median + spread, runs: 3 }
+    }
+
+    /// A report with render times (seconds) `t(scene, leaf, method)` and +-`spread`.
+    fn report(scenes: &[&str], t: impl Fn(&str, u32, Method) -> f64, spread: f64) -> StudyReport {
+        let mut o = StudyOptions::preset(Preset::Smoke);
+        let prov = Provenance {
+            device: "test".into(),
+            driver: "test".into(),
+            mesa_version: None,
+            commit: "x".into(),
+            date: "d".into(),
+            host_cpus: 1,
+            lp_num_threads: None,
+            timed_on_gpu: true,
+        };
+        let mut rows = vec![];
+        for sc in scenes {
+            for &leaf in &o.leaf_sizes {
+                for &m in &o.methods {
+                    let ms = s(t(sc, leaf, m) * 1e3, spread * 1e3);
+                    rows.push(StudyRow {
+                        scene: sc.to_string(),
+                        triangles: 1,
+                        leaf_size: leaf,
+                        method: m,
+                        scene_bytes: 1,
+                        bvh: BvhQuality {
+                            nodes: 1,
+                            leaves: 1,
+                            depth: 0,
+                            sah_cost: 1.0,
+                            epo: 0.0,
+                            quad_padding: 0,
+                            build_ms: 0.0,
+                        },
+                        render: RenderMeasure {
+                            msamples_per_s: ms,
+                            mrays_per_s: ms,
+                            ms,
+                            rays_per_sample: 1.0,
+                            image_mean: 1.0,
+                        },
+                        render_kernel: "pathtrace.mt.lambert",
+                        raycast_kernel: "raycast.mt.closest",
+                        sets: vec![],
+                        provenance: prov.clone(),
+                    });
+                }
+            }
+        }
+        o.scenes = vec![];
+        StudyReport { options: o, scaling: String::new(), provenance: prov, rows, seconds: 0.0 }
+    }
+
+    /// The paper's shape: a U in leaf size with its minimum at 4; MT 3 % faster than unit; Quad
+    /// unit 12 % faster than MT.
+    fn paperlike(_: &str, leaf: u32, m: Method) -> f64 {
+        let base = 1.0 + 0.05 * (leaf as f64 - 4.0).abs();
+        base * match m {
+            Method::Mt => 1.0,
+            Method::Unit => 1.03,
+            Method::QuadMt => 0.95,
+            Method::QuadUnit => 1.0 / 1.12,
+        }
+    }
+
+    #[test]
+    fn the_papers_own_numbers_make_every_claim_hold() {
+        let r = report(&["bunny", "dragon"], paperlike, 0.001);
+        assert_eq!(leaf_four_optimal(&r).verdict, Verdict::Holds);
+        assert_eq!(mt_faster_than_unit(&r).verdict, Verdict::Holds);
+        assert_eq!(quad_unit_faster_than_mt(&r).verdict, Verdict::Holds);
+    }
+
+    #[test]
+    fn contrary_numbers_make_them_fail() {
+        // Time falls with leaf size (16 fastest), unit beats MT by 10 %, Quad unit 10 % slower.
+        let t = |_: &str, leaf: u32, m: Method| {
+            (20.0 - leaf as f64)
+                * match m {
+                    Method::Mt => 1.0,
+                    Method::Unit => 0.9,
+                    Method::QuadMt => 1.0,
+                    Method::QuadUnit => 1.1,
+                }
+        };
+        let r = report(&["bunny"], t, 0.01);
+        assert_eq!(leaf_four_optimal(&r).verdict, Verdict::DoesNotHold);
+        assert_eq!(mt_faster_than_unit(&r).verdict, Verdict::DoesNotHold);
+        assert_eq!(quad_unit_faster_than_mt(&r).verdict, Verdict::DoesNotHold);
+    }
+
+    #[test]
+    fn differences_inside_the_spread_are_not_called_real() {
+        // Same shape as the paper's but with a run-to-run spread of +-20 %.
+        let r = report(&["bunny"], paperlike, 0.2);
+        let b = mt_faster_than_unit(&r);
+        assert_eq!(b.verdict, Verdict::HoldsWithinNoise, "{}", b.summary);
+        // Quad unit's 12 % is inside +-20 %: not beyond the spread.
+        assert_eq!(quad_unit_faster_than_mt(&r).verdict, Verdict::HoldsWithinNoise);
+    }
+
+    #[test]
+    fn relative_time_is_a_geometric_mean_over_scenes() {
+        let t = |sc: &str, _: u32, m: Method| {
+            if m == Method::Unit && sc == "a" {
+                2.0
+            } else if m == Method::Unit {
+                0.5
+            } else {
+                1.0
+            }
+        };
+        let r = report(&["a", "b"], t, 0.0);
+        assert!((relative_time(&r, Method::Unit, Method::Mt, 4).unwrap() - 1.0).abs() < 1e-12);
+    }
 }

@@ -25,6 +25,7 @@ use crate::bench::{mrays_summary, validate_hits};
 use crate::bvh::{BuildOptions, Bvh};
 use crate::encoding::Method;
 use crate::error::{Error, Result};
+use crate::gpu::traversal_stats::{raycast_stats, TraversalSummary};
 use crate::gpu::{raycast, Context, GpuScene, RaycastOptions, Summary};
 use crate::rays::{self, Camera};
 use crate::reference::Reference;
@@ -226,6 +227,8 @@ pub struct SetResult {
     pub mrays_per_s: Summary,
     /// Fraction of rays agreeing with the f64 reference.
     pub agreement: f64,
+    /// Nodes visited and triangles tested per ray, from the kernel's statistics variant.
+    pub traversal: TraversalSummary,
 }
 
 /// BVH quality of one (scene, leaf size) build.
@@ -235,6 +238,8 @@ pub struct BvhQuality {
     pub leaves: usize,
     pub depth: u32,
     pub sah_cost: f64,
+    /// End-point overlap (Aila, Karras & Laine 2013), see [`crate::bvh::epo`].
+    pub epo: f64,
     pub quad_padding: usize,
     pub build_ms: f64,
 }
@@ -288,6 +293,7 @@ struct Cell {
     /// Per set: kernel ms of each timed round.
     set_ms: Vec<Vec<f64>>,
     set_agreement: Vec<f64>,
+    set_traversal: Vec<Option<TraversalSummary>>,
 }
 
 pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> Result<StudyReport> {
@@ -298,6 +304,8 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
     let provenance = Provenance::of(ctx);
     let raycast_kernels: Vec<_> =
         o.methods.iter().map(|&m| ctx.create_kernel(crate::kernels::raycast(m, false))).collect::<Result<_>>()?;
+    let stats_kernels: Vec<_> =
+        o.methods.iter().map(|&m| ctx.create_kernel(crate::kernels::raycast_stats(m))).collect::<Result<_>>()?;
     let mut rows = vec![];
     for path in &o.scenes {
         let mesh = load_obj(path)?;
@@ -325,12 +333,13 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
         for &leaf in &o.leaf_sizes {
             let build = BuildOptions { sah_group: o.sah_group, ..BuildOptions::new(leaf) };
             let bvh = Bvh::build(&mesh, &build);
-            let st = bvh.stats();
+            let st = bvh.stats_with_epo(&mesh);
             let quality = BvhQuality {
                 nodes: st.nodes,
                 leaves: st.leaves,
                 depth: st.depth,
                 sah_cost: st.sah_cost,
+                epo: st.epo.unwrap_or(f64::NAN),
                 quad_padding: st.quad_padding,
                 build_ms: st.build_ms,
             };
@@ -348,11 +357,12 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                     renders: vec![],
                     set_ms: vec![vec![]; sets.len()],
                     set_agreement: vec![0.0; sets.len()],
+                    set_traversal: vec![None; sets.len()],
                 });
             }
             for round in 0..=o.repeat.max(1) {
                 progress(&format!("{name} leaf {leaf}: round {round}/{}", o.repeat.max(1)));
-                for (cell, kernel) in cells.iter_mut().zip(&raycast_kernels) {
+                for ((cell, kernel), stats_kernel) in cells.iter_mut().zip(&raycast_kernels).zip(&stats_kernels) {
                     let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", cell.method);
                     let r =
                         render(ctx, &cell.render_gpu, &cell.render_scene, cell.render_kernel, &settings, &mut |_| {
@@ -365,6 +375,13 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                             let a = validate_hits(&mesh, rays, &res.hits, refs)
                                 .map_err(|e| Error::Usage(what(&format!("{set} rays: {e}"))))?;
                             cell.set_agreement[si] = a.fraction();
+                            let (stat_hits, counts) = raycast_stats(ctx, stats_kernel, &cell.raycast_gpu, rays)?;
+                            if bytemuck::cast_slice::<_, u8>(&stat_hits) != bytemuck::cast_slice::<_, u8>(&res.hits) {
+                                return Err(Error::Usage(what(&format!(
+                                    "{set} rays: the statistics variant's hits differ from the kernel's"
+                                ))));
+                            }
+                            cell.set_traversal[si] = Some(TraversalSummary::of(&counts));
                         } else {
                             cell.set_ms[si].push(res.time_ms().median);
                         }
@@ -395,6 +412,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                             kernel_ms: ms,
                             mrays_per_s: mrays_summary(rays.len(), ms),
                             agreement: cell.set_agreement[si],
+                            traversal: cell.set_traversal[si].clone().expect("measured in round 0"),
                         }
                     })
                     .collect();

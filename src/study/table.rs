@@ -23,6 +23,7 @@ pub fn csv(report: &StudyReport) -> Result<String> {
         "scene_mb",
         "bvh_nodes",
         "sah_cost",
+        "epo",
         "quad_padding",
         "render_s",
         "render_s_min",
@@ -36,7 +37,18 @@ pub fn csv(report: &StudyReport) -> Result<String> {
     .map(String::from)
     .to_vec();
     for s in SETS {
-        for f in ["rays", "mrays_per_s", "mrays_per_s_min", "mrays_per_s_max", "agreement"] {
+        for f in [
+            "rays",
+            "mrays_per_s",
+            "mrays_per_s_min",
+            "mrays_per_s_max",
+            "agreement",
+            "nodes_mean",
+            "nodes_max",
+            "triangles_mean",
+            "triangles_max",
+            "slots_mean",
+        ] {
             header.push(format!("{s}_{f}"));
         }
     }
@@ -56,6 +68,7 @@ pub fn csv(report: &StudyReport) -> Result<String> {
             format!("{:.3}", r.scene_bytes as f64 / 1e6),
             r.bvh.nodes.to_string(),
             format!("{:.3}", r.bvh.sah_cost),
+            format!("{:.4}", r.bvh.epo),
             r.bvh.quad_padding.to_string(),
             format!("{:.5}", s.median),
             format!("{:.5}", s.min),
@@ -74,8 +87,13 @@ pub fn csv(report: &StudyReport) -> Result<String> {
                     format!("{:.4}", x.mrays_per_s.min),
                     format!("{:.4}", x.mrays_per_s.max),
                     format!("{:.7}", x.agreement),
+                    format!("{:.3}", x.traversal.nodes.mean),
+                    x.traversal.nodes.max.to_string(),
+                    format!("{:.3}", x.traversal.triangles.mean),
+                    x.traversal.triangles.max.to_string(),
+                    format!("{:.3}", x.traversal.slots.mean),
                 ]),
-                None => rec.extend(std::iter::repeat_n(String::new(), 5)),
+                None => rec.extend(std::iter::repeat_n(String::new(), 10)),
             }
         }
         let p = &r.provenance;
@@ -219,7 +237,8 @@ pub fn rays_table(report: &StudyReport) -> Table {
 
 /// BVH quality per (scene, leaf size).
 pub fn bvh_table(report: &StudyReport) -> Table {
-    let mut t = Table::new(["scene", "leaf", "nodes", "leaves", "depth", "SAH cost", "quad padding", "build ms"]);
+    let mut t =
+        Table::new(["scene", "leaf", "nodes", "leaves", "depth", "SAH cost", "EPO", "quad padding", "build ms"]);
     for scene in scenes(report) {
         for &leaf in &report.options.leaf_sizes {
             let Some(r) = report.rows.iter().find(|r| r.scene == scene && r.leaf_size == leaf) else { continue };
@@ -231,9 +250,42 @@ pub fn bvh_table(report: &StudyReport) -> Table {
                 b.leaves.to_string(),
                 b.depth.to_string(),
                 format!("{:.2}", b.sah_cost),
+                format!("{:.3}", b.epo),
                 b.quad_padding.to_string(),
                 format!("{:.0}", b.build_ms),
             ]);
+        }
+    }
+    t
+}
+
+/// Traversal work per ray from the statistics kernels: nodes visited and triangles tested
+/// (mean, max) per ray set; the same for every method on one BVH, except the slots a Quad
+/// kernel evaluates (padding included), given for the Quad methods.
+pub fn traversal_table(report: &StudyReport) -> Table {
+    let mut t = Table::new(["scene", "leaf", "set", "nodes mean (max)", "triangles mean (max)", "Quad slots mean"]);
+    for scene in scenes(report) {
+        for &leaf in &report.options.leaf_sizes {
+            let rows: Vec<&StudyRow> = report.rows.iter().filter(|r| r.scene == scene && r.leaf_size == leaf).collect();
+            let Some(first) = rows.first() else { continue };
+            for set in SETS {
+                let Some(x) = first.set(set) else { continue };
+                let quad = rows
+                    .iter()
+                    .find(|r| matches!(r.method, Method::QuadMt | Method::QuadUnit))
+                    .and_then(|r| r.set(set))
+                    .map(|q| format!("{:.1}", q.traversal.slots.mean))
+                    .unwrap_or_else(|| "-".into());
+                let tr = &x.traversal;
+                t.row([
+                    scene.clone(),
+                    leaf.to_string(),
+                    set.to_owned(),
+                    format!("{:.1} ({})", tr.nodes.mean, tr.nodes.max),
+                    format!("{:.1} ({})", tr.triangles.mean, tr.triangles.max),
+                    quad,
+                ]);
+            }
         }
     }
     t
@@ -308,6 +360,14 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
     s += &rays_table(report).to_markdown();
     let _ = writeln!(s, "\n## BVH quality\n");
     s += &bvh_table(report).to_markdown();
+    let _ = writeln!(s, "\n## Traversal work per ray\n");
+    let _ = writeln!(
+        s,
+        "Counted by each kernel's statistics variant (`raycast.<method>.stats`, same hits as the timed kernel): \
+         nodes = inner-node plus leaf iterations of the traversal loop; triangles = real triangles tested; Quad \
+         slots include padding.\n"
+    );
+    s += &traversal_table(report).to_markdown();
     let _ = writeln!(s, "\n## SPIR-V instructions against time\n");
     let _ = writeln!(
         s,

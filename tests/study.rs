@@ -1,0 +1,101 @@
+//! The study's CI smoke run: `trilab study --preset smoke` end to end under the validation
+//! layer (any message fails), then its outputs checked for what the issue promises: the full
+//! matrix of leaf sizes x methods, every row validated and carrying its provenance, the paper's
+//! table and claims in study.md, and plots that decode as PNG.
+
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn run(args: &[&str], timeout_s: u64) -> std::process::Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(timeout_s) {
+            let _ = child.kill();
+            panic!("trilab {args:?} did not finish within {timeout_s} s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn smoke_study_writes_the_full_matrix_validated() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("study");
+    let o = run(&["study", "--preset", "smoke", "--validation", "--out", out.to_str().unwrap()], 600);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "study failed: {err}");
+    assert!(!err.contains("validation:"), "validation messages: {err}");
+
+    // CSV: 6 leaf sizes x 4 methods for the bunny, each row complete.
+    let mut csv = csv::Reader::from_path(out.join("study.csv")).unwrap();
+    let headers = csv.headers().unwrap().clone();
+    let col = |name: &str| headers.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let rows: Vec<csv::StringRecord> = csv.records().map(Result::unwrap).collect();
+    assert_eq!(rows.len(), 6 * 4, "scene x leaf x method rows");
+    let mut cells: Vec<(String, String)> =
+        rows.iter().map(|r| (r[col("leaf_size")].to_owned(), r[col("method")].to_owned())).collect();
+    cells.sort();
+    cells.dedup();
+    assert_eq!(cells.len(), 24, "every (leaf, method) exactly once");
+    for r in &rows {
+        assert_eq!(&r[col("scene")], "bunny");
+        assert_eq!(&r[col("triangles")], "69451");
+        let num = |c: &str| r[col(c)].parse::<f64>().unwrap_or_else(|_| panic!("{c} = {:?}", &r[col(c)]));
+        assert!(
+            num("render_s") > 0.0 && num("render_s_min") <= num("render_s") && num("render_s") <= num("render_s_max")
+        );
+        for set in ["primary", "diffuse", "random"] {
+            assert!(num(&format!("{set}_agreement")) >= 0.9999, "{set} agreement");
+            assert!(num(&format!("{set}_mrays_per_s")) > 0.0);
+            assert!(num(&format!("{set}_nodes_mean")) >= 1.0, "{set}: rays visit the BVH");
+            assert!(num(&format!("{set}_triangles_mean")) > 0.0);
+        }
+        assert!(num("sah_cost") > 0.0 && num("epo") > 0.0 && num("epo") < num("sah_cost"));
+        assert!(num("scene_mb") > 0.0);
+        for c in ["device", "driver", "commit", "date"] {
+            assert!(!r[col(c)].is_empty(), "{c} empty");
+        }
+    }
+
+    // JSON parses and states the workload's scaling against the paper.
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("study.json")).unwrap()).unwrap();
+    assert_eq!(json["rows"].as_array().unwrap().len(), 24);
+    assert!(json["scaling"].as_str().unwrap().contains("of the paper's"));
+
+    // Markdown: the paper's table, the claims, the plots.
+    let md = std::fs::read_to_string(out.join("study.md")).unwrap();
+    for needle in [
+        "| Scene | # Triangles per BVH leaf | GPU scene size, MB |",
+        "Bunny, 69,451 triangles",
+        "**(a) 4 triangles per BVH leaf is optimal:",
+        "**(b) Möller-Trumbore is up to 5 % faster than unit triangle:",
+        "**(c) Quad unit triangle",
+        "## Traversal work per ray",
+        "study-time-vs-leaf.png",
+    ] {
+        assert!(md.contains(needle), "study.md lacks `{needle}`");
+    }
+    for png in ["study-time-vs-leaf.png", "study-mrays-per-set.png", "study-instructions-vs-time.png"] {
+        let img = image::open(out.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
+        assert!(img.width() >= 500 && img.height() >= 400, "{png} is {}x{}", img.width(), img.height());
+    }
+}
+
+#[test]
+fn study_rejects_a_missing_scene_and_a_bad_leaf_size() {
+    let o = run(&["study", "--preset", "smoke", "--scenes", "no/such.obj"], 60);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("no/such.obj") && !err.contains("panicked"), "{err}");
+    let o = run(&["study", "--preset", "smoke", "--leaf-sizes", "0"], 60);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("leaf") && !err.contains("panicked"), "{err}");
+}
