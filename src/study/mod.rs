@@ -412,7 +412,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                             kernel_ms: ms,
                             mrays_per_s: mrays_summary(rays.len(), ms),
                             agreement: cell.set_agreement[si],
-                            traversal: cell.set_traversal[si].clone().expect("measured in round 0"),
+                            traversal: cell.set_traversal[si].expect("measured in round 0"),
                         }
                     })
                     .collect();
