@@ -797,8 +797,18 @@ fn spirv_cmd(write: Option<PathBuf>, json: bool) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&v).unwrap());
         return Ok(());
     }
-    let mut t =
-        Table::new(["variant", "module", "functions", "arithmetic", "memory", "control flow", "conversion", "other"]);
+    let mut t = Table::new([
+        "variant",
+        "module",
+        "functions",
+        "arithmetic",
+        "memory",
+        "control flow",
+        "conversion",
+        "image",
+        "composite",
+        "other",
+    ]);
     for (k, c) in counts {
         t.row([
             k.name.to_string(),
@@ -808,6 +818,8 @@ fn spirv_cmd(write: Option<PathBuf>, json: bool) -> Result<()> {
             c.memory.to_string(),
             c.control_flow.to_string(),
             c.conversion.to_string(),
+            c.image.to_string(),
+            c.composite.to_string(),
             c.other.to_string(),
         ]);
     }

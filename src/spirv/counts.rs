@@ -16,8 +16,13 @@ pub enum OpClass {
     ControlFlow,
     /// Conversion instructions (`OpConvert*`, `OpBitcast`, ...).
     Conversion,
-    /// Everything else: composites (construct, extract, shuffle), types, constants,
-    /// decorations, debug names, function declarations.
+    /// Image instructions (`OpImageRead`/`OpImageFetch`/`OpImageWrite`, ...): the kernels
+    /// read the scene from storage texel buffers, so these are their scene loads.
+    Image,
+    /// Composite instructions: vector extract/insert/shuffle, composite construct/extract/
+    /// insert, copy object, transpose.
+    Composite,
+    /// Everything else: types, constants, decorations, debug names, function declarations.
     Other,
 }
 
@@ -42,6 +47,12 @@ pub fn classify(op: u32) -> OpClass {
         OpClass::ControlFlow
     } else if between(op, Op::ConvertFToU, Op::Bitcast) {
         OpClass::Conversion
+    } else if between(op, Op::SampledImage, Op::ImageQuerySamples)
+        || between(op, Op::ImageSparseSampleImplicitLod, Op::ImageSparseRead)
+    {
+        OpClass::Image
+    } else if between(op, Op::VectorExtractDynamic, Op::Transpose) || op == Op::CopyLogical as u32 {
+        OpClass::Composite
     } else {
         OpClass::Other
     }
@@ -57,6 +68,8 @@ pub struct InstructionCounts {
     pub memory: u32,
     pub control_flow: u32,
     pub conversion: u32,
+    pub image: u32,
+    pub composite: u32,
     pub other: u32,
 }
 
@@ -85,6 +98,8 @@ pub fn count(words: &[u32]) -> Result<InstructionCounts, String> {
                 OpClass::Memory => c.memory += 1,
                 OpClass::ControlFlow => c.control_flow += 1,
                 OpClass::Conversion => c.conversion += 1,
+                OpClass::Image => c.image += 1,
+                OpClass::Composite => c.composite += 1,
                 OpClass::Other => c.other += 1,
             }
         }
@@ -119,12 +134,15 @@ mod tests {
         w.extend(inst(Op::CompositeExtract, &[5, 14, 15, 0]));
         w.extend(inst(Op::ExtInst, &[5, 16, 17, 40, 18]));
         w.extend(inst(Op::FOrdLessThan, &[19, 20, 21, 22]));
+        w.extend(inst(Op::ImageRead, &[23, 24, 25, 26]));
+        w.extend(inst(Op::VectorShuffle, &[27, 28, 29, 30, 0, 1]));
         w.extend(inst(Op::Return, &[]));
         w.extend(inst(Op::FunctionEnd, &[]));
         let c = count(&w).unwrap();
-        assert_eq!(c.module, 12);
-        assert_eq!(c.functions, 10);
-        assert_eq!((c.arithmetic, c.memory, c.control_flow, c.conversion, c.other), (3, 1, 2, 1, 3));
+        assert_eq!(c.module, 14);
+        assert_eq!(c.functions, 12);
+        assert_eq!((c.arithmetic, c.memory, c.control_flow, c.conversion), (3, 1, 2, 1));
+        assert_eq!((c.image, c.composite, c.other), (1, 2, 2));
     }
 
     #[test]

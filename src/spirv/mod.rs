@@ -15,7 +15,7 @@ use crate::kernels::{KernelSource, KERNELS};
 
 /// Header of `spirv/instruction_counts.csv`.
 pub const CSV_HEADER: &str =
-    "variant,module_instructions,function_instructions,arithmetic,memory,control_flow,conversion,other";
+    "variant,module_instructions,function_instructions,arithmetic,memory,control_flow,conversion,image,composite,other";
 
 /// The rspirv disassembly of a module (deterministic for a given Cargo.lock).
 pub fn disassemble(words: &[u32]) -> Result<String, String> {
@@ -39,8 +39,8 @@ pub fn counts_csv() -> String {
     s.push('\n');
     for (name, c) in rows {
         s.push_str(&format!(
-            "{name},{},{},{},{},{},{},{}\n",
-            c.module, c.functions, c.arithmetic, c.memory, c.control_flow, c.conversion, c.other
+            "{name},{},{},{},{},{},{},{},{},{}\n",
+            c.module, c.functions, c.arithmetic, c.memory, c.control_flow, c.conversion, c.image, c.composite, c.other
         ));
     }
     s

@@ -294,10 +294,19 @@ pub fn traversal_table(report: &StudyReport) -> Table {
 /// SPIR-V instruction counts of the kernels the study ran, beside their measured time at each
 /// leaf size (geometric mean over scenes of time relative to Möller-Trumbore's).
 pub fn spirv_table(report: &StudyReport) -> Table {
-    let mut headers: Vec<String> =
-        ["method", "path-trace kernel", "fn instr.", "arith", "mem", "ctrl", "raycast fn instr."]
-            .map(String::from)
-            .to_vec();
+    let mut headers: Vec<String> = [
+        "method",
+        "path-trace kernel",
+        "fn instr.",
+        "arith",
+        "mem",
+        "image",
+        "ctrl",
+        "raycast fn instr.",
+        "raycast image",
+    ]
+    .map(String::from)
+    .to_vec();
     headers.extend(report.options.leaf_sizes.iter().map(|l| format!("time / MT, leaf {l}")));
     let mut t = Table::new(headers);
     for &m in &report.options.methods {
@@ -310,8 +319,10 @@ pub fn spirv_table(report: &StudyReport) -> Table {
             pc.functions.to_string(),
             pc.arithmetic.to_string(),
             pc.memory.to_string(),
+            pc.image.to_string(),
             pc.control_flow.to_string(),
             rc.functions.to_string(),
+            rc.image.to_string(),
         ];
         for &leaf in &report.options.leaf_sizes {
             cells.push(
