@@ -36,6 +36,8 @@
 #define BINDING_BSDF_PROBE_OUT 16
 // rng_probe.comp's output.
 #define BINDING_RNG_PROBE_OUT 17
+// raycast.comp's `clock` variant: shader-clock ticks per ray (uint), for `trilab profile`.
+#define BINDING_CYCLES 18
 
 // BSDF kinds (Material.kind; one file each in bsdf/). A kernel's BSDF_MASK has bit (1 << kind)
 // set for every kind it carries.

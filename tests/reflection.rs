@@ -106,6 +106,8 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         // rng_probe: draws as uvec4 bits, then as vec4 floats (read back as words in tests/render.rs).
         ("none", BINDING_RNG_PROBE_OUT) => array_of(32, &[0, 16]),
         (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
+        // raycast's `clock` variant: shader-clock ticks per ray, read back as u32.
+        ("mt" | "unit" | "quad_mt" | "quad_unit", BINDING_CYCLES) => array_of(size_of::<u32>(), &[]),
         ("none", BINDING_BSDF_PROBE_IN) => array_of(
             size_of::<ProbeIn>(),
             &[offset_of!(ProbeIn, wo), offset_of!(ProbeIn, material), offset_of!(ProbeIn, v), offset_of!(ProbeIn, pad)],
@@ -196,6 +198,7 @@ fn kernels_bind_what_the_host_provides() {
             _ => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS],
         };
         let buffers = match k.kernel {
+            "raycast" if k.variant == "clock" => vec![BINDING_RAYS, BINDING_HITS, BINDING_CYCLES],
             "raycast" => vec![BINDING_RAYS, BINDING_HITS],
             "pathtrace" => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             "bsdf_probe" => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
