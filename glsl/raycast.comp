@@ -33,7 +33,9 @@ const bool ANY = true;
 const bool ANY = false;
 #endif
 
-layout(local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
+// The workgroup size is specialisation constant SPEC_ID_WORKGROUP_SIZE (default WORKGROUP_SIZE),
+// so `trilab profile` can sweep it; the host reads the size a pipeline was created with.
+layout(local_size_x_id = SPEC_ID_WORKGROUP_SIZE, local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
 
 void main() {
     uint i = gl_GlobalInvocationID.x;

@@ -7,6 +7,8 @@
 
 // Invocations per workgroup along x (one ray per invocation).
 #define WORKGROUP_SIZE 64
+// raycast.comp's workgroup size is this specialisation constant (default WORKGROUP_SIZE).
+#define SPEC_ID_WORKGROUP_SIZE 1
 // Traversal stack entries: the BVH builder guarantees depth <= STACK_SIZE.
 #define STACK_SIZE 64
 

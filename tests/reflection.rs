@@ -236,3 +236,48 @@ fn every_encoding_provides_every_scene_binding_its_kernels_read() {
         }
     }
 }
+
+#[test]
+fn clock_variant_adds_only_the_cycles_buffer() {
+    let mut clock_kernels = 0;
+    for k in KERNELS.iter().filter(|k| k.kernel == "raycast") {
+        let l = reflect(k.name, &k.words()).unwrap();
+        let set = &l.sets[&0];
+        let layouts = buffer_layouts(&k.words()).unwrap();
+        if k.variant == "clock" {
+            clock_kernels += 1;
+            assert_eq!(set[&BINDING_CYCLES].ty, vk::DescriptorType::STORAGE_BUFFER, "{}", k.name);
+            // One u32 per ray, as the host reads it back.
+            assert_eq!(layouts[&BINDING_CYCLES], array_of(size_of::<u32>(), &[]), "{}", k.name);
+            let closest = trilab::kernels::KERNELS
+                .iter()
+                .find(|c| c.kernel == "raycast" && c.method == k.method && c.variant == "closest")
+                .unwrap();
+            let closest_set = reflect(closest.name, &closest.words()).unwrap().sets[&0].clone();
+            let mut without: Vec<u32> = set.keys().copied().filter(|&b| b != BINDING_CYCLES).collect();
+            without.sort();
+            assert_eq!(without, closest_set.keys().copied().collect::<Vec<_>>(), "{}: bindings besides cycles", k.name);
+        } else {
+            assert!(!set.contains_key(&BINDING_CYCLES), "{}: only the clock variant binds the cycles buffer", k.name);
+        }
+    }
+    assert_eq!(clock_kernels, trilab::encoding::Method::ALL.len());
+}
+
+#[test]
+fn raycast_workgroup_size_is_a_specialisation_constant() {
+    for k in KERNELS {
+        let mut l = reflect(k.name, &k.words()).unwrap();
+        if k.kernel != "raycast" {
+            assert_eq!(l.local_size_spec_ids, [None; 3], "{}", k.name);
+            continue;
+        }
+        assert_eq!(l.local_size, (WORKGROUP_SIZE, 1, 1), "{}: default", k.name);
+        assert_eq!(l.local_size_spec_ids, [Some(SPEC_ID_WORKGROUP_SIZE), None, None], "{}", k.name);
+        // Other constant ids leave it alone; the last value given for the id wins.
+        l.specialize(&[(SPEC_ID_WORKGROUP_SIZE + 1, 7)]);
+        assert_eq!(l.local_size, (WORKGROUP_SIZE, 1, 1), "{}", k.name);
+        l.specialize(&[(SPEC_ID_WORKGROUP_SIZE, 32), (SPEC_ID_WORKGROUP_SIZE, 128)]);
+        assert_eq!(l.local_size, (128, 1, 1), "{}", k.name);
+    }
+}

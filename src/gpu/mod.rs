@@ -25,5 +25,5 @@ pub use buffer::{Buffer, TexelBuffer};
 pub use context::{Context, ContextOptions, EnabledFeatures, Validation, ValidationLog};
 pub use descriptors::Resource;
 pub use device_info::DeviceInfo;
-pub use kernel::Kernel;
+pub use kernel::{Kernel, PipelineOptions};
 pub use raycast::{raycast, GpuScene, RaycastOptions, RaycastResult, Summary};
