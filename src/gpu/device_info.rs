@@ -103,13 +103,14 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
     let base = instance.get_physical_device_properties(pd);
     let exts = instance.enumerate_device_extension_properties(pd).unwrap_or_default();
     let api = base.api_version;
-    let v13 = api >= vk::API_VERSION_1_3;
     let has = |n: &CStr| has_extension(&exts, n);
 
     let mut v11 = vk::PhysicalDeviceVulkan11Properties::default();
     let mut v12 = vk::PhysicalDeviceVulkan12Properties::default();
     let mut ssc = vk::PhysicalDeviceSubgroupSizeControlProperties::default();
-    let has_ssc = v13 || has(ash::ext::subgroup_size_control::NAME);
+    // trilab's instances ask for Vulkan 1.2, so a device's effective version is at most 1.2 and
+    // subgroup size control needs the extension even where the device has Vulkan 1.3.
+    let has_ssc = has(ash::ext::subgroup_size_control::NAME);
     let mut props2 = vk::PhysicalDeviceProperties2::default();
     if api >= vk::API_VERSION_1_2 {
         props2 = props2.push_next(&mut v11).push_next(&mut v12);

@@ -74,9 +74,12 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
     Ok(KernelLayout { sets, push_constants, local_size, local_size_spec_ids })
 }
 
-/// The `WorkgroupSize` built-in, if the module declares one: per dimension, the default value
-/// and the `SpecId` when the component is a specialisation constant.
-pub fn workgroup_size_builtin(words: &[u32]) -> std::result::Result<Option<[(u32, Option<u32>); 3]>, String> {
+/// Per workgroup dimension: the default value and the `SpecId` when it is a specialisation
+/// constant.
+pub type WorkgroupSizeDecl = [(u32, Option<u32>); 3];
+
+/// The `WorkgroupSize` built-in, if the module declares one.
+pub fn workgroup_size_builtin(words: &[u32]) -> std::result::Result<Option<WorkgroupSizeDecl>, String> {
     let m = rspirv::dr::load_words(words).map_err(|e| e.to_string())?;
     let mut builtin = None;
     let mut spec_ids: BTreeMap<u32, u32> = BTreeMap::new();
