@@ -1,14 +1,25 @@
 #version 460
-// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS
+// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS clock=SHADER_CLOCK
 // Ray casting: one ray per invocation, closest hit (t, u, v, OBJ triangle id) or, with ANY_HIT,
 // any hit in [tmin, tmax] (occlusion). The intersector is chosen per variant by build.rs.
 // With TRAVERSAL_STATS (closest hit) it also writes each ray's traversal work (traverse.glsl).
+// SHADER_CLOCK (profiling, `trilab profile`): closest hit, plus the subgroup clock's ticks
+// around the trace written per ray to BINDING_CYCLES (needs VK_KHR_shader_clock's
+// shaderSubgroupClock). Lanes in lock-step read the same clock, so on SIMD hardware a ray's
+// count is its subgroup's.
 #extension GL_GOOGLE_include_directive : require
+#ifdef SHADER_CLOCK
+#extension GL_ARB_shader_clock : require
+#endif
 
 #include "types.glsl"
 
 layout(std430, set = 0, binding = BINDING_RAYS) readonly buffer Rays { Ray rays[]; };
 layout(std430, set = 0, binding = BINDING_HITS) writeonly buffer Hits { Hit hits[]; };
+#ifdef SHADER_CLOCK
+// Ticks per ray (the low 32 bits of the difference; 0xFFFFFFFF if it does not fit).
+layout(std430, set = 0, binding = BINDING_CYCLES) writeonly buffer Cycles { uint cycles[]; };
+#endif
 
 layout(push_constant) uniform Push {
     uint ray_count; // rays in this dispatch (the bound ray/hit ranges hold exactly these)
@@ -27,7 +38,9 @@ const bool ANY = true;
 const bool ANY = false;
 #endif
 
-layout(local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
+// The workgroup size is specialisation constant SPEC_ID_WORKGROUP_SIZE (default WORKGROUP_SIZE),
+// so `trilab profile` can sweep it; the host reads the size a pipeline was created with.
+layout(local_size_x_id = SPEC_ID_WORKGROUP_SIZE, local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
 
 void main() {
     uint i = gl_GlobalInvocationID.x;
@@ -40,7 +53,16 @@ void main() {
     h.slot = MISS_ID;
     h.u = 0.0;
     h.v = 0.0;
+#ifdef SHADER_CLOCK
+    uvec2 clock_start = clock2x32ARB();
+#endif
     trace(make_trace_ray(ray), h, ANY);
+#ifdef SHADER_CLOCK
+    uvec2 clock_end = clock2x32ARB();
+    uint borrow = clock_end.x < clock_start.x ? 1u : 0u;
+    uint hi = clock_end.y - clock_start.y - borrow;
+    cycles[i] = hi == 0u ? clock_end.x - clock_start.x : 0xFFFFFFFFu;
+#endif
     Hit o;
     if (h.slot == MISS_ID) {
         o.t = uintBitsToFloat(0x7f800000u); // +inf

@@ -7,6 +7,8 @@
 
 // Invocations per workgroup along x (one ray per invocation).
 #define WORKGROUP_SIZE 64
+// raycast.comp's workgroup size is this specialisation constant (default WORKGROUP_SIZE).
+#define SPEC_ID_WORKGROUP_SIZE 1
 // Traversal stack entries: the BVH builder guarantees depth <= STACK_SIZE.
 #define STACK_SIZE 64
 
@@ -38,6 +40,8 @@
 #define BINDING_RNG_PROBE_OUT 17
 // raycast.comp's `stats` variant: per-ray traversal counters (TraversalCounts, traverse.glsl).
 #define BINDING_TRAVERSAL_STATS 18
+// raycast.comp's `clock` variant: shader-clock ticks per ray (uint), for `trilab profile`.
+#define BINDING_CYCLES 19
 
 // BSDF kinds (Material.kind; one file each in bsdf/). A kernel's BSDF_MASK has bit (1 << kind)
 // set for every kind it carries.

@@ -17,6 +17,7 @@ pub mod error;
 pub mod gpu;
 pub mod io;
 pub mod kernels;
+pub mod profile;
 pub mod rays;
 pub mod reference;
 pub mod render;

@@ -110,6 +110,10 @@ enum Cmd {
     /// The paper's study on this device: scene x leaf size {1,2,3,4,8,16} x method, path-trace
     /// seconds and Mrays/s per ray set, validated; writes study.csv/json/md and plots.
     Study(StudyArgs),
+    /// Driver-level profile of the ray-casting kernels: timestamps, pipeline statistics,
+    /// shader-clock heat maps, executable statistics, subgroup/workgroup-size sweeps,
+    /// LP_NUM_THREADS scaling; profile.md, profile.json and PNGs.
+    Profile(ProfileArgs),
 }
 
 #[derive(Args)]
@@ -415,6 +419,7 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Render(a) => render_cmd(a),
         Cmd::BenchRender(a) => bench_render_cmd(a),
         Cmd::Study(a) => study_cmd(a),
+        Cmd::Profile(a) => profile_cmd(a),
     }
 }
 
@@ -1123,5 +1128,90 @@ fn study_cmd(a: StudyArgs) -> Result<()> {
     for w in written {
         eprintln!("  {}", w.display());
     }
+    Ok(())
+}
+
+#[derive(Args)]
+struct ProfileArgs {
+    #[arg(long)]
+    scene: PathBuf,
+    #[arg(long, value_enum, value_delimiter = ',')]
+    methods: Vec<Method>,
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    /// Output directory; default results/<device>/profile (lavapipe for Mesa's llvmpipe).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Primary rays: a width x height camera image (also the heat maps' size).
+    #[arg(long, default_value_t = 800)]
+    width: u32,
+    #[arg(long, default_value_t = 600)]
+    height: u32,
+    #[arg(long, default_value_t = 2)]
+    diffuse_per_hit: u32,
+    #[arg(long, default_value_t = 250_000)]
+    random_rays: usize,
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Timed runs after one warm-up; median, min and max are reported.
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// The ray set the subgroup- and workgroup-size sweeps time: primary, diffuse or random.
+    #[arg(long, default_value = "random")]
+    sweep_set: String,
+    #[arg(long, value_delimiter = ',', default_values_t = [32u32, 64, 128, 256])]
+    workgroup_sizes: Vec<u32>,
+    /// LP_NUM_THREADS values to run (lavapipe only); default 1..=host cores.
+    #[arg(long, value_delimiter = ',')]
+    threads: Vec<usize>,
+    /// Leave out the LP_NUM_THREADS section.
+    #[arg(long)]
+    no_threads: bool,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+fn profile_cmd(a: ProfileArgs) -> Result<()> {
+    use trilab::profile::{self, ProfileOptions};
+    check_leaf_size(a.leaf_size)?;
+    let exe = if a.no_threads {
+        None
+    } else {
+        Some(std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e))?)
+    };
+    let o = ProfileOptions {
+        scene: a.scene.clone(),
+        methods: if a.methods.is_empty() { Method::ALL.to_vec() } else { a.methods.clone() },
+        leaf_size: a.leaf_size,
+        width: a.width,
+        height: a.height,
+        diffuse_per_hit: a.diffuse_per_hit,
+        random_rays: a.random_rays,
+        seed: a.seed,
+        repeat: a.repeat.max(1),
+        sweep_set: a.sweep_set.clone(),
+        workgroup_sizes: a.workgroup_sizes.clone(),
+        thread_counts: a.threads.clone(),
+        exe,
+        ..Default::default()
+    };
+    let ctx = a.gpu.context()?;
+    let out = a.out.clone().unwrap_or_else(|| {
+        let info = ctx.info();
+        let device = if profile::threads::is_lavapipe(info) {
+            "lavapipe".to_owned()
+        } else {
+            info.name.to_lowercase().chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '-' }).collect()
+        };
+        PathBuf::from("results").join(device).join("profile")
+    });
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;
+    let command: Vec<String> = std::env::args().skip(1).collect();
+    let md = profile::markdown::render(&report, &format!("trilab {}", command.join(" ")));
+    trilab::io::write_atomic(&out.join("profile.json"), serde_json::to_string_pretty(&report).unwrap().as_bytes())?;
+    trilab::io::write_atomic(&out.join("profile.md"), md.as_bytes())?;
+    print!("{md}");
+    println!("\nwrote {}", out.display());
     Ok(())
 }

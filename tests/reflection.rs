@@ -116,6 +116,8 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         // rng_probe: draws as uvec4 bits, then as vec4 floats (read back as words in tests/render.rs).
         ("none", BINDING_RNG_PROBE_OUT) => array_of(32, &[0, 16]),
         (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
+        // raycast's `clock` variant: shader-clock ticks per ray, read back as u32.
+        ("mt" | "unit" | "quad_mt" | "quad_unit", BINDING_CYCLES) => array_of(size_of::<u32>(), &[]),
         ("none", BINDING_BSDF_PROBE_IN) => array_of(
             size_of::<ProbeIn>(),
             &[offset_of!(ProbeIn, wo), offset_of!(ProbeIn, material), offset_of!(ProbeIn, v), offset_of!(ProbeIn, pad)],
@@ -213,6 +215,7 @@ fn kernels_bind_what_the_host_provides() {
         };
         let buffers = match (k.kernel, k.variant) {
             ("raycast", "stats") => vec![BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS],
+            ("raycast", "clock") => vec![BINDING_RAYS, BINDING_HITS, BINDING_CYCLES],
             ("raycast", _) => vec![BINDING_RAYS, BINDING_HITS],
             ("pathtrace", _) => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             ("bsdf_probe", _) => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
@@ -250,5 +253,50 @@ fn every_encoding_provides_every_scene_binding_its_kernels_read() {
                 assert!(provided.contains(b), "{}: binding {b} not provided by the {m} encoding", k.name);
             }
         }
+    }
+}
+
+#[test]
+fn clock_variant_adds_only_the_cycles_buffer() {
+    let mut clock_kernels = 0;
+    for k in KERNELS.iter().filter(|k| k.kernel == "raycast") {
+        let l = reflect(k.name, &k.words()).unwrap();
+        let set = &l.sets[&0];
+        let layouts = buffer_layouts(&k.words()).unwrap();
+        if k.variant == "clock" {
+            clock_kernels += 1;
+            assert_eq!(set[&BINDING_CYCLES].ty, vk::DescriptorType::STORAGE_BUFFER, "{}", k.name);
+            // One u32 per ray, as the host reads it back.
+            assert_eq!(layouts[&BINDING_CYCLES], array_of(size_of::<u32>(), &[]), "{}", k.name);
+            let closest = trilab::kernels::KERNELS
+                .iter()
+                .find(|c| c.kernel == "raycast" && c.method == k.method && c.variant == "closest")
+                .unwrap();
+            let closest_set = reflect(closest.name, &closest.words()).unwrap().sets[&0].clone();
+            let mut without: Vec<u32> = set.keys().copied().filter(|&b| b != BINDING_CYCLES).collect();
+            without.sort();
+            assert_eq!(without, closest_set.keys().copied().collect::<Vec<_>>(), "{}: bindings besides cycles", k.name);
+        } else {
+            assert!(!set.contains_key(&BINDING_CYCLES), "{}: only the clock variant binds the cycles buffer", k.name);
+        }
+    }
+    assert_eq!(clock_kernels, trilab::encoding::Method::ALL.len());
+}
+
+#[test]
+fn raycast_workgroup_size_is_a_specialisation_constant() {
+    for k in KERNELS {
+        let mut l = reflect(k.name, &k.words()).unwrap();
+        if k.kernel != "raycast" {
+            assert_eq!(l.local_size_spec_ids, [None; 3], "{}", k.name);
+            continue;
+        }
+        assert_eq!(l.local_size, (WORKGROUP_SIZE, 1, 1), "{}: default", k.name);
+        assert_eq!(l.local_size_spec_ids, [Some(SPEC_ID_WORKGROUP_SIZE), None, None], "{}", k.name);
+        // Other constant ids leave it alone; the last value given for the id wins.
+        l.specialize(&[(SPEC_ID_WORKGROUP_SIZE + 1, 7)]);
+        assert_eq!(l.local_size, (WORKGROUP_SIZE, 1, 1), "{}", k.name);
+        l.specialize(&[(SPEC_ID_WORKGROUP_SIZE, 32), (SPEC_ID_WORKGROUP_SIZE, 128)]);
+        assert_eq!(l.local_size, (128, 1, 1), "{}", k.name);
     }
 }

@@ -259,10 +259,9 @@ impl Context {
             ext_names.push(ash::khr::shader_clock::NAME.as_ptr());
             features2 = features2.push_next(&mut clock);
         }
-        if enabled.subgroup_size_control && info.api_version_raw < vk::API_VERSION_1_3 {
-            ext_names.push(ash::ext::subgroup_size_control::NAME.as_ptr());
-        }
+        // The instance asks for Vulkan 1.2, so this is the extension even on a 1.3 device.
         if enabled.subgroup_size_control {
+            ext_names.push(ash::ext::subgroup_size_control::NAME.as_ptr());
             features2 = features2.push_next(&mut ssc);
         }
         if enabled.pipeline_executable_properties {

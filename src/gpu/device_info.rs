@@ -40,6 +40,10 @@ pub struct DeviceInfo {
     /// `VK_EXT_subgroup_size_control` (or Vulkan 1.3): (min, max) subgroup size.
     pub subgroup_size_control: Option<(u32, u32)>,
     pub compute_full_subgroups: bool,
+    /// `requiredSubgroupSizeStages` includes COMPUTE: a compute pipeline may require a size.
+    pub required_subgroup_size_compute: bool,
+    /// `maxComputeWorkgroupSubgroups` (0 without subgroup size control).
+    pub max_compute_workgroup_subgroups: u32,
     /// `VK_KHR_shader_clock`: (subgroup clock, device clock).
     pub shader_clock: Option<(bool, bool)>,
     /// Valid bits of timestamps on the compute queue (0: no timestamps).
@@ -61,6 +65,7 @@ pub struct DeviceInfo {
     pub min_storage_buffer_offset_alignment: u64,
     pub max_compute_workgroup_invocations: u32,
     pub max_compute_workgroup_count: [u32; 3],
+    pub max_compute_workgroup_size: [u32; 3],
     /// Queue family used for compute.
     pub compute_queue_family: Option<u32>,
     pub usable: bool,
@@ -98,13 +103,14 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
     let base = instance.get_physical_device_properties(pd);
     let exts = instance.enumerate_device_extension_properties(pd).unwrap_or_default();
     let api = base.api_version;
-    let v13 = api >= vk::API_VERSION_1_3;
     let has = |n: &CStr| has_extension(&exts, n);
 
     let mut v11 = vk::PhysicalDeviceVulkan11Properties::default();
     let mut v12 = vk::PhysicalDeviceVulkan12Properties::default();
     let mut ssc = vk::PhysicalDeviceSubgroupSizeControlProperties::default();
-    let has_ssc = v13 || has(ash::ext::subgroup_size_control::NAME);
+    // trilab's instances ask for Vulkan 1.2, so a device's effective version is at most 1.2 and
+    // subgroup size control needs the extension even where the device has Vulkan 1.3.
+    let has_ssc = has(ash::ext::subgroup_size_control::NAME);
     let mut props2 = vk::PhysicalDeviceProperties2::default();
     if api >= vk::API_VERSION_1_2 {
         props2 = props2.push_next(&mut v11).push_next(&mut v12);
@@ -177,6 +183,9 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         subgroup_size_control: (has_ssc && sscf.subgroup_size_control == vk::TRUE)
             .then_some((ssc.min_subgroup_size, ssc.max_subgroup_size)),
         compute_full_subgroups: sscf.compute_full_subgroups == vk::TRUE,
+        required_subgroup_size_compute: has_ssc
+            && ssc.required_subgroup_size_stages.contains(vk::ShaderStageFlags::COMPUTE),
+        max_compute_workgroup_subgroups: if has_ssc { ssc.max_compute_workgroup_subgroups } else { 0 },
         shader_clock: has_clock
             .then_some((clock.shader_subgroup_clock == vk::TRUE, clock.shader_device_clock == vk::TRUE)),
         timestamp_valid_bits: ts_bits,
@@ -202,6 +211,7 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         min_storage_buffer_offset_alignment: limits.min_storage_buffer_offset_alignment,
         max_compute_workgroup_invocations: limits.max_compute_work_group_invocations,
         max_compute_workgroup_count: limits.max_compute_work_group_count,
+        max_compute_workgroup_size: limits.max_compute_work_group_size,
         compute_queue_family: compute_family,
         usable: unusable_reason.is_none(),
         unusable_reason,
@@ -234,9 +244,11 @@ impl DeviceInfo {
         let _ = writeln!(
             s,
             "    subgroup size control:    {}",
-            opt(self
-                .subgroup_size_control
-                .map(|(a, b)| format!("{a}..{b} (full subgroups: {})", yn(self.compute_full_subgroups))))
+            opt(self.subgroup_size_control.map(|(a, b)| format!(
+                "{a}..{b} (full subgroups: {}, compute may require a size: {})",
+                yn(self.compute_full_subgroups),
+                yn(self.required_subgroup_size_compute)
+            )))
         );
         let _ = writeln!(
             s,

@@ -49,8 +49,17 @@ impl Context {
 
     /// A pipeline with specialisation constants set: `(constant_id, 32-bit value)` pairs.
     pub fn create_kernel_specialized(&self, src: &KernelSource, constants: &[(u32, u32)]) -> Result<Kernel> {
+        self.create_kernel_with(src, &PipelineOptions { constants, ..Default::default() })
+    }
+
+    /// A pipeline with the profiling options of [`PipelineOptions`]; the caller checks that
+    /// the device enabled what they need (`Context::enabled`).
+    pub fn create_kernel_with(&self, src: &KernelSource, options: &PipelineOptions) -> Result<Kernel> {
+        let constants = options.constants;
         let words = src.words();
-        let layout = reflect(src.name, &words)?;
+        let mut layout = reflect(src.name, &words)?;
+        // Dispatches use the size the pipeline is created with, not the module's default.
+        layout.specialize(constants);
         if layout.sets.keys().any(|&s| s != 0) {
             return Err(Error::Spirv { kernel: src.name.into(), message: "only descriptor set 0 is supported".into() });
         }
@@ -104,7 +113,17 @@ impl Context {
         if !constants.is_empty() {
             stage = stage.specialization_info(&spec);
         }
-        let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(objects.pipeline_layout)];
+        let mut required = vk::PipelineShaderStageRequiredSubgroupSizeCreateInfo::default()
+            .required_subgroup_size(options.required_subgroup_size.unwrap_or(0));
+        if options.required_subgroup_size.is_some() {
+            stage = stage.push_next(&mut required);
+        }
+        let flags = if options.capture_statistics {
+            vk::PipelineCreateFlags::CAPTURE_STATISTICS_KHR
+        } else {
+            vk::PipelineCreateFlags::empty()
+        };
+        let info = [vk::ComputePipelineCreateInfo::default().flags(flags).stage(stage).layout(objects.pipeline_layout)];
         // SAFETY: layouts and module are valid; the create info lives for the call.
         objects.pipeline = unsafe { d.create_compute_pipelines(vk::PipelineCache::null(), &info, None) }
             .map_err(|(_, e)| e)
@@ -120,6 +139,18 @@ impl Context {
             pipeline,
         })
     }
+}
+
+/// How to create a pipeline beyond its SPIR-V (`trilab profile` varies these).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PipelineOptions<'a> {
+    /// `(constant_id, 32-bit value)` specialisation constants.
+    pub constants: &'a [(u32, u32)],
+    /// `VkPipelineShaderStageRequiredSubgroupSizeCreateInfo` (needs subgroupSizeControl and
+    /// COMPUTE in requiredSubgroupSizeStages).
+    pub required_subgroup_size: Option<u32>,
+    /// `VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR` (needs pipelineExecutableInfo).
+    pub capture_statistics: bool,
 }
 
 /// Destroys what was created if pipeline creation fails part-way.

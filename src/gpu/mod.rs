@@ -27,6 +27,6 @@ pub use buffer::{Buffer, TexelBuffer};
 pub use context::{Context, ContextOptions, EnabledFeatures, Validation, ValidationLog};
 pub use descriptors::Resource;
 pub use device_info::DeviceInfo;
-pub use kernel::Kernel;
+pub use kernel::{Kernel, PipelineOptions};
 pub use raycast::{raycast, GpuScene, RaycastOptions, RaycastResult, Summary};
 pub use traversal_stats::{raycast_stats, MeanMax, TraversalCounts, TraversalSummary};

@@ -22,7 +22,26 @@ pub struct KernelLayout {
     pub sets: BTreeMap<u32, BTreeMap<u32, DescriptorBinding>>,
     /// (offset, size) of the push-constant block.
     pub push_constants: Option<(u32, u32)>,
+    /// The workgroup size: the module's default, or after [`KernelLayout::specialize`] the size
+    /// the pipeline was created with (what dispatches must use).
     pub local_size: (u32, u32, u32),
+    /// Specialisation-constant id of each workgroup dimension that has one
+    /// (`layout(local_size_x_id = N)`), x, y, z.
+    pub local_size_spec_ids: [Option<u32>; 3],
+}
+
+impl KernelLayout {
+    /// Applies `(constant_id, value)` pairs, as given at pipeline creation, to the workgroup
+    /// size.
+    pub fn specialize(&mut self, constants: &[(u32, u32)]) {
+        let mut size = [self.local_size.0, self.local_size.1, self.local_size.2];
+        for (dim, id) in self.local_size_spec_ids.iter().enumerate() {
+            if let Some(&(_, v)) = id.and_then(|id| constants.iter().rev().find(|(c, _)| *c == id)) {
+                size[dim] = v;
+            }
+        }
+        self.local_size = (size[0], size[1], size[2]);
+    }
 }
 
 pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
@@ -44,8 +63,59 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
         })
         .collect();
     let push_constants = r.get_push_constant_range().map_err(|e| err(format!("{e:?}")))?.map(|p| (p.offset, p.size));
-    let local_size = r.get_compute_group_size().ok_or_else(|| err("no LocalSize execution mode".into()))?;
-    Ok(KernelLayout { sets, push_constants, local_size })
+    let mut local_size = r.get_compute_group_size().ok_or_else(|| err("no LocalSize execution mode".into()))?;
+    let mut local_size_spec_ids = [None; 3];
+    // A `WorkgroupSize` built-in overrides `LocalSize` (SPIR-V spec, 3.21 BuiltIn); with
+    // `local_size_x_id` its components are specialisation constants.
+    if let Some(dims) = workgroup_size_builtin(words).map_err(err)? {
+        local_size = (dims[0].0, dims[1].0, dims[2].0);
+        local_size_spec_ids = [dims[0].1, dims[1].1, dims[2].1];
+    }
+    Ok(KernelLayout { sets, push_constants, local_size, local_size_spec_ids })
+}
+
+/// Per workgroup dimension: the default value and the `SpecId` when it is a specialisation
+/// constant.
+pub type WorkgroupSizeDecl = [(u32, Option<u32>); 3];
+
+/// The `WorkgroupSize` built-in, if the module declares one.
+pub fn workgroup_size_builtin(words: &[u32]) -> std::result::Result<Option<WorkgroupSizeDecl>, String> {
+    let m = rspirv::dr::load_words(words).map_err(|e| e.to_string())?;
+    let mut builtin = None;
+    let mut spec_ids: BTreeMap<u32, u32> = BTreeMap::new();
+    for i in &m.annotations {
+        match (i.class.opcode, i.operands.as_slice()) {
+            (
+                Op::Decorate,
+                [Operand::IdRef(t), Operand::Decoration(Decoration::BuiltIn), Operand::BuiltIn(rspirv::spirv::BuiltIn::WorkgroupSize)],
+            ) => builtin = Some(*t),
+            (Op::Decorate, [Operand::IdRef(t), Operand::Decoration(Decoration::SpecId), Operand::LiteralBit32(id)]) => {
+                spec_ids.insert(*t, *id);
+            }
+            _ => {}
+        }
+    }
+    let Some(builtin) = builtin else {
+        return Ok(None);
+    };
+    let defs: BTreeMap<u32, &rspirv::dr::Instruction> =
+        m.types_global_values.iter().filter_map(|i| i.result_id.map(|id| (id, i))).collect();
+    let composite = defs.get(&builtin).ok_or("WorkgroupSize decorates no constant")?;
+    if !matches!(composite.class.opcode, Op::ConstantComposite | Op::SpecConstantComposite) {
+        return Err(format!("WorkgroupSize is a {:?}, not a constant composite", composite.class.opcode));
+    }
+    let mut dims = [(1, None); 3];
+    for (dim, op) in composite.operands.iter().take(3).enumerate() {
+        let Operand::IdRef(c) = op else {
+            return Err("WorkgroupSize component is not an id".into());
+        };
+        let value = match defs.get(c).map(|d| (d.class.opcode, d.operands.first())) {
+            Some((Op::Constant | Op::SpecConstant, Some(Operand::LiteralBit32(v)))) => *v,
+            other => return Err(format!("WorkgroupSize component {c} is not a 32-bit constant ({other:?})")),
+        };
+        dims[dim] = (value, spec_ids.get(c).copied());
+    }
+    Ok(Some(dims))
 }
 
 /// The layout of the runtime array a storage buffer (or the push-constant block) holds, as the

@@ -1,0 +1,540 @@
+//! `trilab profile`: driver-level profiling of the ray-casting kernels, one section per tool the
+//! device offers, each feature-detected and reported as unsupported (or not applicable) where
+//! absent, never emulated:
+//!
+//! 1. per-dispatch kernel time from GPU timestamps (median, min, max after warm-up);
+//! 2. pipeline statistics: compute-shader invocations of a dispatch, beside the count launched;
+//! 3. shader-clock ticks per ray (raycast.comp's `clock` variant, [`clock`]): statistics per
+//!    ray set and heat maps of the primary rays;
+//! 4. pipeline executable statistics (`VK_KHR_pipeline_executable_properties`, [`executable`]);
+//! 5. a subgroup-size sweep (`VK_EXT_subgroup_size_control`, [`sweep`]);
+//! 6. a workgroup-size sweep (raycast.comp's workgroup size is a specialisation constant);
+//! 7. LP_NUM_THREADS scaling on lavapipe ([`threads`]).
+//!
+//! Every result's hits are checked against the f64 reference before its time or count is
+//! reported; the variants (clock, subgroup and workgroup sizes) must also give hits bitwise
+//! identical to the default kernel's.
+
+pub mod clock;
+pub mod dispatch;
+pub mod executable;
+pub mod markdown;
+pub mod sweep;
+pub mod threads;
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::bench::{self, BenchOptions};
+use crate::bvh::{BuildOptions, Bvh};
+use crate::compare::compare_closest;
+use crate::encoding::Method;
+use crate::error::{Error, Result};
+use crate::gpu::shared::SPEC_ID_WORKGROUP_SIZE;
+use crate::gpu::{raycast, Context, DeviceInfo, GpuScene, PipelineOptions, RaycastOptions, Summary};
+use crate::rays::{Hit, Ray};
+use crate::reference::{RefHit, Reference};
+use crate::scene::{load_obj, Mesh};
+
+pub use clock::{CycleStats, HeatScale};
+pub use dispatch::{dispatch_once, SingleDispatch};
+pub use executable::ExecutableStatistic;
+pub use threads::ThreadMeasurement;
+
+/// Fraction of rays that must agree with the f64 reference (as `trilab bench` requires).
+pub const MIN_AGREEMENT: f64 = 0.9999;
+
+#[derive(Clone, Debug)]
+pub struct ProfileOptions {
+    pub scene: PathBuf,
+    pub methods: Vec<Method>,
+    pub leaf_size: u32,
+    /// Primary rays: a `width` x `height` camera image (the heat maps' size).
+    pub width: u32,
+    pub height: u32,
+    pub diffuse_per_hit: u32,
+    pub random_rays: usize,
+    pub seed: u64,
+    pub warmup: usize,
+    pub repeat: usize,
+    /// The ray set the subgroup- and workgroup-size sweeps time.
+    pub sweep_set: String,
+    pub workgroup_sizes: Vec<u32>,
+    /// LP_NUM_THREADS values; empty: 1..=host cores.
+    pub thread_counts: Vec<usize>,
+    /// The trilab executable the LP_NUM_THREADS section runs (`None`: the section is skipped).
+    pub exe: Option<PathBuf>,
+}
+
+impl Default for ProfileOptions {
+    fn default() -> Self {
+        ProfileOptions {
+            scene: PathBuf::from("scenes/bunny.obj"),
+            methods: Method::ALL.to_vec(),
+            leaf_size: 4,
+            width: 800,
+            height: 600,
+            diffuse_per_hit: 2,
+            random_rays: 250_000,
+            seed: 7,
+            warmup: 1,
+            repeat: 5,
+            sweep_set: "random".into(),
+            workgroup_sizes: vec![32, 64, 128, 256],
+            thread_counts: vec![],
+            exe: None,
+        }
+    }
+}
+
+/// Device, driver and Mesa version, carried by every row.
+#[derive(Clone, Debug, Serialize)]
+pub struct DeviceTag {
+    pub device: String,
+    pub driver: String,
+    pub mesa_version: Option<String>,
+}
+
+impl DeviceTag {
+    pub fn of(info: &DeviceInfo) -> DeviceTag {
+        DeviceTag { device: info.name.clone(), driver: info.driver_label(), mesa_version: info.mesa_version.clone() }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    Measured,
+    Unsupported,
+    NotApplicable,
+    Skipped,
+}
+
+/// One profile section: whether it could be measured, a note saying why not or what limited
+/// it, and its rows.
+#[derive(Clone, Debug, Serialize)]
+pub struct Section<T> {
+    pub status: Status,
+    pub note: String,
+    pub rows: Vec<T>,
+}
+
+impl<T> Section<T> {
+    fn new(status: Status, note: impl Into<String>) -> Section<T> {
+        Section { status, note: note.into(), rows: vec![] }
+    }
+}
+
+/// A row of any section: the device tag, then the row's own fields.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row<T> {
+    #[serde(flatten)]
+    pub tag: DeviceTag,
+    pub method: Method,
+    #[serde(flatten)]
+    pub data: T,
+}
+
+impl<T> Row<T> {
+    pub fn new(info: &DeviceInfo, method: Method, data: T) -> Row<T> {
+        Row { tag: DeviceTag::of(info), method, data }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Timing {
+    pub ray_set: String,
+    pub rays: usize,
+    /// Dispatches per run (each its own submit with its own timestamp pair).
+    pub dispatches: usize,
+    /// Per-run kernel time, milliseconds (GPU timestamps).
+    pub kernel_ms: Summary,
+    pub mrays_per_s: f64,
+    pub agreement: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Invocations {
+    pub ray_set: String,
+    pub rays: usize,
+    pub local_size: u32,
+    pub workgroups: u32,
+    /// ceil(rays / local size) x local size.
+    pub dispatched: u64,
+    /// COMPUTE_SHADER_INVOCATIONS of the same dispatch.
+    pub compute_shader_invocations: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Cycles {
+    pub ray_set: String,
+    pub rays: usize,
+    pub ticks: CycleStats,
+    /// Rays whose hit differs (bitwise) from the default `closest` kernel's.
+    pub hits_differing_from_closest: usize,
+    pub agreement: f64,
+    /// File name of the heat map (primary rays only).
+    pub heat_map: Option<String>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SizeTiming {
+    pub ray_set: String,
+    pub rays: usize,
+    pub subgroup_size: Option<u32>,
+    pub local_size: u32,
+    pub kernel_ms: Summary,
+    pub mrays_per_s: f64,
+    pub agreement: f64,
+    /// Rays whose hit differs (bitwise) from the default kernel's.
+    pub hits_differing_from_default: usize,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ProfileReport {
+    #[serde(flatten)]
+    pub tag: DeviceTag,
+    pub driver_id: String,
+    pub host_cpus: usize,
+    /// LP_NUM_THREADS of the profiling process itself (sections 1-6).
+    pub lp_num_threads: Option<String>,
+    /// `/proc/loadavg` before and after (Linux): other work on the host skews every timing.
+    pub host_load_before: Option<String>,
+    pub host_load_after: Option<String>,
+    pub scene: String,
+    pub triangles: usize,
+    pub leaf_size: u32,
+    pub warmup: usize,
+    pub repeat: usize,
+    pub width: u32,
+    pub height: u32,
+    /// (name, rays)
+    pub ray_sets: Vec<(String, usize)>,
+    pub sweep_set: String,
+    pub default_local_size: u32,
+    pub timestamps: Section<Row<Timing>>,
+    pub pipeline_statistics: Section<Row<Invocations>>,
+    pub shader_clock: Section<Row<Cycles>>,
+    pub heat_scale: Option<HeatScale>,
+    pub executable_properties: Section<Row<ExecutableStatistic>>,
+    pub subgroup_sizes: Section<Row<SizeTiming>>,
+    pub workgroup_sizes: Section<Row<SizeTiming>>,
+    pub lp_num_threads_scaling: Section<Row<ThreadMeasurement>>,
+}
+
+/// Rays whose hits are not bitwise identical.
+pub fn differing_hits(a: &[Hit], b: &[Hit]) -> usize {
+    if a.len() != b.len() {
+        return a.len().max(b.len());
+    }
+    a.iter().zip(b).filter(|(x, y)| bytemuck::bytes_of(*x) != bytemuck::bytes_of(*y)).count()
+}
+
+/// Checks hits against the f64 reference; an error (so nothing gets reported) if they disagree.
+fn validated(mesh: &Mesh, rays: &[Ray], hits: &[Hit], reference: &[RefHit], what: &str) -> Result<f64> {
+    let a = compare_closest(mesh, rays, hits, reference);
+    if !a.passes(MIN_AGREEMENT) {
+        return Err(Error::Usage(format!(
+            "{what}: results disagree with the f64 reference ({}); not reporting it",
+            a.summary()
+        )));
+    }
+    Ok(a.fraction())
+}
+
+/// The 1, 5 and 15-minute load averages, where the host reports them.
+fn load_average() -> Option<String> {
+    let text = std::fs::read_to_string("/proc/loadavg").ok()?;
+    Some(text.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+}
+
+fn mrays(rays: usize, ms: f64) -> f64 {
+    rays as f64 / (ms * 1e-3) / 1e6
+}
+
+/// Runs every section. Heat maps are written to `out_dir` when given (file names in the
+/// report); `progress` gets one line per step.
+pub fn run(
+    ctx: &Context,
+    o: &ProfileOptions,
+    out_dir: Option<&Path>,
+    mut progress: impl FnMut(&str),
+) -> Result<ProfileReport> {
+    let info = ctx.info();
+    let en = *ctx.enabled();
+    let tag = DeviceTag::of(info);
+    let host_load_before = load_average();
+    let name = o.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
+    let mesh = load_obj(&o.scene)?;
+    let bvh = Bvh::build(&mesh, &BuildOptions::new(o.leaf_size));
+    let reference = Reference::new(&mesh, &bvh);
+    let bench_opts = BenchOptions {
+        width: o.width,
+        height: o.height,
+        diffuse_per_hit: o.diffuse_per_hit,
+        random_rays: o.random_rays,
+        seed: o.seed,
+        ..Default::default()
+    };
+    let sets = bench::ray_sets(&mesh, &name, &reference, &bench_opts)?;
+    let refs: Vec<Vec<RefHit>> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
+    let sweep_idx = sets
+        .iter()
+        .position(|(n, _)| *n == o.sweep_set)
+        .ok_or_else(|| Error::Usage(format!("--sweep-set {}: not one of primary, diffuse, random", o.sweep_set)))?;
+    progress(&format!(
+        "{name}: {} triangles; rays: {}",
+        mesh.triangle_count(),
+        sets.iter().map(|(n, r)| format!("{n} {}", r.len())).collect::<Vec<_>>().join(", ")
+    ));
+    let ropts = RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), ..Default::default() };
+
+    let mut timestamps = if crate::gpu::timestamps::Timestamps::supported(ctx) {
+        Section::new(Status::Measured, "kernel time between timestamps around each dispatch")
+    } else {
+        Section::new(Status::Unsupported, "unsupported (no timestamps on the compute queue): host wall time instead")
+    };
+    let mut stats = if en.pipeline_statistics_query {
+        Section::new(Status::Measured, "VK_QUERY_TYPE_PIPELINE_STATISTICS, COMPUTE_SHADER_INVOCATIONS, one dispatch")
+    } else {
+        Section::new(Status::Unsupported, "unsupported (pipelineStatisticsQuery absent)")
+    };
+    let mut clock = if en.shader_clock {
+        Section::new(
+            Status::Measured,
+            "subgroup-scope clock (VK_KHR_shader_clock, clock2x32ARB) read before and after the trace; \
+             lanes in lock-step share one reading, so a ray's ticks are its subgroup's",
+        )
+    } else {
+        Section::new(Status::Unsupported, "unsupported (VK_KHR_shader_clock with shaderSubgroupClock absent)")
+    };
+    let mut exec = if en.pipeline_executable_properties {
+        Section::new(
+            Status::Measured,
+            "pipelines created with CAPTURE_STATISTICS; this code path is untested on lavapipe (which lacks the extension)",
+        )
+    } else {
+        Section::new(Status::Unsupported, "unsupported (VK_KHR_pipeline_executable_properties absent)")
+    };
+    let default_local = crate::gpu::shared::WORKGROUP_SIZE;
+    let subgroup_plan = sweep::subgroup_sizes(info, &en, default_local);
+    let mut subgroups = match &subgroup_plan {
+        Ok((_, note)) => Section::new(Status::Measured, note.clone()),
+        Err(why) => Section::new(Status::Unsupported, why.clone()),
+    };
+    let (wg_sizes, wg_note) = sweep::workgroup_sizes(info, &o.workgroup_sizes);
+    let mut workgroups = Section::new(Status::Measured, wg_note);
+    let mut primary_cycles: Vec<(Method, Vec<u32>)> = vec![];
+
+    for &method in &o.methods {
+        let scene = GpuScene::upload(ctx, &method.encode(&mesh, &bvh))?;
+        let closest = ctx.create_kernel(crate::kernels::raycast(method, false))?;
+        let clock_kernel = if en.shader_clock {
+            Some(ctx.create_kernel(crate::kernels::find("raycast", method, "clock"))?)
+        } else {
+            None
+        };
+        let mut sweep_hits = vec![];
+        for (si, (set, rays)) in sets.iter().enumerate() {
+            let what = format!("{name} {set} {method}");
+            let res = raycast(ctx, &closest, &scene, rays, &ropts)?;
+            let agreement = validated(&mesh, rays, &res.hits, &refs[si], &what)?;
+            let ms = res.time_ms();
+            progress(&format!("{what}: {:.2} ms ({:.2} Mrays/s)", ms.median, mrays(rays.len(), ms.median)));
+            timestamps.rows.push(Row::new(
+                info,
+                method,
+                Timing {
+                    ray_set: set.clone(),
+                    rays: rays.len(),
+                    dispatches: res.batches,
+                    kernel_ms: ms,
+                    mrays_per_s: mrays(rays.len(), ms.median),
+                    agreement,
+                },
+            ));
+            if en.pipeline_statistics_query {
+                let d = dispatch_once(ctx, &closest, &scene, rays, true)?;
+                validated(&mesh, rays, &d.hits, &refs[si], &format!("{what} (pipeline statistics)"))?;
+                stats.rows.push(Row::new(
+                    info,
+                    method,
+                    Invocations {
+                        ray_set: set.clone(),
+                        rays: rays.len(),
+                        local_size: d.local_size,
+                        workgroups: d.workgroups,
+                        dispatched: d.dispatched_invocations(),
+                        compute_shader_invocations: d.compute_shader_invocations.unwrap_or(0),
+                    },
+                ));
+            }
+            if let Some(k) = &clock_kernel {
+                let d = dispatch_once(ctx, k, &scene, rays, false)?;
+                let agreement = validated(&mesh, rays, &d.hits, &refs[si], &format!("{what} (clock)"))?;
+                let cycles = d.cycles.expect("the clock variant binds the cycles buffer");
+                let ticks = CycleStats::of(&cycles).expect("at least one ray");
+                progress(&format!(
+                    "{what}: ticks per ray mean {:.0}, median {:.0}, p99 {:.0}",
+                    ticks.mean, ticks.median, ticks.p99
+                ));
+                clock.rows.push(Row::new(
+                    info,
+                    method,
+                    Cycles {
+                        ray_set: set.clone(),
+                        rays: rays.len(),
+                        ticks,
+                        hits_differing_from_closest: differing_hits(&d.hits, &res.hits),
+                        agreement,
+                        heat_map: None,
+                    },
+                ));
+                if set == "primary" {
+                    primary_cycles.push((method, cycles));
+                }
+            }
+            if si == sweep_idx {
+                sweep_hits = res.hits;
+            }
+        }
+        if en.pipeline_executable_properties {
+            let k = ctx.create_kernel_with(
+                crate::kernels::raycast(method, false),
+                &PipelineOptions { capture_statistics: true, ..Default::default() },
+            )?;
+            exec.rows
+                .extend(executable::executable_statistics(ctx, &k)?.into_iter().map(|d| Row::new(info, method, d)));
+        }
+        let (set, rays) = &sets[sweep_idx];
+        let mut timed = |kernel: &crate::gpu::Kernel, subgroup_size: Option<u32>| -> Result<SizeTiming> {
+            let what = format!("{name} {set} {method} ({}, workgroup {})", kernel.name, kernel.layout.local_size.0);
+            let res = raycast(ctx, kernel, &scene, rays, &ropts)?;
+            let agreement = validated(&mesh, rays, &res.hits, &refs[sweep_idx], &what)?;
+            let ms = res.time_ms();
+            let label = subgroup_size.map(|s| format!(", subgroup {s}")).unwrap_or_default();
+            progress(&format!("{what}{label}: {:.2} ms", ms.median));
+            Ok(SizeTiming {
+                ray_set: set.clone(),
+                rays: rays.len(),
+                subgroup_size,
+                local_size: kernel.layout.local_size.0,
+                kernel_ms: ms,
+                mrays_per_s: mrays(rays.len(), ms.median),
+                agreement,
+                hits_differing_from_default: differing_hits(&res.hits, &sweep_hits),
+            })
+        };
+        if let Ok((sizes, _)) = &subgroup_plan {
+            for &s in sizes {
+                let k = ctx.create_kernel_with(
+                    crate::kernels::raycast(method, false),
+                    &PipelineOptions { required_subgroup_size: Some(s), ..Default::default() },
+                )?;
+                subgroups.rows.push(Row::new(info, method, timed(&k, Some(s))?));
+            }
+        }
+        for &s in &wg_sizes {
+            let k =
+                ctx.create_kernel_specialized(crate::kernels::raycast(method, false), &[(SPEC_ID_WORKGROUP_SIZE, s)])?;
+            workgroups.rows.push(Row::new(info, method, timed(&k, None)?));
+        }
+    }
+
+    let heat_scale = HeatScale::of(&primary_cycles.iter().map(|(_, c)| c.as_slice()).collect::<Vec<_>>(), 1.0, 99.0);
+    if let (Some(dir), Some(scale)) = (out_dir, &heat_scale) {
+        for (method, cycles) in &primary_cycles {
+            let file = format!("heatmap-{method}.png");
+            let png = clock::heat_map_png(cycles, o.width, o.height, scale)?;
+            crate::io::write_atomic(&dir.join(&file), &png)?;
+            for r in clock.rows.iter_mut().filter(|r| r.method == *method && r.data.ray_set == "primary") {
+                r.data.heat_map = Some(file.clone());
+            }
+        }
+    }
+
+    let lp_scaling = threads_section(ctx, o, &sets, &mut progress)?;
+    Ok(ProfileReport {
+        tag,
+        driver_id: info.driver_id.clone(),
+        host_cpus: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+        lp_num_threads: std::env::var("LP_NUM_THREADS").ok(),
+        host_load_before,
+        host_load_after: load_average(),
+        scene: name,
+        triangles: mesh.triangle_count(),
+        leaf_size: o.leaf_size,
+        warmup: o.warmup,
+        repeat: o.repeat.max(1),
+        width: o.width,
+        height: o.height,
+        ray_sets: sets.iter().map(|(n, r)| (n.clone(), r.len())).collect(),
+        sweep_set: o.sweep_set.clone(),
+        default_local_size: default_local,
+        timestamps,
+        pipeline_statistics: stats,
+        shader_clock: clock,
+        heat_scale,
+        executable_properties: exec,
+        subgroup_sizes: subgroups,
+        workgroup_sizes: workgroups,
+        lp_num_threads_scaling: lp_scaling,
+    })
+}
+
+fn threads_section(
+    ctx: &Context,
+    o: &ProfileOptions,
+    sets: &[(String, Vec<Ray>)],
+    progress: &mut impl FnMut(&str),
+) -> Result<Section<Row<ThreadMeasurement>>> {
+    let info = ctx.info();
+    if !threads::is_lavapipe(info) {
+        return Ok(Section::new(
+            Status::NotApplicable,
+            format!(
+                "not applicable: LP_NUM_THREADS is a lavapipe setting; the device is {} ({})",
+                info.name, info.driver_id
+            ),
+        ));
+    }
+    let Some(exe) = &o.exe else {
+        return Ok(Section::new(Status::Skipped, "skipped (no trilab executable given to run per thread count)"));
+    };
+    let dir = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
+    let stem = o.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    for (set, rays) in sets {
+        crate::rays::write_rays(&dir.path().join(format!("{stem}.{set}.rays")), rays)?;
+    }
+    let counts = if o.thread_counts.is_empty() { threads::default_counts() } else { o.thread_counts.clone() };
+    let run = threads::BenchRun {
+        exe,
+        scene: &o.scene,
+        rays_dir: dir.path(),
+        methods: &o.methods,
+        leaf_size: o.leaf_size,
+        repeat: o.repeat.max(1),
+        device_index: info.index,
+    };
+    let mut section = Section::new(
+        Status::Measured,
+        format!(
+            "`trilab bench` run per LP_NUM_THREADS value on the same ray files ({} host CPUs); it validates every result",
+            std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+        ),
+    );
+    for n in counts {
+        progress(&format!("LP_NUM_THREADS={n}: running `trilab bench`"));
+        for m in threads::bench_with_threads(&run, n)? {
+            let method: Method = o
+                .methods
+                .iter()
+                .copied()
+                .find(|x| x.to_string() == m.method)
+                .ok_or_else(|| Error::Usage(format!("bench reported an unknown method {}", m.method)))?;
+            section.rows.push(Row::new(info, method, m));
+        }
+    }
+    Ok(section)
+}

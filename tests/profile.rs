@@ -1,0 +1,230 @@
+//! `trilab profile`'s measurements checked against what they must be: invocation counts against
+//! the dispatch, the clock and size variants' hits against the default kernel's (and the f64
+//! reference), and each feature reported unsupported exactly when the device lacks it.
+
+mod common;
+
+use trilab::bvh::{BuildOptions, Bvh};
+use trilab::compare::compare_closest;
+use trilab::encoding::Method;
+use trilab::gpu::shared::{SPEC_ID_WORKGROUP_SIZE, WORKGROUP_SIZE};
+use trilab::gpu::{raycast, Context, GpuScene, PipelineOptions, RaycastOptions};
+use trilab::profile::{self, differing_hits, dispatch_once, sweep, ProfileOptions, Status};
+use trilab::rays::{primary_rays, random_rays, Camera, Ray};
+use trilab::reference::Reference;
+use trilab::scene::Mesh;
+
+/// The bunny, its BVH, an uploaded scene for `method`, and `n` random rays.
+fn setup(ctx: &Context, method: Method, n: usize) -> (Mesh, Bvh, GpuScene, Vec<Ray>) {
+    let mesh = common::bunny();
+    let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+    let scene = GpuScene::upload(ctx, &method.encode(&mesh, &bvh)).unwrap();
+    let rays = random_rays(&mesh.bounds(), n, 99);
+    (mesh, bvh, scene, rays)
+}
+
+fn assert_matches_reference(mesh: &Mesh, bvh: &Bvh, rays: &[Ray], hits: &[trilab::rays::Hit], what: &str) {
+    let reference = Reference::new(mesh, bvh).trace_all(rays, false);
+    let a = compare_closest(mesh, rays, hits, &reference);
+    assert!(a.passes(profile::MIN_AGREEMENT), "{what}: {}", a.summary());
+}
+
+#[test]
+fn pipeline_statistics_count_every_invocation_dispatched() {
+    common::with_gpu(300, |ctx| {
+        // 777 rays: no workgroup size divides it, so the count includes the idle invocations.
+        let (mesh, bvh, scene, rays) = setup(ctx, Method::Mt, 777);
+        if !ctx.enabled().pipeline_statistics_query {
+            assert!(!ctx.info().pipeline_statistics_query);
+            assert!(dispatch_once(
+                ctx,
+                &ctx.create_kernel(trilab::kernels::raycast(Method::Mt, false)).unwrap(),
+                &scene,
+                &rays,
+                true
+            )
+            .is_err());
+            return;
+        }
+        let (sizes, _) = sweep::workgroup_sizes(ctx.info(), &[32, 64, 128, 256]);
+        assert!(sizes.contains(&WORKGROUP_SIZE));
+        for s in sizes {
+            let k = ctx
+                .create_kernel_specialized(trilab::kernels::raycast(Method::Mt, false), &[(SPEC_ID_WORKGROUP_SIZE, s)])
+                .unwrap();
+            let d = dispatch_once(ctx, &k, &scene, &rays, true).unwrap();
+            let expected = (rays.len() as u64).div_ceil(u64::from(s)) * u64::from(s);
+            assert_eq!(d.dispatched_invocations(), expected, "workgroup size {s}");
+            assert!(expected > rays.len() as u64);
+            assert_eq!(d.compute_shader_invocations, Some(expected), "workgroup size {s}: COMPUTE_SHADER_INVOCATIONS");
+            assert_matches_reference(&mesh, &bvh, &rays, &d.hits, &format!("workgroup size {s}"));
+        }
+    });
+}
+
+#[test]
+fn clock_variant_hits_equal_closest_and_every_ray_gets_ticks() {
+    common::with_gpu(300, |ctx| {
+        if !ctx.enabled().shader_clock {
+            assert!(!ctx.info().shader_clock.is_some_and(|(subgroup, _)| subgroup));
+            return;
+        }
+        for method in Method::ALL {
+            let (mesh, bvh, scene, mut rays) = setup(ctx, method, 2000);
+            rays.extend(primary_rays(&Camera::framing(&mesh.bounds()), 64, 48));
+            let closest = ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap();
+            let clock = ctx.create_kernel(trilab::kernels::find("raycast", method, "clock")).unwrap();
+            let c = dispatch_once(ctx, &closest, &scene, &rays, false).unwrap();
+            let k = dispatch_once(ctx, &clock, &scene, &rays, false).unwrap();
+            assert!(c.cycles.is_none());
+            assert_eq!(differing_hits(&c.hits, &k.hits), 0, "{method}: clock variant's hits differ from closest");
+            assert_matches_reference(&mesh, &bvh, &rays, &k.hits, &format!("{method} clock"));
+            let cycles = k.cycles.unwrap();
+            assert_eq!(cycles.len(), rays.len());
+            assert!(cycles.iter().all(|&t| t > 0), "{method}: a ray with 0 ticks");
+            assert!(cycles.iter().any(|&t| t != cycles[0]), "{method}: every ray has the same tick count");
+            assert!(cycles.iter().all(|&t| t != u32::MAX), "{method}: a tick count saturated");
+        }
+    });
+}
+
+#[test]
+fn workgroup_size_specialisation_gives_identical_hits_at_each_size() {
+    common::with_gpu(300, |ctx| {
+        for method in [Method::Unit, Method::QuadMt] {
+            let (mesh, bvh, scene, rays) = setup(ctx, method, 3000);
+            let opts = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
+            let default = ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap();
+            assert_eq!(default.layout.local_size.0, WORKGROUP_SIZE);
+            let base = raycast(ctx, &default, &scene, &rays, &opts).unwrap();
+            assert_matches_reference(&mesh, &bvh, &rays, &base.hits, &format!("{method} default"));
+            let (sizes, _) = sweep::workgroup_sizes(ctx.info(), &[32, 64, 128, 256]);
+            // Vulkan guarantees at least 128 invocations and 128 along x.
+            assert!(sizes.starts_with(&[32, 64, 128]), "{sizes:?}");
+            for s in sizes {
+                let k = ctx
+                    .create_kernel_specialized(trilab::kernels::raycast(method, false), &[(SPEC_ID_WORKGROUP_SIZE, s)])
+                    .unwrap();
+                assert_eq!(k.layout.local_size, (s, 1, 1), "reflection after specialisation");
+                let r = raycast(ctx, &k, &scene, &rays, &opts).unwrap();
+                assert_eq!(differing_hits(&r.hits, &base.hits), 0, "{method}: workgroup size {s}");
+            }
+        }
+    });
+}
+
+#[test]
+fn subgroup_size_sweep_runs_every_allowed_size_or_says_why_not() {
+    common::with_gpu(300, |ctx| {
+        let info = ctx.info();
+        let en = *ctx.enabled();
+        match sweep::subgroup_sizes(info, &en, WORKGROUP_SIZE) {
+            Err(why) => {
+                assert!(!en.subgroup_size_control || !info.required_subgroup_size_compute, "{why}");
+                assert!(why.starts_with("unsupported"), "{why}");
+            }
+            Ok((sizes, note)) => {
+                let (min, max) = info.subgroup_size_control.unwrap();
+                if min == max {
+                    assert!(note.starts_with(&format!("only size {min}")), "{note}");
+                }
+                assert!(!sizes.is_empty(), "{note}");
+                assert!(sizes.iter().all(|s| s.is_power_of_two() && (min..=max).contains(s)));
+                let (mesh, bvh, scene, rays) = setup(ctx, Method::QuadUnit, 3000);
+                let opts = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
+                let default = ctx.create_kernel(trilab::kernels::raycast(Method::QuadUnit, false)).unwrap();
+                let base = raycast(ctx, &default, &scene, &rays, &opts).unwrap();
+                assert_matches_reference(&mesh, &bvh, &rays, &base.hits, "default");
+                for s in sizes {
+                    let k = ctx
+                        .create_kernel_with(
+                            trilab::kernels::raycast(Method::QuadUnit, false),
+                            &PipelineOptions { required_subgroup_size: Some(s), ..Default::default() },
+                        )
+                        .unwrap();
+                    let r = raycast(ctx, &k, &scene, &rays, &opts).unwrap();
+                    assert_eq!(differing_hits(&r.hits, &base.hits), 0, "required subgroup size {s}");
+                }
+            }
+        }
+    });
+}
+
+/// The whole profile on tiny ray sets: executable properties are "unsupported" exactly when the
+/// extension is absent, and every section measured where the device has the feature.
+#[test]
+fn profile_reports_unsupported_exactly_where_features_are_absent() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_owned();
+    let report = common::with_gpu(600, move |ctx| {
+        let o = ProfileOptions {
+            scene: common::root().join("scenes/bunny.obj"),
+            methods: vec![Method::Mt, Method::QuadUnit],
+            width: 40,
+            height: 30,
+            diffuse_per_hit: 1,
+            random_rays: 1000,
+            warmup: 1,
+            repeat: 2,
+            workgroup_sizes: vec![32, 128],
+            thread_counts: vec![1, 2],
+            exe: Some(env!("CARGO_BIN_EXE_trilab").into()),
+            ..Default::default()
+        };
+        let r = profile::run(ctx, &o, Some(&out), |_| {}).unwrap();
+        let info = ctx.info().clone();
+        let en = *ctx.enabled();
+        (r, info, en, out)
+    });
+    let (r, info, en, out) = report;
+    let has_pep = info.pipeline_executable_properties;
+    assert_eq!(r.executable_properties.status == Status::Unsupported, !has_pep);
+    if !has_pep {
+        assert_eq!(r.executable_properties.note, "unsupported (VK_KHR_pipeline_executable_properties absent)");
+        assert!(r.executable_properties.rows.is_empty());
+    }
+    assert_eq!(r.pipeline_statistics.status == Status::Measured, en.pipeline_statistics_query);
+    for row in &r.pipeline_statistics.rows {
+        assert_eq!(row.data.compute_shader_invocations, row.data.dispatched, "{:?}", row.data);
+    }
+    assert_eq!(r.shader_clock.status == Status::Measured, en.shader_clock);
+    if en.shader_clock {
+        for m in ["mt", "quad-unit"] {
+            let png = out.join(format!("heatmap-{m}.png"));
+            let img = image::open(&png).unwrap();
+            assert_eq!((img.width(), img.height()), (40, 30));
+        }
+        assert!(r.shader_clock.rows.iter().all(|x| x.data.hits_differing_from_closest == 0));
+        assert!(r.heat_scale.is_some());
+    }
+    assert_eq!(
+        r.subgroup_sizes.status == Status::Measured,
+        en.subgroup_size_control && info.required_subgroup_size_compute
+    );
+    assert!(r
+        .subgroup_sizes
+        .rows
+        .iter()
+        .chain(&r.workgroup_sizes.rows)
+        .all(|x| x.data.hits_differing_from_default == 0));
+    assert_eq!(r.workgroup_sizes.rows.len(), 2 * 2);
+    assert_eq!(r.timestamps.rows.len(), 2 * 3);
+    if profile::threads::is_lavapipe(&info) {
+        assert_eq!(r.lp_num_threads_scaling.status, Status::Measured);
+        let threads: Vec<usize> = r.lp_num_threads_scaling.rows.iter().map(|x| x.data.threads).collect();
+        assert_eq!(threads.len(), 2 * 2 * 3, "two thread counts x two methods x three ray sets");
+        assert!(threads.contains(&1) && threads.contains(&2));
+    } else {
+        assert_eq!(r.lp_num_threads_scaling.status, Status::NotApplicable);
+    }
+    // Every row carries the device, driver and Mesa version.
+    let json = serde_json::to_value(&r).unwrap();
+    for section in ["timestamps", "pipeline_statistics", "shader_clock", "workgroup_sizes", "lp_num_threads_scaling"] {
+        for row in json[section]["rows"].as_array().unwrap() {
+            assert_eq!(row["device"], info.name.as_str(), "{section}");
+            assert!(row["driver"].is_string() && row.get("mesa_version").is_some(), "{section}");
+        }
+    }
+    let md = profile::markdown::render(&r, "trilab profile (test)");
+    assert!(md.contains("## 7. LP_NUM_THREADS scaling"));
+}
