@@ -1112,8 +1112,7 @@ fn study_cmd(a: StudyArgs) -> Result<()> {
         }
     }
     let ctx = a.gpu.context()?;
-    let out =
-        a.out.clone().unwrap_or_else(|| PathBuf::from("results").join(trilab::study::device_slug(&ctx)).join("study"));
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("results").join(ctx.info().results_dir()).join("study"));
     let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
     for f in ["study.csv", "study.json", "study.md"] {
         trilab::io::ensure_not_input(&out.join(f), &inputs)?;
@@ -1196,15 +1195,7 @@ fn profile_cmd(a: ProfileArgs) -> Result<()> {
         ..Default::default()
     };
     let ctx = a.gpu.context()?;
-    let out = a.out.clone().unwrap_or_else(|| {
-        let info = ctx.info();
-        let device = if profile::threads::is_lavapipe(info) {
-            "lavapipe".to_owned()
-        } else {
-            info.name.to_lowercase().chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '-' }).collect()
-        };
-        PathBuf::from("results").join(device).join("profile")
-    });
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("results").join(ctx.info().results_dir()).join("profile"));
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;
     let command: Vec<String> = std::env::args().skip(1).collect();

@@ -228,6 +228,23 @@ impl DeviceInfo {
         }
     }
 
+    /// The device's folder under `results/`: `lavapipe` for Mesa's CPU driver, else the device
+    /// name in lower case with runs of other characters as `-` ("nvidia-h100-80gb-hbm3").
+    pub fn results_dir(&self) -> String {
+        if self.driver_id.contains("LLVMPIPE") {
+            return "lavapipe".into();
+        }
+        let mut s = String::new();
+        for c in self.name.to_lowercase().chars() {
+            if c.is_ascii_alphanumeric() {
+                s.push(c);
+            } else if !s.ends_with('-') {
+                s.push('-');
+            }
+        }
+        s.trim_matches('-').to_owned()
+    }
+
     /// Human-readable multi-line report (`trilab devices`).
     pub fn report(&self) -> String {
         let yn = |b: bool| if b { "yes" } else { "no" };

@@ -200,24 +200,6 @@ pub fn commit() -> String {
     }
 }
 
-/// A directory name for a device: `lavapipe` for Mesa's CPU driver, else the device name in
-/// lower case with runs of other characters as `-` ("nvidia-h100-80gb-hbm3").
-pub fn device_slug(ctx: &Context) -> String {
-    let info = ctx.info();
-    if info.driver_id.contains("LLVMPIPE") {
-        return "lavapipe".into();
-    }
-    let mut s = String::new();
-    for c in info.name.to_lowercase().chars() {
-        if c.is_ascii_alphanumeric() {
-            s.push(c);
-        } else if !s.ends_with('-') {
-            s.push('-');
-        }
-    }
-    s.trim_matches('-').to_owned()
-}
-
 /// One ray set's measurement in a cell.
 #[derive(Clone, Debug, Serialize)]
 pub struct SetResult {
