@@ -36,6 +36,9 @@
 #define BINDING_BSDF_PROBE_OUT 16
 // rng_probe.comp's output.
 #define BINDING_RNG_PROBE_OUT 17
+// rayquery.comp: the driver's top-level acceleration structure (its primitive index -> OBJ id
+// table is bound at BINDING_SLOT_IDS).
+#define BINDING_TLAS 18
 
 // BSDF kinds (Material.kind; one file each in bsdf/). A kernel's BSDF_MASK has bit (1 << kind)
 // set for every kind it carries.
