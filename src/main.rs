@@ -11,7 +11,9 @@ use trilab::bvh::{BuildOptions, Builder, Bvh, LeafPolicy, MAX_LEAF_SIZE};
 use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::Method;
 use trilab::error::{Error, Result};
-use trilab::gpu::{raycast, Context, ContextOptions, GpuScene, RaycastOptions, Validation};
+use trilab::gpu::{
+    raycast, raycast_rq, rayquery, AccelStructure, Context, ContextOptions, GpuScene, Peer, RaycastOptions, Validation,
+};
 use trilab::rays::{self, Camera};
 use trilab::reference::Reference;
 use trilab::render::{self as pt, KernelChoice, PathtraceKernel, RenderScene, RenderSettings};
@@ -173,6 +175,11 @@ struct RaycastArgs {
     out: PathBuf,
     #[arg(long, value_enum, default_value_t = Method::Mt)]
     method: Method,
+    /// Trace with a peer instead of our kernels: `ray-query` is the driver's own ray tracing
+    /// (VK_KHR_ray_query through its acceleration structure, built from the same triangles).
+    /// Not a method: it uses none of our BVH, so the BVH options only shape the f64 reference.
+    #[arg(long, value_enum, conflicts_with = "method")]
+    peer: Option<Peer>,
     /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
@@ -236,6 +243,10 @@ struct BenchArgs {
     /// The Embree peer (`embree_rays` from scripts/embree-peer.sh), run on the same rays.
     #[arg(long)]
     embree: Option<PathBuf>,
+    /// Leave out the driver's ray-query peer row (added wherever the device has ray query; on
+    /// lavapipe it traces 12-1,266x slower than our kernels).
+    #[arg(long)]
+    no_ray_query: bool,
     /// Write the report as JSON here.
     #[arg(long)]
     json_out: Option<PathBuf>,
@@ -441,20 +452,37 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
         &mesh,
         &BuildOptions { leaf_policy: a.leaf_policy, sah_group: a.sah_group, ..BuildOptions::new(a.leaf_size) },
     );
-    let encoded = a.method.encode(&mesh, &bvh);
-    if !encoded.unrepresentable.is_empty() {
-        eprintln!(
-            "trilab: warning: {} triangles cannot be represented by {} (their map overflows f32) and are never hit, e.g. id {}",
-            encoded.unrepresentable.len(),
-            a.method,
-            encoded.unrepresentable[0]
-        );
-    }
-    let ctx = a.gpu.context()?;
-    let kernel = ctx.create_kernel(trilab::kernels::raycast(a.method, a.any_hit))?;
-    let scene = GpuScene::upload(&ctx, &encoded)?;
     let opts = RaycastOptions { warmup: 1, repeat: a.repeat.max(1), batch_rays: a.batch_rays };
-    let res = raycast(&ctx, &kernel, &scene, &rays, &opts)?;
+    let ctx;
+    // What traced the rays: (label, bytes on the GPU, the driver's structure stats for a peer).
+    let (res, tracer, scene_bytes, accel) = match a.peer {
+        Some(Peer::RayQuery) => {
+            ctx = a.gpu.context()?;
+            let accel = AccelStructure::build(&ctx, &mesh)?;
+            let kernel = rayquery::kernel(&ctx, a.any_hit)?;
+            // Submits of about a second, whatever the driver's speed (--batch-rays caps them).
+            let batch = rayquery::batch_for(&ctx, &kernel, &accel, &rays, 1000.0, a.batch_rays)?;
+            let res = raycast_rq(&ctx, &kernel, &accel, &rays, &RaycastOptions { batch_rays: batch, ..opts })?;
+            let s = accel.stats;
+            (res, Peer::RayQuery.to_string(), (s.blas_bytes + s.tlas_bytes) as usize, Some(s))
+        }
+        None => {
+            let encoded = a.method.encode(&mesh, &bvh);
+            if !encoded.unrepresentable.is_empty() {
+                eprintln!(
+                    "trilab: warning: {} triangles cannot be represented by {} (their map overflows f32) and are never hit, e.g. id {}",
+                    encoded.unrepresentable.len(),
+                    a.method,
+                    encoded.unrepresentable[0]
+                );
+            }
+            ctx = a.gpu.context()?;
+            let kernel = ctx.create_kernel(trilab::kernels::raycast(a.method, a.any_hit))?;
+            let scene = GpuScene::upload(&ctx, &encoded)?;
+            let res = raycast(&ctx, &kernel, &scene, &rays, &opts)?;
+            (res, format!("{} leaf size {} ({})", a.method, a.leaf_size, a.leaf_policy), scene.bytes, None)
+        }
+    };
     rays::write_hits(&a.out, &res.hits)?;
 
     let t = res.time_ms();
@@ -486,7 +514,9 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     let info = ctx.info();
     if a.json {
         let out = json!({
-            "method": a.method,
+            "method": if a.peer.is_some() { None } else { Some(a.method) },
+            "peer": a.peer,
+            "accel": accel,
             "leaf_size": a.leaf_size,
             "leaf_policy": a.leaf_policy.to_string(),
             "sah_group": a.sah_group,
@@ -500,7 +530,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
             "timed_with": if res.timed_on_gpu() { "gpu timestamps" } else { "host wall clock" },
             "mrays_per_s": mrays(t.median),
             "batches": res.batches,
-            "scene_bytes": scene.bytes,
+            "scene_bytes": scene_bytes,
             "triangles": mesh.triangle_count(),
             "degenerate_triangles": bvh.degenerate_excluded,
             "device": info.name,
@@ -512,15 +542,23 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     } else {
         println!("device:    {} ({})", info.name, info.driver_label());
         println!(
-            "scene:     {} ({} triangles, {} degenerate never hit), {} leaf size {} ({}), {:.2} MB on the GPU",
+            "scene:     {} ({} triangles, {} degenerate never hit), {tracer}, {:.2} MB on the GPU",
             a.scene.display(),
             mesh.triangle_count(),
             bvh.degenerate_excluded,
-            a.method,
-            a.leaf_size,
-            a.leaf_policy,
-            scene.bytes as f64 / 1e6
+            scene_bytes as f64 / 1e6
         );
+        if let Some(s) = accel {
+            let ms = |m: Option<f64>| m.map(|m| format!("{m:.2} ms")).unwrap_or_else(|| "no timestamps".into());
+            println!(
+                "driver AS: BLAS {} B, TLAS {} B; build {} + {} (GPU), {:.1} ms wall",
+                s.blas_bytes,
+                s.tlas_bytes,
+                ms(s.blas_build_ms),
+                ms(s.tlas_build_ms),
+                s.wall_ms
+            );
+        }
         println!("rays:      {} ({} hit) -> {}", rays.len(), hits, a.out.display());
         println!(
             "kernel:    {:.3} ms median of {} (min {:.3}, max {:.3}; {}), {:.2} Mrays/s",
@@ -719,6 +757,7 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         seed: a.seed,
         rays_dir: a.rays_dir.clone(),
         embree: a.embree.clone(),
+        ray_query: !a.no_ray_query,
         ..Default::default()
     };
     let ctx = a.gpu.context()?;
@@ -734,6 +773,13 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         println!();
         print!("{}", report.embree_table().to_text());
     }
+    if !report.accel.is_empty() {
+        println!("\nthe driver's acceleration structures (ray-query rows):\n");
+        print!("{}", report.accel_table().to_text());
+    }
+    if let Some(note) = &report.ray_query_note {
+        println!("\n{note}");
+    }
     if let Some(p) = &a.json_out {
         trilab::io::write_atomic(p, serde_json::to_string_pretty(&report).unwrap().as_bytes())?;
     }
@@ -741,6 +787,12 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         let mut md = format!("{header}\n\n{}", report.table().to_markdown());
         if !report.embree.is_empty() {
             md += &format!("\n{}", report.embree_table().to_markdown());
+        }
+        if !report.accel.is_empty() {
+            md += &format!("\n{}", report.accel_table().to_markdown());
+        }
+        if let Some(note) = &report.ray_query_note {
+            md += &format!("\n{note}\n");
         }
         trilab::io::write_atomic(p, md.as_bytes())?;
     }

@@ -69,7 +69,7 @@ pub fn raycast_rq(
 }
 
 /// Most rays per submit such that one submit takes about `target_ms`: times one untimed run of
-/// the first `probe` rays (at least 256) and scales, within [256, `max`]. The driver's traversal
+/// up to 4096 rays spread over the set and scales, within [256, `max`]. The driver's traversal
 /// speed is unknown in advance (lavapipe's is some 300x slower than our kernels), and a submit
 /// must stay far from the submit timeout and any watchdog.
 pub fn batch_for(
@@ -80,10 +80,14 @@ pub fn batch_for(
     target_ms: f64,
     max: usize,
 ) -> Result<usize> {
-    let probe = &rays[..rays.len().min(4096)];
-    if probe.is_empty() {
+    if rays.is_empty() {
         return Ok(max.max(256));
     }
+    // Every k-th ray: a ray set's order is not random (primary rays go row by row, and the top
+    // rows of an image may all miss).
+    let stride = rays.len().div_ceil(4096);
+    let probe: Vec<Ray> = rays.iter().step_by(stride).copied().collect();
+    let probe = &probe[..];
     let t = Instant::now();
     raycast_rq(ctx, kernel, accel, probe, &RaycastOptions { warmup: 0, repeat: 1, batch_rays: probe.len() })?;
     let per_ray_ms = t.elapsed().as_secs_f64() * 1e3 / probe.len() as f64;
