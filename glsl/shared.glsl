@@ -42,6 +42,9 @@
 #define BINDING_TRAVERSAL_STATS 18
 // raycast.comp's `clock` variant: shader-clock ticks per ray (uint), for `trilab profile`.
 #define BINDING_CYCLES 19
+// rayquery.comp: the driver's top-level acceleration structure (its primitive index -> OBJ id
+// table is bound at BINDING_SLOT_IDS).
+#define BINDING_TLAS 20
 
 // BSDF kinds (Material.kind; one file each in bsdf/). A kernel's BSDF_MASK has bit (1 << kind)
 // set for every kind it carries.

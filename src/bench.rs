@@ -13,7 +13,8 @@ use crate::bvh::{BuildOptions, Bvh, LeafPolicy};
 use crate::compare::compare_closest;
 use crate::encoding::Method;
 use crate::error::{Error, Result};
-use crate::gpu::{raycast, Context, GpuScene, RaycastOptions, Summary};
+use crate::gpu::rayquery::{self, raycast_rq, Peer};
+use crate::gpu::{raycast, AccelStats, AccelStructure, Context, GpuScene, RaycastOptions, Summary};
 use crate::rays::{self, Camera, Ray};
 use crate::reference::Reference;
 use crate::report::Table;
@@ -40,7 +41,12 @@ pub struct BenchOptions {
     /// The Embree peer program (`embree_rays`), run on the same ray files.
     pub embree: Option<PathBuf>,
     pub batch_rays: usize,
+    /// Add the driver's ray query as a peer row where the device has it.
+    pub ray_query: bool,
 }
+
+/// Wall-clock target of one ray-query submit (its batch is sized to it, [`rayquery::batch_for`]).
+const PEER_SUBMIT_MS: f64 = 500.0;
 
 impl Default for BenchOptions {
     fn default() -> Self {
@@ -60,6 +66,25 @@ impl Default for BenchOptions {
             rays_dir: None,
             embree: None,
             batch_rays: 1 << 20,
+            ray_query: true,
+        }
+    }
+}
+
+/// What traced a row's rays: one of our kernels over our BVH, or a peer (the driver's ray
+/// query) over its own structure. Serialises as the method's or the peer's name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(untagged)]
+pub enum Tracer {
+    Method(Method),
+    Peer(Peer),
+}
+
+impl std::fmt::Display for Tracer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Tracer::Method(m) => m.fmt(f),
+            Tracer::Peer(p) => p.fmt(f),
         }
     }
 }
@@ -70,10 +95,12 @@ pub struct BenchRow {
     pub triangles: usize,
     pub ray_set: String,
     pub rays: usize,
-    pub method: Method,
-    pub leaf_size: u32,
-    /// Triangles the BVH's SAH priced as one test (4: quad-aware).
-    pub sah_group: u32,
+    pub method: Tracer,
+    /// Our BVH's leaf size; `None` for a peer (the driver's structure is its own).
+    pub leaf_size: Option<u32>,
+    /// Triangles the BVH's SAH priced as one test (4: quad-aware); `None` for a peer.
+    pub sah_group: Option<u32>,
+    /// Our encoded scene, or for the ray-query peer the driver's BLAS + TLAS.
     pub scene_bytes: usize,
     /// Kernel time (GPU timestamps), milliseconds.
     pub kernel_ms: Summary,
@@ -98,6 +125,10 @@ pub struct BenchReport {
     pub rows: Vec<BenchRow>,
     /// (scene, ray set, Embree Mrays/s, best trilab Mrays/s, ratio)
     pub embree: Vec<(String, String, f64, f64, f64)>,
+    /// The driver's acceleration structure per scene, for the ray-query peer rows.
+    pub accel: Vec<(String, AccelStats)>,
+    /// "ray query: unsupported on <device>" where the device (or the options) left it out.
+    pub ray_query_note: Option<String>,
 }
 
 impl BenchReport {
@@ -121,13 +152,41 @@ impl BenchReport {
                 r.rays.to_string(),
                 r.ray_set.clone(),
                 r.method.to_string(),
-                r.leaf_size.to_string(),
+                r.leaf_size.map_or_else(|| "-".into(), |l| l.to_string()),
                 format!("{:.2}", r.scene_bytes as f64 / 1e6),
                 format!("{:.1}", r.kernel_ms.median),
-                format!("{:.2}", r.mrays_per_s),
-                format!("{:.2}..{:.2}", r.mrays_per_s_min, r.mrays_per_s_max),
+                rate(r.mrays_per_s),
+                format!("{}..{}", rate(r.mrays_per_s_min), rate(r.mrays_per_s_max)),
                 format!("{:.4}", 100.0 * r.agreement),
                 r.embree_mrays_per_s.map(|e| format!("{e:.2}")).unwrap_or_else(|| "-".into()),
+            ]);
+        }
+        t
+    }
+
+    /// The driver's structures: sizes and build times.
+    pub fn accel_table(&self) -> Table {
+        let mut t = Table::new([
+            "scene",
+            "triangles",
+            "BLAS bytes",
+            "TLAS bytes",
+            "scratch bytes",
+            "BLAS build ms",
+            "TLAS build ms",
+            "wall ms",
+        ]);
+        let ms = |m: Option<f64>| m.map_or_else(|| "-".into(), |m| format!("{m:.2}"));
+        for (scene, s) in &self.accel {
+            t.row([
+                scene.clone(),
+                s.triangles.to_string(),
+                s.blas_bytes.to_string(),
+                s.tlas_bytes.to_string(),
+                (s.blas_scratch_bytes + s.tlas_scratch_bytes).to_string(),
+                ms(s.blas_build_ms),
+                ms(s.tlas_build_ms),
+                format!("{:.1}", s.wall_ms),
             ]);
         }
         t
@@ -156,6 +215,51 @@ pub fn ray_sets(mesh: &Mesh, name: &str, reference: &Reference, o: &BenchOptions
     let diffuse = rays::diffuse_rays(mesh, reference, &primary, o.diffuse_per_hit, o.seed);
     let random = rays::random_rays(&bounds, o.random_rays, o.seed);
     Ok(vec![("primary".into(), primary), ("diffuse".into(), diffuse), ("random".into(), random)])
+}
+
+/// Mrays/s with two decimals, or three significant digits below 1 (lavapipe's ray query runs at
+/// a few thousand rays per second).
+fn rate(x: f64) -> String {
+    if x >= 1.0 || x == 0.0 || !x.is_finite() {
+        format!("{x:.2}")
+    } else {
+        let decimals = (2.0 - x.log10().floor()).clamp(2.0, 9.0) as usize;
+        format!("{x:.decimals$}")
+    }
+}
+
+/// One table row; `o` is `None` for a peer (no leaf size or SAH grouping).
+#[allow(clippy::too_many_arguments)]
+fn row(
+    scene: &str,
+    mesh: &Mesh,
+    set: &str,
+    rays: &[Ray],
+    method: Tracer,
+    o: Option<&BenchOptions>,
+    scene_bytes: usize,
+    ms: Summary,
+    agreement: &crate::compare::Agreement,
+) -> BenchRow {
+    let mr = mrays_summary(rays.len(), ms);
+    BenchRow {
+        scene: scene.to_owned(),
+        triangles: mesh.triangle_count(),
+        ray_set: set.to_owned(),
+        rays: rays.len(),
+        method,
+        leaf_size: o.map(|o| o.leaf_size),
+        sah_group: o.map(|o| o.sah_group),
+        scene_bytes,
+        kernel_ms: ms,
+        mrays_per_s: mr.median,
+        mrays_per_s_min: mr.min,
+        mrays_per_s_max: mr.max,
+        agreement: agreement.fraction(),
+        unexplained_disagreements: agreement.unexplained,
+        invalid: agreement.invalid.len(),
+        embree_mrays_per_s: None,
+    }
 }
 
 /// Runs the Embree peer on a ray file; returns its best Mrays/s.
@@ -248,10 +352,23 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         host_cpus: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
         rows: vec![],
         embree: vec![],
+        accel: vec![],
+        ray_query_note: None,
     };
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
     let kernels: Vec<_> =
         o.methods.iter().map(|&m| ctx.create_kernel(crate::kernels::raycast(m, false))).collect::<Result<_>>()?;
+    let rq_kernel = if !o.ray_query {
+        report.ray_query_note = Some("ray query: not run (--ray-query off, or auto on a CPU device)".into());
+        None
+    } else if ctx.enabled().ray_query {
+        Some(rayquery::kernel(ctx, false)?)
+    } else {
+        let note = crate::gpu::accel::unsupported(ctx).to_string();
+        progress(&note);
+        report.ray_query_note = Some(note);
+        None
+    };
     for scene_path in &o.scenes {
         let name = scene_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let mesh = load_obj(scene_path)?;
@@ -266,6 +383,24 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
         let scenes: Vec<GpuScene> =
             o.methods.iter().map(|m| GpuScene::upload(ctx, &m.encode(&mesh, &bvh))).collect::<Result<_>>()?;
+        let accel = match &rq_kernel {
+            Some(_) => {
+                let a = AccelStructure::build(ctx, &mesh)?;
+                let s = a.stats;
+                progress(&format!(
+                    "{name}: driver BLAS {} B + TLAS {} B, built in {}",
+                    s.blas_bytes,
+                    s.tlas_bytes,
+                    s.blas_build_ms.zip(s.tlas_build_ms).map_or_else(
+                        || format!("{:.1} ms (wall)", s.wall_ms),
+                        |(b, t)| format!("{b:.2} + {t:.2} ms (GPU)")
+                    )
+                ));
+                report.accel.push((name.clone(), s));
+                Some(a)
+            }
+            None => None,
+        };
         for (set, rays) in &sets {
             let ref_hits = reference.trace_all(rays, false);
             let mut best: f64 = 0.0;
@@ -281,24 +416,35 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                     agreement.summary()
                 ));
                 best = best.max(mr.median);
-                report.rows.push(BenchRow {
-                    scene: name.clone(),
-                    triangles: mesh.triangle_count(),
-                    ray_set: set.clone(),
-                    rays: rays.len(),
-                    method: *method,
-                    leaf_size: o.leaf_size,
-                    sah_group: o.sah_group,
-                    scene_bytes: gscene.bytes,
-                    kernel_ms: ms,
-                    mrays_per_s: mr.median,
-                    mrays_per_s_min: mr.min,
-                    mrays_per_s_max: mr.max,
-                    agreement: agreement.fraction(),
-                    unexplained_disagreements: agreement.unexplained,
-                    invalid: agreement.invalid.len(),
-                    embree_mrays_per_s: None,
-                });
+                let tracer = Tracer::Method(*method);
+                report.rows.push(row(&name, &mesh, set, rays, tracer, Some(o), gscene.bytes, ms, &agreement));
+            }
+            if let (Some(kernel), Some(accel)) = (&rq_kernel, &accel) {
+                // The driver's answer may differ on edge rays: report the agreement, refuse only
+                // impossible values (NaN, ids out of range, t outside the interval).
+                let batch = rayquery::batch_for(ctx, kernel, accel, rays, PEER_SUBMIT_MS, o.batch_rays)?;
+                let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: batch };
+                let res = raycast_rq(ctx, kernel, accel, rays, &opts)?;
+                let agreement = compare_closest(&mesh, rays, &res.hits, &ref_hits);
+                let ms = res.time_ms();
+                progress(&format!(
+                    "{name} {set} ray-query: {} Mrays/s ({:.1} ms, {} rays per submit), {}",
+                    rate(rays.len() as f64 / (ms.median * 1e-3) / 1e6),
+                    ms.median,
+                    batch,
+                    agreement.summary()
+                ));
+                if !agreement.invalid.is_empty() {
+                    return Err(Error::Usage(format!(
+                        "{name} {set} ray-query: {} invalid results, e.g. ray {}: {}; not reporting a speed",
+                        agreement.invalid.len(),
+                        agreement.invalid[0].0,
+                        agreement.invalid[0].1
+                    )));
+                }
+                let bytes = (accel.stats.blas_bytes + accel.stats.tlas_bytes) as usize;
+                let tracer = Tracer::Peer(Peer::RayQuery);
+                report.rows.push(row(&name, &mesh, set, rays, tracer, None, bytes, ms, &agreement));
             }
             if let Some(bin) = &o.embree {
                 let rays_file = tmp.path().join(format!("{name}.{set}.rays"));
@@ -313,4 +459,14 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         }
     }
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn rates_keep_three_significant_digits_below_one() {
+        assert_eq!(super::rate(3.667), "3.67");
+        assert_eq!(super::rate(0.25), "0.250");
+        assert_eq!(super::rate(0.002688), "0.00269");
+    }
 }

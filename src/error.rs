@@ -49,6 +49,11 @@ pub enum Error {
     #[error("SPIR-V of kernel {kernel}: {message}")]
     Spirv { kernel: String, message: String },
 
+    /// The device lacks (or the context left off) a feature the request needs, e.g.
+    /// "ray query: unsupported on <device>". Never answered with a fallback.
+    #[error("{0}")]
+    Unsupported(String),
+
     /// A GPU job took longer than its wall-clock limit.
     #[error("{what} did not finish within {seconds} s")]
     Timeout { what: String, seconds: f64 },

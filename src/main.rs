@@ -12,8 +12,8 @@ use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::Method;
 use trilab::error::{Error, Result};
 use trilab::gpu::{
-    raycast, raycast_stats, Context, ContextOptions, GpuScene, RaycastOptions, TraversalCounts, TraversalSummary,
-    Validation,
+    raycast, raycast_rq, raycast_stats, rayquery, AccelStructure, Context, ContextOptions, GpuScene, Peer,
+    RaycastOptions, TraversalCounts, TraversalSummary, Validation,
 };
 use trilab::rays::{self, Camera};
 use trilab::reference::Reference;
@@ -114,6 +114,13 @@ enum Cmd {
     /// shader-clock heat maps, executable statistics, subgroup/workgroup-size sweeps,
     /// LP_NUM_THREADS scaling; profile.md, profile.json and PNGs.
     Profile(ProfileArgs),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum RayQueryChoice {
+    Auto,
+    On,
+    Off,
 }
 
 #[derive(Args)]
@@ -225,6 +232,11 @@ struct RaycastArgs {
     out: PathBuf,
     #[arg(long, value_enum, default_value_t = Method::Mt)]
     method: Method,
+    /// Trace with a peer instead of our kernels: `ray-query` is the driver's own ray tracing
+    /// (VK_KHR_ray_query through its acceleration structure, built from the same triangles).
+    /// Not a method: it uses none of our BVH, so the BVH options only shape the f64 reference.
+    #[arg(long, value_enum, conflicts_with = "method")]
+    peer: Option<Peer>,
     /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
@@ -288,6 +300,11 @@ struct BenchArgs {
     /// The Embree peer (`embree_rays` from scripts/embree-peer.sh), run on the same rays.
     #[arg(long)]
     embree: Option<PathBuf>,
+    /// The driver's ray-query peer row: `auto` runs it wherever the device has ray query except
+    /// on CPU devices (on lavapipe it traces 12-1,266x slower than our kernels, hours at the
+    /// default sizes); `on` runs it there too; `off` leaves it out.
+    #[arg(long, value_enum, default_value_t = RayQueryChoice::Auto)]
+    ray_query: RayQueryChoice,
     /// Write the report as JSON here.
     #[arg(long)]
     json_out: Option<PathBuf>,
@@ -493,20 +510,37 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
         &mesh,
         &BuildOptions { leaf_policy: a.leaf_policy, sah_group: a.sah_group, ..BuildOptions::new(a.leaf_size) },
     );
-    let encoded = a.method.encode(&mesh, &bvh);
-    if !encoded.unrepresentable.is_empty() {
-        eprintln!(
-            "trilab: warning: {} triangles cannot be represented by {} (their map overflows f32) and are never hit, e.g. id {}",
-            encoded.unrepresentable.len(),
-            a.method,
-            encoded.unrepresentable[0]
-        );
-    }
-    let ctx = a.gpu.context()?;
-    let kernel = ctx.create_kernel(trilab::kernels::raycast(a.method, a.any_hit))?;
-    let scene = GpuScene::upload(&ctx, &encoded)?;
     let opts = RaycastOptions { warmup: 1, repeat: a.repeat.max(1), batch_rays: a.batch_rays };
-    let res = raycast(&ctx, &kernel, &scene, &rays, &opts)?;
+    let ctx;
+    // What traced the rays: (label, bytes on the GPU, the driver's structure stats for a peer).
+    let (res, tracer, scene_bytes, accel) = match a.peer {
+        Some(Peer::RayQuery) => {
+            ctx = a.gpu.context()?;
+            let accel = AccelStructure::build(&ctx, &mesh)?;
+            let kernel = rayquery::kernel(&ctx, a.any_hit)?;
+            // Submits of about a second, whatever the driver's speed (--batch-rays caps them).
+            let batch = rayquery::batch_for(&ctx, &kernel, &accel, &rays, 1000.0, a.batch_rays)?;
+            let res = raycast_rq(&ctx, &kernel, &accel, &rays, &RaycastOptions { batch_rays: batch, ..opts })?;
+            let s = accel.stats;
+            (res, Peer::RayQuery.to_string(), (s.blas_bytes + s.tlas_bytes) as usize, Some(s))
+        }
+        None => {
+            let encoded = a.method.encode(&mesh, &bvh);
+            if !encoded.unrepresentable.is_empty() {
+                eprintln!(
+                    "trilab: warning: {} triangles cannot be represented by {} (their map overflows f32) and are never hit, e.g. id {}",
+                    encoded.unrepresentable.len(),
+                    a.method,
+                    encoded.unrepresentable[0]
+                );
+            }
+            ctx = a.gpu.context()?;
+            let kernel = ctx.create_kernel(trilab::kernels::raycast(a.method, a.any_hit))?;
+            let scene = GpuScene::upload(&ctx, &encoded)?;
+            let res = raycast(&ctx, &kernel, &scene, &rays, &opts)?;
+            (res, format!("{} leaf size {} ({})", a.method, a.leaf_size, a.leaf_policy), scene.bytes, None)
+        }
+    };
     rays::write_hits(&a.out, &res.hits)?;
 
     let t = res.time_ms();
@@ -538,7 +572,9 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     let info = ctx.info();
     if a.json {
         let out = json!({
-            "method": a.method,
+            "method": if a.peer.is_some() { None } else { Some(a.method) },
+            "peer": a.peer,
+            "accel": accel,
             "leaf_size": a.leaf_size,
             "leaf_policy": a.leaf_policy.to_string(),
             "sah_group": a.sah_group,
@@ -552,7 +588,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
             "timed_with": if res.timed_on_gpu() { "gpu timestamps" } else { "host wall clock" },
             "mrays_per_s": mrays(t.median),
             "batches": res.batches,
-            "scene_bytes": scene.bytes,
+            "scene_bytes": scene_bytes,
             "triangles": mesh.triangle_count(),
             "degenerate_triangles": bvh.degenerate_excluded,
             "device": info.name,
@@ -564,15 +600,23 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     } else {
         println!("device:    {} ({})", info.name, info.driver_label());
         println!(
-            "scene:     {} ({} triangles, {} degenerate never hit), {} leaf size {} ({}), {:.2} MB on the GPU",
+            "scene:     {} ({} triangles, {} degenerate never hit), {tracer}, {:.2} MB on the GPU",
             a.scene.display(),
             mesh.triangle_count(),
             bvh.degenerate_excluded,
-            a.method,
-            a.leaf_size,
-            a.leaf_policy,
-            scene.bytes as f64 / 1e6
+            scene_bytes as f64 / 1e6
         );
+        if let Some(s) = accel {
+            let ms = |m: Option<f64>| m.map(|m| format!("{m:.2} ms")).unwrap_or_else(|| "no timestamps".into());
+            println!(
+                "driver AS: BLAS {} B, TLAS {} B; build {} + {} (GPU), {:.1} ms wall",
+                s.blas_bytes,
+                s.tlas_bytes,
+                ms(s.blas_build_ms),
+                ms(s.tlas_build_ms),
+                s.wall_ms
+            );
+        }
         println!("rays:      {} ({} hit) -> {}", rays.len(), hits, a.out.display());
         println!(
             "kernel:    {:.3} ms median of {} (min {:.3}, max {:.3}; {}), {:.2} Mrays/s",
@@ -840,7 +884,7 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         let inputs: Vec<&Path> = scenes.iter().map(PathBuf::as_path).collect();
         trilab::io::ensure_not_input(out, &inputs)?;
     }
-    let o = BenchOptions {
+    let mut o = BenchOptions {
         scenes,
         methods,
         leaf_size: a.leaf_size,
@@ -857,6 +901,11 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         ..Default::default()
     };
     let ctx = a.gpu.context()?;
+    o.ray_query = match a.ray_query {
+        RayQueryChoice::On => true,
+        RayQueryChoice::Off => false,
+        RayQueryChoice::Auto => ctx.info().device_type != "CPU",
+    };
     let report = bench::run(&ctx, &o, |m| eprintln!("  {m}"))?;
     let lp = report.lp_num_threads.as_deref().map(|n| format!(", LP_NUM_THREADS={n}")).unwrap_or_default();
     let header = format!(
@@ -869,6 +918,13 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         println!();
         print!("{}", report.embree_table().to_text());
     }
+    if !report.accel.is_empty() {
+        println!("\nthe driver's acceleration structures (ray-query rows):\n");
+        print!("{}", report.accel_table().to_text());
+    }
+    if let Some(note) = &report.ray_query_note {
+        println!("\n{note}");
+    }
     if let Some(p) = &a.json_out {
         trilab::io::write_atomic(p, serde_json::to_string_pretty(&report).unwrap().as_bytes())?;
     }
@@ -876,6 +932,12 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         let mut md = format!("{header}\n\n{}", report.table().to_markdown());
         if !report.embree.is_empty() {
             md += &format!("\n{}", report.embree_table().to_markdown());
+        }
+        if !report.accel.is_empty() {
+            md += &format!("\n{}", report.accel_table().to_markdown());
+        }
+        if let Some(note) = &report.ray_query_note {
+            md += &format!("\n{note}\n");
         }
         trilab::io::write_atomic(p, md.as_bytes())?;
     }

@@ -141,7 +141,7 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
 /// bsdf_probe a `ProbePush` (mode, count).
 fn host_push(kernel: &str) -> Vec<u32> {
     match kernel {
-        "raycast" => vec![0],
+        "raycast" | "rayquery" => vec![0],
         "probe" => vec![0, 4, 8],
         "pathtrace" => vec![
             offset_of!(PathtracePush, sample_first) as u32,
@@ -204,6 +204,8 @@ fn kernels_bind_what_the_host_provides() {
             ("bsdf_probe", _) => vec![BINDING_MATERIALS],
             ("rng_probe", _) => vec![],
             ("raycast", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES],
+            // The driver's structure replaces ours; the BLAS primitive -> OBJ id table remains.
+            ("rayquery", _) => vec![BINDING_SLOT_IDS],
             // The path tracer shades by slot and never reads the slot -> OBJ id table.
             ("pathtrace", "mt") => {
                 vec![BINDING_NODES, BINDING_PRIMS, BINDING_INDICES, BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS]
@@ -213,21 +215,24 @@ fn kernels_bind_what_the_host_provides() {
             ("probe", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_INDICES],
             _ => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS],
         };
+        let accels = if k.kernel == "rayquery" { vec![BINDING_TLAS] } else { vec![] };
         let buffers = match (k.kernel, k.variant) {
             ("raycast", "stats") => vec![BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS],
             ("raycast", "clock") => vec![BINDING_RAYS, BINDING_HITS, BINDING_CYCLES],
-            ("raycast", _) => vec![BINDING_RAYS, BINDING_HITS],
+            ("raycast" | "rayquery", _) => vec![BINDING_RAYS, BINDING_HITS],
             ("pathtrace", _) => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             ("bsdf_probe", _) => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
             ("rng_probe", _) => vec![BINDING_RNG_PROBE_OUT],
             _ => vec![BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS],
         };
-        let mut expected: Vec<u32> = texels.iter().chain(&buffers).copied().collect();
+        let mut expected: Vec<u32> = texels.iter().chain(&buffers).chain(&accels).copied().collect();
         expected.sort();
         assert_eq!(set.keys().copied().collect::<Vec<_>>(), expected, "{} bindings", k.name);
         for (b, d) in set {
             let want = if texels.contains(b) {
                 vk::DescriptorType::STORAGE_TEXEL_BUFFER
+            } else if accels.contains(b) {
+                vk::DescriptorType::ACCELERATION_STRUCTURE_KHR
             } else if *b == BINDING_PARAMS {
                 vk::DescriptorType::UNIFORM_BUFFER
             } else {
@@ -298,5 +303,36 @@ fn raycast_workgroup_size_is_a_specialisation_constant() {
         assert_eq!(l.local_size, (WORKGROUP_SIZE, 1, 1), "{}", k.name);
         l.specialize(&[(SPEC_ID_WORKGROUP_SIZE, 32), (SPEC_ID_WORKGROUP_SIZE, 128)]);
         assert_eq!(l.local_size, (128, 1, 1), "{}", k.name);
+    }
+}
+
+#[test]
+fn rayquery_binds_the_tlas_as_an_acceleration_structure_beside_the_raycast_buffers() {
+    for variant in ["closest", "any"] {
+        let k = trilab::kernels::find_no_intersector("rayquery", variant);
+        let l = reflect(k.name, &k.words()).unwrap();
+        let set: Vec<(u32, vk::DescriptorType)> = l.sets[&0].iter().map(|(&b, d)| (b, d.ty)).collect();
+        assert_eq!(
+            set,
+            vec![
+                (BINDING_RAYS, vk::DescriptorType::STORAGE_BUFFER),
+                (BINDING_HITS, vk::DescriptorType::STORAGE_BUFFER),
+                (BINDING_SLOT_IDS, vk::DescriptorType::STORAGE_TEXEL_BUFFER),
+                (BINDING_TLAS, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR),
+            ],
+            "{}",
+            k.name
+        );
+        assert_eq!(l.push_constants, Some((0, 4)), "{}: Push {{ uint ray_count; }}", k.name);
+        // The same Ray and Hit layouts as raycast.comp; the TLAS is no buffer block.
+        let layouts = buffer_layouts(&k.words()).unwrap();
+        assert_eq!(
+            layouts.keys().copied().collect::<Vec<_>>(),
+            vec![BINDING_RAYS, BINDING_HITS, u32::MAX],
+            "{}",
+            k.name
+        );
+        let raycast = buffer_layouts(&trilab::kernels::raycast(trilab::encoding::Method::Mt, false).words()).unwrap();
+        assert_eq!(layouts, raycast, "{}: buffer layouts differ from raycast.mt.closest", k.name);
     }
 }

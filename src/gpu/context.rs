@@ -35,6 +35,9 @@ pub struct ContextOptions {
     pub validation: Validation,
     /// Longest a single submit may run before its wait fails.
     pub submit_timeout: Duration,
+    /// Enable ray query where the device has it (default); `false` leaves it off, as on a
+    /// device without it (tests of the "unsupported" path).
+    pub ray_query: bool,
 }
 
 impl Default for ContextOptions {
@@ -43,6 +46,7 @@ impl Default for ContextOptions {
             device: None,
             validation: if cfg!(debug_assertions) { Validation::IfAvailable } else { Validation::Off },
             submit_timeout: Duration::from_secs(120),
+            ray_query: true,
         }
     }
 }
@@ -122,6 +126,7 @@ pub struct Device {
     _entry: ash::Entry,
     pub(crate) instance: ash::Instance,
     debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    pub(crate) physical: vk::PhysicalDevice,
     pub(crate) raw: ash::Device,
     pub(crate) queue: vk::Queue,
     pub(crate) allocator: ManuallyDrop<Mutex<Allocator>>,
@@ -239,7 +244,8 @@ impl Context {
             [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
         // Optional features the profiling, ray-query and f64 kernels use, enabled wherever the
         // device has them (DeviceInfo says which); `Context::enabled` tells callers which are on.
-        let enabled = EnabledFeatures::for_device(&info);
+        let mut enabled = EnabledFeatures::for_device(&info);
+        enabled.ray_query &= options.ray_query;
         let mut ext_names: Vec<*const std::ffi::c_char> = Vec::new();
         let core = vk::PhysicalDeviceFeatures::default()
             .pipeline_statistics_query(enabled.pipeline_statistics_query)
@@ -315,6 +321,7 @@ impl Context {
                 _entry: entry,
                 instance,
                 debug,
+                physical,
                 raw,
                 queue,
                 allocator: ManuallyDrop::new(Mutex::new(allocator)),

@@ -2,17 +2,21 @@
 
 use ash::vk;
 
+use super::accel::AccelStructure;
 use super::buffer::{Buffer, TexelBuffer};
 use super::context::Context;
 use super::kernel::Kernel;
 use crate::error::{Error, Result, VkContext};
 
 /// What is bound at one binding.
+#[derive(Clone, Copy)]
 pub enum Resource<'a> {
     /// A storage buffer range.
     Buffer { buffer: &'a Buffer, offset: u64, range: u64 },
     /// A storage texel buffer.
     Texels(&'a TexelBuffer),
+    /// The top-level acceleration structure of the driver's ray tracing (ray query).
+    Accel(&'a AccelStructure),
 }
 
 impl<'a> Resource<'a> {
@@ -37,6 +41,7 @@ pub(crate) fn write_set(
     }
     let mut buffer_infos = Vec::new();
     let mut views = Vec::new();
+    let mut accels = Vec::new();
     for (binding, r) in resources {
         let Some(&ty) = bindings.get(binding) else { continue };
         match r {
@@ -50,6 +55,9 @@ pub(crate) fn write_set(
                 ))
             }
             Resource::Texels(t) if ty == vk::DescriptorType::STORAGE_TEXEL_BUFFER => views.push((*binding, ty, t.view)),
+            Resource::Accel(a) if ty == vk::DescriptorType::ACCELERATION_STRUCTURE_KHR => {
+                accels.push((*binding, [a.tlas()]))
+            }
             _ => {
                 return Err(Error::Usage(format!(
                     "kernel {}: binding {binding} is a {ty:?}, given a different kind of resource",
@@ -74,6 +82,19 @@ pub(crate) fn write_set(
             .dst_binding(*b)
             .descriptor_type(*ty)
             .texel_buffer_view(std::slice::from_ref(view))
+    }));
+    let mut accel_infos: Vec<vk::WriteDescriptorSetAccelerationStructureKHR> = accels
+        .iter()
+        .map(|(_, handle)| vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(handle))
+        .collect();
+    writes.extend(accels.iter().zip(accel_infos.iter_mut()).map(|((b, _), info)| {
+        // The count is not implied by a pointer of the write itself (the handles hang off pNext).
+        vk::WriteDescriptorSet::default()
+            .dst_set(set)
+            .dst_binding(*b)
+            .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
+            .descriptor_count(1)
+            .push_next(info)
     }));
     // SAFETY: the set is not in use by any pending submit; every handle is alive.
     unsafe { ctx.device.raw.update_descriptor_sets(&writes, &[]) };

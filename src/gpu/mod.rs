@@ -1,5 +1,6 @@
 //! Vulkan: device selection, buffers, kernels (pipelines), dispatch and GPU timing.
 //!
+//! - [`accel`]: the driver's acceleration structures (BLAS + TLAS) for ray query.
 //! - [`context`]: instance, device, queue, allocator, validation log, teardown.
 //! - [`device_info`]: what a device and its driver offer (`trilab devices`).
 //! - [`buffer`]: named buffers and texel buffers, uploads, downloads, one-shot submits.
@@ -7,14 +8,17 @@
 //! - [`kernel`]: compute pipelines built from SPIR-V reflection.
 //! - [`raycast`]: batched ray casting with timestamp queries.
 //! - [`traversal_stats`]: per-ray traversal work from the kernels' `stats` variant.
+//! - [`rayquery`]: the same ray casting through the driver's ray query, a peer of our kernels.
 //! - `timestamps`: timestamp query pairs read back as milliseconds.
 
+pub mod accel;
 pub mod buffer;
 pub mod context;
 pub mod descriptors;
 pub mod device_info;
 pub mod kernel;
 pub mod raycast;
+pub mod rayquery;
 pub(crate) mod timestamps;
 pub mod traversal_stats;
 
@@ -23,10 +27,12 @@ pub mod shared {
     include!(concat!(env!("OUT_DIR"), "/shared_consts.rs"));
 }
 
+pub use accel::{AccelStats, AccelStructure};
 pub use buffer::{Buffer, TexelBuffer};
 pub use context::{Context, ContextOptions, EnabledFeatures, Validation, ValidationLog};
 pub use descriptors::Resource;
 pub use device_info::DeviceInfo;
 pub use kernel::{Kernel, PipelineOptions};
 pub use raycast::{raycast, GpuScene, RaycastOptions, RaycastResult, Summary};
+pub use rayquery::{raycast_rq, Peer};
 pub use traversal_stats::{raycast_stats, MeanMax, TraversalCounts, TraversalSummary};

@@ -147,6 +147,20 @@ pub fn raycast(
     rays: &[Ray],
     opts: &RaycastOptions,
 ) -> Result<RaycastResult> {
+    let resources: Vec<(u32, Resource)> = scene.resources().collect();
+    cast_rays(ctx, kernel, &resources, rays, opts)
+}
+
+/// The batched, timed dispatch behind [`raycast`] and every kernel that reads `Ray`s at
+/// `BINDING_RAYS` and writes `Hit`s at `BINDING_HITS` with `Push { uint ray_count; }`:
+/// `scene` are the kernel's other bindings (the same in every batch).
+pub(crate) fn cast_rays(
+    ctx: &Context,
+    kernel: &Kernel,
+    scene: &[(u32, Resource)],
+    rays: &[Ray],
+    opts: &RaycastOptions,
+) -> Result<RaycastResult> {
     if rays.is_empty() {
         let traversal = kernel.bindings().contains_key(&BINDING_TRAVERSAL_STATS).then(Vec::new);
         return Ok(RaycastResult { hits: vec![], kernel_ms: vec![], wall_ms: vec![], batches: 0, traversal });
@@ -182,7 +196,7 @@ pub fn raycast(
     for (bi, &set) in sets.iter().enumerate() {
         let first = (bi * batch) as u64;
         let count = batch.min(rays.len() - bi * batch) as u64;
-        let mut resources: Vec<(u32, Resource)> = scene.resources().collect();
+        let mut resources: Vec<(u32, Resource)> = scene.to_vec();
         resources.push((BINDING_RAYS, Resource::Buffer { buffer: &ray_buf, offset: first * 32, range: count * 32 }));
         for (binding, size, buf) in &outputs {
             resources.push((*binding, Resource::Buffer { buffer: buf, offset: first * size, range: count * size }));

@@ -1,0 +1,95 @@
+//! The driver's ray tracing as a peer of the hand-written kernels: `glsl/rayquery.comp` traces
+//! the same `Ray`s through the driver's acceleration structure ([`AccelStructure`]) with
+//! `VK_KHR_ray_query` and writes the same `Hit`s, batched and timed exactly as [`super::raycast`]
+//! (they share [`super::raycast::cast_rays`]).
+//!
+//! It is not one of our [`Method`](crate::encoding::Method)s: a method is an encoding of *our*
+//! BVH with one of *our* intersectors, and every method-shaped option (leaf size, leaf policy,
+//! SAH grouping, scene bytes) means nothing for the driver's black-box structure. So it is a
+//! [`Peer`], beside Embree, selected with `trilab raycast --peer ray-query` and reported as its own
+//! row by `trilab bench`.
+
+use serde::Serialize;
+
+use super::accel::{unsupported, AccelStructure};
+use super::context::Context;
+use super::descriptors::Resource;
+use super::kernel::Kernel;
+use super::raycast::{cast_rays, RaycastOptions, RaycastResult};
+use super::shared::{BINDING_SLOT_IDS, BINDING_TLAS};
+use crate::error::Result;
+use crate::rays::Ray;
+use std::time::Instant;
+
+/// A tracer that is not an encoding of our BVH: the driver's own ray tracing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Peer {
+    /// `VK_KHR_ray_query` from a compute kernel through the driver's BLAS/TLAS.
+    RayQuery,
+}
+
+impl Peer {
+    pub fn name(self) -> &'static str {
+        match self {
+            Peer::RayQuery => "ray-query",
+        }
+    }
+}
+
+impl std::fmt::Display for Peer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The ray-query kernel (`rayquery.none.closest`, or `.any` for occlusion), or
+/// [`Error::Unsupported`](crate::error::Error::Unsupported) where the context has no ray query.
+pub fn kernel(ctx: &Context, any_hit: bool) -> Result<Kernel> {
+    if !ctx.enabled().ray_query {
+        return Err(unsupported(ctx));
+    }
+    ctx.create_kernel(crate::kernels::find_no_intersector("rayquery", if any_hit { "any" } else { "closest" }))
+}
+
+/// Casts `rays` through `accel` with a [`kernel`]: `warmup` untimed runs, then `repeat` timed
+/// ones, as [`super::raycast`]. Hits carry OBJ triangle ids and the driver's barycentrics.
+pub fn raycast_rq(
+    ctx: &Context,
+    kernel: &Kernel,
+    accel: &AccelStructure,
+    rays: &[Ray],
+    opts: &RaycastOptions,
+) -> Result<RaycastResult> {
+    if !ctx.enabled().ray_query {
+        return Err(unsupported(ctx));
+    }
+    let resources = [(BINDING_TLAS, Resource::Accel(accel)), (BINDING_SLOT_IDS, Resource::Texels(accel.prim_ids()))];
+    cast_rays(ctx, kernel, &resources, rays, opts)
+}
+
+/// Most rays per submit such that one submit takes about `target_ms`: times one untimed run of
+/// up to 4096 rays spread over the set and scales, within [256, `max`]. The driver's traversal
+/// speed is unknown in advance (lavapipe's is some 300x slower than our kernels), and a submit
+/// must stay far from the submit timeout and any watchdog.
+pub fn batch_for(
+    ctx: &Context,
+    kernel: &Kernel,
+    accel: &AccelStructure,
+    rays: &[Ray],
+    target_ms: f64,
+    max: usize,
+) -> Result<usize> {
+    if rays.is_empty() {
+        return Ok(max.max(256));
+    }
+    // Every k-th ray: a ray set's order is not random (primary rays go row by row, and the top
+    // rows of an image may all miss).
+    let stride = rays.len().div_ceil(4096);
+    let probe: Vec<Ray> = rays.iter().step_by(stride).copied().collect();
+    let probe = &probe[..];
+    let t = Instant::now();
+    raycast_rq(ctx, kernel, accel, probe, &RaycastOptions { warmup: 0, repeat: 1, batch_rays: probe.len() })?;
+    let per_ray_ms = t.elapsed().as_secs_f64() * 1e3 / probe.len() as f64;
+    Ok(((target_ms / per_ray_ms) as usize).clamp(256, max.max(256)))
+}
