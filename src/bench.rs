@@ -286,6 +286,9 @@ fn run_embree(bin: &Path, scene: &Path, rays: &Path, out: &Path, repeat: usize) 
         .ok_or_else(|| Error::Usage(format!("cannot read Mrays/s from {}: {text}", bin.display())))
 }
 
+/// Fewest rays that must agree with the f64 reference before a speed is reported.
+pub const MIN_AGREEMENT: f64 = 0.9999;
+
 /// Compares GPU hits with the f64 reference; an error (never a reported speed) when fewer than
 /// 99.99 % agree, any disagreement is unexplained (not an edge, vertex or tie case) or any hit is
 /// invalid.
@@ -296,7 +299,7 @@ pub fn validate_hits(
     ref_hits: &[crate::reference::RefHit],
 ) -> Result<crate::compare::Agreement> {
     let agreement = compare_closest(mesh, rays, hits, ref_hits);
-    if !agreement.passes(0.9999) {
+    if !agreement.passes(MIN_AGREEMENT) {
         return Err(Error::Usage(format!(
             "results disagree with the f64 reference ({}); not reporting a speed",
             agreement.summary()

@@ -27,8 +27,6 @@ pub struct DeviceInfo {
     pub vendor_id: u32,
     pub device_id: u32,
     pub api_version: String,
-    /// `api_version` as Vulkan encodes it.
-    pub api_version_raw: u32,
     pub driver_id: String,
     pub driver_name: String,
     pub driver_info: String,
@@ -173,7 +171,6 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         vendor_id: base.vendor_id,
         device_id: base.device_id,
         api_version: version(api),
-        api_version_raw: api,
         driver_id: format!("{:?}", v12.driver_id),
         driver_name: cstr(&v12.driver_name),
         mesa_version: mesa_version(&driver_info),

@@ -28,7 +28,6 @@ use serde::Serialize;
 
 use crate::bench::{self, BenchOptions};
 use crate::bvh::{BuildOptions, Bvh};
-use crate::compare::compare_closest;
 use crate::encoding::Method;
 use crate::error::{Error, Result};
 use crate::gpu::shared::SPEC_ID_WORKGROUP_SIZE;
@@ -43,7 +42,8 @@ pub use executable::ExecutableStatistic;
 pub use threads::ThreadMeasurement;
 
 /// Fraction of rays that must agree with the f64 reference (as `trilab bench` requires).
-pub const MIN_AGREEMENT: f64 = 0.9999;
+pub use crate::bench::MIN_AGREEMENT;
+pub use crate::rays::differing_hits;
 
 #[derive(Clone, Debug)]
 pub struct ProfileOptions {
@@ -223,24 +223,12 @@ pub struct ProfileReport {
     pub lp_num_threads_scaling: Section<Row<ThreadMeasurement>>,
 }
 
-/// Rays whose hits are not bitwise identical.
-pub fn differing_hits(a: &[Hit], b: &[Hit]) -> usize {
-    if a.len() != b.len() {
-        return a.len().max(b.len());
-    }
-    a.iter().zip(b).filter(|(x, y)| bytemuck::bytes_of(*x) != bytemuck::bytes_of(*y)).count()
-}
-
-/// Checks hits against the f64 reference; an error (so nothing gets reported) if they disagree.
+/// Checks hits against the f64 reference ([`crate::bench::validate_hits`]); an error (so
+/// nothing gets reported) if they disagree. Returns the fraction agreeing.
 fn validated(mesh: &Mesh, rays: &[Ray], hits: &[Hit], reference: &[RefHit], what: &str) -> Result<f64> {
-    let a = compare_closest(mesh, rays, hits, reference);
-    if !a.passes(MIN_AGREEMENT) {
-        return Err(Error::Usage(format!(
-            "{what}: results disagree with the f64 reference ({}); not reporting it",
-            a.summary()
-        )));
-    }
-    Ok(a.fraction())
+    crate::bench::validate_hits(mesh, rays, hits, reference)
+        .map(|a| a.fraction())
+        .map_err(|e| Error::Usage(format!("{what}: {e}")))
 }
 
 /// The 1, 5 and 15-minute load averages, where the host reports them.

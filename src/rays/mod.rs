@@ -74,6 +74,14 @@ impl Ray {
 
 /// Reads a `.rays` file, rejecting a size that is not a multiple of 32 bytes and any ray that
 /// [`Ray::problem`] rejects (the error names the ray and the field).
+/// Rays whose hits are not bitwise identical (all of them when the lengths differ).
+pub fn differing_hits(a: &[Hit], b: &[Hit]) -> usize {
+    if a.len() != b.len() {
+        return a.len().max(b.len());
+    }
+    a.iter().zip(b).filter(|(x, y)| bytemuck::bytes_of(*x) != bytemuck::bytes_of(*y)).count()
+}
+
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if bytes.len() % 32 != 0 {

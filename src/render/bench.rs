@@ -12,7 +12,7 @@ use crate::encoding::Method;
 use crate::error::{Error, Result};
 use crate::gpu::{Context, GpuScene, Summary};
 use crate::report::Table;
-use crate::scene::{load_obj, BsdfKind};
+use crate::scene::{load_obj, BsdfKind, Mesh};
 
 #[derive(Clone, Debug)]
 pub struct RenderBenchOptions {
@@ -112,6 +112,38 @@ impl RenderBenchReport {
     }
 }
 
+/// A benchmark's render settings for `mesh`: the paper's camera and path settings at `size`,
+/// `spp` and `max_depth`; a white environment, or black for scenes with emitters, unless `env`
+/// is given.
+pub fn bench_settings(
+    mesh: &Mesh,
+    size: (u32, u32),
+    spp: u32,
+    max_depth: u32,
+    env: Option<[f32; 3]>,
+) -> RenderSettings {
+    let emissive = mesh.materials.iter().any(|m| m.is_emissive());
+    RenderSettings {
+        width: size.0,
+        height: size.1,
+        spp,
+        max_depth,
+        env: env.unwrap_or(if emissive { [0.0; 3] } else { [1.0; 3] }),
+        ..RenderSettings::paper(mesh)
+    }
+}
+
+/// Every method (and leaf size) traces the same paths through the same scene, so their image
+/// means must agree: checks `mean` against the first one seen for the scene (kept in `first`)
+/// to within 2 %.
+pub fn check_image_mean(mean: f64, first: &mut Option<f64>) -> std::result::Result<(), String> {
+    let base = *first.get_or_insert(mean);
+    if (mean - base).abs() > 0.02 * base.abs().max(1e-6) {
+        return Err(format!("image mean {mean} differs from the scene's first render ({base}) by more than 2 %"));
+    }
+    Ok(())
+}
+
 /// Timed renders of one configuration, summarised and checked.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct RenderMeasure {
@@ -166,13 +198,7 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
         let mesh = load_obj(path)?;
         let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let bvh = Bvh::build(&mesh, &BuildOptions::new(o.leaf_size));
-        let mut settings = RenderSettings::paper(&mesh);
-        settings.width = o.width;
-        settings.height = o.height;
-        settings.spp = o.spp;
-        settings.max_depth = o.max_depth;
-        let emissive = mesh.materials.iter().any(|m| m.is_emissive());
-        settings.env = o.env.unwrap_or(if emissive { [0.0; 3] } else { [1.0; 3] });
+        let settings = bench_settings(&mesh, (o.width, o.height), o.spp, o.max_depth, o.env);
         let mut reference_mean: Option<f64> = None;
         for &method in &o.methods {
             let encoded = method.encode(&mesh, &bvh);
@@ -191,14 +217,8 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
                 }
                 let m = summarise_renders(&runs)
                     .map_err(|e| Error::Usage(format!("{name} {}: {e}", kernel.source.name)))?;
-                let mean = m.image_mean;
-                let base = *reference_mean.get_or_insert(mean);
-                if (mean - base).abs() > 0.02 * base.abs().max(1e-6) {
-                    return Err(Error::Usage(format!(
-                        "{name} {}: image mean {mean} differs from the first method's {base} by more than 2 %",
-                        kernel.source.name
-                    )));
-                }
+                check_image_mean(m.image_mean, &mut reference_mean)
+                    .map_err(|e| Error::Usage(format!("{name} {}: {e}", kernel.source.name)))?;
                 let counts = crate::spirv::count(&kernel.source.words())
                     .map_err(|e| Error::Spirv { kernel: kernel.source.name.into(), message: e })?;
                 report.rows.push(RenderBenchRow {
@@ -214,7 +234,7 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
                     mrays_per_s: m.mrays_per_s,
                     ms: m.ms,
                     rays_per_sample: m.rays_per_sample,
-                    image_mean: mean,
+                    image_mean: m.image_mean,
                 });
             }
         }

@@ -29,8 +29,8 @@ use crate::gpu::traversal_stats::{raycast_stats, TraversalSummary};
 use crate::gpu::{raycast, Context, GpuScene, RaycastOptions, Summary};
 use crate::rays::{self, Camera};
 use crate::reference::Reference;
-use crate::render::bench::{summarise_renders, RenderMeasure};
-use crate::render::{render, KernelChoice, PathtraceKernel, RenderScene, RenderSettings};
+use crate::render::bench::{bench_settings, check_image_mean, summarise_renders, RenderMeasure};
+use crate::render::{render, KernelChoice, PathtraceKernel, RenderScene};
 use crate::scene::load_obj;
 
 /// The leaf sizes of the paper's tables.
@@ -267,10 +267,10 @@ pub struct StudyReport {
 /// Per-method state of one (scene, leaf size) during the rounds.
 struct Cell {
     method: Method,
-    render_gpu: GpuScene,
+    /// Every buffer of the encoding: the path tracer and the ray casts bind what they read.
+    gpu: GpuScene,
     render_scene: RenderScene,
     render_kernel: PathtraceKernel,
-    raycast_gpu: GpuScene,
     renders: Vec<crate::render::RenderResult>,
     /// Per set: kernel ms of each timed round.
     set_ms: Vec<Vec<f64>>,
@@ -303,13 +303,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
         let sets = [("primary", primary), ("diffuse", diffuse), ("random", random)];
         let ref_hits: Vec<_> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
 
-        let mut settings = RenderSettings::paper(&mesh);
-        settings.width = o.width;
-        settings.height = o.height;
-        settings.spp = o.spp;
-        settings.max_depth = o.max_depth;
-        let emissive = mesh.materials.iter().any(|m| m.is_emissive());
-        settings.env = if emissive { [0.0; 3] } else { [1.0; 3] };
+        let settings = bench_settings(&mesh, (o.width, o.height), o.spp, o.max_depth, None);
         let mut scene_mean: Option<f64> = None;
 
         for &leaf in &o.leaf_sizes {
@@ -332,10 +326,9 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                 let render_kernel = PathtraceKernel::choose(method, render_scene.bsdf_mask, KernelChoice::Specialised);
                 cells.push(Cell {
                     method,
-                    render_gpu: GpuScene::upload_for(ctx, &encoded, render_kernel.source)?,
+                    gpu: GpuScene::upload(ctx, &encoded)?,
                     render_scene,
                     render_kernel,
-                    raycast_gpu: GpuScene::upload(ctx, &encoded)?,
                     renders: vec![],
                     set_ms: vec![vec![]; sets.len()],
                     set_agreement: vec![0.0; sets.len()],
@@ -346,19 +339,16 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                 progress(&format!("{name} leaf {leaf}: round {round}/{}", o.repeat.max(1)));
                 for ((cell, kernel), stats_kernel) in cells.iter_mut().zip(&raycast_kernels).zip(&stats_kernels) {
                     let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", cell.method);
-                    let r =
-                        render(ctx, &cell.render_gpu, &cell.render_scene, cell.render_kernel, &settings, &mut |_| {
-                            true
-                        })?;
+                    let r = render(ctx, &cell.gpu, &cell.render_scene, cell.render_kernel, &settings, &mut |_| true)?;
                     for (si, ((set, rays), refs)) in sets.iter().zip(&ref_hits).enumerate() {
-                        let res = raycast(ctx, kernel, &cell.raycast_gpu, rays, &RaycastOptions::default())?;
+                        let res = raycast(ctx, kernel, &cell.gpu, rays, &RaycastOptions::default())?;
                         if round == 0 {
                             // Hits are deterministic: validate once, before any time counts.
                             let a = validate_hits(&mesh, rays, &res.hits, refs)
                                 .map_err(|e| Error::Usage(what(&format!("{set} rays: {e}"))))?;
                             cell.set_agreement[si] = a.fraction();
-                            let (stat_hits, counts) = raycast_stats(ctx, stats_kernel, &cell.raycast_gpu, rays)?;
-                            if bytemuck::cast_slice::<_, u8>(&stat_hits) != bytemuck::cast_slice::<_, u8>(&res.hits) {
+                            let (stat_hits, counts) = raycast_stats(ctx, stats_kernel, &cell.gpu, rays)?;
+                            if rays::differing_hits(&stat_hits, &res.hits) > 0 {
                                 return Err(Error::Usage(what(&format!(
                                     "{set} rays: the statistics variant's hits differ from the kernel's"
                                 ))));
@@ -376,13 +366,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
             for (cell, kernel) in cells.into_iter().zip(&raycast_kernels) {
                 let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", cell.method);
                 let m = summarise_renders(&cell.renders).map_err(|e| Error::Usage(what(&e.to_string())))?;
-                let base = *scene_mean.get_or_insert(m.image_mean);
-                if (m.image_mean - base).abs() > 0.02 * base.abs().max(1e-6) {
-                    return Err(Error::Usage(what(&format!(
-                        "image mean {} differs from the scene's first render ({base}) by more than 2 %",
-                        m.image_mean
-                    ))));
-                }
+                check_image_mean(m.image_mean, &mut scene_mean).map_err(|e| Error::Usage(what(&e)))?;
                 let set_results = sets
                     .iter()
                     .enumerate()
@@ -409,7 +393,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                     triangles: mesh.triangle_count(),
                     leaf_size: leaf,
                     method: cell.method,
-                    scene_bytes: cell.raycast_gpu.bytes,
+                    scene_bytes: cell.gpu.bytes,
                     bvh: quality.clone(),
                     render: m,
                     render_kernel: cell.render_kernel.source.name,

@@ -78,6 +78,25 @@ fn render_png(
     crate::io::write_atomic(path, png.get_ref())
 }
 
+/// The legend every plot draws, at `pos`.
+fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    pos: SeriesLabelPosition,
+    what: &str,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .position(pos)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(|e| plot_err(what, e))
+}
+
 fn rows_of<'a>(report: &'a StudyReport, scene: &'a str) -> impl Iterator<Item = &'a StudyRow> + 'a {
     report.rows.iter().filter(move |r| r.scene == scene)
 }
@@ -131,14 +150,7 @@ fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
                 )
                 .map_err(|e| plot_err(what, e))?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .draw()
-            .map_err(|e| plot_err(what, e))
+        legend(&mut chart, SeriesLabelPosition::UpperLeft, what)
     })
 }
 
@@ -198,14 +210,7 @@ fn mrays_per_set(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
                 .label(m.to_string())
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], c.filled()));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .draw()
-            .map_err(|e| plot_err(what, e))
+        legend(&mut chart, SeriesLabelPosition::UpperRight, what)
     })
 }
 
@@ -269,14 +274,7 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
                     .map_err(|e| plot_err(what, e))?;
             }
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .draw()
-            .map_err(|e| plot_err(what, e))
+        legend(&mut chart, SeriesLabelPosition::UpperLeft, what)
     })
 }
 
