@@ -6,6 +6,7 @@
 //! | [`Method::Unit`] | Woop's affine map to the unit triangle, 3 x vec4 (48 B) | triangle slot |
 //! | [`Method::QuadMt`] | 4 triangles' vertices in SoA form (144 B per quad) | quad |
 //! | [`Method::QuadUnit`] | 4 triangles' affine maps in SoA form (192 B per quad) | quad |
+//! | [`Method::Watertight`] | as [`Method::Mt`] (the same buffers) | triangle slot |
 //!
 //! Every encoding also uploads the nodes (32 B each) and a slot -> OBJ triangle id table
 //! (4 B per slot), so hits report OBJ ids whatever order the BVH stores triangles in.
@@ -15,6 +16,7 @@ mod mt;
 mod quad_mt;
 mod quad_unit;
 mod unit;
+mod watertight;
 
 pub use mt::MtTriangle;
 pub use quad_mt::QuadMt;
@@ -39,10 +41,14 @@ pub enum Method {
     QuadMt,
     /// Woop's unit-triangle test on four triangles at once (SoA quads).
     QuadUnit,
+    /// Woop, Benthin & Wald's watertight test (JCGT 2013), one triangle at a time, on MT's data.
+    Watertight,
 }
 
 impl Method {
-    pub const ALL: [Method; 4] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit];
+    pub const ALL: [Method; 5] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit, Method::Watertight];
+    /// The paper's four methods (the default of `trilab study`).
+    pub const PAPER: [Method; 4] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit];
 
     /// Command-line name.
     pub fn name(self) -> &'static str {
@@ -51,6 +57,7 @@ impl Method {
             Method::Unit => "unit",
             Method::QuadMt => "quad-mt",
             Method::QuadUnit => "quad-unit",
+            Method::Watertight => "watertight",
         }
     }
 
@@ -61,6 +68,7 @@ impl Method {
             Method::Unit => "unit",
             Method::QuadMt => "quad_mt",
             Method::QuadUnit => "quad_unit",
+            Method::Watertight => "watertight",
         }
     }
 
@@ -71,13 +79,14 @@ impl Method {
             Method::Unit => "Unit Triangle",
             Method::QuadMt => "Quad Moller-Trumbore",
             Method::QuadUnit => "Quad Unit Triangle",
+            Method::Watertight => "Watertight",
         }
     }
 
     /// Triangles tested together (the SIMD width of the intersector).
     pub fn group_size(self) -> usize {
         match self {
-            Method::Mt | Method::Unit => 1,
+            Method::Mt | Method::Unit | Method::Watertight => 1,
             Method::QuadMt | Method::QuadUnit => 4,
         }
     }
@@ -88,6 +97,7 @@ impl Method {
             Method::Unit => unit::encode(mesh, bvh),
             Method::QuadMt => quad_mt::encode(mesh, bvh),
             Method::QuadUnit => quad_unit::encode(mesh, bvh),
+            Method::Watertight => watertight::encode(mesh, bvh),
         }
     }
 }
@@ -174,10 +184,10 @@ impl EncodedScene {
     }
 
     /// The buffer of the method's primitive structs (`PRIM_STRUCT` in its intersector):
-    /// `MtTriangle` for MT, `UnitTriangle`, `QuadMt`, `QuadUnit` for the others.
+    /// `MtTriangle` for MT and watertight, `UnitTriangle`, `QuadMt`, `QuadUnit` for the others.
     pub fn prim_structs(&self) -> (&SceneBuffer, usize) {
         let (binding, size) = match self.method {
-            Method::Mt => (BINDING_INDICES, std::mem::size_of::<MtTriangle>()),
+            Method::Mt | Method::Watertight => (BINDING_INDICES, std::mem::size_of::<MtTriangle>()),
             Method::Unit => (BINDING_PRIMS, std::mem::size_of::<UnitTriangle>()),
             Method::QuadMt => (BINDING_PRIMS, std::mem::size_of::<QuadMt>()),
             Method::QuadUnit => (BINDING_PRIMS, std::mem::size_of::<QuadUnit>()),

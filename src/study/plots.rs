@@ -38,6 +38,7 @@ fn colour(m: Method) -> RGBColor {
         Method::Unit => RGBColor(255, 127, 14),
         Method::QuadMt => RGBColor(44, 160, 44),
         Method::QuadUnit => RGBColor(214, 39, 40),
+        Method::Watertight => RGBColor(148, 103, 189),
     }
 }
 
