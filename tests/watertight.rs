@@ -1,0 +1,386 @@
+//! The watertight intersector (`--method watertight`, Woop, Benthin & Wald, JCGT 2013) with its
+//! conservative traversal: no ray cast from inside a closed mesh escapes it, at any scale or
+//! translation tried, even when aimed exactly at shared vertices and at points on shared edges;
+//! it agrees with the f64 reference on the bunny; it never hits zero-area or repeated-vertex
+//! triangles; and its t, u, v are never NaN. Möller–Trumbore's leaks on the same rays are counted
+//! and printed for comparison (not asserted: they depend on the device's rounding).
+
+mod common;
+
+use std::collections::HashMap;
+
+use glam::{DVec3, Vec3};
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg32;
+use trilab::bench::validate_hits;
+use trilab::bvh::{BuildOptions, Bvh};
+use trilab::compare::{compare_any, compare_closest};
+use trilab::encoding::Method;
+use trilab::gpu::{raycast, Context, GpuScene, Kernel, RaycastOptions};
+use trilab::rays::{primary_rays, random_rays, Camera, Hit, Ray};
+use trilab::reference::Reference;
+use trilab::scene::Mesh;
+
+/// A closed unit-radius mesh: vertex positions in f64 and outward-wound triangles.
+struct Shape {
+    name: &'static str,
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+}
+
+/// The icosahedron subdivided `levels` times, every vertex pushed onto the unit sphere. Midpoints
+/// are shared through a cache, so every shared vertex is one entry of the vertex list.
+fn icosphere(levels: u32) -> Shape {
+    let g = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut positions: Vec<DVec3> = [
+        [-1.0, g, 0.0],
+        [1.0, g, 0.0],
+        [-1.0, -g, 0.0],
+        [1.0, -g, 0.0],
+        [0.0, -1.0, g],
+        [0.0, 1.0, g],
+        [0.0, -1.0, -g],
+        [0.0, 1.0, -g],
+        [g, 0.0, -1.0],
+        [g, 0.0, 1.0],
+        [-g, 0.0, -1.0],
+        [-g, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|p| DVec3::from_array(*p).normalize())
+    .collect();
+    let mut triangles: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut cache: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut mid = |a: u32, b: u32, positions: &mut Vec<DVec3>| -> u32 {
+            *cache.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                positions.push(((positions[a as usize] + positions[b as usize]) / 2.0).normalize());
+                positions.len() as u32 - 1
+            })
+        };
+        let mut next = Vec::with_capacity(triangles.len() * 4);
+        for [a, b, c] in triangles {
+            let ab = mid(a, b, &mut positions);
+            let bc = mid(b, c, &mut positions);
+            let ca = mid(c, a, &mut positions);
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        triangles = next;
+    }
+    Shape { name: "icosphere", positions, triangles }
+}
+
+/// The cube [-1, 1]^3 with every face cut into n x n squares of two triangles; grid points on
+/// the cube's edges are shared by the faces that meet there.
+fn subdivided_cube(n: u32) -> Shape {
+    let mut index: HashMap<[u32; 3], u32> = HashMap::new();
+    let mut positions = Vec::new();
+    let mut vertex = |g: [u32; 3], positions: &mut Vec<DVec3>| -> u32 {
+        *index.entry(g).or_insert_with(|| {
+            positions.push(DVec3::from_array(g.map(|c| -1.0 + 2.0 * c as f64 / n as f64)));
+            positions.len() as u32 - 1
+        })
+    };
+    let mut triangles = Vec::new();
+    for axis in 0..3 {
+        let (ua, va) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [0, n] {
+            for i in 0..n {
+                for j in 0..n {
+                    let mut corner = |di: u32, dj: u32, positions: &mut Vec<DVec3>| {
+                        let mut g = [0; 3];
+                        g[axis] = side;
+                        g[ua] = i + di;
+                        g[va] = j + dj;
+                        vertex(g, positions)
+                    };
+                    let p00 = corner(0, 0, &mut positions);
+                    let p10 = corner(1, 0, &mut positions);
+                    let p11 = corner(1, 1, &mut positions);
+                    let p01 = corner(0, 1, &mut positions);
+                    // e_u x e_v = e_axis: counter-clockwise in (u, v) faces +axis.
+                    if side == n {
+                        triangles.extend([[p00, p10, p11], [p00, p11, p01]]);
+                    } else {
+                        triangles.extend([[p00, p11, p10], [p00, p01, p11]]);
+                    }
+                }
+            }
+        }
+    }
+    Shape { name: "cube", positions, triangles }
+}
+
+/// The shape scaled by `scale` and moved by `offset`, rounded once to f32.
+fn place(shape: &Shape, scale: f64, offset: DVec3) -> Mesh {
+    let positions = shape.positions.iter().map(|p| (*p * scale + offset).as_vec3().to_array()).collect();
+    Mesh::from_triangles(positions, shape.triangles.clone())
+}
+
+/// Generalised winding number of the mesh around `p`, in f64 (Van Oosterom & Strackee's solid
+/// angle of each triangle, summed, over 4 pi): +-1 strictly inside a closed mesh, 0 outside.
+fn winding_number(mesh: &Mesh, p: DVec3) -> f64 {
+    let mut sum = 0.0;
+    for id in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.vertices_f64(id).map(|v| v - p);
+        let (la, lb, lc) = (a.length(), b.length(), c.length());
+        let num = a.dot(b.cross(c));
+        let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+        sum += 2.0 * num.atan2(den);
+    }
+    sum / (4.0 * std::f64::consts::PI)
+}
+
+/// Rays from `origin` aimed at every vertex, at points on every edge (a + (b - a) t in f32, for
+/// three t), and in `random` random directions; tmin = 0, tmax = inf.
+fn rays_from(mesh: &Mesh, origin: Vec3, random: usize, seed: u64) -> Vec<Ray> {
+    let mut targets: Vec<Vec3> = mesh.positions.iter().map(|p| Vec3::from_array(*p)).collect();
+    let mut edges: Vec<(u32, u32)> =
+        mesh.triangles.iter().flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)]).map(|(a, b)| (a.min(b), a.max(b))).collect();
+    edges.sort_unstable();
+    edges.dedup();
+    for (a, b) in edges {
+        let (pa, pb) = (Vec3::from_array(mesh.positions[a as usize]), Vec3::from_array(mesh.positions[b as usize]));
+        for t in [0.5f32, 0.25, 1.0 / 3.0] {
+            targets.push(pa + (pb - pa) * t);
+        }
+    }
+    let mut dirs: Vec<Vec3> = targets.iter().map(|&p| p - origin).filter(|d| *d != Vec3::ZERO).collect();
+    let mut rng = Pcg32::seed_from_u64(seed);
+    while dirs.len() < targets.len() + random {
+        let d = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        if d.length_squared() > 1e-4 && d.length_squared() <= 1.0 {
+            dirs.push(d);
+        }
+    }
+    dirs.iter().map(|d| Ray { origin: origin.to_array(), tmin: 0.0, dir: d.to_array(), tmax: f32::INFINITY }).collect()
+}
+
+/// Every hit's t, u and v are numbers (not NaN); a miss is the miss record.
+fn assert_no_nan(hits: &[Hit], what: &str) {
+    for (i, h) in hits.iter().enumerate() {
+        assert!(!h.t.is_nan() && !h.u.is_nan() && !h.v.is_nan(), "{what}: ray {i} has NaN in {h:?}");
+    }
+}
+
+struct Kernels {
+    method: Method,
+    closest: Kernel,
+    any: Kernel,
+}
+
+fn kernels(ctx: &Context, method: Method) -> Kernels {
+    Kernels {
+        method,
+        closest: ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap(),
+        any: ctx.create_kernel(trilab::kernels::raycast(method, true)).unwrap(),
+    }
+}
+
+/// Closest and any hit of `rays` over `mesh` with the method's kernels.
+fn cast(ctx: &Context, k: &Kernels, mesh: &Mesh, bvh: &Bvh, rays: &[Ray]) -> (Vec<Hit>, Vec<Hit>) {
+    let scene = GpuScene::upload(ctx, &k.method.encode(mesh, bvh)).unwrap();
+    let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
+    let c = raycast(ctx, &k.closest, &scene, rays, &opts).unwrap();
+    let a = raycast(ctx, &k.any, &scene, rays, &opts).unwrap();
+    (c.hits, a.hits)
+}
+
+fn misses(hits: &[Hit]) -> usize {
+    hits.iter().filter(|h| !h.is_hit()).count()
+}
+
+#[test]
+fn no_ray_from_inside_a_closed_mesh_escapes_at_any_scale_or_translation() {
+    let (lines, leaks, ran, skipped) = common::with_gpu(1800, |ctx| {
+        let wt = kernels(ctx, Method::Watertight);
+        let mt = kernels(ctx, Method::Mt);
+        let mut lines = vec![];
+        let mut leaks = vec![];
+        let mut ran = 0;
+        let mut skipped = vec![];
+        let (mut mt_total, mut rays_total) = (0, 0);
+        for shape in [icosphere(2), subdivided_cube(4)] {
+            for scale_exp in -8..=8 {
+                let scale = 10f64.powi(scale_exp);
+                for shift_exp in [None, Some(0), Some(1), Some(2), Some(3), Some(4), Some(5), Some(6), Some(7)] {
+                    // Off the axes and the diagonal, so that no coordinate of the origin is special.
+                    let shift = shift_exp.map_or(0.0, |e| 10f64.powi(e));
+                    let offset = DVec3::new(1.0, 0.61, -0.37) * shift;
+                    let mesh = place(&shape, scale, offset);
+                    let origin = offset.as_vec3();
+                    // The f32 mesh must still be a closed mesh around the f32 origin: no triangle
+                    // collapsed by rounding, winding number +-1 (exactly 1 or -1 up to f64 noise).
+                    let w = winding_number(&mesh, origin.as_dvec3());
+                    let config = format!("{} scale 1e{scale_exp} shift {shift:e}", shape.name);
+                    if !mesh.degenerate_ids().is_empty() || (w.abs() - 1.0).abs() > 1e-6 {
+                        skipped.push((scale_exp, shift_exp, config));
+                        continue;
+                    }
+                    ran += 1;
+                    let rays = rays_from(&mesh, origin, 256, 11 + ran as u64);
+                    for leaf in [1, 4] {
+                        let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
+                        bvh.validate(&mesh).unwrap();
+                        let (wc, wa) = cast(ctx, &wt, &mesh, &bvh, &rays);
+                        let (mc, ma) = cast(ctx, &mt, &mesh, &bvh, &rays);
+                        assert_no_nan(&wc, &config);
+                        assert_no_nan(&wa, &config);
+                        let (w_leak, w_any_leak, m_leak) = (misses(&wc), misses(&wa), misses(&mc));
+                        mt_total += m_leak + misses(&ma);
+                        rays_total += 2 * rays.len();
+                        if w_leak + w_any_leak > 0 {
+                            leaks.push(format!(
+                                "{config} leaf {leaf}: {w_leak} closest-hit and {w_any_leak} any-hit leaks of {}",
+                                rays.len()
+                            ));
+                        }
+                        if m_leak > 0 {
+                            lines.push(format!("{config} leaf {leaf}: Moller-Trumbore leaks {m_leak} of {}", rays.len()));
+                        }
+                    }
+                }
+            }
+        }
+        lines.push(format!("Moller-Trumbore: {mt_total} leaks in {rays_total} closest+any casts; watertight: see above"));
+        (lines, leaks, ran, skipped)
+    });
+    println!("{}", lines.join("\n"));
+    println!("{ran} configurations cast; skipped (mesh no longer closed around the origin in f32):");
+    for (_, _, c) in &skipped {
+        println!("  {c}");
+    }
+    assert!(leaks.is_empty(), "watertight leaks:\n{}", leaks.join("\n"));
+    // Skipping is only allowed where f32 cannot hold the shape at that offset: never untranslated,
+    // never where the shape is at least 1/100 of the offset.
+    for (scale_exp, shift_exp, c) in &skipped {
+        assert!(shift_exp.is_some_and(|s| *scale_exp < s - 2), "{c} was skipped");
+    }
+    assert!(ran >= 2 * 17, "{ran} configurations");
+}
+
+#[test]
+fn the_leak_count_sees_a_hole() {
+    // One triangle removed from the icosphere, rays aimed at points inside it: they must leave.
+    let shape = icosphere(2);
+    let mesh = place(&shape, 1.0, DVec3::ZERO);
+    let [a, b, c] = mesh.vertices(7);
+    let holed = Mesh::from_triangles(
+        mesh.positions.clone(),
+        mesh.triangles.iter().enumerate().filter(|(i, _)| *i != 7).map(|(_, t)| *t).collect(),
+    );
+    let targets = [(a + b + c) / 3.0, a * 0.5 + b * 0.3 + c * 0.2, a * 0.2 + b * 0.2 + c * 0.6];
+    let rays: Vec<Ray> = targets
+        .iter()
+        .map(|t| Ray { origin: [0.0; 3], tmin: 0.0, dir: t.to_array(), tmax: f32::INFINITY })
+        .collect();
+    let hits = common::with_gpu(120, move |ctx| {
+        let bvh = Bvh::build(&holed, &BuildOptions::new(1));
+        cast(ctx, &kernels(ctx, Method::Watertight), &holed, &bvh, &rays).0
+    });
+    assert_eq!(misses(&hits), 3, "{hits:?}");
+}
+
+#[test]
+fn agrees_with_the_f64_reference_on_the_bunny() {
+    let failures = common::with_gpu(600, |ctx| {
+        let mesh = common::bunny();
+        let mut rays = random_rays(&mesh.bounds(), 30_000, 5);
+        rays.extend(primary_rays(&Camera::framing(&mesh.bounds()), 160, 120));
+        let k = kernels(ctx, Method::Watertight);
+        let mut failures = vec![];
+        for leaf in [1, 4, 16] {
+            let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
+            let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
+            let (c, a) = cast(ctx, &k, &mesh, &bvh, &rays);
+            assert_no_nan(&c, "bunny closest");
+            assert_no_nan(&a, "bunny any");
+            match validate_hits(&mesh, &rays, &c, &reference) {
+                Ok(agreement) => {
+                    println!("leaf {leaf}: {}", agreement.summary());
+                    if !agreement.invalid.is_empty() {
+                        failures.push(format!("leaf {leaf}: invalid hits {:?}", &agreement.invalid[..1]));
+                    }
+                }
+                Err(e) => failures.push(format!("leaf {leaf}: {e}")),
+            }
+            let any = compare_any(&mesh, &rays, &c, &a);
+            if !any.passes() {
+                failures.push(format!("leaf {leaf} any-hit: {any:?}"));
+            }
+        }
+        failures
+    });
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn zero_area_and_repeated_vertex_triangles_are_never_hit() {
+    // A unit square in z = 1 (triangles 0, 1) and, in front of it at z = 0.5, triangles with a
+    // repeated vertex or three collinear vertices (2..5), aimed at exactly.
+    let positions = vec![
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 1.0, 1.0],
+        [0.0, 1.0, 1.0],
+        [0.25, 0.25, 0.5],
+        [0.75, 0.25, 0.5],
+        [0.5, 0.5, 0.5],
+        [0.75, 0.75, 0.5],
+    ];
+    let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 4, 5], [4, 5, 5], [4, 6, 7], [6, 6, 6]];
+    let mesh = Mesh::from_triangles(positions, triangles);
+    assert_eq!(mesh.degenerate_ids(), vec![2, 3, 4, 5]);
+    let mut rays = vec![];
+    for target in [[0.25f32, 0.25], [0.5, 0.25], [0.75, 0.25], [0.5, 0.5], [0.6, 0.6], [0.75, 0.75], [0.4, 0.4]] {
+        for origin in [[0.5f32, 0.5, -1.0], [0.2, 0.3, 0.0], [target[0], target[1], 0.0]] {
+            let dir = [target[0] - origin[0], target[1] - origin[1], 0.5 - origin[2]];
+            rays.push(Ray { origin, tmin: 0.0, dir, tmax: f32::INFINITY });
+            // The same line from behind the square, and along the degenerate segments' plane.
+            rays.push(Ray { origin: [target[0], target[1], 2.0], tmin: 0.0, dir: [0.0, 0.0, -1.0], tmax: f32::INFINITY });
+        }
+        rays.push(Ray { origin: [-1.0, -1.0, 0.5], tmin: 0.0, dir: [target[0] + 1.0, target[1] + 1.0, 0.0], tmax: 10.0 });
+    }
+    let (failures, hits) = common::with_gpu(120, move |ctx| {
+        let k = kernels(ctx, Method::Watertight);
+        let mut failures = vec![];
+        let mut all = vec![];
+        for leaf in [1, 4] {
+            let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
+            let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
+            let (c, a) = cast(ctx, &k, &mesh, &bvh, &rays);
+            let agreement = compare_closest(&mesh, &rays, &c, &reference);
+            if agreement.unexplained > 0 || !agreement.invalid.is_empty() {
+                failures.push(format!("leaf {leaf}: {} {:?}", agreement.summary(), agreement.invalid));
+            }
+            all.extend(c);
+            all.extend(a);
+        }
+        (failures, all)
+    });
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert_no_nan(&hits, "degenerate");
+    assert!(hits.iter().all(|h| h.id == u32::MAX || h.id <= 1), "{hits:?}");
+    assert!(hits.iter().filter(|h| h.is_hit()).count() > 10, "the square behind them is hit");
+}
