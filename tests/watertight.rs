@@ -156,8 +156,12 @@ fn winding_number(mesh: &Mesh, p: DVec3) -> f64 {
 /// three t), and in `random` random directions; tmin = 0, tmax = inf.
 fn rays_from(mesh: &Mesh, origin: Vec3, random: usize, seed: u64) -> Vec<Ray> {
     let mut targets: Vec<Vec3> = mesh.positions.iter().map(|p| Vec3::from_array(*p)).collect();
-    let mut edges: Vec<(u32, u32)> =
-        mesh.triangles.iter().flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)]).map(|(a, b)| (a.min(b), a.max(b))).collect();
+    let mut edges: Vec<(u32, u32)> = mesh
+        .triangles
+        .iter()
+        .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
     edges.sort_unstable();
     edges.dedup();
     for (a, b) in edges {
@@ -257,13 +261,18 @@ fn no_ray_from_inside_a_closed_mesh_escapes_at_any_scale_or_translation() {
                             ));
                         }
                         if m_leak > 0 {
-                            lines.push(format!("{config} leaf {leaf}: Moller-Trumbore leaks {m_leak} of {}", rays.len()));
+                            lines.push(format!(
+                                "{config} leaf {leaf}: Moller-Trumbore leaks {m_leak} of {}",
+                                rays.len()
+                            ));
                         }
                     }
                 }
             }
         }
-        lines.push(format!("Moller-Trumbore: {mt_total} leaks in {rays_total} closest+any casts; watertight: see above"));
+        lines.push(format!(
+            "Moller-Trumbore: {mt_total} leaks in {rays_total} closest+any casts; watertight: see above"
+        ));
         (lines, leaks, ran, skipped)
     });
     println!("{}", lines.join("\n"));
@@ -291,10 +300,8 @@ fn the_leak_count_sees_a_hole() {
         mesh.triangles.iter().enumerate().filter(|(i, _)| *i != 7).map(|(_, t)| *t).collect(),
     );
     let targets = [(a + b + c) / 3.0, a * 0.5 + b * 0.3 + c * 0.2, a * 0.2 + b * 0.2 + c * 0.6];
-    let rays: Vec<Ray> = targets
-        .iter()
-        .map(|t| Ray { origin: [0.0; 3], tmin: 0.0, dir: t.to_array(), tmax: f32::INFINITY })
-        .collect();
+    let rays: Vec<Ray> =
+        targets.iter().map(|t| Ray { origin: [0.0; 3], tmin: 0.0, dir: t.to_array(), tmax: f32::INFINITY }).collect();
     let hits = common::with_gpu(120, move |ctx| {
         let bvh = Bvh::build(&holed, &BuildOptions::new(1));
         cast(ctx, &kernels(ctx, Method::Watertight), &holed, &bvh, &rays).0
@@ -358,9 +365,19 @@ fn zero_area_and_repeated_vertex_triangles_are_never_hit() {
             let dir = [target[0] - origin[0], target[1] - origin[1], 0.5 - origin[2]];
             rays.push(Ray { origin, tmin: 0.0, dir, tmax: f32::INFINITY });
             // The same line from behind the square, and along the degenerate segments' plane.
-            rays.push(Ray { origin: [target[0], target[1], 2.0], tmin: 0.0, dir: [0.0, 0.0, -1.0], tmax: f32::INFINITY });
+            rays.push(Ray {
+                origin: [target[0], target[1], 2.0],
+                tmin: 0.0,
+                dir: [0.0, 0.0, -1.0],
+                tmax: f32::INFINITY,
+            });
         }
-        rays.push(Ray { origin: [-1.0, -1.0, 0.5], tmin: 0.0, dir: [target[0] + 1.0, target[1] + 1.0, 0.0], tmax: 10.0 });
+        rays.push(Ray {
+            origin: [-1.0, -1.0, 0.5],
+            tmin: 0.0,
+            dir: [target[0] + 1.0, target[1] + 1.0, 0.0],
+            tmax: 10.0,
+        });
     }
     let (failures, hits) = common::with_gpu(120, move |ctx| {
         let k = kernels(ctx, Method::Watertight);
