@@ -801,10 +801,13 @@ fn steps_cmd(a: StepsArgs) -> Result<()> {
 type GpuSteps = (TraversalSummary, Vec<(Method, TraversalSummary, usize)>);
 
 fn gpu_steps(a: &StepsArgs, mesh: &trilab::scene::Mesh, bvh: &Bvh, rays: &[rays::Ray]) -> Result<GpuSteps> {
-    let cpu: Vec<TraversalCounts> = trilab::traversal::ray_steps(mesh, bvh, rays)
-        .iter()
-        .map(|s| TraversalCounts { inner: s.inner, leaves: s.leaves, triangles: s.triangles, slots: 0 })
-        .collect();
+    let mirror = |conservative| -> Vec<TraversalCounts> {
+        trilab::traversal::ray_steps_with(mesh, bvh, rays, conservative)
+            .iter()
+            .map(|s| TraversalCounts { inner: s.inner, leaves: s.leaves, triangles: s.triangles, slots: 0 })
+            .collect()
+    };
+    let (cpu, cpu_conservative) = (mirror(false), mirror(true));
     let methods = if a.methods.is_empty() { Method::ALL.to_vec() } else { a.methods.clone() };
     let ctx = a.gpu_args.context()?;
     let mut rows = vec![];
@@ -814,7 +817,7 @@ fn gpu_steps(a: &StepsArgs, mesh: &trilab::scene::Mesh, bvh: &Bvh, rays: &[rays:
         let (_, counts) = raycast_stats(&ctx, &kernel, &scene, rays)?;
         let differing = counts
             .iter()
-            .zip(&cpu)
+            .zip(if m.conservative_traversal() { &cpu_conservative } else { &cpu })
             .filter(|(g, c)| (g.inner, g.leaves, g.triangles) != (c.inner, c.leaves, c.triangles))
             .count();
         rows.push((m, TraversalSummary::of(&counts), differing));

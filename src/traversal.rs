@@ -68,6 +68,8 @@ struct Walk<'a> {
     bvh: &'a Bvh,
     origin: Vec3,
     inv_dir: Vec3,
+    /// The conservative box test's per-ray constants, when mirroring it.
+    conservative: Option<Conservative>,
     tmin: f32,
     ray: Ray64,
     /// Packed like the kernel: (first, count) of the node to visit next.
@@ -77,7 +79,7 @@ struct Walk<'a> {
 }
 
 impl<'a> Walk<'a> {
-    fn new(mesh: &'a Mesh, bvh: &'a Bvh, ray: &Ray) -> Walk<'a> {
+    fn new(mesh: &'a Mesh, bvh: &'a Bvh, ray: &Ray, conservative: bool) -> Walk<'a> {
         // Same guard against zero direction components as make_trace_ray().
         let d = Vec3::from_array(ray.dir);
         let safe = Vec3::select(d.cmplt(Vec3::ZERO), -Vec3::ONE, Vec3::ONE) * d.abs().max(Vec3::splat(1e-30));
@@ -86,6 +88,7 @@ impl<'a> Walk<'a> {
             bvh,
             origin: Vec3::from_array(ray.origin),
             inv_dir: Vec3::ONE / safe,
+            conservative: None,
             tmin: ray.tmin,
             ray: Ray64::from(ray),
             current: None,
@@ -93,6 +96,9 @@ impl<'a> Walk<'a> {
             steps: RaySteps::default(),
         };
         let root = &bvh.nodes[0];
+        if conservative {
+            w.conservative = Some(Conservative::new(w.origin, w.inv_dir, root.min, root.max));
+        }
         if w.hit_box(root.min, root.max).is_some() {
             w.current = Some((root.left_or_first, root.count));
         }
@@ -101,6 +107,9 @@ impl<'a> Walk<'a> {
 
     /// hit_box() of traverse.glsl, against the closest hit so far.
     fn hit_box(&self, bmin: [f32; 3], bmax: [f32; 3]) -> Option<f32> {
+        if let Some(c) = &self.conservative {
+            return c.hit_box(bmin, bmax, self.tmin, self.ray.tmax as f32);
+        }
         let t0 = (Vec3::from_array(bmin) - self.origin) * self.inv_dir;
         let t1 = (Vec3::from_array(bmax) - self.origin) * self.inv_dir;
         let tnear = t0.min(t1).max_element().max(self.tmin);
@@ -150,12 +159,55 @@ impl<'a> Walk<'a> {
     }
 }
 
-/// Work of each ray, traced alone.
+/// `hit_box_conservative()` of traverse.glsl (`CONSERVATIVE_TRAVERSAL`), step for step in f32:
+/// the kernel computes these `precise` (no FMA), so the bits are the same.
+struct Conservative {
+    org_lo: Vec3,
+    org_hi: Vec3,
+    rdir_lo: Vec3,
+    rdir_hi: Vec3,
+}
+
+impl Conservative {
+    /// `make_conservative_ray()`: 2^-20, 1 -+ 2^-20 and 2^-22 as in the kernel.
+    fn new(origin: Vec3, inv_dir: Vec3, root_min: [f32; 3], root_max: [f32; 3]) -> Conservative {
+        const EPS: f32 = 1.0 / 1_048_576.0;
+        let dist = (origin - Vec3::from_array(root_min)).abs().max((origin - Vec3::from_array(root_max)).abs());
+        let dmax = dist.x.max(dist.y).max(dist.z);
+        let err = EPS * (dist + Vec3::splat(dmax));
+        let pad = err + (origin.abs() + err) * (1.0 / 4_194_304.0);
+        let down = inv_dir * (1.0 - EPS);
+        let up = inv_dir * (1.0 + EPS);
+        let pos = inv_dir.cmpge(Vec3::ZERO);
+        Conservative {
+            org_lo: origin + pad,
+            org_hi: origin - pad,
+            rdir_lo: Vec3::select(pos, down, up),
+            rdir_hi: Vec3::select(pos, up, down),
+        }
+    }
+
+    fn hit_box(&self, bmin: [f32; 3], bmax: [f32; 3], tmin: f32, tfar: f32) -> Option<f32> {
+        let t0 = (Vec3::from_array(bmin) - self.org_lo) * self.rdir_lo;
+        let t1 = (Vec3::from_array(bmax) - self.org_hi) * self.rdir_hi;
+        let tnear = t0.min(t1).max_element().max(tmin);
+        let tf = t0.max(t1).min_element().min(tfar);
+        (tnear <= tf).then_some(tnear)
+    }
+}
+
+/// Work of each ray, traced alone (the plain box test).
 pub fn ray_steps(mesh: &Mesh, bvh: &Bvh, rays: &[Ray]) -> Vec<RaySteps> {
+    ray_steps_with(mesh, bvh, rays, false)
+}
+
+/// Work of each ray, traced alone, with the conservative box test when `conservative` (the
+/// kernels of methods whose [`crate::encoding::Method::conservative_traversal`] is true).
+pub fn ray_steps_with(mesh: &Mesh, bvh: &Bvh, rays: &[Ray], conservative: bool) -> Vec<RaySteps> {
     use rayon::prelude::*;
     rays.par_iter()
         .map(|r| {
-            let mut w = Walk::new(mesh, bvh, r);
+            let mut w = Walk::new(mesh, bvh, r, conservative);
             while w.current.is_some() {
                 w.step();
             }
@@ -182,7 +234,7 @@ pub fn step_stats(mesh: &Mesh, bvh: &Bvh, rays: &[Ray], width: usize) -> StepSta
     let groups: Vec<GroupTotals> = rays
         .par_chunks(width)
         .map(|group| {
-            let mut lanes: Vec<Walk> = group.iter().map(|r| Walk::new(mesh, bvh, r)).collect();
+            let mut lanes: Vec<Walk> = group.iter().map(|r| Walk::new(mesh, bvh, r, false)).collect();
             let (mut iters, mut inner, mut leaf, mut tris) = (0u64, 0u64, 0u64, 0u64);
             loop {
                 let active: Vec<usize> = (0..lanes.len()).filter(|&i| lanes[i].current.is_some()).collect();

@@ -53,7 +53,7 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         ),
         (_, BINDING_PROBE_NODES) => node(),
         (_, BINDING_PROBE_SLOT_IDS) => array_of(size_of::<u32>(), &[]),
-        ("mt", BINDING_PROBE_PRIMS) => {
+        ("mt" | "watertight", BINDING_PROBE_PRIMS) => {
             array_of(size_of::<MtTriangle>(), &[offset_of!(MtTriangle, v), offset_of!(MtTriangle, material)])
         }
         ("unit", BINDING_PROBE_PRIMS) => array_of(
@@ -117,7 +117,7 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         ("none", BINDING_RNG_PROBE_OUT) => array_of(32, &[0, 16]),
         (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
         // raycast's `clock` variant: shader-clock ticks per ray, read back as u32.
-        ("mt" | "unit" | "quad_mt" | "quad_unit", BINDING_CYCLES) => array_of(size_of::<u32>(), &[]),
+        ("mt" | "unit" | "quad_mt" | "quad_unit" | "watertight", BINDING_CYCLES) => array_of(size_of::<u32>(), &[]),
         ("none", BINDING_BSDF_PROBE_IN) => array_of(
             size_of::<ProbeIn>(),
             &[offset_of!(ProbeIn, wo), offset_of!(ProbeIn, material), offset_of!(ProbeIn, v), offset_of!(ProbeIn, pad)],
@@ -203,16 +203,16 @@ fn kernels_bind_what_the_host_provides() {
             // The BSDF probe reads only materials.
             ("bsdf_probe", _) => vec![BINDING_MATERIALS],
             ("rng_probe", _) => vec![],
-            ("raycast", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES],
+            ("raycast", "mt" | "watertight") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES],
             // The driver's structure replaces ours; the BLAS primitive -> OBJ id table remains.
             ("rayquery", _) => vec![BINDING_SLOT_IDS],
             // The path tracer shades by slot and never reads the slot -> OBJ id table.
-            ("pathtrace", "mt") => {
+            ("pathtrace", "mt" | "watertight") => {
                 vec![BINDING_NODES, BINDING_PRIMS, BINDING_INDICES, BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS]
             }
             ("pathtrace", _) => vec![BINDING_NODES, BINDING_PRIMS, BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS],
             // The MT probe loads triangles (index triples), not vertices.
-            ("probe", "mt") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_INDICES],
+            ("probe", "mt" | "watertight") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_INDICES],
             _ => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS],
         };
         let accels = if k.kernel == "rayquery" { vec![BINDING_TLAS] } else { vec![] };

@@ -91,6 +91,12 @@ impl Method {
         }
     }
 
+    /// Whether the kernels traverse with the conservative box test (`CONSERVATIVE_TRAVERSAL` in
+    /// `glsl/traverse.glsl`, defined by the intersector).
+    pub fn conservative_traversal(self) -> bool {
+        self == Method::Watertight
+    }
+
     pub fn encode(self, mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
         match self {
             Method::Mt => mt::encode(mesh, bvh),
