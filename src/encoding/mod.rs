@@ -6,16 +6,20 @@
 //! | [`Method::Unit`] | Woop's affine map to the unit triangle, 3 x vec4 (48 B) | triangle slot |
 //! | [`Method::QuadMt`] | 4 triangles' vertices in SoA form (144 B per quad) | quad |
 //! | [`Method::QuadUnit`] | 4 triangles' affine maps in SoA form (192 B per quad) | quad |
+//! | [`Method::BaldwinWeber`] | Baldwin & Weber's map: 9 coefficients + fixed column, 3 x vec4 (48 B) | triangle slot |
+//! | [`Method::F64`] | MT's layout; the kernel widens to double (a GPU reference, needs `shaderFloat64`) | triangle slot |
 //!
 //! Every encoding also uploads the nodes (32 B each) and a slot -> OBJ triangle id table
 //! (4 B per slot), so hits report OBJ ids whatever order the BVH stores triangles in.
 //! Adding a method: one `glsl/intersect/<name>.glsl`, one [`Method`] arm, one encoder here.
 
+mod baldwin_weber;
 mod mt;
 mod quad_mt;
 mod quad_unit;
 mod unit;
 
+pub use baldwin_weber::{bw_transform, BwTriangle, BW_NEVER_HIT, BW_PAD};
 pub use mt::MtTriangle;
 pub use quad_mt::QuadMt;
 pub use quad_unit::QuadUnit;
@@ -39,10 +43,20 @@ pub enum Method {
     QuadMt,
     /// Woop's unit-triangle test on four triangles at once (SoA quads).
     QuadUnit,
+    /// Baldwin & Weber's precomputed transformation with a fixed column, one triangle at a time.
+    BaldwinWeber,
+    /// Möller–Trumbore in double precision on MT's data: a GPU reference where the device has
+    /// `shaderFloat64` (elsewhere its kernels fail to create with `Error::Unsupported`).
+    F64,
 }
 
 impl Method {
-    pub const ALL: [Method; 4] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit];
+    /// Every method.
+    pub const ALL: [Method; 6] =
+        [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit, Method::BaldwinWeber, Method::F64];
+
+    /// The paper's four (Shumskiy & Parshin): what `trilab study` compares by default.
+    pub const PAPER: [Method; 4] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit];
 
     /// Command-line name.
     pub fn name(self) -> &'static str {
@@ -51,6 +65,8 @@ impl Method {
             Method::Unit => "unit",
             Method::QuadMt => "quad-mt",
             Method::QuadUnit => "quad-unit",
+            Method::BaldwinWeber => "baldwin-weber",
+            Method::F64 => "f64",
         }
     }
 
@@ -61,6 +77,8 @@ impl Method {
             Method::Unit => "unit",
             Method::QuadMt => "quad_mt",
             Method::QuadUnit => "quad_unit",
+            Method::BaldwinWeber => "baldwin_weber",
+            Method::F64 => "f64",
         }
     }
 
@@ -71,13 +89,15 @@ impl Method {
             Method::Unit => "Unit Triangle",
             Method::QuadMt => "Quad Moller-Trumbore",
             Method::QuadUnit => "Quad Unit Triangle",
+            Method::BaldwinWeber => "Baldwin-Weber",
+            Method::F64 => "Moller-Trumbore f64",
         }
     }
 
     /// Triangles tested together (the SIMD width of the intersector).
     pub fn group_size(self) -> usize {
         match self {
-            Method::Mt | Method::Unit => 1,
+            Method::Mt | Method::Unit | Method::BaldwinWeber | Method::F64 => 1,
             Method::QuadMt | Method::QuadUnit => 4,
         }
     }
@@ -88,6 +108,9 @@ impl Method {
             Method::Unit => unit::encode(mesh, bvh),
             Method::QuadMt => quad_mt::encode(mesh, bvh),
             Method::QuadUnit => quad_unit::encode(mesh, bvh),
+            Method::BaldwinWeber => baldwin_weber::encode(mesh, bvh),
+            // The f64 kernel reads MT's buffers (f32 vertices, widened exactly in the shader).
+            Method::F64 => EncodedScene { method: Method::F64, ..mt::encode(mesh, bvh) },
         }
     }
 }
@@ -174,13 +197,14 @@ impl EncodedScene {
     }
 
     /// The buffer of the method's primitive structs (`PRIM_STRUCT` in its intersector):
-    /// `MtTriangle` for MT, `UnitTriangle`, `QuadMt`, `QuadUnit` for the others.
+    /// `MtTriangle` for MT and f64, `UnitTriangle`, `QuadMt`, `QuadUnit`, `BwTriangle` for the others.
     pub fn prim_structs(&self) -> (&SceneBuffer, usize) {
         let (binding, size) = match self.method {
-            Method::Mt => (BINDING_INDICES, std::mem::size_of::<MtTriangle>()),
+            Method::Mt | Method::F64 => (BINDING_INDICES, std::mem::size_of::<MtTriangle>()),
             Method::Unit => (BINDING_PRIMS, std::mem::size_of::<UnitTriangle>()),
             Method::QuadMt => (BINDING_PRIMS, std::mem::size_of::<QuadMt>()),
             Method::QuadUnit => (BINDING_PRIMS, std::mem::size_of::<QuadUnit>()),
+            Method::BaldwinWeber => (BINDING_PRIMS, std::mem::size_of::<BwTriangle>()),
         };
         (self.prims.iter().find(|b| b.binding == binding).expect("every encoding has its primitive buffer"), size)
     }
@@ -299,5 +323,7 @@ mod tests {
         assert_eq!(mt.gpu_bytes(), nodes + 97 * 4 + m.positions.len() * 16 + 97 * 16);
         let unit = Method::Unit.encode(&m, &bvh);
         assert_eq!(unit.gpu_bytes(), nodes + 97 * 4 + 97 * 48);
+        assert_eq!(Method::BaldwinWeber.encode(&m, &bvh).gpu_bytes(), nodes + 97 * 4 + 97 * 48);
+        assert_eq!(Method::F64.encode(&m, &bvh).gpu_bytes(), mt.gpu_bytes());
     }
 }

@@ -38,6 +38,8 @@ fn colour(m: Method) -> RGBColor {
         Method::Unit => RGBColor(255, 127, 14),
         Method::QuadMt => RGBColor(44, 160, 44),
         Method::QuadUnit => RGBColor(214, 39, 40),
+        Method::BaldwinWeber => RGBColor(148, 103, 189),
+        Method::F64 => RGBColor(127, 127, 127),
     }
 }
 
