@@ -21,6 +21,9 @@
 //! pattern that a texel fetch might flush); 3.0 marks a slot that is never hit (padding, or a
 //! triangle whose map is not representable), which the kernel skips before any arithmetic.
 //! Because `|n'0|` is the largest component of n, `plane.x` and `plane.y` lie in [-1, 1].
+//! The paper writes out the three cases separately, with the remaining coordinates in the order
+//! (y, z), (x, z), (x, y); the cyclic order here, (y, z), (z, x), (x, y), only swaps the y case's
+//! two coefficients and lets one code path with a swizzle serve all three cases.
 
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
