@@ -139,6 +139,7 @@ struct StudyArgs {
     /// Leaf sizes (default: 1,2,3,4,8,16).
     #[arg(long, value_delimiter = ',')]
     leaf_sizes: Vec<u32>,
+    /// Methods (default: the paper's four, mt,unit,quad-mt,quad-unit).
     #[arg(long, value_enum, value_delimiter = ',')]
     methods: Vec<Method>,
     /// Timed rounds after the warm-up round (default: the preset's).

@@ -8,7 +8,7 @@ use std::mem::{offset_of, size_of};
 use ash::vk;
 use trilab::bsdf::{ProbeIn, ProbeOut, ProbePush};
 use trilab::bvh::BvhNode;
-use trilab::encoding::{MtTriangle, QuadMt, QuadUnit, UnitTriangle};
+use trilab::encoding::{BwTriangle, MtTriangle, QuadMt, QuadUnit, UnitTriangle};
 use trilab::gpu::shared::*;
 use trilab::gpu::TraversalCounts;
 use trilab::kernels::KERNELS;
@@ -53,12 +53,16 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         ),
         (_, BINDING_PROBE_NODES) => node(),
         (_, BINDING_PROBE_SLOT_IDS) => array_of(size_of::<u32>(), &[]),
-        ("mt" | "watertight", BINDING_PROBE_PRIMS) => {
+        ("mt" | "watertight" | "f64", BINDING_PROBE_PRIMS) => {
             array_of(size_of::<MtTriangle>(), &[offset_of!(MtTriangle, v), offset_of!(MtTriangle, material)])
         }
         ("unit", BINDING_PROBE_PRIMS) => array_of(
             size_of::<UnitTriangle>(),
             &[offset_of!(UnitTriangle, row0), offset_of!(UnitTriangle, row1), offset_of!(UnitTriangle, row2)],
+        ),
+        ("baldwin_weber", BINDING_PROBE_PRIMS) => array_of(
+            size_of::<BwTriangle>(),
+            &[offset_of!(BwTriangle, plane), offset_of!(BwTriangle, u_row), offset_of!(BwTriangle, v_row)],
         ),
         ("quad_mt", BINDING_PROBE_PRIMS) => array_of(
             size_of::<QuadMt>(),
@@ -117,7 +121,9 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         ("none", BINDING_RNG_PROBE_OUT) => array_of(32, &[0, 16]),
         (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
         // raycast's `clock` variant: shader-clock ticks per ray, read back as u32.
-        ("mt" | "unit" | "quad_mt" | "quad_unit" | "watertight", BINDING_CYCLES) => array_of(size_of::<u32>(), &[]),
+        ("mt" | "unit" | "quad_mt" | "quad_unit" | "watertight" | "baldwin_weber" | "f64", BINDING_CYCLES) => {
+            array_of(size_of::<u32>(), &[])
+        }
         ("none", BINDING_BSDF_PROBE_IN) => array_of(
             size_of::<ProbeIn>(),
             &[offset_of!(ProbeIn, wo), offset_of!(ProbeIn, material), offset_of!(ProbeIn, v), offset_of!(ProbeIn, pad)],
@@ -203,16 +209,19 @@ fn kernels_bind_what_the_host_provides() {
             // The BSDF probe reads only materials.
             ("bsdf_probe", _) => vec![BINDING_MATERIALS],
             ("rng_probe", _) => vec![],
-            ("raycast", "mt" | "watertight") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES],
+            // watertight and f64 read MT's buffers.
+            ("raycast", "mt" | "watertight" | "f64") => {
+                vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES]
+            }
             // The driver's structure replaces ours; the BLAS primitive -> OBJ id table remains.
             ("rayquery", _) => vec![BINDING_SLOT_IDS],
             // The path tracer shades by slot and never reads the slot -> OBJ id table.
-            ("pathtrace", "mt" | "watertight") => {
+            ("pathtrace", "mt" | "watertight" | "f64") => {
                 vec![BINDING_NODES, BINDING_PRIMS, BINDING_INDICES, BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS]
             }
             ("pathtrace", _) => vec![BINDING_NODES, BINDING_PRIMS, BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS],
             // The MT probe loads triangles (index triples), not vertices.
-            ("probe", "mt" | "watertight") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_INDICES],
+            ("probe", "mt" | "watertight" | "f64") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_INDICES],
             _ => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS],
         };
         let accels = if k.kernel == "rayquery" { vec![BINDING_TLAS] } else { vec![] };

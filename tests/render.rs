@@ -133,7 +133,7 @@ fn white_furnace_renders_the_environment() {
 /// environment), and on the seven-BSDF box (glossy lobes, glass and a mirror magnify a change
 /// of direction, and a light makes shadow rays matter).
 #[test]
-fn four_methods_render_the_same_image() {
+fn every_method_renders_the_same_image() {
     let bunny_mesh = bunny();
     let box_mesh = trilab::scene::load_obj(&common::root().join("scenes/bsdfs.obj")).unwrap();
     let s_bunny = small(&bunny_mesh, 40, 30, 4);

@@ -7,17 +7,21 @@
 //! | [`Method::QuadMt`] | 4 triangles' vertices in SoA form (144 B per quad) | quad |
 //! | [`Method::QuadUnit`] | 4 triangles' affine maps in SoA form (192 B per quad) | quad |
 //! | [`Method::Watertight`] | as [`Method::Mt`] (the same buffers) | triangle slot |
+//! | [`Method::BaldwinWeber`] | Baldwin & Weber's map: 9 coefficients + fixed column, 3 x vec4 (48 B) | triangle slot |
+//! | [`Method::F64`] | MT's layout; the kernel widens to double (a GPU reference, needs `shaderFloat64`) | triangle slot |
 //!
 //! Every encoding also uploads the nodes (32 B each) and a slot -> OBJ triangle id table
 //! (4 B per slot), so hits report OBJ ids whatever order the BVH stores triangles in.
 //! Adding a method: one `glsl/intersect/<name>.glsl`, one [`Method`] arm, one encoder here.
 
+mod baldwin_weber;
 mod mt;
 mod quad_mt;
 mod quad_unit;
 mod unit;
 mod watertight;
 
+pub use baldwin_weber::{bw_transform, BwTriangle, BW_NEVER_HIT, BW_PAD};
 pub use mt::MtTriangle;
 pub use quad_mt::QuadMt;
 pub use quad_unit::QuadUnit;
@@ -43,11 +47,26 @@ pub enum Method {
     QuadUnit,
     /// Woop, Benthin & Wald's watertight test (JCGT 2013), one triangle at a time, on MT's data.
     Watertight,
+    /// Baldwin & Weber's precomputed transformation with a fixed column, one triangle at a time.
+    BaldwinWeber,
+    /// Möller–Trumbore in double precision on MT's data: a GPU reference where the device has
+    /// `shaderFloat64` (elsewhere its kernels fail to create with `Error::Unsupported`).
+    F64,
 }
 
 impl Method {
-    pub const ALL: [Method; 5] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit, Method::Watertight];
-    /// The paper's four methods (the default of `trilab study`).
+    /// Every method.
+    pub const ALL: [Method; 7] = [
+        Method::Mt,
+        Method::Unit,
+        Method::QuadMt,
+        Method::QuadUnit,
+        Method::Watertight,
+        Method::BaldwinWeber,
+        Method::F64,
+    ];
+
+    /// The paper's four (Shumskiy & Parshin): what `trilab study` compares by default.
     pub const PAPER: [Method; 4] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit];
 
     /// Command-line name.
@@ -58,6 +77,8 @@ impl Method {
             Method::QuadMt => "quad-mt",
             Method::QuadUnit => "quad-unit",
             Method::Watertight => "watertight",
+            Method::BaldwinWeber => "baldwin-weber",
+            Method::F64 => "f64",
         }
     }
 
@@ -69,6 +90,8 @@ impl Method {
             Method::QuadMt => "quad_mt",
             Method::QuadUnit => "quad_unit",
             Method::Watertight => "watertight",
+            Method::BaldwinWeber => "baldwin_weber",
+            Method::F64 => "f64",
         }
     }
 
@@ -80,13 +103,15 @@ impl Method {
             Method::QuadMt => "Quad Moller-Trumbore",
             Method::QuadUnit => "Quad Unit Triangle",
             Method::Watertight => "Watertight",
+            Method::BaldwinWeber => "Baldwin-Weber",
+            Method::F64 => "Moller-Trumbore f64",
         }
     }
 
     /// Triangles tested together (the SIMD width of the intersector).
     pub fn group_size(self) -> usize {
         match self {
-            Method::Mt | Method::Unit | Method::Watertight => 1,
+            Method::Mt | Method::Unit | Method::Watertight | Method::BaldwinWeber | Method::F64 => 1,
             Method::QuadMt | Method::QuadUnit => 4,
         }
     }
@@ -104,6 +129,9 @@ impl Method {
             Method::QuadMt => quad_mt::encode(mesh, bvh),
             Method::QuadUnit => quad_unit::encode(mesh, bvh),
             Method::Watertight => watertight::encode(mesh, bvh),
+            Method::BaldwinWeber => baldwin_weber::encode(mesh, bvh),
+            // The f64 kernel reads MT's buffers (f32 vertices, widened exactly in the shader).
+            Method::F64 => EncodedScene { method: Method::F64, ..mt::encode(mesh, bvh) },
         }
     }
 }
@@ -190,13 +218,14 @@ impl EncodedScene {
     }
 
     /// The buffer of the method's primitive structs (`PRIM_STRUCT` in its intersector):
-    /// `MtTriangle` for MT and watertight, `UnitTriangle`, `QuadMt`, `QuadUnit` for the others.
+    /// `MtTriangle` for MT, watertight and f64, `UnitTriangle`, `QuadMt`, `QuadUnit`, `BwTriangle` for the others.
     pub fn prim_structs(&self) -> (&SceneBuffer, usize) {
         let (binding, size) = match self.method {
-            Method::Mt | Method::Watertight => (BINDING_INDICES, std::mem::size_of::<MtTriangle>()),
+            Method::Mt | Method::Watertight | Method::F64 => (BINDING_INDICES, std::mem::size_of::<MtTriangle>()),
             Method::Unit => (BINDING_PRIMS, std::mem::size_of::<UnitTriangle>()),
             Method::QuadMt => (BINDING_PRIMS, std::mem::size_of::<QuadMt>()),
             Method::QuadUnit => (BINDING_PRIMS, std::mem::size_of::<QuadUnit>()),
+            Method::BaldwinWeber => (BINDING_PRIMS, std::mem::size_of::<BwTriangle>()),
         };
         (self.prims.iter().find(|b| b.binding == binding).expect("every encoding has its primitive buffer"), size)
     }
@@ -315,5 +344,7 @@ mod tests {
         assert_eq!(mt.gpu_bytes(), nodes + 97 * 4 + m.positions.len() * 16 + 97 * 16);
         let unit = Method::Unit.encode(&m, &bvh);
         assert_eq!(unit.gpu_bytes(), nodes + 97 * 4 + 97 * 48);
+        assert_eq!(Method::BaldwinWeber.encode(&m, &bvh).gpu_bytes(), nodes + 97 * 4 + 97 * 48);
+        assert_eq!(Method::F64.encode(&m, &bvh).gpu_bytes(), mt.gpu_bytes());
     }
 }

@@ -38,6 +38,9 @@ pub struct ContextOptions {
     /// Enable ray query where the device has it (default); `false` leaves it off, as on a
     /// device without it (tests of the "unsupported" path).
     pub ray_query: bool,
+    /// Enable `shaderFloat64` where the device has it (default); `false` leaves it off, as on a
+    /// device without it (tests of the f64 kernel's "unsupported" path).
+    pub shader_float64: bool,
 }
 
 impl Default for ContextOptions {
@@ -47,6 +50,7 @@ impl Default for ContextOptions {
             validation: if cfg!(debug_assertions) { Validation::IfAvailable } else { Validation::Off },
             submit_timeout: Duration::from_secs(120),
             ray_query: true,
+            shader_float64: true,
         }
     }
 }
@@ -246,6 +250,7 @@ impl Context {
         // device has them (DeviceInfo says which); `Context::enabled` tells callers which are on.
         let mut enabled = EnabledFeatures::for_device(&info);
         enabled.ray_query &= options.ray_query;
+        enabled.shader_float64 &= options.shader_float64;
         let mut ext_names: Vec<*const std::ffi::c_char> = Vec::new();
         let core = vk::PhysicalDeviceFeatures::default()
             .pipeline_statistics_query(enabled.pipeline_statistics_query)

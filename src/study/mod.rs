@@ -79,6 +79,7 @@ impl StudyOptions {
             preset,
             scenes: scenes(&["bunny", "dragon", "buddha"]),
             leaf_sizes: PAPER_LEAF_SIZES.to_vec(),
+            // The paper's four; `--methods` adds the others (watertight, Baldwin-Weber, f64).
             methods: Method::PAPER.to_vec(),
             width: 800,
             height: 600,

@@ -39,6 +39,8 @@ fn colour(m: Method) -> RGBColor {
         Method::QuadMt => RGBColor(44, 160, 44),
         Method::QuadUnit => RGBColor(214, 39, 40),
         Method::Watertight => RGBColor(148, 103, 189),
+        Method::BaldwinWeber => RGBColor(140, 86, 75),
+        Method::F64 => RGBColor(127, 127, 127),
     }
 }
 
