@@ -43,6 +43,8 @@ pub enum Method {
 
 impl Method {
     pub const ALL: [Method; 4] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit];
+    /// The paper's four methods (the default of `trilab study`).
+    pub const PAPER: [Method; 4] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit];
 
     /// Command-line name.
     pub fn name(self) -> &'static str {

@@ -79,7 +79,7 @@ impl StudyOptions {
             preset,
             scenes: scenes(&["bunny", "dragon", "buddha"]),
             leaf_sizes: PAPER_LEAF_SIZES.to_vec(),
-            methods: Method::ALL.to_vec(),
+            methods: Method::PAPER.to_vec(),
             width: 800,
             height: 600,
             spp: 500,
