@@ -98,16 +98,16 @@ impl AccuracyOptions {
             preset,
             methods: Method::ALL.to_vec(),
             leaf_sizes: crate::study::PAPER_LEAF_SIZES.to_vec(),
-            leak_rays: 100_000,
+            leak_rays: 400_000,
             origins: 64,
             fine_meshes: true,
-            silhouette_rays: 20_000,
+            silhouette_rays: 50_000,
             self_rays: 100_000,
             schemes: Offset::ALL.to_vec(),
             self_scales: (-8..=8).collect(),
-            extreme_rays: 20_000,
-            bench_width: 400,
-            bench_height: 300,
+            extreme_rays: 100_000,
+            bench_width: 800,
+            bench_height: 600,
             repeat: 3,
             real_scenes: vec![PathBuf::from("scenes/bunny.obj")],
             seed: 7,
@@ -184,6 +184,11 @@ pub struct SelfHitRow {
     pub self_hits: usize,
     /// Secondary rays that hit any triangle at t < 1e-4 of the scene's extent.
     pub near_hits: usize,
+    /// Secondary rays spawned on the inside of the closed mesh (their primary came from a
+    /// proven-inside origin) that hit nothing: the offset pushed the origin out through the
+    /// surface (or a leak). Of `inside_rays`.
+    pub escaped: usize,
+    pub inside_rays: usize,
     pub nan: usize,
 }
 
@@ -238,8 +243,20 @@ struct Tracer {
     kernel: Kernel,
 }
 
+/// Methods the device cannot run, with the reason.
+type Unsupported = Vec<(Method, String)>;
+
+/// Every leak ray of one (method, leaf size) with its GPU and reference hits, for the error rows.
+struct ErrorSample {
+    method: Method,
+    leaf: u32,
+    rays: Vec<Ray>,
+    hits: Vec<Hit>,
+    refs: Vec<RefHit>,
+}
+
 /// Kernels for `methods`; `Error::Unsupported` ones are returned separately, not as errors.
-fn tracers(ctx: &Context, methods: &[Method]) -> Result<(Vec<Tracer>, Vec<(Method, String)>)> {
+fn tracers(ctx: &Context, methods: &[Method]) -> Result<(Vec<Tracer>, Unsupported)> {
     let mut ok = Vec::new();
     let mut unsupported = Vec::new();
     for &method in methods {
@@ -414,7 +431,7 @@ fn leaks_and_false_hits(
         }
     }
     // Per leaf size and method: (all leak rays' GPU hits, reference hits) for the error rows.
-    let mut errors: Vec<(Method, u32, Vec<Ray>, Vec<Hit>, Vec<RefHit>)> = Vec::new();
+    let mut errors: Vec<ErrorSample> = Vec::new();
     for scene in &scenes {
         report.meshes.push(scene.info.clone());
         if let Err(e) = &scene.info.closed {
@@ -485,22 +502,24 @@ fn leaks_and_false_hits(
                         });
                     }
                 }
-                let e = match errors.iter_mut().find(|e| e.0 == t.method && e.1 == leaf) {
-                    Some(e) => e,
+                let pos = match errors.iter().position(|e| e.method == t.method && e.leaf == leaf) {
+                    Some(p) => p,
                     None => {
-                        errors.push((t.method, leaf, vec![], vec![], vec![]));
-                        errors.last_mut().expect("just pushed")
+                        errors.push(ErrorSample { method: t.method, leaf, rays: vec![], hits: vec![], refs: vec![] });
+                        errors.len() - 1
                     }
                 };
-                e.2.extend_from_slice(&rays[..leak_count]);
-                e.3.extend_from_slice(&hits[..leak_count]);
-                e.4.extend_from_slice(&ref_hits[..leak_count]);
+                let e = &mut errors[pos];
+                e.rays.extend_from_slice(&rays[..leak_count]);
+                e.hits.extend_from_slice(&hits[..leak_count]);
+                e.refs.extend_from_slice(&ref_hits[..leak_count]);
                 progress(&format!("{} leaf {leaf} {}: {leaks} leaks in {leak_count} rays", scene.name, t.method));
             }
         }
     }
-    for (method, leaf_size, rays, hits, refs) in errors {
-        report.errors.push(ErrorRow { method, leaf_size, tally: Tally::of(&rays, &hits, &refs, true, &[]) });
+    for e in errors {
+        let tally = Tally::of(&e.rays, &e.hits, &e.refs, true, &[]);
+        report.errors.push(ErrorRow { method: e.method, leaf_size: e.leaf, tally });
     }
     Ok(())
 }
@@ -532,6 +551,7 @@ fn self_intersection(
     let (origins, _) = probes::inside_origins(&cm, &mesh, place, 16, rng);
     let extra = n / 50 + 16;
     let mut primary = probes::leak_rays(&mesh, &origins, LeakKind::Random, (n + extra) / 2, rng);
+    let inside = primary.len();
     for _ in 0..(n + extra) - primary.len() {
         let from = rng.direction() * 3.0;
         let to = rng.in_ball() * cm.inner_radius;
@@ -543,7 +563,7 @@ fn self_intersection(
     for t in tracers {
         let (hits, _) = cast(ctx, t, &mesh, &bvh, &primary)?;
         let mut points = Vec::with_capacity(n);
-        for (r, h) in primary.iter().zip(&hits) {
+        for (i, (r, h)) in primary.iter().zip(&hits).enumerate() {
             if points.len() == n {
                 break;
             }
@@ -555,12 +575,12 @@ fn self_intersection(
             // The side the incoming ray came from.
             let nrm = if g.dot(Vec3::from_array(r.dir)) > 0.0 { -g } else { g };
             let sp = SurfacePoint { vertices, u: h.u, v: h.v, n: nrm };
-            points.push((h.id, sp, cosine_direction(nrm, rng)));
+            points.push((h.id, i < inside, sp, cosine_direction(nrm, rng)));
         }
         for &scheme in schemes {
             let rays: Vec<Ray> = points
                 .iter()
-                .map(|(_, sp, d)| Ray {
+                .map(|(_, _, sp, d)| Ray {
                     origin: scheme.apply(sp).to_array(),
                     tmin: 0.0,
                     dir: d.to_array(),
@@ -576,10 +596,13 @@ fn self_intersection(
                 rays: rays.len(),
                 self_hits: 0,
                 near_hits: 0,
+                escaped: 0,
+                inside_rays: points.iter().filter(|p| p.1).count(),
                 nan: 0,
             };
-            for ((id, _, _), h) in points.iter().zip(&sec) {
+            for ((id, from_inside, _, _), h) in points.iter().zip(&sec) {
                 if h.id == MISS_ID {
+                    row.escaped += *from_inside as usize;
                     continue;
                 }
                 row.self_hits += (h.id == *id) as usize;

@@ -39,6 +39,7 @@ struct CsvRow {
     bary_max: Option<f64>,
     self_hits: Option<usize>,
     near_hits: Option<usize>,
+    escaped: Option<usize>,
     mrays_per_s: Option<f64>,
     mrays_per_s_min: Option<f64>,
     mrays_per_s_max: Option<f64>,
@@ -115,6 +116,7 @@ pub fn csv(report: &AccuracyReport) -> Result<String> {
             nan: Some(r.nan),
             self_hits: Some(r.self_hits),
             near_hits: Some(r.near_hits),
+            escaped: Some(r.escaped),
             ..Default::default()
         });
     }
@@ -301,6 +303,33 @@ pub fn self_hits_table(report: &AccuracyReport) -> Table {
     t
 }
 
+/// Escaped secondary rays (spawned inside the closed icosphere, hit nothing) per method x
+/// scheme and scale: the offset pushed the origin through the surface.
+pub fn escaped_table(report: &AccuracyReport) -> Table {
+    let mut scales: Vec<i32> = report.self_hits.iter().map(|r| r.scale_exp).collect();
+    scales.sort_unstable();
+    scales.dedup();
+    let mut head = vec!["method".to_string(), "scheme".into()];
+    head.extend(scales.iter().map(|k| format!("1e{k}")));
+    let mut t = Table::new(head);
+    for m in methods(report) {
+        for scheme in Offset::ALL {
+            let rows: Vec<_> = report.self_hits.iter().filter(|r| r.method == m && r.scheme == scheme).collect();
+            if rows.is_empty() {
+                continue;
+            }
+            let mut cells = vec![m.to_string(), scheme.name().to_string()];
+            for k in &scales {
+                cells.push(
+                    rows.iter().find(|r| r.scale_exp == *k).map_or_else(|| "-".into(), |r| r.escaped.to_string()),
+                );
+            }
+            t.row(cells);
+        }
+    }
+    t
+}
+
 /// One extremes table for `kind`.
 pub fn extremes_table(report: &AccuracyReport, kind: &str) -> Table {
     let mut t = Table::new([
@@ -465,6 +494,13 @@ pub fn markdown(report: &AccuracyReport, plots: &[Plot]) -> String {
              the scene's extent). Recommended scheme: **{}** (`offset::RECOMMENDED`).\n\n{}",
             RECOMMENDED.name(),
             self_hits_table(report).to_markdown()
+        );
+        let inside = report.self_hits.iter().map(|r| r.inside_rays).min().unwrap_or(0);
+        let _ = writeln!(
+            s,
+            "Escaped: of the secondary rays spawned on the inside of the closed icosphere (at least {inside} per \
+             cell), those that hit nothing, so the offset moved the origin out through the surface.\n\n{}",
+            escaped_table(report).to_markdown()
         );
     }
     if !report.extremes.is_empty() {
