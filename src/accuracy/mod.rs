@@ -4,8 +4,9 @@
 //! - **Leaks** ([`closed`], [`probes`]): rays from origins proven inside closed meshes (winding
 //!   number in f64 on the rounded f32 mesh), towards random directions, vertices and points on
 //!   shared edges. Every one must hit; a miss is a leak. Reported per 10^6 rays.
-//! - **False hits**: rays aimed just outside silhouette edges (offset d x edge length, d from
-//!   1e-1 to 1e-7, in f64) that the f64 reference says miss; a GPU hit is a false hit.
+//! - **False hits**: rays aimed just outside silhouette edges (offset d x edge length across the
+//!   line of sight, d from 1e-1 to 1e-7, in f64) that the f64 reference says miss; a GPU hit is a
+//!   false hit.
 //! - **Errors** ([`metrics`]): where GPU and reference hit the same triangle, |t - t_ref| in f32
 //!   ULPs of t_ref and the barycentric error (median, p99, max).
 //! - **Self-intersection** ([`offset`]): secondary rays from hit points reconstructed from the

@@ -143,8 +143,8 @@ pub fn leak_rays(mesh: &Mesh, origins: &[Vec3], kind: LeakKind, n: usize, rng: &
 
 /// Rays aimed just outside silhouette edges of a closed mesh seen from `eye`: for each chosen
 /// silhouette edge (one adjacent triangle faces the eye, the other faces away), a point on it is
-/// moved by `d` x the edge length, in the front triangle's plane, perpendicular to the edge and
-/// away from the front triangle. Returned rays start at the eye; the caller keeps those the f64
+/// moved by `d` x the edge length, perpendicular to the edge and to the line of sight, away from
+/// the front triangle (both triangles lie on that side as seen from the eye). Returned rays start at the eye; the caller keeps those the f64
 /// reference says miss.
 pub fn silhouette_rays(mesh: &Mesh, eye: DVec3, d: f64, n: usize, rng: &mut Rng) -> Vec<Ray> {
     let normal = |t: u32| {
@@ -182,8 +182,12 @@ pub fn silhouette_rays(mesh: &Mesh, eye: DVec3, d: f64, n: usize, rng: &mut Rng)
             let pc = Vec3::from_array(mesh.positions[third as usize]).as_dvec3();
             let e = pb - pa;
             let m = pa + e * (0.2 + 0.6 * rng.unit());
-            let away = m - pc;
-            let w = (away - e * (away.dot(e) / e.length_squared())).normalize();
+            // Perpendicular to the edge and to the line of sight, away from the front triangle:
+            // the ray passes d x |e| from the edge's line, measured across the ray. (An offset in
+            // the front triangle's plane would shrink to d |e| sin(angle) for the nearly edge-on
+            // triangles that silhouettes have.)
+            let w = e.cross(m - eye).normalize();
+            let w = if w.dot(pc - m) > 0.0 { -w } else { w };
             let target = m + w * (d * e.length());
             ray64(origin, target - origin)
         })

@@ -473,8 +473,8 @@ pub fn markdown(report: &AccuracyReport, plots: &[Plot]) -> String {
         );
         let _ = writeln!(
             s,
-            "## False hits\n\nRays aimed at points d x edge length outside silhouette edges (from a viewpoint \
-             outside), kept where the f64 reference misses; cells are GPU hits / rays.\n\n{}",
+            "## False hits\n\nRays aimed at points d x edge length outside silhouette edges, across the line of \
+             sight (from a viewpoint outside), kept where the f64 reference misses; cells are GPU hits / rays.\n\n{}",
             false_hits_table(report).to_markdown()
         );
         let _ = writeln!(
