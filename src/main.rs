@@ -114,6 +114,31 @@ enum Cmd {
     /// shader-clock heat maps, executable statistics, subgroup/workgroup-size sweeps,
     /// LP_NUM_THREADS scaling; profile.md, profile.json and PNGs.
     Profile(ProfileArgs),
+    /// Intersection accuracy per method x leaf size: leaks on closed meshes, false hits,
+    /// t/barycentric error, self-intersection per offset scheme, extremes, and the speed frontier;
+    /// accuracy.csv/json/md and plots.
+    Accuracy(AccuracyArgs),
+}
+
+#[derive(Args)]
+struct AccuracyArgs {
+    /// full: the whole sweep (about 20 minutes on 2-core lavapipe); smoke: seconds, for CI.
+    #[arg(long, value_enum, default_value_t = trilab::accuracy::Preset::Full)]
+    preset: trilab::accuracy::Preset,
+    /// Default: every method (the smoke preset: the paper's four).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    methods: Vec<Method>,
+    /// Leaf sizes of the leak, false-hit and error tables (default: 1,2,3,4,8,16).
+    #[arg(long, value_delimiter = ',')]
+    leaf_sizes: Vec<u32>,
+    /// Leak rays per closed mesh and kind (default: the preset's).
+    #[arg(long)]
+    rays: Option<usize>,
+    /// Output directory. Default: results/<device>/accuracy/.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    gpu: GpuArgs,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -438,6 +463,7 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::BenchRender(a) => bench_render_cmd(a),
         Cmd::Study(a) => study_cmd(a),
         Cmd::Profile(a) => profile_cmd(a),
+        Cmd::Accuracy(a) => accuracy_cmd(a),
     }
 }
 
@@ -1192,6 +1218,31 @@ fn study_cmd(a: StudyArgs) -> Result<()> {
     eprintln!("study took {:.0} s; wrote:", report.seconds);
     for w in written {
         eprintln!("  {}", w.display());
+    }
+    Ok(())
+}
+
+fn accuracy_cmd(a: AccuracyArgs) -> Result<()> {
+    let mut o = trilab::accuracy::AccuracyOptions::preset(a.preset);
+    if !a.methods.is_empty() {
+        o.methods = a.methods.clone();
+    }
+    if !a.leaf_sizes.is_empty() {
+        o.leaf_sizes = a.leaf_sizes.clone();
+    }
+    for &l in &o.leaf_sizes {
+        check_leaf_size(l)?;
+    }
+    if let Some(n) = a.rays {
+        o.leak_rays = n;
+    }
+    let ctx = a.gpu.context()?;
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("results").join(ctx.info().results_dir()).join("accuracy"));
+    let t = std::time::Instant::now();
+    let report = trilab::accuracy::run(&ctx, &o, |m| eprintln!("  [{:5.0} s] {m}", t.elapsed().as_secs_f64()))?;
+    print!("{}", trilab::accuracy::table::frontier_table(&report).to_text());
+    for w in trilab::accuracy::write(&report, &out)? {
+        eprintln!("  wrote {}", w.display());
     }
     Ok(())
 }

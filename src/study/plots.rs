@@ -32,7 +32,7 @@ fn register_font() {
     });
 }
 
-fn colour(m: Method) -> RGBColor {
+pub(crate) fn colour(m: Method) -> RGBColor {
     match m {
         Method::Mt => RGBColor(31, 119, 180),
         Method::Unit => RGBColor(255, 127, 14),
@@ -53,12 +53,12 @@ const SCENE_COLOURS: [RGBColor; 6] = [
     RGBColor(140, 86, 75),
 ];
 
-fn plot_err(what: &str, e: impl std::fmt::Display) -> Error {
+pub(crate) fn plot_err(what: &str, e: impl std::fmt::Display) -> Error {
     Error::Usage(format!("drawing the {what} plot: {e}"))
 }
 
 /// Draws `panels` side by side with `draw(area, panel index)` and writes the PNG atomically.
-fn render_png(
+pub(crate) fn render_png(
     path: &Path,
     panels: usize,
     what: &str,
@@ -82,7 +82,7 @@ fn render_png(
 }
 
 /// The legend every plot draws, at `pos`.
-fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+pub(crate) fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
     chart: &mut ChartContext<'a, DB, CT>,
     pos: SeriesLabelPosition,
     what: &str,
