@@ -8,6 +8,7 @@
 //! The kernels live in `glsl/`; [`kernels`] embeds their SPIR-V and [`spirv`] counts and
 //! reflects it.
 
+pub mod analyze;
 pub mod bench;
 pub mod bsdf;
 pub mod bvh;
