@@ -9,6 +9,7 @@
 //! reflects it.
 
 pub mod accuracy;
+pub mod analyze;
 pub mod bench;
 pub mod bsdf;
 pub mod bvh;

@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use serde_json::json;
 
+use trilab::analyze::MethodChoice;
 use trilab::bench::{self, BenchOptions};
 use trilab::bvh::{BuildOptions, Builder, Bvh, LeafPolicy, MAX_LEAF_SIZE};
 use trilab::compare::{compare_any, compare_closest};
@@ -118,6 +119,10 @@ enum Cmd {
     /// t/barycentric error, self-intersection per offset scheme, extremes, and the speed frontier;
     /// accuracy.csv/json/md and plots.
     Accuracy(AccuracyArgs),
+    /// A scene's numerical conditioning (coordinate magnitude against edge length, smallest
+    /// edge, slivers, distance from the origin) and the cheapest method, offset scheme and
+    /// placement that meet an accuracy target on it.
+    Analyze(AnalyzeArgs),
 }
 
 #[derive(Args)]
@@ -137,6 +142,26 @@ struct AccuracyArgs {
     /// Output directory. Default: results/<device>/accuracy/.
     #[arg(long)]
     out: Option<PathBuf>,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+#[derive(Args)]
+struct AnalyzeArgs {
+    #[arg(long)]
+    scene: PathBuf,
+    /// Target: most leaks per 10^6 rays on closed meshes (rays at shared edges and vertices
+    /// included), as `trilab accuracy` measures them.
+    #[arg(long, default_value_t = 0.0)]
+    max_leaks_per_million: f64,
+    /// Target: largest 99th-percentile t error, in f32 ULPs of t.
+    #[arg(long, default_value_t = 4.0)]
+    max_t_ulps: f64,
+    /// `frontier.csv` from `trilab accuracy` on your device (default: the committed lavapipe one).
+    #[arg(long)]
+    frontier: Option<PathBuf>,
+    #[arg(long)]
+    json: bool,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -256,8 +281,15 @@ struct RaycastArgs {
     /// Hit file to write (../shared/formats.md).
     #[arg(long)]
     out: PathBuf,
-    #[arg(long, value_enum, default_value_t = Method::Mt)]
-    method: Method,
+    /// Intersection method, or `auto`: the cheapest that meets the default accuracy target on
+    /// this scene (see `trilab analyze`); what it picked and why goes to stderr and the JSON.
+    #[arg(long, default_value = "mt")]
+    method: MethodChoice,
+    /// Translate the scene to its bounding-box centre, and the ray origins with it, in f64
+    /// before rounding to f32 and uploading (t, ids and barycentrics are unchanged in exact
+    /// arithmetic; `trilab analyze` says when this helps).
+    #[arg(long)]
+    recentre: bool,
     /// Trace with a peer instead of our kernels: `ray-query` is the driver's own ray tracing
     /// (VK_KHR_ray_query through its acceleration structure, built from the same triangles).
     /// Not a method: it uses none of our BVH, so the BVH options only shape the f64 reference.
@@ -376,8 +408,10 @@ struct BenchRenderArgs {
 struct RenderArgs {
     #[arg(long)]
     scene: PathBuf,
-    #[arg(long, value_enum, default_value_t = Method::Mt)]
-    method: Method,
+    /// Intersection method, or `auto`: the cheapest that meets the default accuracy target on
+    /// this scene (see `trilab analyze`); what it picked and why goes to stderr and the JSON.
+    #[arg(long, default_value = "mt")]
+    method: MethodChoice,
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
     #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
@@ -464,6 +498,7 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Study(a) => study_cmd(a),
         Cmd::Profile(a) => profile_cmd(a),
         Cmd::Accuracy(a) => accuracy_cmd(a),
+        Cmd::Analyze(a) => analyze_cmd(a),
     }
 }
 
@@ -530,8 +565,14 @@ fn make_rays(kind: RaysCmd) -> Result<()> {
 fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     check_leaf_size(a.leaf_size)?;
     trilab::io::ensure_not_input(&a.out, &[&a.scene, &a.rays])?;
-    let mesh = load_obj(&a.scene)?;
-    let rays = rays::read_rays(&a.rays)?;
+    let mut mesh = load_obj(&a.scene)?;
+    let mut rays = rays::read_rays(&a.rays)?;
+    if a.recentre {
+        let (m, shift) = trilab::analyze::recentre(&mesh);
+        trilab::analyze::recentre_rays(&mut rays, shift);
+        eprintln!("trilab: recentred: scene and ray origins translated by -({}, {}, {})", shift.x, shift.y, shift.z);
+        mesh = m;
+    }
     check_sah_group(a.sah_group)?;
     let bvh = Bvh::build(
         &mesh,
@@ -539,6 +580,8 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     );
     let opts = RaycastOptions { warmup: 1, repeat: a.repeat.max(1), batch_rays: a.batch_rays };
     let ctx;
+    // The method that traced them (None for a peer) and, for `--method auto`, why.
+    let (mut method, mut auto) = (None, None);
     // What traced the rays: (label, bytes on the GPU, the driver's structure stats for a peer).
     let (res, tracer, scene_bytes, accel) = match a.peer {
         Some(Peer::RayQuery) => {
@@ -552,20 +595,21 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
             (res, Peer::RayQuery.to_string(), (s.blas_bytes + s.tlas_bytes) as usize, Some(s))
         }
         None => {
-            let encoded = a.method.encode(&mesh, &bvh);
+            ctx = a.gpu.context()?;
+            let (m, rec) = resolve_method(a.method, &mesh, &ctx)?;
+            (method, auto) = (Some(m), rec);
+            let encoded = m.encode(&mesh, &bvh);
             if !encoded.unrepresentable.is_empty() {
                 eprintln!(
-                    "trilab: warning: {} triangles cannot be represented by {} (their map overflows f32) and are never hit, e.g. id {}",
+                    "trilab: warning: {} triangles cannot be represented by {m} (their map overflows f32) and are never hit, e.g. id {}",
                     encoded.unrepresentable.len(),
-                    a.method,
                     encoded.unrepresentable[0]
                 );
             }
-            ctx = a.gpu.context()?;
-            let kernel = ctx.create_kernel(trilab::kernels::raycast(a.method, a.any_hit))?;
+            let kernel = ctx.create_kernel(trilab::kernels::raycast(m, a.any_hit))?;
             let scene = GpuScene::upload(&ctx, &encoded)?;
             let res = raycast(&ctx, &kernel, &scene, &rays, &opts)?;
-            (res, format!("{} leaf size {} ({})", a.method, a.leaf_size, a.leaf_policy), scene.bytes, None)
+            (res, format!("{m} leaf size {} ({})", a.leaf_size, a.leaf_policy), scene.bytes, None)
         }
     };
     rays::write_hits(&a.out, &res.hits)?;
@@ -599,13 +643,16 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     let info = ctx.info();
     if a.json {
         let out = json!({
-            "method": if a.peer.is_some() { None } else { Some(a.method) },
+            "method": method,
+            "method_choice": a.peer.is_none().then(|| a.method.to_string()),
+            "auto": auto,
             "peer": a.peer,
             "accel": accel,
             "leaf_size": a.leaf_size,
             "leaf_policy": a.leaf_policy.to_string(),
             "sah_group": a.sah_group,
             "any_hit": a.any_hit,
+            "recentred": a.recentre,
             "rays": rays.len(),
             "hits": hits,
             "kernel_ms": t.median,
@@ -1025,11 +1072,14 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         &mesh,
         &BuildOptions { leaf_policy: a.leaf_policy, sah_group: a.sah_group, ..BuildOptions::new(a.leaf_size) },
     );
-    let encoded = a.method.encode(&mesh, &bvh);
-    let scene = RenderScene::new(&mesh, &encoded);
     let build_ms = t_build.elapsed().as_secs_f64() * 1e3;
-    let kernel = PathtraceKernel::choose(a.method, scene.bsdf_mask, a.kernel);
     let ctx = a.gpu.context()?;
+    let (method, auto) = resolve_method(a.method, &mesh, &ctx)?;
+    let t_encode = std::time::Instant::now();
+    let encoded = method.encode(&mesh, &bvh);
+    let scene = RenderScene::new(&mesh, &encoded);
+    let build_ms = build_ms + t_encode.elapsed().as_secs_f64() * 1e3;
+    let kernel = PathtraceKernel::choose(method, scene.bsdf_mask, a.kernel);
     let gpu = GpuScene::upload_for(&ctx, &encoded, kernel.source)?;
 
     let interrupted = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -1062,7 +1112,9 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         "scene": a.scene.display().to_string(),
         "scene_sha256": pt::output::scene_hash(&mesh),
         "triangles": mesh.triangle_count(),
-        "method": a.method.name(),
+        "method": method.name(),
+        "method_choice": a.method.to_string(),
+        "auto": auto,
         "leaf_size": a.leaf_size,
         "leaf_policy": a.leaf_policy,
         "sah_group": a.sah_group,
@@ -1322,4 +1374,98 @@ fn profile_cmd(a: ProfileArgs) -> Result<()> {
     print!("{md}");
     println!("\nwrote {}", out.display());
     Ok(())
+}
+
+fn analyze_cmd(a: AnalyzeArgs) -> Result<()> {
+    use trilab::analyze::{self, Conditioning, Frontier, Target};
+    for (name, v) in [("--max-leaks-per-million", a.max_leaks_per_million), ("--max-t-ulps", a.max_t_ulps)] {
+        if !(v >= 0.0 && v.is_finite()) {
+            return Err(Error::Usage(format!("{name} {v}: must be a finite number >= 0")));
+        }
+    }
+    let mesh = load_obj(&a.scene)?;
+    let frontier = match &a.frontier {
+        Some(p) => Frontier::read(p)?,
+        None => Frontier::builtin(),
+    };
+    // The device only decides whether f64 is available; no device is needed to analyze.
+    let (available, device_note) = match Context::list_devices()
+        .ok()
+        .and_then(|l| trilab::gpu::context::choose_device(&l, a.gpu.device.as_deref()).ok().map(|i| l[i].clone()))
+    {
+        Some(info) => {
+            let f = trilab::gpu::EnabledFeatures::for_device(&info);
+            (analyze::available_methods(&f), format!("methods this device ({}) can run", info.name))
+        }
+        None => (Method::ALL.to_vec(), "no Vulkan device found: every method assumed available".to_owned()),
+    };
+    let target = Target { max_leaks_per_million: a.max_leaks_per_million, max_t_ulps: a.max_t_ulps };
+    let cond = Conditioning::of(&mesh);
+    let rec = analyze::recommend(&cond, &target, &frontier, &available, analyze::OFFSET_SCHEME);
+    if a.json {
+        let out = json!({
+            "scene": a.scene.display().to_string(),
+            "conditioning": cond,
+            "target": target,
+            "frontier": frontier,
+            "available_methods": available,
+            "recommendation": rec,
+        });
+        println!("{}", serde_json::to_string_pretty(&out).unwrap());
+        return Ok(());
+    }
+    println!("scene {} ({} triangles, {} degenerate)", a.scene.display(), cond.triangles, cond.degenerate);
+    let b = |v: [f64; 3]| format!("({:.6e}, {:.6e}, {:.6e})", v[0], v[1], v[2]);
+    println!("  bounds                 {} .. {}", b(cond.bounds_min), b(cond.bounds_max));
+    println!("  extent (largest side)  {:.6e}", cond.extent);
+    println!(
+        "  centre from origin     {:.6e} ({:.2}x the extent)",
+        cond.centre_distance,
+        cond.centre_distance / cond.extent.max(f64::MIN_POSITIVE)
+    );
+    println!("  max |coordinate|       {:.6e}  (f32 ULP there: {:.3e})", cond.max_abs_coord, cond.position_ulp);
+    println!("  edges min/median/max   {:.3e} / {:.3e} / {:.3e}", cond.edge_min, cond.edge_median, cond.edge_max);
+    println!("  magnitude / min edge   {:.3e}", cond.magnitude_over_edge);
+    println!(
+        "  f32 bits across the smallest edge: {:.1} as placed, {:.1} recentred",
+        cond.edge_bits, cond.edge_bits_recentred
+    );
+    println!(
+        "  sliver ratio (longest edge / shortest altitude) median {:.3}, p99 {:.3}, max {:.3e}",
+        cond.sliver_median, cond.sliver_p99, cond.sliver_max
+    );
+    println!(
+        "target: <= {} leaks per 10^6 rays, p99 t error <= {} ULPs; {device_note}: {}",
+        target.max_leaks_per_million,
+        target.max_t_ulps,
+        available.iter().map(|m| m.name()).collect::<Vec<_>>().join(", ")
+    );
+    println!(
+        "recommendation: --method {}, offset scheme {}, {}{}",
+        rec.method,
+        rec.offset_scheme,
+        if rec.recentre { "recentre the scene in f64 before upload" } else { "no recentring needed" },
+        if rec.meets_target { "" } else { " (the target is NOT met)" }
+    );
+    for r in &rec.reasons {
+        println!("  {r}");
+    }
+    Ok(())
+}
+
+/// Resolves `--method` (a method or `auto`) for `mesh` on `ctx`, saying on stderr what `auto`
+/// picked and why.
+fn resolve_method(
+    choice: MethodChoice,
+    mesh: &trilab::scene::Mesh,
+    ctx: &Context,
+) -> Result<(Method, Option<trilab::analyze::Recommendation>)> {
+    let (m, rec) = trilab::analyze::resolve(choice, mesh, &ctx.enabled(), None)?;
+    if let Some(r) = &rec {
+        eprintln!("trilab: --method auto picked {m}:");
+        for line in &r.reasons {
+            eprintln!("trilab:   {line}");
+        }
+    }
+    Ok((m, rec))
 }

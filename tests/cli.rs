@@ -285,3 +285,116 @@ fn steps_gpu_reports_kernel_counts_beside_the_mirror_and_bvh_reports_epo() {
         assert!(epo > 0.0 && epo < row["stats"]["sah_cost"].as_f64().unwrap(), "{row}");
     }
 }
+
+#[test]
+fn analyze_reports_conditioning_and_a_recommendation() {
+    let dir = tempfile::tempdir().unwrap();
+    // A 1x1 quad at the origin, and the same quad 1e5 away: the second should be recentred.
+    let near = tiny_scene(dir.path());
+    let far = dir.path().join("far.obj");
+    std::fs::write(&far, "v 1e5 1e5 1e5\nv 100001 1e5 1e5\nv 1e5 100001 1e5\nv 100001 100001 1e5\nf 1 2 3\nf 2 4 3\n")
+        .unwrap();
+    let o = trilab(&["analyze", "--scene", &near, "--json"], 60);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    assert_eq!(v["conditioning"]["triangles"], 2);
+    assert_eq!(v["conditioning"]["edge_min"], 1.0);
+    assert_eq!(v["recommendation"]["recentre"], false);
+    let method = v["recommendation"]["method"].as_str().unwrap().to_owned();
+    assert!(v["available_methods"].as_array().unwrap().iter().any(|m| m == method.as_str()), "{v}");
+    let o = trilab(&["analyze", "--scene", &s(&far), "--json"], 60);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["recommendation"]["recentre"], true, "{v}");
+    // ULP at 1e5 is 2^-7: 7 bits across a unit edge; recentred (magnitude 0.5): 24.
+    assert_eq!(v["conditioning"]["edge_bits"], 7.0);
+    assert_eq!(v["conditioning"]["edge_bits_recentred"], 24.0);
+    // The text form names the method and the reasons.
+    let o = trilab(&["analyze", "--scene", &s(&far)], 60);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("recommendation: --method") && text.contains("recentre"), "{text}");
+}
+
+#[test]
+fn analyze_refuses_bad_frontiers_and_targets() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = tiny_scene(dir.path());
+    let bad = dir.path().join("frontier.csv");
+    std::fs::write(&bad, "method,mrays_median,leaks_per_million,t_ulps_p99\nnot-a-method,1,0,0\n").unwrap();
+    expect_error(
+        &trilab(&["analyze", "--scene", &scene, "--frontier", &s(&bad)], 60),
+        &["frontier.csv:2", "not-a-method"],
+    );
+    expect_error(
+        &trilab(&["analyze", "--scene", &scene, "--frontier", &s(&dir.path().join("none.csv"))], 60),
+        &["none.csv"],
+    );
+    expect_error(&trilab(&["analyze", "--scene", &scene, "--max-t-ulps", "-1"], 60), &["--max-t-ulps"]);
+    expect_error(
+        &trilab(&["raycast", "--scene", &scene, "--rays", "x", "--out", "y", "--method", "fastest"], 60),
+        &["fastest", "auto"],
+    );
+}
+
+#[test]
+fn raycast_and_render_method_auto_say_what_they_picked() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = s(&common::root().join("scenes/bunny.obj"));
+    let rays = dir.path().join("r.rays");
+    let o = trilab(&["rays", "random", "--scene", &scene, "--out", &s(&rays), "--count", "2000", "--seed", "5"], 120);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let hits = dir.path().join("auto.hits");
+    let args = [
+        "raycast",
+        "--scene",
+        &scene,
+        "--rays",
+        &s(&rays),
+        "--out",
+        &s(&hits),
+        "--method",
+        "auto",
+        "--json",
+        "--validate",
+    ];
+    let o = trilab(&[&args[..], &["--validation", "--repeat", "1"]].concat(), 300);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["method_choice"], "auto");
+    assert_eq!(v["method"], v["auto"]["method"], "{v}");
+    assert_eq!(v["validation"]["passes"], true, "{v}");
+    assert!(stderr(&o).contains("--method auto picked"), "{}", stderr(&o));
+    // The recentred run: same rays moved with the scene, still validated against the reference.
+    let o = trilab(&[&args[..], &["--validation", "--repeat", "1", "--recentre"]].concat(), 300);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["recentred"], true);
+    assert_eq!(v["validation"]["passes"], true, "{v}");
+
+    let out = dir.path().join("auto.exr");
+    let o = trilab(
+        &[
+            "render",
+            "--scene",
+            &scene,
+            "--out",
+            &s(&out),
+            "--method",
+            "auto",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--spp",
+            "2",
+            "--quiet",
+            "--validation",
+        ],
+        300,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--method auto picked"), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("auto.json")).unwrap()).unwrap();
+    assert_eq!(j["method_choice"], "auto");
+    assert_eq!(j["method"], j["auto"]["method"], "{j}");
+}

@@ -200,6 +200,9 @@ pub struct ExtremeRow {
     pub method: Method,
     pub leaf_size: u32,
     pub triangles: usize,
+    /// The scene's largest |coordinate| over its largest side (`analyze::Conditioning`): how
+    /// far from the origin it sits in units of its own size (about 0.5 when centred).
+    pub magnitude_over_extent: f64,
     /// Triangles the encoding could not represent (replaced by never-hit padding).
     pub unrepresentable: usize,
     /// Whether every ray is proven to hit (closed mesh, inside origin).
@@ -631,6 +634,7 @@ fn extreme_case(
 ) -> Result<()> {
     let bvh = build(mesh, FIXED_LEAF);
     let ref_hits = Reference::new(mesh, &bvh).trace_all(rays, false);
+    let cond = crate::analyze::Conditioning::of(mesh);
     for t in tracers {
         let (hits, unrepresentable) = cast(ctx, t, mesh, &bvh, rays)?;
         report.extremes.push(ExtremeRow {
@@ -639,6 +643,7 @@ fn extreme_case(
             method: t.method,
             leaf_size: FIXED_LEAF,
             triangles: mesh.triangle_count(),
+            magnitude_over_extent: cond.max_abs_coord / cond.extent.max(f64::MIN_POSITIVE),
             unrepresentable,
             must_hit,
             tally: Tally::of(rays, &hits, &ref_hits, must_hit, degenerate),
@@ -793,6 +798,9 @@ pub fn write(report: &AccuracyReport, dir: &Path) -> Result<Vec<PathBuf>> {
         Ok(())
     };
     put("accuracy.csv", table::csv(report)?.into_bytes())?;
+    // What `trilab analyze --frontier` reads.
+    put("frontier.csv", table::frontier_csv(report)?.into_bytes())?;
+    put("translation.csv", table::translation_csv(report)?.into_bytes())?;
     let json = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(format!("accuracy.json: {e}")))?;
     put("accuracy.json", json.into_bytes())?;
     put("accuracy.md", table::markdown(report, &plots).into_bytes())?;

@@ -101,7 +101,7 @@ impl Offset {
     pub const ALL: [Offset; 5] =
         [Offset::None, Offset::FixedEpsilon, Offset::ScaleEpsilon, Offset::WaechterBinder, Offset::PbrtV4];
 
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             Offset::None => "none",
             Offset::FixedEpsilon => "fixed-epsilon",

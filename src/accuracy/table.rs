@@ -368,6 +368,74 @@ pub fn extremes_table(report: &AccuracyReport, kind: &str) -> Table {
     t
 }
 
+/// `frontier.csv`: per method, speed and accuracy on the centred closed meshes (the columns
+/// `analyze::Frontier` reads).
+pub fn frontier_csv(report: &AccuracyReport) -> Result<String> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let err = |e: csv::Error| Error::Usage(format!("frontier.csv: {e}"));
+    w.write_record([
+        "method",
+        "mrays_median",
+        "mrays_min",
+        "mrays_max",
+        "leaks_per_million",
+        "false_hits_per_million",
+        "t_ulps_median",
+        "t_ulps_p99",
+        "device",
+        "commit",
+    ])
+    .map_err(err)?;
+    for r in report.frontier.iter().filter(|r| r.mrays_per_s.is_some()) {
+        let s = r.mrays_per_s.expect("filtered");
+        w.write_record([
+            r.method.name().to_string(),
+            format!("{:.4}", s.median),
+            format!("{:.4}", s.min),
+            format!("{:.4}", s.max),
+            format!("{:.3}", r.leaks_per_million),
+            format!("{:.3}", r.false_hits_per_million),
+            format!("{:.4}", r.t_ulps_median),
+            format!("{:.4}", r.t_ulps_p99),
+            report.provenance.device.clone(),
+            report.provenance.commit.clone(),
+        ])
+        .map_err(err)?;
+    }
+    String::from_utf8(w.into_inner().map_err(|e| Error::Usage(format!("frontier.csv: {e}")))?)
+        .map_err(|e| Error::Usage(format!("frontier.csv: {e}")))
+}
+
+/// `translation.csv`: per method and translation of the closed mesh, how far from the origin it
+/// sat (largest |coordinate| over extent) and the leaks and t error there; `analyze` looks up a
+/// scene's own ratio in it.
+pub fn translation_csv(report: &AccuracyReport) -> Result<String> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let err = |e: csv::Error| Error::Usage(format!("translation.csv: {e}"));
+    w.write_record([
+        "method",
+        "translation",
+        "magnitude_over_extent",
+        "leaks_per_million",
+        "t_ulps_median",
+        "t_ulps_p99",
+    ])
+    .map_err(err)?;
+    for r in report.extremes.iter().filter(|r| r.kind == "translate") {
+        w.write_record([
+            r.method.name().to_string(),
+            r.param.clone(),
+            format!("{:.6e}", r.magnitude_over_extent),
+            format!("{:.3}", per_million(r.tally.leaks, r.tally.rays)),
+            format!("{:.4}", r.tally.t_ulps.median),
+            format!("{:.4}", r.tally.t_ulps.p99),
+        ])
+        .map_err(err)?;
+    }
+    String::from_utf8(w.into_inner().map_err(|e| Error::Usage(format!("translation.csv: {e}")))?)
+        .map_err(|e| Error::Usage(format!("translation.csv: {e}")))
+}
+
 pub fn frontier_table(report: &AccuracyReport) -> Table {
     let mut t = Table::new([
         "method",
