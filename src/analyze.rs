@@ -598,6 +598,40 @@ mod tests {
     }
 
     #[test]
+    fn a_method_is_judged_at_the_scene_s_distance_from_the_origin() {
+        let mut f = frontier();
+        let tp = |method, q, l, t| TranslationPoint {
+            method,
+            magnitude_over_extent: q,
+            leaks_per_million: l,
+            t_ulps_p99: t,
+        };
+        f.translation = vec![
+            tp(Method::Mt, 5.5, 30.0, 2.7),
+            tp(Method::Unit, 5.5, 180.0, 20.0),
+            tp(Method::Mt, 50.0, 20.0, 2.7),
+            tp(Method::Unit, 50.0, 190.0, 200.0),
+        ];
+        let unit = &f.points[1];
+        // Centred: the centred figures; at 3x: the 5.5 row (worse); beyond 50: unmeasured.
+        assert_eq!(f.at_magnitude(unit, 0.5), Some((90.0, 3.0)));
+        assert_eq!(f.at_magnitude(unit, 3.0), Some((180.0, 20.0)));
+        assert_eq!(f.at_magnitude(unit, 60.0), None);
+        // A scene 10 of its sizes from the origin that cannot be recentred profitably is not
+        // possible with a grid, so judge directly: with leaks allowed, unit is fastest when
+        // centred but rejected at 10x for its t error; MT is chosen.
+        let loose = Target { max_leaks_per_million: 1000.0, max_t_ulps: 4.0 };
+        let all = [Method::Mt, Method::Unit];
+        let centred = Conditioning::of(&grid([-0.5, -0.5, 0.0], 0.25, 4));
+        assert_eq!(recommend(&centred, &loose, &f, &all, "x").method, Method::Unit);
+        let mut far = Conditioning::of(&grid([-0.5, -0.5, 0.0], 0.25, 4));
+        far.max_abs_coord = 10.0; // as if 10 extents away, without recentring (centre_distance unchanged)
+        let r = recommend(&far, &loose, &f, &all, "x");
+        assert_eq!(r.method, Method::Mt, "{:?}", r.reasons);
+        assert!(r.reasons.iter().any(|x| x.contains("unit") && x.contains("200")), "{:?}", r.reasons);
+    }
+
+    #[test]
     fn an_unresolvable_scene_needs_f64() {
         // Edges of 1/64 at magnitude ~1e4 (ULP 2^-10): 4 bits; the scene spans ~1e4 so
         // recentring cannot help.

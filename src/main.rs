@@ -882,8 +882,8 @@ fn gpu_steps(a: &StepsArgs, mesh: &trilab::scene::Mesh, bvh: &Bvh, rays: &[rays:
             .collect()
     };
     let (cpu, cpu_conservative) = (mirror(false), mirror(true));
-    let methods = if a.methods.is_empty() { Method::ALL.to_vec() } else { a.methods.clone() };
     let ctx = a.gpu_args.context()?;
+    let methods = if a.methods.is_empty() { device_methods(&ctx) } else { a.methods.clone() };
     let mut rows = vec![];
     for m in methods {
         let kernel = ctx.create_kernel(trilab::kernels::raycast_stats(m))?;
@@ -978,6 +978,9 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         ..Default::default()
     };
     let ctx = a.gpu.context()?;
+    if a.methods.is_empty() {
+        o.methods = device_methods(&ctx);
+    }
     o.ray_query = match a.ray_query {
         RayQueryChoice::On => true,
         RayQueryChoice::Off => false,
@@ -1181,9 +1184,10 @@ fn bench_render_cmd(a: BenchRenderArgs) -> Result<()> {
     } else {
         a.scenes
     };
+    let ctx = a.gpu.context()?;
     let opts = pt::bench::RenderBenchOptions {
         scenes,
-        methods: if a.methods.is_empty() { Method::ALL.to_vec() } else { a.methods },
+        methods: if a.methods.is_empty() { device_methods(&ctx) } else { a.methods },
         kernels: a.kernels,
         leaf_size: a.leaf_size,
         width: a.width,
@@ -1193,7 +1197,6 @@ fn bench_render_cmd(a: BenchRenderArgs) -> Result<()> {
         env: None,
         repeat: a.repeat,
     };
-    let ctx = a.gpu.context()?;
     let report = pt::bench::run(&ctx, &opts, |m| eprintln!("  {m}"))?;
     let head = format!(
         "device: {} ({})\n{}x{}, {} spp, max depth {}, leaf size {}, median (min-max) of {} renders after a warm-up, {} time\n",
@@ -1347,9 +1350,10 @@ fn profile_cmd(a: ProfileArgs) -> Result<()> {
     } else {
         Some(std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e))?)
     };
+    let ctx = a.gpu.context()?;
     let o = ProfileOptions {
         scene: a.scene.clone(),
-        methods: if a.methods.is_empty() { Method::ALL.to_vec() } else { a.methods.clone() },
+        methods: if a.methods.is_empty() { device_methods(&ctx) } else { a.methods.clone() },
         leaf_size: a.leaf_size,
         width: a.width,
         height: a.height,
@@ -1363,7 +1367,6 @@ fn profile_cmd(a: ProfileArgs) -> Result<()> {
         exe,
         ..Default::default()
     };
-    let ctx = a.gpu.context()?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("results").join(ctx.info().results_dir()).join("profile"));
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;
@@ -1460,7 +1463,7 @@ fn resolve_method(
     mesh: &trilab::scene::Mesh,
     ctx: &Context,
 ) -> Result<(Method, Option<trilab::analyze::Recommendation>)> {
-    let (m, rec) = trilab::analyze::resolve(choice, mesh, &ctx.enabled(), None)?;
+    let (m, rec) = trilab::analyze::resolve(choice, mesh, ctx.enabled(), None)?;
     if let Some(r) = &rec {
         eprintln!("trilab: --method auto picked {m}:");
         for line in &r.reasons {
@@ -1468,4 +1471,10 @@ fn resolve_method(
         }
     }
     Ok((m, rec))
+}
+
+/// Every method this device can run: the default of `bench`, `bench-render`, `profile` and
+/// `steps --gpu` (f64 needs shaderFloat64; elsewhere it is left out rather than failing).
+fn device_methods(ctx: &Context) -> Vec<Method> {
+    trilab::analyze::available_methods(ctx.enabled())
 }

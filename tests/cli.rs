@@ -289,8 +289,10 @@ fn steps_gpu_reports_kernel_counts_beside_the_mirror_and_bvh_reports_epo() {
 #[test]
 fn analyze_reports_conditioning_and_a_recommendation() {
     let dir = tempfile::tempdir().unwrap();
-    // A 1x1 quad at the origin, and the same quad 1e5 away: the second should be recentred.
-    let near = tiny_scene(dir.path());
+    // A 1x1 quad centred on the origin, and the same quad 1e5 away: the second should be recentred.
+    let near = dir.path().join("near.obj");
+    std::fs::write(&near, "v -0.5 -0.5 0\nv 0.5 -0.5 0\nv -0.5 0.5 0\nv 0.5 0.5 0\nf 1 2 3\nf 2 4 3\n").unwrap();
+    let near = s(&near);
     let far = dir.path().join("far.obj");
     std::fs::write(&far, "v 1e5 1e5 1e5\nv 100001 1e5 1e5\nv 1e5 100001 1e5\nv 100001 100001 1e5\nf 1 2 3\nf 2 4 3\n")
         .unwrap();
@@ -329,7 +331,7 @@ fn analyze_refuses_bad_frontiers_and_targets() {
         &trilab(&["analyze", "--scene", &scene, "--frontier", &s(&dir.path().join("none.csv"))], 60),
         &["none.csv"],
     );
-    expect_error(&trilab(&["analyze", "--scene", &scene, "--max-t-ulps", "-1"], 60), &["--max-t-ulps"]);
+    expect_error(&trilab(&["analyze", "--scene", &scene, "--max-t-ulps=-1"], 60), &["--max-t-ulps"]);
     expect_error(
         &trilab(&["raycast", "--scene", &scene, "--rays", "x", "--out", "y", "--method", "fastest"], 60),
         &["fastest", "auto"],
