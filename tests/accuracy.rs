@@ -85,7 +85,20 @@ fn smoke_run_never_hits_degenerate_triangles_and_never_returns_nan() {
 
     let dir = tempfile::tempdir().unwrap();
     let written = accuracy::write(&report, dir.path()).unwrap();
-    assert_eq!(written.len(), 5, "{written:?}");
+    assert_eq!(written.len(), 7, "{written:?}");
+    // What `trilab analyze --frontier` reads back: every measured method, with its translations.
+    let f = trilab::analyze::Frontier::read(&dir.path().join("frontier.csv")).unwrap();
+    assert_eq!(f.points.len(), methods);
+    for p in &f.points {
+        let row = report.frontier.iter().find(|r| r.method == p.method).unwrap();
+        assert!((p.leaks_per_million - row.leaks_per_million).abs() <= 1e-3 * row.leaks_per_million.max(1.0));
+        assert_eq!(
+            f.translation.iter().filter(|t| t.method == p.method).count(),
+            8,
+            "{}: translations 1e0..1e7",
+            p.method
+        );
+    }
     let md = std::fs::read_to_string(dir.path().join("accuracy.md")).unwrap();
     for section in [
         "## Float controls",

@@ -7,11 +7,10 @@
 
 mod common;
 
-use std::collections::HashMap;
-
 use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
+use trilab::accuracy::closed::{icosphere, subdivided_cube, winding_number, ClosedMesh, Placement};
 use trilab::bench::validate_hits;
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::compare::{compare_any, compare_closest};
@@ -21,135 +20,9 @@ use trilab::rays::{primary_rays, random_rays, Camera, Hit, Ray};
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
 
-/// A closed unit-radius mesh: vertex positions in f64 and outward-wound triangles.
-struct Shape {
-    name: &'static str,
-    positions: Vec<DVec3>,
-    triangles: Vec<[u32; 3]>,
-}
-
-/// The icosahedron subdivided `levels` times, every vertex pushed onto the unit sphere. Midpoints
-/// are shared through a cache, so every shared vertex is one entry of the vertex list.
-fn icosphere(levels: u32) -> Shape {
-    let g = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut positions: Vec<DVec3> = [
-        [-1.0, g, 0.0],
-        [1.0, g, 0.0],
-        [-1.0, -g, 0.0],
-        [1.0, -g, 0.0],
-        [0.0, -1.0, g],
-        [0.0, 1.0, g],
-        [0.0, -1.0, -g],
-        [0.0, 1.0, -g],
-        [g, 0.0, -1.0],
-        [g, 0.0, 1.0],
-        [-g, 0.0, -1.0],
-        [-g, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|p| DVec3::from_array(*p).normalize())
-    .collect();
-    let mut triangles: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut cache: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut mid = |a: u32, b: u32, positions: &mut Vec<DVec3>| -> u32 {
-            *cache.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                positions.push(((positions[a as usize] + positions[b as usize]) / 2.0).normalize());
-                positions.len() as u32 - 1
-            })
-        };
-        let mut next = Vec::with_capacity(triangles.len() * 4);
-        for [a, b, c] in triangles {
-            let ab = mid(a, b, &mut positions);
-            let bc = mid(b, c, &mut positions);
-            let ca = mid(c, a, &mut positions);
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        triangles = next;
-    }
-    Shape { name: "icosphere", positions, triangles }
-}
-
-/// The cube [-1, 1]^3 with every face cut into n x n squares of two triangles; grid points on
-/// the cube's edges are shared by the faces that meet there.
-fn subdivided_cube(n: u32) -> Shape {
-    let mut index: HashMap<[u32; 3], u32> = HashMap::new();
-    let mut positions = Vec::new();
-    let mut vertex = |g: [u32; 3], positions: &mut Vec<DVec3>| -> u32 {
-        *index.entry(g).or_insert_with(|| {
-            positions.push(DVec3::from_array(g.map(|c| -1.0 + 2.0 * c as f64 / n as f64)));
-            positions.len() as u32 - 1
-        })
-    };
-    let mut triangles = Vec::new();
-    for axis in 0..3 {
-        let (ua, va) = ((axis + 1) % 3, (axis + 2) % 3);
-        for side in [0, n] {
-            for i in 0..n {
-                for j in 0..n {
-                    let mut corner = |di: u32, dj: u32, positions: &mut Vec<DVec3>| {
-                        let mut g = [0; 3];
-                        g[axis] = side;
-                        g[ua] = i + di;
-                        g[va] = j + dj;
-                        vertex(g, positions)
-                    };
-                    let p00 = corner(0, 0, &mut positions);
-                    let p10 = corner(1, 0, &mut positions);
-                    let p11 = corner(1, 1, &mut positions);
-                    let p01 = corner(0, 1, &mut positions);
-                    // e_u x e_v = e_axis: counter-clockwise in (u, v) faces +axis.
-                    if side == n {
-                        triangles.extend([[p00, p10, p11], [p00, p11, p01]]);
-                    } else {
-                        triangles.extend([[p00, p11, p10], [p00, p01, p11]]);
-                    }
-                }
-            }
-        }
-    }
-    Shape { name: "cube", positions, triangles }
-}
-
-/// The shape scaled by `scale` and moved by `offset`, rounded once to f32.
-fn place(shape: &Shape, scale: f64, offset: DVec3) -> Mesh {
-    let positions = shape.positions.iter().map(|p| (*p * scale + offset).as_vec3().to_array()).collect();
-    Mesh::from_triangles(positions, shape.triangles.clone())
-}
-
-/// Generalised winding number of the mesh around `p`, in f64 (Van Oosterom & Strackee's solid
-/// angle of each triangle, summed, over 4 pi): +-1 strictly inside a closed mesh, 0 outside.
-fn winding_number(mesh: &Mesh, p: DVec3) -> f64 {
-    let mut sum = 0.0;
-    for id in 0..mesh.triangle_count() {
-        let [a, b, c] = mesh.vertices_f64(id).map(|v| v - p);
-        let (la, lb, lc) = (a.length(), b.length(), c.length());
-        let num = a.dot(b.cross(c));
-        let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
-        sum += 2.0 * num.atan2(den);
-    }
-    sum / (4.0 * std::f64::consts::PI)
+/// The closed shape scaled by `scale` and moved by `offset`, rounded once to f32.
+fn place(shape: &ClosedMesh, scale: f64, offset: DVec3) -> Mesh {
+    shape.to_mesh(Placement { scale, translate: offset })
 }
 
 /// Rays from `origin` aimed at every vertex, at points on every edge (a + (b - a) t in f32, for
