@@ -233,36 +233,17 @@ impl Frontier {
     /// Reads the columns `method`, `mrays_median`, `leaks_per_million`, `t_ulps_p99` of a
     /// frontier CSV (others are ignored).
     pub fn parse(path: &Path, text: &str) -> Result<Frontier> {
-        let bad = |line: Option<usize>, m: String| Error::bad_input(path, line, m);
-        let mut rd = csv::Reader::from_reader(text.as_bytes());
-        let header = rd.headers().map_err(|e| bad(Some(1), format!("unreadable CSV header: {e}")))?.clone();
-        let col = |name: &str| {
-            header.iter().position(|h| h == name).ok_or_else(|| bad(Some(1), format!("no `{name}` column")))
-        };
-        let (cm, cs, cl, ct) = (col("method")?, col("mrays_median")?, col("leaks_per_million")?, col("t_ulps_p99")?);
-        let mut points = Vec::new();
-        for (i, rec) in rd.records().enumerate() {
-            let line = Some(i + 2);
-            let rec = rec.map_err(|e| bad(line, format!("unreadable CSV row: {e}")))?;
-            let field = |c: usize| rec.get(c).unwrap_or("");
-            let method = <Method as clap::ValueEnum>::from_str(field(cm), true)
-                .map_err(|_| bad(line, format!("unknown method `{}`", field(cm))))?;
-            let num = |c: usize, what: &str| {
-                field(c)
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|x| !x.is_nan() && *x >= 0.0)
-                    .ok_or_else(|| bad(line, format!("{what} `{}` is not a non-negative number", field(c))))
-            };
-            points.push(FrontierPoint {
+        let points: Vec<FrontierPoint> = method_rows(path, text, ["mrays_median", "leaks_per_million", "t_ulps_p99"])?
+            .into_iter()
+            .map(|(method, [mrays, leaks_per_million, t_ulps_p99])| FrontierPoint {
                 method,
-                mrays: num(cs, "mrays_median")?,
-                leaks_per_million: num(cl, "leaks_per_million")?,
-                t_ulps_p99: num(ct, "t_ulps_p99")?,
-            });
-        }
+                mrays,
+                leaks_per_million,
+                t_ulps_p99,
+            })
+            .collect();
         if points.is_empty() {
-            return Err(bad(None, "no methods in the frontier".into()));
+            return Err(Error::bad_input(path, None, "no methods in the frontier"));
         }
         Ok(Frontier { source: path.display().to_string(), points, translation: Vec::new() })
     }
@@ -272,13 +253,27 @@ impl Frontier {
 pub const CENTRED_MAGNITUDE: f64 = 0.75;
 
 fn parse_translation(path: &Path, text: &str) -> Result<Vec<TranslationPoint>> {
+    Ok(method_rows(path, text, ["magnitude_over_extent", "leaks_per_million", "t_ulps_p99"])?
+        .into_iter()
+        .map(|(method, [magnitude_over_extent, leaks_per_million, t_ulps_p99])| TranslationPoint {
+            method,
+            magnitude_over_extent,
+            leaks_per_million,
+            t_ulps_p99,
+        })
+        .collect())
+}
+
+/// The `method` column and the named non-negative number columns of every row of a CSV
+/// (other columns are ignored). Errors name the file, the line and the column.
+fn method_rows<const N: usize>(path: &Path, text: &str, names: [&str; N]) -> Result<Vec<(Method, [f64; N])>> {
     let bad = |line: Option<usize>, m: String| Error::bad_input(path, line, m);
     let mut rd = csv::Reader::from_reader(text.as_bytes());
     let header = rd.headers().map_err(|e| bad(Some(1), format!("unreadable CSV header: {e}")))?.clone();
     let col =
         |name: &str| header.iter().position(|h| h == name).ok_or_else(|| bad(Some(1), format!("no `{name}` column")));
-    let (cm, cq, cl, ct) =
-        (col("method")?, col("magnitude_over_extent")?, col("leaks_per_million")?, col("t_ulps_p99")?);
+    let cm = col("method")?;
+    let cols = names.iter().map(|n| col(n)).collect::<Result<Vec<usize>>>()?;
     let mut out = Vec::new();
     for (i, rec) in rd.records().enumerate() {
         let line = Some(i + 2);
@@ -286,19 +281,15 @@ fn parse_translation(path: &Path, text: &str) -> Result<Vec<TranslationPoint>> {
         let field = |c: usize| rec.get(c).unwrap_or("");
         let method = <Method as clap::ValueEnum>::from_str(field(cm), true)
             .map_err(|_| bad(line, format!("unknown method `{}`", field(cm))))?;
-        let num = |c: usize| {
-            field(c)
+        let mut values = [0.0; N];
+        for ((v, &c), name) in values.iter_mut().zip(&cols).zip(names) {
+            *v = field(c)
                 .parse::<f64>()
                 .ok()
                 .filter(|x| !x.is_nan() && *x >= 0.0)
-                .ok_or_else(|| bad(line, format!("`{}` is not a non-negative number", field(c))))
-        };
-        out.push(TranslationPoint {
-            method,
-            magnitude_over_extent: num(cq)?,
-            leaks_per_million: num(cl)?,
-            t_ulps_p99: num(ct)?,
-        });
+                .ok_or_else(|| bad(line, format!("{name} `{}` is not a non-negative number", field(c))))?;
+        }
+        out.push((method, values));
     }
     Ok(out)
 }

@@ -9,27 +9,13 @@ use trilab::bench::{ray_sets, validate_hits, BenchOptions};
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::{BwTriangle, Method, BW_NEVER_HIT};
-use trilab::gpu::{raycast, Context, GpuScene, RaycastOptions};
-use trilab::rays::{Hit, Ray};
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
-
-const OPTS: RaycastOptions = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
-
-fn cast(ctx: &Context, mesh: &Mesh, bvh: &Bvh, rays: &[Ray]) -> (Vec<Hit>, Vec<Hit>) {
-    let scene = GpuScene::upload(ctx, &Method::BaldwinWeber.encode(mesh, bvh)).unwrap();
-    let closest = ctx.create_kernel(trilab::kernels::raycast(Method::BaldwinWeber, false)).unwrap();
-    let any = ctx.create_kernel(trilab::kernels::raycast(Method::BaldwinWeber, true)).unwrap();
-    (raycast(ctx, &closest, &scene, rays, &OPTS).unwrap().hits, raycast(ctx, &any, &scene, rays, &OPTS).unwrap().hits)
-}
-
-fn no_nan(hits: &[Hit]) -> bool {
-    hits.iter().all(|h| !h.t.is_nan() && !h.u.is_nan() && !h.v.is_nan())
-}
 
 #[test]
 fn baldwin_weber_agrees_with_the_f64_reference_on_bunny_rays() {
     let lines = common::with_gpu(900, |ctx| {
+        let k = common::MethodKernels::new(ctx, Method::BaldwinWeber);
         let mesh = common::bunny();
         let o = BenchOptions { width: 240, height: 180, diffuse_per_hit: 1, random_rays: 20_000, ..Default::default() };
         let bvh4 = Bvh::build(&mesh, &BuildOptions::new(4));
@@ -48,12 +34,12 @@ fn baldwin_weber_agrees_with_the_f64_reference_on_bunny_rays() {
             let reference = Reference::new(&mesh, &bvh);
             for (name, rays) in &sets {
                 let ref_hits = reference.trace_all(rays, false);
-                let (closest, any) = cast(ctx, &mesh, &bvh, rays);
+                let (closest, any) = k.cast(ctx, &mesh, &bvh, rays);
                 let agreement = validate_hits(&mesh, rays, &closest, &ref_hits)
                     .unwrap_or_else(|e| panic!("leaf {leaf}, {name} rays: {e}"));
                 let any_check = compare_any(&mesh, rays, &closest, &any);
                 assert!(any_check.passes(), "leaf {leaf}, {name} any-hit: {any_check:?}");
-                assert!(no_nan(&closest) && no_nan(&any), "leaf {leaf}, {name}: NaN");
+                assert!(common::no_nan(&closest) && common::no_nan(&any), "leaf {leaf}, {name}: NaN");
                 lines.push(format!("leaf {leaf:>2} {name:>7}: {}", agreement.summary()));
             }
         }
@@ -71,26 +57,8 @@ fn zero_area_and_unrepresentable_triangles_are_never_hit() {
     // vertex on the first edge) inside its leaf's box, so the encoder, not the BVH, must keep
     // it from being hit; and one triangle is shrunk to f32-subnormal edges (1e-40), whose map
     // (coefficients about 1/|edge|) overflows f32.
-    let mut pos = vec![];
-    let mut tris = vec![];
-    for i in 0..12 {
-        for j in 0..12 {
-            let (x, y) = (i as f32, j as f32);
-            for t in [[[x, y], [x + 1.0, y], [x + 1.0, y + 1.0]], [[x, y], [x + 1.0, y + 1.0], [x, y + 1.0]]] {
-                let b = pos.len() as u32;
-                pos.extend(t.map(|[px, py]| [px, py, 0.0]));
-                tris.push([b, b + 1, b + 2]);
-            }
-        }
-    }
-    let sound = Mesh::from_triangles(pos.clone(), tris.clone());
-    let mut never = vec![];
-    for id in (0..tris.len()).step_by(3) {
-        let [a, b, c] = tris[id].map(|v| v as usize);
-        pos[c] = if id % 2 == 0 { pos[a] } else { [(pos[a][0] + pos[b][0]) / 2.0, (pos[a][1] + pos[b][1]) / 2.0, 0.0] };
-        never.push(id as u32);
-    }
-    let zero_area = never.clone();
+    let common::DegenerateGrid { sound, positions: mut pos, triangles: tris, zero_area } = common::degenerate_grid();
+    let mut never = zero_area.clone();
     let tiny = 1;
     let [a, b, c] = tris[tiny].map(|v| v as usize);
     pos[b] = [pos[a][0] + 1e-40, pos[a][1], 0.0];
@@ -100,17 +68,9 @@ fn zero_area_and_unrepresentable_triangles_are_never_hit() {
     let broken = Mesh::from_triangles(pos, tris);
     assert_eq!(broken.degenerate_ids(), zero_area);
     assert!(!broken.is_degenerate(tiny), "the tiny triangle has nonzero area in f64");
-    let mut rays = vec![];
-    for i in 0..12 {
-        for j in 0..12 {
-            let (x, y) = (i as f32, j as f32);
-            for p in [[x + 0.7, y + 0.2], [x + 0.2, y + 0.7], [x + 0.5, y], [x + 0.5, y + 0.5], [x, y]] {
-                rays.push(Ray::new([p[0], p[1], 1.0], [0.0, 0.0, -1.0]));
-                rays.push(Ray::new([p[0] + 0.3, p[1] - 0.2, -1.0], [-0.3, 0.2, 1.0]));
-            }
-        }
-    }
+    let rays = common::grid_rays();
     let results = common::with_gpu(300, move |ctx| {
+        let k = common::MethodKernels::new(ctx, Method::BaldwinWeber);
         let mut out = vec![];
         for leaf in [1, 4, 16] {
             let bvh = Bvh::build(&sound, &BuildOptions::new(leaf));
@@ -118,7 +78,7 @@ fn zero_area_and_unrepresentable_triangles_are_never_hit() {
             let mut unrep = enc.unrepresentable.clone();
             unrep.sort_unstable();
             let reference = Reference::new(&broken, &bvh).trace_all(&rays, false);
-            let (closest, any) = cast(ctx, &broken, &bvh, &rays);
+            let (closest, any) = k.cast(ctx, &broken, &bvh, &rays);
             // Every never-hit slot is marked for the kernel to skip.
             let tris: &[BwTriangle] = bytemuck::cast_slice(&enc.prims[0].bytes);
             let skipped = tris.iter().filter(|t| t.plane[3] == BW_NEVER_HIT).count();
@@ -134,7 +94,7 @@ fn zero_area_and_unrepresentable_triangles_are_never_hit() {
         for hits in [&closest, &any] {
             let bad: Vec<_> = hits.iter().filter(|h| h.is_hit() && never.contains(&h.id)).collect();
             assert!(bad.is_empty(), "leaf {leaf}: hits on never-hit triangles: {bad:?}");
-            assert!(no_nan(hits), "leaf {leaf}: NaN");
+            assert!(common::no_nan(hits), "leaf {leaf}: NaN");
         }
         // Every other ray agrees with the reference or lies on an edge (the reference may hit
         // the tiny triangle, whose map does not exist in f32: those rays are at its vertex,

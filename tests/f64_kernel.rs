@@ -14,12 +14,10 @@ use trilab::bvh::{BuildOptions, Bvh};
 use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::Method;
 use trilab::error::Error;
-use trilab::gpu::{raycast, Context, ContextOptions, GpuScene, RaycastOptions, Validation};
+use trilab::gpu::{Context, ContextOptions, Validation};
 use trilab::rays::{Hit, Ray};
 use trilab::reference::{intersect, Ray64, RefHit, Reference};
 use trilab::scene::Mesh;
-
-const OPTS: RaycastOptions = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
 
 /// Two hits tie when their f64 t differ by at most this, relative.
 const TIE_REL: f64 = 1e-12;
@@ -30,14 +28,6 @@ const TIE_REL: f64 = 1e-12;
 /// that a driver visiting leaves in another order (ties go to the last visited) still passes;
 /// each one is checked to be a real tie, so this bound is never an excuse for a wrong hit.
 const MAX_TIES: usize = 4;
-
-/// Casts closest and any hit with the f64 kernel.
-fn cast(ctx: &Context, mesh: &Mesh, bvh: &Bvh, rays: &[Ray]) -> (Vec<Hit>, Vec<Hit>) {
-    let scene = GpuScene::upload(ctx, &Method::F64.encode(mesh, bvh)).unwrap();
-    let closest = ctx.create_kernel(trilab::kernels::raycast(Method::F64, false)).unwrap();
-    let any = ctx.create_kernel(trilab::kernels::raycast(Method::F64, true)).unwrap();
-    (raycast(ctx, &closest, &scene, rays, &OPTS).unwrap().hits, raycast(ctx, &any, &scene, rays, &OPTS).unwrap().hits)
-}
 
 /// The reference's f64 hit on triangle `id`, rounded to a hit record.
 fn f64_hit_on(mesh: &Mesh, ray: &Ray, id: u32) -> Option<(RefHit, Hit)> {
@@ -75,6 +65,7 @@ fn exact_agreement(mesh: &Mesh, rays: &[Ray], gpu: &[Hit], reference: &[RefHit])
 #[test]
 fn f64_hits_are_the_reference_rounded_to_f32_on_bunny_rays() {
     let lines = common::with_gpu(900, |ctx| {
+        let k = common::MethodKernels::new(ctx, Method::F64);
         let mesh = common::bunny();
         // 240 x 180 primary rays, one diffuse ray per primary hit, 20,000 random rays.
         let o = BenchOptions { width: 240, height: 180, diffuse_per_hit: 1, random_rays: 20_000, ..Default::default() };
@@ -88,7 +79,7 @@ fn f64_hits_are_the_reference_rounded_to_f32_on_bunny_rays() {
             let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
             let hits_ref = reference.iter().filter(|h| h.is_hit()).count();
             assert!(hits_ref > rays.len() / 4, "a good part of these rays hit ({hits_ref}/{})", rays.len());
-            let (closest, any) = cast(ctx, &mesh, &bvh, &rays);
+            let (closest, any) = k.cast(ctx, &mesh, &bvh, &rays);
             // The project's acceptance rule holds a fortiori...
             let agreement = validate_hits(&mesh, &rays, &closest, &reference).unwrap();
             // ... and the stronger one: bit for bit, or a tie.
@@ -112,9 +103,7 @@ fn f64_hits_are_the_reference_rounded_to_f32_on_bunny_rays() {
             if leaf == 4 {
                 // The rule has teeth: f32 Möller–Trumbore, which passes validate_hits, is not
                 // the reference bit for bit.
-                let scene = GpuScene::upload(ctx, &Method::Mt.encode(&mesh, &bvh)).unwrap();
-                let mt = ctx.create_kernel(trilab::kernels::raycast(Method::Mt, false)).unwrap();
-                let mt_hits = raycast(ctx, &mt, &scene, &rays, &OPTS).unwrap().hits;
+                let (mt_hits, _) = common::MethodKernels::new(ctx, Method::Mt).cast(ctx, &mesh, &bvh, &rays);
                 let (_, mt_failures) = exact_agreement(&mesh, &rays, &mt_hits, &reference);
                 assert!(mt_failures.len() > hits_ref / 10, "f32 MT differs on only {} rays", mt_failures.len());
                 lines.push(format!("f32 MT at leaf 4, for comparison: {} rays not bit for bit", mt_failures.len()));
@@ -140,6 +129,7 @@ fn closest_hit_is_decided_in_double_where_f32_ties() {
         .chain((0..64).map(|i| Ray { tmax: 1.0, ..Ray::new([x, (i as f32 - 32.0) / 128.0, 0.0], [0.0, 0.0, 1.0]) }))
         .collect();
     let results = common::with_gpu(300, move |ctx| {
+        let k = common::MethodKernels::new(ctx, Method::F64);
         let mut out = vec![];
         // Both orders of the two triangles, so either is visited first.
         for (b_id, tris) in [(1u32, [a, b]), (0u32, [b, a])] {
@@ -148,7 +138,7 @@ fn closest_hit_is_decided_in_double_where_f32_ties() {
             for leaf in [1, 2] {
                 let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
                 let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
-                let (closest, _) = cast(ctx, &mesh, &bvh, &rays);
+                let (closest, _) = k.cast(ctx, &mesh, &bvh, &rays);
                 out.push((b_id, leaf, reference, closest));
             }
         }
@@ -169,44 +159,18 @@ fn zero_area_triangles_inside_leaves_are_never_hit() {
     // e1 x e2 == 0, as the reference) they are made degenerate after the build: the BVH of a
     // grid of unit squares is kept and every third triangle is collapsed (repeated vertex) or
     // flattened (its third vertex moved onto the first edge), staying inside its leaf's box.
-    let mut pos = vec![];
-    let mut tris = vec![];
-    for i in 0..12 {
-        for j in 0..12 {
-            let (x, y) = (i as f32, j as f32);
-            for t in [[[x, y], [x + 1.0, y], [x + 1.0, y + 1.0]], [[x, y], [x + 1.0, y + 1.0], [x, y + 1.0]]] {
-                let b = pos.len() as u32;
-                pos.extend(t.map(|[px, py]| [px, py, 0.0]));
-                tris.push([b, b + 1, b + 2]);
-            }
-        }
-    }
-    let sound = Mesh::from_triangles(pos.clone(), tris.clone());
-    let mut degenerate = vec![];
-    for id in (0..tris.len()).step_by(3) {
-        let [a, b, c] = tris[id].map(|v| v as usize);
-        pos[c] = if id % 2 == 0 { pos[a] } else { [(pos[a][0] + pos[b][0]) / 2.0, (pos[a][1] + pos[b][1]) / 2.0, 0.0] };
-        degenerate.push(id as u32);
-    }
+    let common::DegenerateGrid { sound, positions: pos, triangles: tris, zero_area: degenerate } =
+        common::degenerate_grid();
     let broken = Mesh::from_triangles(pos, tris);
     assert_eq!(broken.degenerate_ids(), degenerate);
-    let mut rays = vec![];
-    for i in 0..12 {
-        for j in 0..12 {
-            let (x, y) = (i as f32, j as f32);
-            // Interiors, edge midpoints, vertices; straight down and slanted.
-            for p in [[x + 0.7, y + 0.2], [x + 0.2, y + 0.7], [x + 0.5, y], [x + 0.5, y + 0.5], [x, y]] {
-                rays.push(Ray::new([p[0], p[1], 1.0], [0.0, 0.0, -1.0]));
-                rays.push(Ray::new([p[0] + 0.3, p[1] - 0.2, -1.0], [-0.3, 0.2, 1.0]));
-            }
-        }
-    }
+    let rays = common::grid_rays();
     let results = common::with_gpu(300, move |ctx| {
+        let k = common::MethodKernels::new(ctx, Method::F64);
         let mut out = vec![];
         for leaf in [1, 4, 16] {
             let bvh = Bvh::build(&sound, &BuildOptions::new(leaf));
             let reference = Reference::new(&broken, &bvh).trace_all(&rays, false);
-            let (closest, any) = cast(ctx, &broken, &bvh, &rays);
+            let (closest, any) = k.cast(ctx, &broken, &bvh, &rays);
             out.push((leaf, reference, closest, any));
         }
         (out, broken, rays, degenerate)

@@ -15,7 +15,6 @@ use trilab::bench::validate_hits;
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::Method;
-use trilab::gpu::{raycast, Context, GpuScene, Kernel, RaycastOptions};
 use trilab::rays::{primary_rays, random_rays, Camera, Hit, Ray};
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
@@ -61,29 +60,6 @@ fn assert_no_nan(hits: &[Hit], what: &str) {
     }
 }
 
-struct Kernels {
-    method: Method,
-    closest: Kernel,
-    any: Kernel,
-}
-
-fn kernels(ctx: &Context, method: Method) -> Kernels {
-    Kernels {
-        method,
-        closest: ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap(),
-        any: ctx.create_kernel(trilab::kernels::raycast(method, true)).unwrap(),
-    }
-}
-
-/// Closest and any hit of `rays` over `mesh` with the method's kernels.
-fn cast(ctx: &Context, k: &Kernels, mesh: &Mesh, bvh: &Bvh, rays: &[Ray]) -> (Vec<Hit>, Vec<Hit>) {
-    let scene = GpuScene::upload(ctx, &k.method.encode(mesh, bvh)).unwrap();
-    let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
-    let c = raycast(ctx, &k.closest, &scene, rays, &opts).unwrap();
-    let a = raycast(ctx, &k.any, &scene, rays, &opts).unwrap();
-    (c.hits, a.hits)
-}
-
 fn misses(hits: &[Hit]) -> usize {
     hits.iter().filter(|h| !h.is_hit()).count()
 }
@@ -91,8 +67,8 @@ fn misses(hits: &[Hit]) -> usize {
 #[test]
 fn no_ray_from_inside_a_closed_mesh_escapes_at_any_scale_or_translation() {
     let (lines, leaks, ran, skipped) = common::with_gpu(1800, |ctx| {
-        let wt = kernels(ctx, Method::Watertight);
-        let mt = kernels(ctx, Method::Mt);
+        let wt = common::MethodKernels::new(ctx, Method::Watertight);
+        let mt = common::MethodKernels::new(ctx, Method::Mt);
         let mut lines = vec![];
         let mut leaks = vec![];
         let mut ran = 0;
@@ -120,8 +96,8 @@ fn no_ray_from_inside_a_closed_mesh_escapes_at_any_scale_or_translation() {
                     for leaf in [1, 4] {
                         let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
                         bvh.validate(&mesh).unwrap();
-                        let (wc, wa) = cast(ctx, &wt, &mesh, &bvh, &rays);
-                        let (mc, ma) = cast(ctx, &mt, &mesh, &bvh, &rays);
+                        let (wc, wa) = wt.cast(ctx, &mesh, &bvh, &rays);
+                        let (mc, ma) = mt.cast(ctx, &mesh, &bvh, &rays);
                         assert_no_nan(&wc, &config);
                         assert_no_nan(&wa, &config);
                         let (w_leak, w_any_leak, m_leak) = (misses(&wc), misses(&wa), misses(&mc));
@@ -177,7 +153,7 @@ fn the_leak_count_sees_a_hole() {
         targets.iter().map(|t| Ray { origin: [0.0; 3], tmin: 0.0, dir: t.to_array(), tmax: f32::INFINITY }).collect();
     let hits = common::with_gpu(120, move |ctx| {
         let bvh = Bvh::build(&holed, &BuildOptions::new(1));
-        cast(ctx, &kernels(ctx, Method::Watertight), &holed, &bvh, &rays).0
+        common::MethodKernels::new(ctx, Method::Watertight).cast(ctx, &holed, &bvh, &rays).0
     });
     assert_eq!(misses(&hits), 3, "{hits:?}");
 }
@@ -188,12 +164,12 @@ fn agrees_with_the_f64_reference_on_the_bunny() {
         let mesh = common::bunny();
         let mut rays = random_rays(&mesh.bounds(), 30_000, 5);
         rays.extend(primary_rays(&Camera::framing(&mesh.bounds()), 160, 120));
-        let k = kernels(ctx, Method::Watertight);
+        let k = common::MethodKernels::new(ctx, Method::Watertight);
         let mut failures = vec![];
         for leaf in [1, 4, 16] {
             let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
             let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
-            let (c, a) = cast(ctx, &k, &mesh, &bvh, &rays);
+            let (c, a) = k.cast(ctx, &mesh, &bvh, &rays);
             assert_no_nan(&c, "bunny closest");
             assert_no_nan(&a, "bunny any");
             match validate_hits(&mesh, &rays, &c, &reference) {
@@ -253,13 +229,13 @@ fn zero_area_and_repeated_vertex_triangles_are_never_hit() {
         });
     }
     let (failures, hits) = common::with_gpu(120, move |ctx| {
-        let k = kernels(ctx, Method::Watertight);
+        let k = common::MethodKernels::new(ctx, Method::Watertight);
         let mut failures = vec![];
         let mut all = vec![];
         for leaf in [1, 4] {
             let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
             let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
-            let (c, a) = cast(ctx, &k, &mesh, &bvh, &rays);
+            let (c, a) = k.cast(ctx, &mesh, &bvh, &rays);
             let agreement = compare_closest(&mesh, &rays, &c, &reference);
             if agreement.unexplained > 0 || !agreement.invalid.is_empty() {
                 failures.push(format!("leaf {leaf}: {} {:?}", agreement.summary(), agreement.invalid));

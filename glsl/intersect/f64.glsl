@@ -20,27 +20,11 @@
 #error "f64.glsl needs METHOD_F64 (HitState.t64), which build.rs defines for this intersector"
 #endif
 
-struct MtTriangle {
-    uvec3 v;
-    uint material;
-};
+#include "mt_layout.glsl"
 
-layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer f64_vertices;
-layout(set = 0, binding = BINDING_INDICES, rgba32ui) uniform readonly restrict uimageBuffer f64_triangles;
-
-#define PRIM_STRUCT MtTriangle
-// Triangle slots one primitive holds (one triangle per slot).
-#define PRIM_TRIANGLES 1u
-MtTriangle load_prim(uint slot) {
-    uvec4 t = imageLoad(f64_triangles, int(slot));
-    MtTriangle r;
-    r.v = t.xyz;
-    r.material = t.w;
-    return r;
-}
-
+// A vertex widened exactly to double.
 dvec3 load_vertex64(uint i) {
-    return dvec3(imageLoad(f64_vertices, int(i)).xyz);
+    return dvec3(load_vertex(i));
 }
 
 // glam's DVec3::cross: (a.y b.z - b.y a.z, a.z b.x - b.z a.x, a.x b.y - b.x a.y).
@@ -63,7 +47,7 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool a
     dvec3 dir = dvec3(r.dir);
     double tmin = double(r.tmin);
     for (uint s = first; s < first + count; ++s) {
-        uvec3 idx = imageLoad(f64_triangles, int(s)).xyz;
+        uvec3 idx = imageLoad(mt_triangles, int(s)).xyz;
         dvec3 a = load_vertex64(idx.x);
         precise dvec3 e1 = load_vertex64(idx.y) - a;
         precise dvec3 e2 = load_vertex64(idx.z) - a;

@@ -2,35 +2,13 @@
 // minimum storage ray-triangle intersection", JGT 2(1), 1997): solves
 //   [t u v]^T = 1/(P.E1) [Q.E2, P.T, Q.D]^T,  E1 = V1-V0, E2 = V2-V0, T = O-V0, P = D x E2, Q = T x E1,
 // rejecting as early as the algorithm allows.
-// Data (src/encoding/mt.rs): the vertex list (one rgba32f texel per vertex, w unused) and one
-// rgba32ui texel per triangle slot (vertex indices, material index), slots in BVH leaf order.
+// Data: mt_layout.glsl (the vertex list and one index/material texel per slot).
 #ifndef TRILAB_INTERSECTOR
 #define TRILAB_INTERSECTOR
 
 #include "types.glsl"
 
-struct MtTriangle {
-    uvec3 v;
-    uint material;
-};
-
-layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer mt_vertices;
-layout(set = 0, binding = BINDING_INDICES, rgba32ui) uniform readonly restrict uimageBuffer mt_triangles;
-
-#define PRIM_STRUCT MtTriangle
-// Triangle slots one primitive holds (one triangle per slot).
-#define PRIM_TRIANGLES 1u
-MtTriangle load_prim(uint slot) {
-    uvec4 t = imageLoad(mt_triangles, int(slot));
-    MtTriangle r;
-    r.v = t.xyz;
-    r.material = t.w;
-    return r;
-}
-
-vec3 load_vertex(uint i) {
-    return imageLoad(mt_vertices, int(i)).xyz;
-}
+#include "mt_layout.glsl"
 
 bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
     bool found = false;

@@ -41,9 +41,8 @@
 // those triangles, so this intersector turns on CONSERVATIVE_TRAVERSAL (traverse.glsl, after
 // the paper's sec. 5).
 //
-// Data: Möller–Trumbore's layout (src/encoding/mt.rs, reused by src/encoding/watertight.rs): the
-// vertex list (one rgba32f texel per vertex) and one rgba32ui texel per triangle slot (vertex
-// indices, material), so a comparison with MT measures the arithmetic only.
+// Data: Möller–Trumbore's layout (glsl/mt_layout.glsl, src/encoding/mt.rs), so a comparison
+// with MT measures the arithmetic only.
 #ifndef TRILAB_INTERSECTOR
 #define TRILAB_INTERSECTOR
 
@@ -52,28 +51,7 @@
 // Ask traverse.glsl for the conservative box test this test needs.
 #define CONSERVATIVE_TRAVERSAL
 
-struct MtTriangle {
-    uvec3 v;
-    uint material;
-};
-
-layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer mt_vertices;
-layout(set = 0, binding = BINDING_INDICES, rgba32ui) uniform readonly restrict uimageBuffer mt_triangles;
-
-#define PRIM_STRUCT MtTriangle
-// Triangle slots one primitive holds (one triangle per slot).
-#define PRIM_TRIANGLES 1u
-MtTriangle load_prim(uint slot) {
-    uvec4 t = imageLoad(mt_triangles, int(slot));
-    MtTriangle r;
-    r.v = t.xyz;
-    r.material = t.w;
-    return r;
-}
-
-vec3 load_vertex(uint i) {
-    return imageLoad(mt_vertices, int(i)).xyz;
-}
+#include "mt_layout.glsl"
 
 // v[k] for the per-ray axes. Written as selects rather than `v[k]`: glslang lowers a dynamic
 // index into a vector to a store into a function-local variable and an indexed load (scratch

@@ -8,7 +8,7 @@ use serde::Serialize;
 use super::metrics::{per_million, Tally};
 use super::offset::{Offset, RECOMMENDED};
 use super::probes::LeakKind;
-use super::{AccuracyReport, FALSE_HIT_OFFSETS, FIXED_LEAF};
+use super::{AccuracyReport, SelfHitRow, FALSE_HIT_OFFSETS, FIXED_LEAF};
 use crate::encoding::Method;
 use crate::error::{Error, Result};
 use crate::report::Table;
@@ -141,16 +141,23 @@ pub fn csv(report: &AccuracyReport) -> Result<String> {
         });
     }
     let fc = float_controls(report);
-    let mut w = csv::Writer::from_writer(vec![]);
-    for mut r in rows {
+    for r in &mut rows {
         r.device = report.provenance.device.clone();
         r.driver = report.provenance.driver.clone();
         r.float_controls = fc.clone();
         r.commit = report.provenance.commit.clone();
-        w.serialize(r).map_err(|e| Error::Usage(format!("accuracy.csv: {e}")))?;
     }
-    String::from_utf8(w.into_inner().map_err(|e| Error::Usage(format!("accuracy.csv: {e}")))?)
-        .map_err(|e| Error::Usage(format!("accuracy.csv: {e}")))
+    csv_text("accuracy.csv", rows)
+}
+
+/// `rows` as CSV with a header from their field names; errors name `file`.
+fn csv_text<T: Serialize>(file: &str, rows: impl IntoIterator<Item = T>) -> Result<String> {
+    let err = |e: &dyn std::fmt::Display| Error::Usage(format!("{file}: {e}"));
+    let mut w = csv::Writer::from_writer(vec![]);
+    for r in rows {
+        w.serialize(r).map_err(|e| err(&e))?;
+    }
+    String::from_utf8(w.into_inner().map_err(|e| err(&e))?).map_err(|e| err(&e))
 }
 
 fn methods(report: &AccuracyReport) -> Vec<Method> {
@@ -270,8 +277,9 @@ pub fn errors_table(report: &AccuracyReport) -> Table {
     t
 }
 
-/// Self-hits (near hits) per method x scheme, one column per scale.
-pub fn self_hits_table(report: &AccuracyReport) -> Table {
+/// One row per method x offset scheme, one column per scale of the self-intersection study,
+/// each cell `cell` of that (method, scheme, scale)'s row.
+fn scheme_by_scale_table(report: &AccuracyReport, cell: impl Fn(&SelfHitRow) -> String) -> Table {
     let mut scales: Vec<i32> = report.self_hits.iter().map(|r| r.scale_exp).collect();
     scales.sort_unstable();
     scales.dedup();
@@ -286,16 +294,7 @@ pub fn self_hits_table(report: &AccuracyReport) -> Table {
             }
             let mut cells = vec![m.to_string(), scheme.name().to_string()];
             for k in &scales {
-                cells.push(rows.iter().find(|r| r.scale_exp == *k).map_or_else(
-                    || "-".into(),
-                    |r| {
-                        if r.near_hits > r.self_hits {
-                            format!("{} ({})", r.self_hits, r.near_hits)
-                        } else {
-                            r.self_hits.to_string()
-                        }
-                    },
-                ));
+                cells.push(rows.iter().find(|r| r.scale_exp == *k).map_or_else(|| "-".into(), |r| cell(r)));
             }
             t.row(cells);
         }
@@ -303,31 +302,21 @@ pub fn self_hits_table(report: &AccuracyReport) -> Table {
     t
 }
 
+/// Self-hits (near hits) per method x scheme, one column per scale.
+pub fn self_hits_table(report: &AccuracyReport) -> Table {
+    scheme_by_scale_table(report, |r| {
+        if r.near_hits > r.self_hits {
+            format!("{} ({})", r.self_hits, r.near_hits)
+        } else {
+            r.self_hits.to_string()
+        }
+    })
+}
+
 /// Escaped secondary rays (spawned inside the closed icosphere, hit nothing) per method x
 /// scheme and scale: the offset pushed the origin through the surface.
 pub fn escaped_table(report: &AccuracyReport) -> Table {
-    let mut scales: Vec<i32> = report.self_hits.iter().map(|r| r.scale_exp).collect();
-    scales.sort_unstable();
-    scales.dedup();
-    let mut head = vec!["method".to_string(), "scheme".into()];
-    head.extend(scales.iter().map(|k| format!("1e{k}")));
-    let mut t = Table::new(head);
-    for m in methods(report) {
-        for scheme in Offset::ALL {
-            let rows: Vec<_> = report.self_hits.iter().filter(|r| r.method == m && r.scheme == scheme).collect();
-            if rows.is_empty() {
-                continue;
-            }
-            let mut cells = vec![m.to_string(), scheme.name().to_string()];
-            for k in &scales {
-                cells.push(
-                    rows.iter().find(|r| r.scale_exp == *k).map_or_else(|| "-".into(), |r| r.escaped.to_string()),
-                );
-            }
-            t.row(cells);
-        }
-    }
-    t
+    scheme_by_scale_table(report, |r| r.escaped.to_string())
 }
 
 /// One extremes table for `kind`.
@@ -371,69 +360,59 @@ pub fn extremes_table(report: &AccuracyReport, kind: &str) -> Table {
 /// `frontier.csv`: per method, speed and accuracy on the centred closed meshes (the columns
 /// `analyze::Frontier` reads).
 pub fn frontier_csv(report: &AccuracyReport) -> Result<String> {
-    let mut w = csv::Writer::from_writer(Vec::new());
-    let err = |e: csv::Error| Error::Usage(format!("frontier.csv: {e}"));
-    w.write_record([
-        "method",
-        "mrays_median",
-        "mrays_min",
-        "mrays_max",
-        "leaks_per_million",
-        "false_hits_per_million",
-        "t_ulps_median",
-        "t_ulps_p99",
-        "device",
-        "commit",
-    ])
-    .map_err(err)?;
-    for r in report.frontier.iter().filter(|r| r.mrays_per_s.is_some()) {
-        let s = r.mrays_per_s.expect("filtered");
-        w.write_record([
-            r.method.name().to_string(),
-            format!("{:.4}", s.median),
-            format!("{:.4}", s.min),
-            format!("{:.4}", s.max),
-            format!("{:.3}", r.leaks_per_million),
-            format!("{:.3}", r.false_hits_per_million),
-            format!("{:.4}", r.t_ulps_median),
-            format!("{:.4}", r.t_ulps_p99),
-            report.provenance.device.clone(),
-            report.provenance.commit.clone(),
-        ])
-        .map_err(err)?;
+    #[derive(Serialize)]
+    struct Row {
+        method: &'static str,
+        mrays_median: String,
+        mrays_min: String,
+        mrays_max: String,
+        leaks_per_million: String,
+        false_hits_per_million: String,
+        t_ulps_median: String,
+        t_ulps_p99: String,
+        device: String,
+        commit: String,
     }
-    String::from_utf8(w.into_inner().map_err(|e| Error::Usage(format!("frontier.csv: {e}")))?)
-        .map_err(|e| Error::Usage(format!("frontier.csv: {e}")))
+    let rows = report.frontier.iter().filter_map(|r| {
+        let s = r.mrays_per_s?;
+        Some(Row {
+            method: r.method.name(),
+            mrays_median: format!("{:.4}", s.median),
+            mrays_min: format!("{:.4}", s.min),
+            mrays_max: format!("{:.4}", s.max),
+            leaks_per_million: format!("{:.3}", r.leaks_per_million),
+            false_hits_per_million: format!("{:.3}", r.false_hits_per_million),
+            t_ulps_median: format!("{:.4}", r.t_ulps_median),
+            t_ulps_p99: format!("{:.4}", r.t_ulps_p99),
+            device: report.provenance.device.clone(),
+            commit: report.provenance.commit.clone(),
+        })
+    });
+    csv_text("frontier.csv", rows)
 }
 
 /// `translation.csv`: per method and translation of the closed mesh, how far from the origin it
 /// sat (largest |coordinate| over extent) and the leaks and t error there; `analyze` looks up a
 /// scene's own ratio in it.
 pub fn translation_csv(report: &AccuracyReport) -> Result<String> {
-    let mut w = csv::Writer::from_writer(Vec::new());
-    let err = |e: csv::Error| Error::Usage(format!("translation.csv: {e}"));
-    w.write_record([
-        "method",
-        "translation",
-        "magnitude_over_extent",
-        "leaks_per_million",
-        "t_ulps_median",
-        "t_ulps_p99",
-    ])
-    .map_err(err)?;
-    for r in report.extremes.iter().filter(|r| r.kind == "translate") {
-        w.write_record([
-            r.method.name().to_string(),
-            r.param.clone(),
-            format!("{:.6e}", r.magnitude_over_extent),
-            format!("{:.3}", per_million(r.tally.leaks, r.tally.rays)),
-            format!("{:.4}", r.tally.t_ulps.median),
-            format!("{:.4}", r.tally.t_ulps.p99),
-        ])
-        .map_err(err)?;
+    #[derive(Serialize)]
+    struct Row<'a> {
+        method: &'static str,
+        translation: &'a str,
+        magnitude_over_extent: String,
+        leaks_per_million: String,
+        t_ulps_median: String,
+        t_ulps_p99: String,
     }
-    String::from_utf8(w.into_inner().map_err(|e| Error::Usage(format!("translation.csv: {e}")))?)
-        .map_err(|e| Error::Usage(format!("translation.csv: {e}")))
+    let rows = report.extremes.iter().filter(|r| r.kind == "translate").map(|r| Row {
+        method: r.method.name(),
+        translation: &r.param,
+        magnitude_over_extent: format!("{:.6e}", r.magnitude_over_extent),
+        leaks_per_million: format!("{:.3}", per_million(r.tally.leaks, r.tally.rays)),
+        t_ulps_median: format!("{:.4}", r.tally.t_ulps.median),
+        t_ulps_p99: format!("{:.4}", r.tally.t_ulps.p99),
+    });
+    csv_text("translation.csv", rows)
 }
 
 pub fn frontier_table(report: &AccuracyReport) -> Table {

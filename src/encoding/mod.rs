@@ -19,7 +19,6 @@ mod mt;
 mod quad_mt;
 mod quad_unit;
 mod unit;
-mod watertight;
 
 pub use baldwin_weber::{bw_transform, BwTriangle, BW_NEVER_HIT, BW_PAD};
 pub use mt::MtTriangle;
@@ -124,14 +123,13 @@ impl Method {
 
     pub fn encode(self, mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
         match self {
-            Method::Mt => mt::encode(mesh, bvh),
             Method::Unit => unit::encode(mesh, bvh),
             Method::QuadMt => quad_mt::encode(mesh, bvh),
             Method::QuadUnit => quad_unit::encode(mesh, bvh),
-            Method::Watertight => watertight::encode(mesh, bvh),
             Method::BaldwinWeber => baldwin_weber::encode(mesh, bvh),
-            // The f64 kernel reads MT's buffers (f32 vertices, widened exactly in the shader).
-            Method::F64 => EncodedScene { method: Method::F64, ..mt::encode(mesh, bvh) },
+            // Watertight and f64 read MT's buffers (glsl/mt_layout.glsl; f64 widens the f32
+            // vertices exactly), so comparing them with MT measures the arithmetic only.
+            Method::Mt | Method::Watertight | Method::F64 => EncodedScene { method: self, ..mt::encode(mesh, bvh) },
         }
     }
 }
