@@ -12,14 +12,14 @@ struct MtTriangle {
     uint material;
 };
 
-layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer mt_vertices;
-layout(set = 0, binding = BINDING_INDICES, rgba32ui) uniform readonly restrict uimageBuffer mt_triangles;
+SCENE_BUFFER(BINDING_PRIMS, rgba32f, F4, mt_vertices);
+SCENE_BUFFER(BINDING_INDICES, rgba32ui, U4, mt_triangles);
 
 #define PRIM_STRUCT MtTriangle
 // Triangle slots one primitive holds (one triangle per slot).
 #define PRIM_TRIANGLES 1u
 MtTriangle load_prim(uint slot) {
-    uvec4 t = imageLoad(mt_triangles, int(slot));
+    uvec4 t = SCENE_TEXEL(mt_triangles, slot);
     MtTriangle r;
     r.v = t.xyz;
     r.material = t.w;
@@ -27,7 +27,7 @@ MtTriangle load_prim(uint slot) {
 }
 
 vec3 load_vertex(uint i) {
-    return imageLoad(mt_vertices, int(i)).xyz;
+    return SCENE_TEXEL(mt_vertices, i).xyz;
 }
 
 #endif

@@ -38,13 +38,41 @@ struct BvhNode {
     uint count;
 };
 
-layout(set = 0, binding = BINDING_NODES, rgba32ui) uniform readonly restrict uimageBuffer scene_nodes;
+// How the kernels reach a scene buffer: every declaration is SCENE_BUFFER and every load
+// SCENE_TEXEL (16-byte texels) or SCENE_TEXEL_R32 (4-byte), so an intersector is written once
+// for both paths.
+// - Default (texel path): a storage texel buffer, read with imageLoad (the reasons above).
+//   One binding holds at most maxTexelBufferElements texels (2^27 on lavapipe and NVIDIA).
+// - SCENE_ADDRESS (the raycast kernels' `*_bda` variants; src/gpu/plan.rs picks them when a
+//   buffer exceeds that limit): the same binding is a uniform block holding the buffer's device
+//   address, and loads go through GL_EXT_buffer_reference (no per-binding size limit). The
+//   kernel must enable GL_EXT_buffer_reference itself (raycast.comp does). Indices stay 32-bit:
+//   SPIR-V treats access-chain indices as signed, so a buffer holds at most 2^31 texels here.
+#ifdef SCENE_ADDRESS
+layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneF4 { vec4 texels[]; };
+layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneU4 { uvec4 texels[]; };
+layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer SceneU1 { uint texels[]; };
+#define SCENE_BUFFER(binding_, format_, kind_, name_) \
+    layout(std140, set = 0, binding = binding_) uniform name_##Address { Scene##kind_ name_; }
+#define SCENE_TEXEL(name_, i_) name_.texels[i_]
+#define SCENE_TEXEL_R32(name_, i_) name_.texels[i_]
+#else
+#define SCENE_IMAGE_F4 imageBuffer
+#define SCENE_IMAGE_U4 uimageBuffer
+#define SCENE_IMAGE_U1 uimageBuffer
+#define SCENE_BUFFER(binding_, format_, kind_, name_) \
+    layout(set = 0, binding = binding_, format_) uniform readonly restrict SCENE_IMAGE_##kind_ name_
+#define SCENE_TEXEL(name_, i_) imageLoad(name_, int(i_))
+#define SCENE_TEXEL_R32(name_, i_) imageLoad(name_, int(i_)).x
+#endif
+
+SCENE_BUFFER(BINDING_NODES, rgba32ui, U4, scene_nodes);
 // Triangle slot (the encoding's storage order) -> OBJ triangle id.
-layout(set = 0, binding = BINDING_SLOT_IDS, r32ui) uniform readonly restrict uimageBuffer scene_slot_ids;
+SCENE_BUFFER(BINDING_SLOT_IDS, r32ui, U1, scene_slot_ids);
 
 BvhNode load_node(uint i) {
-    uvec4 lo = imageLoad(scene_nodes, int(2u * i));
-    uvec4 hi = imageLoad(scene_nodes, int(2u * i + 1u));
+    uvec4 lo = SCENE_TEXEL(scene_nodes, 2u * i);
+    uvec4 hi = SCENE_TEXEL(scene_nodes, 2u * i + 1u);
     BvhNode n;
     n.bmin = uintBitsToFloat(lo.xyz);
     n.left_or_first = lo.w;
@@ -54,7 +82,7 @@ BvhNode load_node(uint i) {
 }
 
 uint load_slot_id(uint slot) {
-    return imageLoad(scene_slot_ids, int(slot)).x;
+    return SCENE_TEXEL_R32(scene_slot_ids, slot);
 }
 
 // The ray as traversal sees it.

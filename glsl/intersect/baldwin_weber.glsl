@@ -21,10 +21,10 @@ struct BwTriangle {
     vec4 v_row; // likewise for v
 };
 
-layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer bw_triangles;
+SCENE_BUFFER(BINDING_PRIMS, rgba32f, F4, bw_triangles);
 
 vec4 load_bw_row(uint slot, uint row) {
-    return imageLoad(bw_triangles, int(3u * slot + row));
+    return SCENE_TEXEL(bw_triangles, 3u * slot + row);
 }
 
 #define PRIM_STRUCT BwTriangle

@@ -47,7 +47,7 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool a
     dvec3 dir = dvec3(r.dir);
     double tmin = double(r.tmin);
     for (uint s = first; s < first + count; ++s) {
-        uvec3 idx = imageLoad(mt_triangles, int(s)).xyz;
+        uvec3 idx = SCENE_TEXEL(mt_triangles, s).xyz;
         dvec3 a = load_vertex64(idx.x);
         precise dvec3 e1 = load_vertex64(idx.y) - a;
         precise dvec3 e2 = load_vertex64(idx.z) - a;

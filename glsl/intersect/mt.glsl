@@ -13,7 +13,7 @@
 bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
     bool found = false;
     for (uint s = first; s < first + count; ++s) {
-        uvec3 idx = imageLoad(mt_triangles, int(s)).xyz;
+        uvec3 idx = SCENE_TEXEL(mt_triangles, s).xyz;
         vec3 v0 = load_vertex(idx.x);
         vec3 e1 = load_vertex(idx.y) - v0;
         vec3 e2 = load_vertex(idx.z) - v0;

@@ -16,7 +16,7 @@ struct QuadMt {
 };
 
 // Nine rgba32f texels per quad, in member order.
-layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer quad_mts;
+SCENE_BUFFER(BINDING_PRIMS, rgba32f, F4, quad_mts);
 
 #define PRIM_STRUCT QuadMt
 // Triangle slots one primitive holds (a quad of four slots, padding included).
@@ -24,15 +24,15 @@ layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imag
 QuadMt load_prim(uint qi) {
     int b = int(9u * qi);
     QuadMt q;
-    q.v0x = imageLoad(quad_mts, b + 0);
-    q.v0y = imageLoad(quad_mts, b + 1);
-    q.v0z = imageLoad(quad_mts, b + 2);
-    q.v1x = imageLoad(quad_mts, b + 3);
-    q.v1y = imageLoad(quad_mts, b + 4);
-    q.v1z = imageLoad(quad_mts, b + 5);
-    q.v2x = imageLoad(quad_mts, b + 6);
-    q.v2y = imageLoad(quad_mts, b + 7);
-    q.v2z = imageLoad(quad_mts, b + 8);
+    q.v0x = SCENE_TEXEL(quad_mts, b + 0);
+    q.v0y = SCENE_TEXEL(quad_mts, b + 1);
+    q.v0z = SCENE_TEXEL(quad_mts, b + 2);
+    q.v1x = SCENE_TEXEL(quad_mts, b + 3);
+    q.v1y = SCENE_TEXEL(quad_mts, b + 4);
+    q.v1z = SCENE_TEXEL(quad_mts, b + 5);
+    q.v2x = SCENE_TEXEL(quad_mts, b + 6);
+    q.v2y = SCENE_TEXEL(quad_mts, b + 7);
+    q.v2z = SCENE_TEXEL(quad_mts, b + 8);
     return q;
 }
 

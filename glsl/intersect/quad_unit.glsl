@@ -18,7 +18,7 @@ struct QuadUnit {
 };
 
 // Twelve rgba32f texels per quad, in member order.
-layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer quad_units;
+SCENE_BUFFER(BINDING_PRIMS, rgba32f, F4, quad_units);
 
 #define PRIM_STRUCT QuadUnit
 // Triangle slots one primitive holds (a quad of four slots, padding included).
@@ -26,18 +26,18 @@ layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imag
 QuadUnit load_prim(uint qi) {
     int b = int(12u * qi);
     QuadUnit q;
-    q.m0x = imageLoad(quad_units, b + 0);
-    q.m0y = imageLoad(quad_units, b + 1);
-    q.m0z = imageLoad(quad_units, b + 2);
-    q.n0 = imageLoad(quad_units, b + 3);
-    q.m1x = imageLoad(quad_units, b + 4);
-    q.m1y = imageLoad(quad_units, b + 5);
-    q.m1z = imageLoad(quad_units, b + 6);
-    q.n1 = imageLoad(quad_units, b + 7);
-    q.m2x = imageLoad(quad_units, b + 8);
-    q.m2y = imageLoad(quad_units, b + 9);
-    q.m2z = imageLoad(quad_units, b + 10);
-    q.n2 = imageLoad(quad_units, b + 11);
+    q.m0x = SCENE_TEXEL(quad_units, b + 0);
+    q.m0y = SCENE_TEXEL(quad_units, b + 1);
+    q.m0z = SCENE_TEXEL(quad_units, b + 2);
+    q.n0 = SCENE_TEXEL(quad_units, b + 3);
+    q.m1x = SCENE_TEXEL(quad_units, b + 4);
+    q.m1y = SCENE_TEXEL(quad_units, b + 5);
+    q.m1z = SCENE_TEXEL(quad_units, b + 6);
+    q.n1 = SCENE_TEXEL(quad_units, b + 7);
+    q.m2x = SCENE_TEXEL(quad_units, b + 8);
+    q.m2y = SCENE_TEXEL(quad_units, b + 9);
+    q.m2z = SCENE_TEXEL(quad_units, b + 10);
+    q.n2 = SCENE_TEXEL(quad_units, b + 11);
     return q;
 }
 

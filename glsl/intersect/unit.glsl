@@ -16,10 +16,10 @@ struct UnitTriangle {
     vec4 row2; // maps to the distance from the plane
 };
 
-layout(set = 0, binding = BINDING_PRIMS, rgba32f) uniform readonly restrict imageBuffer unit_triangles;
+SCENE_BUFFER(BINDING_PRIMS, rgba32f, F4, unit_triangles);
 
 vec4 load_unit_row(uint slot, uint row) {
-    return imageLoad(unit_triangles, int(3u * slot + row));
+    return SCENE_TEXEL(unit_triangles, 3u * slot + row);
 }
 
 #define PRIM_STRUCT UnitTriangle

@@ -98,7 +98,7 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool a
     float sy = wt_ray.shear.y;
     float sz = wt_ray.shear.z;
     for (uint s = first; s < first + count; ++s) {
-        uvec3 idx = imageLoad(mt_triangles, int(s)).xyz;
+        uvec3 idx = SCENE_TEXEL(mt_triangles, s).xyz;
         // Vertices relative to the ray origin, then sheared: the same instructions for every
         // vertex slot, so a shared vertex gets the same bits in every triangle (precise: no FMA).
         precise vec3 a = load_vertex(idx.x) - r.origin;
