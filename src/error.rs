@@ -57,6 +57,11 @@ pub enum Error {
     /// A GPU job took longer than its wall-clock limit.
     #[error("{what} did not finish within {seconds} s")]
     Timeout { what: String, seconds: f64 },
+
+    /// A scene's GPU memory plan (`gpu::plan`) does not fit the device: found before anything
+    /// is allocated.
+    #[error("scene `{scene}` does not fit this device with method {method}: buffer `{buffer}` needs {needed}, the device allows {available}; try {hint}")]
+    SceneTooLarge { scene: String, method: String, buffer: String, needed: String, available: String, hint: String },
 }
 
 impl From<vk::Result> for Error {

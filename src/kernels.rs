@@ -33,6 +33,16 @@ pub fn raycast(method: Method, any_hit: bool) -> &'static KernelSource {
     find("raycast", method, if any_hit { "any" } else { "closest" })
 }
 
+/// The raycast kernel for a scene read through `access` (`gpu::plan`): the default variants
+/// for texel buffers, `closest_bda`/`any_bda` for device addresses.
+pub fn raycast_via(method: Method, any_hit: bool, access: crate::gpu::AccessPath) -> &'static KernelSource {
+    match (access, any_hit) {
+        (crate::gpu::AccessPath::Texel, _) => raycast(method, any_hit),
+        (crate::gpu::AccessPath::Address, false) => find("raycast", method, "closest_bda"),
+        (crate::gpu::AccessPath::Address, true) => find("raycast", method, "any_bda"),
+    }
+}
+
 /// The raycast kernel that also writes each ray's traversal work (closest hit; the `stats`
 /// variant, `TRAVERSAL_STATS` in `glsl/traverse.glsl`).
 pub fn raycast_stats(method: Method) -> &'static KernelSource {
@@ -70,6 +80,8 @@ mod tests {
                 assert_eq!(k.words()[0], 0x0723_0203, "SPIR-V magic");
             }
             assert_eq!(raycast_stats(m).variant, "stats");
+            assert_eq!(raycast_via(m, false, crate::gpu::AccessPath::Address).variant, "closest_bda");
+            assert_eq!(raycast_via(m, true, crate::gpu::AccessPath::Address).variant, "any_bda");
         }
         for k in KERNELS {
             assert!(

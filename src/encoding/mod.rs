@@ -208,6 +208,17 @@ impl EncodedScene {
         v
     }
 
+    /// All buffers the kernels read, borrowed (as [`EncodedScene::buffers`], without copying
+    /// the bytes: large scenes upload from these).
+    pub fn buffer_slices(&self) -> Vec<(&'static str, u32, Texel, &[u8])> {
+        let mut v: Vec<(&'static str, u32, Texel, &[u8])> = vec![
+            ("bvh nodes", BINDING_NODES, Texel::Rgba32Uint, bytemuck::cast_slice(&self.nodes)),
+            ("slot ids", BINDING_SLOT_IDS, Texel::R32Uint, bytemuck::cast_slice(&self.slot_ids)),
+        ];
+        v.extend(self.prims.iter().map(|b| (b.name, b.binding, b.texel, b.bytes.as_slice())));
+        v
+    }
+
     /// Bytes the scene occupies on the GPU (the paper's "GPU Scene Size").
     pub fn gpu_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<BvhNode>()

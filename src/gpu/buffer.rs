@@ -10,6 +10,9 @@ use super::context::{Context, Device};
 use crate::encoding::Texel;
 use crate::error::{Error, Result, VkContext};
 
+/// Most bytes one staging buffer holds; larger uploads reuse it chunk by chunk.
+pub const STAGING_CHUNK: usize = 64 << 20;
+
 /// A buffer and its memory; both are released on drop.
 pub struct Buffer {
     pub(crate) device: Arc<Device>,
@@ -131,7 +134,9 @@ impl Context {
         Ok(Buffer { device: d.clone(), raw, allocation: Some(allocation), size, name: name.into() })
     }
 
-    /// A device-local storage buffer holding `bytes`, filled through a staging buffer.
+    /// A device-local buffer holding `bytes`, filled through a staging buffer of at most
+    /// [`STAGING_CHUNK`] bytes reused chunk by chunk (so a large scene needs no host-visible
+    /// copy of its own size, nor an allocation beyond maxMemoryAllocationSize for it).
     pub fn upload(&self, name: &str, bytes: &[u8], usage: vk::BufferUsageFlags) -> Result<Buffer> {
         let buf = self.create_buffer(
             name,
@@ -144,26 +149,60 @@ impl Context {
         }
         let mut staging = self.create_buffer(
             &format!("{name} (staging)"),
-            bytes.len() as u64,
+            bytes.len().min(STAGING_CHUNK) as u64,
             vk::BufferUsageFlags::TRANSFER_SRC,
             MemoryLocation::CpuToGpu,
         )?;
-        staging
-            .mapped_mut()
-            .ok_or_else(|| Error::NoDevice(format!("staging buffer for `{name}` is not host-visible")))?[..bytes.len()]
-            .copy_from_slice(bytes);
-        self.one_shot(&format!("uploading `{name}`"), |d, cmd| unsafe {
-            // SAFETY: both buffers are alive until one_shot returns (it waits for the fence).
-            d.cmd_copy_buffer(cmd, staging.raw, buf.raw, &[vk::BufferCopy::default().size(bytes.len() as u64)]);
-            // Make the copy visible to any later shader read or write.
-            memory_barrier(
-                d,
-                cmd,
-                (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
-                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
-            );
-        })?;
+        let chunks = bytes.len().div_ceil(STAGING_CHUNK);
+        for (i, part) in bytes.chunks(STAGING_CHUNK).enumerate() {
+            staging
+                .mapped_mut()
+                .ok_or_else(|| Error::NoDevice(format!("staging buffer for `{name}` is not host-visible")))?
+                [..part.len()]
+                .copy_from_slice(part);
+            let what =
+                if chunks == 1 { format!("uploading `{name}`") } else { format!("uploading `{name}` ({}/{chunks})", i + 1) };
+            let region = vk::BufferCopy::default().dst_offset((i * STAGING_CHUNK) as u64).size(part.len() as u64);
+            // The previous chunk's copy finished (one_shot waited for its fence) before the host
+            // overwrote the staging buffer above.
+            self.one_shot(&what, |d, cmd| unsafe {
+                // SAFETY: both buffers are alive until one_shot returns (it waits for the fence).
+                d.cmd_copy_buffer(cmd, staging.raw, buf.raw, &[region]);
+                // Make the copy visible to any later shader read or write.
+                memory_barrier(
+                    d,
+                    cmd,
+                    (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+                    (
+                        vk::PipelineStageFlags::COMPUTE_SHADER,
+                        vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                    ),
+                );
+            })?;
+        }
         Ok(buf)
+    }
+
+    /// Uploads `bytes` into a buffer the kernels reach by its device address (the scene's
+    /// address path, `gpu::plan`); returns the buffer and its address.
+    pub fn upload_addressed(&self, name: &str, bytes: &[u8]) -> Result<(Buffer, vk::DeviceAddress)> {
+        if !self.enabled().buffer_device_address {
+            return Err(Error::Unsupported(format!(
+                "scene buffer `{name}`: bufferDeviceAddress is not enabled on {}",
+                self.info().name
+            )));
+        }
+        // At least one texel, as a texel view would have.
+        let pad = [0u8; 16];
+        let bytes = if bytes.is_empty() { &pad[..] } else { bytes };
+        let buf = self.upload(name, bytes, vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS)?;
+        // SAFETY: the buffer has SHADER_DEVICE_ADDRESS usage and is bound to memory allocated
+        // with the device-address flag (gpu-allocator sets it when the context enables
+        // bufferDeviceAddress, checked above).
+        let address = unsafe {
+            self.device.raw.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(buf.raw))
+        };
+        Ok((buf, address))
     }
 
     /// Copies `len` bytes from the start of a device buffer back to the host.

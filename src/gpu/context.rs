@@ -110,6 +110,9 @@ pub struct EnabledFeatures {
     pub ray_query: bool,
     pub shader_float64: bool,
     pub shader_int64: bool,
+    /// Vulkan 1.2 `bufferDeviceAddress`: enabled wherever the device has it (ray query and the
+    /// raycast kernels' `*_bda` variants, which read scenes beyond one binding's limit, need it).
+    pub buffer_device_address: bool,
 }
 
 impl EnabledFeatures {
@@ -122,6 +125,7 @@ impl EnabledFeatures {
             ray_query: info.ray_query && info.buffer_device_address,
             shader_float64: info.shader_float64,
             shader_int64: info.shader_int64,
+            buffer_device_address: info.buffer_device_address,
         }
     }
 }
@@ -256,7 +260,7 @@ impl Context {
             .pipeline_statistics_query(enabled.pipeline_statistics_query)
             .shader_float64(enabled.shader_float64)
             .shader_int64(enabled.shader_int64);
-        let mut f12 = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(enabled.ray_query);
+        let mut f12 = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(enabled.buffer_device_address);
         let mut clock = vk::PhysicalDeviceShaderClockFeaturesKHR::default().shader_subgroup_clock(true);
         let mut ssc = vk::PhysicalDeviceSubgroupSizeControlFeatures::default()
             .subgroup_size_control(true)
@@ -308,7 +312,7 @@ impl Context {
             device: raw.clone(),
             physical_device: physical,
             debug_settings: Default::default(),
-            buffer_device_address: enabled.ray_query,
+            buffer_device_address: enabled.buffer_device_address,
             allocation_sizes: Default::default(),
         }) {
             Ok(a) => a,

@@ -60,6 +60,14 @@ pub struct DeviceInfo {
     pub float_controls: FloatControls,
     pub max_storage_buffer_range: u32,
     pub max_texel_buffer_elements: u32,
+    /// Vulkan 1.1 `maxMemoryAllocationSize`: the largest single allocation.
+    pub max_memory_allocation_size: u64,
+    /// `VK_KHR_maintenance4` `maxBufferSize` (`None` where the device lacks the extension).
+    pub max_buffer_size: Option<u64>,
+    /// Size of the largest DEVICE_LOCAL memory heap.
+    pub device_local_heap_bytes: u64,
+    /// `VK_EXT_memory_budget` is supported (the planner then reads the heap's current budget).
+    pub memory_budget: bool,
     pub min_storage_buffer_offset_alignment: u64,
     pub max_compute_workgroup_invocations: u32,
     pub max_compute_workgroup_count: [u32; 3],
@@ -106,6 +114,8 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
     let mut v11 = vk::PhysicalDeviceVulkan11Properties::default();
     let mut v12 = vk::PhysicalDeviceVulkan12Properties::default();
     let mut ssc = vk::PhysicalDeviceSubgroupSizeControlProperties::default();
+    let mut m4 = vk::PhysicalDeviceMaintenance4Properties::default();
+    let has_m4 = has(ash::khr::maintenance4::NAME);
     // trilab's instances ask for Vulkan 1.2, so a device's effective version is at most 1.2 and
     // subgroup size control needs the extension even where the device has Vulkan 1.3.
     let has_ssc = has(ash::ext::subgroup_size_control::NAME);
@@ -114,6 +124,9 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         props2 = props2.push_next(&mut v11).push_next(&mut v12);
         if has_ssc {
             props2 = props2.push_next(&mut ssc);
+        }
+        if has_m4 {
+            props2 = props2.push_next(&mut m4);
         }
         instance.get_physical_device_properties2(pd, &mut props2);
     }
@@ -164,6 +177,13 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
     };
     let driver_info = cstr(&v12.driver_info);
     let limits = base.limits;
+    let memory = instance.get_physical_device_memory_properties(pd);
+    let device_local_heap_bytes = memory.memory_heaps_as_slice()
+        .iter()
+        .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+        .map(|h| h.size)
+        .max()
+        .unwrap_or(0);
     DeviceInfo {
         index,
         name: cstr(&base.device_name),
@@ -205,6 +225,10 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         },
         max_storage_buffer_range: limits.max_storage_buffer_range,
         max_texel_buffer_elements: limits.max_texel_buffer_elements,
+        max_memory_allocation_size: v11.max_memory_allocation_size,
+        max_buffer_size: has_m4.then_some(m4.max_buffer_size),
+        device_local_heap_bytes,
+        memory_budget: has(ash::ext::memory_budget::NAME),
         min_storage_buffer_offset_alignment: limits.min_storage_buffer_offset_alignment,
         max_compute_workgroup_invocations: limits.max_compute_work_group_invocations,
         max_compute_workgroup_count: limits.max_compute_work_group_count,
@@ -299,6 +323,19 @@ impl DeviceInfo {
             self.max_storage_buffer_range >> 20
         );
         let _ = writeln!(s, "    maxTexelBufferElements:   {}", self.max_texel_buffer_elements);
+        let _ = writeln!(s, "    maxMemoryAllocationSize:  {} MiB", self.max_memory_allocation_size >> 20);
+        let _ = writeln!(
+            s,
+            "    maxBufferSize:            {}",
+            opt(self.max_buffer_size.map(|b| format!("{} MiB", b >> 20)))
+        );
+        let _ = writeln!(
+            s,
+            "    device-local heap:        {} MiB (memory budget: {})",
+            self.device_local_heap_bytes >> 20,
+            yn(self.memory_budget)
+        );
+        let _ = writeln!(s, "    bufferDeviceAddress:      {}", yn(self.buffer_device_address));
         s
     }
 }

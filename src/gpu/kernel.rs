@@ -154,6 +154,7 @@ impl Context {
                 Feature::ShaderInt64 => e.shader_int64,
                 Feature::ShaderSubgroupClock => e.shader_clock,
                 Feature::RayQuery => e.ray_query,
+                Feature::BufferDeviceAddress => e.buffer_device_address,
             };
             if !on {
                 return Err(Error::Unsupported(format!(
@@ -175,6 +176,7 @@ pub enum Feature {
     ShaderInt64,
     ShaderSubgroupClock,
     RayQuery,
+    BufferDeviceAddress,
 }
 
 impl Feature {
@@ -185,6 +187,7 @@ impl Feature {
             Feature::ShaderInt64 => "shaderInt64",
             Feature::ShaderSubgroupClock => "shaderSubgroupClock",
             Feature::RayQuery => "rayQuery",
+            Feature::BufferDeviceAddress => "bufferDeviceAddress",
         }
     }
 }
@@ -205,12 +208,13 @@ pub fn required_features(words: &[u32]) -> std::result::Result<Vec<Requirement>,
     const MAGIC: u32 = 0x0723_0203;
     const OP_CAPABILITY: u32 = 17;
     // SPIR-V 1.5 spec, "Capability": Float64 = 10, Int64 = 11, RayQueryKHR = 4472,
-    // ShaderClockKHR = 5055.
-    const TABLE: [(u32, &str, Feature); 4] = [
+    // ShaderClockKHR = 5055, PhysicalStorageBufferAddresses = 5347.
+    const TABLE: [(u32, &str, Feature); 5] = [
         (10, "Float64", Feature::ShaderFloat64),
         (11, "Int64", Feature::ShaderInt64),
         (4472, "RayQueryKHR", Feature::RayQuery),
         (5055, "ShaderClockKHR", Feature::ShaderSubgroupClock),
+        (5347, "PhysicalStorageBufferAddresses", Feature::BufferDeviceAddress),
     ];
     if words.len() < 5 || words[0] != MAGIC {
         return Err("not a SPIR-V module (no magic number)".into());

@@ -5,30 +5,63 @@ use std::time::Instant;
 
 use ash::vk;
 
-use super::buffer::{memory_barrier, TexelBuffer};
+use super::buffer::{memory_barrier, Buffer, TexelBuffer};
 use super::context::Context;
 use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;
+use super::plan::{AccessPath, DeviceLimits, MemoryPlan, SceneAccess};
 use super::shared::{BINDING_HITS, BINDING_RAYS, BINDING_TRAVERSAL_STATS};
 use super::timestamps::Timestamps;
 use super::traversal_stats::TraversalCounts;
-use crate::encoding::{EncodedScene, Method};
+use crate::encoding::{EncodedScene, Method, Texel};
 use crate::error::{Result, VkContext};
 use crate::rays::{Hit, Ray};
 
-/// A scene's buffers on the GPU, each bound as a storage texel buffer.
+/// One scene buffer as the kernels reach it.
+enum SceneBinding {
+    /// A storage texel buffer (the default kernels).
+    Texels(TexelBuffer),
+    /// The texel path's limit does not apply: the data in a device-address buffer, and a
+    /// uniform buffer holding its address, bound where the texel buffer would be (the `*_bda`
+    /// kernels, `SCENE_ADDRESS` in `glsl/types.glsl`).
+    Address { data: Buffer, pointer: Buffer },
+}
+
+/// A scene's buffers on the GPU, read through the access path it was uploaded for.
 pub struct GpuScene {
     pub method: Method,
     pub leaf_size: u32,
     /// (binding, buffer)
-    buffers: Vec<(u32, TexelBuffer)>,
+    buffers: Vec<(u32, SceneBinding)>,
     /// Bytes uploaded.
     pub bytes: usize,
+    /// How the kernels must read it: texel scenes bind to `kernels::raycast`, address scenes
+    /// to `kernels::raycast_via(.., AccessPath::Address)`.
+    pub access: AccessPath,
 }
 
 impl GpuScene {
+    /// Uploads for the texel path (the default kernels).
     pub fn upload(ctx: &Context, scene: &EncodedScene) -> Result<GpuScene> {
-        Self::upload_filtered(ctx, scene, |_| true)
+        Self::upload_filtered(ctx, scene, AccessPath::Texel, |_| true)
+    }
+
+    /// Uploads for `access` (chosen by `MemoryPlan::choose` before encoding).
+    pub fn upload_with(ctx: &Context, scene: &EncodedScene, access: AccessPath) -> Result<GpuScene> {
+        Self::upload_filtered(ctx, scene, access, |_| true)
+    }
+
+    /// Plans `scene` as encoded, chooses its access path (`requested`, against `limits`), and
+    /// uploads it; `name` names the scene in a "does not fit" error.
+    pub fn upload_planned(
+        ctx: &Context,
+        name: &str,
+        scene: &EncodedScene,
+        requested: SceneAccess,
+        limits: &DeviceLimits,
+    ) -> Result<GpuScene> {
+        let access = MemoryPlan::of_encoded(scene).choose(name, requested, limits)?;
+        Self::upload_with(ctx, scene, access)
     }
 
     /// Uploads only the buffers `kernel` reads (the path tracer, say, never reads the slot ->
@@ -36,26 +69,59 @@ impl GpuScene {
     pub fn upload_for(ctx: &Context, scene: &EncodedScene, kernel: &crate::kernels::KernelSource) -> Result<GpuScene> {
         let layout = crate::spirv::reflect::reflect(kernel.name, &kernel.words())?;
         let read = layout.sets.get(&0).cloned().unwrap_or_default();
-        Self::upload_filtered(ctx, scene, |b| read.contains_key(&b))
+        Self::upload_filtered(ctx, scene, AccessPath::Texel, |b| read.contains_key(&b))
     }
 
-    fn upload_filtered(ctx: &Context, scene: &EncodedScene, keep: impl Fn(u32) -> bool) -> Result<GpuScene> {
+    fn upload_filtered(
+        ctx: &Context,
+        scene: &EncodedScene,
+        access: AccessPath,
+        keep: impl Fn(u32) -> bool,
+    ) -> Result<GpuScene> {
         scene.check_limits().map_err(|e| {
             crate::error::Error::Usage(format!("scene too large for the {} kernels: {e}", scene.method))
         })?;
-        let buffers: Vec<(u32, TexelBuffer)> = scene
-            .buffers()
-            .into_iter()
-            .filter(|b| keep(b.binding))
-            .map(|b| Ok((b.binding, ctx.upload_texels(b.name, &b.bytes, b.texel)?)))
-            .collect::<Result<Vec<_>>>()?;
-        let bytes = buffers.iter().map(|(_, t)| t.buffer.size as usize).sum();
-        Ok(GpuScene { method: scene.method, leaf_size: scene.leaf_size, buffers, bytes })
+        let upload = |(name, binding, texel, bytes): (&str, u32, Texel, &[u8])| -> Result<(u32, SceneBinding)> {
+            Ok((
+                binding,
+                match access {
+                    AccessPath::Texel => SceneBinding::Texels(ctx.upload_texels(name, bytes, texel)?),
+                    AccessPath::Address => {
+                        let (data, address) = ctx.upload_addressed(name, bytes)?;
+                        // `uniform <name>Address { Scene.. <name>; }` (std140): the 8-byte address.
+                        let pointer = ctx.upload(
+                            &format!("{name} (address)"),
+                            &address.to_le_bytes(),
+                            vk::BufferUsageFlags::UNIFORM_BUFFER,
+                        )?;
+                        SceneBinding::Address { data, pointer }
+                    }
+                },
+            ))
+        };
+        let buffers: Vec<(u32, SceneBinding)> =
+            scene.buffer_slices().into_iter().filter(|b| keep(b.1)).map(upload).collect::<Result<Vec<_>>>()?;
+        let bytes = buffers
+            .iter()
+            .map(|(_, b)| match b {
+                SceneBinding::Texels(t) => t.buffer.size as usize,
+                SceneBinding::Address { data, .. } => data.size as usize,
+            })
+            .sum();
+        Ok(GpuScene { method: scene.method, leaf_size: scene.leaf_size, buffers, bytes, access })
     }
 
     /// The scene's bindings, for a descriptor set.
     pub fn resources(&self) -> impl Iterator<Item = (u32, Resource<'_>)> {
-        self.buffers.iter().map(|(b, t)| (*b, Resource::Texels(t)))
+        self.buffers.iter().map(|(b, t)| {
+            (
+                *b,
+                match t {
+                    SceneBinding::Texels(t) => Resource::Texels(t),
+                    SceneBinding::Address { pointer, .. } => Resource::whole(pointer),
+                },
+            )
+        })
     }
 }
 
