@@ -1,0 +1,160 @@
+//! Large scenes: memory plans equal the encoded buffers, a scene that does not fit fails before
+//! anything is allocated, the address path (`*_bda` kernels) equals the texel path and the f64
+//! reference, the planner picks the address path by itself when a buffer exceeds one binding,
+//! and a million-triangle scene casts correctly through it.
+
+mod common;
+
+use trilab::bvh::{BuildOptions, Bvh};
+use trilab::compare::{compare_any, compare_closest};
+use trilab::encoding::Method;
+use trilab::error::Error;
+use trilab::gpu::{raycast, AccessPath, DeviceLimits, GpuScene, MemoryPlan, RaycastOptions, SceneAccess};
+use trilab::rays::{differing_hits, random_rays};
+use trilab::reference::Reference;
+use trilab::scene::Mesh;
+
+const OPTS: RaycastOptions = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
+
+/// A k x k height field of 2 k^2 triangles with shared vertices (a bumpy sheet: rays from
+/// random directions hit it about half the time).
+fn sheet(k: u32) -> Mesh {
+    let mut pos = Vec::with_capacity(((k + 1) * (k + 1)) as usize);
+    for j in 0..=k {
+        for i in 0..=k {
+            let (x, y) = (i as f32 / k as f32, j as f32 / k as f32);
+            let z = 0.05 * ((x * 37.0).sin() * (y * 23.0).cos()) + 0.02 * ((i * 7 + j * 13) % 5) as f32 / k as f32;
+            pos.push([x, y, z]);
+        }
+    }
+    let mut tris = Vec::with_capacity((2 * k * k) as usize);
+    let v = |i: u32, j: u32| j * (k + 1) + i;
+    for j in 0..k {
+        for i in 0..k {
+            tris.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+            tris.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+        }
+    }
+    Mesh::from_triangles(pos, tris)
+}
+
+#[test]
+fn plans_equal_the_encoded_buffer_sizes_on_the_bunny() {
+    let mesh = common::bunny();
+    for leaf in [1, 4, 7] {
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
+        for m in Method::ALL {
+            let plan = MemoryPlan::for_bvh(m, &mesh, &bvh);
+            let enc = m.encode(&mesh, &bvh);
+            let want: Vec<(&str, u32, u64)> =
+                enc.buffer_slices().iter().map(|b| (b.0, b.1, b.3.len() as u64)).collect();
+            let got: Vec<(&str, u32, u64)> = plan.buffers.iter().map(|b| (b.name, b.binding, b.bytes)).collect();
+            assert_eq!(got, want, "{m} leaf {leaf}");
+            assert_eq!(plan.bytes(), enc.gpu_bytes() as u64, "{m} leaf {leaf}");
+            assert_eq!(MemoryPlan::of_encoded(&enc).buffers, plan.buffers, "{m} leaf {leaf}");
+        }
+    }
+}
+
+#[test]
+fn a_scene_that_does_not_fit_fails_before_upload_and_one_that_fits_uploads() {
+    common::with_gpu(120, |ctx| {
+        let mesh = common::bunny();
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+        let real = DeviceLimits::of(ctx);
+        for m in [Method::Mt, Method::QuadUnit] {
+            let plan = MemoryPlan::for_bvh(m, &mesh, &bvh);
+            // Fits as the device is.
+            let path = plan.choose("bunny", SceneAccess::Auto, &real).unwrap();
+            assert_eq!(path, AccessPath::Texel);
+            let gpu = GpuScene::upload_with(ctx, &m.encode(&mesh, &bvh), path).unwrap();
+            assert_eq!(gpu.bytes as u64, plan.gpu_bytes());
+            // A device with less memory than the scene: the error names everything.
+            let small = DeviceLimits { budget_bytes: Some(plan.gpu_bytes() / 2), ..real };
+            let e = plan.choose("bunny", SceneAccess::Auto, &small).unwrap_err();
+            assert!(matches!(e, Error::SceneTooLarge { .. }), "{e}");
+            let msg = e.to_string();
+            for want in ["bunny", m.name(), "all scene buffers", &plan.gpu_bytes().to_string(), "budget", "try"] {
+                assert!(msg.contains(want), "`{want}` missing from: {msg}");
+            }
+            // Buffers beyond one binding, with no address path: names the buffer and the limit.
+            let tight = DeviceLimits { max_texel_buffer_elements: 1000, buffer_device_address: false, ..real };
+            let msg = GpuScene::upload_planned(ctx, "bunny", &m.encode(&mesh, &bvh), SceneAccess::Auto, &tight)
+                .err()
+                .expect("does not fit")
+                .to_string();
+            assert!(msg.contains("maxTexelBufferElements") && msg.contains("bufferDeviceAddress"), "{msg}");
+            // Forced texel path over the limit suggests the address path.
+            let tight = DeviceLimits { max_texel_buffer_elements: 1000, ..real };
+            let msg = plan.choose("bunny", SceneAccess::Texel, &tight).unwrap_err().to_string();
+            assert!(msg.contains("--scene-access address"), "{msg}");
+        }
+    });
+}
+
+#[test]
+fn address_variants_equal_the_texel_variants_and_the_reference_on_the_bunny() {
+    let failures = common::with_gpu(300, |ctx| {
+        assert!(ctx.enabled().buffer_device_address, "lavapipe has bufferDeviceAddress");
+        let mesh = common::bunny();
+        let rays = random_rays(&mesh.bounds(), 20_000, 77);
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+        let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
+        let mut failures = vec![];
+        for m in Method::ALL {
+            let enc = m.encode(&mesh, &bvh);
+            let texel = GpuScene::upload_with(ctx, &enc, AccessPath::Texel).unwrap();
+            let address = GpuScene::upload_with(ctx, &enc, AccessPath::Address).unwrap();
+            assert_eq!(address.access, AccessPath::Address);
+            let mut hits = vec![];
+            for any in [false, true] {
+                for (scene, path) in [(&texel, AccessPath::Texel), (&address, AccessPath::Address)] {
+                    let k = ctx.create_kernel(trilab::kernels::raycast_via(m, any, path)).unwrap();
+                    hits.push(raycast(ctx, &k, scene, &rays, &OPTS).unwrap().hits);
+                }
+            }
+            // Same arithmetic, only the loads differ: bitwise-equal hits.
+            for (a, b, what) in [(0, 1, "closest"), (2, 3, "any")] {
+                let d = differing_hits(&hits[a], &hits[b]);
+                if d != 0 {
+                    failures.push(format!("{m} {what}: {d} rays differ between texel and address paths"));
+                }
+            }
+            let agreement = compare_closest(&mesh, &rays, &hits[1], &reference);
+            if !agreement.passes(0.9999) {
+                failures.push(format!("{m} closest_bda vs reference: {}", agreement.summary()));
+            }
+            let any = compare_any(&mesh, &rays, &hits[1], &hits[3]);
+            if !any.passes() {
+                failures.push(format!("{m} any_bda: {any:?}"));
+            }
+        }
+        failures
+    });
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn a_million_triangles_through_the_automatically_chosen_address_path_match_the_reference() {
+    let mesh = sheet(708); // 1,002,528 triangles
+    let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+    let rays = random_rays(&mesh.bounds(), 20_000, 5);
+    let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
+    let hits_ref = reference.iter().filter(|h| h.is_hit()).count();
+    assert!(hits_ref > 2_000, "the rays should hit the sheet ({hits_ref})");
+    let plan = MemoryPlan::for_bvh(Method::Mt, &mesh, &bvh);
+    let (agreement, any, path) = common::with_gpu(300, move |ctx| {
+        // A device whose texel buffers hold 2^20 texels: MT's 1M triangle slots do not fit one.
+        let limits = DeviceLimits { max_texel_buffer_elements: 1 << 20, ..DeviceLimits::of(ctx) };
+        let path = plan.choose("sheet 1M", SceneAccess::Auto, &limits).unwrap();
+        let gpu = GpuScene::upload_with(ctx, &Method::Mt.encode(&mesh, &bvh), path).unwrap();
+        let closest = ctx.create_kernel(trilab::kernels::raycast_via(Method::Mt, false, path)).unwrap();
+        let any_k = ctx.create_kernel(trilab::kernels::raycast_via(Method::Mt, true, path)).unwrap();
+        let c = raycast(ctx, &closest, &gpu, &rays, &OPTS).unwrap().hits;
+        let a = raycast(ctx, &any_k, &gpu, &rays, &OPTS).unwrap().hits;
+        (compare_closest(&mesh, &rays, &c, &reference), compare_any(&mesh, &rays, &c, &a), path)
+    });
+    assert_eq!(path, AccessPath::Address);
+    assert!(agreement.passes(0.9999), "{}", agreement.summary());
+    assert!(any.passes(), "{any:?}");
+}
