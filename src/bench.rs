@@ -43,6 +43,8 @@ pub struct BenchOptions {
     pub batch_rays: usize,
     /// Add the driver's ray query as a peer row where the device has it.
     pub ray_query: bool,
+    /// How the kernels read each scene (`gpu::plan`; `auto`: texel buffers when they fit).
+    pub scene_access: crate::gpu::SceneAccess,
 }
 
 /// Wall-clock target of one ray-query submit (its batch is sized to it, [`rayquery::batch_for`]).
@@ -67,6 +69,7 @@ impl Default for BenchOptions {
             embree: None,
             batch_rays: 1 << 20,
             ray_query: true,
+            scene_access: crate::gpu::SceneAccess::Auto,
         }
     }
 }
@@ -384,8 +387,19 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let reference = Reference::new(&mesh, &bvh);
         let sets = ray_sets(&mesh, &name, &reference, o)?;
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
-        let scenes: Vec<GpuScene> =
-            o.methods.iter().map(|m| GpuScene::upload(ctx, &m.encode(&mesh, &bvh))).collect::<Result<_>>()?;
+        // Each method's memory plan picks its access path before encoding (and fails clearly if
+        // the scene cannot fit); address-path scenes get their `*_bda` kernel.
+        let limits = crate::gpu::DeviceLimits::of(ctx);
+        let mut scenes: Vec<GpuScene> = vec![];
+        let mut bda_kernels: Vec<Option<crate::gpu::Kernel>> = vec![];
+        for &m in &o.methods {
+            let access = crate::gpu::MemoryPlan::for_bvh(m, &mesh, &bvh).choose(&name, o.scene_access, &limits)?;
+            scenes.push(GpuScene::upload_with(ctx, &m.encode(&mesh, &bvh), access)?);
+            bda_kernels.push(match access {
+                crate::gpu::AccessPath::Texel => None,
+                path => Some(ctx.create_kernel(crate::kernels::raycast_via(m, false, path))?),
+            });
+        }
         let accel = match &rq_kernel {
             Some(_) => {
                 let a = AccelStructure::build(ctx, &mesh)?;
@@ -407,7 +421,8 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         for (set, rays) in &sets {
             let ref_hits = reference.trace_all(rays, false);
             let mut best: f64 = 0.0;
-            for ((method, kernel), gscene) in o.methods.iter().zip(&kernels).zip(&scenes) {
+            for (((method, kernel), gscene), bda) in o.methods.iter().zip(&kernels).zip(&scenes).zip(&bda_kernels) {
+                let kernel = bda.as_ref().unwrap_or(kernel);
                 let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: o.batch_rays };
                 let m = measure_rays(ctx, kernel, gscene, &mesh, rays, &ref_hits, &opts)
                     .map_err(|e| Error::Usage(format!("{name} {set} {method}: {e}")))?;

@@ -24,6 +24,7 @@ pub mod rays;
 pub mod reference;
 pub mod render;
 pub mod report;
+pub mod scale;
 pub mod scene;
 pub mod spirv;
 pub mod study;

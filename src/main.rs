@@ -14,7 +14,7 @@ use trilab::encoding::Method;
 use trilab::error::{Error, Result};
 use trilab::gpu::{
     raycast, raycast_rq, raycast_stats, rayquery, AccelStructure, Context, ContextOptions, GpuScene, Peer,
-    RaycastOptions, TraversalCounts, TraversalSummary, Validation,
+    RaycastOptions, SceneAccess, TraversalCounts, TraversalSummary, Validation,
 };
 use trilab::rays::{self, Camera};
 use trilab::reference::Reference;
@@ -104,6 +104,10 @@ enum Cmd {
     /// Ray-casting benchmark: primary, diffuse and random rays, every method, validated against
     /// the f64 reference, optionally beside the Embree peer.
     Bench(BenchArgs),
+    /// Large scenes: load and BVH-build times, each method's GPU memory plan (bytes per buffer and
+    /// per triangle, access path), upload and a timed, validated cast; writes
+    /// scale.csv/json/md.
+    Scale(ScaleArgs),
     /// Path-trace a scene: linear RGBA EXR, a tone-mapped sRGB PNG and a JSON sidecar.
     Render(RenderArgs),
     /// Path-tracing benchmark: samples/s and rays/s per scene, method and kernel choice.
@@ -309,6 +313,10 @@ struct RaycastArgs {
     /// Occlusion query: any hit in [tmin, tmax] instead of the closest.
     #[arg(long)]
     any_hit: bool,
+    /// How the kernels read the scene: `auto` plans its GPU memory and uses texel buffers when
+    /// every buffer fits one binding, else buffer device addresses (the JSON says which).
+    #[arg(long, value_enum, default_value_t = SceneAccess::Auto)]
+    scene_access: SceneAccess,
     /// Timed runs after one warm-up; the median is reported.
     #[arg(long, default_value_t = 5)]
     repeat: usize,
@@ -321,6 +329,44 @@ struct RaycastArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+#[derive(Args)]
+struct ScaleArgs {
+    /// Scenes; default: ../shared/scenes/dragon_full_draco11.obj.gz if present, and a
+    /// 10M-triangle synthetic scene.
+    #[arg(long, value_delimiter = ',')]
+    scenes: Vec<String>,
+    /// Methods; default: every method this device runs.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    methods: Vec<Method>,
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    /// Rays cast per scene and method.
+    #[arg(long, default_value_t = 1_000_000)]
+    rays: usize,
+    #[arg(long, value_enum, default_value_t = trilab::scale::RayKind::Random)]
+    ray_kind: trilab::scale::RayKind,
+    /// Timed runs after one warm-up (median, min, max reported).
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Hits checked against the f64 reference (evenly spaced over the ray set).
+    #[arg(long, default_value_t = 20_000)]
+    validate: usize,
+    #[arg(long, value_enum, default_value_t = SceneAccess::Auto)]
+    scene_access: SceneAccess,
+    #[arg(long, default_value_t = 1 << 20)]
+    batch_rays: usize,
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Only the memory plan (bytes per triangle, access path): no upload, no cast.
+    #[arg(long)]
+    plan_only: bool,
+    /// Output directory; default results/<device>/scale/.
+    #[arg(long)]
+    out: Option<PathBuf>,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -363,6 +409,10 @@ struct BenchArgs {
     /// default sizes); `on` runs it there too; `off` leaves it out.
     #[arg(long, value_enum, default_value_t = RayQueryChoice::Auto)]
     ray_query: RayQueryChoice,
+    /// How the kernels read the scenes: `auto` uses texel buffers when every buffer fits one
+    /// binding, else buffer device addresses (`trilab scale` reports which).
+    #[arg(long, value_enum, default_value_t = SceneAccess::Auto)]
+    scene_access: SceneAccess,
     /// Write the report as JSON here.
     #[arg(long)]
     json_out: Option<PathBuf>,
@@ -493,6 +543,7 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Spirv { write, json } => spirv_cmd(write, json),
         Cmd::Steps(a) => steps_cmd(a),
         Cmd::Bench(a) => bench_cmd(a),
+        Cmd::Scale(a) => scale_cmd(a),
         Cmd::Render(a) => render_cmd(a),
         Cmd::BenchRender(a) => bench_render_cmd(a),
         Cmd::Study(a) => study_cmd(a),
@@ -582,6 +633,8 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     let ctx;
     // The method that traced them (None for a peer) and, for `--method auto`, why.
     let (mut method, mut auto) = (None, None);
+    // How our kernels read the scene (None for a peer).
+    let mut scene_access = None;
     // What traced the rays: (label, bytes on the GPU, the driver's structure stats for a peer).
     let (res, tracer, scene_bytes, accel) = match a.peer {
         Some(Peer::RayQuery) => {
@@ -598,6 +651,14 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
             ctx = a.gpu.context()?;
             let (m, rec) = resolve_method(a.method, &mesh, &ctx)?;
             (method, auto) = (Some(m), rec);
+            // Plan before encoding: a scene that cannot fit fails here, naming the buffer.
+            let limits = trilab::gpu::DeviceLimits::of(&ctx);
+            let access = trilab::gpu::MemoryPlan::for_bvh(m, &mesh, &bvh).choose(
+                &a.scene.display().to_string(),
+                a.scene_access,
+                &limits,
+            )?;
+            scene_access = Some(access);
             let encoded = m.encode(&mesh, &bvh);
             if !encoded.unrepresentable.is_empty() {
                 eprintln!(
@@ -606,8 +667,9 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
                     encoded.unrepresentable[0]
                 );
             }
-            let kernel = ctx.create_kernel(trilab::kernels::raycast(m, a.any_hit))?;
-            let scene = GpuScene::upload(&ctx, &encoded)?;
+            let kernel = ctx.create_kernel(trilab::kernels::raycast_via(m, a.any_hit, access))?;
+            let scene = GpuScene::upload_with(&ctx, &encoded, access)?;
+            drop(encoded);
             let res = raycast(&ctx, &kernel, &scene, &rays, &opts)?;
             (res, format!("{m} leaf size {} ({})", a.leaf_size, a.leaf_policy), scene.bytes, None)
         }
@@ -663,6 +725,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
             "mrays_per_s": mrays(t.median),
             "batches": res.batches,
             "scene_bytes": scene_bytes,
+            "scene_access": scene_access,
             "triangles": mesh.triangle_count(),
             "degenerate_triangles": bvh.degenerate_excluded,
             "device": info.name,
@@ -975,6 +1038,7 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         seed: a.seed,
         rays_dir: a.rays_dir.clone(),
         embree: a.embree.clone(),
+        scene_access: a.scene_access,
         ..Default::default()
     };
     let ctx = a.gpu.context()?;
@@ -1475,6 +1539,47 @@ fn resolve_method(
 
 /// Every method this device can run: the default of `bench`, `bench-render`, `profile` and
 /// `steps --gpu` (f64 needs shaderFloat64; elsewhere it is left out rather than failing).
+fn scale_cmd(a: ScaleArgs) -> Result<()> {
+    check_leaf_size(a.leaf_size)?;
+    let scenes = if a.scenes.is_empty() {
+        let dragon = Path::new("../shared/scenes/dragon_full_draco11.obj.gz");
+        let mut v = vec![];
+        if dragon.exists() {
+            v.push(dragon.display().to_string());
+        }
+        v.push("synth:sheet:10000000".to_owned());
+        v
+    } else {
+        a.scenes.clone()
+    };
+    let ctx = a.gpu.context()?;
+    let methods = if a.methods.is_empty() { device_methods(&ctx) } else { a.methods.clone() };
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("results").join(ctx.info().results_dir()).join("scale"));
+    let o = trilab::scale::ScaleOptions {
+        scenes,
+        methods,
+        leaf_size: a.leaf_size,
+        rays: a.rays,
+        ray_kind: a.ray_kind,
+        warmup: 1,
+        repeat: a.repeat.max(1),
+        validate: a.validate,
+        scene_access: a.scene_access,
+        batch_rays: a.batch_rays,
+        seed: a.seed,
+        plan_only: a.plan_only,
+    };
+    let report = trilab::scale::run(&ctx, &o, |m| eprintln!("  {m}"))?;
+    print!("{}", report.markdown());
+    for p in report.write(&out)? {
+        eprintln!("wrote {}", p.display());
+    }
+    if !report.passes() {
+        return Err(Error::Usage("scale: some casts disagree with the f64 reference (see scale.md)".into()));
+    }
+    Ok(())
+}
+
 fn device_methods(ctx: &Context) -> Vec<Method> {
     trilab::analyze::available_methods(ctx.enabled())
 }

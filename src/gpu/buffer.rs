@@ -160,8 +160,11 @@ impl Context {
                 .ok_or_else(|| Error::NoDevice(format!("staging buffer for `{name}` is not host-visible")))?
                 [..part.len()]
                 .copy_from_slice(part);
-            let what =
-                if chunks == 1 { format!("uploading `{name}`") } else { format!("uploading `{name}` ({}/{chunks})", i + 1) };
+            let what = if chunks == 1 {
+                format!("uploading `{name}`")
+            } else {
+                format!("uploading `{name}` ({}/{chunks})", i + 1)
+            };
             let region = vk::BufferCopy::default().dst_offset((i * STAGING_CHUNK) as u64).size(part.len() as u64);
             // The previous chunk's copy finished (one_shot waited for its fence) before the host
             // overwrote the staging buffer above.

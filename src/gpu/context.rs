@@ -260,7 +260,8 @@ impl Context {
             .pipeline_statistics_query(enabled.pipeline_statistics_query)
             .shader_float64(enabled.shader_float64)
             .shader_int64(enabled.shader_int64);
-        let mut f12 = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(enabled.buffer_device_address);
+        let mut f12 =
+            vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(enabled.buffer_device_address);
         let mut clock = vk::PhysicalDeviceShaderClockFeaturesKHR::default().shader_subgroup_clock(true);
         let mut ssc = vk::PhysicalDeviceSubgroupSizeControlFeatures::default()
             .subgroup_size_control(true)

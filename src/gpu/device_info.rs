@@ -178,7 +178,8 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
     let driver_info = cstr(&v12.driver_info);
     let limits = base.limits;
     let memory = instance.get_physical_device_memory_properties(pd);
-    let device_local_heap_bytes = memory.memory_heaps_as_slice()
+    let device_local_heap_bytes = memory
+        .memory_heaps_as_slice()
         .iter()
         .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
         .map(|h| h.size)

@@ -1,0 +1,365 @@
+//! `trilab scale`: large scenes end to end. Per scene: load (time), BVH build (time, Mtris/s);
+//! per method: the GPU memory plan (bytes per buffer and per triangle, path-tracer extras
+//! apart), the access path it picks, upload, a timed cast (GPU timestamps: warm-up + repeats,
+//! median/min/max Mrays/s), a sample of hits validated against the CPU f64 reference, peak
+//! host RSS. Writes scale.csv, scale.json and scale.md (atomically, `io::write_atomic`).
+//! `--plan-only` stops after the plan: the bytes-per-triangle table without touching the GPU's
+//! memory.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::bvh::{BuildOptions, Bvh};
+use crate::compare::compare_closest;
+use crate::encoding::Method;
+use crate::error::{Error, Result};
+use crate::gpu::plan::{check_rays, pathtrace_extras};
+use crate::gpu::{
+    raycast, AccessPath, Context, DeviceLimits, GpuScene, MemoryPlan, RaycastOptions, SceneAccess, Summary,
+};
+use crate::rays::{random_rays, Ray};
+use crate::reference::Reference;
+use crate::scene::Mesh;
+
+/// Which rays `trilab scale` casts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RayKind {
+    /// Uniformly random origins in the scene's box, random directions (`rays::random_rays`).
+    Random,
+    /// One diffuse bounce from the hits of primary rays through a 1024 x 1024 camera
+    /// (`rays::diffuse_rays`).
+    Diffuse,
+}
+
+#[derive(Clone, Debug)]
+pub struct ScaleOptions {
+    /// Scene specs (paths; whatever `load_scene` accepts).
+    pub scenes: Vec<String>,
+    pub methods: Vec<Method>,
+    pub leaf_size: u32,
+    pub rays: usize,
+    pub ray_kind: RayKind,
+    pub warmup: usize,
+    pub repeat: usize,
+    /// Hits checked against the f64 reference (evenly spaced over the ray set; all if larger).
+    pub validate: usize,
+    pub scene_access: SceneAccess,
+    pub batch_rays: usize,
+    pub seed: u64,
+    /// Plan only: no upload, no cast.
+    pub plan_only: bool,
+}
+
+/// One scene x method.
+#[derive(Clone, Debug, Serialize)]
+pub struct ScaleRow {
+    pub scene: String,
+    pub triangles: u64,
+    pub method: Method,
+    pub leaf_size: u32,
+    /// "texel", "address", or the reason it does not fit.
+    pub access: String,
+    /// (buffer, bytes) as planned.
+    pub buffers: Vec<(String, u64)>,
+    pub scene_bytes: u64,
+    pub bytes_per_triangle: f64,
+    /// The path tracer's extra buffers for this scene (shading, lights, materials; no image).
+    pub pathtrace_extra_bytes: u64,
+    pub pathtrace_extra_bytes_per_triangle: f64,
+    pub load_s: f64,
+    pub bvh_s: f64,
+    pub bvh_mtris_per_s: f64,
+    pub upload_s: Option<f64>,
+    pub rays: usize,
+    /// Mrays/s from the kernel times (median, min, max over the repeats).
+    pub mrays_per_s: Option<Summary>,
+    pub timed_on_gpu: bool,
+    /// GPU bytes in use while casting: the scene, rays, hits.
+    pub gpu_bytes: Option<u64>,
+    pub validated_rays: usize,
+    pub agreement: Option<f64>,
+    pub validation_passes: Option<bool>,
+    /// Peak resident set of this process so far (VmHWM), bytes.
+    pub peak_rss_bytes: Option<u64>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ScaleReport {
+    pub device: String,
+    pub driver: String,
+    pub limits: DeviceLimits,
+    pub ray_kind: RayKind,
+    pub rows: Vec<ScaleRow>,
+}
+
+/// Loads a scene spec. One place, so every scene source (OBJ, `.obj.gz`, `synth:`) reaches
+/// `trilab scale` through the same loader as the other commands.
+pub fn load_scene(spec: &str) -> Result<Mesh> {
+    crate::scene::load_obj(Path::new(spec))
+}
+
+fn scene_name(spec: &str) -> String {
+    let base = spec.rsplit('/').next().unwrap_or(spec);
+    base.trim_end_matches(".gz").trim_end_matches(".obj").to_owned()
+}
+
+/// Peak resident set size (Linux `VmHWM`), where readable.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+fn make_rays(mesh: &Mesh, bvh: &Bvh, o: &ScaleOptions) -> Vec<Ray> {
+    match o.ray_kind {
+        RayKind::Random => random_rays(&mesh.bounds(), o.rays, o.seed),
+        RayKind::Diffuse => {
+            let reference = Reference::new(mesh, bvh);
+            let camera = crate::rays::Camera::framing(&mesh.bounds());
+            let primary = crate::rays::primary_rays(&camera, 1024, 1024);
+            let per_hit = (o.rays as f64 / primary.len() as f64).ceil().max(1.0) as u32;
+            let mut rays = crate::rays::diffuse_rays(mesh, &reference, &primary, per_hit, o.seed);
+            rays.truncate(o.rays);
+            rays
+        }
+    }
+}
+
+/// Runs the sweep; `progress` gets one line per step.
+pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<ScaleReport> {
+    let limits = DeviceLimits::of(ctx);
+    let info = ctx.info();
+    let mut rows = vec![];
+    for spec in &o.scenes {
+        let name = scene_name(spec);
+        let t = Instant::now();
+        let mesh = load_scene(spec)?;
+        let load_s = t.elapsed().as_secs_f64();
+        let triangles = mesh.triangle_count() as u64;
+        progress(&format!("{name}: {triangles} triangles loaded in {load_s:.2} s"));
+        let t = Instant::now();
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(o.leaf_size));
+        let bvh_s = t.elapsed().as_secs_f64();
+        let bvh_mtris_per_s = triangles as f64 / bvh_s.max(1e-9) / 1e6;
+        progress(&format!("{name}: BVH (leaf {}) in {bvh_s:.2} s, {bvh_mtris_per_s:.2} Mtris/s", o.leaf_size));
+        let rays = if o.plan_only { vec![] } else { make_rays(&mesh, &bvh, o) };
+        let sample: Vec<usize> = if rays.is_empty() {
+            vec![]
+        } else {
+            let n = o.validate.min(rays.len()).max(1);
+            (0..n).map(|i| i * rays.len() / n).collect()
+        };
+        let sample_rays: Vec<Ray> = sample.iter().map(|&i| rays[i]).collect();
+        let reference = (!sample_rays.is_empty()).then(|| Reference::new(&mesh, &bvh).trace_all(&sample_rays, false));
+        let emissive = mesh.materials.iter().any(|m| m.is_emissive());
+        for &m in &o.methods {
+            let plan = MemoryPlan::for_bvh(m, &mesh, &bvh);
+            let extras = pathtrace_extras(
+                plan.counts.slots.max(4 * plan.counts.quads),
+                if emissive { triangles } else { 0 },
+                mesh.materials.len() as u64,
+                0,
+            );
+            let extra_bytes: u64 = extras.iter().take(3).map(|b| b.bytes).sum();
+            let mut row = ScaleRow {
+                scene: name.clone(),
+                triangles,
+                method: m,
+                leaf_size: o.leaf_size,
+                access: String::new(),
+                buffers: plan.buffers.iter().map(|b| (b.name.to_owned(), b.bytes)).collect(),
+                scene_bytes: plan.bytes(),
+                bytes_per_triangle: plan.bytes_per_triangle(),
+                pathtrace_extra_bytes: extra_bytes,
+                pathtrace_extra_bytes_per_triangle: extra_bytes as f64 / triangles.max(1) as f64,
+                load_s,
+                bvh_s,
+                bvh_mtris_per_s,
+                upload_s: None,
+                rays: rays.len(),
+                mrays_per_s: None,
+                timed_on_gpu: false,
+                gpu_bytes: None,
+                validated_rays: 0,
+                agreement: None,
+                validation_passes: None,
+                peak_rss_bytes: None,
+            };
+            let access = match plan.choose(&name, o.scene_access, &limits) {
+                Ok(a) => a,
+                Err(e @ Error::SceneTooLarge { .. }) => {
+                    progress(&format!("{name} {m}: {e}"));
+                    row.access = format!("does not fit: {e}");
+                    row.peak_rss_bytes = peak_rss_bytes();
+                    rows.push(row);
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            row.access = access.name().to_owned();
+            if !o.plan_only {
+                cast(ctx, &mesh, &bvh, m, access, &rays, &sample, reference.as_deref(), o, &limits, &mut row)?;
+                progress(&format!(
+                    "{name} {m}: {} path, {:.1} B/tri, {} Mrays/s, validation {}",
+                    access.name(),
+                    row.bytes_per_triangle,
+                    row.mrays_per_s.map_or("-".into(), |s| format!("{:.2}", s.median)),
+                    row.agreement.map_or("-".into(), |a| format!("{:.5}", a))
+                ));
+            }
+            row.peak_rss_bytes = peak_rss_bytes();
+            rows.push(row);
+        }
+    }
+    Ok(ScaleReport { device: info.name.clone(), driver: info.driver_label(), limits, ray_kind: o.ray_kind, rows })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn cast(
+    ctx: &Context,
+    mesh: &Mesh,
+    bvh: &Bvh,
+    m: Method,
+    access: AccessPath,
+    rays: &[Ray],
+    sample: &[usize],
+    reference: Option<&[crate::reference::RefHit]>,
+    o: &ScaleOptions,
+    limits: &DeviceLimits,
+    row: &mut ScaleRow,
+) -> Result<()> {
+    let ray_bytes = check_rays(rays.len() as u64, false, limits)?;
+    let t = Instant::now();
+    let encoded = m.encode(mesh, bvh);
+    let gpu = GpuScene::upload_with(ctx, &encoded, access)?;
+    drop(encoded);
+    row.upload_s = Some(t.elapsed().as_secs_f64());
+    row.gpu_bytes = Some(gpu.bytes as u64 + ray_bytes);
+    let kernel = ctx.create_kernel(crate::kernels::raycast_via(m, false, access))?;
+    let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), batch_rays: o.batch_rays };
+    let res = raycast(ctx, &kernel, &gpu, rays, &opts)?;
+    let mrays: Vec<f64> = if res.timed_on_gpu() { &res.kernel_ms } else { &res.wall_ms }
+        .iter()
+        .map(|ms| rays.len() as f64 / (ms * 1e-3) / 1e6)
+        .collect();
+    row.mrays_per_s = Summary::of(&mrays);
+    row.timed_on_gpu = res.timed_on_gpu();
+    if let Some(reference) = reference {
+        let sample_rays: Vec<Ray> = sample.iter().map(|&i| rays[i]).collect();
+        let hits: Vec<_> = sample.iter().map(|&i| res.hits[i]).collect();
+        let agreement = compare_closest(mesh, &sample_rays, &hits, reference);
+        row.validated_rays = sample.len();
+        row.agreement = Some(agreement.fraction());
+        row.validation_passes = Some(agreement.passes(0.9999));
+    }
+    Ok(())
+}
+
+impl ScaleReport {
+    /// Every row validated (or plan-only).
+    pub fn passes(&self) -> bool {
+        self.rows.iter().all(|r| r.validation_passes != Some(false))
+    }
+
+    pub fn csv(&self) -> String {
+        let mut s = String::from(
+            "scene,triangles,method,leaf_size,access,nodes_bytes,slot_ids_bytes,prims_bytes,scene_bytes,\
+             bytes_per_triangle,pathtrace_extra_bytes_per_triangle,load_s,bvh_s,bvh_mtris_per_s,upload_s,rays,\
+             mrays_median,mrays_min,mrays_max,timed_with,validated_rays,agreement,peak_rss_bytes\n",
+        );
+        let opt = |x: Option<f64>| x.map_or(String::new(), |v| format!("{v:.4}"));
+        for r in &self.rows {
+            let b = |i: usize| r.buffers.get(i).map_or(0, |b| b.1);
+            let prims: u64 = r.buffers.iter().skip(2).map(|b| b.1).sum();
+            let access = if r.access.starts_with("does not fit") { "does-not-fit" } else { r.access.as_str() };
+            s += &format!(
+                "{},{},{},{},{},{},{},{},{},{:.2},{:.2},{:.3},{:.3},{:.3},{},{},{},{},{},{},{},{},{}\n",
+                r.scene,
+                r.triangles,
+                r.method,
+                r.leaf_size,
+                access,
+                b(0),
+                b(1),
+                prims,
+                r.scene_bytes,
+                r.bytes_per_triangle,
+                r.pathtrace_extra_bytes_per_triangle,
+                r.load_s,
+                r.bvh_s,
+                r.bvh_mtris_per_s,
+                opt(r.upload_s),
+                r.rays,
+                opt(r.mrays_per_s.map(|s| s.median)),
+                opt(r.mrays_per_s.map(|s| s.min)),
+                opt(r.mrays_per_s.map(|s| s.max)),
+                if r.mrays_per_s.is_none() {
+                    ""
+                } else if r.timed_on_gpu {
+                    "gpu"
+                } else {
+                    "wall"
+                },
+                r.validated_rays,
+                r.agreement.map_or(String::new(), |a| format!("{a:.6}")),
+                r.peak_rss_bytes.map_or(String::new(), |v| v.to_string()),
+            );
+        }
+        s
+    }
+
+    pub fn markdown(&self) -> String {
+        let mut s = format!(
+            "# trilab scale\n\nDevice: {} ({}). Rays: {:?}. maxTexelBufferElements {}, maxStorageBufferRange {} B.\n\n",
+            self.device,
+            self.driver,
+            self.ray_kind,
+            self.limits.max_texel_buffer_elements,
+            self.limits.max_storage_buffer_range
+        );
+        s += "| scene | triangles | method | leaf | access | buffers (bytes) | B/tri | +path tracer B/tri | BVH Mtris/s | Mrays/s (median [min, max]) | validated | peak RSS MiB |\n";
+        s += "|---|---:|---|---:|---|---|---:|---:|---:|---|---|---:|\n";
+        for r in &self.rows {
+            let bufs: Vec<String> = r.buffers.iter().map(|(n, b)| format!("{n} {b}")).collect();
+            let access = if r.access.starts_with("does not fit") { "does not fit" } else { r.access.as_str() };
+            s += &format!(
+                "| {} | {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.2} | {} | {} | {} |\n",
+                r.scene,
+                r.triangles,
+                r.method,
+                r.leaf_size,
+                access,
+                bufs.join(", "),
+                r.bytes_per_triangle,
+                r.pathtrace_extra_bytes_per_triangle,
+                r.bvh_mtris_per_s,
+                r.mrays_per_s.map_or("-".into(), |m| format!("{:.2} [{:.2}, {:.2}]", m.median, m.min, m.max)),
+                match (r.agreement, r.validation_passes) {
+                    (Some(a), Some(p)) =>
+                        format!("{} rays, {:.4} %{}", r.validated_rays, 100.0 * a, if p { "" } else { " FAIL" }),
+                    _ => "-".into(),
+                },
+                r.peak_rss_bytes.map_or("-".into(), |v| format!("{}", v >> 20)),
+            );
+        }
+        s
+    }
+
+    /// Writes scale.csv, scale.json and scale.md into `dir` (created if needed).
+    pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let json = serde_json::to_string_pretty(self).map_err(|e| Error::Usage(e.to_string()))?;
+        let files = [("scale.csv", self.csv()), ("scale.json", json + "\n"), ("scale.md", self.markdown())];
+        let mut out = vec![];
+        for (name, text) in files {
+            let p = dir.join(name);
+            crate::io::write_atomic(&p, text.as_bytes())?;
+            out.push(p);
+        }
+        Ok(out)
+    }
+}
