@@ -60,8 +60,30 @@ pub enum Error {
 
     /// A scene's GPU memory plan (`gpu::plan`) does not fit the device: found before anything
     /// is allocated.
-    #[error("scene `{scene}` does not fit this device with method {method}: buffer `{buffer}` needs {needed}, the device allows {available}; try {hint}")]
-    SceneTooLarge { scene: String, method: String, buffer: String, needed: String, available: String, hint: String },
+    #[error("{0}")]
+    SceneTooLarge(Box<TooLarge>),
+}
+
+/// What does not fit, for [`Error::SceneTooLarge`].
+#[derive(Debug, Clone)]
+pub struct TooLarge {
+    pub scene: String,
+    pub method: String,
+    pub buffer: String,
+    pub needed: String,
+    pub available: String,
+    /// What to try instead.
+    pub hint: String,
+}
+
+impl std::fmt::Display for TooLarge {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "scene `{}` does not fit this device with method {}: buffer `{}` needs {}, the device allows {}; try {}",
+            self.scene, self.method, self.buffer, self.needed, self.available, self.hint
+        )
+    }
 }
 
 impl From<vk::Result> for Error {

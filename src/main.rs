@@ -1547,7 +1547,7 @@ fn scale_cmd(a: ScaleArgs) -> Result<()> {
         if dragon.exists() {
             v.push(dragon.display().to_string());
         }
-        v.push("synth:sheet:10000000".to_owned());
+        v.push("synth:terrain:10M".to_owned());
         v
     } else {
         a.scenes.clone()

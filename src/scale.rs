@@ -191,7 +191,7 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
             };
             let access = match plan.choose(&name, o.scene_access, &limits) {
                 Ok(a) => a,
-                Err(e @ Error::SceneTooLarge { .. }) => {
+                Err(e @ Error::SceneTooLarge(_)) => {
                     progress(&format!("{name} {m}: {e}"));
                     row.access = format!("does not fit: {e}");
                     row.peak_rss_bytes = peak_rss_bytes();

@@ -19,7 +19,7 @@ use ash::vk;
 use super::context::Context;
 use crate::bvh::{Bvh, BvhNode};
 use crate::encoding::{Method, MtTriangle, QuadMt, QuadUnit, Texel, UnitTriangle};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, TooLarge};
 use crate::gpu::shared::{BINDING_INDICES, BINDING_NODES, BINDING_PRIMS, BINDING_SLOT_IDS};
 use crate::scene::Mesh;
 
@@ -285,13 +285,15 @@ impl MemoryPlan {
     /// Chooses how the kernels read this scene (`requested`), or says why it cannot fit.
     /// `scene` names the scene in the error.
     pub fn choose(&self, scene: &str, requested: SceneAccess, limits: &DeviceLimits) -> Result<AccessPath> {
-        let err = |buffer: &str, needed: String, available: String, hint: &str| Error::SceneTooLarge {
-            scene: scene.to_owned(),
-            method: self.method.name().to_owned(),
-            buffer: buffer.to_owned(),
-            needed,
-            available,
-            hint: hint.to_owned(),
+        let err = |buffer: &str, needed: String, available: String, hint: &str| {
+            Error::SceneTooLarge(Box::new(TooLarge {
+                scene: scene.to_owned(),
+                method: self.method.name().to_owned(),
+                buffer: buffer.to_owned(),
+                needed,
+                available,
+                hint: hint.to_owned(),
+            }))
         };
         let smaller = "a method with a smaller encoding (bytes per triangle: `trilab scale`), or a smaller scene";
         if self.counts.nodes > MAX_NODE_INDEX || self.slot_count() > MAX_NODE_INDEX {
@@ -377,19 +379,11 @@ pub fn pathtrace_extras(slots: u64, emissive: u64, materials: u64, pixels: u64) 
 /// Checks the path tracer's scene (texel path only) and extras against `limits`.
 pub fn check_pathtrace(scene: &str, plan: &MemoryPlan, extras: &[BufferPlan], limits: &DeviceLimits) -> Result<()> {
     plan.choose(scene, SceneAccess::Texel, limits).map_err(|e| match e {
-        Error::SceneTooLarge { scene, method, buffer, needed, available, hint }
-            if hint.starts_with("--scene-access") =>
-        {
-            Error::SceneTooLarge {
-                scene,
-                method,
-                buffer,
-                needed,
-                available,
-                hint: "the path tracer reads scenes through texel buffers only: a method with a smaller encoding, \
-                       or a smaller scene"
-                    .into(),
-            }
+        Error::SceneTooLarge(mut t) if t.hint.starts_with("--scene-access") => {
+            t.hint = "the path tracer reads scenes through texel buffers only: a method with a smaller encoding, \
+                      or a smaller scene"
+                .into();
+            Error::SceneTooLarge(t)
         }
         e => e,
     })?;
@@ -400,14 +394,14 @@ pub fn check_pathtrace(scene: &str, plan: &MemoryPlan, extras: &[BufferPlan], li
             (limits.max_texel_buffer_elements * b.texel_size, "maxTexelBufferElements")
         };
         if b.gpu_bytes() > limit {
-            return Err(Error::SceneTooLarge {
+            return Err(Error::SceneTooLarge(Box::new(TooLarge {
                 scene: scene.to_owned(),
                 method: plan.method.name().to_owned(),
                 buffer: format!("path tracer {}", b.name),
                 needed: format!("{} bytes", b.gpu_bytes()),
                 available: format!("{limit} bytes ({name})"),
                 hint: "a smaller image (accumulation) or scene".into(),
-            });
+            })));
         }
     }
     Ok(())
@@ -489,7 +483,7 @@ mod tests {
         let e = plan.choose("grid", SceneAccess::Texel, &l).unwrap_err().to_string();
         assert!(e.contains("unit triangles") && e.contains("300 texels") && e.contains("200"), "{e}");
         l.buffer_device_address = false;
-        assert!(matches!(plan.choose("grid", SceneAccess::Auto, &l), Err(Error::SceneTooLarge { .. })));
+        assert!(matches!(plan.choose("grid", SceneAccess::Auto, &l), Err(Error::SceneTooLarge(_))));
         let mut l = limits();
         l.budget_bytes = Some(1000);
         let e = plan.choose("grid", SceneAccess::Auto, &l).unwrap_err().to_string();
