@@ -95,6 +95,11 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
                 offset_of!(QuadUnit, n2),
             ],
         ),
+        // raycast's `*_bda` variants: each scene binding is a uniform block holding the scene
+        // buffer's 8-byte device address (gpu::raycast uploads `address.to_le_bytes()`).
+        (_, BINDING_NODES | BINDING_SLOT_IDS | BINDING_PRIMS | BINDING_INDICES) => {
+            BufferLayout { array_stride: None, member_offsets: vec![0] }
+        }
         (_, BINDING_PARAMS) => BufferLayout {
             array_stride: None,
             member_offsets: [
@@ -238,7 +243,10 @@ fn kernels_bind_what_the_host_provides() {
         expected.sort();
         assert_eq!(set.keys().copied().collect::<Vec<_>>(), expected, "{} bindings", k.name);
         for (b, d) in set {
-            let want = if texels.contains(b) {
+            let want = if texels.contains(b) && k.variant.ends_with("_bda") {
+                // The address path: a uniform block holding the buffer's device address.
+                vk::DescriptorType::UNIFORM_BUFFER
+            } else if texels.contains(b) {
                 vk::DescriptorType::STORAGE_TEXEL_BUFFER
             } else if accels.contains(b) {
                 vk::DescriptorType::ACCELERATION_STRUCTURE_KHR
