@@ -40,7 +40,8 @@ struct GpuArgs {
     /// discrete GPU if present, else the best other device.
     #[arg(long, global = true)]
     device: Option<String>,
-    /// Load the Khronos validation layer (default: on in debug builds only).
+    /// Load the Khronos validation layer, synchronization validation included, and fail on
+    /// any message (default: on in debug builds only; also TRILAB_VALIDATION=1).
     #[arg(long, global = true)]
     validation: bool,
 }
@@ -51,7 +52,8 @@ static VALIDATION_LOG: std::sync::OnceLock<std::sync::Arc<trilab::gpu::Validatio
 impl GpuArgs {
     fn context(&self) -> Result<Context> {
         let mut o = ContextOptions { device: self.device.clone(), ..Default::default() };
-        if self.validation {
+        let env = std::env::var("TRILAB_VALIDATION").unwrap_or_default();
+        if self.validation || !matches!(env.trim(), "" | "0" | "off" | "false") {
             o.validation = Validation::Required;
         }
         let ctx = Context::new(&o)?;

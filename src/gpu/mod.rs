@@ -6,6 +6,8 @@
 //! - [`buffer`]: named buffers and texel buffers, uploads, downloads, one-shot submits.
 //! - [`descriptors`]: descriptor sets checked against the kernel's reflected bindings.
 //! - [`kernel`]: compute pipelines built from SPIR-V reflection.
+//! - [`markers`]: crash markers (GPU breadcrumbs + dispatch log), device-loss and out-of-memory
+//!   errors that name the dispatch, fault injection for testing them.
 //! - [`raycast`]: batched ray casting with timestamp queries.
 //! - [`traversal_stats`]: per-ray traversal work from the kernels' `stats` variant.
 //! - [`rayquery`]: the same ray casting through the driver's ray query, a peer of our kernels.
@@ -17,6 +19,7 @@ pub mod context;
 pub mod descriptors;
 pub mod device_info;
 pub mod kernel;
+pub mod markers;
 pub mod raycast;
 pub mod rayquery;
 pub(crate) mod timestamps;
@@ -33,6 +36,7 @@ pub use context::{Context, ContextOptions, EnabledFeatures, Validation, Validati
 pub use descriptors::Resource;
 pub use device_info::DeviceInfo;
 pub use kernel::{Kernel, PipelineOptions};
+pub use markers::{Fault, FaultKind};
 pub use raycast::{raycast, GpuScene, RaycastOptions, RaycastResult, Summary};
 pub use rayquery::{raycast_rq, Peer};
 pub use traversal_stats::{raycast_stats, MeanMax, TraversalCounts, TraversalSummary};
