@@ -459,6 +459,10 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Write the image so far (EXR, PNG, JSON with `"checkpoint": true`) every this many
+    /// seconds, so a killed process still leaves one; 0 turns checkpoints off.
+    #[arg(long, default_value_t = 300.0)]
+    checkpoint_secs: f64,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -1101,19 +1105,12 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
             .expect("valid template")
             .progress_chars("=> "),
     );
-    let pixels = settings.pixels() as f64;
-    let result = pt::render(&ctx, &gpu, &scene, kernel, &settings, &mut |p| {
-        bar.set_position(p.spp_done as u64);
-        bar.set_message(format!("{:.3} Msamples/s", p.spp_done as f64 * pixels / p.seconds * 1e-6));
-        !interrupted.load(std::sync::atomic::Ordering::SeqCst)
-    })?;
-    bar.finish_and_clear();
-
-    let image = result.image();
-    let exr = pt::output::encode_exr(result.width, result.height, &image)?;
-    let png = pt::output::encode_png(result.width, result.height, &image, a.exposure)?;
+    if !(a.checkpoint_secs >= 0.0 && a.checkpoint_secs.is_finite()) {
+        return Err(Error::Usage(format!("--checkpoint-secs {}: must be a finite number >= 0", a.checkpoint_secs)));
+    }
     let info = ctx.info();
-    let report = json!({
+    // What every write of the outputs shares: the request and the scene.
+    let base = json!({
         "scene": a.scene.display().to_string(),
         "scene_sha256": pt::output::scene_hash(&mesh),
         "triangles": mesh.triangle_count(),
@@ -1123,7 +1120,7 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         "leaf_size": a.leaf_size,
         "leaf_policy": a.leaf_policy,
         "sah_group": a.sah_group,
-        "kernel": result.kernel,
+        "kernel": kernel.source.name,
         "kernel_choice": a.kernel,
         "bsdfs_in_kernel": kernel.bsdfs(),
         "bsdfs_in_scene": trilab::scene::BsdfKind::in_mask(scene.bsdf_mask).map(|k| k.name()).collect::<Vec<_>>(),
@@ -1138,9 +1135,63 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         "gpu_scene_bytes": gpu.bytes + scene.gpu_bytes(),
         "device": info.name,
         "driver": info.driver_label(),
+        "build_ms": build_ms,
+        "warnings": mesh.warnings,
+    });
+    // EXR, PNG and JSON of `spp` samples per pixel accumulated in `accum`, each atomically.
+    let write_outputs = |accum: &[[f32; 4]], spp: u32, extra: serde_json::Value| -> Result<()> {
+        let inv = 1.0 / spp.max(1) as f32;
+        let image: Vec<[f32; 4]> = accum.iter().map(|p| p.map(|c| c * inv)).collect();
+        let exr = pt::output::encode_exr(settings.width, settings.height, &image)?;
+        let png = pt::output::encode_png(settings.width, settings.height, &image, a.exposure)?;
+        let mut report = base.clone();
+        report["spp_done"] = json!(spp);
+        for (k, v) in extra.as_object().into_iter().flatten() {
+            report[k] = v.clone();
+        }
+        trilab::io::write_atomic(&a.out, &exr)?;
+        trilab::io::write_atomic(&png_path, &png)?;
+        trilab::io::write_atomic(&json_path, serde_json::to_string_pretty(&report).unwrap().as_bytes())
+    };
+
+    let pixels = settings.pixels() as f64;
+    let mut last_checkpoint = std::time::Instant::now();
+    let rendered = pt::render(&ctx, &gpu, &scene, kernel, &settings, &mut |p| {
+        bar.set_position(p.spp_done as u64);
+        bar.set_message(format!("{:.3} Msamples/s", p.spp_done as f64 * pixels / p.seconds * 1e-6));
+        if a.checkpoint_secs > 0.0 && last_checkpoint.elapsed().as_secs_f64() >= a.checkpoint_secs {
+            last_checkpoint = std::time::Instant::now();
+            let extra = json!({"checkpoint": true, "interrupted": false, "failed": null, "seconds": p.seconds});
+            if let Err(e) = write_outputs(p.accum, p.spp_done, extra) {
+                bar.println(format!("trilab: warning: checkpoint not written: {e}"));
+            }
+        }
+        !interrupted.load(std::sync::atomic::Ordering::SeqCst)
+    });
+    bar.finish_and_clear();
+    let result = match rendered {
+        Ok(r) => r,
+        // A lost device (say) part-way: write the last whole pass, then report the error.
+        Err(Error::PartialRender { result, source }) => {
+            let extra = json!({
+                "checkpoint": false,
+                "interrupted": false,
+                "failed": source.to_string(),
+                "submits": result.submits,
+                "wall_ms": result.wall_ms,
+            });
+            write_outputs(&result.accum, result.spp, extra)?;
+            eprintln!("trilab: wrote the {} spp completed before the failure to {}", result.spp, a.out.display());
+            return Err(*source);
+        }
+        Err(e) => return Err(e),
+    };
+    let extra = json!({
+        "checkpoint": false,
+        "kernel": result.kernel,
         "spp_done": result.spp,
         "interrupted": result.interrupted,
-        "build_ms": build_ms,
+        "failed": null,
         "gpu_ms": result.gpu_ms,
         "wall_ms": result.wall_ms,
         "submits": result.submits,
@@ -1151,11 +1202,8 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         "mrays_per_second": result.mrays_per_second(),
         "ray_definition": "every BVH traversal counts: camera and bounce rays (closest hit) and next-event occlusion rays (any hit); rates use GPU timestamp time when available, else wall time",
         "dropped_samples_nan_or_inf": result.dropped_samples,
-        "warnings": mesh.warnings,
     });
-    trilab::io::write_atomic(&a.out, &exr)?;
-    trilab::io::write_atomic(&png_path, &png)?;
-    trilab::io::write_atomic(&json_path, serde_json::to_string_pretty(&report).unwrap().as_bytes())?;
+    write_outputs(&result.accum, result.spp, extra)?;
     if result.dropped_samples > 0 {
         eprintln!(
             "trilab: warning: {} samples had NaN or infinite radiance and were left out of the image",
