@@ -547,11 +547,13 @@ fn make_rays(kind: RaysCmd) -> Result<()> {
     let (common, rays) = match kind {
         RaysCmd::Primary { common, width, height } => {
             let mesh = load_obj(&common.scene)?;
+            refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
             let r = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
             (common, r)
         }
         RaysCmd::Diffuse { common, width, height, per_hit, seed } => {
             let mesh = load_obj(&common.scene)?;
+            refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
             let primary = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
             let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
             let r = rays::diffuse_rays(&mesh, &Reference::new(&mesh, &bvh), &primary, per_hit, seed);
@@ -559,6 +561,7 @@ fn make_rays(kind: RaysCmd) -> Result<()> {
         }
         RaysCmd::Random { common, count, seed } => {
             let mesh = load_obj(&common.scene)?;
+            refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
             (common, rays::random_rays(&mesh.bounds(), count, seed))
         }
     };
@@ -572,6 +575,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     check_leaf_size(a.leaf_size)?;
     trilab::io::ensure_not_input(&a.out, &[&a.scene, &a.rays])?;
     let mut mesh = load_obj(&a.scene)?;
+    refuse_over_scene(&a.out, &a.scene, &mesh, &[&a.rays])?;
     let mut rays = rays::read_rays(&a.rays)?;
     if a.recentre {
         let (m, shift) = trilab::analyze::recentre(&mesh);
@@ -1234,6 +1238,9 @@ fn bench_render_cmd(a: BenchRenderArgs) -> Result<()> {
     } else {
         a.scenes
     };
+    for out in [&a.json_out, &a.md_out].into_iter().flatten() {
+        trilab::io::ensure_not_input(out, &scenes.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    }
     let ctx = a.gpu.context()?;
     let opts = pt::bench::RenderBenchOptions {
         scenes,
@@ -1418,6 +1425,9 @@ fn profile_cmd(a: ProfileArgs) -> Result<()> {
         ..Default::default()
     };
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("results").join(ctx.info().results_dir()).join("profile"));
+    for f in ["profile.json", "profile.md"] {
+        trilab::io::ensure_not_input(&out.join(f), &[&a.scene])?;
+    }
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;
     let command: Vec<String> = std::env::args().skip(1).collect();
@@ -1527,4 +1537,13 @@ fn resolve_method(
 /// `steps --gpu` (f64 needs shaderFloat64; elsewhere it is left out rather than failing).
 fn device_methods(ctx: &Context) -> Vec<Method> {
     trilab::analyze::available_methods(ctx.enabled())
+}
+
+/// Refuses an output over the scene, any MTL it read, or one of `other` inputs (every command
+/// writes through `io::write_atomic`; this keeps it off the inputs).
+fn refuse_over_scene(out: &Path, scene: &Path, mesh: &trilab::scene::Mesh, other: &[&Path]) -> Result<()> {
+    let mut inputs: Vec<&Path> = vec![scene];
+    inputs.extend(mesh.mtl_files.iter().map(PathBuf::as_path));
+    inputs.extend_from_slice(other);
+    trilab::io::ensure_not_input(out, &inputs)
 }

@@ -253,3 +253,38 @@ fn a_killed_render_leaves_its_last_checkpoint() {
         .count();
     assert_eq!(stray, 3, "exactly long.exr, long.png and long.json");
 }
+
+/// Outputs never land on an input: the OBJ, an MTL it reads, the ray file, a bench scene. The
+/// input is unchanged and nothing is written.
+#[test]
+fn outputs_over_inputs_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("bunny.obj");
+    let mtl = dir.path().join("bunny.mtl");
+    std::fs::copy(common::root().join("scenes/bunny.obj"), &obj).unwrap();
+    std::fs::copy(common::root().join("scenes/bunny.mtl"), &mtl).unwrap();
+    let rays = dir.path().join("r.rays");
+    let o = trilab_env(&["rays", "random", "--scene", &s(&obj), "--out", &s(&rays), "--count", "100"], &[]);
+    assert!(o.status.success());
+    let before: Vec<Vec<u8>> = [&obj, &mtl, &rays].iter().map(|p| std::fs::read(p).unwrap()).collect();
+    let refusals: [Vec<String>; 6] = [
+        vec!["rays".into(), "random".into(), "--scene".into(), s(&obj), "--out".into(), s(&mtl)],
+        vec!["rays".into(), "primary".into(), "--scene".into(), s(&obj), "--out".into(), s(&obj)],
+        vec!["raycast".into(), "--scene".into(), s(&obj), "--rays".into(), s(&rays), "--out".into(), s(&rays)],
+        vec!["raycast".into(), "--scene".into(), s(&obj), "--rays".into(), s(&rays), "--out".into(), s(&mtl)],
+        vec!["bench-render".into(), "--scenes".into(), s(&obj), "--json-out".into(), s(&obj)],
+        vec!["bench".into(), "--scenes".into(), s(&obj), "--md-out".into(), s(&dir.path().join(".").join("bunny.obj"))],
+    ];
+    for args in &refusals {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        expect_failure(&trilab_env(&args, &[]), &["refusing to overwrite an input"]);
+    }
+    let after: Vec<Vec<u8>> = [&obj, &mtl, &rays].iter().map(|p| std::fs::read(p).unwrap()).collect();
+    assert!(before == after, "an input changed");
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names.len(), 3, "nothing else written: {names:?}");
+}
