@@ -295,7 +295,7 @@ impl Context {
         if s.lost {
             return Err(Error::Vulkan { result: vk::Result::ERROR_DEVICE_LOST, during: what.to_owned() });
         }
-        if !s.by_cmd.get(&cmd).is_some_and(|ids| !ids.is_empty()) {
+        if s.by_cmd.get(&cmd).is_none_or(|ids| ids.is_empty()) {
             return Ok(());
         }
         s.submits += 1;
