@@ -170,4 +170,7 @@ fn every_gpu_command_runs_clean_under_validation() {
         .chain(&["--repeat", "1", "--workgroup-sizes", "64", "--no-threads", "--out", &p("profile")])
         .copied()
         .collect::<Vec<_>>());
+    // The smoke presets: seconds each.
+    run(&["study", "--preset", "smoke", "--scenes", &scene, "--out", &p("study")]);
+    run(&["accuracy", "--preset", "smoke", "--out", &p("accuracy")]);
 }
