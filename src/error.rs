@@ -62,6 +62,17 @@ pub enum Error {
     /// is allocated.
     #[error("{0}")]
     SceneTooLarge(Box<TooLarge>),
+
+    /// The device was lost or ran out of memory (`gpu::markers`): `what` happened during
+    /// `during` (the submit or allocation that failed); `markers` names the last dispatch begun
+    /// and the last completed, per the GPU breadcrumbs or the host log.
+    #[error("{what} during {during}; {markers}")]
+    GpuFault { what: String, result: Option<vk::Result>, during: String, markers: String },
+
+    /// A render failed part-way (`source`); `result` holds the samples completed before it (the
+    /// last whole pass), for the caller to write out.
+    #[error("{source} (the render had completed {} spp)", result.spp)]
+    PartialRender { result: Box<crate::render::RenderResult>, source: Box<Error> },
 }
 
 /// What does not fit, for [`Error::SceneTooLarge`].

@@ -40,7 +40,8 @@ struct GpuArgs {
     /// discrete GPU if present, else the best other device.
     #[arg(long, global = true)]
     device: Option<String>,
-    /// Load the Khronos validation layer (default: on in debug builds only).
+    /// Load the Khronos validation layer, synchronization validation included, and fail on
+    /// any message (default: on in debug builds only; also TRILAB_VALIDATION=1).
     #[arg(long, global = true)]
     validation: bool,
 }
@@ -51,7 +52,8 @@ static VALIDATION_LOG: std::sync::OnceLock<std::sync::Arc<trilab::gpu::Validatio
 impl GpuArgs {
     fn context(&self) -> Result<Context> {
         let mut o = ContextOptions { device: self.device.clone(), ..Default::default() };
-        if self.validation {
+        let env = std::env::var("TRILAB_VALIDATION").unwrap_or_default();
+        if self.validation || !matches!(env.trim(), "" | "0" | "off" | "false") {
             o.validation = Validation::Required;
         }
         let ctx = Context::new(&o)?;
@@ -507,6 +509,10 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Write the image so far (EXR, PNG, JSON with `"checkpoint": true`) every this many
+    /// seconds, so a killed process still leaves one; 0 turns checkpoints off.
+    #[arg(long, default_value_t = 300.0)]
+    checkpoint_secs: f64,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -592,11 +598,13 @@ fn make_rays(kind: RaysCmd) -> Result<()> {
     let (common, rays) = match kind {
         RaysCmd::Primary { common, width, height } => {
             let mesh = load_obj(&common.scene)?;
+            refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
             let r = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
             (common, r)
         }
         RaysCmd::Diffuse { common, width, height, per_hit, seed } => {
             let mesh = load_obj(&common.scene)?;
+            refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
             let primary = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
             let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
             let r = rays::diffuse_rays(&mesh, &Reference::new(&mesh, &bvh), &primary, per_hit, seed);
@@ -604,6 +612,7 @@ fn make_rays(kind: RaysCmd) -> Result<()> {
         }
         RaysCmd::Random { common, count, seed } => {
             let mesh = load_obj(&common.scene)?;
+            refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
             (common, rays::random_rays(&mesh.bounds(), count, seed))
         }
     };
@@ -617,6 +626,7 @@ fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     check_leaf_size(a.leaf_size)?;
     trilab::io::ensure_not_input(&a.out, &[&a.scene, &a.rays])?;
     let mut mesh = load_obj(&a.scene)?;
+    refuse_over_scene(&a.out, &a.scene, &mesh, &[&a.rays])?;
     let mut rays = rays::read_rays(&a.rays)?;
     if a.recentre {
         let (m, shift) = trilab::analyze::recentre(&mesh);
@@ -1163,19 +1173,12 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
             .expect("valid template")
             .progress_chars("=> "),
     );
-    let pixels = settings.pixels() as f64;
-    let result = pt::render(&ctx, &gpu, &scene, kernel, &settings, &mut |p| {
-        bar.set_position(p.spp_done as u64);
-        bar.set_message(format!("{:.3} Msamples/s", p.spp_done as f64 * pixels / p.seconds * 1e-6));
-        !interrupted.load(std::sync::atomic::Ordering::SeqCst)
-    })?;
-    bar.finish_and_clear();
-
-    let image = result.image();
-    let exr = pt::output::encode_exr(result.width, result.height, &image)?;
-    let png = pt::output::encode_png(result.width, result.height, &image, a.exposure)?;
+    if !(a.checkpoint_secs >= 0.0 && a.checkpoint_secs.is_finite()) {
+        return Err(Error::Usage(format!("--checkpoint-secs {}: must be a finite number >= 0", a.checkpoint_secs)));
+    }
     let info = ctx.info();
-    let report = json!({
+    // What every write of the outputs shares: the request and the scene.
+    let base = json!({
         "scene": a.scene.display().to_string(),
         "scene_sha256": pt::output::scene_hash(&mesh),
         "triangles": mesh.triangle_count(),
@@ -1185,7 +1188,7 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         "leaf_size": a.leaf_size,
         "leaf_policy": a.leaf_policy,
         "sah_group": a.sah_group,
-        "kernel": result.kernel,
+        "kernel": kernel.source.name,
         "kernel_choice": a.kernel,
         "bsdfs_in_kernel": kernel.bsdfs(),
         "bsdfs_in_scene": trilab::scene::BsdfKind::in_mask(scene.bsdf_mask).map(|k| k.name()).collect::<Vec<_>>(),
@@ -1200,9 +1203,63 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         "gpu_scene_bytes": gpu.bytes + scene.gpu_bytes(),
         "device": info.name,
         "driver": info.driver_label(),
+        "build_ms": build_ms,
+        "warnings": mesh.warnings,
+    });
+    // EXR, PNG and JSON of `spp` samples per pixel accumulated in `accum`, each atomically.
+    let write_outputs = |accum: &[[f32; 4]], spp: u32, extra: serde_json::Value| -> Result<()> {
+        let inv = 1.0 / spp.max(1) as f32;
+        let image: Vec<[f32; 4]> = accum.iter().map(|p| p.map(|c| c * inv)).collect();
+        let exr = pt::output::encode_exr(settings.width, settings.height, &image)?;
+        let png = pt::output::encode_png(settings.width, settings.height, &image, a.exposure)?;
+        let mut report = base.clone();
+        report["spp_done"] = json!(spp);
+        for (k, v) in extra.as_object().into_iter().flatten() {
+            report[k] = v.clone();
+        }
+        trilab::io::write_atomic(&a.out, &exr)?;
+        trilab::io::write_atomic(&png_path, &png)?;
+        trilab::io::write_atomic(&json_path, serde_json::to_string_pretty(&report).unwrap().as_bytes())
+    };
+
+    let pixels = settings.pixels() as f64;
+    let mut last_checkpoint = std::time::Instant::now();
+    let rendered = pt::render(&ctx, &gpu, &scene, kernel, &settings, &mut |p| {
+        bar.set_position(p.spp_done as u64);
+        bar.set_message(format!("{:.3} Msamples/s", p.spp_done as f64 * pixels / p.seconds * 1e-6));
+        if a.checkpoint_secs > 0.0 && last_checkpoint.elapsed().as_secs_f64() >= a.checkpoint_secs {
+            last_checkpoint = std::time::Instant::now();
+            let extra = json!({"checkpoint": true, "interrupted": false, "failed": null, "seconds": p.seconds});
+            if let Err(e) = write_outputs(p.accum, p.spp_done, extra) {
+                bar.println(format!("trilab: warning: checkpoint not written: {e}"));
+            }
+        }
+        !interrupted.load(std::sync::atomic::Ordering::SeqCst)
+    });
+    bar.finish_and_clear();
+    let result = match rendered {
+        Ok(r) => r,
+        // A lost device (say) part-way: write the last whole pass, then report the error.
+        Err(Error::PartialRender { result, source }) => {
+            let extra = json!({
+                "checkpoint": false,
+                "interrupted": false,
+                "failed": source.to_string(),
+                "submits": result.submits,
+                "wall_ms": result.wall_ms,
+            });
+            write_outputs(&result.accum, result.spp, extra)?;
+            eprintln!("trilab: wrote the {} spp completed before the failure to {}", result.spp, a.out.display());
+            return Err(*source);
+        }
+        Err(e) => return Err(e),
+    };
+    let extra = json!({
+        "checkpoint": false,
+        "kernel": result.kernel,
         "spp_done": result.spp,
         "interrupted": result.interrupted,
-        "build_ms": build_ms,
+        "failed": null,
         "gpu_ms": result.gpu_ms,
         "wall_ms": result.wall_ms,
         "submits": result.submits,
@@ -1213,11 +1270,8 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
         "mrays_per_second": result.mrays_per_second(),
         "ray_definition": "every BVH traversal counts: camera and bounce rays (closest hit) and next-event occlusion rays (any hit); rates use GPU timestamp time when available, else wall time",
         "dropped_samples_nan_or_inf": result.dropped_samples,
-        "warnings": mesh.warnings,
     });
-    trilab::io::write_atomic(&a.out, &exr)?;
-    trilab::io::write_atomic(&png_path, &png)?;
-    trilab::io::write_atomic(&json_path, serde_json::to_string_pretty(&report).unwrap().as_bytes())?;
+    write_outputs(&result.accum, result.spp, extra)?;
     if result.dropped_samples > 0 {
         eprintln!(
             "trilab: warning: {} samples had NaN or infinite radiance and were left out of the image",
@@ -1248,6 +1302,9 @@ fn bench_render_cmd(a: BenchRenderArgs) -> Result<()> {
     } else {
         a.scenes
     };
+    for out in [&a.json_out, &a.md_out].into_iter().flatten() {
+        trilab::io::ensure_not_input(out, &scenes.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    }
     let ctx = a.gpu.context()?;
     let opts = pt::bench::RenderBenchOptions {
         scenes,
@@ -1432,6 +1489,9 @@ fn profile_cmd(a: ProfileArgs) -> Result<()> {
         ..Default::default()
     };
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("results").join(ctx.info().results_dir()).join("profile"));
+    for f in ["profile.json", "profile.md"] {
+        trilab::io::ensure_not_input(&out.join(f), &[&a.scene])?;
+    }
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;
     let command: Vec<String> = std::env::args().skip(1).collect();
@@ -1582,4 +1642,13 @@ fn scale_cmd(a: ScaleArgs) -> Result<()> {
 
 fn device_methods(ctx: &Context) -> Vec<Method> {
     trilab::analyze::available_methods(ctx.enabled())
+}
+
+/// Refuses an output over the scene, any MTL it read, or one of `other` inputs (every command
+/// writes through `io::write_atomic`; this keeps it off the inputs).
+fn refuse_over_scene(out: &Path, scene: &Path, mesh: &trilab::scene::Mesh, other: &[&Path]) -> Result<()> {
+    let mut inputs: Vec<&Path> = vec![scene];
+    inputs.extend(mesh.mtl_files.iter().map(PathBuf::as_path));
+    inputs.extend_from_slice(other);
+    trilab::io::ensure_not_input(out, &inputs)
 }

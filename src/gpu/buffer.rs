@@ -111,18 +111,25 @@ impl Context {
         // SAFETY: valid device and create info.
         let raw = unsafe { d.raw.create_buffer(&info, None) }.during(&format!("creating buffer `{name}`"))?;
         let requirements = unsafe { d.raw.get_buffer_memory_requirements(raw) };
-        let allocation = d.allocator.lock().unwrap().allocate(&AllocationCreateDesc {
-            name,
-            requirements,
-            location,
-            linear: true,
-            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+        let allocation = self.before_allocation(name).and_then(|()| {
+            d.allocator
+                .lock()
+                .unwrap()
+                .allocate(&AllocationCreateDesc {
+                    name,
+                    requirements,
+                    location,
+                    linear: true,
+                    allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+                })
+                .map_err(|source| Error::Allocation { name: name.into(), source })
         });
         let allocation = match allocation {
             Ok(a) => a,
-            Err(source) => {
+            Err(e) => {
                 unsafe { d.raw.destroy_buffer(raw, None) };
-                return Err(Error::Allocation { name: name.into(), source });
+                // Out of memory names the last dispatch (gpu::markers).
+                return Err(self.fault(e));
             }
         };
         // SAFETY: memory and offset come from an allocation made for these requirements.
@@ -259,6 +266,7 @@ impl Context {
         let pool = self.device.command_pool.lock().unwrap();
         // SAFETY: the buffers are not pending (every submit was waited for).
         unsafe { self.device.raw.free_command_buffers(*pool, cmds) };
+        self.forget_command_buffers(cmds);
     }
 
     /// Submits one command buffer and waits for it, failing after the submit timeout.
@@ -268,7 +276,11 @@ impl Context {
         let fence = unsafe { d.create_fence(&vk::FenceCreateInfo::default(), None) }.during(what)?;
         let cmds = [cmd];
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
-        let result = unsafe { d.queue_submit(self.device.queue, &submit, fence) }.during(what).and_then(|_| {
+        // The dispatch log and fault injection (gpu::markers) see every submit.
+        let submitted = self
+            .before_submit(cmd, what)
+            .and_then(|()| unsafe { d.queue_submit(self.device.queue, &submit, fence) }.during(what));
+        let result = submitted.and_then(|_| {
             match unsafe { d.wait_for_fences(&[fence], true, self.device.submit_timeout.as_nanos() as u64) } {
                 Ok(()) => Ok(()),
                 Err(vk::Result::TIMEOUT) => {
@@ -277,6 +289,8 @@ impl Context {
                 Err(e) => Err(e).during(what),
             }
         });
+        // A lost device or out-of-memory names the dispatch it happened in.
+        let result = result.map(|()| self.after_submit(what)).map_err(|e| self.fault(e));
         if !matches!(result, Err(Error::Timeout { .. })) {
             // SAFETY: the fence is signalled or was never submitted.
             unsafe { d.destroy_fence(fence, None) };

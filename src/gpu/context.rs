@@ -13,6 +13,7 @@ use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 
 use super::device_info::{self, DeviceInfo};
+use super::markers::{Fault, Markers};
 use crate::error::{Error, Result, VkContext};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
@@ -41,6 +42,9 @@ pub struct ContextOptions {
     /// Enable `shaderFloat64` where the device has it (default); `false` leaves it off, as on a
     /// device without it (tests of the f64 kernel's "unsupported" path).
     pub shader_float64: bool,
+    /// A fault to inject (tests of the device-loss and out-of-memory paths; see
+    /// `gpu::markers`). `Context::new` also reads `TRILAB_INJECT_FAULT` when this is `None`.
+    pub inject_fault: Option<Fault>,
 }
 
 impl Default for ContextOptions {
@@ -51,6 +55,7 @@ impl Default for ContextOptions {
             submit_timeout: Duration::from_secs(120),
             ray_query: true,
             shader_float64: true,
+            inject_fault: None,
         }
     }
 }
@@ -142,6 +147,8 @@ pub struct Device {
     pub(crate) info: DeviceInfo,
     pub(crate) enabled: EnabledFeatures,
     pub(crate) submit_timeout: Duration,
+    pub(crate) markers: Markers,
+    sync_validation: bool,
     log: Arc<ValidationLog>,
 }
 
@@ -153,6 +160,9 @@ impl Drop for Device {
         unsafe {
             let _ = self.raw.device_wait_idle();
             self.raw.destroy_command_pool(*self.command_pool.get_mut().unwrap(), None);
+            if let Ok(a) = self.allocator.get_mut() {
+                self.markers.destroy(&self.raw, a);
+            }
             ManuallyDrop::drop(&mut self.allocator);
             self.raw.destroy_device(None);
             if let Some((loader, messenger)) = self.debug.take() {
@@ -171,6 +181,10 @@ pub struct Context {
 
 impl Context {
     pub fn new(options: &ContextOptions) -> Result<Context> {
+        let fault = match options.inject_fault {
+            Some(f) => Some(f),
+            None => Fault::from_env()?,
+        };
         // SAFETY: loading the Vulkan loader library runs its initialisers; it is the system's
         // libvulkan.so.1.
         let entry = unsafe { ash::Entry::load() }.map_err(|e| Error::Loader(e.to_string()))?;
@@ -204,8 +218,24 @@ impl Context {
         let layer_ptrs: Vec<*const std::ffi::c_char> =
             if want_validation { vec![VALIDATION_LAYER.as_ptr()] } else { vec![] };
         let use_debug = want_validation && have_debug_utils;
-        let ext_ptrs: Vec<*const std::ffi::c_char> =
+        let mut ext_ptrs: Vec<*const std::ffi::c_char> =
             if use_debug { vec![ash::ext::debug_utils::NAME.as_ptr()] } else { vec![] };
+        // Synchronization validation whenever the layer is on, through VK_EXT_validation_features
+        // (the layer provides the extension; VK_EXT_layer_settings is newer than the 1.3.239
+        // layer Debian 12 ships). GPU-assisted validation and best practices stay off: the
+        // first instruments every kernel (slow on a CPU driver), the second warns about choices
+        // made on purpose (one small allocation per buffer in tests, say).
+        let sync_validation = want_validation && {
+            // SAFETY: plain query on a loaded entry.
+            let layer_exts = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
+                .during("enumerating the validation layer's extensions")?;
+            device_info::has_extension(&layer_exts, ash::ext::validation_features::NAME)
+        };
+        if sync_validation {
+            ext_ptrs.push(ash::ext::validation_features::NAME.as_ptr());
+        }
+        let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+        let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
         let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
             .message_severity(
                 vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
@@ -224,6 +254,9 @@ impl Context {
         if use_debug {
             // Also catches messages from vkCreateInstance/vkDestroyInstance themselves.
             create = create.push_next(&mut messenger_info);
+        }
+        if sync_validation {
+            create = create.push_next(&mut features);
         }
         // SAFETY: the create info and everything it points to live until the call returns.
         let instance = unsafe { entry.create_instance(&create, None) }.during("vkCreateInstance")?;
@@ -308,7 +341,7 @@ impl Context {
                 return Err(e).during("vkCreateCommandPool");
             }
         };
-        let allocator = match Allocator::new(&AllocatorCreateDesc {
+        let mut allocator = match Allocator::new(&AllocatorCreateDesc {
             instance: instance.clone(),
             device: raw.clone(),
             physical_device: physical,
@@ -325,6 +358,7 @@ impl Context {
                 return Err(Error::Allocation { name: "allocator".into(), source });
             }
         };
+        let markers = Markers::new(&raw, &mut allocator, fault);
         let (instance, debug) = guard.release();
         Ok(Context {
             device: Arc::new(Device {
@@ -339,6 +373,8 @@ impl Context {
                 info,
                 enabled,
                 submit_timeout: options.submit_timeout,
+                markers,
+                sync_validation,
                 log,
             }),
         })
@@ -382,6 +418,12 @@ impl Context {
 
     pub fn validation_enabled(&self) -> bool {
         self.device.debug.is_some()
+    }
+
+    /// Whether synchronization validation is on (with the layer, wherever it offers
+    /// VK_EXT_validation_features).
+    pub fn sync_validation_enabled(&self) -> bool {
+        self.device.sync_validation
     }
 }
 

@@ -163,7 +163,9 @@ impl Context {
             if !push.is_empty() {
                 d.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, push);
             }
+            let marker = self.mark_begin(d, cmd, format!("{} ({groups} workgroups)", kernel.name));
             d.cmd_dispatch(cmd, groups, 1, 1);
+            self.mark_end(d, cmd, marker);
         })
     }
 }

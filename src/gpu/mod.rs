@@ -7,6 +7,8 @@
 //! - [`descriptors`]: descriptor sets checked against the kernel's reflected bindings.
 //! - [`kernel`]: compute pipelines built from SPIR-V reflection.
 //! - [`plan`]: GPU memory plans checked against the device's limits; texel or address path.
+//! - [`markers`]: crash markers (GPU breadcrumbs + dispatch log), device-loss and out-of-memory
+//!   errors that name the dispatch, fault injection for testing them.
 //! - [`raycast`]: batched ray casting with timestamp queries.
 //! - [`traversal_stats`]: per-ray traversal work from the kernels' `stats` variant.
 //! - [`rayquery`]: the same ray casting through the driver's ray query, a peer of our kernels.
@@ -18,6 +20,7 @@ pub mod context;
 pub mod descriptors;
 pub mod device_info;
 pub mod kernel;
+pub mod markers;
 pub mod plan;
 pub mod raycast;
 pub mod rayquery;
@@ -35,6 +38,7 @@ pub use context::{Context, ContextOptions, EnabledFeatures, Validation, Validati
 pub use descriptors::Resource;
 pub use device_info::DeviceInfo;
 pub use kernel::{Kernel, PipelineOptions};
+pub use markers::{Fault, FaultKind};
 pub use plan::{AccessPath, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
 pub use raycast::{raycast, GpuScene, RaycastOptions, RaycastResult, Summary};
 pub use rayquery::{raycast_rq, Peer};

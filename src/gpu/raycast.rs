@@ -274,6 +274,14 @@ pub(crate) fn cast_rays(
     let mut dispatch = Dispatch { ctx, cmds: vec![] };
 
     dispatch.cmds = ctx.allocate_command_buffers(nbatches as u32)?;
+    // What each batch's submit runs (the dispatch log and crash markers name it).
+    let what: Vec<String> = (0..nbatches)
+        .map(|bi| {
+            let first = bi * batch;
+            let end = (first + batch).min(rays.len());
+            format!("{} batch {}/{nbatches} (rays {first}..{end})", kernel.name, bi + 1)
+        })
+        .collect();
     for (bi, (&cmd, &set)) in dispatch.cmds.iter().zip(&sets).enumerate() {
         let count = batch.min(rays.len() - bi * batch) as u32;
         let q = bi as u32;
@@ -292,6 +300,7 @@ pub(crate) fn cast_rays(
                 ),
                 (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
             );
+            let marker = ctx.mark_begin(dev, cmd, what[bi].clone());
             queries.start(dev, cmd, q);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
             dev.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline_layout, 0, &[set], &[]);
@@ -299,6 +308,7 @@ pub(crate) fn cast_rays(
             dev.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, &count.to_le_bytes());
             dev.cmd_dispatch(cmd, count.div_ceil(local as u32), 1, 1);
             queries.end(dev, cmd, q);
+            ctx.mark_end(dev, cmd, marker);
             dev.end_command_buffer(cmd).during("recording a dispatch")?;
         }
     }
@@ -308,11 +318,8 @@ pub(crate) fn cast_rays(
     let runs = opts.warmup + opts.repeat.max(1);
     for run in 0..runs {
         let t0 = Instant::now();
-        for (bi, &cmd) in dispatch.cmds.iter().enumerate() {
-            ctx.submit_and_wait(
-                cmd,
-                &format!("{} dispatch {}/{} ({} rays per dispatch)", kernel.name, bi + 1, nbatches, batch),
-            )?;
+        for (&cmd, what) in dispatch.cmds.iter().zip(&what) {
+            ctx.submit_and_wait(cmd, what)?;
         }
         let wall = t0.elapsed().as_secs_f64() * 1e3;
         if run < opts.warmup {
@@ -320,7 +327,7 @@ pub(crate) fn cast_rays(
         }
         wall_ms.push(wall);
         if timestamps {
-            kernel_ms.push(queries.read_ms()?.iter().sum());
+            kernel_ms.push(queries.read_ms().map_err(|e| ctx.fault(e))?.iter().sum());
         }
     }
     let mut downloads = Vec::new();

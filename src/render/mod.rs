@@ -311,10 +311,13 @@ const _: () = assert!(std::mem::size_of::<PathtracePush>() == 16);
 
 /// Where a render stands, after each completed pass over the image.
 #[derive(Clone, Copy, Debug)]
-pub struct Progress {
+pub struct Progress<'a> {
     pub spp_done: u32,
     pub spp_total: u32,
     pub seconds: f64,
+    /// The accumulation so far (as `RenderResult::accum`: `spp_done` samples per pixel), for
+    /// periodic checkpoints.
+    pub accum: &'a [[f32; 4]],
 }
 
 /// A finished (or interrupted) render.
@@ -328,6 +331,9 @@ pub struct RenderResult {
     pub spp: u32,
     /// Stopped early by the progress callback (Ctrl-C).
     pub interrupted: bool,
+    /// Why the render stopped early on an error (a lost device, say); set only in the result an
+    /// `Error::PartialRender` carries.
+    pub failed: Option<String>,
     /// Closest-hit rays (camera and bounce rays) and occlusion rays traced.
     pub closest_rays: u64,
     pub shadow_rays: u64,
@@ -370,6 +376,11 @@ impl RenderResult {
 
 /// Renders `scene` (already uploaded as `gpu`) with `kernel`. `progress` is called after each
 /// pass over the image; returning `false` stops the render there, keeping what it has.
+///
+/// After each pass the accumulation is copied to a host-visible buffer and from there to
+/// `RenderResult::accum`, so when a later submit fails (device lost, out of memory, timeout)
+/// the error is `Error::PartialRender`, carrying the last whole pass; a lost device or
+/// out-of-memory inside it is an `Error::GpuFault` naming the dispatch (`gpu::markers`).
 pub fn render(
     ctx: &Context,
     gpu: &GpuScene,
@@ -407,6 +418,13 @@ pub fn render(
         gpu_allocator::MemoryLocation::GpuToCpu,
     )?;
 
+    // The accumulation as of the last whole pass, copied back after each pass.
+    let host_accum = ctx.create_buffer(
+        "accumulation image (readback)",
+        pixels as u64 * 16,
+        vk::BufferUsageFlags::TRANSFER_DST,
+        gpu_allocator::MemoryLocation::GpuToCpu,
+    )?;
     let (_pool, sets) = DescriptorPool::new(ctx, &k, 1)?;
     let mut resources: Vec<(u32, Resource)> = gpu.resources().collect();
     resources.extend([
@@ -432,6 +450,7 @@ pub fn render(
         accum: vec![],
         spp: 0,
         interrupted: false,
+        failed: None,
         closest_rays: 0,
         shadow_rays: 0,
         dropped_samples: 0,
@@ -442,115 +461,155 @@ pub fn render(
         spec_mask: kernel.spec_mask,
     };
     let start = Instant::now();
-    // Seconds per pixel-sample, measured; the first pass runs 1 spp in chunks of at most
-    // 65,536 pixels to measure it safely.
-    let mut cost: Option<f64> = None;
-    let target = s.submit_ms * 1e-3;
-    while result.spp < s.spp {
-        let remaining = s.spp - result.spp;
-        let (samples, chunk) = match cost {
-            None => (1, 65_536u64),
-            Some(c) => {
-                let per_pass = c * pixels as f64;
-                let samples = ((target / per_pass).floor() as u64).clamp(1, remaining as u64) as u32;
-                let chunk = if per_pass > target { ((target / c) as u64).max(local as u64) } else { pixels as u64 };
-                (samples, chunk)
-            }
-        };
-        let chunk = chunk.min(max_groups * local as u64).max(1);
-        // The kernel counts rays in 32-bit counters per submit: a sample traces at most
-        // 2 (max_depth + 1) rays, so keep pixels x samples of one submit below 2^32 / that.
-        let max_work = (u32::MAX as u64 / (2 * (s.max_depth as u64 + 1))).max(1);
-        let samples = (samples as u64).min((max_work / chunk.min(pixels as u64)).max(1)) as u32;
-        let chunk = chunk.min(max_work / samples as u64).max(1);
-        let mut first = 0u64;
-        while first < pixels as u64 {
-            let count = chunk.min(pixels as u64 - first);
-            let push = PathtracePush {
-                sample_first: result.spp,
-                sample_count: samples,
-                pixel_first: first as u32,
-                pixel_count: count as u32,
-            };
-            let what = format!(
-                "{} dispatch {} (samples {}..{}, pixels {}..{})",
-                k.name,
-                result.submits + 1,
-                push.sample_first,
-                push.sample_first + samples,
-                first,
-                first + count
-            );
-            let t0 = Instant::now();
-            ctx.one_shot(&what, |dev, cmd| {
-                // SAFETY: one_shot records into a fresh command buffer and waits for it; every
-                // object recorded here outlives that wait.
-                unsafe {
-                    queries.reset(dev, cmd, 0);
-                    dev.cmd_fill_buffer(cmd, stats.raw, 0, vk::WHOLE_SIZE, 0);
-                    // The fill, and the previous dispatch's accumulation, before this dispatch.
-                    memory_barrier(
-                        dev,
-                        cmd,
-                        (
-                            vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER,
-                            vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE,
-                        ),
-                        (
-                            vk::PipelineStageFlags::COMPUTE_SHADER,
-                            vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
-                        ),
-                    );
-                    queries.start(dev, cmd, 0);
-                    dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, k.pipeline);
-                    dev.cmd_bind_descriptor_sets(
-                        cmd,
-                        vk::PipelineBindPoint::COMPUTE,
-                        k.pipeline_layout,
-                        0,
-                        &[set],
-                        &[],
-                    );
-                    dev.cmd_push_constants(
-                        cmd,
-                        k.pipeline_layout,
-                        vk::ShaderStageFlags::COMPUTE,
-                        0,
-                        bytemuck::bytes_of(&push),
-                    );
-                    dev.cmd_dispatch(cmd, (count as u32).div_ceil(local), 1, 1);
-                    queries.end(dev, cmd, 0);
-                    read_back(dev, cmd, &stats, &readback, 4 * STATS);
+    let mut pass = 0u32;
+    // The loop as a closure so that any failure part-way (a lost device, out of memory, a
+    // timeout) still hands back the last whole pass, which `result.accum` holds.
+    let mut run = |result: &mut RenderResult| -> Result<()> {
+        // Seconds per pixel-sample, measured; the first pass runs 1 spp in chunks of at most
+        // 65,536 pixels to measure it safely.
+        let mut cost: Option<f64> = None;
+        let target = s.submit_ms * 1e-3;
+        while result.spp < s.spp {
+            let remaining = s.spp - result.spp;
+            let (samples, chunk) = match cost {
+                None => (1, 65_536u64),
+                Some(c) => {
+                    let per_pass = c * pixels as f64;
+                    let samples = ((target / per_pass).floor() as u64).clamp(1, remaining as u64) as u32;
+                    let chunk = if per_pass > target { ((target / c) as u64).max(local as u64) } else { pixels as u64 };
+                    (samples, chunk)
                 }
-            })?;
-            let seconds = t0.elapsed().as_secs_f64();
-            if let Some(gpu_ms) = result.gpu_ms.as_mut() {
-                *gpu_ms += queries.read_ms()?[0];
+            };
+            let chunk = chunk.min(max_groups * local as u64).max(1);
+            // The kernel counts rays in 32-bit counters per submit: a sample traces at most
+            // 2 (max_depth + 1) rays, so keep pixels x samples of one submit below 2^32 / that.
+            let max_work = (u32::MAX as u64 / (2 * (s.max_depth as u64 + 1))).max(1);
+            let samples = (samples as u64).min((max_work / chunk.min(pixels as u64)).max(1)) as u32;
+            let chunk = chunk.min(max_work / samples as u64).max(1);
+            pass += 1;
+            let mut first = 0u64;
+            while first < pixels as u64 {
+                let count = chunk.min(pixels as u64 - first);
+                let last_of_pass = first + count == pixels as u64;
+                let push = PathtracePush {
+                    sample_first: result.spp,
+                    sample_count: samples,
+                    pixel_first: first as u32,
+                    pixel_count: count as u32,
+                };
+                let what = format!(
+                    "{} pass {pass} dispatch {} (samples {}..{}, pixels {}..{})",
+                    k.name,
+                    result.submits + 1,
+                    push.sample_first,
+                    push.sample_first + samples,
+                    first,
+                    first + count
+                );
+                let t0 = Instant::now();
+                ctx.one_shot(&what, |dev, cmd| {
+                    // SAFETY: one_shot records into a fresh command buffer and waits for it;
+                    // every object recorded here outlives that wait.
+                    unsafe {
+                        queries.reset(dev, cmd, 0);
+                        // The previous submit's copy of the counters (a transfer read) before
+                        // this fill overwrites them.
+                        memory_barrier(
+                            dev,
+                            cmd,
+                            (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::empty()),
+                            (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+                        );
+                        dev.cmd_fill_buffer(cmd, stats.raw, 0, vk::WHOLE_SIZE, 0);
+                        // The fill, the previous dispatch's accumulation and the previous
+                        // pass's copy of it (a transfer read) before this dispatch.
+                        memory_barrier(
+                            dev,
+                            cmd,
+                            (
+                                vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER,
+                                vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE,
+                            ),
+                            (
+                                vk::PipelineStageFlags::COMPUTE_SHADER,
+                                vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                            ),
+                        );
+                        let marker = ctx.mark_begin(dev, cmd, what.clone());
+                        queries.start(dev, cmd, 0);
+                        dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, k.pipeline);
+                        dev.cmd_bind_descriptor_sets(
+                            cmd,
+                            vk::PipelineBindPoint::COMPUTE,
+                            k.pipeline_layout,
+                            0,
+                            &[set],
+                            &[],
+                        );
+                        dev.cmd_push_constants(
+                            cmd,
+                            k.pipeline_layout,
+                            vk::ShaderStageFlags::COMPUTE,
+                            0,
+                            bytemuck::bytes_of(&push),
+                        );
+                        dev.cmd_dispatch(cmd, (count as u32).div_ceil(local), 1, 1);
+                        queries.end(dev, cmd, 0);
+                        ctx.mark_end(dev, cmd, marker);
+                        read_back(dev, cmd, &stats, &readback, 4 * STATS);
+                        if last_of_pass {
+                            // The whole pass is in: keep a host copy (what a failure later on
+                            // still has to write out).
+                            read_back(dev, cmd, &accum, &host_accum, pixels as u64 * 16);
+                        }
+                    }
+                })?;
+                let seconds = t0.elapsed().as_secs_f64();
+                if let Some(gpu_ms) = result.gpu_ms.as_mut() {
+                    *gpu_ms += queries.read_ms().map_err(|e| ctx.fault(e))?[0];
+                }
+                let counters: [u32; STATS as usize] = bytemuck::pod_read_unaligned(
+                    readback.mapped().ok_or_else(|| Error::NoDevice("readback buffer is not host-visible".into()))?,
+                );
+                result.closest_rays += counters[0] as u64;
+                result.shadow_rays += counters[1] as u64;
+                result.dropped_samples += counters[2] as u64;
+                result.submits += 1;
+                let c = seconds / (count as f64 * samples as f64);
+                cost = Some(match cost {
+                    None => c,
+                    Some(old) => 0.5 * (old + c),
+                });
+                first += count;
             }
-            let counters: [u32; STATS as usize] = bytemuck::pod_read_unaligned(
-                readback.mapped().ok_or_else(|| Error::NoDevice("readback buffer is not host-visible".into()))?,
-            );
-            result.closest_rays += counters[0] as u64;
-            result.shadow_rays += counters[1] as u64;
-            result.dropped_samples += counters[2] as u64;
-            result.submits += 1;
-            let c = seconds / (count as f64 * samples as f64);
-            cost = Some(match cost {
-                None => c,
-                Some(old) => 0.5 * (old + c),
+            let copy = host_accum
+                .mapped()
+                .ok_or_else(|| Error::NoDevice("accumulation readback buffer is not host-visible".into()))?;
+            result.accum.clear();
+            result.accum.extend(copy.chunks_exact(16).map(bytemuck::pod_read_unaligned::<[f32; 4]>));
+            result.spp += samples;
+            let keep_going = progress(Progress {
+                spp_done: result.spp,
+                spp_total: s.spp,
+                seconds: start.elapsed().as_secs_f64(),
+                accum: &result.accum,
             });
-            first += count;
+            if !keep_going && result.spp < s.spp {
+                result.interrupted = true;
+                break;
+            }
         }
-        result.spp += samples;
-        let keep_going =
-            progress(Progress { spp_done: result.spp, spp_total: s.spp, seconds: start.elapsed().as_secs_f64() });
-        if !keep_going && result.spp < s.spp {
-            result.interrupted = true;
-            break;
-        }
-    }
+        Ok(())
+    };
+    let outcome = run(&mut result);
     result.wall_ms = start.elapsed().as_secs_f64() * 1e3;
-    let bytes = ctx.download(&accum, pixels as u64 * 16)?;
-    result.accum = bytes.chunks_exact(16).map(bytemuck::pod_read_unaligned).collect();
-    Ok(result)
+    match outcome {
+        Ok(()) => Ok(result),
+        Err(e) if result.spp > 0 => {
+            let source = Box::new(ctx.fault(e));
+            result.failed = Some(source.to_string());
+            Err(Error::PartialRender { result: Box::new(result), source })
+        }
+        Err(e) => Err(ctx.fault(e)),
+    }
 }
