@@ -1152,6 +1152,26 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
     let build_ms = t_build.elapsed().as_secs_f64() * 1e3;
     let ctx = a.gpu.context()?;
     let (method, auto) = resolve_method(a.method, &mesh, &ctx)?;
+    // Plan the path tracer's buffers before encoding anything: a scene that cannot fit is an
+    // error naming the buffer and the limit, not a driver failure half-way through the upload.
+    {
+        use trilab::gpu::{plan, DeviceLimits, MemoryPlan, SceneCounts};
+        let counts = SceneCounts::of(&mesh, &bvh);
+        let slots = if method.group_size() > 1 { 4 * counts.quads } else { counts.slots };
+        let emissive = mesh
+            .material_ids
+            .iter()
+            .filter(|&&m| mesh.materials.get(m as usize).is_some_and(|m| m.is_emissive()))
+            .count();
+        let extras = plan::pathtrace_extras(
+            slots,
+            emissive as u64,
+            mesh.materials.len() as u64,
+            u64::from(settings.width) * u64::from(settings.height),
+        );
+        let name = mesh.source.display().to_string();
+        plan::check_pathtrace(&name, &MemoryPlan::of(method, &counts), &extras, &DeviceLimits::of(&ctx))?;
+    }
     let t_encode = std::time::Instant::now();
     let encoded = method.encode(&mesh, &bvh);
     let scene = RenderScene::new(&mesh, &encoded);

@@ -400,3 +400,15 @@ fn raycast_and_render_method_auto_say_what_they_picked() {
     assert_eq!(j["method_choice"], "auto");
     assert_eq!(j["method"], j["auto"]["method"], "{j}");
 }
+
+/// A render whose buffers cannot fit is refused by the plan before anything is encoded or
+/// allocated, naming the buffer and the limit; nothing is written.
+#[test]
+fn a_render_that_cannot_fit_is_refused_before_upload() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = tiny_scene(dir.path());
+    let out = dir.path().join("big.exr");
+    let o = trilab(&["render", "--scene", &scene, "--out", &s(&out), "--width", "40000", "--height", "40000"], 60);
+    expect_error(&o, &["does not fit", "accumulation image", "maxStorageBufferRange"]);
+    assert!(!out.exists(), "nothing may be written");
+}

@@ -56,14 +56,15 @@ fn a_missing_barrier_is_reported_as_a_sync_hazard() {
 }
 
 /// Every kernel family under validation with synchronization validation on, through the paths
-/// the commands use: raycast (every method x closest, any, stats, clock), pathtrace (every
+/// the commands use: raycast (every method x closest, any, stats, clock, and closest/any
+/// through buffer device addresses), pathtrace (every
 /// method x every BSDF variant and the all-BSDF kernel), ray query. `with_gpu` fails on any
 /// message, teardown included. (The probe kernels run under `with_gpu` in tests/probe.rs,
 /// tests/bsdf_probe.rs and tests/render.rs.)
 #[test]
 fn every_kernel_family_runs_clean_under_synchronization_validation() {
     use trilab::bvh::{BuildOptions, Bvh};
-    use trilab::gpu::{raycast, raycast_stats, GpuScene, RaycastOptions};
+    use trilab::gpu::{raycast, raycast_stats, AccessPath, GpuScene, RaycastOptions};
     use trilab::render::{self, PathtraceKernel, RenderScene, RenderSettings};
     use trilab::scene::{BsdfKind, GpuMaterial, Material};
     common::with_gpu(900, |ctx| {
@@ -79,6 +80,14 @@ fn every_kernel_family_runs_clean_under_synchronization_validation() {
             for any in [false, true] {
                 let k = ctx.create_kernel(trilab::kernels::raycast(m, any)).unwrap();
                 assert_eq!(raycast(ctx, &k, &scene, &rays, &opts).unwrap().hits.len(), rays.len());
+            }
+            // The buffer-device-address variants (scenes beyond one binding's range).
+            if ctx.enabled().buffer_device_address {
+                let addressed = GpuScene::upload_with(ctx, &encoded, AccessPath::Address).unwrap();
+                for any in [false, true] {
+                    let k = ctx.create_kernel(trilab::kernels::raycast_via(m, any, AccessPath::Address)).unwrap();
+                    assert_eq!(raycast(ctx, &k, &addressed, &rays, &opts).unwrap().hits.len(), rays.len());
+                }
             }
             let k = ctx.create_kernel(trilab::kernels::raycast_stats(m)).unwrap();
             assert_eq!(raycast_stats(ctx, &k, &scene, &rays).unwrap().1.len(), rays.len());
