@@ -5,6 +5,7 @@
 
 mod material;
 mod obj;
+pub mod synthetic;
 
 pub use material::{BsdfKind, GpuMaterial, Material};
 pub use obj::load_obj;

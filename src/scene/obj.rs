@@ -11,22 +11,68 @@ use std::path::{Path, PathBuf};
 use super::{Material, Mesh};
 use crate::error::{Error, Result};
 
-/// Loads an OBJ file (and the MTL files it names, relative to its directory), fan-triangulating
-/// polygons. Points and lines are ignored. Errors: missing or unreadable file, unparsable line,
-/// face index out of range, NaN/Inf coordinate, no triangles, missing or malformed MTL.
+/// Largest OBJ text accepted, after decompression: 2 GiB (about 40 million triangles), or
+/// `TRILAB_MAX_SCENE_BYTES`. A gzip file is decoded through a reader that stops one byte past
+/// the limit, so a small file that inflates without end (a "zip bomb") is an error, not an
+/// allocation of everything it claims.
+pub const DEFAULT_MAX_SCENE_BYTES: u64 = 2 << 30;
+
+fn max_scene_bytes() -> u64 {
+    std::env::var("TRILAB_MAX_SCENE_BYTES").ok().and_then(|v| v.parse().ok()).unwrap_or(DEFAULT_MAX_SCENE_BYTES)
+}
+
+/// Loads a scene: an OBJ file (and the MTL files it names, relative to its directory), the same
+/// gzip-compressed (a name ending in `.gz`, read through a decompressing reader), or a synthetic
+/// scene (`synth:<kind>:<triangles>`, see [`super::synthetic`]). Polygons are fan-triangulated;
+/// points and lines are ignored. Errors: missing or unreadable file, corrupt gzip, text over
+/// the size limit, unparsable line, face index out of range, NaN/Inf coordinate, no triangles,
+/// missing or malformed MTL.
 pub fn load_obj(path: &Path) -> Result<Mesh> {
+    if super::synthetic::is_spec(path) {
+        return super::synthetic::load(path);
+    }
+    let text = read_text(path, max_scene_bytes())?;
+    parse_obj(path, &text)
+}
+
+/// The file's text, gunzipped when its name ends in `.gz`; at most `limit` bytes of it.
+fn read_text(path: &Path, limit: u64) -> Result<String> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let meta = file.metadata().map_err(|e| Error::io(path, e))?;
     if meta.is_dir() {
         return Err(Error::bad_input(path, None, "is a directory, not an OBJ file"));
     }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    BufReader::new(file).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
-    let text = String::from_utf8(bytes).map_err(|e| {
+    let too_big = |what: &str| {
+        Error::bad_input(
+            path,
+            None,
+            format!("{what} more than {limit} bytes of OBJ text, the limit (set TRILAB_MAX_SCENE_BYTES to raise it)"),
+        )
+    };
+    let gzip = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+    let mut bytes = Vec::new();
+    if gzip {
+        let mut reader = flate2::read::MultiGzDecoder::new(BufReader::new(file)).take(limit + 1);
+        reader.read_to_end(&mut bytes).map_err(|e| match e.kind() {
+            std::io::ErrorKind::InvalidInput | std::io::ErrorKind::InvalidData | std::io::ErrorKind::UnexpectedEof => {
+                Error::bad_input(path, None, format!("is not a valid gzip file: {e}"))
+            }
+            _ => Error::io(path, e),
+        })?;
+        if bytes.len() as u64 > limit {
+            return Err(too_big("decompresses to"));
+        }
+    } else {
+        if meta.len() > limit {
+            return Err(too_big("holds"));
+        }
+        bytes.reserve_exact(meta.len() as usize);
+        BufReader::new(file).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
+    }
+    String::from_utf8(bytes).map_err(|e| {
         let line = 1 + e.as_bytes()[..e.utf8_error().valid_up_to()].iter().filter(|&&b| b == b'\n').count();
         Error::bad_input(path, Some(line), "not UTF-8 text (is this an OBJ file?)")
-    })?;
-    parse_obj(path, &text)
+    })
 }
 
 fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
@@ -329,5 +375,51 @@ mod tests {
         let m = parse("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\nf 1 1 4\n").unwrap();
         assert_eq!(m.triangles.len(), 3);
         assert_eq!(m.degenerate_ids(), vec![0, 2]);
+    }
+
+    #[test]
+    fn gzip_scenes_load_like_plain_ones() {
+        use std::io::Write;
+        let dir = tempfile::tempdir().unwrap();
+        let text = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nusemtl red\nf 1 2 3 4\n";
+        std::fs::write(dir.path().join("m.mtl"), "newmtl red\nKd 1 0 0\n").unwrap();
+        let plain = dir.path().join("a.obj");
+        std::fs::write(&plain, text).unwrap();
+        let gz = dir.path().join("a.obj.gz");
+        let mut enc = flate2::write::GzEncoder::new(std::fs::File::create(&gz).unwrap(), flate2::Compression::fast());
+        enc.write_all(text.as_bytes()).unwrap();
+        enc.finish().unwrap();
+        let (a, b) = (load_obj(&plain).unwrap(), load_obj(&gz).unwrap());
+        assert_eq!((a.positions, a.triangles, a.material_ids), (b.positions, b.triangles, b.material_ids));
+        assert_eq!(b.materials.len(), 1);
+
+        // Not gzip at all, and a truncated stream: named errors, no panic.
+        let fake = dir.path().join("b.obj.gz");
+        std::fs::write(&fake, text).unwrap();
+        let e = load_obj(&fake).unwrap_err().to_string();
+        assert!(e.contains("b.obj.gz") && e.contains("not a valid gzip"), "{e}");
+        let cut = dir.path().join("c.obj.gz");
+        let whole = std::fs::read(&gz).unwrap();
+        std::fs::write(&cut, &whole[..whole.len() / 2]).unwrap();
+        let e = load_obj(&cut).unwrap_err().to_string();
+        assert!(e.contains("c.obj.gz") && e.contains("gzip"), "{e}");
+    }
+
+    #[test]
+    fn a_small_gzip_bomb_stops_at_the_limit() {
+        use std::io::Write;
+        // 64 MiB of comment lines compress to ~64 KiB; with a 1 MiB limit the reader stops after
+        // 1 MiB + 1 byte instead of inflating all of it.
+        let dir = tempfile::tempdir().unwrap();
+        let bomb = dir.path().join("bomb.obj.gz");
+        let mut enc = flate2::write::GzEncoder::new(std::fs::File::create(&bomb).unwrap(), flate2::Compression::best());
+        let block = vec![b'#'; 1 << 20];
+        for _ in 0..64 {
+            enc.write_all(&block).unwrap();
+        }
+        enc.finish().unwrap();
+        assert!(std::fs::metadata(&bomb).unwrap().len() < 1 << 20);
+        let e = read_text(&bomb, 1 << 20).unwrap_err().to_string();
+        assert!(e.contains("bomb.obj.gz") && e.contains("decompresses to more than 1048576 bytes"), "{e}");
     }
 }
