@@ -32,7 +32,6 @@
 
 use std::time::Instant;
 
-use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{Aabb, Bvh, BvhNode, PAD_SLOT};
