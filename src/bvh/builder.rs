@@ -181,7 +181,7 @@ pub(super) fn build_grain(mesh: &Mesh, options: &BuildOptions, g: Grain) -> Bvh 
     let nodes = {
         let mut tmp =
             vec![Prim { bounds: Aabb::EMPTY, id: 0 }; if prims.len() < g.serial_below { 0 } else { prims.len() }];
-        let (root, frag) = build_par(&mut prims, &mut tmp, 0, 0, options, g);
+        let (root, frag) = build_par(&mut prims, &mut tmp, 0, 0, None, options, g);
         drop(tmp);
         assemble(root, frag)
     };
@@ -204,7 +204,7 @@ pub(super) fn build_serial(mesh: &Mesh, options: &BuildOptions) -> Bvh {
     if prims.is_empty() {
         return empty_bvh(mesh, options, excluded, start, 1);
     }
-    let nodes = build_subtree(&mut prims, 0, 0, options, &mut Scratch::default());
+    let nodes = build_subtree(&mut prims, 0, 0, None, options, &mut Scratch::default());
     Bvh {
         nodes,
         prim_ids: prims.iter().map(|p| p.id).collect(),
@@ -259,19 +259,21 @@ fn build_subtree(
     prims: &mut [Prim],
     offset: usize,
     depth: u32,
+    known: Option<NodeBounds>,
     o: &BuildOptions,
     scratch: &mut Scratch,
 ) -> Vec<BvhNode> {
     assert!((1..=MAX_LEAF_SIZE).contains(&o.max_leaf_size), "max_leaf_size must be 1..={MAX_LEAF_SIZE}");
     let mut nodes = Vec::with_capacity((2 * prims.len()).min(1 << 20));
     nodes.push(BvhNode::default());
-    // (node index, first prim, prim count, depth); popped depth-first, left child first.
-    let mut work = vec![(0usize, 0usize, prims.len(), depth)];
-    while let Some((node, first, count, depth)) = work.pop() {
+    // (node index, first prim, prim count, depth, bounds if the parent's partition gathered
+    // them); popped depth-first, left child first.
+    let mut work = vec![(0usize, 0usize, prims.len(), depth, known)];
+    while let Some((node, first, count, depth, known)) = work.pop() {
         let range = &mut prims[first..first + count];
-        let (bounds, cbounds) = bounds_of(range);
-        nodes[node].set_aabb(&bounds);
-        let Some(left_count) = choose_split(range, &bounds, &cbounds, depth, o, &mut SerialOps(scratch)) else {
+        let nb = known.unwrap_or_else(|| bounds_of(range));
+        nodes[node].set_aabb(&nb.bounds);
+        let Some((left_count, sides)) = choose_split(range, &nb, depth, o, &mut SerialOps(scratch)) else {
             nodes[node].left_or_first = (offset + first) as u32;
             nodes[node].count = count as u32;
             continue;
@@ -281,8 +283,8 @@ fn build_subtree(
         nodes.push(BvhNode::default());
         nodes[node].left_or_first = left as u32;
         nodes[node].count = 0;
-        work.push((left + 1, first + left_count, count - left_count, depth + 1));
-        work.push((left, first, left_count, depth + 1));
+        work.push((left + 1, first + left_count, count - left_count, depth + 1, sides.map(|s| s[1])));
+        work.push((left, first, left_count, depth + 1, sides.map(|s| s[0])));
     }
     nodes
 }
@@ -321,31 +323,33 @@ fn build_par(
     tmp: &mut [Prim],
     offset: usize,
     depth: u32,
+    known: Option<NodeBounds>,
     o: &BuildOptions,
     g: Grain,
 ) -> (BvhNode, Fragment) {
     let n = prims.len();
     if n < g.serial_below {
-        let nodes = build_subtree(prims, offset, depth, o, &mut Scratch::default());
+        let nodes = build_subtree(prims, offset, depth, known, o, &mut Scratch::default());
         let root = nodes[0];
         let len = nodes.len() - 1;
         let pieces = if len == 0 { vec![] } else { vec![Piece { nodes, skip: 1, shift: -1 }] };
         return (root, Fragment { pieces, len });
     }
-    let (bounds, cbounds) = bounds_par(prims, g.chunk);
+    let nb = known.unwrap_or_else(|| bounds_par(prims, g.chunk));
     let mut node = BvhNode::default();
-    node.set_aabb(&bounds);
-    let Some(k) =
-        choose_split(prims, &bounds, &cbounds, depth, o, &mut ParOps { tmp: &mut *tmp, boxes: vec![], chunk: g.chunk })
-    else {
+    node.set_aabb(&nb.bounds);
+    let mut ops = ParOps { tmp: &mut *tmp, boxes: vec![], chunk: g.chunk };
+    let Some((k, sides)) = choose_split(prims, &nb, depth, o, &mut ops) else {
         node.left_or_first = offset as u32;
         node.count = n as u32;
         return (node, Fragment::default());
     };
     let (lp, rp) = prims.split_at_mut(k);
     let (lt, rt) = tmp.split_at_mut(k);
-    let ((mut l, lf), (mut r, rf)) =
-        rayon::join(|| build_par(lp, lt, offset, depth + 1, o, g), || build_par(rp, rt, offset + k, depth + 1, o, g));
+    let ((mut l, lf), (mut r, rf)) = rayon::join(
+        || build_par(lp, lt, offset, depth + 1, sides.map(|s| s[0]), o, g),
+        || build_par(rp, rt, offset + k, depth + 1, sides.map(|s| s[1]), o, g),
+    );
     if !l.is_leaf() {
         l.left_or_first = 2;
     }
@@ -389,21 +393,16 @@ fn assemble(mut root: BvhNode, frag: Fragment) -> Vec<BvhNode> {
 }
 
 /// Box of the primitives and box of their centroids.
-fn bounds_of(range: &[Prim]) -> (Aabb, Aabb) {
-    let mut bounds = Aabb::EMPTY;
-    let mut cbounds = Aabb::EMPTY;
+fn bounds_of(range: &[Prim]) -> NodeBounds {
+    let mut nb = NodeBounds::EMPTY;
     for p in range {
-        bounds.grow(&p.bounds);
-        cbounds.grow_point(p.bounds.center());
+        nb.add(p);
     }
-    (bounds, cbounds)
+    nb
 }
 
-fn bounds_par(range: &[Prim], chunk: usize) -> (Aabb, Aabb) {
-    range
-        .par_chunks(chunk)
-        .map(bounds_of)
-        .reduce(|| (Aabb::EMPTY, Aabb::EMPTY), |(a, ca), (b, cb)| (a.union(&b), ca.union(&cb)))
+fn bounds_par(range: &[Prim], chunk: usize) -> NodeBounds {
+    range.par_chunks(chunk).map(bounds_of).reduce(|| NodeBounds::EMPTY, NodeBounds::then)
 }
 
 /// How the split finders scan and reorder a node's primitives: serially, or in parallel chunks
@@ -412,7 +411,32 @@ trait SplitOps {
     fn bins(&mut self, range: &[Prim], axes: &[Option<(f32, f32)>; 3], bins: usize) -> Bins;
     fn sort(&mut self, range: &mut [Prim], axis: usize);
     fn boxes(&mut self) -> &mut Vec<Aabb>;
-    fn partition(&mut self, range: &mut [Prim], goes_left: &(dyn Fn(&Prim) -> bool + Sync)) -> usize;
+    /// Stable partition; also returns the bounds of each side, gathered on the way so the
+    /// children need no pass of their own.
+    fn partition<F: Fn(&Prim) -> bool + Sync>(&mut self, range: &mut [Prim], goes_left: F) -> (usize, [NodeBounds; 2]);
+}
+
+/// A node's box and the box of its primitives' centroids.
+#[derive(Clone, Copy)]
+struct NodeBounds {
+    bounds: Aabb,
+    cbounds: Aabb,
+}
+
+impl NodeBounds {
+    const EMPTY: NodeBounds = NodeBounds { bounds: Aabb::EMPTY, cbounds: Aabb::EMPTY };
+
+    #[inline]
+    fn add(&mut self, p: &Prim) {
+        self.bounds.grow(&p.bounds);
+        self.cbounds.grow_point(p.bounds.center());
+    }
+
+    /// `self` then `other`: the order matters only for which of two equal values (+0.0 and
+    /// -0.0) is kept, and keeping the order keeps that as in one sequential pass.
+    fn then(self, other: NodeBounds) -> NodeBounds {
+        NodeBounds { bounds: self.bounds.union(&other.bounds), cbounds: self.cbounds.union(&other.cbounds) }
+    }
 }
 
 struct SerialOps<'a>(&'a mut Scratch);
@@ -433,21 +457,24 @@ impl SplitOps for SerialOps<'_> {
     }
 
     /// Stable: lefts keep their order at the front, rights theirs behind them.
-    fn partition(&mut self, range: &mut [Prim], goes_left: &(dyn Fn(&Prim) -> bool + Sync)) -> usize {
+    fn partition<F: Fn(&Prim) -> bool + Sync>(&mut self, range: &mut [Prim], goes_left: F) -> (usize, [NodeBounds; 2]) {
         let rights = &mut self.0.prims;
         rights.clear();
+        let mut sides = [NodeBounds::EMPTY; 2];
         let mut w = 0;
         for i in 0..range.len() {
             let p = range[i];
             if goes_left(&p) {
+                sides[0].add(&p);
                 range[w] = p;
                 w += 1;
             } else {
+                sides[1].add(&p);
                 rights.push(p);
             }
         }
         range[w..].copy_from_slice(rights);
-        w
+        (w, sides)
     }
 }
 
@@ -483,8 +510,9 @@ impl SplitOps for ParOps<'_> {
 
     /// The same stable partition: each chunk's lefts and rights go to their places in `tmp`
     /// (offsets from a prefix sum of per-chunk counts), then back.
-    fn partition(&mut self, range: &mut [Prim], goes_left: &(dyn Fn(&Prim) -> bool + Sync)) -> usize {
+    fn partition<F: Fn(&Prim) -> bool + Sync>(&mut self, range: &mut [Prim], goes_left: F) -> (usize, [NodeBounds; 2]) {
         debug_assert_eq!(range.len(), self.tmp.len());
+        let goes_left = &goes_left;
         let counts: Vec<usize> =
             range.par_chunks(self.chunk).map(|c| c.iter().filter(|p| goes_left(p)).count()).collect();
         let left: usize = counts.iter().sum();
@@ -497,33 +525,43 @@ impl SplitOps for ParOps<'_> {
             rt = rest;
             jobs.push((chunk, a, b));
         }
-        jobs.into_par_iter().for_each(|(chunk, a, b)| {
-            let (mut i, mut j) = (0, 0);
-            for p in chunk {
-                if goes_left(p) {
-                    a[i] = *p;
-                    i += 1;
-                } else {
-                    b[j] = *p;
-                    j += 1;
+        let sides = jobs
+            .into_par_iter()
+            .map(|(chunk, a, b)| {
+                let mut sides = [NodeBounds::EMPTY; 2];
+                let (mut i, mut j) = (0, 0);
+                for p in chunk {
+                    if goes_left(p) {
+                        sides[0].add(p);
+                        a[i] = *p;
+                        i += 1;
+                    } else {
+                        sides[1].add(p);
+                        b[j] = *p;
+                        j += 1;
+                    }
                 }
-            }
-        });
+                sides
+            })
+            .reduce(|| [NodeBounds::EMPTY; 2], |x, y| [x[0].then(y[0]), x[1].then(y[1])]);
         range.par_chunks_mut(self.chunk).zip(self.tmp.par_chunks(self.chunk)).for_each(|(d, s)| d.copy_from_slice(s));
-        left
+        (left, sides)
     }
 }
 
-/// Decides the node's fate: `None` makes it a leaf, `Some(k)` splits it with the first `k`
-/// primitives (reordered in place) going to the left child.
+/// How many primitives go left, and the two children's bounds when the split gathered them.
+type Cut = (usize, Option<[NodeBounds; 2]>);
+
+/// Decides the node's fate: `None` makes it a leaf, `Some((k, _))` splits it with the first
+/// `k` primitives (reordered in place) going to the left child.
 fn choose_split(
     range: &mut [Prim],
-    bounds: &Aabb,
-    cbounds: &Aabb,
+    nb: &NodeBounds,
     depth: u32,
     o: &BuildOptions,
     ops: &mut impl SplitOps,
-) -> Option<usize> {
+) -> Option<Cut> {
+    let (bounds, cbounds) = (&nb.bounds, &nb.cbounds);
     let n = range.len();
     if n == 1 || depth >= MAX_DEPTH {
         // At MAX_DEPTH the depth rule below has already left at most max_leaf_size here.
@@ -542,15 +580,15 @@ fn choose_split(
     if fits && best.as_ref().is_none_or(|(c, _)| leaf_cost <= *c) {
         return None;
     }
-    let left = best.map(|(_, s)| apply(range, &s, ops)).filter(|&k| k > 0 && k < n);
+    let left = best.map(|(_, s)| apply(range, &s, ops)).filter(|&(k, _)| k > 0 && k < n);
     let levels_left = MAX_DEPTH - depth - 1; // for each child
     let ok = |k: usize| {
         levels_needed(k, o.max_leaf_size) <= levels_left && levels_needed(n - k, o.max_leaf_size) <= levels_left
     };
     match left {
-        Some(k) if ok(k) => Some(k),
+        Some((k, sides)) if ok(k) => Some((k, sides)),
         _ if fits => None,
-        _ => Some(median_split(range, cbounds)),
+        _ => Some((median_split(range, cbounds), None)),
     }
 }
 
@@ -586,9 +624,10 @@ impl Bins {
     /// `axes[a]`: `(lo, scale)` of axis `a`, `None` when the centroids have no extent on it.
     fn add(&mut self, range: &[Prim], axes: &[Option<(f32, f32)>; 3]) {
         for p in range {
+            let c = p.bounds.center();
             for (axis, a) in axes.iter().enumerate() {
                 if let Some((lo, scale)) = *a {
-                    let b = axis * self.n + bin_index(p.centroid(axis), lo, scale, self.n);
+                    let b = axis * self.n + bin_index(c[axis], lo, scale, self.n);
                     self.boxes[b].grow(&p.bounds);
                     self.counts[b] += 1;
                 }
@@ -692,15 +731,17 @@ fn best_sweep(range: &mut [Prim], bounds: &Aabb, o: &BuildOptions, ops: &mut imp
     best
 }
 
-/// Reorders `range` for the split; returns how many primitives go left.
-fn apply(range: &mut [Prim], split: &Split, ops: &mut impl SplitOps) -> usize {
+/// Reorders `range` for the split; returns how many primitives go left, and the children's
+/// bounds where the reordering gathered them.
+fn apply(range: &mut [Prim], split: &Split, ops: &mut impl SplitOps) -> Cut {
     match *split {
         Split::Bin { axis, bin, bins, lo, scale } => {
-            ops.partition(range, &|p: &Prim| bin_index(p.centroid(axis), lo, scale, bins) <= bin)
+            let (k, sides) = ops.partition(range, |p: &Prim| bin_index(p.centroid(axis), lo, scale, bins) <= bin);
+            (k, Some(sides))
         }
         Split::Sorted { axis, left } => {
             ops.sort(range, axis);
-            left
+            (left, None)
         }
     }
 }
