@@ -671,22 +671,32 @@ fn best_binned(
         let Some((lo, scale)) = *a else { continue };
         let bin_bounds = &binned.boxes[axis * bins..(axis + 1) * bins];
         let bin_counts = &binned.counts[axis * bins..(axis + 1) * bins];
-        // Right-to-left sweep: area and count of bins b+1..bins.
+        // Right-to-left sweep: area and count of bins b+1..bins. An empty bin changes neither
+        // (growing by an empty box is exact), so its area is the previous one.
         let mut acc = Aabb::EMPTY;
         let mut cnt = 0;
+        let mut area = 0.0;
         for b in (1..bins).rev() {
-            acc.grow(&bin_bounds[b]);
-            cnt += bin_counts[b];
-            right_area[b - 1] = acc.area();
+            if bin_counts[b] > 0 {
+                acc.grow(&bin_bounds[b]);
+                cnt += bin_counts[b];
+                area = acc.area();
+            }
+            right_area[b - 1] = area;
             right_count[b - 1] = cnt;
         }
         let mut acc = Aabb::EMPTY;
         let mut cnt = 0;
         for b in 0..bins - 1 {
+            if bin_counts[b] == 0 {
+                // The same two sides as the boundary before, already priced (or not a split):
+                // skipping it changes no choice, since a later candidate must be strictly cheaper.
+                continue;
+            }
             acc.grow(&bin_bounds[b]);
             cnt += bin_counts[b];
-            if cnt == 0 || right_count[b] == 0 {
-                continue;
+            if right_count[b] == 0 {
+                break;
             }
             let c = sah(o, parent_area, acc.area(), cnt, right_area[b], right_count[b]);
             if best.as_ref().is_none_or(|(bc, _)| c < *bc) {
