@@ -421,7 +421,7 @@ pub fn read_tree(path: &Path, options: &BuildOptions, threads: usize) -> Result<
             return Err(bad(&format!("leaf {i} points past the slots")));
         }
     }
-    if prim_ids.iter().any(|&p| p == crate::bvh::PAD_SLOT) {
+    if prim_ids.contains(&crate::bvh::PAD_SLOT) {
         return Err(bad("a slot holds the padding id"));
     }
     Ok(Bvh { nodes, prim_ids, options: *options, build_seconds: 0.0, build_threads: threads, degenerate_excluded: 0 })
