@@ -170,6 +170,7 @@ pub(super) fn build(mesh: &Mesh, options: &BuildOptions) -> Bvh {
 }
 
 pub(super) fn build_grain(mesh: &Mesh, options: &BuildOptions, g: Grain) -> Bvh {
+    assert!((1..=MAX_LEAF_SIZE).contains(&options.max_leaf_size), "max_leaf_size must be 1..={MAX_LEAF_SIZE}");
     let start = Instant::now();
     let threads = rayon::current_num_threads();
     let mut prims: Vec<Prim> = (0..mesh.triangle_count()).into_par_iter().map(|i| prim(mesh, i)).collect();
@@ -197,6 +198,7 @@ pub(super) fn build_grain(mesh: &Mesh, options: &BuildOptions, g: Grain) -> Bvh 
 
 /// The single-threaded reference: one loop, no rayon.
 pub(super) fn build_serial(mesh: &Mesh, options: &BuildOptions) -> Bvh {
+    assert!((1..=MAX_LEAF_SIZE).contains(&options.max_leaf_size), "max_leaf_size must be 1..={MAX_LEAF_SIZE}");
     let start = Instant::now();
     let mut prims: Vec<Prim> = (0..mesh.triangle_count()).map(|i| prim(mesh, i)).collect();
     prims.retain(|p| p.id != PAD_SLOT);
@@ -225,7 +227,6 @@ fn prim(mesh: &Mesh, i: usize) -> Prim {
 }
 
 fn empty_bvh(mesh: &Mesh, options: &BuildOptions, excluded: usize, start: Instant, threads: usize) -> Bvh {
-    assert!((1..=MAX_LEAF_SIZE).contains(&options.max_leaf_size), "max_leaf_size must be 1..={MAX_LEAF_SIZE}");
     // Nothing can be hit. One leaf over a single padding slot (a degenerate triangle every
     // encoding rejects exactly) keeps the GPU path uniform.
     let p = mesh.positions.first().copied().unwrap_or([0.0; 3]);
@@ -263,7 +264,6 @@ fn build_subtree(
     o: &BuildOptions,
     scratch: &mut Scratch,
 ) -> Vec<BvhNode> {
-    assert!((1..=MAX_LEAF_SIZE).contains(&o.max_leaf_size), "max_leaf_size must be 1..={MAX_LEAF_SIZE}");
     let mut nodes = Vec::with_capacity((2 * prims.len()).min(1 << 20));
     nodes.push(BvhNode::default());
     // (node index, first prim, prim count, depth, bounds if the parent's partition gathered
