@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# Builds the Embree 3 peer (benches/peers/embree_rays.cpp, Debian's libembree-dev) used by
-# `trilab bench --embree` to run Embree on the same ray files in the same run.
-# Usage: scripts/embree-peer.sh [OUT_DIR]   (default: target/peers); prints the binary's path.
+# Builds the Embree 3 peers (Debian's libembree-dev): benches/peers/embree_rays.cpp, used by
+# `trilab bench --embree` to run Embree on the same ray files in the same run, and
+# benches/peers/embree_build.cpp, used by `trilab build-bench --embree` to time Embree's BVH
+# builder on the same triangles. Benchmark-only: the main build never needs them.
+# Usage: scripts/embree-peer.sh [OUT_DIR]   (default: target/peers); prints the binaries' paths.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-$root/target/peers}
@@ -11,4 +13,6 @@ if ! dpkg -s libembree-dev >/dev/null 2>&1; then
   $SUDO apt-get install -y -qq --no-install-recommends libembree-dev >/dev/null
 fi
 g++ -O2 -std=c++17 -o "$out/embree_rays" "$root/benches/peers/embree_rays.cpp" -lembree3 -lpthread
+g++ -O2 -std=c++17 -Wall -Wextra -o "$out/embree_build" "$root/benches/peers/embree_build.cpp" -lembree3 -lpthread
 echo "$out/embree_rays"
+echo "$out/embree_build"

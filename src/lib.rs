@@ -12,6 +12,7 @@ pub mod accuracy;
 pub mod analyze;
 pub mod bench;
 pub mod bsdf;
+pub mod build_bench;
 pub mod bvh;
 pub mod compare;
 pub mod encoding;

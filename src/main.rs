@@ -90,9 +90,16 @@ enum Cmd {
         /// Quad kernels test them.
         #[arg(long, default_value_t = 1)]
         sah_group: u32,
+        /// Build threads (default: one per logical CPU). The tree does not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
         #[arg(long)]
         json: bool,
     },
+    /// BVH build benchmark: seconds, Mtris/s, SAH cost, nodes and depth per scene and thread
+    /// count for the parallel and serial binned SAH and the full sweep, optionally beside
+    /// Embree 3's builder on the same triangles; build.csv/json/md.
+    BuildBench(BuildBenchArgs),
     /// Traversal work per ray (CPU mirror of the kernels' loop): steps, triangle tests, and the
     /// iterations SIMD lock-step costs at each width; `--gpu` adds the kernels' own counts.
     Steps(StepsArgs),
@@ -543,9 +550,11 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Devices { json } => devices(json),
         Cmd::Rays { kind } => make_rays(kind),
         Cmd::Raycast(a) => raycast_cmd(a),
-        Cmd::Bvh { scene, leaf_sizes, leaf_policy, sah_group, json } => {
-            bvh_cmd(&scene, leaf_sizes, leaf_policy, sah_group, json)
-        }
+        Cmd::Bvh { scene, leaf_sizes, leaf_policy, sah_group, threads, json } => match threads {
+            Some(t) => build_pool(t)?.install(|| bvh_cmd(&scene, leaf_sizes, leaf_policy, sah_group, json)),
+            None => bvh_cmd(&scene, leaf_sizes, leaf_policy, sah_group, json),
+        },
+        Cmd::BuildBench(a) => build_bench_cmd(a),
         Cmd::Spirv { write, json } => spirv_cmd(write, json),
         Cmd::Steps(a) => steps_cmd(a),
         Cmd::Bench(a) => bench_cmd(a),
@@ -824,6 +833,8 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, sah_grou
         "EPO ms",
         "quad padding",
         "build ms",
+        "threads",
+        "Mtris/s",
         "leaf sizes (count:leaves)",
         "MB mt",
         "MB unit",
@@ -844,6 +855,8 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, sah_grou
             s.epo_ms.map_or("-".into(), |t| format!("{t:.0}")),
             s.quad_padding.to_string(),
             format!("{:.1}", s.build_ms),
+            s.build_threads.to_string(),
+            format!("{:.2}", s.mtris_per_s),
             hist.join(" "),
             mb("mt"),
             mb("unit"),
@@ -852,6 +865,77 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, sah_grou
         ]);
     }
     print!("{}", t.to_text());
+    Ok(())
+}
+
+fn build_pool(threads: usize) -> Result<rayon::ThreadPool> {
+    if threads == 0 {
+        return Err(Error::Usage("--threads: at least 1".into()));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| Error::Usage(format!("--threads {threads}: cannot start the pool: {e}")))
+}
+
+#[derive(Args)]
+struct BuildBenchArgs {
+    /// Scenes, comma-separated: OBJ files (.obj, .obj.gz) or synth:<kind>:<N>.
+    #[arg(long, value_delimiter = ',', required = true)]
+    scenes: Vec<PathBuf>,
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    leaf_policy: LeafPolicy,
+    /// Triangles the SAH prices as one test (1: classic; Embree's SAH block size).
+    #[arg(long, default_value_t = 1)]
+    sah_group: u32,
+    /// Thread counts, comma-separated (default: one per logical CPU).
+    #[arg(long, value_delimiter = ',')]
+    threads: Vec<usize>,
+    /// Timed runs after one warm-up.
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Leave out the single-threaded reference loop.
+    #[arg(long)]
+    no_serial: bool,
+    /// Full-sweep SAH reference only on scenes of at most this many triangles.
+    #[arg(long, default_value_t = 300_000)]
+    sweep_max: usize,
+    /// The Embree build peer (`embree_build` from scripts/embree-peer.sh).
+    #[arg(long)]
+    embree: Option<PathBuf>,
+    /// Directory for build.csv, build.json and build.md (e.g. results/<host>/build).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+fn build_bench_cmd(a: BuildBenchArgs) -> Result<()> {
+    use trilab::build_bench::{self, BuildBenchOptions};
+    let d = BuildBenchOptions::default();
+    let o = BuildBenchOptions {
+        scenes: a.scenes,
+        leaf_size: a.leaf_size,
+        leaf_policy: a.leaf_policy,
+        sah_group: a.sah_group,
+        threads: if a.threads.is_empty() { d.threads } else { a.threads },
+        repeat: a.repeat,
+        serial: !a.no_serial,
+        sweep_max_triangles: a.sweep_max,
+        embree: a.embree,
+    };
+    if let Some(out) = &a.out {
+        for name in ["build.csv", "build.json", "build.md"] {
+            let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
+            trilab::io::ensure_not_input(&out.join(name), &inputs)?;
+        }
+    }
+    let report = build_bench::run(&o, |m| eprintln!("{m}"))?;
+    print!("{}", report.table().to_text());
+    if let Some(out) = &a.out {
+        report.write(out)?;
+        eprintln!("wrote {}/build.{{csv,json,md}}", out.display());
+    }
     Ok(())
 }
 

@@ -248,6 +248,7 @@ mod tests {
             prim_ids: vec![0, 1],
             options: BuildOptions::new(1),
             build_seconds: 0.0,
+            build_threads: 1,
             degenerate_excluded: 0,
         }
     }

@@ -30,6 +30,8 @@ pub struct Bvh {
     pub prim_ids: Vec<u32>,
     pub options: BuildOptions,
     pub build_seconds: f64,
+    /// Threads the build ran on (rayon's pool; 1 for [`Bvh::build_serial`]).
+    pub build_threads: usize,
     /// Zero-area triangles left out of the hierarchy (never hit).
     pub degenerate_excluded: usize,
 }
@@ -56,6 +58,11 @@ pub struct BvhStats {
     /// Padding slots a 4-wide (Quad) encoding adds to fill partial quads.
     pub quad_padding: usize,
     pub build_ms: f64,
+    /// Threads the build ran on.
+    pub build_threads: usize,
+    /// Build speed: triangles in the mesh (degenerate ones included, as they were read) per
+    /// microsecond of build time.
+    pub mtris_per_s: f64,
     pub node_bytes: usize,
     /// End-point overlap (Aila, Karras & Laine, HPG 2013; [`epo`]) with the build's node costs;
     /// `None` unless computed ([`Bvh::stats_with_epo`]).
@@ -65,9 +72,16 @@ pub struct BvhStats {
 }
 
 impl Bvh {
-    /// Builds a BVH over the mesh's non-degenerate triangles.
+    /// Builds a BVH over the mesh's non-degenerate triangles, in parallel on rayon's current
+    /// thread pool (run it inside `ThreadPool::install` to choose the thread count). The tree
+    /// is bitwise identical to [`Bvh::build_serial`]'s whatever the pool.
     pub fn build(mesh: &Mesh, options: &BuildOptions) -> Bvh {
         builder::build(mesh, options)
+    }
+
+    /// The same tree built by one single-threaded loop (the reference for the parallel build).
+    pub fn build_serial(mesh: &Mesh, options: &BuildOptions) -> Bvh {
+        builder::build_serial(mesh, options)
     }
 
     /// Triangles in the hierarchy (degenerate ones excluded, padding not counted).
@@ -123,6 +137,10 @@ impl Bvh {
             sah_group: o.sah_group,
             quad_padding: 0,
             build_ms: self.build_seconds * 1e3,
+            build_threads: self.build_threads,
+            mtris_per_s: (self.triangle_count() + self.degenerate_excluded) as f64
+                / self.build_seconds.max(f64::MIN_POSITIVE)
+                / 1e6,
             node_bytes: self.nodes.len() * std::mem::size_of::<BvhNode>(),
             epo: None,
             epo_ms: None,
@@ -371,5 +389,125 @@ mod tests {
         assert_eq!(bvh.prim_ids, vec![PAD_SLOT]);
         assert_eq!(bvh.nodes.len(), 1);
         assert!(bvh.nodes[0].is_leaf());
+    }
+
+    /// A deterministic triangle soup that exercises the build's corner cases: clustered and
+    /// spread triangles, exact duplicates (identical centroids), coordinates of +0.0 and -0.0
+    /// (node boxes must not depend on which zero a reduction meets first), and degenerate
+    /// triangles, which are left out.
+    fn soup(n: usize, seed: u64) -> Mesh {
+        let mut s = seed;
+        let mut next = move || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((s >> 33) as f32) / (1u64 << 31) as f32
+        };
+        let mut pos = Vec::new();
+        let mut tris = Vec::new();
+        for i in 0..n {
+            let b = pos.len() as u32;
+            let c = match i % 5 {
+                0 => [next() * 100.0, next() * 100.0, next() * 100.0],
+                1 => [50.0 + next(), 50.0 + next(), 50.0 + next()],
+                2 => [0.0, if i % 2 == 0 { -0.0 } else { 0.0 }, next() * 10.0],
+                _ => [next() * 100.0, next() * 3.0, 0.0],
+            };
+            let e = 0.05 + next();
+            let z = if i % 3 == 0 { -0.0 } else { 0.0 };
+            match i % 23 {
+                // Degenerate: collinear.
+                7 => pos.extend([c, [c[0] + e, c[1], c[2]], [c[0] + 2.0 * e, c[1], c[2]]]),
+                // Duplicate of the previous triangle.
+                11 if i > 0 => {
+                    let p = tris.last().copied().unwrap_or([0, 0, 0]);
+                    tris.push(p);
+                    continue;
+                }
+                _ => pos.extend([
+                    [c[0] + z, c[1], c[2]],
+                    [c[0] + e, c[1] + z, c[2]],
+                    [c[0], c[1] + e, c[2] + e * next()],
+                ]),
+            }
+            tris.push([b, b + 1, b + 2]);
+        }
+        Mesh::from_triangles(pos, tris)
+    }
+
+    fn same(a: &Bvh, b: &Bvh) -> bool {
+        bytemuck::cast_slice::<_, u8>(&a.nodes) == bytemuck::cast_slice::<_, u8>(&b.nodes)
+            && a.prim_ids == b.prim_ids
+            && a.degenerate_excluded == b.degenerate_excluded
+    }
+
+    /// The parallel build equals the serial one bit for bit: every leaf size, both leaf
+    /// policies, classic and quad-priced SAH, on pools of 1 and 4 threads, with the default
+    /// grain and with a tiny one that sends every node through the parallel scans and joins.
+    #[test]
+    fn parallel_build_is_bitwise_identical_to_serial() {
+        let pools: Vec<_> = [1, 4].map(|t| (t, rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap())).into();
+        let grains = [builder::Grain::DEFAULT, builder::Grain { serial_below: 2, chunk: 7 }];
+        let scenes = [("soup", soup(3000, 1)), ("grid", grid(2500)), ("exponent range", exponent_range_scene())];
+        let mut checked = 0;
+        for (name, mesh) in &scenes {
+            for leaf in 1..=MAX_LEAF_SIZE {
+                for leaf_policy in [LeafPolicy::Fill, LeafPolicy::Sah] {
+                    for sah_group in [1, 4] {
+                        let mut builders = vec![Builder::Binned { bins: 32 }, Builder::Binned { bins: 5 }];
+                        if [1, 4, 16].contains(&leaf) {
+                            builders.push(Builder::Sweep);
+                        }
+                        for builder in builders {
+                            let o = BuildOptions { builder, leaf_policy, sah_group, ..BuildOptions::new(leaf) };
+                            let serial = Bvh::build_serial(mesh, &o);
+                            serial.validate(mesh).unwrap();
+                            for (threads, pool) in &pools {
+                                for g in grains {
+                                    let par = pool.install(|| builder::build_grain(mesh, &o, g));
+                                    assert_eq!(par.build_threads, *threads);
+                                    assert!(same(&serial, &par), "{name} leaf {leaf} {leaf_policy} g{sah_group} {builder} threads {threads} {g:?}");
+                                    checked += 1;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked > 1000);
+    }
+
+    /// A scene large enough that the default grain scans its top nodes in many chunks, and
+    /// the depth-limit fallback (leaf 1 on the exponent-range scene) reached through the
+    /// parallel driver: both still match the serial build.
+    #[test]
+    fn parallel_build_matches_serial_on_a_larger_scene() {
+        let mesh = soup(120_000, 7);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
+        for (leaf, leaf_policy) in [(4, LeafPolicy::Fill), (1, LeafPolicy::Sah), (16, LeafPolicy::Sah)] {
+            let o = BuildOptions { leaf_policy, ..BuildOptions::new(leaf) };
+            let serial = Bvh::build_serial(&mesh, &o);
+            serial.validate(&mesh).unwrap();
+            let par = pool.install(|| Bvh::build(&mesh, &o));
+            assert!(same(&serial, &par), "leaf {leaf} {leaf_policy}");
+        }
+        let mesh = exponent_range_scene();
+        let o = BuildOptions::new(1);
+        let par = pool.install(|| builder::build_grain(&mesh, &o, builder::Grain { serial_below: 64, chunk: 16 }));
+        assert_eq!(par.stats().depth, MAX_DEPTH, "the fallback split held the depth");
+        assert!(same(&Bvh::build_serial(&mesh, &o), &par));
+    }
+
+    /// Degenerate-only and single-triangle scenes go through the same parallel entry point.
+    #[test]
+    fn parallel_build_handles_tiny_scenes() {
+        let all_degenerate = Mesh::from_triangles(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], vec![[0, 1, 1]]);
+        let one = Mesh::from_triangles(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]);
+        for mesh in [all_degenerate, one, soup(40, 3)] {
+            for leaf in [1, 4] {
+                let o = BuildOptions::new(leaf);
+                let g = builder::Grain { serial_below: 0, chunk: 1 };
+                assert!(same(&Bvh::build_serial(&mesh, &o), &builder::build_grain(&mesh, &o, g)));
+            }
+        }
     }
 }
