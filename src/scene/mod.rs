@@ -7,7 +7,7 @@ mod material;
 mod obj;
 
 pub use material::{BsdfKind, GpuMaterial, Material};
-pub use obj::load_obj;
+pub use obj::{load_obj, parse_obj_bytes};
 
 use std::path::PathBuf;
 
