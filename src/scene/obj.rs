@@ -426,6 +426,36 @@ mod tests {
         assert!(e.starts_with("test.obj:4:"), "{e}");
     }
 
+    /// Indices tobj would resolve with overflowing arithmetic (`vt * 2 + 1` panics in a build
+    /// with overflow checks, as the fuzz targets have) are rejected before tobj sees them, with
+    /// the line; forward references, which tobj resolves against the whole file, still load.
+    #[test]
+    fn overflowing_indices_never_reach_tobj() {
+        let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+        for (face, what) in [
+            ("f 1/1 2/1 3/4611686018427387904", "texture coordinate index 4611686018427387904"),
+            ("f 1/1 2/-9223372036854775808 3/1", "texture coordinate index -9223372036854775808"),
+            ("f 1/1/1 2/1/1 3/1/-3074457345618258602", "normal index -3074457345618258602"),
+            ("f 1/1/1 2/1/1 3/1/0", "normal index 0"),
+        ] {
+            let e = err(&format!("{tri}vt 0 0\nvn 0 0 1\n{face}\n"));
+            assert!(e.starts_with("test.obj:6:") && e.contains(what), "{face}: {e}");
+        }
+        let m = parse(&format!("f 1 2 3\n{tri}")).unwrap();
+        assert_eq!(m.triangles.len(), 1);
+        // Without `vt` lines tobj ignores texture indices, and so does the check.
+        assert_eq!(parse(&format!("{tri}f 1/9 2/9 3/9\n")).unwrap().triangles.len(), 1);
+    }
+
+    /// tobj 4 unwraps an MTL colour of fewer than three values (`Kd 1 2` panicked).
+    #[test]
+    fn short_mtl_colour_is_bad_input() {
+        let obj = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let e = parse_obj_bytes(Path::new("d/a.obj"), obj, |_| Some(b"newmtl a\n\nKd 1 2\n".to_vec()));
+        let e = e.unwrap_err().to_string();
+        assert!(e.starts_with("d/m.mtl:3:") && e.contains("`Kd` needs three numbers"), "{e}");
+    }
+
     #[test]
     fn missing_files_are_named() {
         let e = load_obj(Path::new("/nonexistent/x.obj")).unwrap_err().to_string();
