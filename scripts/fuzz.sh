@@ -36,8 +36,10 @@ if [[ -n ${SHADERC_LIB_DIR:-} ]]; then
     orig=$(ls -d "${CARGO_HOME:-$HOME/.cargo}"/registry/src/*/shaderc-sys-0.10.1 | head -1)
     patch=$target_dir/shaderc-sys-prebuilt
     mkdir -p "$patch/src" fuzz/.cargo
-    cp "$orig/src/lib.rs" "$patch/src/lib.rs"
-    cat >"$patch/Cargo.toml" <<TOML
+    # Files are replaced only when they change: a new mtime would rebuild trilab.
+    put() { if ! cmp -s "$1" "$2"; then mv "$1" "$2"; else rm "$1"; fi; }
+    cp "$orig/src/lib.rs" "$patch/src/lib.rs.new" && put "$patch/src/lib.rs.new" "$patch/src/lib.rs"
+    cat >"$patch/Cargo.toml.new" <<TOML
 [package]
 name = "shaderc-sys"
 version = "0.10.1"
@@ -51,14 +53,17 @@ prefer-static-linking = []
 libc = "0.2"
 link-cplusplus = "1.0"
 TOML
-    cat >"$patch/build.rs" <<RS
+    put "$patch/Cargo.toml.new" "$patch/Cargo.toml"
+    cat >"$patch/build.rs.new" <<RS
 fn main() {
     println!("cargo:rerun-if-env-changed=SHADERC_LIB_DIR");
     println!("cargo:rustc-link-search=native=$SHADERC_LIB_DIR");
     println!("cargo:rustc-link-lib=static=shaderc_combined");
 }
 RS
-    printf '[patch.crates-io]\nshaderc-sys = { path = "%s" }\n' "$patch" >fuzz/.cargo/config.toml
+    put "$patch/build.rs.new" "$patch/build.rs"
+    printf '[patch.crates-io]\nshaderc-sys = { path = "%s" }\n' "$patch" >fuzz/.cargo/config.toml.new
+    put fuzz/.cargo/config.toml.new fuzz/.cargo/config.toml
 else
     rm -f fuzz/.cargo/config.toml
 fi
@@ -69,9 +74,10 @@ for t in "${targets[@]}"; do
     before=$(find "fuzz/artifacts/$t" -type f | wc -l)
     echo "== $t: $runs executions (log: $log)"
     rc=0
-    cargo +nightly fuzz run --target-dir "$target_dir" "$t" "fuzz/work/$t" "fuzz/corpus/$t" -- \
+    # Run from fuzz/ so that cargo reads fuzz/.cargo/config.toml (config follows the cwd).
+    (cd fuzz && cargo +nightly fuzz run --fuzz-dir . --target-dir "$target_dir" "$t" "work/$t" "corpus/$t" -- \
         -runs="$runs" -rss_limit_mb=2048 -malloc_limit_mb=512 -timeout=10 -max_len=8192 \
-        -print_final_stats=1 "${extra[@]}" >"$log" 2>&1 || rc=$?
+        -print_final_stats=1 "${extra[@]}") >"$log" 2>&1 || rc=$?
     execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
     speed=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
     cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+' "$log" | tail -1 || true)

@@ -90,7 +90,7 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
 /// [`read_rays`] on bytes already in memory (`path` names them in messages). Validates every
 /// ray before allocating the result, so the allocation is the input's size and nothing more.
 pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
-    if bytes.len() % 32 != 0 {
+    if !bytes.len().is_multiple_of(32) {
         return Err(Error::bad_input(
             path,
             None,
@@ -119,7 +119,7 @@ pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
 /// [`read_hits`] on bytes already in memory (`path` names them in messages). Any 16-byte
 /// record is a hit record (a NaN `t` is data to compare, not a format error).
 pub fn parse_hits(path: &Path, bytes: &[u8]) -> Result<Vec<Hit>> {
-    if bytes.len() % 16 != 0 {
+    if !bytes.len().is_multiple_of(16) {
         return Err(Error::bad_input(
             path,
             None,
