@@ -72,8 +72,6 @@ impl Ray {
     }
 }
 
-/// Reads a `.rays` file, rejecting a size that is not a multiple of 32 bytes and any ray that
-/// [`Ray::problem`] rejects (the error names the ray and the field).
 /// Rays whose hits are not bitwise identical (all of them when the lengths differ).
 pub fn differing_hits(a: &[Hit], b: &[Hit]) -> usize {
     if a.len() != b.len() {
@@ -82,9 +80,17 @@ pub fn differing_hits(a: &[Hit], b: &[Hit]) -> usize {
     a.iter().zip(b).filter(|(x, y)| bytemuck::bytes_of(*x) != bytemuck::bytes_of(*y)).count()
 }
 
+/// Reads a `.rays` file, rejecting a size that is not a multiple of 32 bytes and any ray that
+/// [`Ray::problem`] rejects (the error names the ray and the field).
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    if bytes.len() % 32 != 0 {
+    parse_rays(path, &bytes)
+}
+
+/// [`read_rays`] on bytes already in memory (`path` names them in messages). Validates every
+/// ray before allocating the result, so the allocation is the input's size and nothing more.
+pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
+    if !bytes.len().is_multiple_of(32) {
         return Err(Error::bad_input(
             path,
             None,
@@ -94,11 +100,11 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
     if bytes.is_empty() {
         return Err(Error::bad_input(path, None, "holds no rays (empty file)"));
     }
-    let rays: Vec<Ray> = bytes.chunks_exact(32).map(bytemuck::pod_read_unaligned).collect();
-    if let Some((i, why)) = rays.iter().enumerate().find_map(|(i, r)| r.problem().map(|p| (i, p))) {
+    let mut rays = bytes.chunks_exact(32).map(bytemuck::pod_read_unaligned::<Ray>);
+    if let Some((i, why)) = rays.by_ref().enumerate().find_map(|(i, r)| r.problem().map(|p| (i, p))) {
         return Err(Error::bad_input(path, None, format!("ray {i} (byte offset {}): {why}", i * 32)));
     }
-    Ok(rays)
+    Ok(bytes.chunks_exact(32).map(bytemuck::pod_read_unaligned).collect())
 }
 
 pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
@@ -107,7 +113,13 @@ pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
 
 pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    if bytes.len() % 16 != 0 {
+    parse_hits(path, &bytes)
+}
+
+/// [`read_hits`] on bytes already in memory (`path` names them in messages). Any 16-byte
+/// record is a hit record (a NaN `t` is data to compare, not a format error).
+pub fn parse_hits(path: &Path, bytes: &[u8]) -> Result<Vec<Hit>> {
+    if !bytes.len().is_multiple_of(16) {
         return Err(Error::bad_input(
             path,
             None,

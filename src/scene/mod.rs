@@ -8,7 +8,7 @@ mod obj;
 pub mod synthetic;
 
 pub use material::{BsdfKind, GpuMaterial, Material};
-pub use obj::load_obj;
+pub use obj::{load_obj, parse_obj_bytes};
 
 use std::path::PathBuf;
 

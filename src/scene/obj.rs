@@ -31,12 +31,12 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
     if super::synthetic::is_spec(path) {
         return super::synthetic::load(path);
     }
-    let text = read_text(path, max_scene_bytes())?;
-    parse_obj(path, &text)
+    let bytes = read_bytes(path, max_scene_bytes())?;
+    parse_obj_bytes(path, &bytes, |mtl| std::fs::read(mtl).ok())
 }
 
-/// The file's text, gunzipped when its name ends in `.gz`; at most `limit` bytes of it.
-fn read_text(path: &Path, limit: u64) -> Result<String> {
+/// The file's bytes, gunzipped when its name ends in `.gz`; at most `limit` bytes of them.
+fn read_bytes(path: &Path, limit: u64) -> Result<Vec<u8>> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let meta = file.metadata().map_err(|e| Error::io(path, e))?;
     if meta.is_dir() {
@@ -69,29 +69,61 @@ fn read_text(path: &Path, limit: u64) -> Result<String> {
         bytes.reserve_exact(meta.len() as usize);
         BufReader::new(file).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
     }
-    String::from_utf8(bytes).map_err(|e| {
-        let line = 1 + e.as_bytes()[..e.utf8_error().valid_up_to()].iter().filter(|&&b| b == b'\n').count();
-        Error::bad_input(path, Some(line), "not UTF-8 text (is this an OBJ file?)")
-    })
+    Ok(bytes)
 }
 
-fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
+/// Parses OBJ text held in memory; `path` names it in messages and MTL paths are resolved
+/// against its directory. `mtl` serves each material library the OBJ names (`mtllib`), given
+/// that resolved path, or `None` when it cannot be opened. This is [`load_obj`] without the
+/// file system, and what the fuzz targets (`fuzz/`) drive.
+pub fn parse_obj_bytes(path: &Path, obj: &[u8], mtl: impl Fn(&Path) -> Option<Vec<u8>>) -> Result<Mesh> {
+    let text = std::str::from_utf8(obj).map_err(|e| {
+        let line = 1 + obj[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
+        Error::bad_input(path, Some(line), "not UTF-8 text (is this an OBJ file?)")
+    })?;
+    check_face_indices(path, text)?;
+    parse_obj(path, text, &mtl)
+}
+
+fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u8>>) -> Result<Mesh> {
     let dir = path.parent().map(Path::to_owned).unwrap_or_default();
-    let mtl_failure: RefCell<Option<(PathBuf, tobj::LoadError)>> = RefCell::new(None);
+    // The first MTL problem, already as the error to report.
+    let mtl_failure: RefCell<Option<Error>> = RefCell::new(None);
     // Each MTL file read, with how many materials it gave (tobj appends them in this order).
     let mtl_files: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = BufReader::new(text.as_bytes());
-    // tobj indexes with unchecked integer arithmetic on some hostile inputs; contain any panic
-    // and report it as bad input rather than crashing the tool.
+    // tobj indexes with unchecked integer arithmetic on some hostile inputs; [`check_face_indices`]
+    // and [`check_mtl`] reject those first (the fuzz targets, whose panic hook aborts, check that).
+    // Any panic left is contained and reported as bad input rather than crashing the tool.
     let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         tobj::load_obj_buf(&mut reader, &options, |mtl| {
             let full = dir.join(mtl);
-            let result = tobj::load_mtl(&full);
+            let fail = |e: Error, kind: tobj::LoadError| {
+                mtl_failure.borrow_mut().get_or_insert(e);
+                Err(kind)
+            };
+            let Some(bytes) = mtl_source(&full) else {
+                let e = Error::bad_input(
+                    &full,
+                    None,
+                    format!("material library named by {} (mtllib): cannot open it", path.display()),
+                );
+                return fail(e, tobj::LoadError::OpenFileFailed);
+            };
+            if let Err(e) = check_mtl(&full, &bytes) {
+                return fail(e, tobj::LoadError::MaterialParseError);
+            }
+            let result = tobj::load_mtl_buf(&mut bytes.as_slice());
             match &result {
                 Ok((mats, _)) => mtl_files.borrow_mut().push((full, mats.len())),
                 Err(e) => {
-                    mtl_failure.borrow_mut().get_or_insert((full, *e));
+                    let e = Error::bad_input(
+                        &full,
+                        None,
+                        format!("material library named by {} (mtllib): {e}", path.display()),
+                    );
+                    mtl_failure.borrow_mut().get_or_insert(e);
                 }
             }
             result
@@ -105,19 +137,10 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
 
     let materials = match materials {
         Ok(m) => m,
-        Err(_) => {
-            let (mtl, e) = mtl_failure
+        Err(e) => {
+            return Err(mtl_failure
                 .into_inner()
-                .unwrap_or_else(|| (PathBuf::from("<mtllib>"), tobj::LoadError::GenericFailure));
-            let what = match e {
-                tobj::LoadError::OpenFileFailed => "cannot open it".to_owned(),
-                other => format!("{other}"),
-            };
-            return Err(Error::bad_input(
-                &mtl,
-                None,
-                format!("material library named by {} (mtllib): {what}", path.display()),
-            ));
+                .unwrap_or_else(|| Error::bad_input(path, None, format!("material library (mtllib): {e}"))))
         }
     };
     let mut warnings = Vec::new();
@@ -186,6 +209,106 @@ fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         return Err(Error::bad_input(path, None, "contains no triangles (no `f` lines with 3 or more vertices)"));
     }
     Ok(mesh)
+}
+
+/// Rejects face indices that point outside the file's vertex data before tobj sees them: tobj
+/// resolves them with unchecked arithmetic (`vt * 2 + 1` on an index near `usize::MAX`
+/// overflows), so a hostile `f 1/-99999999999 2 3` must never reach it. The rule is tobj's own:
+/// negative indices count back from the elements defined so far, positive ones may point
+/// anywhere in the file, and 0 is never valid. Texture and normal indices are only checked
+/// when the file has `vt` / `vn` lines at all (tobj ignores them otherwise). Reads the text
+/// once, allocating nothing.
+fn check_face_indices(path: &Path, text: &str) -> Result<()> {
+    const WHAT: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    const DEFINED: [&str; 3] = ["vertices (`v`)", "texture coordinates (`vt`)", "normals (`vn`)"];
+    // v, vt, vn defined so far.
+    let mut count = [0u64; 3];
+    // Per component: the first (line, index) of each sign that is out of range so far. Negative
+    // ones are decided on their line; positive ones at the end, against the file's totals.
+    let mut bad_negative: [Option<(usize, i64, u64)>; 3] = [None; 3];
+    let mut max_positive: [(i64, usize); 3] = [(0, 0); 3]; // (index, line)
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => count[0] += 1,
+            Some("vt") => count[1] += 1,
+            Some("vn") => count[2] += 1,
+            Some("f") => {
+                for w in words {
+                    for (k, part) in w.split('/').take(3).enumerate() {
+                        // Unparsable parts make tobj fail; `locate` names them.
+                        let Ok(i) = part.parse::<i64>() else { continue };
+                        if i > 0 {
+                            if i > max_positive[k].0 {
+                                max_positive[k] = (i, n + 1);
+                            }
+                        } else if (i == 0 || i.unsigned_abs() > count[k]) && bad_negative[k].is_none() {
+                            bad_negative[k] = Some((n + 1, i, count[k]));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    for k in 0..3 {
+        if k > 0 && count[k] == 0 {
+            continue;
+        }
+        if let Some((line, i, defined)) = bad_negative[k] {
+            return Err(Error::bad_input(
+                path,
+                Some(line),
+                format!(
+                    "face {} index {i} is out of range: {defined} {} are defined before this line",
+                    WHAT[k], DEFINED[k]
+                ),
+            ));
+        }
+        if max_positive[k].0 as u64 > count[k] {
+            // Rare, so found by a second pass: the first line that points past the end.
+            let (line, i) = first_index_over(text, k, count[k]).unwrap_or((max_positive[k].1, max_positive[k].0));
+            return Err(Error::bad_input(
+                path,
+                Some(line),
+                format!("face {} index {i} is out of range: the file defines {} {}", WHAT[k], count[k], DEFINED[k]),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The first (line, index) whose component `k` (v, vt, vn) is a positive index above `total`.
+fn first_index_over(text: &str, k: usize, total: u64) -> Option<(usize, i64)> {
+    text.lines().enumerate().find_map(|(n, line)| {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("f") {
+            return None;
+        }
+        words
+            .filter_map(|w| w.split('/').nth(k)?.parse::<i64>().ok())
+            .find(|&i| i > 0 && i as u64 > total)
+            .map(|i| (n + 1, i))
+    })
+}
+
+/// Rejects MTL colour lines with fewer than three values, which tobj 4's `parse_float3`
+/// unwraps (a panic on `Kd 1 2`). Everything else is left to tobj.
+fn check_mtl(path: &Path, bytes: &[u8]) -> Result<()> {
+    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let Ok(line) = std::str::from_utf8(line) else { continue };
+        let mut words = line.split_whitespace();
+        if let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() {
+            if words.count() < 3 {
+                return Err(Error::bad_input(
+                    path,
+                    Some(n + 1),
+                    format!("`{key}` needs three numbers (r g b): `{}`", line.trim()),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Finds the first line that breaks tobj's rules, to turn its error into "file:line: problem".
@@ -285,7 +408,7 @@ mod tests {
     use super::*;
 
     fn parse(text: &str) -> Result<Mesh> {
-        parse_obj(Path::new("test.obj"), text)
+        parse_obj_bytes(Path::new("test.obj"), text.as_bytes(), |_| None)
     }
 
     fn err(text: &str) -> String {
@@ -348,6 +471,36 @@ mod tests {
         assert!(e.starts_with("test.obj:4:"), "{e}");
         let e = err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999999\n");
         assert!(e.starts_with("test.obj:4:"), "{e}");
+    }
+
+    /// Indices tobj would resolve with overflowing arithmetic (`vt * 2 + 1` panics in a build
+    /// with overflow checks, as the fuzz targets have) are rejected before tobj sees them, with
+    /// the line; forward references, which tobj resolves against the whole file, still load.
+    #[test]
+    fn overflowing_indices_never_reach_tobj() {
+        let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+        for (face, what) in [
+            ("f 1/1 2/1 3/4611686018427387904", "texture coordinate index 4611686018427387904"),
+            ("f 1/1 2/-9223372036854775808 3/1", "texture coordinate index -9223372036854775808"),
+            ("f 1/1/1 2/1/1 3/1/-3074457345618258602", "normal index -3074457345618258602"),
+            ("f 1/1/1 2/1/1 3/1/0", "normal index 0"),
+        ] {
+            let e = err(&format!("{tri}vt 0 0\nvn 0 0 1\n{face}\n"));
+            assert!(e.starts_with("test.obj:6:") && e.contains(what), "{face}: {e}");
+        }
+        let m = parse(&format!("f 1 2 3\n{tri}")).unwrap();
+        assert_eq!(m.triangles.len(), 1);
+        // Without `vt` lines tobj ignores texture indices, and so does the check.
+        assert_eq!(parse(&format!("{tri}f 1/9 2/9 3/9\n")).unwrap().triangles.len(), 1);
+    }
+
+    /// tobj 4 unwraps an MTL colour of fewer than three values (`Kd 1 2` panicked).
+    #[test]
+    fn short_mtl_colour_is_bad_input() {
+        let obj = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let e = parse_obj_bytes(Path::new("d/a.obj"), obj, |_| Some(b"newmtl a\n\nKd 1 2\n".to_vec()));
+        let e = e.unwrap_err().to_string();
+        assert!(e.starts_with("d/m.mtl:3:") && e.contains("`Kd` needs three numbers"), "{e}");
     }
 
     #[test]
@@ -419,7 +572,7 @@ mod tests {
         }
         enc.finish().unwrap();
         assert!(std::fs::metadata(&bomb).unwrap().len() < 1 << 20);
-        let e = read_text(&bomb, 1 << 20).unwrap_err().to_string();
+        let e = read_bytes(&bomb, 1 << 20).unwrap_err().to_string();
         assert!(e.contains("bomb.obj.gz") && e.contains("decompresses to more than 1048576 bytes"), "{e}");
     }
 }
