@@ -81,6 +81,8 @@ pub struct ScaleRow {
     pub gpu_bytes: Option<u64>,
     pub validated_rays: usize,
     pub agreement: Option<f64>,
+    /// Disagreements not explained by f32 rounding (within 16 ULPs of an edge, or a tie).
+    pub unexplained: Option<usize>,
     pub validation_passes: Option<bool>,
     /// Peak resident set of this process so far (VmHWM), bytes.
     pub peak_rss_bytes: Option<u64>,
@@ -186,6 +188,7 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
                 gpu_bytes: None,
                 validated_rays: 0,
                 agreement: None,
+                unexplained: None,
                 validation_passes: None,
                 peak_rss_bytes: None,
             };
@@ -254,7 +257,12 @@ fn cast(
         let agreement = compare_closest(mesh, &sample_rays, &hits, reference);
         row.validated_rays = sample.len();
         row.agreement = Some(agreement.fraction());
-        row.validation_passes = Some(agreement.passes(0.9999));
+        row.unexplained = Some(agreement.unexplained);
+        // Every disagreement must be explained by rounding. The share of rays that land within
+        // rounding of an edge grows as triangles shrink against their coordinates (10M-triangle
+        // terrain: edges ~4e-4 at |p| ~ 1), so the agreement floor is 99.9 % here, not the
+        // bunny's 99.99 %; the fraction is reported either way.
+        row.validation_passes = Some(agreement.passes(0.999));
     }
     Ok(())
 }
@@ -269,7 +277,7 @@ impl ScaleReport {
         let mut s = String::from(
             "scene,triangles,method,leaf_size,access,nodes_bytes,slot_ids_bytes,prims_bytes,scene_bytes,\
              bytes_per_triangle,pathtrace_extra_bytes_per_triangle,load_s,bvh_s,bvh_mtris_per_s,upload_s,rays,\
-             mrays_median,mrays_min,mrays_max,timed_with,validated_rays,agreement,peak_rss_bytes\n",
+             mrays_median,mrays_min,mrays_max,timed_with,validated_rays,agreement,unexplained,peak_rss_bytes\n",
         );
         let opt = |x: Option<f64>| x.map_or(String::new(), |v| format!("{v:.4}"));
         for r in &self.rows {
@@ -277,7 +285,7 @@ impl ScaleReport {
             let prims: u64 = r.buffers.iter().skip(2).map(|b| b.1).sum();
             let access = if r.access.starts_with("does not fit") { "does-not-fit" } else { r.access.as_str() };
             s += &format!(
-                "{},{},{},{},{},{},{},{},{},{:.2},{:.2},{:.3},{:.3},{:.3},{},{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{},{:.2},{:.2},{:.3},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{}\n",
                 r.scene,
                 r.triangles,
                 r.method,
@@ -306,6 +314,7 @@ impl ScaleReport {
                 },
                 r.validated_rays,
                 r.agreement.map_or(String::new(), |a| format!("{a:.6}")),
+                r.unexplained.map_or(String::new(), |u| u.to_string()),
                 r.peak_rss_bytes.map_or(String::new(), |v| v.to_string()),
             );
         }
@@ -339,8 +348,13 @@ impl ScaleReport {
                 r.bvh_mtris_per_s,
                 r.mrays_per_s.map_or("-".into(), |m| format!("{:.2} [{:.2}, {:.2}]", m.median, m.min, m.max)),
                 match (r.agreement, r.validation_passes) {
-                    (Some(a), Some(p)) =>
-                        format!("{} rays, {:.4} %{}", r.validated_rays, 100.0 * a, if p { "" } else { " FAIL" }),
+                    (Some(a), Some(p)) => format!(
+                        "{} rays, {:.4} % agree, {} unexplained{}",
+                        r.validated_rays,
+                        100.0 * a,
+                        r.unexplained.unwrap_or(0),
+                        if p { "" } else { " FAIL" }
+                    ),
                     _ => "-".into(),
                 },
                 r.peak_rss_bytes.map_or("-".into(), |v| format!("{}", v >> 20)),
