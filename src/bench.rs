@@ -376,7 +376,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         None
     };
     for scene_path in &o.scenes {
-        let name = scene_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = crate::scene::scene_name(scene_path);
         let mesh = load_obj(scene_path)?;
         progress(&format!("{name}: {} triangles; making ray sets", mesh.triangle_count()));
         let t = Instant::now();

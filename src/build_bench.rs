@@ -158,7 +158,11 @@ impl BuildBenchOptions {
     }
 }
 
-fn pool(threads: usize) -> Result<rayon::ThreadPool> {
+/// A rayon pool of `threads` threads for a build (`--threads`: at least 1).
+pub fn pool(threads: usize) -> Result<rayon::ThreadPool> {
+    if threads == 0 {
+        return Err(Error::Usage("--threads: at least 1".into()));
+    }
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -177,15 +181,9 @@ fn time_builds(repeat: usize, mut build: impl FnMut() -> Bvh) -> (Summary, Bvh) 
     (Summary::of(&secs).expect("repeat >= 1"), bvh)
 }
 
-fn row(
-    scene: &str,
-    triangles: usize,
-    builder: &str,
-    threads: usize,
-    s: Summary,
-    tree: Option<(&Bvh, &BuildOptions)>,
-) -> BuildRow {
-    let stats = tree.map(|(b, _)| b.stats());
+fn row(scene: &str, triangles: usize, builder: &str, threads: usize, s: Summary, tree: Option<&Bvh>) -> BuildRow {
+    // Each tree is priced with its own options' costs: the same for every builder here.
+    let stats = tree.map(Bvh::stats);
     BuildRow {
         scene: scene.into(),
         triangles,
@@ -193,15 +191,11 @@ fn row(
         threads,
         seconds: s,
         mtris_per_s: triangles as f64 / s.median.max(f64::MIN_POSITIVE) / 1e6,
-        sah_cost: tree.map(|(b, o)| b.sah_cost(o)),
+        sah_cost: stats.as_ref().map(|s| s.sah_cost),
         nodes: stats.as_ref().map(|s| s.nodes),
         leaves: stats.as_ref().map(|s| s.leaves),
         depth: stats.as_ref().map(|s| s.depth),
     }
-}
-
-fn same_tree(a: &Bvh, b: &Bvh) -> bool {
-    bytemuck::cast_slice::<_, u8>(&a.nodes) == bytemuck::cast_slice::<_, u8>(&b.nodes) && a.prim_ids == b.prim_ids
 }
 
 /// Runs the benchmark; `progress` gets one line per measurement.
@@ -212,7 +206,7 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
     let binned = o.build_options(Builder::default());
     let max_threads = *o.threads.iter().max().expect("checked non-empty");
     for scene in &o.scenes {
-        let name = scene_name(scene);
+        let name = crate::scene::scene_name(scene);
         let mesh = load_obj(scene)?;
         let n = mesh.triangle_count();
         progress(&format!("{name}: {n} triangles"));
@@ -224,22 +218,22 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
                     bvh.validate(&mesh).map_err(|e| Error::Usage(format!("{name}: invalid tree: {e}")))?;
                     first = Some(bvh.clone());
                 }
-                Some(f) if !same_tree(f, &bvh) => {
+                Some(f) if !f.same_tree(&bvh) => {
                     return Err(Error::Usage(format!("{name}: the {t}-thread tree differs from the first")));
                 }
                 Some(_) => {}
             }
-            let r = row(&name, n, "trilab-binned", t, s, Some((&bvh, &binned)));
+            let r = row(&name, n, "trilab-binned", t, s, Some(&bvh));
             progress(&line(&r));
             rows.push(r);
         }
         let first = first.expect("at least one thread count");
         if o.serial {
             let (s, bvh) = time_builds(o.repeat, || Bvh::build_serial(&mesh, &binned));
-            if !same_tree(&first, &bvh) {
+            if !first.same_tree(&bvh) {
                 return Err(Error::Usage(format!("{name}: the serial tree differs from the parallel one")));
             }
-            let r = row(&name, n, "trilab-serial", 1, s, Some((&bvh, &binned)));
+            let r = row(&name, n, "trilab-serial", 1, s, Some(&bvh));
             progress(&line(&r));
             rows.push(r);
         }
@@ -248,8 +242,7 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
             let bvh = pool(max_threads)?.install(|| Bvh::build(&mesh, &sweep));
             bvh.validate(&mesh).map_err(|e| Error::Usage(format!("{name}: invalid sweep tree: {e}")))?;
             let s = Summary::of(&[bvh.build_seconds]).expect("one run");
-            // Priced with the binned build's options: the same costs, so the costs compare.
-            let r = row(&name, n, "trilab-sweep", max_threads, s, Some((&bvh, &binned)));
+            let r = row(&name, n, "trilab-sweep", max_threads, s, Some(&bvh));
             progress(&line(&r));
             rows.push(r);
         }
@@ -267,7 +260,7 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
                 })?;
                 let s = Summary::of(&run.build_ms.iter().map(|ms| ms * 1e-3).collect::<Vec<_>>())
                     .ok_or_else(|| Error::Usage(format!("{}: no timed runs", bin.display())))?;
-                let r = row(&name, n, "embree-build", t, s, Some((&tree, &binned)));
+                let r = row(&name, n, "embree-build", t, s, Some(&tree));
                 progress(&line(&r));
                 rows.push(r);
                 if let Some(s) = Summary::of(&run.commit_ms.iter().map(|ms| ms * 1e-3).collect::<Vec<_>>()) {
@@ -279,15 +272,6 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
         }
     }
     Ok(BuildBenchReport { options: o.clone(), provenance, rows })
-}
-
-fn scene_name(p: &Path) -> String {
-    let s = p.to_string_lossy();
-    if s.starts_with(crate::scene::synthetic::PREFIX) {
-        return s.into_owned();
-    }
-    let file = p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| s.into_owned());
-    file.strip_suffix(".gz").unwrap_or(&file).strip_suffix(".obj").unwrap_or(&file).to_owned()
 }
 
 fn line(r: &BuildRow) -> String {

@@ -551,7 +551,9 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Rays { kind } => make_rays(kind),
         Cmd::Raycast(a) => raycast_cmd(a),
         Cmd::Bvh { scene, leaf_sizes, leaf_policy, sah_group, threads, json } => match threads {
-            Some(t) => build_pool(t)?.install(|| bvh_cmd(&scene, leaf_sizes, leaf_policy, sah_group, json)),
+            Some(t) => {
+                trilab::build_bench::pool(t)?.install(|| bvh_cmd(&scene, leaf_sizes, leaf_policy, sah_group, json))
+            }
             None => bvh_cmd(&scene, leaf_sizes, leaf_policy, sah_group, json),
         },
         Cmd::BuildBench(a) => build_bench_cmd(a),
@@ -604,28 +606,20 @@ fn devices(json: bool) -> Result<()> {
 }
 
 fn make_rays(kind: RaysCmd) -> Result<()> {
-    let (common, rays) = match kind {
-        RaysCmd::Primary { common, width, height } => {
-            let mesh = load_obj(&common.scene)?;
-            refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
-            let r = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
-            (common, r)
-        }
-        RaysCmd::Diffuse { common, width, height, per_hit, seed } => {
-            let mesh = load_obj(&common.scene)?;
-            refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
+    let common = match &kind {
+        RaysCmd::Primary { common, .. } | RaysCmd::Diffuse { common, .. } | RaysCmd::Random { common, .. } => common,
+    };
+    let mesh = load_obj(&common.scene)?;
+    refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
+    let rays = match kind {
+        RaysCmd::Primary { width, height, .. } => rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height),
+        RaysCmd::Diffuse { width, height, per_hit, seed, .. } => {
             let primary = rays::primary_rays(&Camera::framing(&mesh.bounds()), width, height);
             let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-            let r = rays::diffuse_rays(&mesh, &Reference::new(&mesh, &bvh), &primary, per_hit, seed);
-            (common, r)
+            rays::diffuse_rays(&mesh, &Reference::new(&mesh, &bvh), &primary, per_hit, seed)
         }
-        RaysCmd::Random { common, count, seed } => {
-            let mesh = load_obj(&common.scene)?;
-            refuse_over_scene(&common.out, &common.scene, &mesh, &[])?;
-            (common, rays::random_rays(&mesh.bounds(), count, seed))
-        }
+        RaysCmd::Random { count, seed, .. } => rays::random_rays(&mesh.bounds(), count, seed),
     };
-    trilab::io::ensure_not_input(&common.out, &[&common.scene])?;
     rays::write_rays(&common.out, &rays)?;
     println!("wrote {} rays to {}", rays.len(), common.out.display());
     Ok(())
@@ -633,7 +627,6 @@ fn make_rays(kind: RaysCmd) -> Result<()> {
 
 fn raycast_cmd(a: RaycastArgs) -> Result<()> {
     check_leaf_size(a.leaf_size)?;
-    trilab::io::ensure_not_input(&a.out, &[&a.scene, &a.rays])?;
     let mut mesh = load_obj(&a.scene)?;
     refuse_over_scene(&a.out, &a.scene, &mesh, &[&a.rays])?;
     let mut rays = rays::read_rays(&a.rays)?;
@@ -866,16 +859,6 @@ fn bvh_cmd(scene: &Path, leaf_sizes: Vec<u32>, leaf_policy: LeafPolicy, sah_grou
     }
     print!("{}", t.to_text());
     Ok(())
-}
-
-fn build_pool(threads: usize) -> Result<rayon::ThreadPool> {
-    if threads == 0 {
-        return Err(Error::Usage("--threads: at least 1".into()));
-    }
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| Error::Usage(format!("--threads {threads}: cannot start the pool: {e}")))
 }
 
 #[derive(Args)]
@@ -1201,10 +1184,8 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
     }
     let (png_path, json_path) = pt::output::sidecar_paths(&a.out);
     let mesh = load_obj(&a.scene)?;
-    let mut inputs: Vec<&Path> = vec![&a.scene];
-    inputs.extend(mesh.mtl_files.iter().map(PathBuf::as_path));
     for out in [&a.out, &png_path, &json_path] {
-        trilab::io::ensure_not_input(out, &inputs)?;
+        refuse_over_scene(out, &a.scene, &mesh, &[])?;
     }
     for w in &mesh.warnings {
         eprintln!("trilab: warning: {w}");
@@ -1238,24 +1219,9 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
     let (method, auto) = resolve_method(a.method, &mesh, &ctx)?;
     // Plan the path tracer's buffers before encoding anything: a scene that cannot fit is an
     // error naming the buffer and the limit, not a driver failure half-way through the upload.
-    {
-        use trilab::gpu::{plan, DeviceLimits, MemoryPlan, SceneCounts};
-        let counts = SceneCounts::of(&mesh, &bvh);
-        let slots = if method.group_size() > 1 { 4 * counts.quads } else { counts.slots };
-        let emissive = mesh
-            .material_ids
-            .iter()
-            .filter(|&&m| mesh.materials.get(m as usize).is_some_and(|m| m.is_emissive()))
-            .count();
-        let extras = plan::pathtrace_extras(
-            slots,
-            emissive as u64,
-            mesh.materials.len() as u64,
-            u64::from(settings.width) * u64::from(settings.height),
-        );
-        let name = mesh.source.display().to_string();
-        plan::check_pathtrace(&name, &MemoryPlan::of(method, &counts), &extras, &DeviceLimits::of(&ctx))?;
-    }
+    let pixels = u64::from(settings.width) * u64::from(settings.height);
+    let limits = trilab::gpu::DeviceLimits::of(&ctx);
+    trilab::gpu::plan::check_render(&mesh.source.display().to_string(), &mesh, &bvh, method, pixels, &limits)?;
     let t_encode = std::time::Instant::now();
     let encoded = method.encode(&mesh, &bvh);
     let scene = RenderScene::new(&mesh, &encoded);
@@ -1701,8 +1667,7 @@ fn resolve_method(
     Ok((m, rec))
 }
 
-/// Every method this device can run: the default of `bench`, `bench-render`, `profile` and
-/// `steps --gpu` (f64 needs shaderFloat64; elsewhere it is left out rather than failing).
+/// `trilab scale`: writes the report, then fails if any cast disagreed with the reference.
 fn scale_cmd(a: ScaleArgs) -> Result<()> {
     check_leaf_size(a.leaf_size)?;
     let scenes = if a.scenes.is_empty() {
@@ -1744,6 +1709,8 @@ fn scale_cmd(a: ScaleArgs) -> Result<()> {
     Ok(())
 }
 
+/// Every method this device can run: the default of `bench`, `bench-render`, `profile` and
+/// `steps --gpu` (f64 needs shaderFloat64; elsewhere it is left out rather than failing).
 fn device_methods(ctx: &Context) -> Vec<Method> {
     trilab::analyze::available_methods(ctx.enabled())
 }

@@ -15,7 +15,7 @@ use crate::bvh::{BuildOptions, Bvh};
 use crate::compare::compare_closest;
 use crate::encoding::Method;
 use crate::error::{Error, Result};
-use crate::gpu::plan::{check_rays, pathtrace_extras};
+use crate::gpu::plan::{check_rays, pathtrace_extras_for};
 use crate::gpu::{
     raycast, AccessPath, Context, DeviceLimits, GpuScene, MemoryPlan, RaycastOptions, SceneAccess, Summary,
 };
@@ -36,7 +36,7 @@ pub enum RayKind {
 
 #[derive(Clone, Debug)]
 pub struct ScaleOptions {
-    /// Scene specs (paths; whatever `load_scene` accepts).
+    /// Scene specs (paths; whatever `scene::load_obj` accepts).
     pub scenes: Vec<String>,
     pub methods: Vec<Method>,
     pub leaf_size: u32,
@@ -97,17 +97,6 @@ pub struct ScaleReport {
     pub rows: Vec<ScaleRow>,
 }
 
-/// Loads a scene spec. One place, so every scene source (OBJ, `.obj.gz`, `synth:`) reaches
-/// `trilab scale` through the same loader as the other commands.
-pub fn load_scene(spec: &str) -> Result<Mesh> {
-    crate::scene::load_obj(Path::new(spec))
-}
-
-fn scene_name(spec: &str) -> String {
-    let base = spec.rsplit('/').next().unwrap_or(spec);
-    base.trim_end_matches(".gz").trim_end_matches(".obj").to_owned()
-}
-
 /// Peak resident set size (Linux `VmHWM`), where readable.
 pub fn peak_rss_bytes() -> Option<u64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -137,15 +126,14 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
     let info = ctx.info();
     let mut rows = vec![];
     for spec in &o.scenes {
-        let name = scene_name(spec);
+        let name = crate::scene::scene_name(Path::new(spec));
         let t = Instant::now();
-        let mesh = load_scene(spec)?;
+        let mesh = crate::scene::load_obj(Path::new(spec))?;
         let load_s = t.elapsed().as_secs_f64();
         let triangles = mesh.triangle_count() as u64;
         progress(&format!("{name}: {triangles} triangles loaded in {load_s:.2} s"));
-        let t = Instant::now();
         let bvh = Bvh::build(&mesh, &BuildOptions::new(o.leaf_size));
-        let bvh_s = t.elapsed().as_secs_f64();
+        let bvh_s = bvh.build_seconds;
         let bvh_mtris_per_s = triangles as f64 / bvh_s.max(1e-9) / 1e6;
         progress(&format!("{name}: BVH (leaf {}) in {bvh_s:.2} s, {bvh_mtris_per_s:.2} Mtris/s", o.leaf_size));
         let rays = if o.plan_only { vec![] } else { make_rays(&mesh, &bvh, o) };
@@ -157,16 +145,10 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
         };
         let sample_rays: Vec<Ray> = sample.iter().map(|&i| rays[i]).collect();
         let reference = (!sample_rays.is_empty()).then(|| Reference::new(&mesh, &bvh).trace_all(&sample_rays, false));
-        let emissive = mesh.materials.iter().any(|m| m.is_emissive());
         for &m in &o.methods {
             let plan = MemoryPlan::for_bvh(m, &mesh, &bvh);
-            let extras = pathtrace_extras(
-                plan.counts.slots.max(4 * plan.counts.quads),
-                if emissive { triangles } else { 0 },
-                mesh.materials.len() as u64,
-                0,
-            );
-            let extra_bytes: u64 = extras.iter().take(3).map(|b| b.bytes).sum();
+            // The path tracer's own buffers beyond the scene, without an image.
+            let extra_bytes: u64 = pathtrace_extras_for(&mesh, m, &plan.counts, 0).iter().map(|b| b.bytes).sum();
             let mut row = ScaleRow {
                 scene: name.clone(),
                 triangles,

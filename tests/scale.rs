@@ -47,7 +47,7 @@ fn plans_equal_the_encoded_buffer_sizes_on_the_bunny() {
             let plan = MemoryPlan::for_bvh(m, &mesh, &bvh);
             let enc = m.encode(&mesh, &bvh);
             let want: Vec<(&str, u32, u64)> =
-                enc.buffer_slices().iter().map(|b| (b.0, b.1, b.3.len() as u64)).collect();
+                enc.buffers().iter().map(|b| (b.name, b.binding, b.bytes.len() as u64)).collect();
             let got: Vec<(&str, u32, u64)> = plan.buffers.iter().map(|b| (b.name, b.binding, b.bytes)).collect();
             assert_eq!(got, want, "{m} leaf {leaf}");
             assert_eq!(plan.bytes(), enc.gpu_bytes() as u64, "{m} leaf {leaf}");

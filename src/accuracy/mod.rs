@@ -317,7 +317,7 @@ fn leak_scene(cm: &ClosedMesh, place: Placement, origins: usize, rng: &mut Rng) 
 /// where the winding number proves them inside.
 fn real_leak_scene(path: &Path, origins: usize, rng: &mut Rng) -> Result<(LeakScene, bool)> {
     let mesh = crate::scene::load_obj(path)?;
-    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = crate::scene::scene_name(path);
     let closed = prove_closed(&mesh.triangles);
     let mut o = Vec::new();
     let mut rejected = 0;

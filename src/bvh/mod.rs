@@ -84,6 +84,14 @@ impl Bvh {
         builder::build_serial(mesh, options)
     }
 
+    /// The same tree bit for bit: nodes (as bytes, so -0.0 and +0.0 differ), slot order and
+    /// the degenerate triangles left out. Build settings and timings are not compared.
+    pub fn same_tree(&self, other: &Bvh) -> bool {
+        bytemuck::cast_slice::<_, u8>(&self.nodes) == bytemuck::cast_slice::<_, u8>(&other.nodes)
+            && self.prim_ids == other.prim_ids
+            && self.degenerate_excluded == other.degenerate_excluded
+    }
+
     /// Triangles in the hierarchy (degenerate ones excluded, padding not counted).
     pub fn triangle_count(&self) -> usize {
         self.prim_ids.iter().filter(|&&p| p != PAD_SLOT).count()
@@ -433,12 +441,6 @@ mod tests {
         Mesh::from_triangles(pos, tris)
     }
 
-    fn same(a: &Bvh, b: &Bvh) -> bool {
-        bytemuck::cast_slice::<_, u8>(&a.nodes) == bytemuck::cast_slice::<_, u8>(&b.nodes)
-            && a.prim_ids == b.prim_ids
-            && a.degenerate_excluded == b.degenerate_excluded
-    }
-
     /// The parallel build equals the serial one bit for bit: every leaf size, both leaf
     /// policies, classic and quad-priced SAH, on pools of 1 and 4 threads, with the default
     /// grain and with a tiny one that sends every node through the parallel scans and joins.
@@ -464,7 +466,7 @@ mod tests {
                                 for g in grains {
                                     let par = pool.install(|| builder::build_grain(mesh, &o, g));
                                     assert_eq!(par.build_threads, *threads);
-                                    assert!(same(&serial, &par), "{name} leaf {leaf} {leaf_policy} g{sah_group} {builder} threads {threads} {g:?}");
+                                    assert!(serial.same_tree(&par), "{name} leaf {leaf} {leaf_policy} g{sah_group} {builder} threads {threads} {g:?}");
                                     checked += 1;
                                 }
                             }
@@ -488,13 +490,13 @@ mod tests {
             let serial = Bvh::build_serial(&mesh, &o);
             serial.validate(&mesh).unwrap();
             let par = pool.install(|| Bvh::build(&mesh, &o));
-            assert!(same(&serial, &par), "leaf {leaf} {leaf_policy}");
+            assert!(serial.same_tree(&par), "leaf {leaf} {leaf_policy}");
         }
         let mesh = exponent_range_scene();
         let o = BuildOptions::new(1);
         let par = pool.install(|| builder::build_grain(&mesh, &o, builder::Grain { serial_below: 64, chunk: 16 }));
         assert_eq!(par.stats().depth, MAX_DEPTH, "the fallback split held the depth");
-        assert!(same(&Bvh::build_serial(&mesh, &o), &par));
+        assert!(Bvh::build_serial(&mesh, &o).same_tree(&par));
     }
 
     /// Degenerate-only and single-triangle scenes go through the same parallel entry point.
@@ -506,7 +508,7 @@ mod tests {
             for leaf in [1, 4] {
                 let o = BuildOptions::new(leaf);
                 let g = builder::Grain { serial_below: 0, chunk: 1 };
-                assert!(same(&Bvh::build_serial(&mesh, &o), &builder::build_grain(&mesh, &o, g)));
+                assert!(Bvh::build_serial(&mesh, &o).same_tree(&builder::build_grain(&mesh, &o, g)));
             }
         }
     }

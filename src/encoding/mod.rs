@@ -170,6 +170,19 @@ pub struct SceneBuffer {
     pub bytes: Vec<u8>,
 }
 
+/// A [`SceneBuffer`] or the BVH's own buffers, borrowed from an [`EncodedScene`].
+#[derive(Clone, Copy, Debug)]
+pub struct SceneBufferRef<'a> {
+    pub name: &'static str,
+    pub binding: u32,
+    pub texel: Texel,
+    pub bytes: &'a [u8],
+}
+
+/// Most nodes and most triangle slots the kernels address: traversal packs a node's
+/// `left_or_first` into 27 bits (`pack_node` in `glsl/traverse.glsl`).
+pub const MAX_NODE_INDEX: usize = 1 << 27;
+
 /// A scene in one method's GPU layout.
 #[derive(Clone, Debug)]
 pub struct EncodedScene {
@@ -188,34 +201,29 @@ pub struct EncodedScene {
 }
 
 impl EncodedScene {
-    /// All buffers the kernels read, with their bindings.
-    pub fn buffers(&self) -> Vec<SceneBuffer> {
+    /// All buffers the kernels read, with their bindings, borrowed (large scenes upload from
+    /// these without a copy).
+    pub fn buffers(&self) -> Vec<SceneBufferRef<'_>> {
         let mut v = vec![
-            SceneBuffer {
+            SceneBufferRef {
                 name: "bvh nodes",
                 binding: BINDING_NODES,
                 texel: Texel::Rgba32Uint,
-                bytes: bytemuck::cast_slice(&self.nodes).to_vec(),
+                bytes: bytemuck::cast_slice(&self.nodes),
             },
-            SceneBuffer {
+            SceneBufferRef {
                 name: "slot ids",
                 binding: BINDING_SLOT_IDS,
                 texel: Texel::R32Uint,
-                bytes: bytemuck::cast_slice(&self.slot_ids).to_vec(),
+                bytes: bytemuck::cast_slice(&self.slot_ids),
             },
         ];
-        v.extend(self.prims.iter().cloned());
-        v
-    }
-
-    /// All buffers the kernels read, borrowed (as [`EncodedScene::buffers`], without copying
-    /// the bytes: large scenes upload from these).
-    pub fn buffer_slices(&self) -> Vec<(&'static str, u32, Texel, &[u8])> {
-        let mut v: Vec<(&'static str, u32, Texel, &[u8])> = vec![
-            ("bvh nodes", BINDING_NODES, Texel::Rgba32Uint, bytemuck::cast_slice(&self.nodes)),
-            ("slot ids", BINDING_SLOT_IDS, Texel::R32Uint, bytemuck::cast_slice(&self.slot_ids)),
-        ];
-        v.extend(self.prims.iter().map(|b| (b.name, b.binding, b.texel, b.bytes.as_slice())));
+        v.extend(self.prims.iter().map(|b| SceneBufferRef {
+            name: b.name,
+            binding: b.binding,
+            texel: b.texel,
+            bytes: &b.bytes,
+        }));
         v
     }
 
@@ -242,10 +250,9 @@ impl EncodedScene {
     /// Checks what the kernels assume about the data: traversal packs a node's `left_or_first`
     /// into 27 bits and its `count` into 5 (`pack_node` in `glsl/traverse.glsl`).
     pub fn check_limits(&self) -> Result<(), String> {
-        const MAX_INDEX: usize = 1 << 27;
-        if self.nodes.len() > MAX_INDEX || self.slot_ids.len() > MAX_INDEX {
+        if self.nodes.len() > MAX_NODE_INDEX || self.slot_ids.len() > MAX_NODE_INDEX {
             return Err(format!(
-                "{} nodes and {} triangle slots: the kernels address at most {MAX_INDEX} of each",
+                "{} nodes and {} triangle slots: the kernels address at most {MAX_NODE_INDEX} of each",
                 self.nodes.len(),
                 self.slot_ids.len()
             ));

@@ -201,11 +201,6 @@ impl Context {
         self.markers().allocation.is_some()
     }
 
-    /// The recorded dispatches still remembered, oldest first: `#id description`.
-    pub fn dispatch_log(&self) -> Vec<String> {
-        self.markers().state().dispatches.iter().map(|(id, d)| format!("#{id} {d}")).collect()
-    }
-
     /// Records "dispatch `id` begun" into `cmd` and logs `description` (kernel, batch or pass,
     /// ray or sample range); returns the id for [`Context::mark_end`].
     ///

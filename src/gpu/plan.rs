@@ -26,9 +26,8 @@ use crate::scene::Mesh;
 /// Most texels one scene buffer may hold on the address path: the kernels' indices are signed
 /// 32-bit access-chain indices.
 pub const MAX_ADDRESS_TEXELS: u64 = 1 << 31;
-/// Most nodes and triangle slots the kernels address (`pack_node` in `glsl/traverse.glsl`:
-/// 27 bits; `EncodedScene::check_limits`).
-pub const MAX_NODE_INDEX: u64 = 1 << 27;
+/// Most nodes and triangle slots the kernels address (27-bit indices).
+const MAX_NODE_INDEX: u64 = crate::encoding::MAX_NODE_INDEX as u64;
 
 /// What the planner checks against. [`DeviceLimits::of`] reads a device's; tests and
 /// `trilab scale --limit-*` shrink them to exercise the "does not fit" paths.
@@ -245,13 +244,13 @@ impl MemoryPlan {
     /// The plan of an already encoded scene (its real buffer sizes).
     pub fn of_encoded(scene: &crate::encoding::EncodedScene) -> MemoryPlan {
         let buffers: Vec<BufferPlan> = scene
-            .buffer_slices()
+            .buffers()
             .into_iter()
-            .map(|(name, binding, texel, bytes)| BufferPlan {
-                name,
-                binding,
-                bytes: bytes.len() as u64,
-                texel_size: texel.size() as u64,
+            .map(|b| BufferPlan {
+                name: b.name,
+                binding: b.binding,
+                bytes: b.bytes.len() as u64,
+                texel_size: b.texel.size() as u64,
             })
             .collect();
         let real = scene.slot_ids.len() - scene.padding_slots();
@@ -374,6 +373,30 @@ pub fn pathtrace_extras(slots: u64, emissive: u64, materials: u64, pixels: u64) 
         BufferPlan::new("materials", crate::gpu::shared::BINDING_MATERIALS, Texel::Rgba32Float, materials, 64),
         BufferPlan::new("accumulation image", crate::gpu::shared::BINDING_ACCUM, Texel::Rgba32Float, pixels, 16),
     ]
+}
+
+/// Checks a render of `mesh` with `method` on `bvh` at `pixels` against `limits`, before
+/// anything is encoded: the scene (texel path) and the path tracer's own buffers.
+pub fn check_render(
+    scene: &str,
+    mesh: &Mesh,
+    bvh: &Bvh,
+    method: Method,
+    pixels: u64,
+    limits: &DeviceLimits,
+) -> Result<()> {
+    let plan = MemoryPlan::for_bvh(method, mesh, bvh);
+    check_pathtrace(scene, &plan, &pathtrace_extras_for(mesh, method, &plan.counts, pixels), limits)
+}
+
+/// [`pathtrace_extras`] for `method`'s encoding of `mesh` (`counts` from its BVH): a shading
+/// record per slot (whole quads for the Quad methods), a light record per emissive triangle,
+/// and an image of `pixels`.
+pub fn pathtrace_extras_for(mesh: &Mesh, method: Method, counts: &SceneCounts, pixels: u64) -> Vec<BufferPlan> {
+    let slots = if method.group_size() > 1 { 4 * counts.quads } else { counts.slots };
+    let emissive =
+        mesh.material_ids.iter().filter(|&&m| mesh.materials.get(m as usize).is_some_and(|m| m.is_emissive())).count();
+    pathtrace_extras(slots, emissive as u64, mesh.materials.len() as u64, pixels)
 }
 
 /// Checks the path tracer's scene (texel path only) and extras against `limits`.

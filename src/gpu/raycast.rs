@@ -13,7 +13,7 @@ use super::plan::{AccessPath, DeviceLimits, MemoryPlan, SceneAccess};
 use super::shared::{BINDING_HITS, BINDING_RAYS, BINDING_TRAVERSAL_STATS};
 use super::timestamps::Timestamps;
 use super::traversal_stats::TraversalCounts;
-use crate::encoding::{EncodedScene, Method, Texel};
+use crate::encoding::{EncodedScene, Method, SceneBufferRef};
 use crate::error::{Result, VkContext};
 use crate::rays::{Hit, Ray};
 
@@ -81,7 +81,7 @@ impl GpuScene {
         scene.check_limits().map_err(|e| {
             crate::error::Error::Usage(format!("scene too large for the {} kernels: {e}", scene.method))
         })?;
-        let upload = |(name, binding, texel, bytes): (&str, u32, Texel, &[u8])| -> Result<(u32, SceneBinding)> {
+        let upload = |SceneBufferRef { name, binding, texel, bytes }: SceneBufferRef| -> Result<(u32, SceneBinding)> {
             Ok((
                 binding,
                 match access {
@@ -100,7 +100,7 @@ impl GpuScene {
             ))
         };
         let buffers: Vec<(u32, SceneBinding)> =
-            scene.buffer_slices().into_iter().filter(|b| keep(b.1)).map(upload).collect::<Result<Vec<_>>>()?;
+            scene.buffers().into_iter().filter(|b| keep(b.binding)).map(upload).collect::<Result<Vec<_>>>()?;
         let bytes = buffers
             .iter()
             .map(|(_, b)| match b {
@@ -327,7 +327,7 @@ pub(crate) fn cast_rays(
         }
         wall_ms.push(wall);
         if timestamps {
-            kernel_ms.push(queries.read_ms().map_err(|e| ctx.fault(e))?.iter().sum());
+            kernel_ms.push(queries.read_ms()?.iter().sum());
         }
     }
     let mut downloads = Vec::new();

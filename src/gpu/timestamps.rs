@@ -71,7 +71,9 @@ impl<'a> Timestamps<'a> {
                 vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
             )
         }
-        .during("reading timestamps")?;
+        .during("reading timestamps")
+        // A lost device surfaces here first when the submit itself succeeded: name the dispatch.
+        .map_err(|e| self.ctx.fault(e))?;
         let mask = if info.timestamp_valid_bits >= 64 { u64::MAX } else { (1u64 << info.timestamp_valid_bits) - 1 };
         let ns = info.timestamp_period_ns as f64;
         Ok(ts.chunks_exact(2).map(|p| (p[1].wrapping_sub(p[0]) & mask) as f64 * ns * 1e-6).collect())

@@ -253,7 +253,7 @@ pub fn run(
     let en = *ctx.enabled();
     let tag = DeviceTag::of(info);
     let host_load_before = load_average();
-    let name = o.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
+    let name = crate::scene::scene_name(&o.scene);
     let mesh = load_obj(&o.scene)?;
     let bvh = Bvh::build(&mesh, &BuildOptions::new(o.leaf_size));
     let reference = Reference::new(&mesh, &bvh);
@@ -491,7 +491,7 @@ fn threads_section(
         return Ok(Section::new(Status::Skipped, "skipped (no trilab executable given to run per thread count)"));
     };
     let dir = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
-    let stem = o.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = crate::scene::scene_name(&o.scene);
     for (set, rays) in sets {
         crate::rays::write_rays(&dir.path().join(format!("{stem}.{set}.rays")), rays)?;
     }

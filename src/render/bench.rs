@@ -196,7 +196,7 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
     };
     for path in &o.scenes {
         let mesh = load_obj(path)?;
-        let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = crate::scene::scene_name(path);
         let bvh = Bvh::build(&mesh, &BuildOptions::new(o.leaf_size));
         let settings = bench_settings(&mesh, (o.width, o.height), o.spp, o.max_depth, o.env);
         let mut reference_mean: Option<f64> = None;

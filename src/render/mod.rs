@@ -566,7 +566,7 @@ pub fn render(
                 })?;
                 let seconds = t0.elapsed().as_secs_f64();
                 if let Some(gpu_ms) = result.gpu_ms.as_mut() {
-                    *gpu_ms += queries.read_ms().map_err(|e| ctx.fault(e))?[0];
+                    *gpu_ms += queries.read_ms()?[0];
                 }
                 let counters: [u32; STATS as usize] = bytemuck::pod_read_unaligned(
                     readback.mapped().ok_or_else(|| Error::NoDevice("readback buffer is not host-visible".into()))?,

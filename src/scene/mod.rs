@@ -10,11 +10,22 @@ pub mod synthetic;
 pub use material::{BsdfKind, GpuMaterial, Material};
 pub use obj::{load_obj, parse_obj_bytes};
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
 
 use crate::bvh::Aabb;
+
+/// A scene's short name for tables and messages: the file name without `.gz` and `.obj`
+/// (`dragon_full_draco11.obj.gz` -> `dragon_full_draco11`), or a `synth:` spec as given.
+pub fn scene_name(path: &Path) -> String {
+    if synthetic::is_spec(path) {
+        return path.to_string_lossy().into_owned();
+    }
+    let file = path.file_name().map_or_else(|| path.to_string_lossy(), |f| f.to_string_lossy()).into_owned();
+    let file = file.strip_suffix(".gz").unwrap_or(&file);
+    file.strip_suffix(".obj").unwrap_or(file).to_owned()
+}
 
 /// An indexed triangle mesh.
 #[derive(Clone, Debug, Default)]
@@ -91,5 +102,19 @@ impl Mesh {
             }
         }
         b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scene_names_drop_obj_and_gz_and_keep_synthetic_specs() {
+        assert_eq!(scene_name(Path::new("../shared/scenes/dragon_full_draco11.obj.gz")), "dragon_full_draco11");
+        assert_eq!(scene_name(Path::new("scenes/bunny.obj")), "bunny");
+        assert_eq!(scene_name(Path::new("a.gz")), "a");
+        assert_eq!(scene_name(Path::new("mesh.ply")), "mesh.ply");
+        assert_eq!(scene_name(Path::new("synth:terrain:10M")), "synth:terrain:10M");
     }
 }

@@ -292,7 +292,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
     let mut rows = vec![];
     for path in &o.scenes {
         let mesh = load_obj(path)?;
-        let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = crate::scene::scene_name(path);
         progress(&format!("{name}: {} triangles; ray sets and f64 reference", mesh.triangle_count()));
         // Ray sets and their reference hits, once per scene (they do not depend on the BVH).
         let reference_bvh = Bvh::build(&mesh, &BuildOptions::new(4));
