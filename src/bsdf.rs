@@ -10,11 +10,11 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use crate::encoding::Texel;
 use crate::error::Result;
-use crate::gpu::shared::{BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT, BINDING_MATERIALS, WORKGROUP_SIZE};
 use crate::gpu::{Context, Kernel, Resource, TexelBuffer};
 use crate::scene::GpuMaterial;
+use crate::shared::Texel;
+use crate::shared::{BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT, BINDING_MATERIALS, WORKGROUP_SIZE};
 
 /// `struct ProbeIn` in `glsl/bsdf_probe.comp` (std430, 32 bytes).
 #[repr(C)]

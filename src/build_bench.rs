@@ -303,7 +303,7 @@ pub fn write_input(path: &Path, mesh: &Mesh, bvh: &Bvh) -> Result<()> {
     put(bytemuck::cast_slice(&mesh.positions))?;
     put(bytemuck::cast_slice(&mesh.triangles))?;
     for id in ids {
-        let b = crate::bvh::Aabb::from_points(&mesh.vertices(id as usize));
+        let b = crate::scene::Aabb::from_points(&mesh.vertices(id as usize));
         let rec: [u32; 8] = [
             b.min.x.to_bits(),
             b.min.y.to_bits(),

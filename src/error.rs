@@ -68,11 +68,6 @@ pub enum Error {
     /// and the last completed, per the GPU breadcrumbs or the host log.
     #[error("{what} during {during}; {markers}")]
     GpuFault { what: String, result: Option<vk::Result>, during: String, markers: String },
-
-    /// A render failed part-way (`source`); `result` holds the samples completed before it (the
-    /// last whole pass), for the caller to write out.
-    #[error("{source} (the render had completed {} spp)", result.spp)]
-    PartialRender { result: Box<crate::render::RenderResult>, source: Box<Error> },
 }
 
 /// What does not fit, for [`Error::SceneTooLarge`].

@@ -4,6 +4,9 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
+
+mod cli;
+use cli::choice::choice;
 use serde_json::json;
 
 use trilab::analyze::MethodChoice;
@@ -84,7 +87,7 @@ enum Cmd {
         /// Max triangles per leaf; repeat or omit for 1, 2, 3, 4, 8, 16.
         #[arg(long = "leaf-size")]
         leaf_sizes: Vec<u32>,
-        #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+        #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
         leaf_policy: LeafPolicy,
         /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
         /// Quad kernels test them.
@@ -141,7 +144,7 @@ enum Cmd {
 #[derive(Args)]
 struct AccuracyArgs {
     /// full: the whole sweep (about 20 minutes on 2-core lavapipe); smoke: seconds, for CI.
-    #[arg(long, value_enum, default_value_t = trilab::accuracy::Preset::Full)]
+    #[arg(long, value_parser = choice::<trilab::accuracy::Preset>(), default_value_t = trilab::accuracy::Preset::Full)]
     preset: trilab::accuracy::Preset,
     /// Default: every method (the smoke preset: the paper's four).
     #[arg(long, value_enum, value_delimiter = ',')]
@@ -194,7 +197,7 @@ struct StudyArgs {
     scenes: Vec<String>,
     /// paper: 800x600, 500 spp, depth 16; lavapipe: scaled to about 20 minutes on 2 CPU cores;
     /// smoke: seconds, for CI.
-    #[arg(long, value_enum, default_value_t = Preset::Lavapipe)]
+    #[arg(long, value_parser = choice::<Preset>(), default_value_t = Preset::Lavapipe)]
     preset: Preset,
     /// Output directory. Default: results/<device>/study/ (lavapipe, or the device name).
     #[arg(long)]
@@ -223,7 +226,7 @@ struct StepsArgs {
     rays: PathBuf,
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
-    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
     leaf_policy: LeafPolicy,
     /// SIMD widths to model (lavapipe: 8, or 4 with LP_NATIVE_VECTOR_WIDTH=128).
     #[arg(long, value_delimiter = ',', default_values_t = [1usize, 4, 8, 32])]
@@ -306,14 +309,14 @@ struct RaycastArgs {
     /// Trace with a peer instead of our kernels: `ray-query` is the driver's own ray tracing
     /// (VK_KHR_ray_query through its acceleration structure, built from the same triangles).
     /// Not a method: it uses none of our BVH, so the BVH options only shape the f64 reference.
-    #[arg(long, value_enum, conflicts_with = "method")]
+    #[arg(long, value_parser = choice::<Peer>(), conflicts_with = "method")]
     peer: Option<Peer>,
     /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
     /// `fill`: nodes with <= leaf-size triangles become leaves (the paper's); `sah`: the SAH
     /// decides and leaf-size is only a cap.
-    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
     leaf_policy: LeafPolicy,
     /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
     /// Quad kernels test them.
@@ -324,7 +327,7 @@ struct RaycastArgs {
     any_hit: bool,
     /// How the kernels read the scene: `auto` plans its GPU memory and uses texel buffers when
     /// every buffer fits one binding, else buffer device addresses (the JSON says which).
-    #[arg(long, value_enum, default_value_t = SceneAccess::Auto)]
+    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
     /// Timed runs after one warm-up; the median is reported.
     #[arg(long, default_value_t = 5)]
@@ -356,7 +359,7 @@ struct ScaleArgs {
     /// Rays cast per scene and method.
     #[arg(long, default_value_t = 1_000_000)]
     rays: usize,
-    #[arg(long, value_enum, default_value_t = trilab::scale::RayKind::Random)]
+    #[arg(long, value_parser = choice::<trilab::scale::RayKind>(), default_value_t = trilab::scale::RayKind::Random)]
     ray_kind: trilab::scale::RayKind,
     /// Timed runs after one warm-up (median, min, max reported).
     #[arg(long, default_value_t = 5)]
@@ -364,7 +367,7 @@ struct ScaleArgs {
     /// Hits checked against the f64 reference (evenly spaced over the ray set).
     #[arg(long, default_value_t = 20_000)]
     validate: usize,
-    #[arg(long, value_enum, default_value_t = SceneAccess::Auto)]
+    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
     #[arg(long, default_value_t = 1 << 20)]
     batch_rays: usize,
@@ -389,7 +392,7 @@ struct BenchArgs {
     methods: Vec<Method>,
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
-    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
     leaf_policy: LeafPolicy,
     /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
     /// Quad kernels test them.
@@ -420,7 +423,7 @@ struct BenchArgs {
     ray_query: RayQueryChoice,
     /// How the kernels read the scenes: `auto` uses texel buffers when every buffer fits one
     /// binding, else buffer device addresses (`trilab scale` reports which).
-    #[arg(long, value_enum, default_value_t = SceneAccess::Auto)]
+    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
     /// Write the report as JSON here.
     #[arg(long)]
@@ -440,7 +443,7 @@ struct BenchRenderArgs {
     #[arg(long, value_enum, value_delimiter = ',')]
     methods: Vec<Method>,
     /// Kernel choices to time (specialised, general).
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "specialised")]
+    #[arg(long, value_parser = choice::<KernelChoice>(), value_delimiter = ',', default_value = "specialised")]
     kernels: Vec<KernelChoice>,
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
@@ -473,7 +476,7 @@ struct RenderArgs {
     method: MethodChoice,
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
-    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
     leaf_policy: LeafPolicy,
     /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
     /// Quad kernels test them.
@@ -505,7 +508,7 @@ struct RenderArgs {
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     exposure: f32,
     /// `specialised`: only the BSDFs the scene uses; `general`: the all-BSDF kernel.
-    #[arg(long, value_enum, default_value_t = KernelChoice::Specialised)]
+    #[arg(long, value_parser = choice::<KernelChoice>(), default_value_t = KernelChoice::Specialised)]
     kernel: KernelChoice,
     /// Wall-clock target per GPU submit, milliseconds (keeps each submit far from a watchdog).
     #[arg(long, default_value_t = 250.0)]
@@ -868,7 +871,7 @@ struct BuildBenchArgs {
     scenes: Vec<PathBuf>,
     #[arg(long, default_value_t = 4)]
     leaf_size: u32,
-    #[arg(long, value_enum, default_value_t = LeafPolicy::Fill)]
+    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
     leaf_policy: LeafPolicy,
     /// Triangles the SAH prices as one test (1: classic; Embree's SAH block size).
     #[arg(long, default_value_t = 1)]
@@ -1310,7 +1313,7 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
     let result = match rendered {
         Ok(r) => r,
         // A lost device (say) part-way: write the last whole pass, then report the error.
-        Err(Error::PartialRender { result, source }) => {
+        Err(pt::RenderFailure::Partial(pt::PartialRender { result, source })) => {
             let extra = json!({
                 "checkpoint": false,
                 "interrupted": false,
@@ -1320,9 +1323,9 @@ fn render_cmd(a: RenderArgs) -> Result<()> {
             });
             write_outputs(&result.accum, result.spp, extra)?;
             eprintln!("trilab: wrote the {} spp completed before the failure to {}", result.spp, a.out.display());
-            return Err(*source);
+            return Err(source);
         }
-        Err(e) => return Err(e),
+        Err(pt::RenderFailure::Error(e)) => return Err(e),
     };
     let extra = json!({
         "checkpoint": false,

@@ -10,9 +10,9 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::bvh::{Bvh, PAD_SLOT};
-use crate::gpu::shared::MISS_ID;
 use crate::rays::{Hit, Ray};
 use crate::scene::Mesh;
+use crate::shared::MISS_ID;
 
 /// An f64 hit. `id == MISS_ID` (and `t = inf`) on a miss.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -19,19 +19,22 @@ use crate::gpu::plan::{check_rays, pathtrace_extras_for};
 use crate::gpu::{
     raycast, AccessPath, Context, DeviceLimits, GpuScene, MemoryPlan, RaycastOptions, SceneAccess, Summary,
 };
+use crate::named::named_enum;
 use crate::rays::{random_rays, Ray};
 use crate::reference::Reference;
 use crate::scene::Mesh;
 
-/// Which rays `trilab scale` casts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum RayKind {
-    /// Uniformly random origins in the scene's box, random directions (`rays::random_rays`).
-    Random,
-    /// One diffuse bounce from the hits of primary rays through a 1024 x 1024 camera
-    /// (`rays::diffuse_rays`).
-    Diffuse,
+named_enum! {
+    /// Which rays `trilab scale` casts.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum RayKind: "ray kind" {
+        /// Uniformly random origins in the scene's box, random directions (`rays::random_rays`).
+        Random = "random",
+        /// One diffuse bounce from the hits of primary rays through a 1024 x 1024 camera
+        /// (`rays::diffuse_rays`).
+        Diffuse = "diffuse",
+    }
 }
 
 #[derive(Clone, Debug)]

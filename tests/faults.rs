@@ -15,14 +15,21 @@ use trilab::bvh::{BuildOptions, Bvh};
 use trilab::encoding::Method;
 use trilab::error::Error;
 use trilab::gpu::{raycast, Context, Fault, FaultKind, GpuScene, RaycastOptions};
-use trilab::render::{self, KernelChoice, PathtraceKernel, RenderResult, RenderScene, RenderSettings};
+use trilab::render::{self, KernelChoice, PathtraceKernel, RenderFailure, RenderResult, RenderScene, RenderSettings};
 
-/// The GpuFault inside `e` (as is, or as a PartialRender's source).
+/// The GpuFault inside `e`.
 fn fault_of(e: &Error) -> (Option<vk::Result>, String, String) {
     match e {
         Error::GpuFault { result, during, markers, .. } => (*result, during.clone(), markers.clone()),
-        Error::PartialRender { source, .. } => fault_of(source),
         other => panic!("expected a GPU fault, got {other:?}"),
+    }
+}
+
+/// The GpuFault inside a failed render (as is, or as a partial render's source).
+fn render_fault_of(e: &RenderFailure) -> (Option<vk::Result>, String, String) {
+    match e {
+        RenderFailure::Error(e) => fault_of(e),
+        RenderFailure::Partial(p) => fault_of(&p.source),
     }
 }
 
@@ -95,7 +102,7 @@ fn small(mesh: &trilab::scene::Mesh, spp: u32) -> RenderSettings {
     s
 }
 
-fn render_on(ctx: &Context, s: &RenderSettings) -> Result<RenderResult, Error> {
+fn render_on(ctx: &Context, s: &RenderSettings) -> Result<RenderResult, RenderFailure> {
     let mesh = bunny();
     let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
     let encoded = Method::Mt.encode(&mesh, &bvh);
@@ -118,7 +125,7 @@ fn render_device_loss_keeps_the_last_whole_pass() {
     let partial = with_gpu(300, move |ctx| {
         ctx.inject_fault(Some(Fault { kind: FaultKind::DeviceLost, at: 4 }));
         let e = render_on(ctx, &s1).unwrap_err();
-        let (result, during, markers) = fault_of(&e);
+        let (result, during, markers) = render_fault_of(&e);
         assert_eq!(result, Some(vk::Result::ERROR_DEVICE_LOST));
         assert!(during.starts_with("pathtrace.mt.") && during.contains(" pass 4 dispatch 4 (samples "), "{during}");
         assert!(
@@ -126,7 +133,7 @@ fn render_device_loss_keeps_the_last_whole_pass() {
             "{markers}"
         );
         match e {
-            Error::PartialRender { result, .. } => *result,
+            RenderFailure::Partial(p) => *p.result,
             other => panic!("expected a partial render: {other:?}"),
         }
     });

@@ -9,8 +9,8 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::encoding::Method;
-use trilab::gpu::shared::{BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS, WORKGROUP_SIZE};
 use trilab::gpu::{GpuScene, Resource};
+use trilab::shared::{BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS, WORKGROUP_SIZE};
 
 #[test]
 fn texel_loaders_return_exactly_what_the_encoders_wrote() {

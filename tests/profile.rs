@@ -7,12 +7,12 @@ mod common;
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::compare::compare_closest;
 use trilab::encoding::Method;
-use trilab::gpu::shared::{SPEC_ID_WORKGROUP_SIZE, WORKGROUP_SIZE};
 use trilab::gpu::{raycast, Context, GpuScene, PipelineOptions, RaycastOptions};
 use trilab::profile::{self, differing_hits, dispatch_once, sweep, ProfileOptions, Status};
 use trilab::rays::{primary_rays, random_rays, Camera, Ray};
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
+use trilab::shared::{SPEC_ID_WORKGROUP_SIZE, WORKGROUP_SIZE};
 
 /// The bunny, its BVH, an uploaded scene for `method`, and `n` random rays.
 fn setup(ctx: &Context, method: Method, n: usize) -> (Mesh, Bvh, GpuScene, Vec<Ray>) {

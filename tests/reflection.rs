@@ -9,11 +9,11 @@ use ash::vk;
 use trilab::bsdf::{ProbeIn, ProbeOut, ProbePush};
 use trilab::bvh::BvhNode;
 use trilab::encoding::{BwTriangle, MtTriangle, QuadMt, QuadUnit, UnitTriangle};
-use trilab::gpu::shared::*;
 use trilab::gpu::TraversalCounts;
 use trilab::kernels::KERNELS;
 use trilab::rays::{Hit, Ray};
 use trilab::render::{GpuParams, PathtracePush};
+use trilab::shared::*;
 use trilab::spirv::reflect::{buffer_layouts, reflect, BufferLayout};
 
 fn array_of(size: usize, offsets: &[usize]) -> BufferLayout {

@@ -55,8 +55,7 @@ fn gpu_random_numbers_match_the_host_mirror_bit_for_bit() {
                 )
                 .unwrap();
             let push: Vec<u8> = [seed, N].iter().flat_map(|x| x.to_le_bytes()).collect();
-            ctx.dispatch(&k, &[(trilab::gpu::shared::BINDING_RNG_PROBE_OUT, Resource::whole(&buf))], &push, N / 64)
-                .unwrap();
+            ctx.dispatch(&k, &[(trilab::shared::BINDING_RNG_PROBE_OUT, Resource::whole(&buf))], &push, N / 64).unwrap();
             ctx.download(&buf, N as u64 * 32).unwrap()
         });
         let words: Vec<u32> = out.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();

@@ -5,8 +5,8 @@
 mod common;
 
 use ash::vk;
-use trilab::gpu::shared::{BINDING_HITS, BINDING_RAYS, BINDING_RNG_PROBE_OUT};
 use trilab::gpu::{Context, ContextOptions, Resource, Validation};
+use trilab::shared::{BINDING_HITS, BINDING_RAYS, BINDING_RNG_PROBE_OUT};
 
 /// Two dispatches in one command buffer: the rng probe writes a buffer, then a raycast kernel
 /// reads it as its rays. Without a barrier between them synchronization validation must report

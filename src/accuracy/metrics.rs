@@ -2,9 +2,9 @@
 
 use serde::Serialize;
 
-use crate::gpu::shared::MISS_ID;
 use crate::rays::{Hit, Ray};
 use crate::reference::RefHit;
+use crate::shared::MISS_ID;
 
 /// One f32 ULP at `x`: the gap between |x| rounded to f32 and the next f32 above it.
 pub fn ulp_f32(x: f64) -> f64 {

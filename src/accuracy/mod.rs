@@ -41,21 +41,24 @@ use self::probes::{LeakKind, Rng};
 use crate::bvh::{BuildOptions, Bvh};
 use crate::encoding::Method;
 use crate::error::{Error, Result};
-use crate::gpu::shared::MISS_ID;
 use crate::gpu::{raycast, Context, DeviceInfo, GpuScene, Kernel, RaycastOptions, Summary};
+use crate::named::named_enum;
 use crate::rays::{Camera, Hit, Ray};
 use crate::reference::{RefHit, Reference};
 use crate::scene::Mesh;
+use crate::shared::MISS_ID;
 use crate::study::Provenance;
 
-/// Workload presets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Preset {
-    /// The whole sweep: about 20 minutes or less on a 2-core lavapipe machine with 7 methods.
-    Full,
-    /// Seconds, for CI.
-    Smoke,
+named_enum! {
+    /// Workload presets.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum Preset: "accuracy preset" {
+        /// The whole sweep: about 20 minutes or less on a 2-core lavapipe machine with 7 methods.
+        Full = "full",
+        /// Seconds, for CI.
+        Smoke = "smoke",
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]

@@ -9,7 +9,7 @@
 use glam::Vec3;
 
 /// How a secondary ray's origin is moved off the surface.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Offset {
     /// The hit point itself.

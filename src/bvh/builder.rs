@@ -35,11 +35,12 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::{Aabb, Bvh, BvhNode, PAD_SLOT};
+use crate::named::named_enum;
 use crate::scene::Mesh;
 
 /// Deepest leaf allowed (root at depth 0). The traversal pushes at most one node per level, so
 /// its stack of `STACK_SIZE` entries never overflows.
-pub const MAX_DEPTH: u32 = crate::gpu::shared::STACK_SIZE;
+pub const MAX_DEPTH: u32 = crate::shared::STACK_SIZE;
 
 /// Largest supported `max_leaf_size`.
 pub const MAX_LEAF_SIZE: u32 = 16;
@@ -67,26 +68,18 @@ impl std::fmt::Display for Builder {
     }
 }
 
-/// When a node becomes a leaf.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum LeafPolicy {
-    /// The paper's: a node with at most `max_leaf_size` triangles is a leaf, so leaves hold
-    /// close to that many ("try to fill BVH with four triangles per node", sec. 3.1); SAH
-    /// chooses the split planes above that.
-    #[default]
-    Fill,
-    /// SAH decides: a node is a leaf when that is cheaper than its best split (or it holds one
-    /// triangle); `max_leaf_size` is only an upper bound.
-    Sah,
-}
-
-impl std::fmt::Display for LeafPolicy {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            LeafPolicy::Fill => "fill",
-            LeafPolicy::Sah => "sah",
-        })
+named_enum! {
+    /// When a node becomes a leaf.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum LeafPolicy: "leaf policy" {
+        /// The paper's: a node with at most `max_leaf_size` triangles is a leaf, so leaves hold
+        /// close to that many ("try to fill BVH with four triangles per node", sec. 3.1); SAH
+        /// chooses the split planes above that.
+        Fill = "fill" (default),
+        /// SAH decides: a node is a leaf when that is cheaper than its best split (or it holds one
+        /// triangle); `max_leaf_size` is only an upper bound.
+        Sah = "sah",
     }
 }
 

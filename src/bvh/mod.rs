@@ -1,17 +1,16 @@
 //! Bounding volume hierarchy: top-down SAH build into the paper's 32-byte nodes.
 //!
-//! - `Aabb`: boxes.
+//! - `Aabb` (from `scene`): boxes.
 //! - `BvhNode`: the 32-byte node shared with the kernels.
 //! - `builder`: binned and full-sweep SAH construction with a depth bound.
 //! - `BvhStats`: nodes, depth, leaf-size histogram, SAH cost, build time, and (with the mesh)
 //!   end-point overlap ([`epo`]).
 
-mod aabb;
 pub mod builder;
 pub mod epo;
 mod node;
 
-pub use aabb::Aabb;
+pub use crate::scene::Aabb;
 pub use builder::{BuildOptions, Builder, LeafPolicy, MAX_DEPTH, MAX_LEAF_SIZE};
 pub use node::BvhNode;
 

@@ -28,10 +28,11 @@
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{slot_layout, EncodedScene, Method, SceneBuffer, Texel};
+use super::{slot_layout, EncodedScene, Method, SceneBuffer};
 use crate::bvh::{Bvh, PAD_SLOT};
-use crate::gpu::shared::{BINDING_PRIMS, MISS_ID};
 use crate::scene::Mesh;
+use crate::shared::Texel;
+use crate::shared::{BINDING_PRIMS, MISS_ID};
 
 /// GLSL `BwTriangle { vec4 plane; vec4 u_row; vec4 v_row; }` (std430: 48 bytes).
 #[repr(C)]

@@ -27,8 +27,9 @@ pub use quad_unit::QuadUnit;
 pub use unit::{unit_transform, UnitTriangle};
 
 use crate::bvh::{Bvh, BvhNode, PAD_SLOT};
-use crate::gpu::shared::{BINDING_INDICES, BINDING_NODES, BINDING_PRIMS, BINDING_SLOT_IDS, MISS_ID};
 use crate::scene::Mesh;
+use crate::shared::Texel;
+use crate::shared::{BINDING_INDICES, BINDING_NODES, BINDING_PRIMS, BINDING_SLOT_IDS, MISS_ID};
 
 /// A ray-triangle intersection method (and with it, a GPU data layout).
 #[derive(
@@ -137,26 +138,6 @@ impl Method {
 impl std::fmt::Display for Method {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
-    }
-}
-
-/// How the kernels read a scene buffer: as texels of this format (`glsl/types.glsl`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Texel {
-    /// 16 bytes, four u32 (`rgba32ui`).
-    Rgba32Uint,
-    /// 16 bytes, four f32 (`rgba32f`).
-    Rgba32Float,
-    /// 4 bytes, one u32 (`r32ui`).
-    R32Uint,
-}
-
-impl Texel {
-    pub fn size(self) -> usize {
-        match self {
-            Texel::Rgba32Uint | Texel::Rgba32Float => 16,
-            Texel::R32Uint => 4,
-        }
     }
 }
 

@@ -3,10 +3,11 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{slot_layout, EncodedScene, Method, SceneBuffer, Texel};
+use super::{slot_layout, EncodedScene, Method, SceneBuffer};
 use crate::bvh::{Bvh, PAD_SLOT};
-use crate::gpu::shared::{BINDING_INDICES, BINDING_PRIMS};
 use crate::scene::Mesh;
+use crate::shared::Texel;
+use crate::shared::{BINDING_INDICES, BINDING_PRIMS};
 
 /// GLSL `MtTriangle { uvec3 v; uint material; }` (std430: 16 bytes).
 #[repr(C)]

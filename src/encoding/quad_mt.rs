@@ -3,10 +3,11 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer, Texel};
+use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer};
 use crate::bvh::{Bvh, PAD_SLOT};
-use crate::gpu::shared::BINDING_PRIMS;
 use crate::scene::Mesh;
+use crate::shared::Texel;
+use crate::shared::BINDING_PRIMS;
 
 /// GLSL `QuadMt`: lane k of each vec4 belongs to triangle slot 4q + k (144 bytes).
 #[repr(C)]

@@ -4,10 +4,11 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::unit::{unit_transform, PAD_ROWS};
-use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer, Texel};
+use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer};
 use crate::bvh::{Bvh, PAD_SLOT};
-use crate::gpu::shared::{BINDING_PRIMS, MISS_ID};
 use crate::scene::Mesh;
+use crate::shared::Texel;
+use crate::shared::{BINDING_PRIMS, MISS_ID};
 
 /// GLSL `QuadUnit`: `m{r}{x,y,z}` and `n{r}` hold entry (r, column) of [M | N] for the four
 /// triangles, lane k = slot 4q + k (192 bytes).

@@ -4,10 +4,11 @@
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{slot_layout, EncodedScene, Method, SceneBuffer, Texel};
+use super::{slot_layout, EncodedScene, Method, SceneBuffer};
 use crate::bvh::{Bvh, PAD_SLOT};
-use crate::gpu::shared::BINDING_PRIMS;
 use crate::scene::Mesh;
+use crate::shared::Texel;
+use crate::shared::BINDING_PRIMS;
 
 /// GLSL `UnitTriangle { vec4 row0, row1, row2; }`: rows of [M | N] (48 bytes).
 #[repr(C)]
@@ -56,7 +57,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
                     let [a, b, c] = mesh.vertices_f64(id as usize);
                     unit_transform(a, b, c).unwrap_or_else(|| {
                         unrepresentable.push(id);
-                        slot_ids[slot] = crate::gpu::shared::MISS_ID;
+                        slot_ids[slot] = crate::shared::MISS_ID;
                         PAD_ROWS
                     })
                 }

@@ -22,9 +22,9 @@ use serde::Serialize;
 use super::buffer::{memory_barrier, Buffer, TexelBuffer};
 use super::context::Context;
 use super::timestamps::Timestamps;
-use crate::encoding::Texel;
 use crate::error::{Error, Result, VkContext};
 use crate::scene::Mesh;
+use crate::shared::Texel;
 
 /// One `VkAccelerationStructureInstanceKHR` (64 bytes), as the TLAS build reads it from a buffer.
 #[repr(C)]

@@ -7,8 +7,8 @@ use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 
 use super::context::{Context, Device};
-use crate::encoding::Texel;
 use crate::error::{Error, Result, VkContext};
+use crate::shared::Texel;
 
 /// Most bytes one staging buffer holds; larger uploads reuse it chunk by chunk.
 pub const STAGING_CHUNK: usize = 64 << 20;

@@ -18,10 +18,12 @@ use ash::vk;
 
 use super::context::Context;
 use crate::bvh::{Bvh, BvhNode};
-use crate::encoding::{Method, MtTriangle, QuadMt, QuadUnit, Texel, UnitTriangle};
+use crate::encoding::{Method, MtTriangle, QuadMt, QuadUnit, UnitTriangle};
 use crate::error::{Error, Result, TooLarge};
-use crate::gpu::shared::{BINDING_INDICES, BINDING_NODES, BINDING_PRIMS, BINDING_SLOT_IDS};
+use crate::named::named_enum;
 use crate::scene::Mesh;
+use crate::shared::Texel;
+use crate::shared::{BINDING_INDICES, BINDING_NODES, BINDING_PRIMS, BINDING_SLOT_IDS};
 
 /// Most texels one scene buffer may hold on the address path: the kernels' indices are signed
 /// 32-bit access-chain indices.
@@ -96,17 +98,18 @@ fn budget(ctx: &Context) -> Option<u64> {
         .filter(|&left| left > 0)
 }
 
-/// How `--scene-access` asks the kernels to read the scene.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SceneAccess {
-    /// Texel buffers when every scene buffer fits one binding, else device addresses.
-    #[default]
-    Auto,
-    /// Storage texel buffers (the default kernels).
-    Texel,
-    /// Buffer device addresses (the `*_bda` kernels).
-    Address,
+named_enum! {
+    /// How `--scene-access` asks the kernels to read the scene.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum SceneAccess: "scene access" {
+        /// Texel buffers when every scene buffer fits one binding, else device addresses.
+        Auto = "auto" (default),
+        /// Storage texel buffers (the default kernels).
+        Texel = "texel",
+        /// Buffer device addresses (the `*_bda` kernels).
+        Address = "address",
+    }
 }
 
 /// The path a scene is read through, once chosen.
@@ -368,10 +371,10 @@ impl MemoryPlan {
 /// and the accumulation image (one storage buffer bound whole).
 pub fn pathtrace_extras(slots: u64, emissive: u64, materials: u64, pixels: u64) -> Vec<BufferPlan> {
     vec![
-        BufferPlan::new("shading", crate::gpu::shared::BINDING_SHADING, Texel::Rgba32Float, slots, 16),
-        BufferPlan::new("lights", crate::gpu::shared::BINDING_LIGHTS, Texel::Rgba32Float, emissive.max(1), 48),
-        BufferPlan::new("materials", crate::gpu::shared::BINDING_MATERIALS, Texel::Rgba32Float, materials, 64),
-        BufferPlan::new("accumulation image", crate::gpu::shared::BINDING_ACCUM, Texel::Rgba32Float, pixels, 16),
+        BufferPlan::new("shading", crate::shared::BINDING_SHADING, Texel::Rgba32Float, slots, 16),
+        BufferPlan::new("lights", crate::shared::BINDING_LIGHTS, Texel::Rgba32Float, emissive.max(1), 48),
+        BufferPlan::new("materials", crate::shared::BINDING_MATERIALS, Texel::Rgba32Float, materials, 64),
+        BufferPlan::new("accumulation image", crate::shared::BINDING_ACCUM, Texel::Rgba32Float, pixels, 16),
     ]
 }
 
@@ -411,7 +414,7 @@ pub fn check_pathtrace(scene: &str, plan: &MemoryPlan, extras: &[BufferPlan], li
         e => e,
     })?;
     for b in extras {
-        let (limit, name) = if b.binding == crate::gpu::shared::BINDING_ACCUM {
+        let (limit, name) = if b.binding == crate::shared::BINDING_ACCUM {
             (limits.max_storage_buffer_range, "maxStorageBufferRange")
         } else {
             (limits.max_texel_buffer_elements * b.texel_size, "maxTexelBufferElements")

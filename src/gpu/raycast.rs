@@ -10,12 +10,12 @@ use super::context::Context;
 use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;
 use super::plan::{AccessPath, DeviceLimits, MemoryPlan, SceneAccess};
-use super::shared::{BINDING_HITS, BINDING_RAYS, BINDING_TRAVERSAL_STATS};
 use super::timestamps::Timestamps;
 use super::traversal_stats::TraversalCounts;
 use crate::encoding::{EncodedScene, Method, SceneBufferRef};
 use crate::error::{Result, VkContext};
 use crate::rays::{Hit, Ray};
+use crate::shared::{BINDING_HITS, BINDING_RAYS, BINDING_TRAVERSAL_STATS};
 
 /// One scene buffer as the kernels reach it.
 enum SceneBinding {

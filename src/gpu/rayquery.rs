@@ -16,30 +16,19 @@ use super::context::Context;
 use super::descriptors::Resource;
 use super::kernel::Kernel;
 use super::raycast::{cast_rays, RaycastOptions, RaycastResult};
-use super::shared::{BINDING_SLOT_IDS, BINDING_TLAS};
 use crate::error::Result;
+use crate::named::named_enum;
 use crate::rays::Ray;
+use crate::shared::{BINDING_SLOT_IDS, BINDING_TLAS};
 use std::time::Instant;
 
-/// A tracer that is not an encoding of our BVH: the driver's own ray tracing.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Peer {
-    /// `VK_KHR_ray_query` from a compute kernel through the driver's BLAS/TLAS.
-    RayQuery,
-}
-
-impl Peer {
-    pub fn name(self) -> &'static str {
-        match self {
-            Peer::RayQuery => "ray-query",
-        }
-    }
-}
-
-impl std::fmt::Display for Peer {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
+named_enum! {
+    /// A tracer that is not an encoding of our BVH: the driver's own ray tracing.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum Peer: "peer" {
+        /// `VK_KHR_ray_query` from a compute kernel through the driver's BLAS/TLAS.
+        RayQuery = "ray-query",
     }
 }
 

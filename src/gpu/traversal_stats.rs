@@ -9,9 +9,9 @@ use serde::Serialize;
 use super::context::Context;
 use super::kernel::Kernel;
 use super::raycast::{raycast, GpuScene, RaycastOptions};
-use super::shared::BINDING_TRAVERSAL_STATS;
 use crate::error::{Error, Result};
 use crate::rays::{Hit, Ray};
+use crate::shared::BINDING_TRAVERSAL_STATS;
 
 /// One ray's traversal work, GLSL `TraversalCounts` (16 bytes, std430 at
 /// `BINDING_TRAVERSAL_STATS`; `tests/reflection.rs` checks the offsets).

@@ -5,9 +5,9 @@ use ash::vk;
 
 use crate::error::{Error, Result, VkContext};
 use crate::gpu::descriptors::{write_set, DescriptorPool};
-use crate::gpu::shared::{BINDING_CYCLES, BINDING_HITS, BINDING_RAYS};
 use crate::gpu::{Context, GpuScene, Kernel, Resource};
 use crate::rays::{Hit, Ray};
+use crate::shared::{BINDING_CYCLES, BINDING_HITS, BINDING_RAYS};
 
 /// What one dispatch gave back.
 #[derive(Clone, Debug)]

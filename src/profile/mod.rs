@@ -30,11 +30,11 @@ use crate::bench::{self, BenchOptions};
 use crate::bvh::{BuildOptions, Bvh};
 use crate::encoding::Method;
 use crate::error::{Error, Result};
-use crate::gpu::shared::SPEC_ID_WORKGROUP_SIZE;
 use crate::gpu::{raycast, Context, DeviceInfo, GpuScene, PipelineOptions, RaycastOptions, Summary};
 use crate::rays::{Hit, Ray};
 use crate::reference::{RefHit, Reference};
 use crate::scene::{load_obj, Mesh};
+use crate::shared::SPEC_ID_WORKGROUP_SIZE;
 
 pub use clock::{CycleStats, HeatScale};
 pub use dispatch::{dispatch_once, SingleDispatch};
@@ -305,7 +305,7 @@ pub fn run(
     } else {
         Section::new(Status::Unsupported, "unsupported (VK_KHR_pipeline_executable_properties absent)")
     };
-    let default_local = crate::gpu::shared::WORKGROUP_SIZE;
+    let default_local = crate::shared::WORKGROUP_SIZE;
     let subgroup_plan = sweep::subgroup_sizes(info, &en, default_local);
     let mut subgroups = match &subgroup_plan {
         Ok((_, note)) => Section::new(Status::Measured, note.clone()),

@@ -10,8 +10,8 @@ use rand_pcg::Pcg32;
 use rayon::prelude::*;
 
 use super::Ray;
-use crate::bvh::Aabb;
 use crate::reference::Reference;
+use crate::scene::Aabb;
 use crate::scene::Mesh;
 
 /// A pinhole camera.

@@ -12,7 +12,7 @@ use std::path::Path;
 use bytemuck::{Pod, Zeroable};
 
 use crate::error::{Error, Result};
-use crate::gpu::shared::MISS_ID;
+use crate::shared::MISS_ID;
 
 /// `origin.xyz, tmin, direction.xyz, tmax`. Hits are reported for `tmin <= t <= tmax`; `t` is
 /// in units of the direction's length (directions need not be normalised).

@@ -19,19 +19,21 @@ use std::time::Instant;
 use ash::vk;
 use glam::{DVec3, Vec3};
 
-use crate::encoding::{EncodedScene, Method, Texel};
+use crate::encoding::{EncodedScene, Method};
 use crate::error::{Error, Result};
 use crate::gpu::buffer::{memory_barrier, read_back};
 use crate::gpu::descriptors::{write_set, DescriptorPool, Resource};
-use crate::gpu::shared::{
-    BINDING_ACCUM, BINDING_LIGHTS, BINDING_MATERIALS, BINDING_PARAMS, BINDING_SHADING, BINDING_STATS, BSDF_MASK_ALL,
-    MISS_ID,
-};
 use crate::gpu::timestamps::Timestamps;
 use crate::gpu::{Context, GpuScene};
 use crate::kernels::{self, KernelSource};
+use crate::named::named_enum;
 use crate::rays::Camera;
 use crate::scene::{BsdfKind, GpuMaterial, Mesh};
+use crate::shared::Texel;
+use crate::shared::{
+    BINDING_ACCUM, BINDING_LIGHTS, BINDING_MATERIALS, BINDING_PARAMS, BINDING_SHADING, BINDING_STATS, BSDF_MASK_ALL,
+    MISS_ID,
+};
 
 /// Everything a render is asked for.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -103,14 +105,16 @@ impl RenderSettings {
     }
 }
 
-/// The kernel's BSDF set.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum KernelChoice {
-    /// Only the BSDFs the scene's materials use.
-    Specialised,
-    /// Every BSDF, whatever the scene uses.
-    General,
+named_enum! {
+    /// The kernel's BSDF set.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum KernelChoice: "kernel" {
+        /// Only the BSDFs the scene's materials use.
+        Specialised = "specialised",
+        /// Every BSDF, whatever the scene uses.
+        General = "general",
+    }
 }
 
 /// A path-trace kernel: its SPIR-V variant and the BSDF mask given as specialisation constant.
@@ -332,7 +336,7 @@ pub struct RenderResult {
     /// Stopped early by the progress callback (Ctrl-C).
     pub interrupted: bool,
     /// Why the render stopped early on an error (a lost device, say); set only in the result an
-    /// `Error::PartialRender` carries.
+    /// [`PartialRender`] carries.
     pub failed: Option<String>,
     /// Closest-hit rays (camera and bounce rays) and occlusion rays traced.
     pub closest_rays: u64,
@@ -379,7 +383,7 @@ impl RenderResult {
 ///
 /// After each pass the accumulation is copied to a host-visible buffer and from there to
 /// `RenderResult::accum`, so when a later submit fails (device lost, out of memory, timeout)
-/// the error is `Error::PartialRender`, carrying the last whole pass; a lost device or
+/// the error is [`RenderFailure::Partial`], carrying the last whole pass; a lost device or
 /// out-of-memory inside it is an `Error::GpuFault` naming the dispatch (`gpu::markers`).
 pub fn render(
     ctx: &Context,
@@ -388,7 +392,7 @@ pub fn render(
     kernel: PathtraceKernel,
     s: &RenderSettings,
     progress: &mut dyn FnMut(Progress) -> bool,
-) -> Result<RenderResult> {
+) -> std::result::Result<RenderResult, RenderFailure> {
     s.check()?;
     let k = ctx.create_kernel_specialized(kernel.source, &[(0, kernel.spec_mask)])?;
     let pixels = s.pixels() as usize;
@@ -606,10 +610,41 @@ pub fn render(
     match outcome {
         Ok(()) => Ok(result),
         Err(e) if result.spp > 0 => {
-            let source = Box::new(ctx.fault(e));
+            let source = ctx.fault(e);
             result.failed = Some(source.to_string());
-            Err(Error::PartialRender { result: Box::new(result), source })
+            Err(RenderFailure::Partial(PartialRender { result: Box::new(result), source }))
         }
-        Err(e) => Err(ctx.fault(e)),
+        Err(e) => Err(RenderFailure::Error(ctx.fault(e))),
+    }
+}
+
+/// Why [`render`] returned no finished image.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderFailure {
+    /// It failed part-way; the samples completed before the failure are kept.
+    #[error(transparent)]
+    Partial(PartialRender),
+    /// It failed before completing a pass (or was asked for something it cannot do).
+    #[error(transparent)]
+    Error(#[from] Error),
+}
+
+/// A render that failed part-way (`source`: a lost device, say); `result` holds the samples
+/// completed before it (the last whole pass), for the caller to write out.
+#[derive(Debug, thiserror::Error)]
+#[error("{source} (the render had completed {} spp)", result.spp)]
+pub struct PartialRender {
+    pub result: Box<RenderResult>,
+    #[source]
+    pub source: Error,
+}
+
+impl From<RenderFailure> for Error {
+    /// The error alone, for callers that keep no partial image (benchmarks, the study).
+    fn from(f: RenderFailure) -> Error {
+        match f {
+            RenderFailure::Partial(p) => p.source,
+            RenderFailure::Error(e) => e,
+        }
     }
 }

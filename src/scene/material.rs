@@ -25,12 +25,10 @@
 
 use std::path::Path;
 
-use crate::gpu::shared;
+use crate::shared;
 
 /// The seven BSDFs, one GLSL file each in `glsl/bsdf/`.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, clap::ValueEnum, serde::Serialize, serde::Deserialize,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum BsdfKind {
     Lambert,

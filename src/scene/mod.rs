@@ -3,6 +3,7 @@
 //! Triangle ids are OBJ face order after fan triangulation, across all objects and groups in
 //! file order (../shared/formats.md); every later stage keeps them.
 
+mod aabb;
 mod material;
 mod obj;
 pub mod synthetic;
@@ -14,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
 
-use crate::bvh::Aabb;
+pub use aabb::Aabb;
 
 /// A scene's short name for tables and messages: the file name without `.gz` and `.obj`
 /// (`dragon_full_draco11.obj.gz` -> `dragon_full_draco11`), or a `synth:` spec as given.

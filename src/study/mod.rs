@@ -27,6 +27,7 @@ use crate::encoding::Method;
 use crate::error::{Error, Result};
 use crate::gpu::traversal_stats::{raycast_stats, TraversalSummary};
 use crate::gpu::{raycast, Context, GpuScene, RaycastOptions, Summary};
+use crate::named::named_enum;
 use crate::rays::{self, Camera};
 use crate::reference::Reference;
 use crate::render::bench::{bench_settings, check_image_mean, summarise_renders, RenderMeasure};
@@ -36,16 +37,18 @@ use crate::scene::load_obj;
 /// The leaf sizes of the paper's tables.
 pub const PAPER_LEAF_SIZES: [u32; 6] = [1, 2, 3, 4, 8, 16];
 
-/// Workload presets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Preset {
-    /// The paper's setting: 800x600, 500 spp, depth 16; ray sets from an 800x600 camera.
-    Paper,
-    /// Scaled so the whole study finishes in about 20 minutes on a 2-core lavapipe machine.
-    Lavapipe,
-    /// A seconds-long run for CI: the bunny at tiny sizes, one timed round.
-    Smoke,
+named_enum! {
+    /// Workload presets.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum Preset: "study preset" {
+        /// The paper's setting: 800x600, 500 spp, depth 16; ray sets from an 800x600 camera.
+        Paper = "paper",
+        /// Scaled so the whole study finishes in about 20 minutes on a 2-core lavapipe machine.
+        Lavapipe = "lavapipe",
+        /// A seconds-long run for CI: the bunny at tiny sizes, one timed round.
+        Smoke = "smoke",
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]
