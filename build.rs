@@ -11,8 +11,13 @@
 //! - `shared.glsl` holds the constants shared with Rust: every `#define NAME <integer>` becomes
 //!   `pub const NAME: u32` in `$OUT_DIR/shared_consts.rs`.
 //!
+//! - What an intersector states about itself is read from its GLSL, not repeated in Rust: the
+//!   triangles per primitive (`#define PRIM_TRIANGLES n`) and whether it asks for conservative
+//!   traversal (`#define CONSERVATIVE_TRAVERSAL`), found by preprocessing the intersector with
+//!   its includes.
+//!
 //! Outputs in `$OUT_DIR`: one `<kernel>.<method>.<variant>.spv` per variant, `kernels.rs` (the
-//! registry that embeds them) and `shared_consts.rs`.
+//! registry that embeds them, and the intersectors' facts) and `shared_consts.rs`.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -95,6 +100,19 @@ fn main() {
         }
     }
     writeln!(registry, "];").unwrap();
+    writeln!(registry, "pub static INTERSECTOR_FACTS: &[IntersectorFacts] = &[").unwrap();
+    for method in &methods {
+        match intersector_facts(&compiler, &glsl_dir, method) {
+            Ok((prim_triangles, conservative)) => writeln!(
+                registry,
+                "    IntersectorFacts {{ glsl: {method:?}, prim_triangles: {prim_triangles}, \
+                 conservative_traversal: {conservative} }},"
+            )
+            .unwrap(),
+            Err(e) => errors.push(format!("intersector {method}:\n{e}")),
+        }
+    }
+    writeln!(registry, "];").unwrap();
     if !errors.is_empty() {
         fail(&errors.join("\n\n"));
     }
@@ -170,6 +188,39 @@ fn compile(
         .compile_into_spirv(source, shaderc::ShaderKind::Compute, &name, "main", Some(&options))
         .map_err(|e| e.to_string())?;
     Ok(artifact.as_binary().to_vec())
+}
+
+/// What `glsl/intersect/<method>.glsl` states about itself: (PRIM_TRIANGLES, whether it defines
+/// CONSERVATIVE_TRAVERSAL). The intersector is preprocessed (its includes too) with a tail that
+/// expands the macros into marker lines.
+fn intersector_facts(compiler: &shaderc::Compiler, glsl_dir: &Path, method: &str) -> Result<(u32, bool), String> {
+    let source = "#version 460\n#extension GL_GOOGLE_include_directive : require\n\
+                  #include \"intersector.glsl\"\n\
+                  trilab_fact_prim_triangles PRIM_TRIANGLES\n\
+                  #ifdef CONSERVATIVE_TRAVERSAL\ntrilab_fact_conservative_traversal\n#endif\n";
+    let mut options = shaderc::CompileOptions::new().map_err(|e| e.to_string())?;
+    options.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
+    options.add_macro_definition(&format!("METHOD_{}", method.to_uppercase()), Some("1"));
+    let dir = glsl_dir.to_path_buf();
+    let m = method.to_owned();
+    options.set_include_callback(move |requested, _ty, requesting, _depth| {
+        resolve_include(&dir, &m, requested, requesting)
+    });
+    let text = compiler
+        .preprocess(source, &format!("facts of intersect/{method}.glsl"), "main", Some(&options))
+        .map_err(|e| e.to_string())?
+        .as_text();
+    let prim = text
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("trilab_fact_prim_triangles"))
+        .map(|v| v.trim().trim_end_matches(['u', 'U']).to_owned())
+        .ok_or("no PRIM_TRIANGLES line after preprocessing")?;
+    let prim: u32 = prim.parse().map_err(|_| format!("PRIM_TRIANGLES must be an integer literal, got `{prim}`"))?;
+    if !matches!(prim, 1 | 4) {
+        return Err(format!("PRIM_TRIANGLES is {prim}; the leaf loop in traverse.glsl handles 1 or 4"));
+    }
+    let conservative = text.lines().any(|l| l.trim() == "trilab_fact_conservative_traversal");
+    Ok((prim, conservative))
 }
 
 /// Includes resolve inside `glsl/` only; `intersector.glsl` is the variant's intersector.

@@ -6,8 +6,9 @@
 
 use std::path::PathBuf;
 
-use trilab::bench::{run, BenchOptions};
 use trilab::gpu::{Context, ContextOptions, Validation};
+use trilab::harness::bench::{run, BenchOptions};
+use trilab::report::Report;
 
 fn main() {
     // `cargo bench` passes --bench; `cargo test --benches` passes nothing and expects a quick
@@ -25,10 +26,5 @@ fn main() {
     let ctx =
         Context::new(&ContextOptions { validation: Validation::Off, ..Default::default() }).expect("a Vulkan device");
     let report = run(&ctx, &opts, |m| eprintln!("  {m}")).expect("benchmark");
-    println!("device: {} ({})\n", report.device, report.driver);
-    print!("{}", report.table().to_text());
-    if !report.embree.is_empty() {
-        println!();
-        print!("{}", report.embree_table().to_text());
-    }
+    print!("{}", report.to_text());
 }

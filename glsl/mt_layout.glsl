@@ -17,7 +17,7 @@ SCENE_BUFFER(BINDING_INDICES, rgba32ui, U4, mt_triangles);
 
 #define PRIM_STRUCT MtTriangle
 // Triangle slots one primitive holds (one triangle per slot).
-#define PRIM_TRIANGLES 1u
+#define PRIM_TRIANGLES 1
 MtTriangle load_prim(uint slot) {
     uvec4 t = SCENE_TEXEL(mt_triangles, slot);
     MtTriangle r;

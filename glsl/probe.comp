@@ -6,6 +6,8 @@
 #extension GL_GOOGLE_include_directive : require
 
 #include "types.glsl"
+// Only the intersector's data layout (PRIM_STRUCT, load_prim) is used here.
+#define LAYOUT_ONLY
 #include "intersector.glsl"
 
 layout(std430, set = 0, binding = BINDING_PROBE_NODES) writeonly buffer ProbeNodes { BvhNode probe_nodes[]; };

@@ -100,11 +100,6 @@ struct HitState {
     uint slot;
     float u;
     float v;
-#ifdef METHOD_F64
-    // The f64 intersector's closest t in double (intersect/f64.glsl). Valid only once
-    // slot != MISS_ID, so the kernels need not initialise it; t is float(t64) then.
-    double t64;
-#endif
 };
 
 #endif

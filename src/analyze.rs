@@ -194,7 +194,7 @@ const BUILTIN_TRANSLATION: &str = include_str!("../results/lavapipe/accuracy/tra
 const BUILTIN_SOURCE: &str = "results/lavapipe/accuracy/frontier.csv (built in; measured on lavapipe)";
 
 /// The offset scheme `trilab accuracy` found free of self-hits at every scale.
-pub const OFFSET_SCHEME: &str = crate::accuracy::offset::RECOMMENDED.name();
+pub const OFFSET_SCHEME: &str = crate::rays::offset::RECOMMENDED.name();
 
 impl Frontier {
     pub fn builtin() -> Frontier {
@@ -279,7 +279,8 @@ fn method_rows<const N: usize>(path: &Path, text: &str, names: [&str; N]) -> Res
         let line = Some(i + 2);
         let rec = rec.map_err(|e| bad(line, format!("unreadable CSV row: {e}")))?;
         let field = |c: usize| rec.get(c).unwrap_or("");
-        let method = <Method as clap::ValueEnum>::from_str(field(cm), true)
+        let method = <Method as crate::named::Named>::from_name(field(cm))
+            .ok_or(())
             .map_err(|_| bad(line, format!("unknown method `{}`", field(cm))))?;
         let mut values = [0.0; N];
         for ((v, &c), name) in values.iter_mut().zip(&cols).zip(names) {
@@ -435,10 +436,16 @@ impl std::str::FromStr for MethodChoice {
         if s.eq_ignore_ascii_case("auto") {
             return Ok(MethodChoice::Auto);
         }
-        <Method as clap::ValueEnum>::from_str(s, true).map(MethodChoice::Fixed).map_err(|_| {
+        s.parse::<Method>().map(MethodChoice::Fixed).map_err(|_| {
             let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
             format!("`{s}` is not a method: auto, {}", names.join(", "))
         })
+    }
+}
+
+impl From<Method> for MethodChoice {
+    fn from(m: Method) -> MethodChoice {
+        MethodChoice::Fixed(m)
     }
 }
 
@@ -451,9 +458,17 @@ impl std::fmt::Display for MethodChoice {
     }
 }
 
-/// Methods a device with `features` can run (f64 needs `shaderFloat64`).
+/// Methods a device with `features` can run: those whose ray-casting kernels need no SPIR-V
+/// capability the device lacks (f64's need `shaderFloat64`).
 pub fn available_methods(features: &crate::gpu::EnabledFeatures) -> Vec<Method> {
-    Method::ALL.into_iter().filter(|&m| m != Method::F64 || features.shader_float64).collect()
+    use crate::encoding::{AccessPath, Raycast};
+    Method::ALL
+        .into_iter()
+        .filter(|&m| {
+            let k = m.raycast_kernel(Raycast::Closest, AccessPath::Texel);
+            crate::spirv::required_features(&k.words()).is_ok_and(|needs| needs.iter().all(|r| features.has(r.feature)))
+        })
+        .collect()
 }
 
 /// Resolves `--method`: a fixed method as it is; `auto` through [`recommend`] on `mesh` with

@@ -58,7 +58,7 @@ pub enum Error {
     #[error("{what} did not finish within {seconds} s")]
     Timeout { what: String, seconds: f64 },
 
-    /// A scene's GPU memory plan (`gpu::plan`) does not fit the device: found before anything
+    /// A scene's GPU memory plan (`encoding::plan`) does not fit the device: found before anything
     /// is allocated.
     #[error("{0}")]
     SceneTooLarge(Box<TooLarge>),

@@ -42,6 +42,20 @@ pub fn ensure_not_input(output: &Path, inputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
+/// [`ensure_not_input`] for each of `files` in the output directory `dir`.
+pub fn check_outputs(dir: &Path, files: &[&str], inputs: &[&Path]) -> Result<()> {
+    files.iter().try_for_each(|f| ensure_not_input(&dir.join(f), inputs))
+}
+
+/// [`ensure_not_input`] for an output of a command that read `scene`, the MTL files `mtls` it
+/// names, and `other` inputs (ray files).
+pub fn ensure_not_inputs(output: &Path, scene: &Path, mtls: &[PathBuf], other: &[&Path]) -> Result<()> {
+    let mut inputs: Vec<&Path> = vec![scene];
+    inputs.extend(mtls.iter().map(PathBuf::as_path));
+    inputs.extend_from_slice(other);
+    ensure_not_input(output, &inputs)
+}
+
 fn resolve(p: &Path) -> PathBuf {
     if let Ok(c) = p.canonicalize() {
         return c;

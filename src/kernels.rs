@@ -1,17 +1,20 @@
-//! The SPIR-V modules build.rs compiled from `glsl/`, embedded in the binary: one per
-//! kernel x intersector x variant, named `<kernel>.<method>.<variant>` (`raycast.mt.closest`).
-
-use crate::encoding::Method;
+//! The kernel registry: the SPIR-V modules build.rs compiled from `glsl/`, embedded in the
+//! binary, one per kernel x intersector x variant, named `<kernel>.<intersector>.<variant>`
+//! (`raycast.mt.closest`), and what each intersector's GLSL states about itself.
+//!
+//! This is the ground floor: it knows kernels by the names the GLSL gives them. The typed ways to
+//! pick one live with what they are for: a method's ray-casting kernels in `pipeline`, the path
+//! tracer's in `render`, the ray-query peer's in `gpu::rayquery`.
 
 /// One compiled kernel variant.
 #[derive(Debug)]
 pub struct KernelSource {
-    /// `<kernel>.<method>.<variant>`; also the file name under `spirv/`.
+    /// `<kernel>.<intersector>.<variant>`; also the file name under `spirv/`.
     pub name: &'static str,
     /// The `glsl/<kernel>.comp` it came from.
     pub kernel: &'static str,
-    /// The intersector, `glsl/intersect/<method>.glsl`, or `none` for kernels that trace no rays
-    /// (`// trilab:intersector none`).
+    /// The intersector, `glsl/intersect/<intersector>.glsl`, or `none` for kernels that trace no
+    /// rays (`// trilab:intersector none`).
     pub method: &'static str,
     /// The variant from the kernel's `// trilab:variants` line.
     pub variant: &'static str,
@@ -19,7 +22,22 @@ pub struct KernelSource {
     pub spirv: &'static [u8],
 }
 
+/// What an intersector's GLSL (`glsl/intersect/<glsl>.glsl` with its includes) states about
+/// itself, read by build.rs: the Rust side reads these instead of repeating them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IntersectorFacts {
+    /// The file's stem.
+    pub glsl: &'static str,
+    /// `PRIM_TRIANGLES`: triangle slots one primitive holds (1, or 4 for the Quad forms).
+    pub prim_triangles: u32,
+    /// Whether it defines `CONSERVATIVE_TRAVERSAL` (traversal's conservative box test).
+    pub conservative_traversal: bool,
+}
+
 include!(concat!(env!("OUT_DIR"), "/kernels.rs"));
+
+/// The intersector of kernels that trace no rays.
+pub const NO_INTERSECTOR: &str = "none";
 
 impl KernelSource {
     /// The module as words (`include_bytes!` gives no alignment guarantee).
@@ -28,43 +46,20 @@ impl KernelSource {
     }
 }
 
-/// The raycast kernel for a method: closest hit or, with `any_hit`, occlusion.
-pub fn raycast(method: Method, any_hit: bool) -> &'static KernelSource {
-    find("raycast", method, if any_hit { "any" } else { "closest" })
+/// The variant `variant` of `glsl/<kernel>.comp` compiled with intersector `intersector`
+/// ([`NO_INTERSECTOR`] for kernels without one).
+pub fn find(kernel: &str, intersector: &str, variant: &str) -> Option<&'static KernelSource> {
+    KERNELS.iter().find(|k| k.kernel == kernel && k.method == intersector && k.variant == variant)
 }
 
-/// The raycast kernel for a scene read through `access` (`gpu::plan`): the default variants
-/// for texel buffers, `closest_bda`/`any_bda` for device addresses.
-pub fn raycast_via(method: Method, any_hit: bool, access: crate::gpu::AccessPath) -> &'static KernelSource {
-    match (access, any_hit) {
-        (crate::gpu::AccessPath::Texel, _) => raycast(method, any_hit),
-        (crate::gpu::AccessPath::Address, false) => find("raycast", method, "closest_bda"),
-        (crate::gpu::AccessPath::Address, true) => find("raycast", method, "any_bda"),
-    }
+/// What `glsl/intersect/<glsl>.glsl` states about itself; `None` if there is no such file.
+pub fn facts(glsl: &str) -> Option<&'static IntersectorFacts> {
+    INTERSECTOR_FACTS.iter().find(|f| f.glsl == glsl)
 }
 
-/// The raycast kernel that also writes each ray's traversal work (closest hit; the `stats`
-/// variant, `TRAVERSAL_STATS` in `glsl/traverse.glsl`).
-pub fn raycast_stats(method: Method) -> &'static KernelSource {
-    find("raycast", method, "stats")
-}
-
-/// Looks a variant up; every `Method` has every variant of every kernel (build.rs compiles
-/// each kernel for each intersector file; `tests` below checks the two lists agree).
-pub fn find(kernel: &str, method: Method, variant: &str) -> &'static KernelSource {
-    KERNELS
-        .iter()
-        .find(|k| k.kernel == kernel && k.method == method.glsl_name() && k.variant == variant)
-        .unwrap_or_else(|| panic!("no kernel {kernel}.{}.{variant} was compiled", method.glsl_name()))
-}
-
-/// Looks up a variant of a kernel that uses no intersector (`// trilab:intersector none`, method
-/// `none`), such as the BSDF probe.
-pub fn find_no_intersector(kernel: &str, variant: &str) -> &'static KernelSource {
-    KERNELS
-        .iter()
-        .find(|k| k.kernel == kernel && k.method == "none" && k.variant == variant)
-        .unwrap_or_else(|| panic!("no kernel {kernel}.none.{variant} was compiled"))
+/// The intersectors build.rs found in `glsl/intersect/`.
+pub fn intersectors() -> impl Iterator<Item = &'static str> {
+    INTERSECTOR_FACTS.iter().map(|f| f.glsl)
 }
 
 #[cfg(test)]
@@ -72,23 +67,29 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_method_has_its_kernels_and_every_kernel_a_method() {
-        for m in Method::ALL {
-            for any in [false, true] {
-                let k = raycast(m, any);
-                assert_eq!(k.spirv.len() % 4, 0);
-                assert_eq!(k.words()[0], 0x0723_0203, "SPIR-V magic");
-            }
-            assert_eq!(raycast_stats(m).variant, "stats");
-            assert_eq!(raycast_via(m, false, crate::gpu::AccessPath::Address).variant, "closest_bda");
-            assert_eq!(raycast_via(m, true, crate::gpu::AccessPath::Address).variant, "any_bda");
-        }
+    fn every_module_is_spirv_and_every_kernel_with_an_intersector_has_each_one() {
         for k in KERNELS {
-            assert!(
-                k.method == "none" || Method::ALL.iter().any(|m| m.glsl_name() == k.method),
-                "glsl/intersect/{}.glsl has no Method arm",
-                k.method
-            );
+            assert_eq!(k.spirv.len() % 4, 0, "{}", k.name);
+            assert_eq!(k.words()[0], 0x0723_0203, "{}: SPIR-V magic", k.name);
+            assert_eq!(k.name, format!("{}.{}.{}", k.kernel, k.method, k.variant));
+            if k.method != NO_INTERSECTOR {
+                for glsl in intersectors() {
+                    assert!(find(k.kernel, glsl, k.variant).is_some(), "{} has no {glsl} build", k.name);
+                }
+            }
         }
+        assert!(find("raycast", "mt", "closest").is_some());
+        assert!(find("raycast", "mt", "no-such-variant").is_none());
+    }
+
+    #[test]
+    fn facts_are_read_from_the_glsl() {
+        // The Quad forms test four triangles per primitive, and only watertight traverses
+        // conservatively (glsl/intersect/*.glsl).
+        assert_eq!(facts("quad_mt").map(|f| f.prim_triangles), Some(4));
+        assert_eq!(facts("mt").map(|f| f.prim_triangles), Some(1));
+        assert_eq!(facts("watertight").map(|f| f.conservative_traversal), Some(true));
+        assert_eq!(facts("mt").map(|f| f.conservative_traversal), Some(false));
+        assert!(facts("no_such_intersector").is_none());
     }
 }

@@ -1,36 +1,42 @@
 //! trilab: GPU ray-triangle intersection laboratory.
 //!
-//! Data flows one way, one module per stage:
-//! [`scene`] (OBJ/MTL -> mesh) -> [`bvh`] (SAH build, 32-byte nodes) -> [`encoding`] (each
-//! method's GPU layout) -> [`gpu`] (buffers, pipelines, dispatch, timing) -> results
-//! ([`rays`] hit files, [`compare`] against the f64 [`reference`], [`report`] tables,
-//! [`render`] path-traced images).
-//! The kernels live in `glsl/`; [`kernels`] embeds their SPIR-V and [`spirv`] counts and
-//! reflects it.
+//! Data flows one way, and so do imports: every module imports only modules listed before it
+//! here (`tests/layers.rs` checks it; `ARCHITECTURE.md` explains the layers).
+//!
+//! - Ground floor: [`error`], atomic output ([`io`]), tables and summaries ([`report`]), named
+//!   option values ([`named`]), the constants shared with GLSL ([`shared`]), the kernel registry
+//!   ([`kernels`]) and SPIR-V counts, reflection and capabilities ([`spirv`]).
+//! - [`scene`]: OBJ/MTL and synthetic meshes; [`rays`]: ray and hit files, cameras, ray sets,
+//!   spawn offsets; [`bvh`]: the SAH build, 32-byte nodes.
+//! - The CPU's truth: the f64 [`reference`], [`compare`] (agreement with it), [`traversal`] (the
+//!   kernels' loop mirrored on the CPU).
+//! - [`encoding`]: the intersectors, one unit each (layout, encoder, memory plan), their
+//!   registry and [`encoding::Method`].
+//! - [`gpu`]: device, buffers, pipelines, dispatch, timestamps, faults, the driver's ray query.
+//! - [`analyze`]: a scene's conditioning and the method it needs (`--method auto`).
+//! - [`pipeline`]: the one scene pipeline, mesh to scene on the device with its kernels.
+//! - [`render`]: the path tracer.
+//! - [`harness`]: everything that measures and reports (bench, study, accuracy, profile, scale,
+//!   ...), with what they share; the CLI (`src/cli/`, in the binary) calls these.
 
-pub mod accuracy;
 pub mod analyze;
-pub mod bench;
-pub mod bsdf;
-pub mod build_bench;
 pub mod bvh;
 pub mod compare;
 pub mod encoding;
 pub mod error;
 pub mod gpu;
+pub mod harness;
 pub mod io;
 pub mod kernels;
 pub mod named;
-pub mod profile;
+pub mod pipeline;
 pub mod rays;
 pub mod reference;
 pub mod render;
 pub mod report;
-pub mod scale;
 pub mod scene;
 pub mod shared;
 pub mod spirv;
-pub mod study;
 pub mod traversal;
 
 pub use error::{Error, Result};

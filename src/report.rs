@@ -1,4 +1,17 @@
-//! Plain-text and Markdown tables for command output and results files.
+//! Plain-text, Markdown and CSV tables for command output and results files, and the median /
+//! min / max summary every timing is reported as.
+
+/// What a command hands back: a serde struct, printed as JSON (`--json`) or as text made from
+/// the same struct.
+pub trait Report: serde::Serialize {
+    /// The text the command prints without `--json`.
+    fn to_text(&self) -> String;
+
+    /// The struct as pretty JSON.
+    fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("reports serialise")
+    }
+}
 
 /// A table of strings; numeric-looking columns are right-aligned in text output.
 #[derive(Clone, Debug, Default)]
@@ -70,9 +83,39 @@ impl Table {
     }
 }
 
+/// Median, min and max of a sample.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Summary {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+    pub runs: usize,
+}
+
+impl Summary {
+    pub fn of(xs: &[f64]) -> Option<Summary> {
+        if xs.is_empty() {
+            return None;
+        }
+        let mut v = xs.to_vec();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
+        Some(Summary { median, min: v[0], max: v[n - 1], runs: n })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn summary_median_min_max() {
+        let s = Summary::of(&[3.0, 1.0, 2.0]).unwrap();
+        assert_eq!((s.median, s.min, s.max, s.runs), (2.0, 1.0, 3.0, 3));
+        assert_eq!(Summary::of(&[4.0, 1.0, 2.0, 3.0]).unwrap().median, 2.5);
+        assert!(Summary::of(&[]).is_none());
+    }
 
     #[test]
     fn aligns_text_and_renders_markdown() {

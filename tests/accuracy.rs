@@ -10,10 +10,10 @@
 
 mod common;
 
-use trilab::accuracy::offset::{Offset, RECOMMENDED};
-use trilab::accuracy::probes::LeakKind;
-use trilab::accuracy::{self, AccuracyOptions, Preset};
 use trilab::encoding::Method;
+use trilab::harness::accuracy::probes::LeakKind;
+use trilab::harness::accuracy::{self, AccuracyOptions, Preset};
+use trilab::rays::offset::{Offset, RECOMMENDED};
 
 #[test]
 fn smoke_run_never_hits_degenerate_triangles_and_never_returns_nan() {
@@ -22,7 +22,7 @@ fn smoke_run_never_hits_degenerate_triangles_and_never_returns_nan() {
         accuracy::run(ctx, &o, |_| {}).expect("accuracy smoke run")
     });
     assert!(report.unsupported.is_empty(), "lavapipe creates every kernel: {:?}", report.unsupported);
-    let methods = Method::PAPER.len();
+    let methods = Method::paper().len();
     assert_eq!(report.meshes.len(), 3);
     for m in &report.meshes {
         assert!(m.closed.is_ok(), "{}: {:?}", m.name, m.closed);
@@ -30,7 +30,7 @@ fn smoke_run_never_hits_degenerate_triangles_and_never_returns_nan() {
     }
     assert_eq!(report.leaks.len(), 3 * 3 * 6 * methods, "mesh x kind x leaf x method");
     assert_eq!(report.errors.len(), 6 * methods);
-    let mut tallies: Vec<(&str, String, &trilab::accuracy::metrics::Tally)> = vec![];
+    let mut tallies: Vec<(&str, String, &trilab::harness::accuracy::metrics::Tally)> = vec![];
     tallies.extend(report.leaks.iter().map(|r| ("leaks", format!("{} {} {:?}", r.method, r.mesh, r.kind), &r.tally)));
     tallies.extend(
         report.false_hits.iter().map(|r| ("false hits", format!("{} {} {}", r.method, r.mesh, r.d_exp), &r.tally)),
@@ -138,7 +138,7 @@ fn recommended_offset_has_no_self_hits_in_1e5_rays_at_every_scale() {
         };
         accuracy::run(ctx, &o, |_| {}).expect("self-intersection run").self_hits
     });
-    assert_eq!(rows.len(), 17 * 2 * Method::PAPER.len());
+    assert_eq!(rows.len(), 17 * 2 * Method::paper().len());
     for r in &rows {
         assert!(r.rays >= 100_000, "{} 1e{}: {} rays", r.method, r.scale_exp, r.rays);
         assert_eq!(r.nan, 0);

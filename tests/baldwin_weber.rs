@@ -1,14 +1,15 @@
 //! Baldwin and Weber's intersector (`glsl/intersect/baldwin_weber.glsl`) against the CPU f64
 //! reference: the bunny's primary, diffuse and random rays pass the project's acceptance rule
-//! (`bench::validate_hits`) at every leaf size, with every fixed column in use; triangles that
+//! (`validate::validate_hits`) at every leaf size, with every fixed column in use; triangles that
 //! are zero-area or whose map does not fit f32 are never hit; no hit has a NaN.
 
 mod common;
 
-use trilab::bench::{ray_sets, validate_hits, BenchOptions};
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::{BwTriangle, Method, BW_NEVER_HIT};
+use trilab::harness::rayset::{ray_sets, RaySetSizes};
+use trilab::harness::validate::validate_hits;
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
 
@@ -17,9 +18,9 @@ fn baldwin_weber_agrees_with_the_f64_reference_on_bunny_rays() {
     let lines = common::with_gpu(900, |ctx| {
         let k = common::MethodKernels::new(ctx, Method::BaldwinWeber);
         let mesh = common::bunny();
-        let o = BenchOptions { width: 240, height: 180, diffuse_per_hit: 1, random_rays: 20_000, ..Default::default() };
+        let o = RaySetSizes { width: 240, height: 180, diffuse_per_hit: 1, random_rays: 20_000, seed: 7 };
         let bvh4 = Bvh::build(&mesh, &BuildOptions::new(4));
-        let sets = ray_sets(&mesh, "bunny", &Reference::new(&mesh, &bvh4), &o).unwrap();
+        let sets = ray_sets(&mesh, "bunny", &Reference::new(&mesh, &bvh4), &o, None).unwrap();
         // The bunny's normals point every way: all three fixed columns occur, in both signs.
         let enc = Method::BaldwinWeber.encode(&mesh, &bvh4);
         assert!(enc.unrepresentable.is_empty());

@@ -9,14 +9,14 @@
 //! - the estimator is unbiased (mean weight = the quadrature of f cos) and the white furnace
 //!   holds (mean weight <= 1 for albedos summing to <= 1; exactly 1 for a white Lambert);
 //! - reciprocity and two-sidedness of the opaque BSDFs;
-//! - glass and mirror against the f64 references in `trilab::bsdf`;
+//! - glass and mirror against the f64 references in `trilab::render::bsdf`;
 //! - and that the chi-square test can fail: it must reject samples tested against a wrong pdf.
 
 mod common;
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use trilab::bsdf::{
+use trilab::render::bsdf::{
     angle_between, chi_square, direction, glass_reference, mean_and_error, reflect, sidak_threshold, to_f32, Probe,
     ProbeOut, Quadrature, SphereGrid, FLAG_DELTA, FLAG_DELTA_KIND, FLAG_OK,
 };
@@ -302,14 +302,14 @@ fn opaque_bsdfs_are_reciprocal_and_two_sided() {
             }
             let pairs: Vec<Pair> = (0..2000).map(|_| (random_dir(&mut rng), random_dir(&mut rng))).collect();
             let run = |f: &dyn Fn(&Pair) -> Pair| -> Vec<ProbeOut> {
-                let inputs: Vec<trilab::bsdf::ProbeIn> = pairs
+                let inputs: Vec<trilab::render::bsdf::ProbeIn> = pairs
                     .iter()
                     .map(|p| {
                         let (wo, wi) = f(p);
-                        trilab::bsdf::ProbeIn { wo: to_f32(wo), material: m as u32, v: to_f32(wi), pad: 0 }
+                        trilab::render::bsdf::ProbeIn { wo: to_f32(wo), material: m as u32, v: to_f32(wi), pad: 0 }
                     })
                     .collect();
-                probe.run(trilab::bsdf::MODE_EVAL, &inputs).unwrap()
+                probe.run(trilab::render::bsdf::MODE_EVAL, &inputs).unwrap()
             };
             let flip = |v: [f64; 3]| [v[0], v[1], -v[2]];
             let fwd = run(&|&(o, i)| (o, i));

@@ -11,7 +11,9 @@ use std::process::Command;
 use common::{bunny, with_gpu};
 use trilab::bvh::{BuildOptions, Builder, Bvh, LeafPolicy};
 use trilab::encoding::Method;
-use trilab::gpu::{raycast, GpuScene, RaycastOptions};
+use trilab::encoding::Raycast;
+use trilab::gpu::RaycastOptions;
+use trilab::pipeline::{HostScene, SceneRequest};
 
 fn trilab(args: &[String]) {
     let o = Command::new(env!("CARGO_BIN_EXE_trilab")).args(args).output().unwrap();
@@ -56,15 +58,15 @@ fn every_ray_generator_writes_the_same_file_twice() {
 fn every_method_casts_the_same_hits_twice() {
     with_gpu(600, |ctx| {
         let mesh = bunny();
-        let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+        let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
         let rays = trilab::rays::random_rays(&mesh.bounds(), 4000, 5);
         let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1024 };
         for m in trilab::analyze::available_methods(ctx.enabled()) {
-            let scene = GpuScene::upload(ctx, &m.encode(&mesh, &bvh)).unwrap();
-            for any in [false, true] {
-                let k = ctx.create_kernel(trilab::kernels::raycast(m, any)).unwrap();
-                let a = raycast(ctx, &k, &scene, &rays, &opts).unwrap().hits;
-                let b = raycast(ctx, &k, &scene, &rays, &opts).unwrap().hits;
+            let scene = host.upload(ctx, &SceneRequest::new(m)).unwrap();
+            for kind in [Raycast::Closest, Raycast::Any] {
+                let k = scene.kernel(ctx, kind).unwrap();
+                let a = scene.cast_with(ctx, &k, &rays, &opts).unwrap().hits;
+                let b = scene.cast_with(ctx, &k, &rays, &opts).unwrap().hits;
                 assert!(a.iter().filter(|h| h.is_hit()).count() > 100, "{}: too few hits to mean anything", k.name);
                 assert!(
                     bytemuck::cast_slice::<_, u8>(&a) == bytemuck::cast_slice::<_, u8>(&b),

@@ -11,7 +11,9 @@ use rand_pcg::Pcg32;
 use trilab::bvh::{BuildOptions, Bvh, MAX_DEPTH};
 use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::Method;
-use trilab::gpu::{raycast, Context, GpuScene, RaycastOptions};
+use trilab::encoding::Raycast;
+use trilab::gpu::{Context, RaycastOptions};
+use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::rays::{Hit, Ray};
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
@@ -28,16 +30,14 @@ fn check(
     let mut out = vec![];
     let mut failures = vec![];
     for &leaf in leaf_sizes {
-        let bvh = Bvh::build(mesh, &BuildOptions::new(leaf));
-        bvh.validate(mesh).unwrap();
-        let reference = Reference::new(mesh, &bvh).trace_all(rays, false);
+        let host = HostScene::build("edge case", mesh, &BuildOptions::new(leaf)).unwrap();
+        host.bvh.validate(mesh).unwrap();
+        let reference = host.reference().trace_all(rays, false);
         for method in Method::ALL {
-            let scene = GpuScene::upload(ctx, &method.encode(mesh, &bvh)).unwrap();
+            let scene = host.upload(ctx, &SceneRequest::new(method)).unwrap();
             let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
-            let closest = ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap();
-            let any = ctx.create_kernel(trilab::kernels::raycast(method, true)).unwrap();
-            let c = raycast(ctx, &closest, &scene, rays, &opts).unwrap();
-            let a = raycast(ctx, &any, &scene, rays, &opts).unwrap();
+            let c = scene.cast(ctx, Raycast::Closest, rays, &opts).unwrap();
+            let a = scene.cast(ctx, Raycast::Any, rays, &opts).unwrap();
             let agreement = compare_closest(mesh, rays, &c.hits, &reference);
             // Small ray sets: every ray must agree or be explained by an edge.
             if agreement.unexplained > 0 || !agreement.invalid.is_empty() {

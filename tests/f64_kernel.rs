@@ -9,12 +9,13 @@ mod common;
 use std::sync::mpsc;
 use std::time::Duration;
 
-use trilab::bench::{ray_sets, validate_hits, BenchOptions};
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::compare::{compare_any, compare_closest};
-use trilab::encoding::Method;
+use trilab::encoding::{Method, Raycast};
 use trilab::error::Error;
 use trilab::gpu::{Context, ContextOptions, Validation};
+use trilab::harness::rayset::{ray_sets, RaySetSizes};
+use trilab::harness::validate::validate_hits;
 use trilab::rays::{Hit, Ray};
 use trilab::reference::{intersect, Ray64, RefHit, Reference};
 use trilab::scene::Mesh;
@@ -68,9 +69,9 @@ fn f64_hits_are_the_reference_rounded_to_f32_on_bunny_rays() {
         let k = common::MethodKernels::new(ctx, Method::F64);
         let mesh = common::bunny();
         // 240 x 180 primary rays, one diffuse ray per primary hit, 20,000 random rays.
-        let o = BenchOptions { width: 240, height: 180, diffuse_per_hit: 1, random_rays: 20_000, ..Default::default() };
+        let o = RaySetSizes { width: 240, height: 180, diffuse_per_hit: 1, random_rays: 20_000, seed: 7 };
         let bvh4 = Bvh::build(&mesh, &BuildOptions::new(4));
-        let sets = ray_sets(&mesh, "bunny", &Reference::new(&mesh, &bvh4), &o).unwrap();
+        let sets = ray_sets(&mesh, "bunny", &Reference::new(&mesh, &bvh4), &o, None).unwrap();
         let rays: Vec<Ray> = sets.iter().flat_map(|(_, r)| r.iter().copied()).collect();
         assert!(rays.len() >= 50_000, "only {} rays", rays.len());
         let mut lines = vec![];
@@ -209,13 +210,13 @@ fn without_shader_float64_the_f64_kernels_are_unsupported_not_a_crash() {
         .expect("a Vulkan device and the validation layer");
         assert!(!ctx.enabled().shader_float64);
         let log = ctx.validation_log();
-        let errors: Vec<_> = [false, true]
+        let texel = trilab::encoding::AccessPath::Texel;
+        let errors: Vec<_> = [Raycast::Closest, Raycast::Any, Raycast::Stats]
             .iter()
-            .map(|&any| ctx.create_kernel(trilab::kernels::raycast(Method::F64, any)).err())
-            .chain([ctx.create_kernel(trilab::kernels::raycast_stats(Method::F64)).err()])
+            .map(|&kind| ctx.create_kernel(Method::F64.raycast_kernel(kind, texel)).err())
             .collect();
         // The f32 kernels are unaffected.
-        let mt = ctx.create_kernel(trilab::kernels::raycast(Method::Mt, false)).is_ok();
+        let mt = ctx.create_kernel(Method::Mt.raycast_kernel(Raycast::Closest, texel)).is_ok();
         drop(ctx);
         let _ = tx.send((errors, mt, log.messages()));
     });

@@ -11,11 +11,12 @@ use std::process::{Command, Output};
 
 use ash::vk;
 use common::{bunny, with_gpu};
-use trilab::bvh::{BuildOptions, Bvh};
-use trilab::encoding::Method;
+use trilab::bvh::BuildOptions;
+use trilab::encoding::{Method, Raycast};
 use trilab::error::Error;
-use trilab::gpu::{raycast, Context, Fault, FaultKind, GpuScene, RaycastOptions};
-use trilab::render::{self, KernelChoice, PathtraceKernel, RenderFailure, RenderResult, RenderScene, RenderSettings};
+use trilab::gpu::{Context, Fault, FaultKind, RaycastOptions};
+use trilab::pipeline::{DeviceScene, HostScene, SceneRequest};
+use trilab::render::{self, KernelChoice, RenderFailure, RenderResult, RenderSettings, RenderTarget};
 
 /// The GpuFault inside `e`.
 fn fault_of(e: &Error) -> (Option<vk::Result>, String, String) {
@@ -33,24 +34,23 @@ fn render_fault_of(e: &RenderFailure) -> (Option<vk::Result>, String, String) {
     }
 }
 
-fn unit_setup(ctx: &Context) -> (trilab::gpu::Kernel, GpuScene, Vec<trilab::rays::Ray>) {
+fn unit_setup(ctx: &Context) -> (DeviceScene, Vec<trilab::rays::Ray>) {
     let mesh = bunny();
-    let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-    let kernel = ctx.create_kernel(trilab::kernels::raycast(Method::Unit, false)).unwrap();
-    let scene = GpuScene::upload(ctx, &Method::Unit.encode(&mesh, &bvh)).unwrap();
+    let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
+    let scene = host.upload(ctx, &SceneRequest::new(Method::Unit)).unwrap();
     let rays = trilab::rays::random_rays(&mesh.bounds(), 1000, 3);
-    (kernel, scene, rays)
+    (scene, rays)
 }
 
 /// Four batches of 256 rays; the device is lost at the third batch's submit.
 #[test]
 fn raycast_device_loss_names_the_batch_and_the_last_completed() {
     with_gpu(120, |ctx| {
-        let (kernel, scene, rays) = unit_setup(ctx);
+        let (scene, rays) = unit_setup(ctx);
         let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 256 };
         assert!(ctx.markers_active(), "lavapipe has host-visible memory for the breadcrumbs");
         ctx.inject_fault(Some(Fault { kind: FaultKind::DeviceLost, at: 3 }));
-        let e = raycast(ctx, &kernel, &scene, &rays, &opts).unwrap_err();
+        let e = scene.cast(ctx, Raycast::Closest, &rays, &opts).unwrap_err();
         let (result, during, markers) = fault_of(&e);
         assert_eq!(result, Some(vk::Result::ERROR_DEVICE_LOST));
         assert_eq!(during, "raycast.unit.closest batch 3/4 (rays 512..768)");
@@ -60,7 +60,7 @@ fn raycast_device_loss_names_the_batch_and_the_last_completed() {
         assert!(text.starts_with("device lost (VK_ERROR_DEVICE_LOST) during raycast.unit.closest batch 3/4"), "{text}");
         // Lost stays lost: the next submit fails too, as on a real device.
         ctx.inject_fault(None);
-        let again = raycast(ctx, &kernel, &scene, &rays, &opts).unwrap_err();
+        let again = scene.cast(ctx, Raycast::Closest, &rays, &opts).unwrap_err();
         assert_eq!(fault_of(&again).0, Some(vk::Result::ERROR_DEVICE_LOST));
     });
 }
@@ -69,10 +69,10 @@ fn raycast_device_loss_names_the_batch_and_the_last_completed() {
 #[test]
 fn out_of_memory_names_the_last_dispatch() {
     with_gpu(120, |ctx| {
-        let (kernel, scene, rays) = unit_setup(ctx);
+        let (scene, rays) = unit_setup(ctx);
         let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 256 };
         ctx.inject_fault(Some(Fault { kind: FaultKind::SubmitOutOfMemory, at: 2 }));
-        let e = raycast(ctx, &kernel, &scene, &rays, &opts).unwrap_err();
+        let e = scene.cast(ctx, Raycast::Closest, &rays, &opts).unwrap_err();
         let (result, during, markers) = fault_of(&e);
         assert_eq!(result, Some(vk::Result::ERROR_OUT_OF_DEVICE_MEMORY));
         assert_eq!(during, "raycast.unit.closest batch 2/4 (rays 256..512)");
@@ -81,12 +81,12 @@ fn out_of_memory_names_the_last_dispatch() {
 
         // Not sticky: the same cast now runs, and completes every batch.
         ctx.inject_fault(None);
-        let ok = raycast(ctx, &kernel, &scene, &rays, &opts).unwrap();
+        let ok = scene.cast(ctx, Raycast::Closest, &rays, &opts).unwrap();
         assert_eq!(ok.hits.len(), rays.len());
 
         // The next allocation (the ray buffer of the next cast) fails.
         ctx.inject_fault(Some(Fault { kind: FaultKind::AllocationOutOfMemory, at: 1 }));
-        let e = raycast(ctx, &kernel, &scene, &rays, &opts).unwrap_err();
+        let e = scene.cast(ctx, Raycast::Closest, &rays, &opts).unwrap_err();
         let (result, during, markers) = fault_of(&e);
         assert_eq!(result, None);
         assert_eq!(during, "allocating `rays`");
@@ -104,12 +104,10 @@ fn small(mesh: &trilab::scene::Mesh, spp: u32) -> RenderSettings {
 
 fn render_on(ctx: &Context, s: &RenderSettings) -> Result<RenderResult, RenderFailure> {
     let mesh = bunny();
-    let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-    let encoded = Method::Mt.encode(&mesh, &bvh);
-    let scene = RenderScene::new(&mesh, &encoded);
-    let kernel = PathtraceKernel::choose(Method::Mt, scene.bsdf_mask, KernelChoice::Specialised);
-    let gpu = GpuScene::upload_for(ctx, &encoded, kernel.source).unwrap();
-    render::render(ctx, &gpu, &scene, kernel, s, &mut |_| true)
+    let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
+    let target =
+        RenderTarget::new(ctx, &host, Method::Mt.into(), KernelChoice::Specialised, s.pixels(), false).unwrap();
+    render::render(ctx, &target, s, &mut |_| true)
 }
 
 fn bits(accum: &[[f32; 4]]) -> Vec<u32> {

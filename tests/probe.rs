@@ -7,9 +7,10 @@ mod common;
 
 use ash::vk;
 use gpu_allocator::MemoryLocation;
-use trilab::bvh::{BuildOptions, Bvh};
+use trilab::bvh::BuildOptions;
 use trilab::encoding::Method;
-use trilab::gpu::{GpuScene, Resource};
+use trilab::gpu::Resource;
+use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::shared::{BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS, WORKGROUP_SIZE};
 
 #[test]
@@ -17,11 +18,14 @@ fn texel_loaders_return_exactly_what_the_encoders_wrote() {
     common::with_gpu(300, |ctx| {
         let mesh = common::bunny();
         for leaf in [1, 4, 16] {
-            let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
+            let host = HostScene::build("bunny", &mesh, &BuildOptions::new(leaf)).unwrap();
             for method in Method::ALL {
-                let enc = method.encode(&mesh, &bvh);
-                let scene = GpuScene::upload(ctx, &enc).unwrap();
-                let kernel = ctx.create_kernel(trilab::kernels::find("probe", method, "main")).unwrap();
+                // The encoding as uploaded, kept for the comparison.
+                let mut enc = None;
+                let plan = host.plan(ctx, &SceneRequest::new(method)).unwrap();
+                let scene = plan.upload_with(ctx, None, |e| enc = Some(e.clone())).unwrap();
+                let enc = enc.unwrap();
+                let kernel = ctx.create_kernel(method.probe_kernel()).unwrap();
                 let (prims, size) = enc.prim_structs();
                 let counts = [enc.nodes.len() as u32, (prims.bytes.len() / size) as u32, enc.slot_ids.len() as u32];
                 let want: [&[u8]; 3] =

@@ -6,19 +6,21 @@ mod common;
 
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::compare::compare_closest;
-use trilab::encoding::Method;
-use trilab::gpu::{raycast, Context, GpuScene, PipelineOptions, RaycastOptions};
-use trilab::profile::{self, differing_hits, dispatch_once, sweep, ProfileOptions, Status};
+use trilab::encoding::{Method, Raycast};
+use trilab::gpu::{Context, PipelineOptions, RaycastOptions};
+use trilab::harness::profile::{self, differing_hits, dispatch_once, sweep, ProfileOptions, Status};
+use trilab::pipeline::{DeviceScene, HostScene, SceneRequest};
 use trilab::rays::{primary_rays, random_rays, Camera, Ray};
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
 use trilab::shared::{SPEC_ID_WORKGROUP_SIZE, WORKGROUP_SIZE};
 
 /// The bunny, its BVH, an uploaded scene for `method`, and `n` random rays.
-fn setup(ctx: &Context, method: Method, n: usize) -> (Mesh, Bvh, GpuScene, Vec<Ray>) {
+fn setup(ctx: &Context, method: Method, n: usize) -> (Mesh, Bvh, DeviceScene, Vec<Ray>) {
     let mesh = common::bunny();
-    let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-    let scene = GpuScene::upload(ctx, &method.encode(&mesh, &bvh)).unwrap();
+    let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
+    let scene = host.upload(ctx, &SceneRequest::new(method)).unwrap();
+    let bvh = host.bvh;
     let rays = random_rays(&mesh.bounds(), n, 99);
     (mesh, bvh, scene, rays)
 }
@@ -36,21 +38,14 @@ fn pipeline_statistics_count_every_invocation_dispatched() {
         let (mesh, bvh, scene, rays) = setup(ctx, Method::Mt, 777);
         if !ctx.enabled().pipeline_statistics_query {
             assert!(!ctx.info().pipeline_statistics_query);
-            assert!(dispatch_once(
-                ctx,
-                &ctx.create_kernel(trilab::kernels::raycast(Method::Mt, false)).unwrap(),
-                &scene,
-                &rays,
-                true
-            )
-            .is_err());
+            assert!(dispatch_once(ctx, &scene.kernel(ctx, Raycast::Closest).unwrap(), &scene, &rays, true).is_err());
             return;
         }
         let (sizes, _) = sweep::workgroup_sizes(ctx.info(), &[32, 64, 128, 256]);
         assert!(sizes.contains(&WORKGROUP_SIZE));
         for s in sizes {
             let k = ctx
-                .create_kernel_specialized(trilab::kernels::raycast(Method::Mt, false), &[(SPEC_ID_WORKGROUP_SIZE, s)])
+                .create_kernel_specialized(scene.kernel_source(Raycast::Closest), &[(SPEC_ID_WORKGROUP_SIZE, s)])
                 .unwrap();
             let d = dispatch_once(ctx, &k, &scene, &rays, true).unwrap();
             let expected = (rays.len() as u64).div_ceil(u64::from(s)) * u64::from(s);
@@ -72,8 +67,8 @@ fn clock_variant_hits_equal_closest_and_every_ray_gets_ticks() {
         for method in Method::ALL {
             let (mesh, bvh, scene, mut rays) = setup(ctx, method, 2000);
             rays.extend(primary_rays(&Camera::framing(&mesh.bounds()), 64, 48));
-            let closest = ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap();
-            let clock = ctx.create_kernel(trilab::kernels::find("raycast", method, "clock")).unwrap();
+            let closest = scene.kernel(ctx, Raycast::Closest).unwrap();
+            let clock = scene.kernel(ctx, Raycast::Clock).unwrap();
             let c = dispatch_once(ctx, &closest, &scene, &rays, false).unwrap();
             let k = dispatch_once(ctx, &clock, &scene, &rays, false).unwrap();
             assert!(c.cycles.is_none());
@@ -94,19 +89,19 @@ fn workgroup_size_specialisation_gives_identical_hits_at_each_size() {
         for method in [Method::Unit, Method::QuadMt] {
             let (mesh, bvh, scene, rays) = setup(ctx, method, 3000);
             let opts = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
-            let default = ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap();
+            let default = scene.kernel(ctx, Raycast::Closest).unwrap();
             assert_eq!(default.layout.local_size.0, WORKGROUP_SIZE);
-            let base = raycast(ctx, &default, &scene, &rays, &opts).unwrap();
+            let base = scene.cast_with(ctx, &default, &rays, &opts).unwrap();
             assert_matches_reference(&mesh, &bvh, &rays, &base.hits, &format!("{method} default"));
             let (sizes, _) = sweep::workgroup_sizes(ctx.info(), &[32, 64, 128, 256]);
             // Vulkan guarantees at least 128 invocations and 128 along x.
             assert!(sizes.starts_with(&[32, 64, 128]), "{sizes:?}");
             for s in sizes {
                 let k = ctx
-                    .create_kernel_specialized(trilab::kernels::raycast(method, false), &[(SPEC_ID_WORKGROUP_SIZE, s)])
+                    .create_kernel_specialized(scene.kernel_source(Raycast::Closest), &[(SPEC_ID_WORKGROUP_SIZE, s)])
                     .unwrap();
                 assert_eq!(k.layout.local_size, (s, 1, 1), "reflection after specialisation");
-                let r = raycast(ctx, &k, &scene, &rays, &opts).unwrap();
+                let r = scene.cast_with(ctx, &k, &rays, &opts).unwrap();
                 assert_eq!(differing_hits(&r.hits, &base.hits), 0, "{method}: workgroup size {s}");
             }
         }
@@ -132,17 +127,17 @@ fn subgroup_size_sweep_runs_every_allowed_size_or_says_why_not() {
                 assert!(sizes.iter().all(|s| s.is_power_of_two() && (min..=max).contains(s)));
                 let (mesh, bvh, scene, rays) = setup(ctx, Method::QuadUnit, 3000);
                 let opts = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
-                let default = ctx.create_kernel(trilab::kernels::raycast(Method::QuadUnit, false)).unwrap();
-                let base = raycast(ctx, &default, &scene, &rays, &opts).unwrap();
+                let default = scene.kernel(ctx, Raycast::Closest).unwrap();
+                let base = scene.cast_with(ctx, &default, &rays, &opts).unwrap();
                 assert_matches_reference(&mesh, &bvh, &rays, &base.hits, "default");
                 for s in sizes {
                     let k = ctx
                         .create_kernel_with(
-                            trilab::kernels::raycast(Method::QuadUnit, false),
+                            scene.kernel_source(Raycast::Closest),
                             &PipelineOptions { required_subgroup_size: Some(s), ..Default::default() },
                         )
                         .unwrap();
-                    let r = raycast(ctx, &k, &scene, &rays, &opts).unwrap();
+                    let r = scene.cast_with(ctx, &k, &rays, &opts).unwrap();
                     assert_eq!(differing_hits(&r.hits, &base.hits), 0, "required subgroup size {s}");
                 }
             }

@@ -5,12 +5,11 @@
 
 mod common;
 
-use trilab::bvh::{BuildOptions, Bvh};
+use trilab::bvh::BuildOptions;
 use trilab::compare::{compare_any, compare_closest};
-use trilab::encoding::Method;
-use trilab::gpu::{raycast, GpuScene, RaycastOptions};
+use trilab::encoding::{Method, Raycast};
+use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::rays::random_rays;
-use trilab::reference::Reference;
 
 const LEAF_SIZES: [u32; 6] = [1, 2, 3, 4, 8, 16];
 
@@ -19,27 +18,18 @@ fn every_method_and_leaf_size_matches_the_f64_reference_on_the_bunny() {
     let report = common::with_gpu(900, |ctx| {
         let mesh = common::bunny();
         let rays = random_rays(&mesh.bounds(), 100_000, 2024);
-        let kernels: Vec<_> = Method::ALL
-            .iter()
-            .map(|&m| {
-                let closest = ctx.create_kernel(trilab::kernels::raycast(m, false)).unwrap();
-                let any = ctx.create_kernel(trilab::kernels::raycast(m, true)).unwrap();
-                (m, closest, any)
-            })
-            .collect();
         let mut lines = vec![];
         let mut failures = vec![];
         for leaf in LEAF_SIZES {
-            let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
-            bvh.validate(&mesh).unwrap();
-            let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
+            let host = HostScene::build("bunny", &mesh, &BuildOptions::new(leaf)).unwrap();
+            host.bvh.validate(&mesh).unwrap();
+            let reference = host.reference().trace_all(&rays, false);
             let ref_hits = reference.iter().filter(|h| h.is_hit()).count();
             assert!(ref_hits > 20_000 && ref_hits < 80_000, "random rays should hit about half the time ({ref_hits})");
-            for (method, closest, any) in &kernels {
-                let scene = GpuScene::upload(ctx, &method.encode(&mesh, &bvh)).unwrap();
-                let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
-                let c = raycast(ctx, closest, &scene, &rays, &opts).unwrap();
-                let a = raycast(ctx, any, &scene, &rays, &opts).unwrap();
+            for method in Method::ALL {
+                let scene = host.upload(ctx, &SceneRequest::new(method)).unwrap();
+                let c = scene.cast(ctx, Raycast::Closest, &rays, &common::ONCE).unwrap();
+                let a = scene.cast(ctx, Raycast::Any, &rays, &common::ONCE).unwrap();
                 let agreement = compare_closest(&mesh, &rays, &c.hits, &reference);
                 let any_check = compare_any(&mesh, &rays, &c.hits, &a.hits);
                 lines.push(format!(

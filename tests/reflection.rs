@@ -6,15 +6,27 @@
 use std::mem::{offset_of, size_of};
 
 use ash::vk;
-use trilab::bsdf::{ProbeIn, ProbeOut, ProbePush};
 use trilab::bvh::BvhNode;
-use trilab::encoding::{BwTriangle, MtTriangle, QuadMt, QuadUnit, UnitTriangle};
+use trilab::encoding::{AccessPath, Method, Raycast};
 use trilab::gpu::TraversalCounts;
 use trilab::kernels::KERNELS;
 use trilab::rays::{Hit, Ray};
+use trilab::render::bsdf::{ProbeIn, ProbeOut, ProbePush};
 use trilab::render::{GpuParams, PathtracePush};
 use trilab::shared::*;
 use trilab::spirv::reflect::{buffer_layouts, reflect, BufferLayout};
+
+/// The registry's method whose intersector is `glsl/intersect/<glsl>.glsl`.
+fn method_of(glsl: &str) -> Option<Method> {
+    Method::ALL.into_iter().find(|m| m.glsl_name() == glsl)
+}
+
+/// The scene bindings `method`'s encoding provides (nodes, slot ids, its primitive buffers).
+fn scene_bindings(method: Method) -> Vec<u32> {
+    let mesh = trilab::scene::Mesh::from_triangles(vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]);
+    let bvh = trilab::bvh::Bvh::build(&mesh, &trilab::bvh::BuildOptions::new(4));
+    method.encode(&mesh, &bvh).buffers().iter().map(|b| b.binding).collect()
+}
 
 fn array_of(size: usize, offsets: &[usize]) -> BufferLayout {
     BufferLayout { array_stride: Some(size as u32), member_offsets: offsets.iter().map(|&o| o as u32).collect() }
@@ -53,48 +65,12 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         ),
         (_, BINDING_PROBE_NODES) => node(),
         (_, BINDING_PROBE_SLOT_IDS) => array_of(size_of::<u32>(), &[]),
-        ("mt" | "watertight" | "f64", BINDING_PROBE_PRIMS) => {
-            array_of(size_of::<MtTriangle>(), &[offset_of!(MtTriangle, v), offset_of!(MtTriangle, material)])
+        // The method's primitive struct, as its Rust file declares it (the registry's
+        // `Intersector::prim_layout`).
+        (glsl, BINDING_PROBE_PRIMS) if method_of(glsl).is_some() => {
+            let l = method_of(glsl).unwrap().intersector().prim_layout;
+            array_of(l.size, l.offsets)
         }
-        ("unit", BINDING_PROBE_PRIMS) => array_of(
-            size_of::<UnitTriangle>(),
-            &[offset_of!(UnitTriangle, row0), offset_of!(UnitTriangle, row1), offset_of!(UnitTriangle, row2)],
-        ),
-        ("baldwin_weber", BINDING_PROBE_PRIMS) => array_of(
-            size_of::<BwTriangle>(),
-            &[offset_of!(BwTriangle, plane), offset_of!(BwTriangle, u_row), offset_of!(BwTriangle, v_row)],
-        ),
-        ("quad_mt", BINDING_PROBE_PRIMS) => array_of(
-            size_of::<QuadMt>(),
-            &[
-                offset_of!(QuadMt, v0x),
-                offset_of!(QuadMt, v0y),
-                offset_of!(QuadMt, v0z),
-                offset_of!(QuadMt, v1x),
-                offset_of!(QuadMt, v1y),
-                offset_of!(QuadMt, v1z),
-                offset_of!(QuadMt, v2x),
-                offset_of!(QuadMt, v2y),
-                offset_of!(QuadMt, v2z),
-            ],
-        ),
-        ("quad_unit", BINDING_PROBE_PRIMS) => array_of(
-            size_of::<QuadUnit>(),
-            &[
-                offset_of!(QuadUnit, m0x),
-                offset_of!(QuadUnit, m0y),
-                offset_of!(QuadUnit, m0z),
-                offset_of!(QuadUnit, n0),
-                offset_of!(QuadUnit, m1x),
-                offset_of!(QuadUnit, m1y),
-                offset_of!(QuadUnit, m1z),
-                offset_of!(QuadUnit, n1),
-                offset_of!(QuadUnit, m2x),
-                offset_of!(QuadUnit, m2y),
-                offset_of!(QuadUnit, m2z),
-                offset_of!(QuadUnit, n2),
-            ],
-        ),
         // raycast's `*_bda` variants: each scene binding is a uniform block holding the scene
         // buffer's 8-byte device address (gpu::raycast uploads `address.to_le_bytes()`).
         (_, BINDING_NODES | BINDING_SLOT_IDS | BINDING_PRIMS | BINDING_INDICES) => {
@@ -125,10 +101,8 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         // rng_probe: draws as uvec4 bits, then as vec4 floats (read back as words in tests/render.rs).
         ("none", BINDING_RNG_PROBE_OUT) => array_of(32, &[0, 16]),
         (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
-        // raycast's `clock` variant: shader-clock ticks per ray, read back as u32.
-        ("mt" | "unit" | "quad_mt" | "quad_unit" | "watertight" | "baldwin_weber" | "f64", BINDING_CYCLES) => {
-            array_of(size_of::<u32>(), &[])
-        }
+        // raycast's `clock` variants: shader-clock ticks per ray, read back as u32.
+        (glsl, BINDING_CYCLES) if method_of(glsl).is_some() => array_of(size_of::<u32>(), &[]),
         ("none", BINDING_BSDF_PROBE_IN) => array_of(
             size_of::<ProbeIn>(),
             &[offset_of!(ProbeIn, wo), offset_of!(ProbeIn, material), offset_of!(ProbeIn, v), offset_of!(ProbeIn, pad)],
@@ -191,7 +165,7 @@ fn rust_structs_match_spirv_offsets_and_strides() {
         .iter()
         .map(|k| match (k.kernel, k.variant) {
             ("pathtrace" | "rng_probe", _) => 1,
-            ("raycast", "stats") => 3,
+            ("raycast", v) if v.starts_with("stats") => 3,
             _ => 2,
         })
         .sum();
@@ -210,29 +184,31 @@ fn kernels_bind_what_the_host_provides() {
         assert_eq!(l.push_constants, Some((0, push_bytes)), "{}: push constants", k.name);
         assert_eq!(l.sets.keys().copied().collect::<Vec<_>>(), vec![0], "{}", k.name);
         let set = &l.sets[&0];
-        let texels = match (k.kernel, k.method) {
+        let method = method_of(k.method);
+        // The scene bindings of the method's encoding (watertight and f64 read MT's buffers).
+        let scene = method.map(scene_bindings).unwrap_or_default();
+        let texels = match (k.kernel, method) {
             // The BSDF probe reads only materials.
             ("bsdf_probe", _) => vec![BINDING_MATERIALS],
             ("rng_probe", _) => vec![],
-            // watertight and f64 read MT's buffers.
-            ("raycast", "mt" | "watertight" | "f64") => {
-                vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS, BINDING_INDICES]
-            }
+            ("raycast", Some(_)) => scene,
             // The driver's structure replaces ours; the BLAS primitive -> OBJ id table remains.
             ("rayquery", _) => vec![BINDING_SLOT_IDS],
             // The path tracer shades by slot and never reads the slot -> OBJ id table.
-            ("pathtrace", "mt" | "watertight" | "f64") => {
-                vec![BINDING_NODES, BINDING_PRIMS, BINDING_INDICES, BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS]
-            }
-            ("pathtrace", _) => vec![BINDING_NODES, BINDING_PRIMS, BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS],
-            // The MT probe loads triangles (index triples), not vertices.
-            ("probe", "mt" | "watertight" | "f64") => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_INDICES],
-            _ => vec![BINDING_NODES, BINDING_SLOT_IDS, BINDING_PRIMS],
+            ("pathtrace", Some(_)) => scene
+                .into_iter()
+                .filter(|&b| b != BINDING_SLOT_IDS)
+                .chain([BINDING_MATERIALS, BINDING_SHADING, BINDING_LIGHTS])
+                .collect(),
+            // The probe loads nodes, slot ids and the primitive structs (for MT's layout the
+            // index triples, not the vertices).
+            ("probe", Some(m)) => vec![BINDING_NODES, BINDING_SLOT_IDS, m.intersector().prim_binding],
+            (kernel, m) => panic!("{}: unknown kernel {kernel} (method {m:?})", k.name),
         };
         let accels = if k.kernel == "rayquery" { vec![BINDING_TLAS] } else { vec![] };
         let buffers = match (k.kernel, k.variant) {
-            ("raycast", "stats") => vec![BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS],
-            ("raycast", "clock") => vec![BINDING_RAYS, BINDING_HITS, BINDING_CYCLES],
+            ("raycast", v) if v.starts_with("stats") => vec![BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS],
+            ("raycast", v) if v.starts_with("clock") => vec![BINDING_RAYS, BINDING_HITS, BINDING_CYCLES],
             ("raycast" | "rayquery", _) => vec![BINDING_RAYS, BINDING_HITS],
             ("pathtrace", _) => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             ("bsdf_probe", _) => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
@@ -264,10 +240,9 @@ fn kernels_bind_what_the_host_provides() {
 fn every_encoding_provides_every_scene_binding_its_kernels_read() {
     let mesh = trilab::scene::Mesh::from_triangles(vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]);
     let bvh = trilab::bvh::Bvh::build(&mesh, &trilab::bvh::BuildOptions::new(4));
-    for m in trilab::encoding::Method::ALL {
+    for m in Method::ALL {
         let provided: Vec<u32> = m.encode(&mesh, &bvh).buffers().iter().map(|b| b.binding).collect();
-        for k in
-            [trilab::kernels::raycast(m, false), trilab::kernels::raycast(m, true), trilab::kernels::raycast_stats(m)]
+        for k in [Raycast::Closest, Raycast::Any, Raycast::Stats].map(|kind| m.raycast_kernel(kind, AccessPath::Texel))
         {
             let l = reflect(k.name, &k.words()).unwrap();
             let per_ray = [BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS];
@@ -285,24 +260,24 @@ fn clock_variant_adds_only_the_cycles_buffer() {
         let l = reflect(k.name, &k.words()).unwrap();
         let set = &l.sets[&0];
         let layouts = buffer_layouts(&k.words()).unwrap();
-        if k.variant == "clock" {
+        if k.variant.starts_with("clock") {
             clock_kernels += 1;
             assert_eq!(set[&BINDING_CYCLES].ty, vk::DescriptorType::STORAGE_BUFFER, "{}", k.name);
             // One u32 per ray, as the host reads it back.
             assert_eq!(layouts[&BINDING_CYCLES], array_of(size_of::<u32>(), &[]), "{}", k.name);
-            let closest = trilab::kernels::KERNELS
-                .iter()
-                .find(|c| c.kernel == "raycast" && c.method == k.method && c.variant == "closest")
-                .unwrap();
+            // Its twin without the clock: closest, on the same access path.
+            let twin = k.variant.replace("clock", "closest");
+            let closest = trilab::kernels::find("raycast", k.method, &twin).unwrap();
             let closest_set = reflect(closest.name, &closest.words()).unwrap().sets[&0].clone();
             let mut without: Vec<u32> = set.keys().copied().filter(|&b| b != BINDING_CYCLES).collect();
             without.sort();
             assert_eq!(without, closest_set.keys().copied().collect::<Vec<_>>(), "{}: bindings besides cycles", k.name);
         } else {
-            assert!(!set.contains_key(&BINDING_CYCLES), "{}: only the clock variant binds the cycles buffer", k.name);
+            assert!(!set.contains_key(&BINDING_CYCLES), "{}: only the clock variants bind the cycles buffer", k.name);
         }
     }
-    assert_eq!(clock_kernels, trilab::encoding::Method::ALL.len());
+    // One per method and access path.
+    assert_eq!(clock_kernels, 2 * Method::ALL.len());
 }
 
 #[test]
@@ -326,7 +301,7 @@ fn raycast_workgroup_size_is_a_specialisation_constant() {
 #[test]
 fn rayquery_binds_the_tlas_as_an_acceleration_structure_beside_the_raycast_buffers() {
     for variant in ["closest", "any"] {
-        let k = trilab::kernels::find_no_intersector("rayquery", variant);
+        let k = trilab::kernels::find("rayquery", trilab::kernels::NO_INTERSECTOR, variant).unwrap();
         let l = reflect(k.name, &k.words()).unwrap();
         let set: Vec<(u32, vk::DescriptorType)> = l.sets[&0].iter().map(|(&b, d)| (b, d.ty)).collect();
         assert_eq!(
@@ -349,7 +324,7 @@ fn rayquery_binds_the_tlas_as_an_acceleration_structure_beside_the_raycast_buffe
             "{}",
             k.name
         );
-        let raycast = buffer_layouts(&trilab::kernels::raycast(trilab::encoding::Method::Mt, false).words()).unwrap();
+        let raycast = buffer_layouts(&Method::Mt.raycast_kernel(Raycast::Closest, AccessPath::Texel).words()).unwrap();
         assert_eq!(layouts, raycast, "{}: buffer layouts differ from raycast.mt.closest", k.name);
     }
 }

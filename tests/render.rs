@@ -6,9 +6,10 @@ mod common;
 use common::{bunny, with_gpu};
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::encoding::Method;
-use trilab::gpu::{Context, GpuScene};
+use trilab::gpu::Context;
+use trilab::pipeline::HostScene;
 use trilab::reference::Reference;
-use trilab::render::{self, KernelChoice, PathtraceKernel, RenderResult, RenderScene, RenderSettings};
+use trilab::render::{self, KernelChoice, PathtraceKernel, RenderResult, RenderScene, RenderSettings, RenderTarget};
 use trilab::scene::{BsdfKind, Material, Mesh};
 
 fn small(mesh: &Mesh, w: u32, h: u32, spp: u32) -> RenderSettings {
@@ -21,13 +22,12 @@ fn small(mesh: &Mesh, w: u32, h: u32, spp: u32) -> RenderSettings {
 }
 
 fn render_mesh(ctx: &Context, mesh: &Mesh, method: Method, s: &RenderSettings) -> RenderResult {
-    let bvh = Bvh::build(mesh, &BuildOptions::new(4));
-    let encoded = method.encode(mesh, &bvh);
-    let scene = RenderScene::new(mesh, &encoded);
-    let kernel = PathtraceKernel::choose(method, scene.bsdf_mask, KernelChoice::Specialised);
-    let gpu = GpuScene::upload_for(ctx, &encoded, kernel.source).unwrap();
-    assert_eq!(gpu.bytes, encoded.gpu_bytes() - 4 * encoded.slot_ids.len(), "uploads all but the slot id table");
-    let r = render::render(ctx, &gpu, &scene, kernel, s, &mut |_| true).unwrap();
+    let host = HostScene::build("test", mesh, &BuildOptions::new(4)).unwrap();
+    let target = RenderTarget::new(ctx, &host, method.into(), KernelChoice::Specialised, s.pixels(), false).unwrap();
+    let plan = &target.device.plan;
+    let slot_ids = plan.buffers.iter().find(|b| b.name == "slot ids").unwrap().bytes;
+    assert_eq!(target.device.bytes as u64, plan.bytes() - slot_ids, "uploads all but the slot id table");
+    let r = render::render(ctx, &target, s, &mut |_| true).unwrap();
     assert_eq!(r.spp, s.spp);
     assert!(!r.interrupted);
     assert_eq!(r.dropped_samples, 0, "{}: samples with NaN or Inf radiance", r.kernel);
@@ -44,8 +44,7 @@ fn gpu_random_numbers_match_the_host_mirror_bit_for_bit() {
     const N: u32 = 1 << 16;
     for seed in [0u32, 1, 0xdead_beef] {
         let out = with_gpu(60, move |ctx| {
-            let src = trilab::kernels::find_no_intersector("rng_probe", "main");
-            let k = ctx.create_kernel(src).unwrap();
+            let k = ctx.create_kernel(rng::probe_kernel()).unwrap();
             let buf = ctx
                 .create_buffer(
                     "rng probe out",
@@ -279,14 +278,14 @@ fn specialisation_constant_selects_the_bsdfs() {
     mesh.materials = vec![Material { name: "glass".into(), kind: BsdfKind::Glass, gpu: glass }];
     let s = RenderSettings { max_depth: 8, ..small(&mesh, 24, 18, 2) };
     let (right, wrong) = with_gpu(120, move |ctx| {
-        let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-        let encoded = Method::Mt.encode(&mesh, &bvh);
-        let scene = RenderScene::new(&mesh, &encoded);
-        let gpu = GpuScene::upload(ctx, &encoded).unwrap();
-        let all = trilab::kernels::find("pathtrace", Method::Mt, "all");
-        let run = |mask| {
-            let k = PathtraceKernel { source: all, spec_mask: mask };
-            render::render(ctx, &gpu, &scene, k, &s, &mut |_| true).unwrap().image()
+        let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
+        let mut target =
+            RenderTarget::new(ctx, &host, Method::Mt.into(), KernelChoice::General, s.pixels(), false).unwrap();
+        let all = target.kernel.source;
+        assert_eq!(all.name, "pathtrace.mt.all");
+        let mut run = |mask| {
+            target.kernel = PathtraceKernel { source: all, spec_mask: mask };
+            render::render(ctx, &target, &s, &mut |_| true).unwrap().image()
         };
         (run(BsdfKind::Glass.bit()), run(BsdfKind::Lambert.bit() | BsdfKind::Mirror.bit()))
     });

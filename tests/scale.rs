@@ -7,9 +7,10 @@ mod common;
 
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::compare::{compare_any, compare_closest};
-use trilab::encoding::Method;
+use trilab::encoding::{AccessPath, DeviceLimits, MemoryPlan, Method, Raycast, SceneAccess};
 use trilab::error::Error;
-use trilab::gpu::{raycast, AccessPath, DeviceLimits, GpuScene, MemoryPlan, RaycastOptions, SceneAccess};
+use trilab::gpu::{ContextOptions, RaycastOptions};
+use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::rays::{differing_hits, random_rays};
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
@@ -60,14 +61,16 @@ fn plans_equal_the_encoded_buffer_sizes_on_the_bunny() {
 fn a_scene_that_does_not_fit_fails_before_upload_and_one_that_fits_uploads() {
     common::with_gpu(120, |ctx| {
         let mesh = common::bunny();
-        let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-        let real = DeviceLimits::of(ctx);
+        let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
+        let bvh = &host.bvh;
+        let real = ctx.limits().unwrap();
         for m in [Method::Mt, Method::QuadUnit] {
-            let plan = MemoryPlan::for_bvh(m, &mesh, &bvh);
+            let plan = MemoryPlan::for_bvh(m, &mesh, bvh);
             // Fits as the device is.
             let path = plan.choose("bunny", SceneAccess::Auto, &real).unwrap();
             assert_eq!(path, AccessPath::Texel);
-            let gpu = GpuScene::upload_with(ctx, &m.encode(&mesh, &bvh), path).unwrap();
+            let gpu = host.upload(ctx, &SceneRequest::new(m)).unwrap();
+            assert_eq!(gpu.access, path);
             assert_eq!(gpu.bytes as u64, plan.gpu_bytes());
             // A device with less memory than the scene: the error names everything.
             let small = DeviceLimits { budget_bytes: Some(plan.gpu_bytes() / 2), ..real };
@@ -79,10 +82,7 @@ fn a_scene_that_does_not_fit_fails_before_upload_and_one_that_fits_uploads() {
             }
             // Buffers beyond one binding, with no address path: names the buffer and the limit.
             let tight = DeviceLimits { max_texel_buffer_elements: 1000, buffer_device_address: false, ..real };
-            let msg = GpuScene::upload_planned(ctx, "bunny", &m.encode(&mesh, &bvh), SceneAccess::Auto, &tight)
-                .err()
-                .expect("does not fit")
-                .to_string();
+            let msg = host.plan_for(m, None, &SceneRequest::new(m), &tight).err().expect("does not fit").to_string();
             assert!(msg.contains("maxTexelBufferElements") && msg.contains("bufferDeviceAddress"), "{msg}");
             // Forced texel path over the limit suggests the address path.
             let tight = DeviceLimits { max_texel_buffer_elements: 1000, ..real };
@@ -98,19 +98,18 @@ fn address_variants_equal_the_texel_variants_and_the_reference_on_the_bunny() {
         assert!(ctx.enabled().buffer_device_address, "lavapipe has bufferDeviceAddress");
         let mesh = common::bunny();
         let rays = random_rays(&mesh.bounds(), 20_000, 77);
-        let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-        let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
+        let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
+        let reference = host.reference().trace_all(&rays, false);
         let mut failures = vec![];
         for m in Method::ALL {
-            let enc = m.encode(&mesh, &bvh);
-            let texel = GpuScene::upload_with(ctx, &enc, AccessPath::Texel).unwrap();
-            let address = GpuScene::upload_with(ctx, &enc, AccessPath::Address).unwrap();
+            let texel = host.upload(ctx, &SceneRequest::new(m).access(SceneAccess::Texel)).unwrap();
+            let address = host.upload(ctx, &SceneRequest::new(m).access(SceneAccess::Address)).unwrap();
+            assert_eq!(texel.access, AccessPath::Texel);
             assert_eq!(address.access, AccessPath::Address);
             let mut hits = vec![];
-            for any in [false, true] {
-                for (scene, path) in [(&texel, AccessPath::Texel), (&address, AccessPath::Address)] {
-                    let k = ctx.create_kernel(trilab::kernels::raycast_via(m, any, path)).unwrap();
-                    hits.push(raycast(ctx, &k, scene, &rays, &OPTS).unwrap().hits);
+            for kind in [Raycast::Closest, Raycast::Any] {
+                for scene in [&texel, &address] {
+                    hits.push(scene.cast(ctx, kind, &rays, &OPTS).unwrap().hits);
                 }
             }
             // Same arithmetic, only the loads differ: bitwise-equal hits.
@@ -142,17 +141,15 @@ fn a_million_triangles_through_the_automatically_chosen_address_path_match_the_r
     let reference = Reference::new(&mesh, &bvh).trace_all(&rays, false);
     let hits_ref = reference.iter().filter(|h| h.is_hit()).count();
     assert!(hits_ref > 2_000, "the rays should hit the sheet ({hits_ref})");
-    let plan = MemoryPlan::for_bvh(Method::Mt, &mesh, &bvh);
-    let (agreement, any, path) = common::with_gpu(300, move |ctx| {
-        // A device whose texel buffers hold 2^20 texels: MT's 1M triangle slots do not fit one.
-        let limits = DeviceLimits { max_texel_buffer_elements: 1 << 20, ..DeviceLimits::of(ctx) };
-        let path = plan.choose("sheet 1M", SceneAccess::Auto, &limits).unwrap();
-        let gpu = GpuScene::upload_with(ctx, &Method::Mt.encode(&mesh, &bvh), path).unwrap();
-        let closest = ctx.create_kernel(trilab::kernels::raycast_via(Method::Mt, false, path)).unwrap();
-        let any_k = ctx.create_kernel(trilab::kernels::raycast_via(Method::Mt, true, path)).unwrap();
-        let c = raycast(ctx, &closest, &gpu, &rays, &OPTS).unwrap().hits;
-        let a = raycast(ctx, &any_k, &gpu, &rays, &OPTS).unwrap().hits;
-        (compare_closest(&mesh, &rays, &c, &reference), compare_any(&mesh, &rays, &c, &a), path)
+    // A device whose texel buffers hold 2^20 texels: MT's 1M triangle slots do not fit one.
+    let options =
+        ContextOptions { test_limits: Some("max_texel_buffer_elements=1048576".into()), ..Default::default() };
+    let (agreement, any, path) = common::with_gpu_options(300, options, move |ctx| {
+        let host = HostScene::with_bvh("sheet 1M", &mesh, bvh);
+        let gpu = host.upload(ctx, &SceneRequest::new(Method::Mt)).unwrap();
+        let c = gpu.cast(ctx, Raycast::Closest, &rays, &OPTS).unwrap().hits;
+        let a = gpu.cast(ctx, Raycast::Any, &rays, &OPTS).unwrap().hits;
+        (compare_closest(&mesh, &rays, &c, &reference), compare_any(&mesh, &rays, &c, &a), gpu.access)
     });
     assert_eq!(path, AccessPath::Address);
     assert!(agreement.passes(0.9999), "{}", agreement.summary());

@@ -13,7 +13,9 @@ mod common;
 
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::encoding::Method;
-use trilab::gpu::{raycast, raycast_stats, GpuScene, RaycastOptions, TraversalCounts, TraversalSummary};
+use trilab::encoding::Raycast;
+use trilab::gpu::{RaycastOptions, TraversalCounts, TraversalSummary};
+use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::rays::{primary_rays, random_rays, Camera, Ray};
 use trilab::scene::Mesh;
 use trilab::traversal::{ray_steps, ray_steps_with, RaySteps};
@@ -80,17 +82,16 @@ fn gpu_counts_match_the_cpu_mirror_on_the_bunny() {
         let mut failures = vec![];
         // Leaf size 7: leaves of 5-7 triangles, so the Quad methods test padding slots.
         for leaf in [4, 7] {
-            let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
+            let host = HostScene::build("bunny", &mesh, &BuildOptions::new(leaf)).unwrap();
             for (kind, rays) in &ray_sets {
-                let cpu = ray_steps(&mesh, &bvh, rays);
-                let cpu_conservative = ray_steps_with(&mesh, &bvh, rays, true);
+                let cpu = ray_steps(&mesh, &host.bvh, rays);
+                let cpu_conservative = ray_steps_with(&mesh, &host.bvh, rays, true);
                 for method in Method::ALL {
-                    let scene = GpuScene::upload(ctx, &method.encode(&mesh, &bvh)).unwrap();
-                    let stats_kernel = ctx.create_kernel(trilab::kernels::raycast_stats(method)).unwrap();
-                    let closest_kernel = ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap();
-                    let (hits, counts) = raycast_stats(ctx, &stats_kernel, &scene, rays).unwrap();
+                    let scene = host.upload(ctx, &SceneRequest::new(method)).unwrap();
                     let opts = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
-                    let closest = raycast(ctx, &closest_kernel, &scene, rays, &opts).unwrap();
+                    let stats = scene.cast(ctx, Raycast::Stats, rays, &opts).unwrap();
+                    let (hits, counts) = (stats.hits, stats.traversal.expect("the stats kernel writes counters"));
+                    let closest = scene.cast(ctx, Raycast::Closest, rays, &opts).unwrap();
                     assert!(closest.traversal.is_none(), "the closest variant writes no counters");
                     let hits_differing = same_bits(&hits, &closest.hits);
                     if hits_differing > 0 {
@@ -127,9 +128,7 @@ fn the_check_rejects_counts_of_another_tree() {
         let mesh = common::bunny();
         let rays = random_rays(&mesh.bounds(), 5_000, 3);
         let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-        let scene = GpuScene::upload(ctx, &Method::Mt.encode(&mesh, &bvh)).unwrap();
-        let k = ctx.create_kernel(trilab::kernels::raycast_stats(Method::Mt)).unwrap();
-        let (_, counts) = raycast_stats(ctx, &k, &scene, &rays).unwrap();
+        let (_, counts) = common::cast_stats(ctx, Method::Mt, &mesh, &bvh, &rays);
         (mesh, rays, bvh, counts)
     });
     let (mesh, rays, bvh, gpu) = counts;
@@ -160,14 +159,7 @@ fn hand_counted_tree() {
     // The first ray hits the first square; the second misses the root box.
     let rays = [Ray::new([0.3, 0.2, -1.0], [0.0, 0.0, 1.0]), Ray::new([50.0, 50.0, -1.0], [0.0, 0.0, 1.0])];
     let out = common::with_gpu(300, move |ctx| {
-        Method::ALL
-            .iter()
-            .map(|&m| {
-                let scene = GpuScene::upload(ctx, &m.encode(&mesh, &bvh)).unwrap();
-                let k = ctx.create_kernel(trilab::kernels::raycast_stats(m)).unwrap();
-                (m, raycast_stats(ctx, &k, &scene, &rays).unwrap())
-            })
-            .collect::<Vec<_>>()
+        Method::ALL.iter().map(|&m| (m, common::cast_stats(ctx, m, &mesh, &bvh, &rays))).collect::<Vec<_>>()
     });
     for (m, (hits, counts)) in out {
         assert!(hits[0].is_hit() && !hits[1].is_hit(), "{m}");

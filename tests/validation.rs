@@ -5,7 +5,9 @@
 mod common;
 
 use ash::vk;
+use trilab::encoding::Raycast;
 use trilab::gpu::{Context, ContextOptions, Resource, Validation};
+use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::shared::{BINDING_HITS, BINDING_RAYS, BINDING_RNG_PROBE_OUT};
 
 /// Two dispatches in one command buffer: the rng probe writes a buffer, then a raycast kernel
@@ -16,11 +18,11 @@ fn write_then_read(with_barrier: bool) -> Vec<String> {
     assert!(ctx.sync_validation_enabled(), "the validation layer offers VK_EXT_validation_features");
     let log = ctx.validation_log();
     {
-        let writer = ctx.create_kernel(trilab::kernels::find_no_intersector("rng_probe", "main")).unwrap();
-        let reader = ctx.create_kernel(trilab::kernels::raycast(trilab::encoding::Method::Mt, false)).unwrap();
+        let writer = ctx.create_kernel(trilab::render::rng::probe_kernel()).unwrap();
         let mesh = common::bunny();
-        let bvh = trilab::bvh::Bvh::build(&mesh, &trilab::bvh::BuildOptions::new(4));
-        let scene = trilab::gpu::GpuScene::upload(&ctx, &trilab::encoding::Method::Mt.encode(&mesh, &bvh)).unwrap();
+        let host = HostScene::build("bunny", &mesh, &trilab::bvh::BuildOptions::new(4)).unwrap();
+        let scene = host.upload(&ctx, &SceneRequest::new(trilab::encoding::Method::Mt)).unwrap();
+        let reader = scene.kernel(&ctx, Raycast::Closest).unwrap();
         const N: u32 = 64;
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let gpu = gpu_allocator::MemoryLocation::GpuOnly;
@@ -63,39 +65,39 @@ fn a_missing_barrier_is_reported_as_a_sync_hazard() {
 /// tests/bsdf_probe.rs and tests/render.rs.)
 #[test]
 fn every_kernel_family_runs_clean_under_synchronization_validation() {
-    use trilab::bvh::{BuildOptions, Bvh};
-    use trilab::gpu::{raycast, raycast_stats, AccessPath, GpuScene, RaycastOptions};
-    use trilab::render::{self, PathtraceKernel, RenderScene, RenderSettings};
+    use trilab::bvh::BuildOptions;
+    use trilab::encoding::SceneAccess;
+    use trilab::gpu::RaycastOptions;
+    use trilab::render::{self, KernelChoice, RenderSettings, RenderTarget};
     use trilab::scene::{BsdfKind, GpuMaterial, Material};
     common::with_gpu(900, |ctx| {
         assert!(ctx.sync_validation_enabled());
         let mesh = common::bunny();
-        let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+        let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
         let rays = trilab::rays::random_rays(&mesh.bounds(), 600, 2);
         // Two batches, so consecutive submits share the output buffers.
         let opts = RaycastOptions { warmup: 1, repeat: 1, batch_rays: 512 };
         for m in trilab::analyze::available_methods(ctx.enabled()) {
-            let encoded = m.encode(&mesh, &bvh);
-            let scene = GpuScene::upload(ctx, &encoded).unwrap();
-            for any in [false, true] {
-                let k = ctx.create_kernel(trilab::kernels::raycast(m, any)).unwrap();
-                assert_eq!(raycast(ctx, &k, &scene, &rays, &opts).unwrap().hits.len(), rays.len());
-            }
-            // The buffer-device-address variants (scenes beyond one binding's range).
+            // Every ray-casting variant, through texel buffers and (scenes beyond one binding's
+            // range) buffer device addresses.
+            let mut paths = vec![SceneAccess::Texel];
             if ctx.enabled().buffer_device_address {
-                let addressed = GpuScene::upload_with(ctx, &encoded, AccessPath::Address).unwrap();
-                for any in [false, true] {
-                    let k = ctx.create_kernel(trilab::kernels::raycast_via(m, any, AccessPath::Address)).unwrap();
-                    assert_eq!(raycast(ctx, &k, &addressed, &rays, &opts).unwrap().hits.len(), rays.len());
-                }
+                paths.push(SceneAccess::Address);
             }
-            let k = ctx.create_kernel(trilab::kernels::raycast_stats(m)).unwrap();
-            assert_eq!(raycast_stats(ctx, &k, &scene, &rays).unwrap().1.len(), rays.len());
-            if ctx.enabled().shader_clock {
-                let k = ctx.create_kernel(trilab::kernels::find("raycast", m, "clock")).unwrap();
-                let d = trilab::profile::dispatch_once(ctx, &k, &scene, &rays, ctx.enabled().pipeline_statistics_query)
-                    .unwrap();
-                assert_eq!(d.cycles.unwrap().len(), rays.len());
+            for access in paths {
+                let scene = host.upload(ctx, &SceneRequest::new(m).access(access)).unwrap();
+                for kind in [Raycast::Closest, Raycast::Any] {
+                    assert_eq!(scene.cast(ctx, kind, &rays, &opts).unwrap().hits.len(), rays.len());
+                }
+                let once = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
+                let stats = scene.cast(ctx, Raycast::Stats, &rays, &once).unwrap();
+                assert_eq!(stats.traversal.unwrap().len(), rays.len());
+                if ctx.enabled().shader_clock {
+                    let k = scene.kernel(ctx, Raycast::Clock).unwrap();
+                    let stats = ctx.enabled().pipeline_statistics_query;
+                    let d = trilab::harness::profile::dispatch_once(ctx, &k, &scene, &rays, stats).unwrap();
+                    assert_eq!(d.cycles.unwrap().len(), rays.len());
+                }
             }
             // Each single-BSDF kernel on the bunny made of that BSDF, and the all-BSDF one.
             let mut kinds: Vec<Option<BsdfKind>> = BsdfKind::ALL.into_iter().map(Some).collect();
@@ -106,14 +108,12 @@ fn every_kernel_family_runs_clean_under_synchronization_validation() {
                     mesh.materials = vec![Material { name: "m".into(), kind, gpu: GpuMaterial::new(kind) }];
                     mesh.material_ids.iter_mut().for_each(|i| *i = 0);
                 }
-                let rs = RenderScene::new(&mesh, &encoded);
-                let choice =
-                    if kind.is_some() { render::KernelChoice::Specialised } else { render::KernelChoice::General };
-                let kernel = PathtraceKernel::choose(m, rs.bsdf_mask, choice);
-                let gpu = GpuScene::upload_for(ctx, &encoded, kernel.source).unwrap();
+                let choice = if kind.is_some() { KernelChoice::Specialised } else { KernelChoice::General };
                 let mut s = RenderSettings::paper(&mesh);
                 (s.width, s.height, s.spp, s.max_depth, s.submit_ms) = (8, 6, 3, 4, 20.0);
-                let r = render::render(ctx, &gpu, &rs, kernel, &s, &mut |_| true).unwrap();
+                let host = HostScene::with_bvh("bunny", &mesh, host.bvh.clone());
+                let target = RenderTarget::new(ctx, &host, m.into(), choice, s.pixels(), false).unwrap();
+                let r = render::render(ctx, &target, &s, &mut |_| true).unwrap();
                 assert_eq!(r.spp, 3, "{}", r.kernel);
             }
         }

@@ -29,7 +29,7 @@ vec4 load_bw_row(uint slot, uint row) {
 
 #define PRIM_STRUCT BwTriangle
 // Triangle slots one primitive holds (one triangle per slot).
-#define PRIM_TRIANGLES 1u
+#define PRIM_TRIANGLES 1
 BwTriangle load_prim(uint slot) {
     BwTriangle t;
     t.plane = load_bw_row(slot, 0u);
@@ -44,43 +44,30 @@ vec3 bw_permute(vec3 p, float k) {
     return k == 0.0 ? p : (k == 1.0 ? p.yzx : p.zxy);
 }
 
-bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
-    bool found = false;
-    for (uint s = first; s < first + count; ++s) {
-        vec4 pl = load_bw_row(s, 0u);
-        if (pl.w > 2.0) {
-            continue; // never hit
-        }
-        vec3 o = bw_permute(r.origin, pl.w);
-        vec3 d = bw_permute(r.dir, pl.w);
-        float wd = d.x + pl.x * d.y + pl.y * d.z;
-        if (wd == 0.0) {
-            continue; // ray parallel to the plane
-        }
-        float t = -(o.x + pl.x * o.y + pl.y * o.z + pl.z) / wd;
-        if (!(t >= r.tmin && t <= h.t)) {
-            continue;
-        }
-        vec2 p = o.yz + t * d.yz;
-        vec4 ur = load_bw_row(s, 1u);
-        float u = ur.x * p.x + ur.y * p.y + ur.z;
-        if (!(u >= 0.0 && u <= 1.0)) {
-            continue;
-        }
-        vec4 vr = load_bw_row(s, 2u);
-        float v = vr.x * p.x + vr.y * p.y + vr.z;
-        if (v >= 0.0 && u + v <= 1.0) {
-            h.t = t;
-            h.slot = s;
-            h.u = u;
-            h.v = v;
-            found = true;
-            if (any_hit) {
-                return true;
-            }
-        }
+bool intersect_triangle(TraceRay r, uint s, float tmax, out float t, out float u, out float v) {
+    vec4 pl = load_bw_row(s, 0u);
+    if (pl.w > 2.0) {
+        return false; // never hit
     }
-    return found;
+    vec3 o = bw_permute(r.origin, pl.w);
+    vec3 d = bw_permute(r.dir, pl.w);
+    float wd = d.x + pl.x * d.y + pl.y * d.z;
+    if (wd == 0.0) {
+        return false; // ray parallel to the plane
+    }
+    t = -(o.x + pl.x * o.y + pl.y * o.z + pl.z) / wd;
+    if (!(t >= r.tmin && t <= tmax)) {
+        return false;
+    }
+    vec2 p = o.yz + t * d.yz;
+    vec4 ur = load_bw_row(s, 1u);
+    u = ur.x * p.x + ur.y * p.y + ur.z;
+    if (!(u >= 0.0 && u <= 1.0)) {
+        return false;
+    }
+    vec4 vr = load_bw_row(s, 2u);
+    v = vr.x * p.x + vr.y * p.y + vr.z;
+    return v >= 0.0 && u + v <= 1.0;
 }
 
 #endif

@@ -20,7 +20,7 @@ SCENE_BUFFER(BINDING_PRIMS, rgba32f, F4, quad_mts);
 
 #define PRIM_STRUCT QuadMt
 // Triangle slots one primitive holds (a quad of four slots, padding included).
-#define PRIM_TRIANGLES 4u
+#define PRIM_TRIANGLES 4
 QuadMt load_prim(uint qi) {
     int b = int(9u * qi);
     QuadMt q;
@@ -36,48 +36,30 @@ QuadMt load_prim(uint qi) {
     return q;
 }
 
-// Accepts lane `c` (x, y, z or w) of the four results if it is a valid, nearer hit.
-#define QUAD_MT_LANE(c, k)                                                                     \
-    if (det.c != 0.0 && u.c >= 0.0 && v.c >= 0.0 && u.c + v.c <= 1.0 && t.c >= r.tmin &&      \
-        t.c <= h.t) {                                                                          \
-        h.t = t.c;                                                                             \
-        h.slot = 4u * qi + k;                                                                  \
-        h.u = u.c;                                                                             \
-        h.v = v.c;                                                                             \
-        found = true;                                                                          \
-    }
+// Whether lane `c` (x, y, z or w) is a valid hit at t >= tmin (the leaf loop compares t with
+// the closest hit so far, lane by lane).
+#define QUAD_MT_HIT(c) (det.c != 0.0 && u.c >= 0.0 && v.c >= 0.0 && u.c + v.c <= 1.0 && t.c >= r.tmin)
 
-bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
-    bool found = false;
-    uint end = first + (count + 3u) / 4u;
-    for (uint qi = first; qi < end; ++qi) {
-        QuadMt q = load_prim(qi);
-        vec4 e1x = q.v1x - q.v0x, e1y = q.v1y - q.v0y, e1z = q.v1z - q.v0z;
-        vec4 e2x = q.v2x - q.v0x, e2y = q.v2y - q.v0y, e2z = q.v2z - q.v0z;
-        // P = D x E2
-        vec4 px = r.dir.y * e2z - r.dir.z * e2y;
-        vec4 py = r.dir.z * e2x - r.dir.x * e2z;
-        vec4 pz = r.dir.x * e2y - r.dir.y * e2x;
-        vec4 det = e1x * px + e1y * py + e1z * pz;
-        vec4 inv_det = 1.0 / det;
-        // T = O - V0
-        vec4 tx = r.origin.x - q.v0x, ty = r.origin.y - q.v0y, tz = r.origin.z - q.v0z;
-        vec4 u = (tx * px + ty * py + tz * pz) * inv_det;
-        // Q = T x E1
-        vec4 qx = ty * e1z - tz * e1y;
-        vec4 qy = tz * e1x - tx * e1z;
-        vec4 qz = tx * e1y - ty * e1x;
-        vec4 v = (r.dir.x * qx + r.dir.y * qy + r.dir.z * qz) * inv_det;
-        vec4 t = (e2x * qx + e2y * qy + e2z * qz) * inv_det;
-        QUAD_MT_LANE(x, 0u)
-        QUAD_MT_LANE(y, 1u)
-        QUAD_MT_LANE(z, 2u)
-        QUAD_MT_LANE(w, 3u)
-        if (any_hit && found) {
-            return true;
-        }
-    }
-    return found;
+bvec4 intersect_quad(TraceRay r, uint qi, out vec4 t, out vec4 u, out vec4 v) {
+    QuadMt q = load_prim(qi);
+    vec4 e1x = q.v1x - q.v0x, e1y = q.v1y - q.v0y, e1z = q.v1z - q.v0z;
+    vec4 e2x = q.v2x - q.v0x, e2y = q.v2y - q.v0y, e2z = q.v2z - q.v0z;
+    // P = D x E2
+    vec4 px = r.dir.y * e2z - r.dir.z * e2y;
+    vec4 py = r.dir.z * e2x - r.dir.x * e2z;
+    vec4 pz = r.dir.x * e2y - r.dir.y * e2x;
+    vec4 det = e1x * px + e1y * py + e1z * pz;
+    vec4 inv_det = 1.0 / det;
+    // T = O - V0
+    vec4 tx = r.origin.x - q.v0x, ty = r.origin.y - q.v0y, tz = r.origin.z - q.v0z;
+    u = (tx * px + ty * py + tz * pz) * inv_det;
+    // Q = T x E1
+    vec4 qx = ty * e1z - tz * e1y;
+    vec4 qy = tz * e1x - tx * e1z;
+    vec4 qz = tx * e1y - ty * e1x;
+    v = (r.dir.x * qx + r.dir.y * qy + r.dir.z * qz) * inv_det;
+    t = (e2x * qx + e2y * qy + e2z * qz) * inv_det;
+    return bvec4(QUAD_MT_HIT(x), QUAD_MT_HIT(y), QUAD_MT_HIT(z), QUAD_MT_HIT(w));
 }
 
 #endif

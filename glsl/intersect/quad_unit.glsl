@@ -22,7 +22,7 @@ SCENE_BUFFER(BINDING_PRIMS, rgba32f, F4, quad_units);
 
 #define PRIM_STRUCT QuadUnit
 // Triangle slots one primitive holds (a quad of four slots, padding included).
-#define PRIM_TRIANGLES 4u
+#define PRIM_TRIANGLES 4
 QuadUnit load_prim(uint qi) {
     int b = int(12u * qi);
     QuadUnit q;
@@ -41,36 +41,20 @@ QuadUnit load_prim(uint qi) {
     return q;
 }
 
-#define QUAD_UNIT_LANE(c, k)                                                                   \
-    if (dz.c != 0.0 && t.c >= r.tmin && t.c <= h.t && u.c >= 0.0 && v.c >= 0.0 && u.c + v.c <= 1.0) {        \
-        h.t = t.c;                                                                             \
-        h.slot = 4u * qi + k;                                                                  \
-        h.u = u.c;                                                                             \
-        h.v = v.c;                                                                             \
-        found = true;                                                                          \
-    }
+// Whether lane `c` (x, y, z or w) is a valid hit at t >= tmin (the leaf loop compares t with
+// the closest hit so far, lane by lane).
+#define QUAD_UNIT_HIT(c) (dz.c != 0.0 && t.c >= r.tmin && u.c >= 0.0 && v.c >= 0.0 && u.c + v.c <= 1.0)
 
-bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
-    bool found = false;
-    uint end = first + (count + 3u) / 4u;
+bvec4 intersect_quad(TraceRay r, uint qi, out vec4 t, out vec4 u, out vec4 v) {
     vec3 o = r.origin;
     vec3 d = r.dir;
-    for (uint qi = first; qi < end; ++qi) {
-        QuadUnit q = load_prim(qi);
-        vec4 oz = q.m2x * o.x + q.m2y * o.y + q.m2z * o.z + q.n2;
-        vec4 dz = q.m2x * d.x + q.m2y * d.y + q.m2z * d.z;
-        vec4 t = -oz / dz;
-        vec4 u = (q.m0x * o.x + q.m0y * o.y + q.m0z * o.z + q.n0) + t * (q.m0x * d.x + q.m0y * d.y + q.m0z * d.z);
-        vec4 v = (q.m1x * o.x + q.m1y * o.y + q.m1z * o.z + q.n1) + t * (q.m1x * d.x + q.m1y * d.y + q.m1z * d.z);
-        QUAD_UNIT_LANE(x, 0u)
-        QUAD_UNIT_LANE(y, 1u)
-        QUAD_UNIT_LANE(z, 2u)
-        QUAD_UNIT_LANE(w, 3u)
-        if (any_hit && found) {
-            return true;
-        }
-    }
-    return found;
+    QuadUnit q = load_prim(qi);
+    vec4 oz = q.m2x * o.x + q.m2y * o.y + q.m2z * o.z + q.n2;
+    vec4 dz = q.m2x * d.x + q.m2y * d.y + q.m2z * d.z;
+    t = -oz / dz;
+    u = (q.m0x * o.x + q.m0y * o.y + q.m0z * o.z + q.n0) + t * (q.m0x * d.x + q.m0y * d.y + q.m0z * d.z);
+    v = (q.m1x * o.x + q.m1y * o.y + q.m1z * o.z + q.n1) + t * (q.m1x * d.x + q.m1y * d.y + q.m1z * d.z);
+    return bvec4(QUAD_UNIT_HIT(x), QUAD_UNIT_HIT(y), QUAD_UNIT_HIT(z), QUAD_UNIT_HIT(w));
 }
 
 #endif

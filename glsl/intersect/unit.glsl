@@ -24,7 +24,7 @@ vec4 load_unit_row(uint slot, uint row) {
 
 #define PRIM_STRUCT UnitTriangle
 // Triangle slots one primitive holds (one triangle per slot).
-#define PRIM_TRIANGLES 1u
+#define PRIM_TRIANGLES 1
 UnitTriangle load_prim(uint slot) {
     UnitTriangle t;
     t.row0 = load_unit_row(slot, 0u);
@@ -33,38 +33,25 @@ UnitTriangle load_prim(uint slot) {
     return t;
 }
 
-bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
-    bool found = false;
-    for (uint s = first; s < first + count; ++s) {
-        vec4 r2 = load_unit_row(s, 2u);
-        float oz = dot(r2.xyz, r.origin) + r2.w;
-        float dz = dot(r2.xyz, r.dir);
-        if (dz == 0.0) {
-            continue; // ray parallel to the plane
-        }
-        float t = -oz / dz;
-        if (!(t >= r.tmin && t <= h.t)) {
-            continue;
-        }
-        vec4 r0 = load_unit_row(s, 0u);
-        float u = dot(r0.xyz, r.origin) + r0.w + t * dot(r0.xyz, r.dir);
-        if (!(u >= 0.0 && u <= 1.0)) {
-            continue;
-        }
-        vec4 r1 = load_unit_row(s, 1u);
-        float v = dot(r1.xyz, r.origin) + r1.w + t * dot(r1.xyz, r.dir);
-        if (v >= 0.0 && u + v <= 1.0) {
-            h.t = t;
-            h.slot = s;
-            h.u = u;
-            h.v = v;
-            found = true;
-            if (any_hit) {
-                return true;
-            }
-        }
+bool intersect_triangle(TraceRay r, uint s, float tmax, out float t, out float u, out float v) {
+    vec4 r2 = load_unit_row(s, 2u);
+    float oz = dot(r2.xyz, r.origin) + r2.w;
+    float dz = dot(r2.xyz, r.dir);
+    if (dz == 0.0) {
+        return false; // ray parallel to the plane
     }
-    return found;
+    t = -oz / dz;
+    if (!(t >= r.tmin && t <= tmax)) {
+        return false;
+    }
+    vec4 r0 = load_unit_row(s, 0u);
+    u = dot(r0.xyz, r.origin) + r0.w + t * dot(r0.xyz, r.dir);
+    if (!(u >= 0.0 && u <= 1.0)) {
+        return false;
+    }
+    vec4 r1 = load_unit_row(s, 1u);
+    v = dot(r1.xyz, r.origin) + r1.w + t * dot(r1.xyz, r.dir);
+    return v >= 0.0 && u + v <= 1.0;
 }
 
 #endif

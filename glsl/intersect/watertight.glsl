@@ -69,7 +69,7 @@ struct WatertightRay {
 };
 
 // Set by trace() once per ray, through INTERSECTOR_RAY_SETUP (traverse.glsl), before any leaf is
-// tested; intersect_leaf reads it. One traced ray at a time per invocation, so one variable.
+// tested; intersect_triangle reads it. One traced ray at a time per invocation, so one variable.
 WatertightRay wt_ray;
 
 WatertightRay watertight_setup(TraceRay r) {
@@ -87,65 +87,56 @@ WatertightRay watertight_setup(TraceRay r) {
     return w;
 }
 
-#define INTERSECTOR_RAY_SETUP(r) wt_ray = watertight_setup(r)
+#define INTERSECTOR_RAY_SETUP(r, h) wt_ray = watertight_setup(r)
 
-bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool any_hit) {
-    bool found = false;
+bool intersect_triangle(TraceRay r, uint s, float tmax, out float t, out float u, out float v) {
     uint kx = wt_ray.kx;
     uint ky = wt_ray.ky;
     uint kz = wt_ray.kz;
     float sx = wt_ray.shear.x;
     float sy = wt_ray.shear.y;
     float sz = wt_ray.shear.z;
-    for (uint s = first; s < first + count; ++s) {
-        uvec3 idx = SCENE_TEXEL(mt_triangles, s).xyz;
-        // Vertices relative to the ray origin, then sheared: the same instructions for every
-        // vertex slot, so a shared vertex gets the same bits in every triangle (precise: no FMA).
-        precise vec3 a = load_vertex(idx.x) - r.origin;
-        precise vec3 b = load_vertex(idx.y) - r.origin;
-        precise vec3 c = load_vertex(idx.z) - r.origin;
-        float az = wt_pick(a, kz);
-        float bz = wt_pick(b, kz);
-        float cz = wt_pick(c, kz);
-        precise float ax = wt_pick(a, kx) - sx * az;
-        precise float ay = wt_pick(a, ky) - sy * az;
-        precise float bx = wt_pick(b, kx) - sx * bz;
-        precise float by = wt_pick(b, ky) - sy * bz;
-        precise float cx = wt_pick(c, kx) - sx * cz;
-        precise float cy = wt_pick(c, ky) - sy * cz;
-        // Edge functions: a shared edge's two triangles must get exactly opposite values (precise).
-        precise float eu = cx * by - cy * bx;
-        precise float ev = ax * cy - ay * cx;
-        precise float ew = bx * ay - by * ax;
-        if ((eu < 0.0 || ev < 0.0 || ew < 0.0) && (eu > 0.0 || ev > 0.0 || ew > 0.0)) {
-            continue; // the point (0, 0) is outside: mixed signs (zeros are on the edge)
-        }
-        float det = eu + ev + ew;
-        if (det == 0.0) {
-            continue; // ray parallel to the plane, or a degenerate projection
-        }
-        // Scaled distance, compared with the interval scaled by |det| (no division yet).
-        float tt = eu * (sz * az) + ev * (sz * bz) + ew * (sz * cz);
-        float adet = abs(det);
-        float st = det < 0.0 ? -tt : tt;
-        if (!(st >= r.tmin * adet && st <= h.t * adet)) {
-            continue;
-        }
-        float inv_det = 1.0 / det;
-        float t = tt * inv_det;
-        if (!(t >= r.tmin && t <= h.t)) {
-            continue; // the quotient rounded out of the interval
-        }
-        h.t = t;
-        h.slot = s;
-        h.u = ev * inv_det;
-        h.v = ew * inv_det;
-        found = true;
-        if (any_hit) {
-            return true;
-        }
+    uvec3 idx = SCENE_TEXEL(mt_triangles, s).xyz;
+    // Vertices relative to the ray origin, then sheared: the same instructions for every
+    // vertex slot, so a shared vertex gets the same bits in every triangle (precise: no FMA).
+    precise vec3 a = load_vertex(idx.x) - r.origin;
+    precise vec3 b = load_vertex(idx.y) - r.origin;
+    precise vec3 c = load_vertex(idx.z) - r.origin;
+    float az = wt_pick(a, kz);
+    float bz = wt_pick(b, kz);
+    float cz = wt_pick(c, kz);
+    precise float ax = wt_pick(a, kx) - sx * az;
+    precise float ay = wt_pick(a, ky) - sy * az;
+    precise float bx = wt_pick(b, kx) - sx * bz;
+    precise float by = wt_pick(b, ky) - sy * bz;
+    precise float cx = wt_pick(c, kx) - sx * cz;
+    precise float cy = wt_pick(c, ky) - sy * cz;
+    // Edge functions: a shared edge's two triangles must get exactly opposite values (precise).
+    precise float eu = cx * by - cy * bx;
+    precise float ev = ax * cy - ay * cx;
+    precise float ew = bx * ay - by * ax;
+    if ((eu < 0.0 || ev < 0.0 || ew < 0.0) && (eu > 0.0 || ev > 0.0 || ew > 0.0)) {
+        return false; // the point (0, 0) is outside: mixed signs (zeros are on the edge)
     }
-    return found;
+    float det = eu + ev + ew;
+    if (det == 0.0) {
+        return false; // ray parallel to the plane, or a degenerate projection
+    }
+    // Scaled distance, compared with the interval scaled by |det| (no division yet).
+    float tt = eu * (sz * az) + ev * (sz * bz) + ew * (sz * cz);
+    float adet = abs(det);
+    float st = det < 0.0 ? -tt : tt;
+    if (!(st >= r.tmin * adet && st <= tmax * adet)) {
+        return false;
+    }
+    float inv_det = 1.0 / det;
+    t = tt * inv_det;
+    if (!(t >= r.tmin && t <= tmax)) {
+        return false; // the quotient rounded out of the interval
+    }
+    u = ev * inv_det;
+    v = ew * inv_det;
+    return true;
 }
 
 #endif

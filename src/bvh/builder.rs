@@ -45,6 +45,9 @@ pub const MAX_DEPTH: u32 = crate::shared::STACK_SIZE;
 /// Largest supported `max_leaf_size`.
 pub const MAX_LEAF_SIZE: u32 = 16;
 
+/// The triangles per leaf Shumskiy & Parshin study (their Tables 1-4).
+pub const PAPER_LEAF_SIZES: [u32; 6] = [1, 2, 3, 4, 8, 16];
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum Builder {
     /// Binned SAH with this many bins per axis.
@@ -103,6 +106,22 @@ impl BuildOptions {
     /// Intersection tests for a leaf of `n` triangles: ceil(n / sah_group).
     pub fn tests(&self, n: usize) -> f64 {
         n.div_ceil(self.sah_group.max(1) as usize) as f64
+    }
+
+    /// Refuses options the builder cannot honour, naming the option: a leaf size outside
+    /// 1..=16, or a SAH grouping outside 1..=16 (what `Bvh::build` asserts).
+    pub fn check(&self) -> crate::error::Result<()> {
+        let usage = |m: String| Err(crate::error::Error::Usage(m));
+        if !(1..=MAX_LEAF_SIZE).contains(&self.max_leaf_size) {
+            return usage(format!("--leaf-size {}: must be 1..={MAX_LEAF_SIZE}", self.max_leaf_size));
+        }
+        if !(1..=MAX_LEAF_SIZE).contains(&self.sah_group) {
+            return usage(format!(
+                "--sah-group {}: must be 1..={MAX_LEAF_SIZE} (4 prices leaves in quads)",
+                self.sah_group
+            ));
+        }
+        Ok(())
     }
 
     pub fn new(max_leaf_size: u32) -> Self {

@@ -11,7 +11,7 @@ pub mod epo;
 mod node;
 
 pub use crate::scene::Aabb;
-pub use builder::{BuildOptions, Builder, LeafPolicy, MAX_DEPTH, MAX_LEAF_SIZE};
+pub use builder::{BuildOptions, Builder, LeafPolicy, MAX_DEPTH, MAX_LEAF_SIZE, PAPER_LEAF_SIZES};
 pub use node::BvhNode;
 
 use crate::scene::Mesh;

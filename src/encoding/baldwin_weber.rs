@@ -25,14 +25,31 @@
 //! (y, z), (x, z), (x, y); the cyclic order here, (y, z), (z, x), (x, y), only swaps the y case's
 //! two coefficients and lets one code path with a swizzle serve all three cases.
 
+use std::mem::{offset_of, size_of};
+
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{slot_layout, EncodedScene, Method, SceneBuffer};
+use super::{slot_layout, BufferPlan, Encoding, HostLayout, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
-use crate::shared::Texel;
-use crate::shared::{BINDING_PRIMS, MISS_ID};
+use crate::shared::{Texel, BINDING_PRIMS, MISS_ID};
+
+pub const INTERSECTOR: Intersector = Intersector {
+    name: "baldwin-weber",
+    glsl: "baldwin_weber",
+    title: "Baldwin-Weber",
+    about: "Baldwin & Weber (JCGT 5(3), 2016), the affine map with the normal's largest axis as fixed \
+            column: 9 coefficients + the column (48 B per triangle).",
+    in_paper: false,
+    encode,
+    plan,
+    prim_binding: BINDING_PRIMS,
+    prim_layout: HostLayout {
+        size: size_of::<BwTriangle>(),
+        offsets: &[offset_of!(BwTriangle, plane), offset_of!(BwTriangle, u_row), offset_of!(BwTriangle, v_row)],
+    },
+};
 
 /// GLSL `BwTriangle { vec4 plane; vec4 u_row; vec4 v_row; }` (std430: 48 bytes).
 #[repr(C)]
@@ -85,7 +102,12 @@ pub fn bw_transform(a: DVec3, b: DVec3, c: DVec3) -> Option<BwTriangle> {
     bytemuck::cast_slice::<BwTriangle, f32>(&[t]).iter().all(|x| x.is_finite()).then_some(t)
 }
 
-pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
+/// One map per slot.
+fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
+    vec![BufferPlan::new("baldwin-weber triangles", BINDING_PRIMS, Texel::Rgba32Float, c.slots, size_of::<BwTriangle>())]
+}
+
+fn encode(mesh: &Mesh, bvh: &Bvh) -> Encoding {
     let (nodes, mut slot_ids) = slot_layout(bvh);
     let mut unrepresentable = vec![];
     let tris: Vec<BwTriangle> = bvh
@@ -104,9 +126,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
             }
         })
         .collect();
-    EncodedScene {
-        method: Method::BaldwinWeber,
-        leaf_size: bvh.options.max_leaf_size,
+    Encoding {
         nodes,
         slot_ids,
         prims: vec![SceneBuffer {

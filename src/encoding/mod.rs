@@ -1,24 +1,102 @@
-//! Triangle encodings: each method's GPU layout of the same BVH.
+//! Intersectors and their GPU layouts: each method's encoding of the same BVH.
 //!
-//! | method | per-triangle data | leaf unit |
-//! |---|---|---|
-//! | [`Method::Mt`] | vertex list (vec4) + index triple and material (16 B) | triangle slot |
-//! | [`Method::Unit`] | Woop's affine map to the unit triangle, 3 x vec4 (48 B) | triangle slot |
-//! | [`Method::QuadMt`] | 4 triangles' vertices in SoA form (144 B per quad) | quad |
-//! | [`Method::QuadUnit`] | 4 triangles' affine maps in SoA form (192 B per quad) | quad |
-//! | [`Method::Watertight`] | as [`Method::Mt`] (the same buffers) | triangle slot |
-//! | [`Method::BaldwinWeber`] | Baldwin & Weber's map: 9 coefficients + fixed column, 3 x vec4 (48 B) | triangle slot |
-//! | [`Method::F64`] | MT's layout; the kernel widens to double (a GPU reference, needs `shaderFloat64`) | triangle slot |
+//! An intersector is one unit: `glsl/intersect/<glsl>.glsl` holds its primitive test (the leaf
+//! loop, hit update and any-hit exit are `glsl/traverse.glsl`'s), and `src/encoding/<name>.rs`
+//! holds everything the host knows about it in one [`Intersector`]: names and title, its layout
+//! types, encoder and memory plan, and the host layout of its primitive struct (checked against
+//! the SPIR-V by `tests/reflection.rs`). What the GLSL states itself (triangles per primitive,
+//! conservative traversal) is read from it by build.rs ([`crate::kernels::facts`]). The registry
+//! below lists the intersectors, one line each; [`Method`] is generated from it, and everything
+//! that lists methods (the CLI's values, plots, claims, reflection tests, `trilab spirv`,
+//! `trilab methods` and the README's list) reads it.
 //!
-//! Every encoding also uploads the nodes (32 B each) and a slot -> OBJ triangle id table
-//! (4 B per slot), so hits report OBJ ids whatever order the BVH stores triangles in.
-//! Adding a method: one `glsl/intersect/<name>.glsl`, one [`Method`] arm, one encoder here.
+//! Every encoding also uploads the nodes (32 B each) and a slot -> OBJ triangle id table (4 B
+//! per slot), so hits report OBJ ids whatever order the BVH stores triangles in; [`plan`] sizes
+//! all of it from counts alone.
+//!
+//! Adding an intersector: `glsl/intersect/<glsl>.glsl`, `src/encoding/<name>.rs` with its
+//! `INTERSECTOR`, and one line in `registry!` below; then `trilab spirv --write spirv` and
+//! `trilab methods --markdown` refresh the generated files.
 
-mod baldwin_weber;
-mod mt;
-mod quad_mt;
-mod quad_unit;
-mod unit;
+pub mod kernels;
+pub mod plan;
+
+pub use kernels::Raycast;
+pub use plan::{AccessPath, BufferPlan, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
+
+use crate::bvh::{Bvh, BvhNode, PAD_SLOT};
+use crate::named::Named;
+use crate::scene::Mesh;
+use crate::shared::{Texel, BINDING_NODES, BINDING_SLOT_IDS, MISS_ID};
+
+/// Everything the host knows about one intersector (`src/encoding/<name>.rs`'s `INTERSECTOR`).
+#[derive(Clone, Copy, Debug)]
+pub struct Intersector {
+    /// Command-line name (`--method`), also in files and tables.
+    pub name: &'static str,
+    /// `glsl/intersect/<glsl>.glsl`; its kernels are `<kernel>.<glsl>.<variant>`.
+    pub glsl: &'static str,
+    /// Column title in tables and plots (the paper's, for its four).
+    pub title: &'static str,
+    /// One line: the test and where it comes from.
+    pub about: &'static str,
+    /// One of Shumskiy & Parshin's four: what `trilab study` compares by default.
+    pub in_paper: bool,
+    /// Encodes a mesh's triangles in the BVH's slot order ([`Encoding`]).
+    pub encode: fn(&Mesh, &Bvh) -> Encoding,
+    /// The buffers `encode` writes beyond the nodes and slot ids, from counts alone (so a scene
+    /// can be refused before anything is encoded); a test holds the two equal.
+    pub plan: fn(&SceneCounts) -> Vec<BufferPlan>,
+    /// The binding of the buffer of `PRIM_STRUCT`s (what `load_prim` reads).
+    pub prim_binding: u32,
+    /// `PRIM_STRUCT`'s host twin: size and member offsets (`tests/reflection.rs` checks them
+    /// against the SPIR-V of the layout probe).
+    pub prim_layout: HostLayout,
+}
+
+/// A `#[repr(C)]` struct as the host writes it: its size and its members' offsets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HostLayout {
+    pub size: usize,
+    pub offsets: &'static [usize],
+}
+
+/// One line per intersector: `Variant => module`. Generates the modules, [`Method`] and its
+/// lookup of each method's [`Intersector`].
+macro_rules! registry {
+    ($($variant:ident => $module:ident),+ $(,)?) => {
+        $(mod $module;)+
+
+        /// A ray-triangle intersection method (and with it, a GPU data layout): one per line of
+        /// the registry, in its order.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum Method {
+            $($variant),+
+        }
+
+        impl Method {
+            /// Every method, in registry order.
+            pub const ALL: [Method; [$(stringify!($variant)),+].len()] = [$(Method::$variant),+];
+
+            /// Everything the host knows about this method's intersector.
+            pub fn intersector(self) -> &'static Intersector {
+                match self {
+                    $(Method::$variant => &$module::INTERSECTOR),+
+                }
+            }
+        }
+    };
+}
+
+registry! {
+    Mt => mt,
+    Unit => unit,
+    QuadMt => quad_mt,
+    QuadUnit => quad_unit,
+    Watertight => watertight,
+    BaldwinWeber => baldwin_weber,
+    F64 => mt_f64,
+}
 
 pub use baldwin_weber::{bw_transform, BwTriangle, BW_NEVER_HIT, BW_PAD};
 pub use mt::MtTriangle;
@@ -26,118 +104,94 @@ pub use quad_mt::QuadMt;
 pub use quad_unit::QuadUnit;
 pub use unit::{unit_transform, UnitTriangle};
 
-use crate::bvh::{Bvh, BvhNode, PAD_SLOT};
-use crate::scene::Mesh;
-use crate::shared::Texel;
-use crate::shared::{BINDING_INDICES, BINDING_NODES, BINDING_PRIMS, BINDING_SLOT_IDS, MISS_ID};
-
-/// A ray-triangle intersection method (and with it, a GPU data layout).
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, clap::ValueEnum, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "kebab-case")]
-pub enum Method {
-    /// Möller–Trumbore, one triangle at a time.
-    Mt,
-    /// Woop's unit-triangle test, one triangle at a time.
-    Unit,
-    /// Möller–Trumbore on four triangles at once (SoA quads).
-    QuadMt,
-    /// Woop's unit-triangle test on four triangles at once (SoA quads).
-    QuadUnit,
-    /// Woop, Benthin & Wald's watertight test (JCGT 2013), one triangle at a time, on MT's data.
-    Watertight,
-    /// Baldwin & Weber's precomputed transformation with a fixed column, one triangle at a time.
-    BaldwinWeber,
-    /// Möller–Trumbore in double precision on MT's data: a GPU reference where the device has
-    /// `shaderFloat64` (elsewhere its kernels fail to create with `Error::Unsupported`).
-    F64,
-}
-
 impl Method {
-    /// Every method.
-    pub const ALL: [Method; 7] = [
-        Method::Mt,
-        Method::Unit,
-        Method::QuadMt,
-        Method::QuadUnit,
-        Method::Watertight,
-        Method::BaldwinWeber,
-        Method::F64,
-    ];
-
     /// The paper's four (Shumskiy & Parshin): what `trilab study` compares by default.
-    pub const PAPER: [Method; 4] = [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit];
+    pub fn paper() -> Vec<Method> {
+        Method::ALL.into_iter().filter(|m| m.intersector().in_paper).collect()
+    }
 
     /// Command-line name.
     pub fn name(self) -> &'static str {
-        match self {
-            Method::Mt => "mt",
-            Method::Unit => "unit",
-            Method::QuadMt => "quad-mt",
-            Method::QuadUnit => "quad-unit",
-            Method::Watertight => "watertight",
-            Method::BaldwinWeber => "baldwin-weber",
-            Method::F64 => "f64",
-        }
+        self.intersector().name
     }
 
     /// Name of the intersector file `glsl/intersect/<name>.glsl` (and of its kernels).
     pub fn glsl_name(self) -> &'static str {
-        match self {
-            Method::Mt => "mt",
-            Method::Unit => "unit",
-            Method::QuadMt => "quad_mt",
-            Method::QuadUnit => "quad_unit",
-            Method::Watertight => "watertight",
-            Method::BaldwinWeber => "baldwin_weber",
-            Method::F64 => "f64",
-        }
+        self.intersector().glsl
     }
 
-    /// The paper's column title.
+    /// The column title.
     pub fn title(self) -> &'static str {
-        match self {
-            Method::Mt => "Moller-Trumbore",
-            Method::Unit => "Unit Triangle",
-            Method::QuadMt => "Quad Moller-Trumbore",
-            Method::QuadUnit => "Quad Unit Triangle",
-            Method::Watertight => "Watertight",
-            Method::BaldwinWeber => "Baldwin-Weber",
-            Method::F64 => "Moller-Trumbore f64",
-        }
+        self.intersector().title
     }
 
-    /// Triangles tested together (the SIMD width of the intersector).
+    /// What the GLSL states about this intersector (build.rs reads it from the file).
+    fn facts(self) -> &'static crate::kernels::IntersectorFacts {
+        crate::kernels::facts(self.glsl_name())
+            .unwrap_or_else(|| panic!("glsl/intersect/{}.glsl was not compiled", self.glsl_name()))
+    }
+
+    /// Triangles tested together (the intersector's `PRIM_TRIANGLES`).
     pub fn group_size(self) -> usize {
-        match self {
-            Method::Mt | Method::Unit | Method::Watertight | Method::BaldwinWeber | Method::F64 => 1,
-            Method::QuadMt | Method::QuadUnit => 4,
-        }
+        self.facts().prim_triangles as usize
     }
 
-    /// Whether the kernels traverse with the conservative box test (`CONSERVATIVE_TRAVERSAL` in
-    /// `glsl/traverse.glsl`, defined by the intersector).
+    /// Whether the kernels traverse with the conservative box test (the intersector defines
+    /// `CONSERVATIVE_TRAVERSAL`, `glsl/traverse.glsl`).
     pub fn conservative_traversal(self) -> bool {
-        self == Method::Watertight
+        self.facts().conservative_traversal
     }
 
+    /// `mesh` on `bvh` in this method's layout.
     pub fn encode(self, mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
-        match self {
-            Method::Unit => unit::encode(mesh, bvh),
-            Method::QuadMt => quad_mt::encode(mesh, bvh),
-            Method::QuadUnit => quad_unit::encode(mesh, bvh),
-            Method::BaldwinWeber => baldwin_weber::encode(mesh, bvh),
-            // Watertight and f64 read MT's buffers (glsl/mt_layout.glsl; f64 widens the f32
-            // vertices exactly), so comparing them with MT measures the arithmetic only.
-            Method::Mt | Method::Watertight | Method::F64 => EncodedScene { method: self, ..mt::encode(mesh, bvh) },
+        let e = (self.intersector().encode)(mesh, bvh);
+        EncodedScene {
+            method: self,
+            leaf_size: bvh.options.max_leaf_size,
+            nodes: e.nodes,
+            slot_ids: e.slot_ids,
+            prims: e.prims,
+            unrepresentable: e.unrepresentable,
         }
+    }
+}
+
+impl Named for Method {
+    const ALL: &'static [Method] = &Method::ALL;
+
+    fn name(self) -> &'static str {
+        self.intersector().name
+    }
+
+    fn help(self) -> &'static str {
+        self.intersector().about
     }
 }
 
 impl std::fmt::Display for Method {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Method, String> {
+        Method::parse_named("method", s)
+    }
+}
+
+impl serde::Serialize for Method {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Method {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Method, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
     }
 }
 
@@ -160,6 +214,15 @@ pub struct SceneBufferRef<'a> {
     pub bytes: &'a [u8],
 }
 
+/// What an intersector's encoder makes of a BVH (see [`EncodedScene`] for the fields).
+#[derive(Clone, Debug)]
+pub struct Encoding {
+    pub nodes: Vec<BvhNode>,
+    pub slot_ids: Vec<u32>,
+    pub prims: Vec<SceneBuffer>,
+    pub unrepresentable: Vec<u32>,
+}
+
 /// Most nodes and most triangle slots the kernels address: traversal packs a node's
 /// `left_or_first` into 27 bits (`pack_node` in `glsl/traverse.glsl`).
 pub const MAX_NODE_INDEX: usize = 1 << 27;
@@ -173,8 +236,8 @@ pub struct EncodedScene {
     pub nodes: Vec<BvhNode>,
     /// Slot -> OBJ triangle id (`MISS_ID` for padding slots).
     pub slot_ids: Vec<u32>,
-    /// Method-specific buffers (bound at `BINDING_PRIMS`, and `BINDING_INDICES` for MT).
-    /// Every struct in them is a whole number of 16-byte texels.
+    /// Method-specific buffers (bound at `BINDING_PRIMS`, and `BINDING_INDICES` for MT's
+    /// layout). Every struct in them is a whole number of 16-byte texels.
     pub prims: Vec<SceneBuffer>,
     /// Triangles that the encoding could not represent (their map overflows f32) and that
     /// were replaced by padding. Empty for every real scene so far.
@@ -215,17 +278,12 @@ impl EncodedScene {
             + self.prims.iter().map(|b| b.bytes.len()).sum::<usize>()
     }
 
-    /// The buffer of the method's primitive structs (`PRIM_STRUCT` in its intersector):
-    /// `MtTriangle` for MT, watertight and f64, `UnitTriangle`, `QuadMt`, `QuadUnit`, `BwTriangle` for the others.
+    /// The buffer of the method's primitive structs (`PRIM_STRUCT` in its intersector) and the
+    /// struct's size.
     pub fn prim_structs(&self) -> (&SceneBuffer, usize) {
-        let (binding, size) = match self.method {
-            Method::Mt | Method::Watertight | Method::F64 => (BINDING_INDICES, std::mem::size_of::<MtTriangle>()),
-            Method::Unit => (BINDING_PRIMS, std::mem::size_of::<UnitTriangle>()),
-            Method::QuadMt => (BINDING_PRIMS, std::mem::size_of::<QuadMt>()),
-            Method::QuadUnit => (BINDING_PRIMS, std::mem::size_of::<QuadUnit>()),
-            Method::BaldwinWeber => (BINDING_PRIMS, std::mem::size_of::<BwTriangle>()),
-        };
-        (self.prims.iter().find(|b| b.binding == binding).expect("every encoding has its primitive buffer"), size)
+        let i = self.method.intersector();
+        let buffer = self.prims.iter().find(|b| b.binding == i.prim_binding);
+        (buffer.expect("every encoding has its primitive buffer"), i.prim_layout.size)
     }
 
     /// Checks what the kernels assume about the data: traversal packs a node's `left_or_first`
@@ -301,6 +359,25 @@ mod tests {
     }
 
     #[test]
+    fn the_registry_and_the_glsl_agree() {
+        let glsl: Vec<&str> = Method::ALL.iter().map(|m| m.glsl_name()).collect();
+        for f in crate::kernels::intersectors() {
+            assert!(glsl.contains(&f), "glsl/intersect/{f}.glsl has no line in the registry");
+        }
+        for m in Method::ALL {
+            assert!(crate::kernels::facts(m.glsl_name()).is_some(), "{m}: no glsl/intersect/{}.glsl", m.glsl_name());
+            assert_eq!(m.name().parse::<Method>(), Ok(m));
+            assert_eq!(serde_json::to_string(&m).unwrap(), format!("\"{}\"", m.name()));
+        }
+        let mut names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), Method::ALL.len(), "method names are unique");
+        assert_eq!(Method::paper(), [Method::Mt, Method::Unit, Method::QuadMt, Method::QuadUnit]);
+        assert!("quad_mt".parse::<Method>().is_err(), "the command line takes the method's name");
+    }
+
+    #[test]
     fn every_encoding_covers_every_triangle_once() {
         let m = mesh();
         for leaf in [1, 2, 3, 4, 8, 16] {
@@ -317,6 +394,10 @@ mod tests {
                     let end = (n.left_or_first as usize + groups) * method.group_size();
                     assert!(end <= e.slot_ids.len());
                 }
+                // The primitive buffer holds whole structs of the declared size.
+                let (prims, size) = e.prim_structs();
+                assert_eq!(prims.bytes.len() % size, 0, "{method}");
+                assert_eq!(size % 16, 0, "{method}: structs are whole texels");
             }
         }
     }

@@ -1,13 +1,32 @@
-//! Möller–Trumbore layout: the vertex list plus one index triple and material per slot
-//! (`glsl/intersect/mt.glsl`).
+//! Möller–Trumbore (T. Möller, B. Trumbore, "Fast, minimum storage ray-triangle intersection",
+//! JGT 2(1), 1997), one triangle at a time (`glsl/intersect/mt.glsl`). Its layout, the vertex
+//! list plus one index triple and material per slot (`glsl/mt_layout.glsl`), is also read by the
+//! watertight and f64 intersectors, so comparing them with MT measures the arithmetic only.
+
+use std::mem::{offset_of, size_of};
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{slot_layout, EncodedScene, Method, SceneBuffer};
+use super::{slot_layout, BufferPlan, Encoding, HostLayout, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
-use crate::shared::Texel;
-use crate::shared::{BINDING_INDICES, BINDING_PRIMS};
+use crate::shared::{Texel, BINDING_INDICES, BINDING_PRIMS};
+
+pub const INTERSECTOR: Intersector = Intersector {
+    name: "mt",
+    glsl: "mt",
+    title: "Moller-Trumbore",
+    about: "Möller–Trumbore, one triangle at a time (vertex list + 16-byte index triple per triangle).",
+    in_paper: true,
+    encode,
+    plan,
+    prim_binding: BINDING_INDICES,
+    prim_layout: LAYOUT,
+};
+
+/// [`MtTriangle`]'s layout, shared with the intersectors that read MT's data.
+pub(super) const LAYOUT: HostLayout =
+    HostLayout { size: size_of::<MtTriangle>(), offsets: &[offset_of!(MtTriangle, v), offset_of!(MtTriangle, material)] };
 
 /// GLSL `MtTriangle { uvec3 v; uint material; }` (std430: 16 bytes).
 #[repr(C)]
@@ -19,7 +38,15 @@ pub struct MtTriangle {
 
 const _: () = assert!(std::mem::size_of::<MtTriangle>() == 16);
 
-pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
+/// MT's buffers: the vertex list (an empty mesh still uploads one vertex) and a triangle per slot.
+pub(super) fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
+    vec![
+        BufferPlan::new("mt vertices", BINDING_PRIMS, Texel::Rgba32Float, c.vertices.max(1), 16),
+        BufferPlan::new("mt triangles", BINDING_INDICES, Texel::Rgba32Uint, c.slots, size_of::<MtTriangle>()),
+    ]
+}
+
+pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> Encoding {
     let (nodes, slot_ids) = slot_layout(bvh);
     let mut vertices: Vec<[f32; 4]> = mesh.positions.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect();
     if vertices.is_empty() {
@@ -34,9 +61,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
             id => MtTriangle { v: mesh.triangles[id as usize], material: mesh.material_ids[id as usize] },
         })
         .collect();
-    EncodedScene {
-        method: Method::Mt,
-        leaf_size: bvh.options.max_leaf_size,
+    Encoding {
         nodes,
         slot_ids,
         prims: vec![

@@ -1,13 +1,40 @@
-//! Quad Möller–Trumbore layout: four triangles' vertices per quad in SoA form
-//! (`glsl/intersect/quad_mt.glsl`; Shumskiy & Parshin sec. 3.1 and the data-layout figure).
+//! Quad Möller–Trumbore (Shumskiy & Parshin sec. 3.1): the Möller–Trumbore solve for four
+//! triangles at once (`glsl/intersect/quad_mt.glsl`). Layout: four triangles' vertices per quad
+//! in SoA form (the paper's data-layout figure).
+
+use std::mem::{offset_of, size_of};
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer};
+use super::{quad_layout, slot_id, BufferPlan, Encoding, HostLayout, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
-use crate::shared::Texel;
-use crate::shared::BINDING_PRIMS;
+use crate::shared::{Texel, BINDING_PRIMS};
+
+pub const INTERSECTOR: Intersector = Intersector {
+    name: "quad-mt",
+    glsl: "quad_mt",
+    title: "Quad Moller-Trumbore",
+    about: "Möller–Trumbore on four triangles at once (SoA quads, 144 B per quad).",
+    in_paper: true,
+    encode,
+    plan,
+    prim_binding: BINDING_PRIMS,
+    prim_layout: HostLayout {
+        size: size_of::<QuadMt>(),
+        offsets: &[
+            offset_of!(QuadMt, v0x),
+            offset_of!(QuadMt, v0y),
+            offset_of!(QuadMt, v0z),
+            offset_of!(QuadMt, v1x),
+            offset_of!(QuadMt, v1y),
+            offset_of!(QuadMt, v1z),
+            offset_of!(QuadMt, v2x),
+            offset_of!(QuadMt, v2y),
+            offset_of!(QuadMt, v2z),
+        ],
+    },
+};
 
 /// GLSL `QuadMt`: lane k of each vec4 belongs to triangle slot 4q + k (144 bytes).
 #[repr(C)]
@@ -26,7 +53,12 @@ pub struct QuadMt {
 
 const _: () = assert!(std::mem::size_of::<QuadMt>() == 144);
 
-pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
+/// One struct per quad.
+fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
+    vec![BufferPlan::new("quad mt", BINDING_PRIMS, Texel::Rgba32Float, c.quads, size_of::<QuadMt>())]
+}
+
+fn encode(mesh: &Mesh, bvh: &Bvh) -> Encoding {
     let (nodes, quads) = quad_layout(bvh);
     let mut slot_ids = Vec::with_capacity(4 * quads.len());
     let mut out = Vec::with_capacity(quads.len());
@@ -56,9 +88,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
         }
         out.push(quad);
     }
-    EncodedScene {
-        method: Method::QuadMt,
-        leaf_size: bvh.options.max_leaf_size,
+    Encoding {
         nodes,
         slot_ids,
         prims: vec![SceneBuffer {

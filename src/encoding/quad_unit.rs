@@ -1,14 +1,44 @@
-//! Quad unit-triangle layout: four triangles' affine maps per quad in SoA form
+//! Quad unit triangle (Shumskiy & Parshin sec. 3.1, applied to Woop's unit triangle): four
+//! triangles' affine maps per quad in SoA form, the ray mapped into all four unit spaces at once
 //! (`glsl/intersect/quad_unit.glsl`).
+
+use std::mem::{offset_of, size_of};
 
 use bytemuck::{Pod, Zeroable};
 
 use super::unit::{unit_transform, PAD_ROWS};
-use super::{quad_layout, slot_id, EncodedScene, Method, SceneBuffer};
+use super::{quad_layout, slot_id, BufferPlan, Encoding, HostLayout, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
-use crate::shared::Texel;
-use crate::shared::{BINDING_PRIMS, MISS_ID};
+use crate::shared::{Texel, BINDING_PRIMS, MISS_ID};
+
+pub const INTERSECTOR: Intersector = Intersector {
+    name: "quad-unit",
+    glsl: "quad_unit",
+    title: "Quad Unit Triangle",
+    about: "Woop's unit triangle on four at once (SoA quads, 192 B per quad).",
+    in_paper: true,
+    encode,
+    plan,
+    prim_binding: BINDING_PRIMS,
+    prim_layout: HostLayout {
+        size: size_of::<QuadUnit>(),
+        offsets: &[
+            offset_of!(QuadUnit, m0x),
+            offset_of!(QuadUnit, m0y),
+            offset_of!(QuadUnit, m0z),
+            offset_of!(QuadUnit, n0),
+            offset_of!(QuadUnit, m1x),
+            offset_of!(QuadUnit, m1y),
+            offset_of!(QuadUnit, m1z),
+            offset_of!(QuadUnit, n1),
+            offset_of!(QuadUnit, m2x),
+            offset_of!(QuadUnit, m2y),
+            offset_of!(QuadUnit, m2z),
+            offset_of!(QuadUnit, n2),
+        ],
+    },
+};
 
 /// GLSL `QuadUnit`: `m{r}{x,y,z}` and `n{r}` hold entry (r, column) of [M | N] for the four
 /// triangles, lane k = slot 4q + k (192 bytes).
@@ -31,7 +61,12 @@ pub struct QuadUnit {
 
 const _: () = assert!(std::mem::size_of::<QuadUnit>() == 192);
 
-pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
+/// One struct per quad.
+fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
+    vec![BufferPlan::new("quad unit", BINDING_PRIMS, Texel::Rgba32Float, c.quads, size_of::<QuadUnit>())]
+}
+
+fn encode(mesh: &Mesh, bvh: &Bvh) -> Encoding {
     let (nodes, quads) = quad_layout(bvh);
     let mut slot_ids = Vec::with_capacity(4 * quads.len());
     let mut unrepresentable = vec![];
@@ -65,9 +100,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
         }
         out.push(quad);
     }
-    EncodedScene {
-        method: Method::QuadUnit,
-        leaf_size: bvh.options.max_leaf_size,
+    Encoding {
         nodes,
         slot_ids,
         prims: vec![SceneBuffer {

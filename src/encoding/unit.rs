@@ -1,14 +1,32 @@
-//! Woop's unit-triangle layout: per slot, the affine map from world space to the space where
-//! the triangle is (0,0,0), (1,0,0), (0,1,0) (`glsl/intersect/unit.glsl`).
+//! Woop's unit triangle (S. Woop, J. Schmittler, P. Slusallek, "RPU: A Programmable Ray
+//! Processing Unit for Realtime Ray Tracing", SIGGRAPH 2005), one triangle at a time
+//! (`glsl/intersect/unit.glsl`). Layout: per slot, the affine map from world space to the space
+//! where the triangle is (0,0,0), (1,0,0), (0,1,0).
+
+use std::mem::{offset_of, size_of};
 
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{slot_layout, EncodedScene, Method, SceneBuffer};
+use super::{slot_layout, BufferPlan, Encoding, HostLayout, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
-use crate::shared::Texel;
-use crate::shared::BINDING_PRIMS;
+use crate::shared::{Texel, BINDING_PRIMS};
+
+pub const INTERSECTOR: Intersector = Intersector {
+    name: "unit",
+    glsl: "unit",
+    title: "Unit Triangle",
+    about: "Woop's unit triangle, one at a time (48-byte affine map per triangle).",
+    in_paper: true,
+    encode,
+    plan,
+    prim_binding: BINDING_PRIMS,
+    prim_layout: HostLayout {
+        size: size_of::<UnitTriangle>(),
+        offsets: &[offset_of!(UnitTriangle, row0), offset_of!(UnitTriangle, row1), offset_of!(UnitTriangle, row2)],
+    },
+};
 
 /// GLSL `UnitTriangle { vec4 row0, row1, row2; }`: rows of [M | N] (48 bytes).
 #[repr(C)]
@@ -43,7 +61,12 @@ pub fn unit_transform(a: DVec3, b: DVec3, c: DVec3) -> Option<[[f32; 4]; 3]> {
     out.iter().flatten().all(|x| x.is_finite()).then_some(out)
 }
 
-pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
+/// One map per slot.
+fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
+    vec![BufferPlan::new("unit triangles", BINDING_PRIMS, Texel::Rgba32Float, c.slots, size_of::<UnitTriangle>())]
+}
+
+fn encode(mesh: &Mesh, bvh: &Bvh) -> Encoding {
     let (nodes, mut slot_ids) = slot_layout(bvh);
     let mut unrepresentable = vec![];
     let tris: Vec<UnitTriangle> = bvh
@@ -65,9 +88,7 @@ pub(super) fn encode(mesh: &Mesh, bvh: &Bvh) -> EncodedScene {
             UnitTriangle { row0: rows[0], row1: rows[1], row2: rows[2] }
         })
         .collect();
-    EncodedScene {
-        method: Method::Unit,
-        leaf_size: bvh.options.max_leaf_size,
+    Encoding {
         nodes,
         slot_ids,
         prims: vec![SceneBuffer {

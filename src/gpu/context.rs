@@ -4,6 +4,7 @@
 //! Everything that owns a Vulkan object holds an `Arc<Device>`, so the device (and the
 //! instance inside it) can only be destroyed after the last buffer, pipeline or query pool.
 
+use crate::spirv::Feature;
 use std::ffi::{c_void, CStr, CString};
 use std::mem::ManuallyDrop;
 use std::sync::{Arc, Mutex};
@@ -45,6 +46,10 @@ pub struct ContextOptions {
     /// A fault to inject (tests of the device-loss and out-of-memory paths; see
     /// `gpu::markers`). `Context::new` also reads `TRILAB_INJECT_FAULT` when this is `None`.
     pub inject_fault: Option<Fault>,
+    /// Device limits lowered for tests, as `TRILAB_TEST_LIMITS` gives them
+    /// (`encoding::DeviceLimits::with_overrides`): every memory plan on this context is checked
+    /// against them. `Context::new` reads the variable when this is `None`.
+    pub test_limits: Option<String>,
 }
 
 impl Default for ContextOptions {
@@ -56,6 +61,7 @@ impl Default for ContextOptions {
             ray_query: true,
             shader_float64: true,
             inject_fault: None,
+            test_limits: None,
         }
     }
 }
@@ -121,6 +127,17 @@ pub struct EnabledFeatures {
 }
 
 impl EnabledFeatures {
+    /// Whether `feature` (one a SPIR-V capability needs) is enabled.
+    pub fn has(&self, feature: Feature) -> bool {
+        match feature {
+            Feature::ShaderFloat64 => self.shader_float64,
+            Feature::ShaderInt64 => self.shader_int64,
+            Feature::ShaderSubgroupClock => self.shader_clock,
+            Feature::RayQuery => self.ray_query,
+            Feature::BufferDeviceAddress => self.buffer_device_address,
+        }
+    }
+
     pub fn for_device(info: &DeviceInfo) -> EnabledFeatures {
         EnabledFeatures {
             pipeline_statistics_query: info.pipeline_statistics_query,
@@ -148,6 +165,8 @@ pub struct Device {
     pub(crate) enabled: EnabledFeatures,
     pub(crate) submit_timeout: Duration,
     pub(crate) markers: Markers,
+    /// `ContextOptions::test_limits` (or `TRILAB_TEST_LIMITS`), applied by `Context::limits`.
+    pub(crate) test_limits: Option<String>,
     sync_validation: bool,
     log: Arc<ValidationLog>,
 }
@@ -173,9 +192,12 @@ impl Drop for Device {
     }
 }
 
-/// Entry point to the GPU: a chosen device with one compute queue.
+/// Entry point to the GPU: a chosen device with one compute queue, and the kernels created on it
+/// so far (each variant and set of specialisation constants is compiled once per context).
 #[derive(Clone)]
 pub struct Context {
+    /// Declared before `device`: dropped first, so the cached pipelines go before the device.
+    pub(crate) kernels: Arc<super::kernel::KernelCache>,
     pub(crate) device: Arc<Device>,
 }
 
@@ -361,6 +383,7 @@ impl Context {
         let markers = Markers::new(&raw, &mut allocator, fault);
         let (instance, debug) = guard.release();
         Ok(Context {
+            kernels: Arc::default(),
             device: Arc::new(Device {
                 _entry: entry,
                 instance,
@@ -374,6 +397,7 @@ impl Context {
                 enabled,
                 submit_timeout: options.submit_timeout,
                 markers,
+                test_limits: options.test_limits.clone().or_else(|| std::env::var(super::limits::TEST_LIMITS_VAR).ok()),
                 sync_validation,
                 log,
             }),

@@ -6,7 +6,7 @@
 //! - [`buffer`]: named buffers and texel buffers, uploads, downloads, one-shot submits.
 //! - [`descriptors`]: descriptor sets checked against the kernel's reflected bindings.
 //! - [`kernel`]: compute pipelines built from SPIR-V reflection.
-//! - [`plan`]: GPU memory plans checked against the device's limits; texel or address path.
+//! - [`limits`]: the device's limits as `encoding::plan` checks them (`TRILAB_TEST_LIMITS` lowers them).
 //! - [`markers`]: crash markers (GPU breadcrumbs + dispatch log), device-loss and out-of-memory
 //!   errors that name the dispatch, fault injection for testing them.
 //! - [`raycast`]: batched ray casting with timestamp queries.
@@ -20,8 +20,8 @@ pub mod context;
 pub mod descriptors;
 pub mod device_info;
 pub mod kernel;
+pub mod limits;
 pub mod markers;
-pub mod plan;
 pub mod raycast;
 pub mod rayquery;
 pub(crate) mod timestamps;
@@ -34,7 +34,6 @@ pub use descriptors::Resource;
 pub use device_info::DeviceInfo;
 pub use kernel::{Kernel, PipelineOptions};
 pub use markers::{Fault, FaultKind};
-pub use plan::{AccessPath, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
-pub use raycast::{raycast, GpuScene, RaycastOptions, RaycastResult, Summary};
+pub use raycast::{cast_rays, RaycastOptions, RaycastResult};
 pub use rayquery::{raycast_rq, Peer};
-pub use traversal_stats::{raycast_stats, MeanMax, TraversalCounts, TraversalSummary};
+pub use traversal_stats::{MeanMax, TraversalCounts, TraversalSummary};

@@ -1,129 +1,20 @@
-//! Ray casting on the GPU: upload a scene once, then dispatch rays in batches, each its own
+//! Ray casting on the GPU: rays dispatched in batches over a scene's bindings, each batch its own
 //! submit (short enough for a display GPU's watchdog) with a pair of timestamps.
 
 use std::time::Instant;
 
 use ash::vk;
 
-use super::buffer::{memory_barrier, Buffer, TexelBuffer};
+use super::buffer::memory_barrier;
 use super::context::Context;
 use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;
-use super::plan::{AccessPath, DeviceLimits, MemoryPlan, SceneAccess};
 use super::timestamps::Timestamps;
 use super::traversal_stats::TraversalCounts;
-use crate::encoding::{EncodedScene, Method, SceneBufferRef};
 use crate::error::{Result, VkContext};
 use crate::rays::{Hit, Ray};
+use crate::report::Summary;
 use crate::shared::{BINDING_HITS, BINDING_RAYS, BINDING_TRAVERSAL_STATS};
-
-/// One scene buffer as the kernels reach it.
-enum SceneBinding {
-    /// A storage texel buffer (the default kernels).
-    Texels(TexelBuffer),
-    /// The texel path's limit does not apply: the data in a device-address buffer, and a
-    /// uniform buffer holding its address, bound where the texel buffer would be (the `*_bda`
-    /// kernels, `SCENE_ADDRESS` in `glsl/types.glsl`).
-    Address { data: Buffer, pointer: Buffer },
-}
-
-/// A scene's buffers on the GPU, read through the access path it was uploaded for.
-pub struct GpuScene {
-    pub method: Method,
-    pub leaf_size: u32,
-    /// (binding, buffer)
-    buffers: Vec<(u32, SceneBinding)>,
-    /// Bytes uploaded.
-    pub bytes: usize,
-    /// How the kernels must read it: texel scenes bind to `kernels::raycast`, address scenes
-    /// to `kernels::raycast_via(.., AccessPath::Address)`.
-    pub access: AccessPath,
-}
-
-impl GpuScene {
-    /// Uploads for the texel path (the default kernels).
-    pub fn upload(ctx: &Context, scene: &EncodedScene) -> Result<GpuScene> {
-        Self::upload_filtered(ctx, scene, AccessPath::Texel, |_| true)
-    }
-
-    /// Uploads for `access` (chosen by `MemoryPlan::choose` before encoding).
-    pub fn upload_with(ctx: &Context, scene: &EncodedScene, access: AccessPath) -> Result<GpuScene> {
-        Self::upload_filtered(ctx, scene, access, |_| true)
-    }
-
-    /// Plans `scene` as encoded, chooses its access path (`requested`, against `limits`), and
-    /// uploads it; `name` names the scene in a "does not fit" error.
-    pub fn upload_planned(
-        ctx: &Context,
-        name: &str,
-        scene: &EncodedScene,
-        requested: SceneAccess,
-        limits: &DeviceLimits,
-    ) -> Result<GpuScene> {
-        let access = MemoryPlan::of_encoded(scene).choose(name, requested, limits)?;
-        Self::upload_with(ctx, scene, access)
-    }
-
-    /// Uploads only the buffers `kernel` reads (the path tracer, say, never reads the slot ->
-    /// OBJ id table).
-    pub fn upload_for(ctx: &Context, scene: &EncodedScene, kernel: &crate::kernels::KernelSource) -> Result<GpuScene> {
-        let layout = crate::spirv::reflect::reflect(kernel.name, &kernel.words())?;
-        let read = layout.sets.get(&0).cloned().unwrap_or_default();
-        Self::upload_filtered(ctx, scene, AccessPath::Texel, |b| read.contains_key(&b))
-    }
-
-    fn upload_filtered(
-        ctx: &Context,
-        scene: &EncodedScene,
-        access: AccessPath,
-        keep: impl Fn(u32) -> bool,
-    ) -> Result<GpuScene> {
-        scene.check_limits().map_err(|e| {
-            crate::error::Error::Usage(format!("scene too large for the {} kernels: {e}", scene.method))
-        })?;
-        let upload = |SceneBufferRef { name, binding, texel, bytes }: SceneBufferRef| -> Result<(u32, SceneBinding)> {
-            Ok((
-                binding,
-                match access {
-                    AccessPath::Texel => SceneBinding::Texels(ctx.upload_texels(name, bytes, texel)?),
-                    AccessPath::Address => {
-                        let (data, address) = ctx.upload_addressed(name, bytes)?;
-                        // `uniform <name>Address { Scene.. <name>; }` (std140): the 8-byte address.
-                        let pointer = ctx.upload(
-                            &format!("{name} (address)"),
-                            &address.to_le_bytes(),
-                            vk::BufferUsageFlags::UNIFORM_BUFFER,
-                        )?;
-                        SceneBinding::Address { data, pointer }
-                    }
-                },
-            ))
-        };
-        let buffers: Vec<(u32, SceneBinding)> =
-            scene.buffers().into_iter().filter(|b| keep(b.binding)).map(upload).collect::<Result<Vec<_>>>()?;
-        let bytes = buffers
-            .iter()
-            .map(|(_, b)| match b {
-                SceneBinding::Texels(t) => t.buffer.size as usize,
-                SceneBinding::Address { data, .. } => data.size as usize,
-            })
-            .sum();
-        Ok(GpuScene { method: scene.method, leaf_size: scene.leaf_size, buffers, bytes, access })
-    }
-
-    /// The scene's bindings, for a descriptor set.
-    pub fn resources(&self) -> impl Iterator<Item = (u32, Resource<'_>)> {
-        self.buffers.iter().map(|(b, t)| {
-            (
-                *b,
-                match t {
-                    SceneBinding::Texels(t) => Resource::Texels(t),
-                    SceneBinding::Address { pointer, .. } => Resource::whole(pointer),
-                },
-            )
-        })
-    }
-}
 
 #[derive(Clone, Debug)]
 pub struct RaycastOptions {
@@ -156,28 +47,6 @@ pub struct RaycastResult {
     pub traversal: Option<Vec<TraversalCounts>>,
 }
 
-/// Median, min and max of a sample.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct Summary {
-    pub median: f64,
-    pub min: f64,
-    pub max: f64,
-    pub runs: usize,
-}
-
-impl Summary {
-    pub fn of(xs: &[f64]) -> Option<Summary> {
-        if xs.is_empty() {
-            return None;
-        }
-        let mut v = xs.to_vec();
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        let median = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
-        Some(Summary { median, min: v[0], max: v[n - 1], runs: n })
-    }
-}
-
 impl RaycastResult {
     /// Kernel time summary (GPU timestamps), or host wall time where there are none.
     pub fn time_ms(&self) -> Summary {
@@ -203,24 +72,12 @@ impl Drop for Dispatch<'_> {
     }
 }
 
-/// Casts `rays` with `kernel` over `scene`: `warmup` untimed runs, then `repeat` timed ones.
-/// The hits are those of the last run; so are the per-ray traversal counts when `kernel` is a
-/// `stats` variant (`kernels::raycast_stats`).
-pub fn raycast(
-    ctx: &Context,
-    kernel: &Kernel,
-    scene: &GpuScene,
-    rays: &[Ray],
-    opts: &RaycastOptions,
-) -> Result<RaycastResult> {
-    let resources: Vec<(u32, Resource)> = scene.resources().collect();
-    cast_rays(ctx, kernel, &resources, rays, opts)
-}
-
-/// The batched, timed dispatch behind [`raycast`] and every kernel that reads `Ray`s at
-/// `BINDING_RAYS` and writes `Hit`s at `BINDING_HITS` with `Push { uint ray_count; }`:
-/// `scene` are the kernel's other bindings (the same in every batch).
-pub(crate) fn cast_rays(
+/// Casts `rays` with `kernel` over the bindings `scene` (the same in every batch): `warmup`
+/// untimed runs, then `repeat` timed ones; the hits are those of the last run, and so are the
+/// per-ray traversal counts when `kernel` is a `stats` variant. For every kernel that reads `Ray`s
+/// at `BINDING_RAYS` and writes `Hit`s at `BINDING_HITS` with `Push { uint ray_count; }` (our
+/// ray-casting kernels through `pipeline::DeviceScene`, and the ray-query peer).
+pub fn cast_rays(
     ctx: &Context,
     kernel: &Kernel,
     scene: &[(u32, Resource)],
@@ -341,17 +198,4 @@ pub(crate) fn cast_rays(
         .get(1)
         .map(|b| b.chunks_exact(std::mem::size_of::<TraversalCounts>()).map(bytemuck::pod_read_unaligned).collect());
     Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches, traversal })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::Summary;
-
-    #[test]
-    fn summary_median_min_max() {
-        let s = Summary::of(&[3.0, 1.0, 2.0]).unwrap();
-        assert_eq!((s.median, s.min, s.max, s.runs), (2.0, 1.0, 3.0, 3));
-        assert_eq!(Summary::of(&[4.0, 1.0, 2.0, 3.0]).unwrap().median, 2.5);
-        assert!(Summary::of(&[]).is_none());
-    }
 }

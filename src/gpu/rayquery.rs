@@ -38,7 +38,10 @@ pub fn kernel(ctx: &Context, any_hit: bool) -> Result<Kernel> {
     if !ctx.enabled().ray_query {
         return Err(unsupported(ctx));
     }
-    ctx.create_kernel(crate::kernels::find_no_intersector("rayquery", if any_hit { "any" } else { "closest" }))
+    let variant = if any_hit { "any" } else { "closest" };
+    let src = crate::kernels::find("rayquery", crate::kernels::NO_INTERSECTOR, variant)
+        .unwrap_or_else(|| panic!("rayquery.none.{variant} was not compiled (glsl/rayquery.comp)"));
+    ctx.create_kernel(src)
 }
 
 /// Casts `rays` through `accel` with a [`kernel`]: `warmup` untimed runs, then `repeat` timed

@@ -6,13 +6,6 @@
 use bytemuck::{Pod, Zeroable};
 use serde::Serialize;
 
-use super::context::Context;
-use super::kernel::Kernel;
-use super::raycast::{raycast, GpuScene, RaycastOptions};
-use crate::error::{Error, Result};
-use crate::rays::{Hit, Ray};
-use crate::shared::BINDING_TRAVERSAL_STATS;
-
 /// One ray's traversal work, GLSL `TraversalCounts` (16 bytes, std430 at
 /// `BINDING_TRAVERSAL_STATS`; `tests/reflection.rs` checks the offsets).
 #[repr(C)]
@@ -78,21 +71,6 @@ impl TraversalSummary {
             slots: MeanMax::of(counts, |c| c.slots),
         }
     }
-}
-
-/// Closest hits and per-ray traversal counts of one untimed run of a `stats` kernel
-/// (`kernels::raycast_stats(method)`).
-pub fn raycast_stats(
-    ctx: &Context,
-    kernel: &Kernel,
-    scene: &GpuScene,
-    rays: &[Ray],
-) -> Result<(Vec<Hit>, Vec<TraversalCounts>)> {
-    if !kernel.bindings().contains_key(&BINDING_TRAVERSAL_STATS) {
-        return Err(Error::Usage(format!("kernel {} writes no traversal statistics", kernel.name)));
-    }
-    let res = raycast(ctx, kernel, scene, rays, &RaycastOptions { warmup: 0, repeat: 1, ..Default::default() })?;
-    Ok((res.hits, res.traversal.expect("a stats kernel's run returns its counts")))
 }
 
 #[cfg(test)]

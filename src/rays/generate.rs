@@ -9,10 +9,8 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 use rayon::prelude::*;
 
-use super::Ray;
-use crate::reference::Reference;
-use crate::scene::Aabb;
-use crate::scene::Mesh;
+use super::{Hit, Ray};
+use crate::scene::{Aabb, Mesh};
 
 /// A pinhole camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -61,18 +59,19 @@ pub fn primary_rays(camera: &Camera, w: u32, h: u32) -> Vec<Ray> {
     (0..h).flat_map(|y| (0..w).map(move |x| camera.ray(x, y, w, h))).collect()
 }
 
-/// For every primary ray that hits, `per_hit` cosine-distributed rays leaving the hit point on
-/// the side the ray came from, offset along the normal by 1e-4 of the scene's largest
-/// coordinate magnitude (the peer's offset). Hits come from the f64 reference.
-pub fn diffuse_rays(mesh: &Mesh, reference: &Reference, primary: &[Ray], per_hit: u32, seed: u64) -> Vec<Ray> {
+/// For every primary ray that hits (`hits[i]` is `primary[i]`'s hit: the f64 reference's, rounded
+/// to a hit record, in every ray set trilab makes), `per_hit` cosine-distributed rays leaving the
+/// hit point on the side the ray came from, offset along the normal by 1e-4 of the scene's
+/// largest coordinate magnitude (the peer's offset).
+pub fn diffuse_rays(mesh: &Mesh, primary: &[Ray], hits: &[Hit], per_hit: u32, seed: u64) -> Vec<Ray> {
+    assert_eq!(primary.len(), hits.len(), "one hit per primary ray");
     let b = mesh.bounds();
     let scale = b.min.abs().max(b.max.abs()).max_element();
-    let hits = reference.trace_all(primary, false);
     // One generator per primary ray, derived from the seed, so the set does not depend on
     // thread scheduling.
     let per_ray: Vec<Vec<Ray>> = primary
         .par_iter()
-        .zip(&hits)
+        .zip(hits)
         .enumerate()
         .map(|(i, (r, h))| {
             if !h.is_hit() {
@@ -85,7 +84,7 @@ pub fn diffuse_rays(mesh: &Mesh, reference: &Reference, primary: &[Ray], per_hit
             if n.dot(d) > 0.0 {
                 n = -n;
             }
-            let p = a + (b - a) * h.u as f32 + (c - a) * h.v as f32 + n * (1e-4 * scale);
+            let p = a + (b - a) * h.u + (c - a) * h.v + n * (1e-4 * scale);
             let tx = if n.x.abs() > 0.5 { n.cross(Vec3::Y) } else { n.cross(Vec3::X) }.normalize();
             let ty = n.cross(tx);
             (0..per_hit)

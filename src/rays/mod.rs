@@ -1,9 +1,10 @@
-//! Ray and hit files (../shared/formats.md) and ray-set generators.
+//! Ray and hit files (../shared/formats.md), ray-set generators and ray-spawn offsets.
 //!
 //! Both formats are headerless little-endian records, so the structs below are the records:
 //! [`Ray`] (32 bytes) and [`Hit`] (16 bytes) are also the GPU's buffer layouts.
 
 mod generate;
+pub mod offset;
 
 pub use generate::{diffuse_rays, primary_rays, random_rays, Camera};
 

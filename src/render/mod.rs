@@ -10,23 +10,27 @@
 //!   sized to a wall-clock target so no submit comes near a GPU watchdog; samples accumulate
 //!   in sample order, so the image does not depend on the batching.
 
-pub mod bench;
+pub mod bsdf;
 pub mod output;
+pub mod plan;
 pub mod rng;
+pub mod session;
 
 use std::time::Instant;
 
 use ash::vk;
 use glam::{DVec3, Vec3};
 
+use crate::analyze::MethodChoice;
 use crate::encoding::{EncodedScene, Method};
 use crate::error::{Error, Result};
 use crate::gpu::buffer::{memory_barrier, read_back};
 use crate::gpu::descriptors::{write_set, DescriptorPool, Resource};
 use crate::gpu::timestamps::Timestamps;
-use crate::gpu::{Context, GpuScene};
+use crate::gpu::Context;
 use crate::kernels::{self, KernelSource};
 use crate::named::named_enum;
+use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::Camera;
 use crate::scene::{BsdfKind, GpuMaterial, Mesh};
 use crate::shared::Texel;
@@ -127,18 +131,18 @@ pub struct PathtraceKernel {
 impl PathtraceKernel {
     /// The kernel for `method` and a scene whose materials use the BSDFs in `mask`.
     pub fn choose(method: Method, mask: u32, choice: KernelChoice) -> PathtraceKernel {
+        // `glsl/pathtrace.comp`'s variants: `all`, and one per BSDF named as its GLSL file.
+        let variant = |v: &str| {
+            kernels::find("pathtrace", method.glsl_name(), v)
+                .unwrap_or_else(|| panic!("pathtrace.{}.{v} was not compiled", method.glsl_name()))
+        };
         let single = BsdfKind::ALL.into_iter().find(|k| k.bit() == mask);
         match (choice, single) {
-            (KernelChoice::Specialised, Some(kind)) => PathtraceKernel {
-                source: kernels::find("pathtrace", method, &kind.name().replace('-', "_")),
-                spec_mask: mask,
-            },
-            (KernelChoice::Specialised, None) => {
-                PathtraceKernel { source: kernels::find("pathtrace", method, "all"), spec_mask: mask.max(1) }
+            (KernelChoice::Specialised, Some(kind)) => {
+                PathtraceKernel { source: variant(&kind.name().replace('-', "_")), spec_mask: mask }
             }
-            (KernelChoice::General, _) => {
-                PathtraceKernel { source: kernels::find("pathtrace", method, "all"), spec_mask: BSDF_MASK_ALL }
-            }
+            (KernelChoice::Specialised, None) => PathtraceKernel { source: variant("all"), spec_mask: mask.max(1) },
+            (KernelChoice::General, _) => PathtraceKernel { source: variant("all"), spec_mask: BSDF_MASK_ALL },
         }
     }
 
@@ -183,7 +187,6 @@ impl RenderScene {
                 [n.x, n.y, n.z, f32::from_bits(mesh.material_ids[id as usize])]
             })
             .collect();
-        let mut bsdf_mask = 0;
         let mut lights = Vec::new();
         let mut weights = Vec::new();
         for id in 0..mesh.triangle_count() {
@@ -192,7 +195,6 @@ impl RenderScene {
             }
             let mi = mesh.material_ids[id] as usize;
             let m = &mesh.materials[mi];
-            bsdf_mask |= m.kind.bit();
             if !m.is_emissive() {
                 continue;
             }
@@ -225,9 +227,17 @@ impl RenderScene {
             lights,
             light_count,
             light_weight: total as f32,
-            bsdf_mask,
+            bsdf_mask: RenderScene::bsdf_mask(mesh),
             extent: mesh.bounds().extent().max_element(),
         }
+    }
+
+    /// The BSDFs used by at least one non-degenerate triangle of `mesh`, one bit per
+    /// `BsdfKind::code()`.
+    pub fn bsdf_mask(mesh: &Mesh) -> u32 {
+        (0..mesh.triangle_count())
+            .filter(|&id| !mesh.is_degenerate(id))
+            .fold(0, |mask, id| mask | mesh.materials[mesh.material_ids[id] as usize].kind.bit())
     }
 
     /// GPU bytes beyond the encoded scene.
@@ -378,8 +388,45 @@ impl RenderResult {
     }
 }
 
-/// Renders `scene` (already uploaded as `gpu`) with `kernel`. `progress` is called after each
-/// pass over the image; returning `false` stops the render there, keeping what it has.
+/// A scene ready to render: on the device (the texel path; only what the path tracer reads,
+/// unless ray casts share it), its shading, lights and materials, and the kernel carrying the
+/// BSDFs its materials use.
+pub struct RenderTarget {
+    pub device: DeviceScene,
+    pub scene: RenderScene,
+    pub kernel: PathtraceKernel,
+}
+
+impl RenderTarget {
+    /// Plans `host` for `method` (or `auto`) with the path tracer's own buffers for an image of
+    /// `pixels` (refusing, before anything is encoded, what does not fit), picks the kernel for
+    /// its materials (`choice`), and uploads it. With `raycast_too` every buffer of the scene is
+    /// uploaded, so that the ray-casting kernels can read it as well (the study).
+    pub fn new(
+        ctx: &Context,
+        host: &HostScene,
+        method: MethodChoice,
+        choice: KernelChoice,
+        pixels: u64,
+        raycast_too: bool,
+    ) -> Result<RenderTarget> {
+        let plan = host.plan(ctx, &SceneRequest::new(method).texel_only(plan::TEXEL_ONLY))?;
+        plan.check_extras(&plan::extras_for(host.mesh, plan.method, &plan.memory.counts, pixels))?;
+        let kernel = PathtraceKernel::choose(plan.method, RenderScene::bsdf_mask(host.mesh), choice);
+        let reader = if raycast_too { None } else { Some(kernel.source) };
+        let mut scene = None;
+        let device = plan.upload_with(ctx, reader, |e| scene = Some(RenderScene::new(host.mesh, e)))?;
+        Ok(RenderTarget { device, scene: scene.expect("upload_with hands over the encoding"), kernel })
+    }
+
+    /// GPU bytes of the scene and the path tracer's buffers beside it.
+    pub fn gpu_bytes(&self) -> usize {
+        self.device.bytes + self.scene.gpu_bytes()
+    }
+}
+
+/// Renders `target` with its kernel. `progress` is called after each pass over the image;
+/// returning `false` stops the render there, keeping what it has.
 ///
 /// After each pass the accumulation is copied to a host-visible buffer and from there to
 /// `RenderResult::accum`, so when a later submit fails (device lost, out of memory, timeout)
@@ -387,14 +434,13 @@ impl RenderResult {
 /// out-of-memory inside it is an `Error::GpuFault` naming the dispatch (`gpu::markers`).
 pub fn render(
     ctx: &Context,
-    gpu: &GpuScene,
-    scene: &RenderScene,
-    kernel: PathtraceKernel,
+    target: &RenderTarget,
     s: &RenderSettings,
     progress: &mut dyn FnMut(Progress) -> bool,
 ) -> std::result::Result<RenderResult, RenderFailure> {
     s.check()?;
-    let k = ctx.create_kernel_specialized(kernel.source, &[(0, kernel.spec_mask)])?;
+    let (gpu, scene, kernel) = (&target.device, &target.scene, target.kernel);
+    let k = ctx.kernel_specialized(kernel.source, &[(0, kernel.spec_mask)])?;
     let pixels = s.pixels() as usize;
     let materials = ctx.upload_texels("materials", bytemuck::cast_slice(&scene.materials), Texel::Rgba32Float)?;
     let shading = ctx.upload_texels("shading", bytemuck::cast_slice(&scene.shading), Texel::Rgba32Float)?;

@@ -23,6 +23,13 @@ pub fn rand01(key: u32, dim: u32) -> f32 {
     (rand_u32(key, dim) >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
+/// `glsl/rng_probe.comp`: writes `rng.glsl`'s draws, for the bit-for-bit comparison with this
+/// module (`tests/render.rs`).
+pub fn probe_kernel() -> &'static crate::kernels::KernelSource {
+    crate::kernels::find("rng_probe", crate::kernels::NO_INTERSECTOR, "main")
+        .expect("rng_probe.none.main was compiled (glsl/rng_probe.comp)")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

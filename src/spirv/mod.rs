@@ -4,9 +4,11 @@
 //! `spirv/instruction_counts.csv`; `tests/spirv_review.rs` regenerates both and fails when the
 //! committed files differ (`trilab spirv --write spirv` refreshes them).
 
+pub mod capabilities;
 pub mod counts;
 pub mod reflect;
 
+pub use capabilities::{required_features, Feature, Requirement};
 pub use counts::{count, InstructionCounts, OpClass};
 
 use rspirv::binary::Disassemble;

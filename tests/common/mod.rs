@@ -6,8 +6,9 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::Duration;
 
 use trilab::bvh::Bvh;
-use trilab::encoding::Method;
-use trilab::gpu::{raycast, Context, ContextOptions, GpuScene, Kernel, RaycastOptions, Validation};
+use trilab::encoding::{Method, Raycast};
+use trilab::gpu::{Context, ContextOptions, RaycastOptions, Validation};
+use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::rays::{Hit, Ray};
 use trilab::scene::{load_obj, Mesh};
 
@@ -24,12 +25,21 @@ pub fn bunny() -> Mesh {
 /// Fails (never skips) when there is no device or no validation layer, and when the layer
 /// reported anything, teardown included.
 pub fn with_gpu<T: Send + 'static>(timeout_s: u64, f: impl FnOnce(&Context) -> T + Send + 'static) -> T {
+    with_gpu_options(timeout_s, ContextOptions::default(), f)
+}
+
+/// [`with_gpu`] on a context made with `options` (the validation layer is required whatever
+/// they say).
+pub fn with_gpu_options<T: Send + 'static>(
+    timeout_s: u64,
+    options: ContextOptions,
+    f: impl FnOnce(&Context) -> T + Send + 'static,
+) -> T {
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {
-        let ctx = Context::new(&ContextOptions { validation: Validation::Required, ..Default::default() })
-            .unwrap_or_else(|e| {
-                panic!("GPU tests need a Vulkan device and the validation layer (they fail, never skip): {e}")
-            });
+        let ctx = Context::new(&ContextOptions { validation: Validation::Required, ..options }).unwrap_or_else(|e| {
+            panic!("GPU tests need a Vulkan device and the validation layer (they fail, never skip): {e}")
+        });
         assert!(ctx.validation_enabled(), "validation layer and debug messenger must be active in tests");
         let log = ctx.validation_log();
         let out = f(&ctx);
@@ -46,30 +56,58 @@ pub fn with_gpu<T: Send + 'static>(timeout_s: u64, f: impl FnOnce(&Context) -> T
     }
 }
 
-/// A method's closest-hit and any-hit ray-casting kernels, created once.
+/// One untimed run.
+pub const ONCE: RaycastOptions = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
+
+/// Closest and any hit of `rays` over `mesh` with `method`, on the tree `bvh`, through the scene
+/// pipeline.
+pub fn cast_both(ctx: &Context, method: Method, mesh: &Mesh, bvh: &Bvh, rays: &[Ray]) -> (Vec<Hit>, Vec<Hit>) {
+    let host = HostScene::with_bvh("test", mesh, bvh.clone());
+    let scene = host.upload(ctx, &SceneRequest::new(method)).unwrap();
+    let c = scene.cast(ctx, Raycast::Closest, rays, &ONCE).unwrap();
+    let a = scene.cast(ctx, Raycast::Any, rays, &ONCE).unwrap();
+    (c.hits, a.hits)
+}
+
+/// A method's casts through the scene pipeline (its kernels are created once per context).
 pub struct MethodKernels {
     pub method: Method,
-    pub closest: Kernel,
-    pub any: Kernel,
 }
 
 impl MethodKernels {
     pub fn new(ctx: &Context, method: Method) -> MethodKernels {
-        MethodKernels {
-            method,
-            closest: ctx.create_kernel(trilab::kernels::raycast(method, false)).unwrap(),
-            any: ctx.create_kernel(trilab::kernels::raycast(method, true)).unwrap(),
+        // Create the kernels now, so a method the device cannot run fails here.
+        for kind in [Raycast::Closest, Raycast::Any] {
+            ctx.kernel(method.raycast_kernel(kind, trilab::encoding::AccessPath::Texel)).unwrap();
         }
+        MethodKernels { method }
     }
 
     /// Closest and any hit of `rays` over `mesh` (encoded for the method on `bvh`).
     pub fn cast(&self, ctx: &Context, mesh: &Mesh, bvh: &Bvh, rays: &[Ray]) -> (Vec<Hit>, Vec<Hit>) {
-        let scene = GpuScene::upload(ctx, &self.method.encode(mesh, bvh)).unwrap();
-        let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 };
-        let c = raycast(ctx, &self.closest, &scene, rays, &opts).unwrap();
-        let a = raycast(ctx, &self.any, &scene, rays, &opts).unwrap();
-        (c.hits, a.hits)
+        cast_both(ctx, self.method, mesh, bvh, rays)
     }
+}
+
+/// Closest hits and per-ray traversal counts of `method`'s `stats` kernel on `bvh`.
+pub fn cast_stats(
+    ctx: &Context,
+    method: Method,
+    mesh: &Mesh,
+    bvh: &Bvh,
+    rays: &[Ray],
+) -> (Vec<Hit>, Vec<trilab::gpu::TraversalCounts>) {
+    let host = HostScene::with_bvh("test", mesh, bvh.clone());
+    let scene = host.upload(ctx, &SceneRequest::new(method)).unwrap();
+    let r = scene.cast(ctx, Raycast::Stats, rays, &ONCE).unwrap();
+    (r.hits, r.traversal.expect("the stats kernel writes counters"))
+}
+
+/// Closest hits of `rays` over `mesh` with `method` on `bvh`.
+pub fn cast_closest(ctx: &Context, method: Method, mesh: &Mesh, bvh: &Bvh, rays: &[Ray]) -> Vec<Hit> {
+    let host = HostScene::with_bvh("test", mesh, bvh.clone());
+    let scene = host.upload(ctx, &SceneRequest::new(method)).unwrap();
+    scene.cast(ctx, Raycast::Closest, rays, &ONCE).unwrap().hits
 }
 
 /// No hit has a NaN t, u or v.

@@ -1,0 +1,57 @@
+//! `trilab accuracy`.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use trilab::error::Result;
+use trilab::harness::accuracy::{self, AccuracyOptions, Preset};
+use trilab::report::Report;
+
+use super::choice::choice;
+use super::{results_dir, GpuArgs, MethodsArg};
+
+/// Intersection accuracy per method x leaf size: leaks on closed meshes, false hits,
+/// t/barycentric error, self-intersection per offset scheme, extremes, and the speed frontier;
+/// accuracy.csv/json/md and plots.
+#[derive(Args)]
+pub struct AccuracyArgs {
+    /// full: the whole sweep (about 20 minutes on 2-core lavapipe); smoke: seconds, for CI.
+    #[arg(long, value_parser = choice::<Preset>(), default_value_t = Preset::Full)]
+    preset: Preset,
+    /// Methods (default: every method; the smoke preset: the paper's four).
+    #[command(flatten)]
+    methods: MethodsArg,
+    /// Leaf sizes of the leak, false-hit and error tables (default: 1,2,3,4,8,16).
+    #[arg(long, value_delimiter = ',')]
+    leaf_sizes: Vec<u32>,
+    /// Leak rays per closed mesh and kind (default: the preset's).
+    #[arg(long)]
+    rays: Option<usize>,
+    /// Output directory. Default: results/<device>/accuracy/.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+pub fn run(a: AccuracyArgs) -> Result<()> {
+    let mut o = AccuracyOptions::preset(a.preset);
+    if !a.methods.methods.is_empty() {
+        o.methods = a.methods.methods.clone();
+    }
+    if !a.leaf_sizes.is_empty() {
+        o.leaf_sizes = a.leaf_sizes.clone();
+    }
+    if let Some(n) = a.rays {
+        o.leak_rays = n;
+    }
+    let ctx = a.gpu.context()?;
+    let out = results_dir(&ctx, a.out.clone(), "accuracy");
+    let t = std::time::Instant::now();
+    let report = accuracy::run(&ctx, &o, |m| eprintln!("  [{:5.0} s] {m}", t.elapsed().as_secs_f64()))?;
+    print!("{}", report.to_text());
+    for w in accuracy::write(&report, &out)? {
+        eprintln!("  wrote {}", w.display());
+    }
+    Ok(())
+}

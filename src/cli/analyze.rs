@@ -1,0 +1,39 @@
+//! `trilab analyze`.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use trilab::analyze::Target;
+use trilab::error::Result;
+
+use super::{GpuArgs, JsonArg};
+
+/// A scene's numerical conditioning (coordinate magnitude against edge length, smallest edge,
+/// slivers, distance from the origin) and the cheapest method, offset scheme and placement that
+/// meet an accuracy target on it.
+#[derive(Args)]
+pub struct AnalyzeArgs {
+    #[arg(long)]
+    scene: PathBuf,
+    /// Target: most leaks per 10^6 rays on closed meshes (rays at shared edges and vertices
+    /// included), as `trilab accuracy` measures them.
+    #[arg(long, default_value_t = 0.0)]
+    max_leaks_per_million: f64,
+    /// Target: largest 99th-percentile t error, in f32 ULPs of t.
+    #[arg(long, default_value_t = 4.0)]
+    max_t_ulps: f64,
+    /// `frontier.csv` from `trilab accuracy` on your device (default: the committed lavapipe one).
+    #[arg(long)]
+    frontier: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+pub fn run(a: AnalyzeArgs) -> Result<()> {
+    let target = Target { max_leaks_per_million: a.max_leaks_per_million, max_t_ulps: a.max_t_ulps };
+    let report = trilab::harness::advise::run(&a.scene, target, a.frontier.as_deref(), a.gpu.device.as_deref())?;
+    a.json.print(&report);
+    Ok(())
+}

@@ -1,0 +1,74 @@
+//! `trilab build-bench`.
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use trilab::bvh::LeafPolicy;
+use trilab::error::Result;
+use trilab::harness::build_bench::{self, BuildBenchOptions};
+
+use super::choice::choice;
+use super::JsonArg;
+
+/// BVH build benchmark: seconds, Mtris/s, SAH cost, nodes and depth per scene and thread
+/// count for the parallel and serial binned SAH and the full sweep, optionally beside
+/// Embree 3's builder on the same triangles; build.csv/json/md.
+#[derive(Args)]
+pub struct BuildBenchArgs {
+    /// Scenes, comma-separated: OBJ files (.obj, .obj.gz) or synth:<kind>:<N>.
+    #[arg(long, value_delimiter = ',', required = true)]
+    scenes: Vec<PathBuf>,
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
+    leaf_policy: LeafPolicy,
+    /// Triangles the SAH prices as one test (1: classic; Embree's SAH block size).
+    #[arg(long, default_value_t = 1)]
+    sah_group: u32,
+    /// Thread counts, comma-separated (default: one per logical CPU).
+    #[arg(long, value_delimiter = ',')]
+    threads: Vec<usize>,
+    /// Timed runs after one warm-up.
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Leave out the single-threaded reference loop.
+    #[arg(long)]
+    no_serial: bool,
+    /// Full-sweep SAH reference only on scenes of at most this many triangles.
+    #[arg(long, default_value_t = 300_000)]
+    sweep_max: usize,
+    /// The Embree build peer (`embree_build` from scripts/embree-peer.sh).
+    #[arg(long)]
+    embree: Option<PathBuf>,
+    /// Directory for build.csv, build.json and build.md (e.g. results/<host>/build).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
+}
+
+pub fn run(a: BuildBenchArgs) -> Result<()> {
+    let d = BuildBenchOptions::default();
+    let o = BuildBenchOptions {
+        scenes: a.scenes,
+        leaf_size: a.leaf_size,
+        leaf_policy: a.leaf_policy,
+        sah_group: a.sah_group,
+        threads: if a.threads.is_empty() { d.threads } else { a.threads },
+        repeat: a.repeat,
+        serial: !a.no_serial,
+        sweep_max_triangles: a.sweep_max,
+        embree: a.embree,
+    };
+    let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
+    if let Some(out) = &a.out {
+        trilab::io::check_outputs(out, &["build.csv", "build.json", "build.md"], &inputs)?;
+    }
+    let report = build_bench::run(&o, |m| eprintln!("{m}"))?;
+    a.json.print(&report);
+    if let Some(out) = &a.out {
+        report.write(out)?;
+        eprintln!("wrote {}/build.{{csv,json,md}}", out.display());
+    }
+    Ok(())
+}

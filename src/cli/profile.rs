@@ -1,0 +1,90 @@
+//! `trilab profile`.
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use trilab::error::{Error, Result};
+use trilab::harness::profile::{self, ProfileOptions};
+use trilab::harness::rayset::RaySet;
+use trilab::report::Report;
+
+use super::choice::choice;
+use super::{results_dir, GpuArgs, MethodsArg};
+
+/// Driver-level profile of the ray-casting kernels: timestamps, pipeline statistics,
+/// shader-clock heat maps, executable statistics, subgroup/workgroup-size sweeps,
+/// LP_NUM_THREADS scaling; profile.md, profile.json and PNGs.
+#[derive(Args)]
+pub struct ProfileArgs {
+    #[arg(long)]
+    scene: PathBuf,
+    /// Methods (default: every method the device runs).
+    #[command(flatten)]
+    methods: MethodsArg,
+    #[arg(long, default_value_t = 4)]
+    leaf_size: u32,
+    /// Output directory; default results/<device>/profile (lavapipe for Mesa's llvmpipe).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Primary rays: a width x height camera image (also the heat maps' size).
+    #[arg(long, default_value_t = 800)]
+    width: u32,
+    #[arg(long, default_value_t = 600)]
+    height: u32,
+    #[arg(long, default_value_t = 2)]
+    diffuse_per_hit: u32,
+    #[arg(long, default_value_t = 250_000)]
+    random_rays: usize,
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Timed runs after one warm-up; median, min and max are reported.
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// The ray set the subgroup- and workgroup-size sweeps time.
+    #[arg(long, value_parser = choice::<RaySet>(), default_value_t = RaySet::Random)]
+    sweep_set: RaySet,
+    #[arg(long, value_delimiter = ',', default_values_t = [32u32, 64, 128, 256])]
+    workgroup_sizes: Vec<u32>,
+    /// LP_NUM_THREADS values to run (lavapipe only); default 1..=host cores.
+    #[arg(long, value_delimiter = ',')]
+    threads: Vec<usize>,
+    /// Leave out the LP_NUM_THREADS section.
+    #[arg(long)]
+    no_threads: bool,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+pub fn run(a: ProfileArgs) -> Result<()> {
+    let exe = if a.no_threads {
+        None
+    } else {
+        Some(std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e))?)
+    };
+    let ctx = a.gpu.context()?;
+    let o = ProfileOptions {
+        scene: a.scene.clone(),
+        methods: a.methods.or_device(&ctx),
+        leaf_size: a.leaf_size,
+        width: a.width,
+        height: a.height,
+        diffuse_per_hit: a.diffuse_per_hit,
+        random_rays: a.random_rays,
+        seed: a.seed,
+        repeat: a.repeat.max(1),
+        sweep_set: a.sweep_set,
+        workgroup_sizes: a.workgroup_sizes.clone(),
+        thread_counts: a.threads.clone(),
+        exe,
+        command: format!("trilab {}", std::env::args().skip(1).collect::<Vec<_>>().join(" ")),
+        ..Default::default()
+    };
+    let out = results_dir(&ctx, a.out.clone(), "profile");
+    trilab::io::check_outputs(&out, &["profile.json", "profile.md"], &[&a.scene])?;
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;
+    print!("{}", report.to_text());
+    profile::write(&report, &out)?;
+    println!("\nwrote {}", out.display());
+    Ok(())
+}

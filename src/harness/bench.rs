@@ -1,0 +1,481 @@
+//! The ray-casting benchmark (`trilab bench`, `cargo bench`): primary, diffuse and random ray
+//! sets on each scene, every method, each result validated against the f64 reference before
+//! its speed is reported (as tinybvh's speed test does), optionally beside Embree on the same
+//! ray files in the same run.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::bvh::{BuildOptions, LeafPolicy};
+use crate::compare::compare_closest;
+use crate::encoding::{Method, SceneAccess};
+use crate::error::{Error, Result};
+use crate::gpu::rayquery::{self, raycast_rq, Peer};
+use crate::gpu::{AccelStats, AccelStructure, Context, RaycastOptions};
+use crate::harness::provenance::Provenance;
+use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
+use crate::harness::validate::{measure_rays, mrays_summary};
+use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
+use crate::rays::{self, Ray};
+use crate::report::{Report, Summary, Table};
+use crate::scene::{load_obj, Mesh};
+
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub scenes: Vec<PathBuf>,
+    pub methods: Vec<Method>,
+    pub leaf_size: u32,
+    pub leaf_policy: LeafPolicy,
+    /// `BuildOptions::sah_group`: 4 prices leaves in quads.
+    pub sah_group: u32,
+    pub warmup: usize,
+    pub repeat: usize,
+    pub width: u32,
+    pub height: u32,
+    pub diffuse_per_hit: u32,
+    pub random_rays: usize,
+    pub seed: u64,
+    /// Read `<scene>.{primary,diffuse,random}.rays` from here instead of generating (for
+    /// example the peer's held-out sets from ../shared/peers/make_rays.sh).
+    pub rays_dir: Option<PathBuf>,
+    /// The Embree peer program (`embree_rays`), run on the same ray files.
+    pub embree: Option<PathBuf>,
+    pub batch_rays: usize,
+    /// Add the driver's ray query as a peer row where the device has it.
+    pub ray_query: bool,
+    /// How the kernels read each scene (`encoding::plan`; `auto`: texel buffers when they fit).
+    pub scene_access: SceneAccess,
+}
+
+/// Wall-clock target of one ray-query submit (its batch is sized to it, [`rayquery::batch_for`]).
+const PEER_SUBMIT_MS: f64 = 500.0;
+
+impl Default for BenchOptions {
+    fn default() -> Self {
+        BenchOptions {
+            scenes: vec![],
+            methods: Method::ALL.to_vec(),
+            leaf_size: 4,
+            leaf_policy: LeafPolicy::Fill,
+            sah_group: 1,
+            warmup: 1,
+            repeat: 5,
+            width: 800,
+            height: 600,
+            diffuse_per_hit: 8,
+            random_rays: 1_000_000,
+            seed: 7,
+            rays_dir: None,
+            embree: None,
+            batch_rays: 1 << 20,
+            ray_query: true,
+            scene_access: SceneAccess::Auto,
+        }
+    }
+}
+
+/// What traced a row's rays: one of our kernels over our BVH, or a peer (the driver's ray
+/// query) over its own structure. Serialises as the method's or the peer's name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(untagged)]
+pub enum Tracer {
+    Method(Method),
+    Peer(Peer),
+}
+
+impl std::fmt::Display for Tracer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Tracer::Method(m) => m.fmt(f),
+            Tracer::Peer(p) => p.fmt(f),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchRow {
+    pub scene: String,
+    pub triangles: usize,
+    pub ray_set: RaySet,
+    pub rays: usize,
+    pub method: Tracer,
+    /// Our BVH's leaf size; `None` for a peer (the driver's structure is its own).
+    pub leaf_size: Option<u32>,
+    /// Triangles the BVH's SAH priced as one test (4: quad-aware); `None` for a peer.
+    pub sah_group: Option<u32>,
+    /// Our encoded scene, or for the ray-query peer the driver's BLAS + TLAS.
+    pub scene_bytes: usize,
+    /// Kernel time (GPU timestamps), milliseconds.
+    pub kernel_ms: Summary,
+    /// Rays per second at the median, min and max kernel time, millions.
+    pub mrays_per_s: f64,
+    pub mrays_per_s_min: f64,
+    pub mrays_per_s_max: f64,
+    /// Fraction of rays agreeing with the f64 reference.
+    pub agreement: f64,
+    pub unexplained_disagreements: usize,
+    pub invalid: usize,
+    pub embree_mrays_per_s: Option<f64>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    #[serde(flatten)]
+    pub provenance: Provenance,
+    pub leaf_size: u32,
+    /// Timed runs per measurement (after one warm-up).
+    pub repeat: usize,
+    pub rows: Vec<BenchRow>,
+    /// (scene, ray set, Embree Mrays/s, best trilab Mrays/s, ratio)
+    pub embree: Vec<(String, RaySet, f64, f64, f64)>,
+    /// The driver's acceleration structure per scene, for the ray-query peer rows.
+    pub accel: Vec<(String, AccelStats)>,
+    /// "ray query: unsupported on <device>" where the device (or the options) left it out.
+    pub ray_query_note: Option<String>,
+}
+
+impl Report for BenchReport {
+    fn to_text(&self) -> String {
+        let mut s = format!("{}\n\n{}", self.header(), self.table().to_text());
+        if !self.embree.is_empty() {
+            s += &format!("\n{}", self.embree_table().to_text());
+        }
+        if !self.accel.is_empty() {
+            s += &format!(
+                "\nthe driver's acceleration structures (ray-query rows):\n\n{}",
+                self.accel_table().to_text()
+            );
+        }
+        if let Some(note) = &self.ray_query_note {
+            s += &format!("\n{note}\n");
+        }
+        s
+    }
+}
+
+impl BenchReport {
+    /// Device, driver, host and how the rows were timed.
+    pub fn header(&self) -> String {
+        let p = &self.provenance;
+        let lp = p.lp_num_threads.as_deref().map(|n| format!(", LP_NUM_THREADS={n}")).unwrap_or_default();
+        format!(
+            "device: {} ({}); host CPUs: {}{lp}; leaf size {}; median of {} runs after 1 warm-up (GPU timestamps)",
+            p.device, p.driver, p.host_cpus, self.leaf_size, self.repeat
+        )
+    }
+
+    /// The tables in Markdown, under the header.
+    pub fn markdown(&self) -> String {
+        let mut md = format!("{}\n\n{}", self.header(), self.table().to_markdown());
+        if !self.embree.is_empty() {
+            md += &format!("\n{}", self.embree_table().to_markdown());
+        }
+        if !self.accel.is_empty() {
+            md += &format!("\n{}", self.accel_table().to_markdown());
+        }
+        if let Some(note) = &self.ray_query_note {
+            md += &format!("\n{note}\n");
+        }
+        md
+    }
+
+    /// Writes the report as JSON and the tables as Markdown where asked, each atomically.
+    pub fn write(&self, json: Option<&Path>, md: Option<&Path>) -> Result<()> {
+        if let Some(p) = json {
+            crate::io::write_atomic(p, self.to_json().as_bytes())?;
+        }
+        if let Some(p) = md {
+            crate::io::write_atomic(p, self.markdown().as_bytes())?;
+        }
+        Ok(())
+    }
+
+    pub fn table(&self) -> Table {
+        let mut t = Table::new([
+            "scene",
+            "rays",
+            "set",
+            "method",
+            "leaf",
+            "MB",
+            "kernel ms",
+            "Mrays/s",
+            "min..max",
+            "agree %",
+            "Embree",
+        ]);
+        for r in &self.rows {
+            t.row([
+                r.scene.clone(),
+                r.rays.to_string(),
+                r.ray_set.to_string(),
+                r.method.to_string(),
+                r.leaf_size.map_or_else(|| "-".into(), |l| l.to_string()),
+                format!("{:.2}", r.scene_bytes as f64 / 1e6),
+                format!("{:.1}", r.kernel_ms.median),
+                rate(r.mrays_per_s),
+                format!("{}..{}", rate(r.mrays_per_s_min), rate(r.mrays_per_s_max)),
+                format!("{:.4}", 100.0 * r.agreement),
+                r.embree_mrays_per_s.map(|e| format!("{e:.2}")).unwrap_or_else(|| "-".into()),
+            ]);
+        }
+        t
+    }
+
+    /// The driver's structures: sizes and build times.
+    pub fn accel_table(&self) -> Table {
+        let mut t = Table::new([
+            "scene",
+            "triangles",
+            "BLAS bytes",
+            "TLAS bytes",
+            "scratch bytes",
+            "BLAS build ms",
+            "TLAS build ms",
+            "wall ms",
+        ]);
+        let ms = |m: Option<f64>| m.map_or_else(|| "-".into(), |m| format!("{m:.2}"));
+        for (scene, s) in &self.accel {
+            t.row([
+                scene.clone(),
+                s.triangles.to_string(),
+                s.blas_bytes.to_string(),
+                s.tlas_bytes.to_string(),
+                (s.blas_scratch_bytes + s.tlas_scratch_bytes).to_string(),
+                ms(s.blas_build_ms),
+                ms(s.tlas_build_ms),
+                format!("{:.1}", s.wall_ms),
+            ]);
+        }
+        t
+    }
+
+    pub fn embree_table(&self) -> Table {
+        let mut t = Table::new(["scene", "set", "Embree Mrays/s", "best trilab Mrays/s", "trilab / Embree"]);
+        for (s, set, e, b, ratio) in &self.embree {
+            t.row([s.clone(), set.to_string(), format!("{e:.2}"), format!("{b:.2}"), format!("{ratio:.2}")]);
+        }
+        t
+    }
+}
+
+/// Mrays/s with two decimals, or three significant digits below 1 (lavapipe's ray query runs at
+/// a few thousand rays per second).
+fn rate(x: f64) -> String {
+    if x >= 1.0 || x == 0.0 || !x.is_finite() {
+        format!("{x:.2}")
+    } else {
+        let decimals = (2.0 - x.log10().floor()).clamp(2.0, 9.0) as usize;
+        format!("{x:.decimals$}")
+    }
+}
+
+/// One table row; `o` is `None` for a peer (no leaf size or SAH grouping).
+#[allow(clippy::too_many_arguments)]
+fn row(
+    scene: &str,
+    mesh: &Mesh,
+    set: RaySet,
+    rays: &[Ray],
+    method: Tracer,
+    o: Option<&BenchOptions>,
+    scene_bytes: usize,
+    ms: Summary,
+    agreement: &crate::compare::Agreement,
+) -> BenchRow {
+    let mr = mrays_summary(rays.len(), ms);
+    BenchRow {
+        scene: scene.to_owned(),
+        triangles: mesh.triangle_count(),
+        ray_set: set,
+        rays: rays.len(),
+        method,
+        leaf_size: o.map(|o| o.leaf_size),
+        sah_group: o.map(|o| o.sah_group),
+        scene_bytes,
+        kernel_ms: ms,
+        mrays_per_s: mr.median,
+        mrays_per_s_min: mr.min,
+        mrays_per_s_max: mr.max,
+        agreement: agreement.fraction(),
+        unexplained_disagreements: agreement.unexplained,
+        invalid: agreement.invalid.len(),
+        embree_mrays_per_s: None,
+    }
+}
+
+/// Runs the Embree peer on a ray file; returns its best Mrays/s.
+fn run_embree(bin: &Path, scene: &Path, rays: &Path, out: &Path, repeat: usize) -> Result<f64> {
+    let output = Command::new(bin)
+        .arg("trace")
+        .arg(scene)
+        .arg(rays)
+        .arg(out)
+        .arg(repeat.max(1).to_string())
+        .output()
+        .map_err(|e| Error::io(bin, e))?;
+    let text = String::from_utf8_lossy(&output.stdout);
+    if !output.status.success() {
+        return Err(Error::Usage(format!(
+            "{} failed: {}{}",
+            bin.display(),
+            text,
+            String::from_utf8_lossy(&output.stderr)
+        )));
+    }
+    text.split_whitespace()
+        .find_map(|w| w.strip_prefix("mrays_per_s=").and_then(|v| v.parse().ok()))
+        .ok_or_else(|| Error::Usage(format!("cannot read Mrays/s from {}: {text}", bin.display())))
+}
+
+impl BenchOptions {
+    /// The BVH every method's encoding shares.
+    pub fn build_options(&self) -> BuildOptions {
+        BuildOptions { leaf_policy: self.leaf_policy, sah_group: self.sah_group, ..BuildOptions::new(self.leaf_size) }
+    }
+
+    /// The ray sets' sizes.
+    pub fn sizes(&self) -> RaySetSizes {
+        RaySetSizes {
+            width: self.width,
+            height: self.height,
+            diffuse_per_hit: self.diffuse_per_hit,
+            random_rays: self.random_rays,
+            seed: self.seed,
+        }
+    }
+}
+
+pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
+    let mut report = BenchReport {
+        provenance: Provenance::of(ctx),
+        leaf_size: o.leaf_size,
+        repeat: o.repeat,
+        rows: vec![],
+        embree: vec![],
+        accel: vec![],
+        ray_query_note: None,
+    };
+    let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
+    let rq_kernel = if !o.ray_query {
+        report.ray_query_note = Some("ray query: not run (--ray-query off, or auto on a CPU device)".into());
+        None
+    } else if ctx.enabled().ray_query {
+        Some(rayquery::kernel(ctx, false)?)
+    } else {
+        let note = crate::gpu::accel::unsupported(ctx).to_string();
+        progress(&note);
+        report.ray_query_note = Some(note);
+        None
+    };
+    for scene_path in &o.scenes {
+        let name = crate::scene::scene_name(scene_path);
+        let mesh = load_obj(scene_path)?;
+        progress(&format!("{name}: {} triangles; making ray sets", mesh.triangle_count()));
+        let t = Instant::now();
+        let host = HostScene::build(&name, &mesh, &o.build_options())?;
+        let reference = host.reference();
+        let sets = ray_sets(&mesh, &name, &reference, &o.sizes(), o.rays_dir.as_deref())?;
+        progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
+        // Each method's plan picks its access path before encoding (and fails clearly if the
+        // scene cannot fit); its kernels read the scene through that path.
+        let scenes: Vec<DeviceScene> = o
+            .methods
+            .iter()
+            .map(|&m| host.upload(ctx, &SceneRequest::new(m).access(o.scene_access)))
+            .collect::<Result<_>>()?;
+        let accel = match &rq_kernel {
+            Some(_) => {
+                let a = AccelStructure::build(ctx, &mesh)?;
+                progress(&accel_line(&name, &a.stats));
+                report.accel.push((name.clone(), a.stats));
+                Some(a)
+            }
+            None => None,
+        };
+        for (set, rays) in &sets {
+            let set = *set;
+            let ref_hits = reference.trace_all(rays, false);
+            let mut best: f64 = 0.0;
+            for scene in &scenes {
+                let method = scene.method;
+                let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: o.batch_rays };
+                let m = measure_rays(ctx, scene, &mesh, rays, &ref_hits, &opts)
+                    .map_err(|e| Error::Usage(format!("{name} {set} {method}: {e}")))?;
+                let (ms, mr, agreement) = (m.kernel_ms, m.mrays_per_s, m.agreement);
+                progress(&format!(
+                    "{name} {set} {method}: {:.2} Mrays/s ({:.1} ms), {}",
+                    mr.median,
+                    ms.median,
+                    agreement.summary()
+                ));
+                best = best.max(mr.median);
+                let tracer = Tracer::Method(method);
+                report.rows.push(row(&name, &mesh, set, rays, tracer, Some(o), scene.bytes, ms, &agreement));
+            }
+            if let (Some(kernel), Some(accel)) = (&rq_kernel, &accel) {
+                // The driver's answer may differ on edge rays: report the agreement, refuse only
+                // impossible values (NaN, ids out of range, t outside the interval).
+                let batch = rayquery::batch_for(ctx, kernel, accel, rays, PEER_SUBMIT_MS, o.batch_rays)?;
+                let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: batch };
+                let res = raycast_rq(ctx, kernel, accel, rays, &opts)?;
+                let agreement = compare_closest(&mesh, rays, &res.hits, &ref_hits);
+                let ms = res.time_ms();
+                progress(&format!(
+                    "{name} {set} ray-query: {} Mrays/s ({:.1} ms, {} rays per submit), {}",
+                    rate(rays.len() as f64 / (ms.median * 1e-3) / 1e6),
+                    ms.median,
+                    batch,
+                    agreement.summary()
+                ));
+                if !agreement.invalid.is_empty() {
+                    return Err(Error::Usage(format!(
+                        "{name} {set} ray-query: {} invalid results, e.g. ray {}: {}; not reporting a speed",
+                        agreement.invalid.len(),
+                        agreement.invalid[0].0,
+                        agreement.invalid[0].1
+                    )));
+                }
+                let bytes = (accel.stats.blas_bytes + accel.stats.tlas_bytes) as usize;
+                let tracer = Tracer::Peer(Peer::RayQuery);
+                report.rows.push(row(&name, &mesh, set, rays, tracer, None, bytes, ms, &agreement));
+            }
+            if let Some(bin) = &o.embree {
+                let rays_file = tmp.path().join(format!("{name}.{set}.rays"));
+                rays::write_rays(&rays_file, rays)?;
+                let e = run_embree(bin, scene_path, &rays_file, &tmp.path().join("embree.hits"), o.repeat.max(3))?;
+                progress(&format!("{name} {set} Embree: {e:.2} Mrays/s; best trilab / Embree = {:.2}", best / e));
+                for r in report.rows.iter_mut().filter(|r| r.scene == name && r.ray_set == set) {
+                    r.embree_mrays_per_s = Some(e);
+                }
+                report.embree.push((name.clone(), set, e, best, best / e));
+            }
+        }
+    }
+    Ok(report)
+}
+
+/// The progress line of the driver's acceleration structure.
+fn accel_line(name: &str, s: &AccelStats) -> String {
+    format!(
+        "{name}: driver BLAS {} B + TLAS {} B, built in {}",
+        s.blas_bytes,
+        s.tlas_bytes,
+        s.blas_build_ms
+            .zip(s.tlas_build_ms)
+            .map_or_else(|| format!("{:.1} ms (wall)", s.wall_ms), |(b, t)| format!("{b:.2} + {t:.2} ms (GPU)"))
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn rates_keep_three_significant_digits_below_one() {
+        assert_eq!(super::rate(3.667), "3.67");
+        assert_eq!(super::rate(0.25), "0.250");
+        assert_eq!(super::rate(0.002688), "0.00269");
+    }
+}

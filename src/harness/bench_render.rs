@@ -1,0 +1,279 @@
+//! The path-tracing benchmark: scenes x methods x kernel choice, each configuration rendered
+//! once to warm up and then `repeat` times, reporting median / min / max samples per second and
+//! rays per second from GPU timestamps. Every render is validated before its speed counts: no
+//! dropped (NaN/Inf) samples, and an image mean within 2 % of the Möller–Trumbore render of the
+//! same scene (the methods trace the same paths).
+
+use std::path::{Path, PathBuf};
+
+use crate::bvh::BuildOptions;
+use crate::encoding::Method;
+use crate::error::{Error, Result};
+use crate::gpu::Context;
+use crate::pipeline::HostScene;
+use crate::render::{render, KernelChoice, PathtraceKernel, RenderResult, RenderSettings, RenderTarget};
+use crate::report::{Report, Summary, Table};
+use crate::scene::{load_obj, BsdfKind, Mesh};
+
+#[derive(Clone, Debug)]
+pub struct RenderBenchOptions {
+    pub scenes: Vec<PathBuf>,
+    pub methods: Vec<Method>,
+    pub kernels: Vec<KernelChoice>,
+    pub leaf_size: u32,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    /// Environment radiance; `None`: white, or black for scenes with emitters.
+    pub env: Option<[f32; 3]>,
+    pub repeat: usize,
+}
+
+impl Default for RenderBenchOptions {
+    fn default() -> Self {
+        RenderBenchOptions {
+            scenes: vec![],
+            methods: Method::ALL.to_vec(),
+            kernels: vec![KernelChoice::Specialised],
+            leaf_size: 4,
+            width: 200,
+            height: 150,
+            spp: 16,
+            max_depth: 16,
+            env: None,
+            repeat: 3,
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderBenchRow {
+    pub scene: String,
+    pub triangles: usize,
+    pub method: Method,
+    pub kernel_choice: KernelChoice,
+    pub kernel: &'static str,
+    pub bsdfs: Vec<&'static str>,
+    /// SPIR-V instructions: whole module, and inside function bodies.
+    pub spirv_module: u32,
+    pub spirv_functions: u32,
+    pub msamples_per_s: Summary,
+    pub mrays_per_s: Summary,
+    pub ms: Summary,
+    /// Rays per sample (closest + occlusion).
+    pub rays_per_sample: f64,
+    pub image_mean: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderBenchReport {
+    pub device: String,
+    pub driver: String,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    pub leaf_size: u32,
+    pub timed_on_gpu: bool,
+    /// Timed renders per configuration (after one warm-up).
+    pub repeat: usize,
+    pub rows: Vec<RenderBenchRow>,
+}
+
+impl Report for RenderBenchReport {
+    fn to_text(&self) -> String {
+        format!("{}\n{}", self.header(), self.table().to_text())
+    }
+}
+
+impl RenderBenchReport {
+    /// Device, driver and the settings every row shares.
+    pub fn header(&self) -> String {
+        format!(
+            "device: {} ({})\n{}x{}, {} spp, max depth {}, leaf size {}, median (min-max) of {} renders after a warm-up, {} time\n",
+            self.device,
+            self.driver,
+            self.width,
+            self.height,
+            self.spp,
+            self.max_depth,
+            self.leaf_size,
+            self.repeat.max(1),
+            if self.timed_on_gpu { "GPU timestamp" } else { "wall" }
+        )
+    }
+
+    /// Writes the report as JSON and the table as Markdown where asked, each atomically.
+    pub fn write(&self, json: Option<&Path>, md: Option<&Path>) -> Result<()> {
+        if let Some(p) = md {
+            crate::io::write_atomic(p, format!("{}\n{}", self.header(), self.table().to_markdown()).as_bytes())?;
+        }
+        if let Some(p) = json {
+            crate::io::write_atomic(p, self.to_json().as_bytes())?;
+        }
+        Ok(())
+    }
+
+    pub fn table(&self) -> Table {
+        let mut t = Table::new([
+            "scene",
+            "method",
+            "choice",
+            "kernel",
+            "BSDFs",
+            "SPIR-V (fn)",
+            "Msamples/s median (min-max)",
+            "Mrays/s median",
+            "rays/sample",
+        ]);
+        for r in &self.rows {
+            let s = r.msamples_per_s;
+            t.row([
+                r.scene.clone(),
+                r.method.name().to_owned(),
+                match r.kernel_choice {
+                    KernelChoice::Specialised => "specialised".to_owned(),
+                    KernelChoice::General => "general".to_owned(),
+                },
+                r.kernel.to_owned(),
+                if r.bsdfs.len() == BsdfKind::ALL.len() { "all 7".to_owned() } else { r.bsdfs.join("+") },
+                format!("{} ({})", r.spirv_module, r.spirv_functions),
+                format!("{:.3} ({:.3}-{:.3})", s.median, s.min, s.max),
+                format!("{:.2}", r.mrays_per_s.median),
+                format!("{:.2}", r.rays_per_sample),
+            ]);
+        }
+        t
+    }
+}
+
+/// A benchmark's render settings for `mesh`: the paper's camera and path settings at `size`,
+/// `spp` and `max_depth`; a white environment, or black for scenes with emitters, unless `env`
+/// is given.
+pub fn bench_settings(
+    mesh: &Mesh,
+    size: (u32, u32),
+    spp: u32,
+    max_depth: u32,
+    env: Option<[f32; 3]>,
+) -> RenderSettings {
+    let emissive = mesh.materials.iter().any(|m| m.is_emissive());
+    RenderSettings {
+        width: size.0,
+        height: size.1,
+        spp,
+        max_depth,
+        env: env.unwrap_or(if emissive { [0.0; 3] } else { [1.0; 3] }),
+        ..RenderSettings::paper(mesh)
+    }
+}
+
+/// Every method (and leaf size) traces the same paths through the same scene, so their image
+/// means must agree: checks `mean` against the first one seen for the scene (kept in `first`)
+/// to within 2 %.
+pub fn check_image_mean(mean: f64, first: &mut Option<f64>) -> std::result::Result<(), String> {
+    let base = *first.get_or_insert(mean);
+    if (mean - base).abs() > 0.02 * base.abs().max(1e-6) {
+        return Err(format!("image mean {mean} differs from the scene's first render ({base}) by more than 2 %"));
+    }
+    Ok(())
+}
+
+/// Timed renders of one configuration, summarised and checked.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderMeasure {
+    pub msamples_per_s: Summary,
+    pub mrays_per_s: Summary,
+    /// GPU time per render (host wall time where there are no timestamps), ms.
+    pub ms: Summary,
+    /// Rays per sample (closest + occlusion).
+    pub rays_per_sample: f64,
+    /// Mean of the last render's RGB.
+    pub image_mean: f64,
+}
+
+/// Summarises timed renders of one configuration; an error when any sample was NaN/Inf (dropped)
+/// or the image mean is not finite, so a broken kernel never reports a speed.
+pub fn summarise_renders(runs: &[RenderResult]) -> Result<RenderMeasure> {
+    let last = runs.last().ok_or_else(|| Error::Usage("no timed renders".into()))?;
+    let mean = image_mean(last);
+    let bad = runs.iter().map(|r| r.dropped_samples).sum::<u64>();
+    if bad > 0 || !mean.is_finite() {
+        return Err(Error::Usage(format!("{bad} NaN/Inf samples (image mean {mean})")));
+    }
+    let rate = |f: &dyn Fn(&RenderResult) -> f64| Summary::of(&runs.iter().map(f).collect::<Vec<_>>()).unwrap();
+    Ok(RenderMeasure {
+        msamples_per_s: rate(&|r| r.samples_per_second() * 1e-6),
+        mrays_per_s: rate(&|r| r.mrays_per_second()),
+        ms: rate(&|r| r.seconds() * 1e3),
+        rays_per_sample: (last.closest_rays + last.shadow_rays) as f64 / last.samples() as f64,
+        image_mean: mean,
+    })
+}
+
+pub fn image_mean(r: &RenderResult) -> f64 {
+    let img = r.image();
+    img.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>() / (3 * img.len()) as f64
+}
+
+pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)) -> Result<RenderBenchReport> {
+    let info = ctx.info();
+    let mut report = RenderBenchReport {
+        device: info.name.clone(),
+        driver: info.driver_label(),
+        width: o.width,
+        height: o.height,
+        spp: o.spp,
+        max_depth: o.max_depth,
+        leaf_size: o.leaf_size,
+        timed_on_gpu: info.timestamp_valid_bits > 0,
+        repeat: o.repeat,
+        rows: vec![],
+    };
+    for path in &o.scenes {
+        let mesh = load_obj(path)?;
+        let name = crate::scene::scene_name(path);
+        let host = HostScene::build(&name, &mesh, &BuildOptions::new(o.leaf_size))?;
+        let settings = bench_settings(&mesh, (o.width, o.height), o.spp, o.max_depth, o.env);
+        let mut reference_mean: Option<f64> = None;
+        for &method in &o.methods {
+            // Every path-trace variant reads the same bindings: one upload serves each choice.
+            let mut target =
+                RenderTarget::new(ctx, &host, method.into(), KernelChoice::General, settings.pixels(), false)?;
+            for &choice in &o.kernels {
+                let kernel = PathtraceKernel::choose(method, target.scene.bsdf_mask, choice);
+                target.kernel = kernel;
+                progress(&format!("{name}: {} ({})", kernel.source.name, kernel.bsdfs().join("+")));
+                let warm = RenderSettings { spp: 1, ..settings.clone() };
+                render(ctx, &target, &warm, &mut |_| true)?;
+                let mut runs = vec![];
+                for _ in 0..o.repeat.max(1) {
+                    runs.push(render(ctx, &target, &settings, &mut |_| true)?);
+                }
+                let m = summarise_renders(&runs)
+                    .map_err(|e| Error::Usage(format!("{name} {}: {e}", kernel.source.name)))?;
+                check_image_mean(m.image_mean, &mut reference_mean)
+                    .map_err(|e| Error::Usage(format!("{name} {}: {e}", kernel.source.name)))?;
+                let counts = crate::spirv::count(&kernel.source.words())
+                    .map_err(|e| Error::Spirv { kernel: kernel.source.name.into(), message: e })?;
+                report.rows.push(RenderBenchRow {
+                    scene: name.clone(),
+                    triangles: mesh.triangle_count(),
+                    method,
+                    kernel_choice: choice,
+                    kernel: kernel.source.name,
+                    bsdfs: kernel.bsdfs(),
+                    spirv_module: counts.module,
+                    spirv_functions: counts.functions,
+                    msamples_per_s: m.msamples_per_s,
+                    mrays_per_s: m.mrays_per_s,
+                    ms: m.ms,
+                    rays_per_sample: m.rays_per_sample,
+                    image_mean: m.image_mean,
+                });
+            }
+        }
+    }
+    Ok(report)
+}

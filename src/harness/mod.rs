@@ -1,0 +1,25 @@
+//! Everything that measures and reports, each a library call returning a typed report that the
+//! CLI prints (text, or the struct as JSON) and writes: the ray-casting benchmark, the paper's
+//! study, accuracy, the driver-level profile, large scenes, the BVH build benchmark, traversal
+//! steps, the render benchmark. What they share lives here too: provenance, the ray sets,
+//! validation against the f64 reference before any time is reported, and plots.
+
+pub mod accuracy;
+pub mod advise;
+pub mod bench;
+pub mod bench_render;
+pub mod build_bench;
+pub mod bvh_stats;
+pub mod devices;
+pub mod make_rays;
+pub mod methods;
+pub mod plots;
+pub mod profile;
+pub mod provenance;
+pub mod raycast;
+pub mod rayset;
+pub mod scale;
+pub mod spirv;
+pub mod steps;
+pub mod study;
+pub mod validate;

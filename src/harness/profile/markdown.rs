@@ -1,0 +1,298 @@
+//! profile.md: one section per profiling tool, each with its status and note.
+
+use std::fmt::Write as _;
+
+use super::{ProfileReport, Row, Section, SizeTiming, Status};
+use crate::report::Summary;
+use crate::report::Table;
+
+fn device_cell<T>(r: &Row<T>) -> String {
+    format!("{} / {}", r.tag.device, r.tag.driver)
+}
+
+fn ms(s: &Summary) -> [String; 2] {
+    [format!("{:.2}", s.median), format!("{:.2}..{:.2}", s.min, s.max)]
+}
+
+fn status<T>(out: &mut String, s: &Section<T>) {
+    let word = match s.status {
+        Status::Measured => "measured",
+        Status::Unsupported => "unsupported",
+        Status::NotApplicable => "not applicable",
+        Status::Skipped => "skipped",
+    };
+    let _ = writeln!(out, "Status: **{word}**. {}\n", s.note);
+}
+
+fn size_table(rows: &[Row<SizeTiming>], subgroup: bool) -> Table {
+    let mut t = Table::new([
+        "method",
+        "set",
+        "rays",
+        if subgroup { "subgroup size" } else { "workgroup size" },
+        "kernel ms",
+        "min..max",
+        "Mrays/s",
+        "agree %",
+        "hits differing from default",
+        "device / driver",
+    ]);
+    for r in rows {
+        let d = &r.data;
+        let [med, range] = ms(&d.kernel_ms);
+        let size = if subgroup {
+            d.subgroup_size.map(|s| s.to_string()).unwrap_or_default()
+        } else {
+            d.local_size.to_string()
+        };
+        t.row([
+            r.method.to_string(),
+            d.ray_set.to_string(),
+            d.rays.to_string(),
+            size,
+            med,
+            range,
+            format!("{:.2}", d.mrays_per_s),
+            format!("{:.4}", 100.0 * d.agreement),
+            d.hits_differing_from_default.to_string(),
+            device_cell(r),
+        ]);
+    }
+    t
+}
+
+pub fn render(r: &ProfileReport, command: &str) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "# Driver-level profile: {} on {}\n", r.scene, r.tag.device);
+    let _ = writeln!(
+        out,
+        "- **device**: {} ({}), driver {}, Mesa {}\n- **host CPUs**: {}; LP_NUM_THREADS of the profiling process: {}; load average (1, 5, 15 min) before {}, after {}\n\
+         - **scene**: {} ({} triangles), leaf size {}, binned SAH, leaf policy `fill`\n- **rays**: {} (primary: a {}x{} camera image)\n\
+         - **timing**: GPU timestamps around each dispatch, {} warm-up run(s), then the median (min..max) of {} runs; \
+         every result's hits checked against the f64 reference (at least 99.99% agreement) before it is reported\n\
+         - **command**: `{command}`\n",
+        r.tag.device,
+        r.driver_id,
+        r.tag.driver,
+        r.tag.mesa_version.as_deref().unwrap_or("-"),
+        r.host_cpus,
+        r.lp_num_threads.as_deref().unwrap_or("unset (driver default)"),
+        r.host_load_before.as_deref().unwrap_or("-"),
+        r.host_load_after.as_deref().unwrap_or("-"),
+        r.scene,
+        r.triangles,
+        r.leaf_size,
+        r.ray_sets.iter().map(|(n, c)| format!("{n} {c}")).collect::<Vec<_>>().join(", "),
+        r.width,
+        r.height,
+        r.warmup,
+        r.repeat,
+    );
+    let _ = writeln!(out, "Every row in `profile.json` carries device, driver and Mesa version.\n");
+
+    let _ = writeln!(out, "## 1. Per-dispatch kernel time (GPU timestamps)\n");
+    status(&mut out, &r.timestamps);
+    let mut t = Table::new([
+        "method",
+        "set",
+        "rays",
+        "dispatches",
+        "kernel ms",
+        "min..max",
+        "Mrays/s",
+        "agree %",
+        "device / driver",
+    ]);
+    for row in &r.timestamps.rows {
+        let d = &row.data;
+        let [med, range] = ms(&d.kernel_ms);
+        t.row([
+            row.method.to_string(),
+            d.ray_set.to_string(),
+            d.rays.to_string(),
+            d.dispatches.to_string(),
+            med,
+            range,
+            format!("{:.2}", d.mrays_per_s),
+            format!("{:.4}", 100.0 * d.agreement),
+            device_cell(row),
+        ]);
+    }
+    out += &t.to_markdown();
+
+    let _ = writeln!(out, "\n## 2. Pipeline statistics\n");
+    status(&mut out, &r.pipeline_statistics);
+    if !r.pipeline_statistics.rows.is_empty() {
+        let mut t = Table::new([
+            "method",
+            "set",
+            "rays",
+            "workgroup size",
+            "workgroups",
+            "dispatched invocations",
+            "COMPUTE_SHADER_INVOCATIONS",
+            "equal",
+            "device / driver",
+        ]);
+        for row in &r.pipeline_statistics.rows {
+            let d = &row.data;
+            t.row([
+                row.method.to_string(),
+                d.ray_set.to_string(),
+                d.rays.to_string(),
+                d.local_size.to_string(),
+                d.workgroups.to_string(),
+                d.dispatched.to_string(),
+                d.compute_shader_invocations.to_string(),
+                if d.dispatched == d.compute_shader_invocations { "yes" } else { "NO" }.to_string(),
+                device_cell(row),
+            ]);
+        }
+        out += &t.to_markdown();
+        let _ = writeln!(
+            out,
+            "\nDispatched invocations = ceil(rays / workgroup size) x workgroup size: the invocations past the \
+             last ray start and return at once."
+        );
+    }
+
+    let _ = writeln!(out, "\n## 3. Shader clock: ticks per ray\n");
+    status(&mut out, &r.shader_clock);
+    if !r.shader_clock.rows.is_empty() {
+        let mut t = Table::new([
+            "method",
+            "set",
+            "rays",
+            "mean",
+            "median",
+            "p99",
+            "min",
+            "max",
+            "saturated",
+            "hits differing from closest",
+            "device / driver",
+        ]);
+        for row in &r.shader_clock.rows {
+            let d = &row.data;
+            t.row([
+                row.method.to_string(),
+                d.ray_set.to_string(),
+                d.rays.to_string(),
+                format!("{:.0}", d.ticks.mean),
+                format!("{:.0}", d.ticks.median),
+                format!("{:.0}", d.ticks.p99),
+                d.ticks.min.to_string(),
+                d.ticks.max.to_string(),
+                d.ticks.saturated.to_string(),
+                d.hits_differing_from_closest.to_string(),
+                device_cell(row),
+            ]);
+        }
+        out += &t.to_markdown();
+        let _ = writeln!(
+            out,
+            "\nTicks are the driver's shader-clock units (not calibrated here). The clock keeps counting while the \
+             thread running a subgroup is descheduled, so max and mean carry such outliers (on a CPU driver, \
+             likely preemption by other host work); median and p99 are the robust figures. \
+             `saturated`: rays whose end - start did not fit 32 bits (or the clock read lower at the end), \
+             written as 0xFFFFFFFF and counted in the statistics as such."
+        );
+        if let Some(s) = &r.heat_scale {
+            let _ = writeln!(
+                out,
+                "\nHeat maps of the primary rays ({}x{}, one pixel per ray): colour is log(ticks), clipped to \
+                 [{:.0}, {:.0}] ticks, percentiles p{} and p{} of all methods' primary-ray counts together, \
+                 so a colour means the same count in every image (inferno: dark = few ticks, light = many).\n",
+                r.width, r.height, s.lo, s.hi, s.percentile_lo, s.percentile_hi
+            );
+            for row in r.shader_clock.rows.iter().filter(|x| x.data.heat_map.is_some()) {
+                let f = row.data.heat_map.as_deref().unwrap_or_default();
+                let _ = writeln!(out, "**{}**\n\n![{} ticks per primary ray]({f})\n", row.method, row.method);
+            }
+        }
+    }
+
+    let _ = writeln!(out, "\n## 4. Pipeline executable properties\n");
+    status(&mut out, &r.executable_properties);
+    if !r.executable_properties.rows.is_empty() {
+        let mut t = Table::new([
+            "method",
+            "executable",
+            "subgroup size",
+            "statistic",
+            "value",
+            "description",
+            "device / driver",
+        ]);
+        for row in &r.executable_properties.rows {
+            let d = &row.data;
+            t.row([
+                row.method.to_string(),
+                format!("{} {}", d.executable, d.executable_name),
+                d.subgroup_size.to_string(),
+                d.name.clone(),
+                d.value.clone(),
+                d.description.clone(),
+                device_cell(row),
+            ]);
+        }
+        out += &t.to_markdown();
+    }
+
+    let _ = writeln!(out, "\n## 5. Subgroup-size sweep (VK_EXT_subgroup_size_control)\n");
+    status(&mut out, &r.subgroup_sizes);
+    if !r.subgroup_sizes.rows.is_empty() {
+        let _ = writeln!(out, "Ray set: {}; workgroup size {}.\n", r.sweep_set, r.default_local_size);
+        out += &size_table(&r.subgroup_sizes.rows, true).to_markdown();
+    }
+
+    let _ = writeln!(out, "\n## 6. Workgroup-size sweep (specialisation constant)\n");
+    status(&mut out, &r.workgroup_sizes);
+    if !r.workgroup_sizes.rows.is_empty() {
+        let _ = writeln!(out, "Ray set: {}; the default is {}.\n", r.sweep_set, r.default_local_size);
+        out += &size_table(&r.workgroup_sizes.rows, false).to_markdown();
+    }
+
+    let _ = writeln!(out, "\n## 7. LP_NUM_THREADS scaling\n");
+    status(&mut out, &r.lp_num_threads_scaling);
+    if !r.lp_num_threads_scaling.rows.is_empty() {
+        let mut t = Table::new([
+            "method",
+            "set",
+            "rays",
+            "LP_NUM_THREADS",
+            "kernel ms",
+            "min..max",
+            "Mrays/s",
+            "vs 1 thread",
+            "device / driver",
+        ]);
+        let rows = &r.lp_num_threads_scaling.rows;
+        let mut sorted: Vec<_> = rows.iter().collect();
+        sorted.sort_by(|a, b| {
+            (a.method, &a.data.ray_set, a.data.threads).cmp(&(b.method, &b.data.ray_set, b.data.threads))
+        });
+        for row in sorted {
+            let d = &row.data;
+            let one = rows
+                .iter()
+                .find(|x| x.method == row.method && x.data.ray_set == d.ray_set && x.data.threads == 1)
+                .map(|x| format!("{:.2}x", d.mrays_per_s / x.data.mrays_per_s))
+                .unwrap_or_else(|| "-".into());
+            let [med, range] = ms(&d.kernel_ms);
+            t.row([
+                row.method.to_string(),
+                d.ray_set.to_string(),
+                d.rays.to_string(),
+                d.threads.to_string(),
+                med,
+                range,
+                format!("{:.2}", d.mrays_per_s),
+                one,
+                device_cell(row),
+            ]);
+        }
+        out += &t.to_markdown();
+    }
+    out
+}

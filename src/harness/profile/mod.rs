@@ -1,0 +1,629 @@
+//! `trilab profile`: driver-level profiling of the ray-casting kernels, one section per tool the
+//! device offers, each feature-detected and reported as unsupported (or not applicable) where
+//! absent, never emulated:
+//!
+//! 1. per-dispatch kernel time from GPU timestamps (median, min, max after warm-up);
+//! 2. pipeline statistics: compute-shader invocations of a dispatch, beside the count launched;
+//! 3. shader-clock ticks per ray (raycast.comp's `clock` variant, [`clock`]): statistics per
+//!    ray set and heat maps of the primary rays;
+//! 4. pipeline executable statistics (`VK_KHR_pipeline_executable_properties`, [`executable`]);
+//! 5. a subgroup-size sweep (`VK_EXT_subgroup_size_control`, [`sweep`]);
+//! 6. a workgroup-size sweep (raycast.comp's workgroup size is a specialisation constant);
+//! 7. LP_NUM_THREADS scaling on lavapipe ([`threads`]).
+//!
+//! Every result's hits are checked against the f64 reference before its time or count is
+//! reported; the variants (clock, subgroup and workgroup sizes) must also give hits bitwise
+//! identical to the default kernel's.
+
+pub mod clock;
+pub mod dispatch;
+pub mod executable;
+pub mod markdown;
+pub mod sweep;
+pub mod threads;
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::bvh::BuildOptions;
+use crate::encoding::{Method, Raycast};
+use crate::error::{Error, Result};
+use crate::gpu::{Context, DeviceInfo, EnabledFeatures, Kernel, PipelineOptions, RaycastOptions};
+use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
+use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
+use crate::rays::{Hit, Ray};
+use crate::reference::RefHit;
+use crate::report::Summary;
+use crate::scene::{load_obj, Mesh};
+use crate::shared::SPEC_ID_WORKGROUP_SIZE;
+
+pub use clock::{CycleStats, HeatScale};
+pub use dispatch::{dispatch_once, SingleDispatch};
+pub use executable::ExecutableStatistic;
+pub use threads::ThreadMeasurement;
+
+/// Fraction of rays that must agree with the f64 reference (as `trilab bench` requires).
+pub use crate::harness::validate::MIN_AGREEMENT;
+pub use crate::rays::differing_hits;
+
+#[derive(Clone, Debug)]
+pub struct ProfileOptions {
+    pub scene: PathBuf,
+    pub methods: Vec<Method>,
+    pub leaf_size: u32,
+    /// Primary rays: a `width` x `height` camera image (the heat maps' size).
+    pub width: u32,
+    pub height: u32,
+    pub diffuse_per_hit: u32,
+    pub random_rays: usize,
+    pub seed: u64,
+    pub warmup: usize,
+    pub repeat: usize,
+    /// The ray set the subgroup- and workgroup-size sweeps time.
+    pub sweep_set: RaySet,
+    pub workgroup_sizes: Vec<u32>,
+    /// LP_NUM_THREADS values; empty: 1..=host cores.
+    pub thread_counts: Vec<usize>,
+    /// The trilab executable the LP_NUM_THREADS section runs (`None`: the section is skipped).
+    pub exe: Option<PathBuf>,
+    /// The command line that asked for the profile (recorded in profile.md).
+    pub command: String,
+}
+
+impl Default for ProfileOptions {
+    fn default() -> Self {
+        ProfileOptions {
+            scene: PathBuf::from("scenes/bunny.obj"),
+            methods: Method::ALL.to_vec(),
+            leaf_size: 4,
+            width: 800,
+            height: 600,
+            diffuse_per_hit: 2,
+            random_rays: 250_000,
+            seed: 7,
+            warmup: 1,
+            repeat: 5,
+            sweep_set: RaySet::Random,
+            workgroup_sizes: vec![32, 64, 128, 256],
+            thread_counts: vec![],
+            exe: None,
+            command: "trilab profile".into(),
+        }
+    }
+}
+
+/// Device, driver and Mesa version, carried by every row.
+#[derive(Clone, Debug, Serialize)]
+pub struct DeviceTag {
+    pub device: String,
+    pub driver: String,
+    pub mesa_version: Option<String>,
+}
+
+impl DeviceTag {
+    pub fn of(info: &DeviceInfo) -> DeviceTag {
+        DeviceTag { device: info.name.clone(), driver: info.driver_label(), mesa_version: info.mesa_version.clone() }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    Measured,
+    Unsupported,
+    NotApplicable,
+    Skipped,
+}
+
+/// One profile section: whether it could be measured, a note saying why not or what limited
+/// it, and its rows.
+#[derive(Clone, Debug, Serialize)]
+pub struct Section<T> {
+    pub status: Status,
+    pub note: String,
+    pub rows: Vec<T>,
+}
+
+impl<T> Section<T> {
+    fn new(status: Status, note: impl Into<String>) -> Section<T> {
+        Section { status, note: note.into(), rows: vec![] }
+    }
+}
+
+/// A row of any section: the device tag, then the row's own fields.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row<T> {
+    #[serde(flatten)]
+    pub tag: DeviceTag,
+    pub method: Method,
+    #[serde(flatten)]
+    pub data: T,
+}
+
+impl<T> Row<T> {
+    pub fn new(info: &DeviceInfo, method: Method, data: T) -> Row<T> {
+        Row { tag: DeviceTag::of(info), method, data }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Timing {
+    pub ray_set: RaySet,
+    pub rays: usize,
+    /// Dispatches per run (each its own submit with its own timestamp pair).
+    pub dispatches: usize,
+    /// Per-run kernel time, milliseconds (GPU timestamps).
+    pub kernel_ms: Summary,
+    pub mrays_per_s: f64,
+    pub agreement: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Invocations {
+    pub ray_set: RaySet,
+    pub rays: usize,
+    pub local_size: u32,
+    pub workgroups: u32,
+    /// ceil(rays / local size) x local size.
+    pub dispatched: u64,
+    /// COMPUTE_SHADER_INVOCATIONS of the same dispatch.
+    pub compute_shader_invocations: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Cycles {
+    pub ray_set: RaySet,
+    pub rays: usize,
+    pub ticks: CycleStats,
+    /// Rays whose hit differs (bitwise) from the default `closest` kernel's.
+    pub hits_differing_from_closest: usize,
+    pub agreement: f64,
+    /// File name of the heat map (primary rays only).
+    pub heat_map: Option<String>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SizeTiming {
+    pub ray_set: RaySet,
+    pub rays: usize,
+    pub subgroup_size: Option<u32>,
+    pub local_size: u32,
+    pub kernel_ms: Summary,
+    pub mrays_per_s: f64,
+    pub agreement: f64,
+    /// Rays whose hit differs (bitwise) from the default kernel's.
+    pub hits_differing_from_default: usize,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ProfileReport {
+    #[serde(flatten)]
+    pub tag: DeviceTag,
+    /// The command line that asked for it.
+    pub command: String,
+    pub driver_id: String,
+    pub host_cpus: usize,
+    /// LP_NUM_THREADS of the profiling process itself (sections 1-6).
+    pub lp_num_threads: Option<String>,
+    /// `/proc/loadavg` before and after (Linux): other work on the host skews every timing.
+    pub host_load_before: Option<String>,
+    pub host_load_after: Option<String>,
+    pub scene: String,
+    pub triangles: usize,
+    pub leaf_size: u32,
+    pub warmup: usize,
+    pub repeat: usize,
+    pub width: u32,
+    pub height: u32,
+    /// (set, rays)
+    pub ray_sets: Vec<(RaySet, usize)>,
+    pub sweep_set: RaySet,
+    pub default_local_size: u32,
+    pub timestamps: Section<Row<Timing>>,
+    pub pipeline_statistics: Section<Row<Invocations>>,
+    pub shader_clock: Section<Row<Cycles>>,
+    pub heat_scale: Option<HeatScale>,
+    pub executable_properties: Section<Row<ExecutableStatistic>>,
+    pub subgroup_sizes: Section<Row<SizeTiming>>,
+    pub workgroup_sizes: Section<Row<SizeTiming>>,
+    pub lp_num_threads_scaling: Section<Row<ThreadMeasurement>>,
+}
+
+/// Checks hits against the f64 reference ([`crate::harness::validate::validate_hits`]); an error
+/// (so nothing gets reported) if they disagree. Returns the fraction agreeing.
+fn validated(mesh: &Mesh, rays: &[Ray], hits: &[Hit], reference: &[RefHit], what: &str) -> Result<f64> {
+    crate::harness::validate::validate_hits(mesh, rays, hits, reference)
+        .map(|a| a.fraction())
+        .map_err(|e| Error::Usage(format!("{what}: {e}")))
+}
+
+/// The 1, 5 and 15-minute load averages, where the host reports them.
+fn load_average() -> Option<String> {
+    let text = std::fs::read_to_string("/proc/loadavg").ok()?;
+    Some(text.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+}
+
+fn mrays(rays: usize, ms: f64) -> f64 {
+    rays as f64 / (ms * 1e-3) / 1e6
+}
+
+impl ProfileOptions {
+    /// The ray sets' sizes.
+    pub fn sizes(&self) -> RaySetSizes {
+        RaySetSizes {
+            width: self.width,
+            height: self.height,
+            diffuse_per_hit: self.diffuse_per_hit,
+            random_rays: self.random_rays,
+            seed: self.seed,
+        }
+    }
+}
+
+/// The sections measured per method (1-6), each with its status and note.
+struct Sections {
+    timestamps: Section<Row<Timing>>,
+    pipeline_statistics: Section<Row<Invocations>>,
+    shader_clock: Section<Row<Cycles>>,
+    executable_properties: Section<Row<ExecutableStatistic>>,
+    subgroup_sizes: Section<Row<SizeTiming>>,
+    workgroup_sizes: Section<Row<SizeTiming>>,
+    /// Subgroup sizes to sweep (empty where the sweep is unsupported) and workgroup sizes.
+    subgroup_plan: Vec<u32>,
+    workgroup_plan: Vec<u32>,
+}
+
+impl Sections {
+    /// Which tools the device offers, and what each section will measure.
+    fn new(ctx: &Context, o: &ProfileOptions) -> Sections {
+        let info = ctx.info();
+        let en = ctx.enabled();
+        fn pick<T>(on: bool, yes: &str, no: &str) -> Section<T> {
+            if on {
+                Section::new(Status::Measured, yes)
+            } else {
+                Section::new(Status::Unsupported, no)
+            }
+        }
+        let (subgroup_plan, subgroup_sizes) = match sweep::subgroup_sizes(info, en, crate::shared::WORKGROUP_SIZE) {
+            Ok((sizes, note)) => (sizes, Section::new(Status::Measured, note)),
+            Err(why) => (vec![], Section::new(Status::Unsupported, why)),
+        };
+        let (workgroup_plan, wg_note) = sweep::workgroup_sizes(info, &o.workgroup_sizes);
+        Sections {
+            timestamps: pick(
+                crate::gpu::timestamps::Timestamps::supported(ctx),
+                "kernel time between timestamps around each dispatch",
+                "unsupported (no timestamps on the compute queue): host wall time instead",
+            ),
+            pipeline_statistics: pick(
+                en.pipeline_statistics_query,
+                "VK_QUERY_TYPE_PIPELINE_STATISTICS, COMPUTE_SHADER_INVOCATIONS, one dispatch",
+                "unsupported (pipelineStatisticsQuery absent)",
+            ),
+            shader_clock: pick(
+                en.shader_clock,
+                "subgroup-scope clock (VK_KHR_shader_clock, clock2x32ARB) read before and after the trace; \
+                 lanes in lock-step share one reading, so a ray's ticks are its subgroup's",
+                "unsupported (VK_KHR_shader_clock with shaderSubgroupClock absent)",
+            ),
+            executable_properties: pick(
+                en.pipeline_executable_properties,
+                "pipelines created with CAPTURE_STATISTICS; this code path is untested on lavapipe (which lacks the \
+                 extension)",
+                "unsupported (VK_KHR_pipeline_executable_properties absent)",
+            ),
+            subgroup_sizes,
+            workgroup_sizes: Section::new(Status::Measured, wg_note),
+            subgroup_plan,
+            workgroup_plan,
+        }
+    }
+}
+
+/// One method's profile: its scene on the device, the ray sets and their reference hits.
+struct MethodRun<'a, P: FnMut(&str)> {
+    ctx: &'a Context,
+    info: &'a DeviceInfo,
+    en: EnabledFeatures,
+    name: &'a str,
+    mesh: &'a Mesh,
+    scene: DeviceScene,
+    sets: &'a [(RaySet, Vec<Ray>)],
+    refs: &'a [Vec<RefHit>],
+    sweep_idx: usize,
+    ropts: RaycastOptions,
+    progress: &'a mut P,
+}
+
+impl<P: FnMut(&str)> MethodRun<'_, P> {
+    fn method(&self) -> Method {
+        self.scene.method
+    }
+
+    /// Sections 1-3 on every ray set; returns the sweep set's hits and the primary rays' ticks.
+    fn per_set(&mut self, s: &mut Sections) -> Result<(Vec<Hit>, Option<Vec<u32>>)> {
+        let (method, info) = (self.method(), self.info);
+        let closest = self.scene.kernel(self.ctx, Raycast::Closest)?;
+        let clock_kernel = if self.en.shader_clock { Some(self.scene.kernel(self.ctx, Raycast::Clock)?) } else { None };
+        let (mut sweep_hits, mut primary_cycles) = (vec![], None);
+        for (si, (set, rays)) in self.sets.iter().enumerate() {
+            let (set, refs) = (*set, &self.refs[si]);
+            let what = format!("{} {set} {method}", self.name);
+            let res = self.scene.cast_with(self.ctx, &closest, rays, &self.ropts)?;
+            let agreement = validated(self.mesh, rays, &res.hits, refs, &what)?;
+            let ms = res.time_ms();
+            (self.progress)(&format!("{what}: {:.2} ms ({:.2} Mrays/s)", ms.median, mrays(rays.len(), ms.median)));
+            let timing = Timing {
+                ray_set: set,
+                rays: rays.len(),
+                dispatches: res.batches,
+                kernel_ms: ms,
+                mrays_per_s: mrays(rays.len(), ms.median),
+                agreement,
+            };
+            s.timestamps.rows.push(Row::new(info, method, timing));
+            if self.en.pipeline_statistics_query {
+                let d = dispatch_once(self.ctx, &closest, &self.scene, rays, true)?;
+                validated(self.mesh, rays, &d.hits, refs, &format!("{what} (pipeline statistics)"))?;
+                let inv = Invocations {
+                    ray_set: set,
+                    rays: rays.len(),
+                    local_size: d.local_size,
+                    workgroups: d.workgroups,
+                    dispatched: d.dispatched_invocations(),
+                    compute_shader_invocations: d.compute_shader_invocations.unwrap_or(0),
+                };
+                s.pipeline_statistics.rows.push(Row::new(info, method, inv));
+            }
+            if let Some(k) = &clock_kernel {
+                let (cycles, row) = self.clocked(k, set, rays, refs, &res.hits, &what)?;
+                s.shader_clock.rows.push(Row::new(info, method, row));
+                if set == RaySet::Primary {
+                    primary_cycles = Some(cycles);
+                }
+            }
+            if si == self.sweep_idx {
+                sweep_hits = res.hits;
+            }
+        }
+        Ok((sweep_hits, primary_cycles))
+    }
+
+    /// Section 3 on one set: ticks per ray from the `clock` variant, whose hits must equal the
+    /// default kernel's.
+    fn clocked(
+        &mut self,
+        k: &Kernel,
+        set: RaySet,
+        rays: &[Ray],
+        refs: &[RefHit],
+        closest_hits: &[Hit],
+        what: &str,
+    ) -> Result<(Vec<u32>, Cycles)> {
+        let d = dispatch_once(self.ctx, k, &self.scene, rays, false)?;
+        let agreement = validated(self.mesh, rays, &d.hits, refs, &format!("{what} (clock)"))?;
+        let cycles = d.cycles.expect("the clock variant binds the cycles buffer");
+        let ticks = CycleStats::of(&cycles).expect("at least one ray");
+        (self.progress)(&format!(
+            "{what}: ticks per ray mean {:.0}, median {:.0}, p99 {:.0}",
+            ticks.mean, ticks.median, ticks.p99
+        ));
+        let row = Cycles {
+            ray_set: set,
+            rays: rays.len(),
+            ticks,
+            hits_differing_from_closest: differing_hits(&d.hits, closest_hits),
+            agreement,
+            heat_map: None,
+        };
+        Ok((cycles, row))
+    }
+
+    /// One timed run of the sweep set with a pipeline made for the subgroup or workgroup sweep.
+    fn timed(&mut self, kernel: &Kernel, subgroup_size: Option<u32>, sweep_hits: &[Hit]) -> Result<SizeTiming> {
+        let (set, rays) = &self.sets[self.sweep_idx];
+        let local = kernel.layout.local_size.0;
+        let what = format!("{} {set} {} ({}, workgroup {local})", self.name, self.method(), kernel.name);
+        let res = self.scene.cast_with(self.ctx, kernel, rays, &self.ropts)?;
+        let agreement = validated(self.mesh, rays, &res.hits, &self.refs[self.sweep_idx], &what)?;
+        let ms = res.time_ms();
+        let label = subgroup_size.map(|s| format!(", subgroup {s}")).unwrap_or_default();
+        (self.progress)(&format!("{what}{label}: {:.2} ms", ms.median));
+        Ok(SizeTiming {
+            ray_set: *set,
+            rays: rays.len(),
+            subgroup_size,
+            local_size: local,
+            kernel_ms: ms,
+            mrays_per_s: mrays(rays.len(), ms.median),
+            agreement,
+            hits_differing_from_default: differing_hits(&res.hits, sweep_hits),
+        })
+    }
+
+    /// Sections 4-6: executable statistics and the subgroup- and workgroup-size sweeps.
+    fn pipelines(&mut self, s: &mut Sections, sweep_hits: &[Hit]) -> Result<()> {
+        let (method, info) = (self.method(), self.info);
+        let src = self.scene.kernel_source(Raycast::Closest);
+        if self.en.pipeline_executable_properties {
+            let opts = PipelineOptions { capture_statistics: true, ..Default::default() };
+            let k = self.ctx.create_kernel_with(src, &opts)?;
+            let stats = executable::executable_statistics(self.ctx, &k)?;
+            s.executable_properties.rows.extend(stats.into_iter().map(|d| Row::new(info, method, d)));
+        }
+        for size in s.subgroup_plan.clone() {
+            let opts = PipelineOptions { required_subgroup_size: Some(size), ..Default::default() };
+            let k = self.ctx.create_kernel_with(src, &opts)?;
+            let row = self.timed(&k, Some(size), sweep_hits)?;
+            s.subgroup_sizes.rows.push(Row::new(info, method, row));
+        }
+        for size in s.workgroup_plan.clone() {
+            let k = self.ctx.create_kernel_specialized(src, &[(SPEC_ID_WORKGROUP_SIZE, size)])?;
+            let row = self.timed(&k, None, sweep_hits)?;
+            s.workgroup_sizes.rows.push(Row::new(info, method, row));
+        }
+        Ok(())
+    }
+}
+
+/// Runs every section. Heat maps are written to `out_dir` when given (file names in the
+/// report); `progress` gets one line per step.
+pub fn run(
+    ctx: &Context,
+    o: &ProfileOptions,
+    out_dir: Option<&Path>,
+    mut progress: impl FnMut(&str),
+) -> Result<ProfileReport> {
+    let info = ctx.info();
+    let host_load_before = load_average();
+    let name = crate::scene::scene_name(&o.scene);
+    let mesh = load_obj(&o.scene)?;
+    let host = HostScene::build(&name, &mesh, &BuildOptions::new(o.leaf_size))?;
+    let reference = host.reference();
+    let sets = ray_sets(&mesh, &name, &reference, &o.sizes(), None)?;
+    let refs: Vec<Vec<RefHit>> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
+    let sweep_idx = sets.iter().position(|(s, _)| *s == o.sweep_set).expect("every ray set is made");
+    progress(&format!(
+        "{name}: {} triangles; rays: {}",
+        mesh.triangle_count(),
+        sets.iter().map(|(n, r)| format!("{n} {}", r.len())).collect::<Vec<_>>().join(", ")
+    ));
+    let mut s = Sections::new(ctx, o);
+    let mut primary_cycles: Vec<(Method, Vec<u32>)> = vec![];
+    for &method in &o.methods {
+        let mut m = MethodRun {
+            ctx,
+            info,
+            en: *ctx.enabled(),
+            name: &name,
+            mesh: &mesh,
+            scene: host.upload(ctx, &SceneRequest::new(method))?,
+            sets: &sets,
+            refs: &refs,
+            sweep_idx,
+            ropts: RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), ..Default::default() },
+            progress: &mut progress,
+        };
+        let (sweep_hits, cycles) = m.per_set(&mut s)?;
+        primary_cycles.extend(cycles.map(|c| (method, c)));
+        m.pipelines(&mut s, &sweep_hits)?;
+    }
+    let heat_scale = HeatScale::of(&primary_cycles.iter().map(|(_, c)| c.as_slice()).collect::<Vec<_>>(), 1.0, 99.0);
+    if let (Some(dir), Some(scale)) = (out_dir, &heat_scale) {
+        for (method, cycles) in &primary_cycles {
+            let file = format!("heatmap-{method}.png");
+            let png = clock::heat_map_png(cycles, o.width, o.height, scale)?;
+            crate::io::write_atomic(&dir.join(&file), &png)?;
+            for r in s.shader_clock.rows.iter_mut().filter(|r| r.method == *method && r.data.ray_set == RaySet::Primary)
+            {
+                r.data.heat_map = Some(file.clone());
+            }
+        }
+    }
+    let lp_scaling = threads_section(ctx, o, &sets, &mut progress)?;
+    Ok(ProfileReport {
+        tag: DeviceTag::of(info),
+        command: o.command.clone(),
+        driver_id: info.driver_id.clone(),
+        host_cpus: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+        lp_num_threads: std::env::var("LP_NUM_THREADS").ok(),
+        host_load_before,
+        host_load_after: load_average(),
+        scene: name,
+        triangles: mesh.triangle_count(),
+        leaf_size: o.leaf_size,
+        warmup: o.warmup,
+        repeat: o.repeat.max(1),
+        width: o.width,
+        height: o.height,
+        ray_sets: sets.iter().map(|(n, r)| (*n, r.len())).collect(),
+        sweep_set: o.sweep_set,
+        default_local_size: crate::shared::WORKGROUP_SIZE,
+        timestamps: s.timestamps,
+        pipeline_statistics: s.pipeline_statistics,
+        shader_clock: s.shader_clock,
+        heat_scale,
+        executable_properties: s.executable_properties,
+        subgroup_sizes: s.subgroup_sizes,
+        workgroup_sizes: s.workgroup_sizes,
+        lp_num_threads_scaling: lp_scaling,
+    })
+}
+
+fn threads_section(
+    ctx: &Context,
+    o: &ProfileOptions,
+    sets: &[(RaySet, Vec<Ray>)],
+    progress: &mut impl FnMut(&str),
+) -> Result<Section<Row<ThreadMeasurement>>> {
+    let info = ctx.info();
+    if !threads::is_lavapipe(info) {
+        return Ok(Section::new(
+            Status::NotApplicable,
+            format!(
+                "not applicable: LP_NUM_THREADS is a lavapipe setting; the device is {} ({})",
+                info.name, info.driver_id
+            ),
+        ));
+    }
+    let Some(exe) = &o.exe else {
+        return Ok(Section::new(Status::Skipped, "skipped (no trilab executable given to run per thread count)"));
+    };
+    let dir = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
+    let stem = crate::scene::scene_name(&o.scene);
+    for (set, rays) in sets {
+        crate::rays::write_rays(&dir.path().join(format!("{stem}.{set}.rays")), rays)?;
+    }
+    let counts = if o.thread_counts.is_empty() { threads::default_counts() } else { o.thread_counts.clone() };
+    let run = threads::BenchRun {
+        exe,
+        scene: &o.scene,
+        rays_dir: dir.path(),
+        methods: &o.methods,
+        leaf_size: o.leaf_size,
+        repeat: o.repeat.max(1),
+        device_index: info.index,
+    };
+    let mut section = Section::new(
+        Status::Measured,
+        format!(
+            "`trilab bench` run per LP_NUM_THREADS value on the same ray files ({} host CPUs); it validates every result",
+            std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+        ),
+    );
+    for n in counts {
+        progress(&format!("LP_NUM_THREADS={n}: running `trilab bench`"));
+        for m in threads::bench_with_threads(&run, n)? {
+            let method: Method = o
+                .methods
+                .iter()
+                .copied()
+                .find(|x| x.to_string() == m.method)
+                .ok_or_else(|| Error::Usage(format!("bench reported an unknown method {}", m.method)))?;
+            section.rows.push(Row::new(info, method, m));
+        }
+    }
+    Ok(section)
+}
+impl crate::report::Report for ProfileReport {
+    /// profile.md.
+    fn to_text(&self) -> String {
+        markdown::render(self, &self.command)
+    }
+}
+
+/// Writes profile.json and profile.md into `dir` (created if needed), each atomically; the
+/// heat maps are already there ([`run`] wrote them).
+pub fn write(report: &ProfileReport, dir: &Path) -> Result<Vec<PathBuf>> {
+    use crate::report::Report;
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let files = [("profile.json", report.to_json()), ("profile.md", report.to_text())];
+    let mut written = vec![];
+    for (name, text) in files {
+        crate::io::write_atomic(&dir.join(name), text.as_bytes())?;
+        written.push(dir.join(name));
+    }
+    Ok(written)
+}

@@ -1,0 +1,64 @@
+//! Where and when a measurement ran, carried by every harness's report.
+
+use serde::Serialize;
+
+use crate::gpu::Context;
+
+/// Where and when a measurement ran: device, driver, commit, date and host, carried by every
+/// report (and by every row of the study and the accuracy tables), so results from many runs and
+/// devices can be set side by side.
+#[derive(Clone, Debug, Serialize)]
+pub struct Provenance {
+    pub device: String,
+    pub driver: String,
+    pub mesa_version: Option<String>,
+    pub commit: String,
+    pub date: String,
+    pub host_cpus: usize,
+    pub lp_num_threads: Option<String>,
+    pub timed_on_gpu: bool,
+}
+
+impl Provenance {
+    pub fn of(ctx: &Context) -> Provenance {
+        let info = ctx.info();
+        Provenance {
+            device: info.name.clone(),
+            driver: info.driver_label(),
+            mesa_version: info.mesa_version.clone(),
+            commit: commit(),
+            date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+            host_cpus: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+            lp_num_threads: std::env::var("LP_NUM_THREADS").ok(),
+            timed_on_gpu: info.timestamp_valid_bits > 0,
+        }
+    }
+}
+
+/// The commit trilab was built from, as the working directory says: `TRILAB_COMMIT` if set (a copy without `.git`, such as the
+/// GPU machine's), else `git rev-parse` in the working directory, "-dirty" when tracked files
+/// differ from it; "unknown" without either.
+pub fn commit() -> String {
+    if let Ok(c) = std::env::var("TRILAB_COMMIT") {
+        return c;
+    }
+    let git = |args: &[&str]| {
+        std::process::Command::new("git")
+            .args(args)
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_owned())
+    };
+    match git(&["rev-parse", "--short=12", "HEAD"]) {
+        Some(c) => {
+            let dirty = git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
+            if dirty {
+                format!("{c}-dirty")
+            } else {
+                c
+            }
+        }
+        None => "unknown".into(),
+    }
+}

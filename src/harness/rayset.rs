@@ -1,0 +1,89 @@
+//! The three ray sets every harness times: primary rays from a camera framing the scene,
+//! diffuse bounces off their hits, and random rays through the scene's box. They follow the
+//! distributions of the Embree peer in ../shared/peers (same camera, same offsets), so trilab's
+//! numbers can be set beside the peer's; all are deterministic for a seed.
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::error::Result;
+use crate::named::{named_enum, Named};
+use crate::rays::{self, Camera, Hit, Ray};
+use crate::reference::Reference;
+use crate::scene::Mesh;
+
+named_enum! {
+    /// A ray set.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum RaySet: "ray set" {
+        /// One ray per pixel from a camera framing the scene.
+        Primary = "primary",
+        /// Cosine-distributed bounces off the primary rays' hits (the f64 reference's).
+        Diffuse = "diffuse",
+        /// From a sphere around the scene towards random points in its box.
+        Random = "random",
+    }
+}
+
+/// How large the sets are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct RaySetSizes {
+    /// Primary rays: a `width` x `height` image.
+    pub width: u32,
+    pub height: u32,
+    /// Diffuse rays per primary hit.
+    pub diffuse_per_hit: u32,
+    pub random_rays: usize,
+    pub seed: u64,
+}
+
+/// The primary rays' hits, from the f64 reference, rounded to hit records.
+fn reference_hits(reference: &Reference, rays: &[Ray]) -> Vec<Hit> {
+    reference.trace_all(rays, false).iter().map(|h| h.to_hit()).collect()
+}
+
+impl RaySet {
+    /// This set for `mesh` (diffuse bounces off the hits `reference` finds).
+    pub fn generate(self, mesh: &Mesh, reference: &Reference, sizes: &RaySetSizes) -> Vec<Ray> {
+        let primary = || rays::primary_rays(&Camera::framing(&mesh.bounds()), sizes.width, sizes.height);
+        match self {
+            RaySet::Primary => primary(),
+            RaySet::Diffuse => {
+                let primary = primary();
+                let hits = reference_hits(reference, &primary);
+                rays::diffuse_rays(mesh, &primary, &hits, sizes.diffuse_per_hit, sizes.seed)
+            }
+            RaySet::Random => rays::random_rays(&mesh.bounds(), sizes.random_rays, sizes.seed),
+        }
+    }
+
+    /// `per_hit` diffuse bounces off the hits of `primary` (any camera).
+    pub fn diffuse_from(mesh: &Mesh, reference: &Reference, primary: &[Ray], per_hit: u32, seed: u64) -> Vec<Ray> {
+        rays::diffuse_rays(mesh, primary, &reference_hits(reference, primary), per_hit, seed)
+    }
+}
+
+/// The three sets for `mesh`, in order: generated, or read as `<scene>.<set>.rays` from
+/// `rays_dir` (the peer's held-out sets, for example).
+pub fn ray_sets(
+    mesh: &Mesh,
+    scene: &str,
+    reference: &Reference,
+    sizes: &RaySetSizes,
+    rays_dir: Option<&Path>,
+) -> Result<Vec<(RaySet, Vec<Ray>)>> {
+    RaySet::ALL
+        .iter()
+        .map(|&set| {
+            Ok((
+                set,
+                match rays_dir {
+                    Some(dir) => rays::read_rays(&dir.join(format!("{scene}.{set}.rays")))?,
+                    None => set.generate(mesh, reference, sizes),
+                },
+            ))
+        })
+        .collect()
+}

@@ -1,0 +1,373 @@
+//! The paper's three claims (Shumskiy & Parshin, sec. 4), checked against a study's render
+//! times: (a) 4 triangles per leaf is optimal; (b) Möller-Trumbore is up to 5 % faster than the
+//! unit-triangle test; (c) Quad unit triangle is 5-20 % faster than Möller-Trumbore on NVIDIA and
+//! up to 2x on VLIW AMD. Each verdict comes with the numbers it rests on. A difference counts as
+//! real only when the two configurations' min-max ranges over the timed rounds do not overlap.
+
+use std::fmt::Write as _;
+
+use serde::Serialize;
+
+use super::table::scenes;
+use super::{StudyReport, StudyRow};
+use crate::encoding::Method;
+use crate::report::Summary;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Verdict {
+    Holds,
+    /// Holds only where the differences are real; elsewhere within the run-to-run spread.
+    HoldsWithinNoise,
+    Partly,
+    /// Every difference lies within the run-to-run spread and the medians do not side with it.
+    Inconclusive,
+    DoesNotHold,
+    /// The study lacks the cells the claim needs.
+    NotMeasured,
+}
+
+impl Verdict {
+    pub fn label(self) -> &'static str {
+        match self {
+            Verdict::Holds => "holds",
+            Verdict::HoldsWithinNoise => "holds within noise",
+            Verdict::Partly => "partly holds",
+            Verdict::Inconclusive => "inconclusive (all differences within the run-to-run spread)",
+            Verdict::DoesNotHold => "does not hold",
+            Verdict::NotMeasured => "not measured",
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Claim {
+    pub id: char,
+    pub statement: &'static str,
+    pub verdict: Verdict,
+    /// One line per scene (and method or leaf size) with the numbers.
+    pub evidence: Vec<String>,
+    pub summary: String,
+}
+
+fn time(report: &StudyReport, scene: &str, leaf: u32, m: Method) -> Option<Summary> {
+    report.rows.iter().find(|r| r.scene == scene && r.leaf_size == leaf && r.method == m).map(StudyRow::render_seconds)
+}
+
+fn overlap(a: Summary, b: Summary) -> bool {
+    a.min <= b.max && b.min <= a.max
+}
+
+/// Geometric mean over scenes of `m`'s render time over `base`'s at `leaf`.
+pub fn relative_time(report: &StudyReport, m: Method, base: Method, leaf: u32) -> Option<f64> {
+    let ratios: Vec<f64> = scenes(report)
+        .iter()
+        .filter_map(|s| Some(time(report, s, leaf, m)?.median / time(report, s, leaf, base)?.median))
+        .collect();
+    (!ratios.is_empty()).then(|| (ratios.iter().map(|r| r.ln()).sum::<f64>() / ratios.len() as f64).exp())
+}
+
+/// (a) 4 triangles per leaf is optimal: for each scene and method, the fastest leaf size.
+pub fn leaf_four_optimal(report: &StudyReport) -> Claim {
+    let mut evidence = vec![];
+    let (mut best4, mut noise, mut other, mut total) = (0, 0, 0, 0);
+    for scene in scenes(report) {
+        for &m in &report.options.methods {
+            let times: Vec<(u32, Summary)> =
+                report.options.leaf_sizes.iter().filter_map(|&l| Some((l, time(report, &scene, l, m)?))).collect();
+            let Some(&(best_leaf, best)) = times.iter().min_by(|a, b| a.1.median.total_cmp(&b.1.median)) else {
+                continue;
+            };
+            let Some(&(_, four)) = times.iter().find(|(l, _)| *l == 4) else { continue };
+            total += 1;
+            let line = format!(
+                "{scene} {m}: fastest at leaf {best_leaf} ({:.3} s); leaf 4 {:.3} s ({:+.1} %)",
+                best.median,
+                four.median,
+                100.0 * (four.median / best.median - 1.0)
+            );
+            if best_leaf == 4 {
+                best4 += 1;
+                evidence.push(line);
+            } else if overlap(best, four) {
+                noise += 1;
+                evidence.push(line + ", ranges overlap");
+            } else {
+                other += 1;
+                evidence.push(line);
+            }
+        }
+    }
+    let verdict = match (total, best4, other) {
+        (0, _, _) => Verdict::NotMeasured,
+        (t, b, _) if b == t => Verdict::Holds,
+        (_, _, 0) => Verdict::HoldsWithinNoise,
+        (_, 0, _) if noise == 0 => Verdict::DoesNotHold,
+        _ => Verdict::Partly,
+    };
+    Claim {
+        id: 'a',
+        statement: "4 triangles per BVH leaf is optimal",
+        verdict,
+        summary: format!(
+            "leaf 4 fastest in {best4} of {total} scene x method pairs, within the run-to-run spread of the fastest \
+             in {noise}, clearly slower in {other}"
+        ),
+        evidence,
+    }
+}
+
+/// (b) Möller-Trumbore is up to 5 % faster than the unit-triangle test (every leaf size).
+pub fn mt_faster_than_unit(report: &StudyReport) -> Claim {
+    let mut evidence = vec![];
+    let (mut mt_wins, mut unit_wins, mut ties, mut ratios) = (0, 0, 0, vec![]);
+    for scene in scenes(report) {
+        for &leaf in &report.options.leaf_sizes {
+            let (Some(mt), Some(unit)) =
+                (time(report, &scene, leaf, Method::Mt), time(report, &scene, leaf, Method::Unit))
+            else {
+                continue;
+            };
+            let r = unit.median / mt.median;
+            ratios.push(r);
+            let real = !overlap(mt, unit);
+            match (r > 1.0, real) {
+                (_, false) => ties += 1,
+                (true, true) => mt_wins += 1,
+                (false, true) => unit_wins += 1,
+            }
+            evidence.push(format!(
+                "{scene} leaf {leaf}: unit / MT time = {r:.3}{}",
+                if real { "" } else { " (ranges overlap)" }
+            ));
+        }
+    }
+    let n = ratios.len();
+    let verdict = if n == 0 {
+        Verdict::NotMeasured
+    } else if unit_wins == 0 && mt_wins == n {
+        Verdict::Holds
+    } else if unit_wins == 0 && ratios.iter().all(|&r| r >= 1.0) {
+        Verdict::HoldsWithinNoise
+    } else if mt_wins == 0 && unit_wins == 0 {
+        Verdict::Inconclusive
+    } else if mt_wins == 0 {
+        Verdict::DoesNotHold
+    } else {
+        Verdict::Partly
+    };
+    let (lo, hi) = ratios.iter().fold((f64::MAX, f64::MIN), |(a, b), &r| (a.min(r), b.max(r)));
+    Claim {
+        id: 'b',
+        statement: "Möller-Trumbore is up to 5 % faster than unit triangle",
+        verdict,
+        summary: if n == 0 {
+            "no cell has both methods".into()
+        } else {
+            format!(
+                "unit / MT render time {lo:.3}-{hi:.3} over {n} cells: MT clearly faster in {mt_wins}, unit clearly \
+                 faster in {unit_wins}, within the spread in {ties}"
+            )
+        },
+        evidence,
+    }
+}
+
+/// (c) Quad unit triangle is 5-20 % faster than Möller-Trumbore (NVIDIA), up to 2x (VLIW AMD),
+/// at the paper's 4 triangles per leaf.
+pub fn quad_unit_faster_than_mt(report: &StudyReport) -> Claim {
+    let mut evidence = vec![];
+    let mut speedups = vec![];
+    let mut real_5 = 0;
+    for scene in scenes(report) {
+        let (Some(mt), Some(q)) = (time(report, &scene, 4, Method::Mt), time(report, &scene, 4, Method::QuadUnit))
+        else {
+            continue;
+        };
+        let s = mt.median / q.median;
+        speedups.push(s);
+        // "5 % faster" is real when even the slowest Quad run beats the fastest MT run by 5 %.
+        if mt.min / q.max >= 1.05 {
+            real_5 += 1;
+        }
+        evidence.push(format!(
+            "{scene} leaf 4: MT {:.3} s, Quad unit {:.3} s, speed-up {s:.3} (range {:.3}-{:.3})",
+            mt.median,
+            q.median,
+            mt.min / q.max,
+            mt.max / q.min
+        ));
+    }
+    let n = speedups.len();
+    let in_band = speedups.iter().filter(|&&s| s >= 1.05).count();
+    let verdict = if n == 0 {
+        Verdict::NotMeasured
+    } else if real_5 == n {
+        Verdict::Holds
+    } else if in_band == n {
+        Verdict::HoldsWithinNoise
+    } else if in_band == 0 {
+        Verdict::DoesNotHold
+    } else {
+        Verdict::Partly
+    };
+    Claim {
+        id: 'c',
+        statement: "Quad unit triangle is 5-20 % faster than Möller-Trumbore on NVIDIA, up to 2x on VLIW",
+        verdict,
+        summary: if n == 0 {
+            "no scene has MT and Quad unit at leaf 4".into()
+        } else {
+            format!(
+                "speed-up at leaf 4: {} (>= 1.05 in {in_band} of {n} scenes, beyond the spread in {real_5})",
+                speedups.iter().map(|s| format!("{s:.3}")).collect::<Vec<_>>().join(", ")
+            )
+        },
+        evidence,
+    }
+}
+
+pub fn all(report: &StudyReport) -> Vec<Claim> {
+    vec![leaf_four_optimal(report), mt_faster_than_unit(report), quad_unit_faster_than_mt(report)]
+}
+
+pub fn markdown(report: &StudyReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "Measured on {} with render times (the paper's metric).\n", report.provenance.device);
+    for c in all(report) {
+        let _ = writeln!(s, "**({}) {}: {}.** {}.\n", c.id, c.statement, c.verdict.label(), c.summary);
+        for e in &c.evidence {
+            let _ = writeln!(s, "- {e}");
+        }
+        s.push('\n');
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::bench_render::RenderMeasure;
+    use crate::harness::study::{BvhQuality, Preset, Provenance, StudyOptions};
+
+    fn s(median: f64, spread: f64) -> Summary {
+        Summary { median, min: median - spread, max: median + spread, runs: 3 }
+    }
+
+    /// A report with render times (seconds) `t(scene, leaf, method)` and +-`spread`.
+    fn report(scenes: &[&str], t: impl Fn(&str, u32, Method) -> f64, spread: f64) -> StudyReport {
+        let mut o = StudyOptions::preset(Preset::Smoke);
+        let prov = Provenance {
+            device: "test".into(),
+            driver: "test".into(),
+            mesa_version: None,
+            commit: "x".into(),
+            date: "d".into(),
+            host_cpus: 1,
+            lp_num_threads: None,
+            timed_on_gpu: true,
+        };
+        let mut rows = vec![];
+        for sc in scenes {
+            for &leaf in &o.leaf_sizes {
+                for &m in &o.methods {
+                    let ms = s(t(sc, leaf, m) * 1e3, spread * 1e3);
+                    rows.push(StudyRow {
+                        scene: sc.to_string(),
+                        triangles: 1,
+                        leaf_size: leaf,
+                        method: m,
+                        scene_bytes: 1,
+                        bvh: BvhQuality {
+                            nodes: 1,
+                            leaves: 1,
+                            depth: 0,
+                            sah_cost: 1.0,
+                            epo: 0.0,
+                            quad_padding: 0,
+                            build_ms: 0.0,
+                        },
+                        render: RenderMeasure {
+                            msamples_per_s: ms,
+                            mrays_per_s: ms,
+                            ms,
+                            rays_per_sample: 1.0,
+                            image_mean: 1.0,
+                        },
+                        render_kernel: "pathtrace.mt.lambert",
+                        raycast_kernel: "raycast.mt.closest",
+                        sets: vec![],
+                        provenance: prov.clone(),
+                    });
+                }
+            }
+        }
+        o.scenes = vec![];
+        StudyReport { options: o, scaling: String::new(), provenance: prov, rows, seconds: 0.0 }
+    }
+
+    /// The paper's shape: a U in leaf size with its minimum at 4; MT 3 % faster than unit; Quad
+    /// unit 12 % faster than MT.
+    fn paperlike(_: &str, leaf: u32, m: Method) -> f64 {
+        let base = 1.0 + 0.05 * (leaf as f64 - 4.0).abs();
+        base * match m {
+            Method::Mt => 1.0,
+            Method::Unit => 1.03,
+            Method::QuadMt => 0.95,
+            Method::QuadUnit => 1.0 / 1.12,
+            Method::Watertight | Method::BaldwinWeber | Method::F64 => 1.0,
+        }
+    }
+
+    #[test]
+    fn the_papers_own_numbers_make_every_claim_hold() {
+        let r = report(&["bunny", "dragon"], paperlike, 0.001);
+        assert_eq!(leaf_four_optimal(&r).verdict, Verdict::Holds);
+        assert_eq!(mt_faster_than_unit(&r).verdict, Verdict::Holds);
+        assert_eq!(quad_unit_faster_than_mt(&r).verdict, Verdict::Holds);
+    }
+
+    #[test]
+    fn contrary_numbers_make_them_fail() {
+        // Time falls with leaf size (16 fastest), unit beats MT by 10 %, Quad unit 10 % slower.
+        let t = |_: &str, leaf: u32, m: Method| {
+            (20.0 - leaf as f64)
+                * match m {
+                    Method::Mt => 1.0,
+                    Method::Unit => 0.9,
+                    Method::QuadMt => 1.0,
+                    Method::QuadUnit => 1.1,
+                    Method::Watertight | Method::BaldwinWeber | Method::F64 => 1.0,
+                }
+        };
+        let r = report(&["bunny"], t, 0.01);
+        assert_eq!(leaf_four_optimal(&r).verdict, Verdict::DoesNotHold);
+        assert_eq!(mt_faster_than_unit(&r).verdict, Verdict::DoesNotHold);
+        assert_eq!(quad_unit_faster_than_mt(&r).verdict, Verdict::DoesNotHold);
+    }
+
+    #[test]
+    fn differences_inside_the_spread_are_not_called_real() {
+        // Same shape as the paper's but with a run-to-run spread of +-20 %.
+        let r = report(&["bunny"], paperlike, 0.2);
+        let b = mt_faster_than_unit(&r);
+        assert_eq!(b.verdict, Verdict::HoldsWithinNoise, "{}", b.summary);
+        // Quad unit's 12 % is inside +-20 %: not beyond the spread.
+        assert_eq!(quad_unit_faster_than_mt(&r).verdict, Verdict::HoldsWithinNoise);
+    }
+
+    #[test]
+    fn relative_time_is_a_geometric_mean_over_scenes() {
+        let t = |sc: &str, _: u32, m: Method| {
+            if m == Method::Unit && sc == "a" {
+                2.0
+            } else if m == Method::Unit {
+                0.5
+            } else {
+                1.0
+            }
+        };
+        let r = report(&["a", "b"], t, 0.0);
+        assert!((relative_time(&r, Method::Unit, Method::Mt, 4).unwrap() - 1.0).abs() < 1e-12);
+    }
+}

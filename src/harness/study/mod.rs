@@ -1,0 +1,416 @@
+//! `trilab study`: the paper's Tables 1-4 on this device. The matrix scene x leaf size x method
+//! is path-traced (the paper's "seconds per method") and ray-cast with the primary, diffuse and
+//! random ray sets (Mrays/s), every result validated before its time counts: renders must have
+//! no NaN/Inf sample and the same image mean as the scene's first render (2 %), ray casts must
+//! agree with the f64 reference (see [`crate::harness::validate::validate_hits`]).
+//!
+//! Timing is interleaved: each round renders and casts with every method of a leaf size in
+//! turn, so a shared machine's drift spreads over all methods instead of favouring one. Round 0
+//! is the warm-up; the others give median, min and max.
+//!
+//! Outputs ([`write`]): `study.csv`, `study.json`, `study.md` (the paper's table format, the
+//! ray-set table, BVH quality, SPIR-V cost against time and the paper's claims checked) and
+//! PNG plots ([`plots`]).
+
+pub mod claims;
+pub mod plots;
+pub mod table;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::bvh::BuildOptions;
+use crate::encoding::{Method, Raycast};
+use crate::error::{Error, Result};
+use crate::gpu::{Context, RaycastOptions, TraversalSummary};
+use crate::harness::bench_render::{bench_settings, check_image_mean, summarise_renders, RenderMeasure};
+use crate::harness::rayset::{RaySet, RaySetSizes};
+use crate::harness::validate::{mrays_summary, validate_hits};
+use crate::named::{named_enum, Named};
+use crate::pipeline::HostScene;
+use crate::render::{render, KernelChoice, RenderTarget};
+use crate::report::Summary;
+use crate::scene::load_obj;
+
+pub use crate::bvh::PAPER_LEAF_SIZES;
+
+named_enum! {
+    /// Workload presets.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum Preset: "study preset" {
+        /// The paper's setting: 800x600, 500 spp, depth 16; ray sets from an 800x600 camera.
+        Paper = "paper",
+        /// Scaled so the whole study finishes in about 20 minutes on a 2-core lavapipe machine.
+        Lavapipe = "lavapipe",
+        /// A seconds-long run for CI: the bunny at tiny sizes, one timed round.
+        Smoke = "smoke",
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct StudyOptions {
+    pub preset: Preset,
+    pub scenes: Vec<PathBuf>,
+    pub leaf_sizes: Vec<u32>,
+    pub methods: Vec<Method>,
+    /// Path tracing.
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    /// Ray sets: primary rays from a `ray_width` x `ray_height` camera, `diffuse_per_hit`
+    /// cosine bounces per primary hit, `random_rays` rays between random points in the bounds.
+    pub ray_width: u32,
+    pub ray_height: u32,
+    pub diffuse_per_hit: u32,
+    pub random_rays: usize,
+    /// Timed rounds after one warm-up round.
+    pub repeat: usize,
+    /// `BuildOptions::sah_group` (1: the paper's SAH; 4: quad-aware).
+    pub sah_group: u32,
+    pub seed: u64,
+}
+
+/// A `--scenes` entry: a bundled scene's name (`bunny`) or a path.
+pub fn scene_path(s: &str) -> PathBuf {
+    let p = PathBuf::from(s);
+    if p.extension().is_none() && p.components().count() == 1 {
+        PathBuf::from(format!("scenes/{s}.obj"))
+    } else {
+        p
+    }
+}
+
+impl StudyOptions {
+    pub fn preset(preset: Preset) -> StudyOptions {
+        let scenes = |names: &[&str]| names.iter().map(|s| PathBuf::from(format!("scenes/{s}.obj"))).collect();
+        let base = StudyOptions {
+            preset,
+            scenes: scenes(&["bunny", "dragon", "buddha"]),
+            leaf_sizes: PAPER_LEAF_SIZES.to_vec(),
+            // The paper's four; `--methods` adds the others (watertight, Baldwin-Weber, f64).
+            methods: Method::paper(),
+            width: 800,
+            height: 600,
+            spp: 500,
+            max_depth: 16,
+            ray_width: 800,
+            ray_height: 600,
+            diffuse_per_hit: 8,
+            random_rays: 1_000_000,
+            repeat: 5,
+            sah_group: 1,
+            seed: 7,
+        };
+        match preset {
+            Preset::Paper => base,
+            Preset::Lavapipe => StudyOptions {
+                width: 400,
+                height: 300,
+                spp: 16,
+                ray_width: 400,
+                ray_height: 300,
+                diffuse_per_hit: 2,
+                random_rays: 200_000,
+                repeat: 3,
+                ..base
+            },
+            Preset::Smoke => StudyOptions {
+                scenes: scenes(&["bunny"]),
+                width: 48,
+                height: 36,
+                spp: 2,
+                ray_width: 48,
+                ray_height: 36,
+                diffuse_per_hit: 1,
+                random_rays: 2_000,
+                repeat: 1,
+                ..base
+            },
+        }
+    }
+
+    /// Refuses options the study cannot run, before any work: leaf sizes outside 1..=16, a SAH
+    /// grouping other than 1 or 4, scenes that do not exist.
+    pub fn check(&self) -> Result<()> {
+        for &l in &self.leaf_sizes {
+            BuildOptions::new(l).check()?;
+        }
+        if ![1, 4].contains(&self.sah_group) {
+            return Err(Error::Usage(format!("--sah-group {}: expected 1 or 4", self.sah_group)));
+        }
+        for scene in &self.scenes {
+            if !scene.is_file() {
+                return Err(Error::Usage(format!("study: scene {} does not exist", scene.display())));
+            }
+        }
+        Ok(())
+    }
+
+    /// How this workload relates to the paper's, in words (stated in every output).
+    pub fn scaling(&self) -> String {
+        let paper = 800.0 * 600.0 * 500.0;
+        let ours = self.width as f64 * self.height as f64 * self.spp as f64;
+        let render = if ours == paper {
+            "the paper's path-tracing workload (800x600, 500 spp".to_owned()
+        } else {
+            format!(
+                "path tracing at {}x{}, {} spp ({:.4} of the paper's 800x600 x 500 samples",
+                self.width,
+                self.height,
+                self.spp,
+                ours / paper
+            )
+        };
+        format!(
+            "{render}, depth {}); ray sets: primary {}x{}, {} diffuse per primary hit, {} random; \
+             median of {} timed rounds after 1 warm-up round, methods interleaved",
+            self.max_depth, self.ray_width, self.ray_height, self.diffuse_per_hit, self.random_rays, self.repeat
+        )
+    }
+}
+
+pub use crate::harness::provenance::{commit, Provenance};
+
+/// One ray set's measurement in a cell.
+#[derive(Clone, Debug, Serialize)]
+pub struct SetResult {
+    pub set: RaySet,
+    pub rays: usize,
+    pub kernel_ms: Summary,
+    pub mrays_per_s: Summary,
+    /// Fraction of rays agreeing with the f64 reference.
+    pub agreement: f64,
+    /// Nodes visited and triangles tested per ray, from the kernel's statistics variant.
+    pub traversal: TraversalSummary,
+}
+
+/// BVH quality of one (scene, leaf size) build.
+#[derive(Clone, Debug, Serialize)]
+pub struct BvhQuality {
+    pub nodes: usize,
+    pub leaves: usize,
+    pub depth: u32,
+    pub sah_cost: f64,
+    /// End-point overlap (Aila, Karras & Laine 2013), see [`crate::bvh::epo`].
+    pub epo: f64,
+    pub quad_padding: usize,
+    pub build_ms: f64,
+}
+
+/// One cell: scene x leaf size x method.
+#[derive(Clone, Debug, Serialize)]
+pub struct StudyRow {
+    pub scene: String,
+    pub triangles: usize,
+    pub leaf_size: u32,
+    pub method: Method,
+    /// Bytes this method's encoding uploads (nodes, triangle data, slot ids).
+    pub scene_bytes: usize,
+    pub bvh: BvhQuality,
+    /// Path tracing (render seconds = `render.ms / 1000`).
+    pub render: RenderMeasure,
+    pub render_kernel: &'static str,
+    pub raycast_kernel: &'static str,
+    pub sets: Vec<SetResult>,
+    pub provenance: Provenance,
+}
+
+impl StudyRow {
+    pub fn render_seconds(&self) -> Summary {
+        let s = self.render.ms;
+        Summary { median: s.median * 1e-3, min: s.min * 1e-3, max: s.max * 1e-3, runs: s.runs }
+    }
+
+    pub fn set(&self, set: RaySet) -> Option<&SetResult> {
+        self.sets.iter().find(|s| s.set == set)
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct StudyReport {
+    pub options: StudyOptions,
+    pub scaling: String,
+    pub provenance: Provenance,
+    pub rows: Vec<StudyRow>,
+    pub seconds: f64,
+}
+
+/// Per-method state of one (scene, leaf size) during the rounds.
+struct Cell {
+    /// The scene on the device for the path tracer and the ray casts alike.
+    target: RenderTarget,
+    renders: Vec<crate::render::RenderResult>,
+    /// Per set: kernel ms of each timed round.
+    set_ms: Vec<Vec<f64>>,
+    set_agreement: Vec<f64>,
+    set_traversal: Vec<Option<TraversalSummary>>,
+}
+
+impl StudyOptions {
+    /// The ray sets' sizes.
+    pub fn sizes(&self) -> RaySetSizes {
+        RaySetSizes {
+            width: self.ray_width,
+            height: self.ray_height,
+            diffuse_per_hit: self.diffuse_per_hit,
+            random_rays: self.random_rays,
+            seed: self.seed,
+        }
+    }
+}
+
+pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> Result<StudyReport> {
+    if o.leaf_sizes.is_empty() || o.methods.is_empty() || o.scenes.is_empty() {
+        return Err(Error::Usage("study: need at least one scene, leaf size and method".into()));
+    }
+    let started = Instant::now();
+    let provenance = Provenance::of(ctx);
+    let mut rows = vec![];
+    for path in &o.scenes {
+        let mesh = load_obj(path)?;
+        let name = crate::scene::scene_name(path);
+        progress(&format!("{name}: {} triangles; ray sets and f64 reference", mesh.triangle_count()));
+        // Ray sets and their reference hits, once per scene (they do not depend on the BVH).
+        let reference_scene = HostScene::build(&name, &mesh, &BuildOptions::new(4))?;
+        let reference = reference_scene.reference();
+        let sets: Vec<(RaySet, Vec<crate::rays::Ray>)> =
+            RaySet::ALL.iter().map(|&s| (s, s.generate(&mesh, &reference, &o.sizes()))).collect();
+        let ref_hits: Vec<_> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
+
+        let settings = bench_settings(&mesh, (o.width, o.height), o.spp, o.max_depth, None);
+        let mut scene_mean: Option<f64> = None;
+
+        for &leaf in &o.leaf_sizes {
+            let host =
+                HostScene::build(&name, &mesh, &BuildOptions { sah_group: o.sah_group, ..BuildOptions::new(leaf) })?;
+            let st = host.bvh.stats_with_epo(&mesh);
+            let quality = BvhQuality {
+                nodes: st.nodes,
+                leaves: st.leaves,
+                depth: st.depth,
+                sah_cost: st.sah_cost,
+                epo: st.epo.unwrap_or(f64::NAN),
+                quad_padding: st.quad_padding,
+                build_ms: st.build_ms,
+            };
+            let mut cells = vec![];
+            for &method in &o.methods {
+                let pixels = settings.pixels();
+                cells.push(Cell {
+                    target: RenderTarget::new(ctx, &host, method.into(), KernelChoice::Specialised, pixels, true)?,
+                    renders: vec![],
+                    set_ms: vec![vec![]; sets.len()],
+                    set_agreement: vec![0.0; sets.len()],
+                    set_traversal: vec![None; sets.len()],
+                });
+            }
+            for round in 0..=o.repeat.max(1) {
+                progress(&format!("{name} leaf {leaf}: round {round}/{}", o.repeat.max(1)));
+                for cell in cells.iter_mut() {
+                    let scene = &cell.target.device;
+                    let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", scene.method);
+                    let r = render(ctx, &cell.target, &settings, &mut |_| true)?;
+                    for (si, ((set, rays), refs)) in sets.iter().zip(&ref_hits).enumerate() {
+                        let res = scene.cast(ctx, Raycast::Closest, rays, &RaycastOptions::default())?;
+                        if round == 0 {
+                            // Hits are deterministic: validate once, before any time counts.
+                            let a = validate_hits(&mesh, rays, &res.hits, refs)
+                                .map_err(|e| Error::Usage(what(&format!("{set} rays: {e}"))))?;
+                            cell.set_agreement[si] = a.fraction();
+                            let once = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
+                            let stats = scene.cast(ctx, Raycast::Stats, rays, &once)?;
+                            if crate::rays::differing_hits(&stats.hits, &res.hits) > 0 {
+                                return Err(Error::Usage(what(&format!(
+                                    "{set} rays: the statistics variant's hits differ from the kernel's"
+                                ))));
+                            }
+                            let counts = stats.traversal.expect("a stats kernel returns its counts");
+                            cell.set_traversal[si] = Some(TraversalSummary::of(&counts));
+                        } else {
+                            cell.set_ms[si].push(res.time_ms().median);
+                        }
+                    }
+                    if round > 0 {
+                        cell.renders.push(r);
+                    }
+                }
+            }
+            for cell in cells {
+                let scene = &cell.target.device;
+                let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", scene.method);
+                let m = summarise_renders(&cell.renders).map_err(|e| Error::Usage(what(&e.to_string())))?;
+                check_image_mean(m.image_mean, &mut scene_mean).map_err(|e| Error::Usage(what(&e)))?;
+                let set_results = sets
+                    .iter()
+                    .enumerate()
+                    .map(|(si, (set, rays))| {
+                        let ms = Summary::of(&cell.set_ms[si]).expect("at least one timed round");
+                        SetResult {
+                            set: *set,
+                            rays: rays.len(),
+                            kernel_ms: ms,
+                            mrays_per_s: mrays_summary(rays.len(), ms),
+                            agreement: cell.set_agreement[si],
+                            traversal: cell.set_traversal[si].expect("measured in round 0"),
+                        }
+                    })
+                    .collect();
+                progress(&format!(
+                    "{name} leaf {leaf} {}: render {:.3} s, {:.2} Msamples/s",
+                    scene.method,
+                    m.ms.median * 1e-3,
+                    m.msamples_per_s.median
+                ));
+                rows.push(StudyRow {
+                    scene: name.clone(),
+                    triangles: mesh.triangle_count(),
+                    leaf_size: leaf,
+                    method: scene.method,
+                    scene_bytes: scene.bytes,
+                    bvh: quality.clone(),
+                    render: m,
+                    render_kernel: cell.target.kernel.source.name,
+                    raycast_kernel: scene.kernel_source(Raycast::Closest).name,
+                    sets: set_results,
+                    provenance: provenance.clone(),
+                });
+            }
+        }
+    }
+    Ok(StudyReport {
+        options: o.clone(),
+        scaling: o.scaling(),
+        provenance,
+        rows,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// Writes `study.csv`, `study.json`, `study.md` and the plots into `dir` (created if needed),
+/// each atomically. Returns the paths written.
+pub fn write(report: &StudyReport, dir: &Path) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut written = vec![];
+    let mut put = |name: &str, bytes: &[u8]| -> Result<()> {
+        let p = dir.join(name);
+        crate::io::write_atomic(&p, bytes)?;
+        written.push(p);
+        Ok(())
+    };
+    put("study.csv", table::csv(report)?.as_bytes())?;
+    put("study.json", (serde_json::to_string_pretty(report).expect("serialisable") + "\n").as_bytes())?;
+    let plots = plots::all(report, dir)?;
+    put("study.md", table::markdown(report, &plots).as_bytes())?;
+    written.extend(plots.into_iter().map(|p| p.path));
+    Ok(written)
+}
+impl crate::report::Report for StudyReport {
+    /// The paper's table on this device and the paper's claims, checked.
+    fn to_text(&self) -> String {
+        format!("{}\n{}", table::paper_table(self).to_text(), claims::markdown(self))
+    }
+}

@@ -1,0 +1,220 @@
+//! The study's plots (plotters, drawn into memory and written as PNG atomically):
+//! render time against leaf size per method and scene, Mrays/s per method and ray set, and
+//! SPIR-V instruction counts against time. The font is bundled (assets/fonts, DejaVu Sans,
+//! Bitstream Vera licence) so plots look the same on every machine.
+
+use std::path::Path;
+
+use plotters::coord::ranged1d::SegmentValue;
+use plotters::prelude::*;
+
+use super::table::{counts, scenes};
+use super::{StudyReport, StudyRow};
+use crate::encoding::Method;
+use crate::error::Result;
+pub use crate::harness::plots::Plot;
+use crate::harness::plots::{colour, legend, plot_err, render_png, SCENE_COLOURS};
+use crate::harness::rayset::RaySet;
+
+fn rows_of<'a>(report: &'a StudyReport, scene: &'a str) -> impl Iterator<Item = &'a StudyRow> + 'a {
+    report.rows.iter().filter(move |r| r.scene == scene)
+}
+
+/// Render time against leaf size, one panel per scene, one line per method (min-max bars).
+fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
+    let scenes = scenes(report);
+    let leaves = report.options.leaf_sizes.clone();
+    let what = "time against leaf size";
+    render_png(path, scenes.len(), what, |area, i| {
+        let scene = &scenes[i];
+        let ymax = rows_of(report, scene).map(|r| r.render_seconds().max).fold(0.0, f64::max) * 1.1;
+        let mut chart = ChartBuilder::on(area)
+            .caption(format!("{scene}: path-trace time"), ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            // Integer ranges include their end in plotters: n points are 0..n-1.
+            .build_cartesian_2d((0u32..leaves.len().saturating_sub(1) as u32).into_segmented(), 0f64..ymax.max(1e-9))
+            .map_err(|e| plot_err(what, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("triangles per leaf")
+            .y_desc("seconds (median, min-max)")
+            .x_label_formatter(&|v| match v {
+                SegmentValue::CenterOf(i) => leaves.get(*i as usize).map(|l| l.to_string()).unwrap_or_default(),
+                _ => String::new(),
+            })
+            .draw()
+            .map_err(|e| plot_err(what, e))?;
+        for &m in &report.options.methods {
+            let pts: Vec<(u32, f64, f64, f64)> = leaves
+                .iter()
+                .enumerate()
+                .filter_map(|(i, &l)| {
+                    let r = rows_of(report, scene).find(|r| r.leaf_size == l && r.method == m)?;
+                    let s = r.render_seconds();
+                    Some((i as u32, s.median, s.min, s.max))
+                })
+                .collect();
+            let c = colour(m);
+            chart
+                .draw_series(LineSeries::new(pts.iter().map(|p| (SegmentValue::CenterOf(p.0), p.1)), c.stroke_width(2)))
+                .map_err(|e| plot_err(what, e))?
+                .label(m.to_string())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+            chart
+                .draw_series(
+                    pts.iter()
+                        .map(|p| ErrorBar::new_vertical(SegmentValue::CenterOf(p.0), p.2, p.1, p.3, c.filled(), 6)),
+                )
+                .map_err(|e| plot_err(what, e))?;
+        }
+        legend(&mut chart, SeriesLabelPosition::UpperLeft, what)
+    })
+}
+
+/// Mrays/s per method and ray set at one leaf size (4 when the study has it), one panel per
+/// scene.
+fn mrays_per_set(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
+    let scenes = scenes(report);
+    let sets = ["primary", "diffuse", "random", "path trace"];
+    let ray_sets = [RaySet::Primary, RaySet::Diffuse, RaySet::Random];
+    let methods = report.options.methods.clone();
+    let what = "Mrays/s per ray set";
+    let value = |r: &StudyRow, set: usize| {
+        if set < 3 {
+            r.set(ray_sets[set]).map(|s| s.mrays_per_s.median)
+        } else {
+            Some(r.render.mrays_per_s.median)
+        }
+    };
+    render_png(path, scenes.len(), what, |area, i| {
+        let scene = &scenes[i];
+        let rows: Vec<&StudyRow> = rows_of(report, scene).filter(|r| r.leaf_size == leaf).collect();
+        let ymax = rows.iter().flat_map(|r| (0..sets.len()).filter_map(|s| value(r, s))).fold(0.0, f64::max) * 1.15;
+        let mut chart = ChartBuilder::on(area)
+            .caption(format!("{scene}: Mrays/s, leaf {leaf}"), ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(-0.5f64..(sets.len() as f64 - 0.5), 0f64..ymax.max(1e-9))
+            .map_err(|e| plot_err(what, e))?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(sets.len())
+            .x_label_formatter(&|x| {
+                let k = x.round();
+                if (x - k).abs() < 1e-6 && k >= 0.0 {
+                    sets.get(k as usize).map(|s| s.to_string()).unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            })
+            .y_desc("Mrays/s (median)")
+            .draw()
+            .map_err(|e| plot_err(what, e))?;
+        let width = 0.8 / methods.len() as f64;
+        for (j, &m) in methods.iter().enumerate() {
+            let Some(r) = rows.iter().find(|r| r.method == m) else { continue };
+            let c = colour(m);
+            let bars: Vec<Rectangle<(f64, f64)>> = (0..sets.len())
+                .filter_map(|s| {
+                    let x0 = s as f64 - 0.4 + j as f64 * width;
+                    Some(Rectangle::new([(x0, 0.0), (x0 + width * 0.9, value(r, s)?)], c.filled()))
+                })
+                .collect();
+            chart
+                .draw_series(bars)
+                .map_err(|e| plot_err(what, e))?
+                .label(m.to_string())
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], c.filled()));
+        }
+        legend(&mut chart, SeriesLabelPosition::UpperRight, what)
+    })
+}
+
+/// SPIR-V function-body instructions of each method's kernels against time relative to the
+/// scene's Möller-Trumbore time, at one leaf size: path tracer (left), primary ray cast (right).
+fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
+    let scenes = scenes(report);
+    let what = "instructions against time";
+    let panels = ["path tracer: render time / MT", "ray cast, primary rays: time / MT"];
+    render_png(path, panels.len(), what, |area, p| {
+        // (scene index, method, instructions, relative time)
+        let mut pts: Vec<(usize, Method, f64, f64)> = vec![];
+        for (si, scene) in scenes.iter().enumerate() {
+            let at = |m: Method| report.rows.iter().find(|r| &r.scene == scene && r.leaf_size == leaf && r.method == m);
+            let Some(mt) = at(Method::Mt) else { continue };
+            for &m in &report.options.methods {
+                let Some(r) = at(m) else { continue };
+                let (kernel, t, t0) = if p == 0 {
+                    (r.render_kernel, r.render.ms.median, mt.render.ms.median)
+                } else {
+                    let ms = |r: &StudyRow| r.set(RaySet::Primary).map(|s| s.kernel_ms.median).unwrap_or(f64::NAN);
+                    (r.raycast_kernel, ms(r), ms(mt))
+                };
+                pts.push((si, m, counts(kernel).functions as f64, t / t0));
+            }
+        }
+        let (xmin, xmax) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.2), b.max(p.2)));
+        let (ymin, ymax) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.3), b.max(p.3)));
+        let (xpad, ypad) = (((xmax - xmin) * 0.15).max(50.0), ((ymax - ymin) * 0.2).max(0.05));
+        let xr = if pts.is_empty() { 0.0..1.0 } else { (xmin - xpad)..(xmax + xpad) };
+        let yr = if pts.is_empty() { 0.0..1.0 } else { (ymin - ypad)..(ymax + ypad) };
+        let mut chart = ChartBuilder::on(area)
+            .caption(format!("{}, leaf {leaf}", panels[p]), ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(xr, yr)
+            .map_err(|e| plot_err(what, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("SPIR-V function-body instructions")
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_desc("time relative to Möller-Trumbore")
+            .draw()
+            .map_err(|e| plot_err(what, e))?;
+        for (si, scene) in scenes.iter().enumerate() {
+            let c = SCENE_COLOURS[si % SCENE_COLOURS.len()];
+            let mine: Vec<_> = pts.iter().filter(|q| q.0 == si).collect();
+            chart
+                .draw_series(mine.iter().map(|q| Circle::new((q.2, q.3), 5, c.filled())))
+                .map_err(|e| plot_err(what, e))?
+                .label(scene.clone())
+                .legend(move |(x, y)| Circle::new((x + 6, y), 5, c.filled()));
+            if si == 0 {
+                chart
+                    .draw_series(
+                        mine.iter().map(|q| {
+                            Text::new(q.1.to_string(), (q.2, q.3), ("sans-serif", 13).into_font().color(&BLACK))
+                        }),
+                    )
+                    .map_err(|e| plot_err(what, e))?;
+            }
+        }
+        legend(&mut chart, SeriesLabelPosition::UpperLeft, what)
+    })
+}
+
+/// Writes every plot into `dir`.
+pub fn all(report: &StudyReport, dir: &Path) -> Result<Vec<Plot>> {
+    let leaf = if report.options.leaf_sizes.contains(&4) { 4 } else { report.options.leaf_sizes[0] };
+    let plots = [
+        ("Path-trace time against triangles per leaf, per method and scene", "study-time-vs-leaf.png"),
+        ("Mrays/s per method and ray set", "study-mrays-per-set.png"),
+        ("SPIR-V instruction counts against time", "study-instructions-vs-time.png"),
+    ];
+    let mut out = vec![];
+    for (i, (title, file)) in plots.iter().enumerate() {
+        let path = dir.join(file);
+        match i {
+            0 => time_vs_leaf(report, &path)?,
+            1 => mrays_per_set(report, &path, leaf)?,
+            _ => instructions_vs_time(report, &path, leaf)?,
+        }
+        out.push(Plot { title: title.to_string(), path });
+    }
+    Ok(out)
+}

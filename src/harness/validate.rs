@@ -1,0 +1,66 @@
+//! No speed without a correct answer: every harness checks a cast's hits against the CPU f64
+//! reference before its time counts (as tinybvh's speed test validates before it reports).
+
+use crate::compare::{compare_closest, Agreement};
+use crate::encoding::Raycast;
+use crate::error::{Error, Result};
+use crate::gpu::{Context, RaycastOptions};
+use crate::pipeline::DeviceScene;
+use crate::rays::{Hit, Ray};
+use crate::reference::RefHit;
+use crate::report::Summary;
+use crate::scene::Mesh;
+
+/// Fewest rays that must agree with the f64 reference before a speed is reported.
+pub const MIN_AGREEMENT: f64 = 0.9999;
+
+/// Compares GPU hits with the f64 reference; an error (never a reported speed) when fewer than
+/// 99.99 % agree, any disagreement is unexplained (not an edge, vertex or tie case) or any hit is
+/// invalid.
+pub fn validate_hits(mesh: &Mesh, rays: &[Ray], hits: &[Hit], ref_hits: &[RefHit]) -> Result<Agreement> {
+    let agreement = compare_closest(mesh, rays, hits, ref_hits);
+    if !agreement.passes(MIN_AGREEMENT) {
+        return Err(Error::Usage(format!(
+            "results disagree with the f64 reference ({}); not reporting a speed",
+            agreement.summary()
+        )));
+    }
+    Ok(agreement)
+}
+
+/// Mrays/s from a kernel-time summary: the median run's rate, and min/max from the slowest and
+/// fastest runs.
+pub fn mrays_summary(rays: usize, ms: Summary) -> Summary {
+    let mr = |ms: f64| rays as f64 / (ms * 1e-3) / 1e6;
+    Summary { median: mr(ms.median), min: mr(ms.max), max: mr(ms.min), runs: ms.runs }
+}
+
+/// One validated ray-casting measurement.
+#[derive(Clone, Debug)]
+pub struct RayMeasure {
+    /// GPU kernel time per run (or host wall time where the queue has no timestamps), ms.
+    pub kernel_ms: Summary,
+    /// Mrays/s at the median, slowest and fastest run (so `min` comes from `kernel_ms.max`).
+    pub mrays_per_s: Summary,
+    pub agreement: Agreement,
+    pub hits: Vec<Hit>,
+}
+
+/// Casts `rays` for the closest hit over `scene` (`opts.warmup` untimed runs, then `opts.repeat`
+/// timed ones) and validates the hits against the f64 reference before the time counts: fewer
+/// than 99.99 % agreeing rays, an unexplained disagreement or an invalid hit is an error, never a
+/// reported speed.
+pub fn measure_rays(
+    ctx: &Context,
+    scene: &DeviceScene,
+    mesh: &Mesh,
+    rays: &[Ray],
+    ref_hits: &[RefHit],
+    opts: &RaycastOptions,
+) -> Result<RayMeasure> {
+    let res = scene.cast(ctx, Raycast::Closest, rays, opts)?;
+    let agreement = validate_hits(mesh, rays, &res.hits, ref_hits)?;
+    let ms = res.time_ms();
+    let mrays_per_s = mrays_summary(rays.len(), ms);
+    Ok(RayMeasure { kernel_ms: ms, mrays_per_s, agreement, hits: res.hits })
+}

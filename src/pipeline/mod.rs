@@ -1,0 +1,319 @@
+//! The scene pipeline every command, harness and test shares, from a mesh to a scene on the
+//! device with its kernels:
+//!
+//! mesh → BVH ([`HostScene::build`], once per mesh and build options, shared by every method) →
+//! method, or `auto` ([`analyze::resolve`]) → memory plan, checked against the device's limits,
+//! and the access path, chosen once ([`HostScene::plan`] → [`ScenePlan`]) → encoding → upload
+//! ([`ScenePlan::upload`] → [`DeviceScene`]) → kernels ([`DeviceScene::kernel`]), which always
+//! read the scene through the path it was uploaded for.
+//!
+//! Nothing else uploads a scene. A scene that cannot fit is refused at the plan, before anything
+//! is encoded or allocated, with [`Error::SceneTooLarge`] naming the buffer and the limit, the
+//! same way in every command; `TRILAB_TEST_LIMITS` (or [`ContextOptions::test_limits`]) lowers the
+//! device's limits so tests can show it.
+//!
+//! [`ContextOptions::test_limits`]: crate::gpu::ContextOptions::test_limits
+
+mod upload;
+
+use std::sync::Arc;
+
+use crate::analyze::{self, MethodChoice, Recommendation};
+use crate::bvh::{BuildOptions, Bvh};
+use crate::encoding::plan::check_extras;
+use crate::encoding::{
+    AccessPath, BufferPlan, DeviceLimits, EncodedScene, MemoryPlan, Method, Raycast, SceneAccess, SceneCounts,
+};
+use crate::error::{Error, Result};
+use crate::gpu::raycast::cast_rays;
+use crate::gpu::{Context, Kernel, RaycastOptions, RaycastResult, Resource};
+use crate::kernels::KernelSource;
+use crate::reference::Reference;
+use crate::scene::Mesh;
+
+use upload::SceneBuffers;
+
+/// A mesh and its BVH, on the host: what every method's encoding of it starts from.
+pub struct HostScene<'m> {
+    /// The scene's name in tables and messages (`scene::scene_name`).
+    pub name: String,
+    pub mesh: &'m Mesh,
+    pub bvh: Bvh,
+}
+
+/// What a device scene must serve.
+#[derive(Clone, Copy, Debug)]
+pub struct SceneRequest {
+    /// A method, or `auto`: the cheapest meeting the default accuracy target on this scene and
+    /// device (`trilab analyze`).
+    pub method: MethodChoice,
+    /// How the kernels read the scene: `auto` takes texel buffers when every buffer fits one
+    /// binding, else buffer device addresses.
+    pub access: SceneAccess,
+    /// A reader of the scene that has only the texel path (the path tracer), and why: the plan
+    /// must then fit texel bindings, and a "does not fit" error says what helps that reader.
+    pub texel_only: Option<&'static str>,
+}
+
+impl SceneRequest {
+    /// `method` (or `auto`), read through whichever path fits.
+    pub fn new(method: impl Into<MethodChoice>) -> SceneRequest {
+        SceneRequest { method: method.into(), access: SceneAccess::Auto, texel_only: None }
+    }
+
+    /// The same, read through `access`.
+    pub fn access(self, access: SceneAccess) -> SceneRequest {
+        SceneRequest { access, ..self }
+    }
+
+    /// The same, for a reader that has only the texel path (`why` names it).
+    pub fn texel_only(self, why: &'static str) -> SceneRequest {
+        SceneRequest { texel_only: Some(why), ..self }
+    }
+}
+
+impl<'m> HostScene<'m> {
+    /// Builds the BVH of `mesh` (after checking the options: leaf size and SAH grouping).
+    pub fn build(name: impl Into<String>, mesh: &'m Mesh, options: &BuildOptions) -> Result<HostScene<'m>> {
+        options.check()?;
+        Ok(HostScene { name: name.into(), mesh, bvh: Bvh::build(mesh, options) })
+    }
+
+    /// A scene over a BVH built elsewhere (a hand-made or depth-limited tree in tests).
+    pub fn with_bvh(name: impl Into<String>, mesh: &'m Mesh, bvh: Bvh) -> HostScene<'m> {
+        HostScene { name: name.into(), mesh, bvh }
+    }
+
+    /// The counts every method's memory plan is made of.
+    pub fn counts(&self) -> SceneCounts {
+        SceneCounts::of(self.mesh, &self.bvh)
+    }
+
+    /// The CPU f64 reference on the same tree.
+    pub fn reference(&self) -> Reference<'_> {
+        Reference::new(self.mesh, &self.bvh)
+    }
+
+    /// Resolves the method, plans every buffer of its encoding and chooses the access path,
+    /// against `ctx`'s limits; nothing is encoded or allocated.
+    pub fn plan(&self, ctx: &Context, request: &SceneRequest) -> Result<ScenePlan<'_, 'm>> {
+        let (method, auto) = analyze::resolve(request.method, self.mesh, ctx.enabled(), None)?;
+        self.plan_for(method, auto, request, &ctx.limits()?)
+    }
+
+    /// [`HostScene::plan`] for a resolved method against given limits (no device needed: the
+    /// bytes-per-triangle tables of `trilab scale --plan-only` and unit tests).
+    pub fn plan_for(
+        &self,
+        method: Method,
+        auto: Option<Recommendation>,
+        request: &SceneRequest,
+        limits: &DeviceLimits,
+    ) -> Result<ScenePlan<'_, 'm>> {
+        let memory = MemoryPlan::of(method, &self.counts());
+        let access = match request.texel_only {
+            Some(why) => memory.choose_texel_only(&self.name, limits, why)?,
+            None => memory.choose(&self.name, request.access, limits)?,
+        };
+        Ok(ScenePlan { host: self, method, auto, memory, access, limits: *limits })
+    }
+
+    /// [`HostScene::plan`] then [`ScenePlan::upload`]: `request`'s scene on the device.
+    pub fn upload(&self, ctx: &Context, request: &SceneRequest) -> Result<DeviceScene> {
+        self.plan(ctx, request)?.upload(ctx)
+    }
+}
+
+/// A method's encoding of a [`HostScene`], planned: what it will allocate and how the kernels
+/// will read it.
+pub struct ScenePlan<'h, 'm> {
+    host: &'h HostScene<'m>,
+    pub method: Method,
+    /// Why `auto` picked the method (`None` when it was given).
+    pub auto: Option<Recommendation>,
+    pub memory: MemoryPlan,
+    pub access: AccessPath,
+    /// The limits it was checked against.
+    pub limits: DeviceLimits,
+}
+
+impl<'m> ScenePlan<'_, 'm> {
+    /// The mesh being planned.
+    pub fn mesh(&self) -> &'m Mesh {
+        self.host.mesh
+    }
+
+    /// Checks buffers a higher layer will upload beside the scene (the path tracer's), each with
+    /// whether it is a storage buffer bound whole, against the same limits.
+    pub fn check_extras(&self, extras: &[(BufferPlan, bool)]) -> Result<()> {
+        check_extras(&self.host.name, self.method, extras, &self.limits)
+    }
+
+    /// Encodes and uploads every buffer of the scene.
+    pub fn upload(self, ctx: &Context) -> Result<DeviceScene> {
+        self.upload_with(ctx, None, |_| ())
+    }
+
+    /// Encodes and uploads the scene: only the buffers `reader` reads when given (the path
+    /// tracer never reads the slot -> OBJ id table), and hands the encoding to `inspect` before
+    /// it is dropped (the path tracer's per-slot shading follows its slot order).
+    pub fn upload_with(
+        self,
+        ctx: &Context,
+        reader: Option<&'static KernelSource>,
+        inspect: impl FnOnce(&EncodedScene),
+    ) -> Result<DeviceScene> {
+        let encoded = self.method.encode(self.host.mesh, &self.host.bvh);
+        inspect(&encoded);
+        let buffers = SceneBuffers::upload(ctx, &encoded, self.access, reader)?;
+        Ok(DeviceScene {
+            name: self.host.name.clone(),
+            method: self.method,
+            leaf_size: encoded.leaf_size,
+            auto: self.auto,
+            plan: self.memory,
+            access: self.access,
+            unrepresentable: encoded.unrepresentable,
+            bytes: buffers.bytes(),
+            buffers,
+        })
+    }
+}
+
+/// A method's encoding of a scene on the device, read through the access path it was planned
+/// for; its kernels come from it.
+pub struct DeviceScene {
+    pub name: String,
+    pub method: Method,
+    pub leaf_size: u32,
+    /// Why `auto` picked the method (`None` when it was given).
+    pub auto: Option<Recommendation>,
+    pub plan: MemoryPlan,
+    pub access: AccessPath,
+    /// Triangles the encoding could not represent (their map overflows f32): never hit.
+    pub unrepresentable: Vec<u32>,
+    /// Bytes uploaded.
+    pub bytes: usize,
+    buffers: SceneBuffers,
+}
+
+impl DeviceScene {
+    /// The ray-casting kernel computing `kind` over this scene (its method, its access path).
+    pub fn kernel_source(&self, kind: Raycast) -> &'static KernelSource {
+        self.method.raycast_kernel(kind, self.access)
+    }
+
+    /// That kernel, created once per context.
+    pub fn kernel(&self, ctx: &Context, kind: Raycast) -> Result<Arc<Kernel>> {
+        ctx.kernel(self.kernel_source(kind))
+    }
+
+    /// The scene's bindings, for a descriptor set.
+    pub fn resources(&self) -> impl Iterator<Item = (u32, Resource<'_>)> {
+        self.buffers.resources()
+    }
+
+    /// Casts `rays` with this scene's `kind` kernel: `opts.warmup` untimed runs, then
+    /// `opts.repeat` timed ones; the hits (and, for [`Raycast::Stats`], the traversal counts)
+    /// are the last run's.
+    pub fn cast(
+        &self,
+        ctx: &Context,
+        kind: Raycast,
+        rays: &[crate::rays::Ray],
+        opts: &RaycastOptions,
+    ) -> Result<RaycastResult> {
+        let kernel = self.kernel(ctx, kind)?;
+        self.cast_with(ctx, &kernel, rays, opts)
+    }
+
+    /// [`DeviceScene::cast`] with a pipeline made elsewhere (`trilab profile` varies subgroup
+    /// and workgroup sizes); it must be one of this scene's ray-casting kernels.
+    pub fn cast_with(
+        &self,
+        ctx: &Context,
+        kernel: &Kernel,
+        rays: &[crate::rays::Ray],
+        opts: &RaycastOptions,
+    ) -> Result<RaycastResult> {
+        self.check_kernel(kernel)?;
+        let resources: Vec<(u32, Resource)> = self.resources().collect();
+        cast_rays(ctx, kernel, &resources, rays, opts)
+    }
+
+    /// Fails unless `kernel` is one of this scene's ray-casting kernels (its method, its path).
+    pub fn check_kernel(&self, kernel: &Kernel) -> Result<()> {
+        use crate::named::Named;
+        if Raycast::ALL.iter().any(|&k| self.kernel_source(k).name == kernel.name) {
+            return Ok(());
+        }
+        Err(Error::Usage(format!(
+            "kernel {} cannot read scene `{}` ({} on the {} path)",
+            kernel.name,
+            self.name,
+            self.method,
+            self.access.name()
+        )))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encoding::Raycast;
+
+    fn grid(n: u32) -> Mesh {
+        let mut pos = Vec::new();
+        let mut tris = Vec::new();
+        for i in 0..n {
+            let (x, y) = ((i % 17) as f32, (i / 17) as f32);
+            pos.extend([[x, y, 0.0], [x + 0.9, y, 0.3], [x, y + 0.9, 0.6]]);
+            tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        Mesh::from_triangles(pos, tris)
+    }
+
+    fn limits() -> DeviceLimits {
+        DeviceLimits {
+            max_texel_buffer_elements: 1 << 27,
+            max_storage_buffer_range: 1 << 27,
+            max_buffer_size: None,
+            max_memory_allocation_size: 1 << 32,
+            device_local_bytes: 1 << 34,
+            budget_bytes: None,
+            buffer_device_address: true,
+        }
+    }
+
+    #[test]
+    fn bad_build_options_are_refused_before_building() {
+        let m = grid(10);
+        for o in [BuildOptions::new(0), BuildOptions::new(17), BuildOptions { sah_group: 0, ..BuildOptions::new(4) }] {
+            assert!(matches!(HostScene::build("grid", &m, &o), Err(Error::Usage(_))), "{o:?}");
+        }
+    }
+
+    #[test]
+    fn the_access_path_is_chosen_once_and_read_by_the_kernels() {
+        let m = grid(100);
+        let host = HostScene::build("grid", &m, &BuildOptions::new(4)).unwrap();
+        let mut l = limits();
+        let p = host.plan_for(Method::Unit, None, &SceneRequest::new(Method::Unit), &l).unwrap();
+        assert_eq!(p.access, AccessPath::Texel);
+        assert_eq!(p.method.raycast_kernel(Raycast::Closest, p.access).variant, "closest");
+        l.max_texel_buffer_elements = 200; // unit triangles: 300 texels
+        let p = host.plan_for(Method::Unit, None, &SceneRequest::new(Method::Unit), &l).unwrap();
+        assert_eq!(p.access, AccessPath::Address);
+        assert_eq!(p.method.raycast_kernel(Raycast::Stats, p.access).variant, "stats_bda");
+        // A texel-only reader is refused, and told what helps it.
+        let r = SceneRequest::new(Method::Unit).texel_only("the path tracer reads scenes through texel buffers only");
+        match host.plan_for(Method::Unit, None, &r, &l) {
+            Err(Error::SceneTooLarge(t)) => {
+                assert!(t.hint.starts_with("the path tracer"), "{}", t.hint);
+                assert_eq!((t.scene.as_str(), t.buffer.as_str()), ("grid", "unit triangles"));
+            }
+            Err(e) => panic!("expected SceneTooLarge, got {e}"),
+            Ok(_) => panic!("expected SceneTooLarge, got a plan"),
+        }
+    }
+}

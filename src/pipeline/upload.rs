@@ -1,0 +1,89 @@
+//! A scene's buffers on the device, bound where the kernels read them: storage texel buffers, or
+//! on the address path the data in device-address buffers and, at each binding, a uniform block
+//! holding the address (`SCENE_ADDRESS` in `glsl/types.glsl`).
+
+use ash::vk;
+
+use crate::encoding::{AccessPath, EncodedScene, SceneBufferRef};
+use crate::error::{Error, Result};
+use crate::gpu::{Buffer, Context, Resource, TexelBuffer};
+use crate::kernels::KernelSource;
+
+/// One scene buffer as the kernels reach it.
+enum SceneBinding {
+    /// A storage texel buffer (the default kernels).
+    Texels(TexelBuffer),
+    /// The data in a device-address buffer, and a uniform buffer holding its address, bound where
+    /// the texel buffer would be (the `*_bda` kernels).
+    Address { data: Buffer, pointer: Buffer },
+}
+
+/// The scene's buffers by binding.
+pub(super) struct SceneBuffers(Vec<(u32, SceneBinding)>);
+
+impl SceneBuffers {
+    /// Uploads `scene` for `access`: every buffer, or only those `reader` reads.
+    pub(super) fn upload(
+        ctx: &Context,
+        scene: &EncodedScene,
+        access: AccessPath,
+        reader: Option<&'static KernelSource>,
+    ) -> Result<SceneBuffers> {
+        scene
+            .check_limits()
+            .map_err(|e| Error::Usage(format!("scene too large for the {} kernels: {e}", scene.method)))?;
+        let read = match reader {
+            Some(k) => {
+                Some(crate::spirv::reflect::reflect(k.name, &k.words())?.sets.get(&0).cloned().unwrap_or_default())
+            }
+            None => None,
+        };
+        let upload = |SceneBufferRef { name, binding, texel, bytes }: SceneBufferRef| -> Result<(u32, SceneBinding)> {
+            let b = match access {
+                AccessPath::Texel => SceneBinding::Texels(ctx.upload_texels(name, bytes, texel)?),
+                AccessPath::Address => {
+                    let (data, address) = ctx.upload_addressed(name, bytes)?;
+                    // `uniform <name>Address { Scene.. <name>; }` (std140): the 8-byte address.
+                    let pointer = ctx.upload(
+                        &format!("{name} (address)"),
+                        &address.to_le_bytes(),
+                        vk::BufferUsageFlags::UNIFORM_BUFFER,
+                    )?;
+                    SceneBinding::Address { data, pointer }
+                }
+            };
+            Ok((binding, b))
+        };
+        let buffers = scene
+            .buffers()
+            .into_iter()
+            .filter(|b| read.as_ref().is_none_or(|r| r.contains_key(&b.binding)))
+            .map(upload)
+            .collect::<Result<Vec<_>>>()?;
+        Ok(SceneBuffers(buffers))
+    }
+
+    /// Bytes of scene data on the device.
+    pub(super) fn bytes(&self) -> usize {
+        self.0
+            .iter()
+            .map(|(_, b)| match b {
+                SceneBinding::Texels(t) => t.buffer.size as usize,
+                SceneBinding::Address { data, .. } => data.size as usize,
+            })
+            .sum()
+    }
+
+    /// The bindings, for a descriptor set.
+    pub(super) fn resources(&self) -> impl Iterator<Item = (u32, Resource<'_>)> {
+        self.0.iter().map(|(b, t)| {
+            (
+                *b,
+                match t {
+                    SceneBinding::Texels(t) => Resource::Texels(t),
+                    SceneBinding::Address { pointer, .. } => Resource::whole(pointer),
+                },
+            )
+        })
+    }
+}
