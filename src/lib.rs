@@ -19,24 +19,24 @@
 //! - [`harness`]: everything that measures and reports (bench, study, accuracy, profile, scale,
 //!   ...), with what they share; the CLI (`src/cli/`, in the binary) calls these.
 
-pub mod analyze;
-pub mod bvh;
-pub mod compare;
-pub mod encoding;
 pub mod error;
-pub mod gpu;
-pub mod harness;
 pub mod io;
-pub mod kernels;
-pub mod named;
-pub mod pipeline;
-pub mod rays;
-pub mod reference;
-pub mod render;
 pub mod report;
-pub mod scene;
+pub mod named;
 pub mod shared;
+pub mod kernels;
 pub mod spirv;
+pub mod scene;
+pub mod rays;
+pub mod bvh;
+pub mod reference;
+pub mod compare;
 pub mod traversal;
+pub mod encoding;
+pub mod gpu;
+pub mod analyze;
+pub mod pipeline;
+pub mod render;
+pub mod harness;
 
 pub use error::{Error, Result};

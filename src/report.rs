@@ -13,6 +13,15 @@ pub trait Report: serde::Serialize {
     }
 }
 
+/// `value` as pretty JSON through `serde_json::Value`: keys sorted, f32 values written as the
+/// f64 they widen to. The reports that were built as JSON values before they were structs
+/// (raycast, render, bvh, steps, spirv, analyze) print this way, so their output stays
+/// byte-comparable with earlier versions.
+pub fn value_json(value: &impl serde::Serialize) -> String {
+    let v = serde_json::to_value(value).expect("reports serialise");
+    serde_json::to_string_pretty(&v).expect("values serialise")
+}
+
 /// A table of strings; numeric-looking columns are right-aligned in text output.
 #[derive(Clone, Debug, Default)]
 pub struct Table {

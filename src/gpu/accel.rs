@@ -19,7 +19,8 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 use serde::Serialize;
 
-use super::buffer::{memory_barrier, Buffer, TexelBuffer};
+use super::buffer::{Buffer, TexelBuffer};
+use super::commands::memory_barrier;
 use super::context::Context;
 use super::timestamps::Timestamps;
 use crate::error::{Error, Result, VkContext};

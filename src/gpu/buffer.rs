@@ -6,6 +6,7 @@ use ash::vk;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 
+use super::commands::memory_barrier;
 use super::context::{Context, Device};
 use crate::error::{Error, Result, VkContext};
 use crate::shared::Texel;
@@ -297,20 +298,6 @@ impl Context {
         }
         result
     }
-}
-
-/// Records one global memory barrier: `src` (stages, accesses) before `dst`.
-///
-/// # Safety
-/// `cmd` is a command buffer of `d` in the recording state.
-pub(crate) unsafe fn memory_barrier(
-    d: &ash::Device,
-    cmd: vk::CommandBuffer,
-    src: (vk::PipelineStageFlags, vk::AccessFlags),
-    dst: (vk::PipelineStageFlags, vk::AccessFlags),
-) {
-    let barrier = vk::MemoryBarrier::default().src_access_mask(src.1).dst_access_mask(dst.1);
-    d.cmd_pipeline_barrier(cmd, src.0, dst.0, vk::DependencyFlags::empty(), &[barrier], &[], &[]);
 }
 
 /// Records a copy of the first `len` bytes of `buf` (last written by a compute shader) into the

@@ -192,12 +192,26 @@ impl Drop for Device {
     }
 }
 
+/// Lowers the device's limits for tests (`DeviceLimits::with_overrides`): for example
+/// `TRILAB_TEST_LIMITS=max_texel_buffer_elements=4096` makes every scene of more than 4096 texels
+/// per buffer take the address path, in every command.
+pub const TEST_LIMITS_VAR: &str = "TRILAB_TEST_LIMITS";
+
+/// The kernels a context created, by variant name and specialisation constants: each is compiled
+/// once per context (`Context::kernel`; creating a pipeline runs the driver's compiler, a fraction
+/// of a second on lavapipe). The pipelines are `gpu::Kernel`s, kept type-erased here so that the
+/// context does not depend on the module that builds them.
+pub(crate) type KernelCache = Mutex<std::collections::HashMap<KernelKey, Arc<dyn std::any::Any + Send + Sync>>>;
+
+/// A kernel variant's name and its specialisation constants.
+pub(crate) type KernelKey = (&'static str, Vec<(u32, u32)>);
+
 /// Entry point to the GPU: a chosen device with one compute queue, and the kernels created on it
 /// so far (each variant and set of specialisation constants is compiled once per context).
 #[derive(Clone)]
 pub struct Context {
     /// Declared before `device`: dropped first, so the cached pipelines go before the device.
-    pub(crate) kernels: Arc<super::kernel::KernelCache>,
+    pub(crate) kernels: Arc<KernelCache>,
     pub(crate) device: Arc<Device>,
 }
 
@@ -397,7 +411,7 @@ impl Context {
                 enabled,
                 submit_timeout: options.submit_timeout,
                 markers,
-                test_limits: options.test_limits.clone().or_else(|| std::env::var(super::limits::TEST_LIMITS_VAR).ok()),
+                test_limits: options.test_limits.clone().or_else(|| std::env::var(TEST_LIMITS_VAR).ok()),
                 sync_validation,
                 log,
             }),
@@ -419,6 +433,71 @@ impl Context {
             .enumerate()
             .map(|(i, &pd)| unsafe { device_info::query(guard.instance(), pd, i) })
             .collect())
+    }
+
+    /// The crash markers and fault injection (`gpu::markers`).
+    pub(crate) fn markers(&self) -> &Markers {
+        &self.device.markers
+    }
+
+    /// Arms `fault` (counting submits and allocations from now), or disarms with `None`.
+    pub fn inject_fault(&self, fault: Option<Fault>) {
+        self.markers().inject_fault(fault)
+    }
+
+    /// Whether the GPU breadcrumb buffer exists (it does wherever there is host-visible memory).
+    pub fn markers_active(&self) -> bool {
+        self.markers().markers_active()
+    }
+
+    /// Turns a device loss or an out-of-memory error into `Error::GpuFault` naming the
+    /// dispatches involved; any other error is returned as it is.
+    pub fn fault(&self, e: Error) -> Error {
+        self.markers().fault(e)
+    }
+
+    /// "last dispatch begun: ...; last completed: ..." from the markers, or the host log.
+    pub fn marker_report(&self) -> String {
+        self.markers().marker_report()
+    }
+
+    /// Records "dispatch `id` begun" into `cmd` and logs `description`; returns the id for
+    /// [`Context::mark_end`].
+    ///
+    /// # Safety
+    /// As [`Markers::mark_begin`].
+    pub(crate) unsafe fn mark_begin(&self, d: &ash::Device, cmd: vk::CommandBuffer, description: String) -> u32 {
+        // SAFETY: the caller keeps mark_begin's contract.
+        unsafe { self.markers().mark_begin(d, cmd, description) }
+    }
+
+    /// Records "dispatch `id` done" after everything recorded before it in `cmd`.
+    ///
+    /// # Safety
+    /// As [`Markers::mark_begin`].
+    pub(crate) unsafe fn mark_end(&self, d: &ash::Device, cmd: vk::CommandBuffer, id: u32) {
+        // SAFETY: the caller keeps mark_end's contract.
+        unsafe { self.markers().mark_end(d, cmd, id) }
+    }
+
+    /// Forgets the dispatches recorded in command buffers being freed.
+    pub(crate) fn forget_command_buffers(&self, cmds: &[vk::CommandBuffer]) {
+        self.markers().forget_command_buffers(cmds)
+    }
+
+    /// Logs a submit of `cmd` (`what`) and injects the armed fault when its turn comes.
+    pub(crate) fn before_submit(&self, cmd: vk::CommandBuffer, what: &str) -> Result<()> {
+        self.markers().before_submit(cmd, what)
+    }
+
+    /// Logs a submit that finished.
+    pub(crate) fn after_submit(&self, what: &str) {
+        self.markers().after_submit(what)
+    }
+
+    /// Counts an allocation named `name` and injects the armed allocation fault.
+    pub(crate) fn before_allocation(&self, name: &str) -> Result<()> {
+        self.markers().before_allocation(name)
     }
 
     pub fn info(&self) -> &DeviceInfo {

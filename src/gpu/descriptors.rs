@@ -169,3 +169,59 @@ impl Context {
         })
     }
 }
+
+/// One dispatch of [`Context::dispatch_chain`]: kernel, bindings, push constants, workgroups.
+pub type ChainStep<'a> = (&'a Kernel, &'a [(u32, Resource<'a>)], &'a [u8], u32);
+
+impl Context {
+    /// Runs `steps` in order in one command buffer and waits. With `barriers`, a full compute
+    /// barrier separates consecutive dispatches (what any chain of kernels sharing buffers
+    /// needs); without, none does: that exists so tests can prove synchronization validation
+    /// reports the hazard (`tests/validation.rs`).
+    pub fn dispatch_chain(&self, steps: &[ChainStep], barriers: bool) -> Result<()> {
+        let mut pools = Vec::new();
+        let mut sets = Vec::new();
+        for (kernel, resources, push, _) in steps {
+            if kernel.layout.push_constants.map(|(_, n)| n as usize).unwrap_or(0) != push.len() {
+                return Err(Error::Usage(format!("kernel {}: wrong push-constant size {}", kernel.name, push.len())));
+            }
+            let (pool, s) = DescriptorPool::new(self, kernel, 1)?;
+            write_set(self, kernel, s[0], resources)?;
+            pools.push(pool);
+            sets.push(s[0]);
+        }
+        let names: Vec<&str> = steps.iter().map(|s| s.0.name).collect();
+        self.one_shot(&format!("dispatch chain {}", names.join(" -> ")), |d, cmd| {
+            for (i, ((kernel, _, push, groups), set)) in steps.iter().zip(&sets).enumerate() {
+                // SAFETY: pipelines, layouts, sets and the buffers behind them outlive one_shot's
+                // wait; `cmd` is recording.
+                unsafe {
+                    if i > 0 && barriers {
+                        super::commands::memory_barrier(
+                            d,
+                            cmd,
+                            (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_WRITE),
+                            (
+                                vk::PipelineStageFlags::COMPUTE_SHADER,
+                                vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                            ),
+                        );
+                    }
+                    d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
+                    d.cmd_bind_descriptor_sets(
+                        cmd,
+                        vk::PipelineBindPoint::COMPUTE,
+                        kernel.pipeline_layout,
+                        0,
+                        &[*set],
+                        &[],
+                    );
+                    if !push.is_empty() {
+                        d.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+                    }
+                    d.cmd_dispatch(cmd, *groups, 1, 1);
+                }
+            }
+        })
+    }
+}

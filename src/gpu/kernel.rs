@@ -43,15 +43,6 @@ impl Kernel {
     }
 }
 
-/// The kernels a context created, by variant and specialisation constants: each is compiled once
-/// per context (creating a pipeline runs the driver's compiler: a fraction of a second on
-/// lavapipe, for every scene and leaf size of a study otherwise).
-#[derive(Default)]
-pub struct KernelCache(std::sync::Mutex<std::collections::HashMap<KernelKey, Arc<Kernel>>>);
-
-/// A kernel variant's name and its specialisation constants.
-type KernelKey = (&'static str, Vec<(u32, u32)>);
-
 impl Context {
     /// The kernel of `src`, created on first use and shared after that.
     pub fn kernel(&self, src: &'static KernelSource) -> Result<Arc<Kernel>> {
@@ -61,12 +52,12 @@ impl Context {
     /// [`Context::kernel`] with specialisation constants: `(constant_id, 32-bit value)` pairs.
     pub fn kernel_specialized(&self, src: &'static KernelSource, constants: &[(u32, u32)]) -> Result<Arc<Kernel>> {
         let key = (src.name, constants.to_vec());
-        let cached = self.kernels.0.lock().unwrap_or_else(|e| e.into_inner()).get(&key).cloned();
+        let cached = self.kernels.lock().unwrap_or_else(|e| e.into_inner()).get(&key).cloned();
         if let Some(k) = cached {
-            return Ok(k);
+            return Ok(k.downcast::<Kernel>().expect("the kernel cache holds kernels"));
         }
         let k = Arc::new(self.create_kernel_specialized(src, constants)?);
-        self.kernels.0.lock().unwrap_or_else(|e| e.into_inner()).insert(key, k.clone());
+        self.kernels.lock().unwrap_or_else(|e| e.into_inner()).insert(key, k.clone());
         Ok(k)
     }
 
@@ -230,62 +221,5 @@ impl Drop for Objects {
                 dev.raw.destroy_shader_module(self.module, None);
             }
         }
-    }
-}
-
-/// One dispatch of [`Context::dispatch_chain`]: kernel, bindings, push constants, workgroups.
-pub type ChainStep<'a> = (&'a Kernel, &'a [(u32, super::descriptors::Resource<'a>)], &'a [u8], u32);
-
-impl Context {
-    /// Runs `steps` in order in one command buffer and waits. With `barriers`, a full compute
-    /// barrier separates consecutive dispatches (what any chain of kernels sharing buffers
-    /// needs); without, none does: that exists so tests can prove synchronization validation
-    /// reports the hazard (`tests/validation.rs`).
-    pub fn dispatch_chain(&self, steps: &[ChainStep], barriers: bool) -> Result<()> {
-        use super::descriptors::{write_set, DescriptorPool};
-        let mut pools = Vec::new();
-        let mut sets = Vec::new();
-        for (kernel, resources, push, _) in steps {
-            if kernel.layout.push_constants.map(|(_, n)| n as usize).unwrap_or(0) != push.len() {
-                return Err(Error::Usage(format!("kernel {}: wrong push-constant size {}", kernel.name, push.len())));
-            }
-            let (pool, s) = DescriptorPool::new(self, kernel, 1)?;
-            write_set(self, kernel, s[0], resources)?;
-            pools.push(pool);
-            sets.push(s[0]);
-        }
-        let names: Vec<&str> = steps.iter().map(|s| s.0.name).collect();
-        self.one_shot(&format!("dispatch chain {}", names.join(" -> ")), |d, cmd| {
-            for (i, ((kernel, _, push, groups), set)) in steps.iter().zip(&sets).enumerate() {
-                // SAFETY: pipelines, layouts, sets and the buffers behind them outlive one_shot's
-                // wait; `cmd` is recording.
-                unsafe {
-                    if i > 0 && barriers {
-                        super::buffer::memory_barrier(
-                            d,
-                            cmd,
-                            (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_WRITE),
-                            (
-                                vk::PipelineStageFlags::COMPUTE_SHADER,
-                                vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
-                            ),
-                        );
-                    }
-                    d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-                    d.cmd_bind_descriptor_sets(
-                        cmd,
-                        vk::PipelineBindPoint::COMPUTE,
-                        kernel.pipeline_layout,
-                        0,
-                        &[*set],
-                        &[],
-                    );
-                    if !push.is_empty() {
-                        d.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, push);
-                    }
-                    d.cmd_dispatch(cmd, *groups, 1, 1);
-                }
-            }
-        })
     }
 }

@@ -6,10 +6,7 @@ use super::context::Context;
 use crate::encoding::DeviceLimits;
 use crate::error::Result;
 
-/// Lowers the device's limits for tests (`DeviceLimits::with_overrides`): for example
-/// `TRILAB_TEST_LIMITS=max_texel_buffer_elements=4096` makes every scene of more than 4096 texels
-/// per buffer take the address path, in every command.
-pub const TEST_LIMITS_VAR: &str = "TRILAB_TEST_LIMITS";
+pub use super::context::TEST_LIMITS_VAR;
 
 impl Context {
     /// The limits of this device, with the memory budget read now (where supported), lowered by

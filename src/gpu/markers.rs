@@ -29,8 +29,7 @@ use ash::vk;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme, Allocator};
 use gpu_allocator::MemoryLocation;
 
-use super::buffer::memory_barrier;
-use super::context::Context;
+use super::commands::memory_barrier;
 use crate::error::{Error, Result};
 
 /// The environment variable read by `Context::new` (see the module documentation).
@@ -183,14 +182,10 @@ impl Markers {
     }
 }
 
-impl Context {
-    fn markers(&self) -> &Markers {
-        &self.device.markers
-    }
-
+impl Markers {
     /// Arms `fault` (counting submits and allocations from now), or disarms with `None`.
     pub fn inject_fault(&self, fault: Option<Fault>) {
-        let mut s = self.markers().state();
+        let mut s = self.state();
         s.fault = fault;
         s.submits = 0;
         s.allocations = 0;
@@ -198,17 +193,17 @@ impl Context {
 
     /// Whether the GPU breadcrumb buffer exists (it does wherever there is host-visible memory).
     pub fn markers_active(&self) -> bool {
-        self.markers().allocation.is_some()
+        self.allocation.is_some()
     }
 
     /// Records "dispatch `id` begun" into `cmd` and logs `description` (kernel, batch or pass,
-    /// ray or sample range); returns the id for [`Context::mark_end`].
+    /// ray or sample range); returns the id for [`Markers::mark_end`].
     ///
     /// # Safety
     /// `cmd` is a command buffer of this context's device in the recording state, outside a
     /// render pass; it is freed through `Context::free_command_buffers`.
     pub(crate) unsafe fn mark_begin(&self, d: &ash::Device, cmd: vk::CommandBuffer, description: String) -> u32 {
-        let m = self.markers();
+        let m = self;
         let id = {
             let mut s = m.state();
             let id = s.next_id;
@@ -245,9 +240,9 @@ impl Context {
     /// Records "dispatch `id` done" after everything recorded before it in `cmd`.
     ///
     /// # Safety
-    /// As [`Context::mark_begin`].
+    /// As [`Markers::mark_begin`].
     pub(crate) unsafe fn mark_end(&self, d: &ash::Device, cmd: vk::CommandBuffer, id: u32) {
-        let m = self.markers();
+        let m = self;
         if m.allocation.is_none() {
             return;
         }
@@ -277,7 +272,7 @@ impl Context {
 
     /// Forgets the dispatches recorded in command buffers being freed.
     pub(crate) fn forget_command_buffers(&self, cmds: &[vk::CommandBuffer]) {
-        let mut s = self.markers().state();
+        let mut s = self.state();
         for c in cmds {
             s.by_cmd.remove(c);
         }
@@ -285,7 +280,7 @@ impl Context {
 
     /// Logs a submit of `cmd` (`what`) and injects the armed fault when its turn comes.
     pub(crate) fn before_submit(&self, cmd: vk::CommandBuffer, what: &str) -> Result<()> {
-        let mut s = self.markers().state();
+        let mut s = self.state();
         s.last_submitted = Some(what.to_owned());
         if s.lost {
             return Err(Error::Vulkan { result: vk::Result::ERROR_DEVICE_LOST, during: what.to_owned() });
@@ -309,12 +304,12 @@ impl Context {
 
     /// Logs a submit that finished.
     pub(crate) fn after_submit(&self, what: &str) {
-        self.markers().state().last_finished = Some(what.to_owned());
+        self.state().last_finished = Some(what.to_owned());
     }
 
     /// Counts an allocation named `name` and injects the armed allocation fault.
     pub(crate) fn before_allocation(&self, name: &str) -> Result<()> {
-        let mut s = self.markers().state();
+        let mut s = self.state();
         s.allocations += 1;
         match s.fault {
             Some(Fault { kind: FaultKind::AllocationOutOfMemory, at }) if at == s.allocations => {
@@ -348,7 +343,7 @@ impl Context {
 
     /// "last dispatch begun: ...; last completed: ..." from the markers, or the host log.
     pub fn marker_report(&self) -> String {
-        let m = self.markers();
+        let m = self;
         let read = m.read();
         let s = m.state();
         let name = |id: u32| -> String {

@@ -16,6 +16,7 @@
 
 pub mod accel;
 pub mod buffer;
+pub mod commands;
 pub mod context;
 pub mod descriptors;
 pub mod device_info;

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use ash::vk;
 
-use super::buffer::memory_barrier;
+use super::commands::memory_barrier;
 use super::context::Context;
 use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;

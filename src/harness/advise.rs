@@ -64,6 +64,10 @@ pub fn run(scene: &Path, target: Target, frontier: Option<&Path>, device: Option
 }
 
 impl Report for AnalyzeReport {
+    fn to_json(&self) -> String {
+        crate::report::value_json(self)
+    }
+
     fn to_text(&self) -> String {
         let (c, rec, target) = (&self.conditioning, &self.recommendation, &self.target);
         let b = |v: [f64; 3]| format!("({:.6e}, {:.6e}, {:.6e})", v[0], v[1], v[2]);

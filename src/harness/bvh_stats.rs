@@ -73,6 +73,10 @@ pub fn run(scene: &Path, leaf_sizes: &[u32], leaf_policy: LeafPolicy, sah_group:
 }
 
 impl Report for BvhReport {
+    fn to_json(&self) -> String {
+        crate::report::value_json(self)
+    }
+
     fn to_text(&self) -> String {
         let s = format!(
             "{}: {} triangles, {} vertices; SAH with {} triangle(s) per test, leaf policy {}\n",

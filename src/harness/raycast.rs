@@ -120,6 +120,10 @@ impl RaycastReport {
 }
 
 impl Report for RaycastReport {
+    fn to_json(&self) -> String {
+        crate::report::value_json(self)
+    }
+
     fn to_text(&self) -> String {
         let mut s = format!("device:    {} ({})\n", self.device, self.driver);
         s += &format!(

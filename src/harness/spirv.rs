@@ -52,6 +52,10 @@ pub fn write(dir: &Path) -> Result<usize> {
 }
 
 impl Report for SpirvReport {
+    fn to_json(&self) -> String {
+        crate::report::value_json(self)
+    }
+
     fn to_text(&self) -> String {
         let mut t = Table::new([
             "variant",

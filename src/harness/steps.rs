@@ -125,6 +125,10 @@ fn gpu_steps(
 }
 
 impl Report for StepsReport {
+    fn to_json(&self) -> String {
+        crate::report::value_json(self)
+    }
+
     fn to_text(&self) -> String {
         let s0 = &self.cpu[0];
         let mut s = format!(

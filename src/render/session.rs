@@ -128,6 +128,10 @@ const RAY_DEFINITION: &str = "every BVH traversal counts: camera and bounce rays
                               occlusion rays (any hit); rates use GPU timestamp time when available, else wall time";
 
 impl Report for RenderReport {
+    fn to_json(&self) -> String {
+        crate::report::value_json(self)
+    }
+
     fn to_text(&self) -> String {
         let Some(f) = &self.finished else {
             return format!("{}: {} spp written\n", self.out.display(), self.spp_done);

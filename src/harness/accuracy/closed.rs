@@ -133,7 +133,7 @@ pub fn icosphere(levels: u32) -> ClosedMesh {
 pub fn perturbed_sphere(rings: u32, segments: u32, amount: f64, seed: u64) -> ClosedMesh {
     let rings = rings.max(3);
     let segments = segments.max(3);
-    let mut rng = super::probes::Rng::new(seed);
+    let mut rng = super::rng::Rng::new(seed);
     let mut pos = vec![DVec3::Z * (1.0 + amount * rng.symmetric())];
     for i in 1..rings {
         let theta = std::f64::consts::PI * i as f64 / rings as f64;

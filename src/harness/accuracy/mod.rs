@@ -26,6 +26,7 @@ pub mod metrics;
 
 pub mod plots;
 pub mod probes;
+pub mod rng;
 pub mod table;
 
 use std::path::{Path, PathBuf};

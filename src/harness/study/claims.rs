@@ -8,8 +8,7 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::table::scenes;
-use super::{StudyReport, StudyRow};
+use super::{scenes, StudyReport, StudyRow};
 use crate::encoding::Method;
 use crate::report::Summary;
 

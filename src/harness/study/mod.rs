@@ -390,6 +390,23 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
     })
 }
 
+/// The report's scenes, in the order they were run.
+pub fn scenes(report: &StudyReport) -> Vec<String> {
+    let mut v: Vec<String> = vec![];
+    for r in &report.rows {
+        if !v.contains(&r.scene) {
+            v.push(r.scene.clone());
+        }
+    }
+    v
+}
+
+/// SPIR-V instruction counts of the embedded kernel variant `kernel`.
+pub fn counts(kernel: &str) -> crate::spirv::InstructionCounts {
+    let k = crate::kernels::KERNELS.iter().find(|k| k.name == kernel).expect("the study's kernels are embedded");
+    crate::spirv::count(&k.words()).expect("embedded kernels are valid SPIR-V")
+}
+
 /// Writes `study.csv`, `study.json`, `study.md` and the plots into `dir` (created if needed),
 /// each atomically. Returns the paths written.
 pub fn write(report: &StudyReport, dir: &Path) -> Result<Vec<PathBuf>> {

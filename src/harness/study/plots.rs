@@ -8,8 +8,7 @@ use std::path::Path;
 use plotters::coord::ranged1d::SegmentValue;
 use plotters::prelude::*;
 
-use super::table::{counts, scenes};
-use super::{StudyReport, StudyRow};
+use super::{counts, scenes, StudyReport, StudyRow};
 use crate::encoding::Method;
 use crate::error::Result;
 pub use crate::harness::plots::Plot;

@@ -4,10 +4,10 @@
 use std::fmt::Write as _;
 
 use super::claims;
-use super::plots::Plot;
-use super::{StudyReport, StudyRow};
+use super::{counts, scenes, StudyReport, StudyRow};
 use crate::encoding::Method;
 use crate::error::{Error, Result};
+use crate::harness::plots::Plot;
 use crate::report::Table;
 
 use crate::harness::rayset::RaySet;
@@ -136,16 +136,6 @@ fn thousands(n: usize) -> String {
 /// Rows of the report for (scene, leaf), in method order.
 fn cell<'a>(report: &'a StudyReport, scene: &str, leaf: u32, method: Method) -> Option<&'a StudyRow> {
     report.rows.iter().find(|r| r.scene == scene && r.leaf_size == leaf && r.method == method)
-}
-
-pub fn scenes(report: &StudyReport) -> Vec<String> {
-    let mut v: Vec<String> = vec![];
-    for r in &report.rows {
-        if !v.contains(&r.scene) {
-            v.push(r.scene.clone());
-        }
-    }
-    v
 }
 
 /// The paper's table: scene, triangles per leaf, GPU scene size, seconds per method.
@@ -335,11 +325,6 @@ pub fn spirv_table(report: &StudyReport) -> Table {
         t.row(cells);
     }
     t
-}
-
-pub fn counts(kernel: &str) -> crate::spirv::InstructionCounts {
-    let k = crate::kernels::KERNELS.iter().find(|k| k.name == kernel).expect("the study's kernels are embedded");
-    crate::spirv::count(&k.words()).expect("embedded kernels are valid SPIR-V")
 }
 
 /// `study.md`.
