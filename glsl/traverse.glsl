@@ -7,7 +7,9 @@
 // - with PRIM_TRIANGLES 1: bool intersect_triangle(TraceRay r, uint slot, float tmax,
 //   out float t, out float u, out float v): whether the triangle in `slot` is hit at
 //   r.tmin <= t <= tmax (u, v: barycentric weights of vertices 1 and 2); the intersector
-//   decides where in its arithmetic to compare t, so it can reject early;
+//   decides where in its arithmetic to compare t, so it can reject early (early returns are
+//   fine: on lavapipe this form measured within 1.5 % of the per-intersector loops it replaced,
+//   and faster than single-exit or `inout` variants, results/lavapipe/refactor-ab.md);
 // - with PRIM_TRIANGLES 4: bvec4 intersect_quad(TraceRay r, uint quad, out vec4 t, out vec4 u,
 //   out vec4 v): per lane (slot 4 quad + lane), whether it is hit at t >= r.tmin; the leaf loop
 //   compares each lane with the closest hit so far, in lane order;

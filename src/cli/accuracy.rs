@@ -15,7 +15,7 @@ use super::{results_dir, GpuArgs, MethodsArg};
 /// accuracy.csv/json/md and plots.
 #[derive(Args)]
 pub struct AccuracyArgs {
-    /// full: the whole sweep (about 20 minutes on 2-core lavapipe); smoke: seconds, for CI.
+    /// full: the whole sweep (about 4 minutes on 2-core lavapipe); smoke: seconds, for CI.
     #[arg(long, value_parser = choice::<Preset>(), default_value_t = Preset::Full)]
     preset: Preset,
     /// Methods (default: every method; the smoke preset: the paper's four).

@@ -96,6 +96,7 @@ registry! {
     Watertight => watertight,
     BaldwinWeber => baldwin_weber,
     F64 => mt_f64,
+    Pluecker => pluecker,
 }
 
 pub use baldwin_weber::{bw_transform, BwTriangle, BW_NEVER_HIT, BW_PAD};

@@ -335,11 +335,11 @@ impl MemoryPlan {
 
     /// [`MemoryPlan::choose`] for a reader that has only the texel path (`why` says which, e.g.
     /// "the path tracer reads scenes through texel buffers only"): the hint of a "does not fit"
-    /// error then names what helps it, not `--scene-access`.
+    /// error then names what helps it, not `--scene-access`, and says why.
     pub fn choose_texel_only(&self, scene: &str, limits: &DeviceLimits, why: &str) -> Result<AccessPath> {
         self.choose(scene, SceneAccess::Texel, limits).map_err(|e| match e {
             Error::SceneTooLarge(mut t) if t.hint.starts_with("--scene-access") => {
-                t.hint = format!("{why}: a method with a smaller encoding, or a smaller scene");
+                t.hint = format!("a method with a smaller encoding, or a smaller scene ({why})");
                 Error::SceneTooLarge(t)
             }
             e => e,

@@ -160,6 +160,92 @@ fn create_as(
     Ok(AsHandle { loader: loader.clone(), raw, address, _buffer: buffer })
 }
 
+/// One level about to be built: its structure, its scratch buffer and the driver's sizes.
+struct LevelBuild {
+    handle: AsHandle,
+    scratch: Buffer,
+    sizes: vk::AccelerationStructureBuildSizesInfoKHR<'static>,
+}
+
+/// Asks the driver how large the build `info` over `primitives` primitives is, creates the
+/// structure (`name`) and its scratch buffer, and points `info` at both.
+fn prepare_level(
+    ctx: &Context,
+    loader: &ash::khr::acceleration_structure::Device,
+    name: &str,
+    info: &mut vk::AccelerationStructureBuildGeometryInfoKHR,
+    primitives: u32,
+    scratch_align: u64,
+) -> Result<LevelBuild> {
+    let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
+    // SAFETY: the build info is complete (addresses are ignored by the size query).
+    unsafe {
+        loader.get_acceleration_structure_build_sizes(
+            vk::AccelerationStructureBuildTypeKHR::DEVICE,
+            info,
+            &[primitives],
+            &mut sizes,
+        )
+    };
+    let handle = create_as(ctx, loader, name, info.ty, sizes.acceleration_structure_size)?;
+    let (scratch, scratch_address) =
+        scratch(ctx, &format!("{name} build scratch"), sizes.build_scratch_size, scratch_align)?;
+    *info = info
+        .dst_acceleration_structure(handle.raw)
+        .scratch_data(vk::DeviceOrHostAddressKHR { device_address: scratch_address });
+    Ok(LevelBuild { handle, scratch, sizes })
+}
+
+/// A level's build info and its one build range.
+type LevelRecord<'a> =
+    (&'a vk::AccelerationStructureBuildGeometryInfoKHR<'a>, &'a [vk::AccelerationStructureBuildRangeInfoKHR; 1]);
+
+/// Records the builds of `levels` in order (the BLAS, then the TLAS that reads it), each timed
+/// into its own query when `timestamps`, with the barriers before, between and after them.
+///
+/// # Safety
+/// `cmd` is recording; every buffer and structure the infos name outlives the submit's wait.
+unsafe fn record_builds(
+    dev: &ash::Device,
+    cmd: vk::CommandBuffer,
+    loader: &ash::khr::acceleration_structure::Device,
+    queries: &Timestamps,
+    timestamps: bool,
+    levels: [LevelRecord; 2],
+) {
+    let build = vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR | vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR;
+    let build_stage = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR;
+    queries.reset(dev, cmd, 0);
+    queries.reset(dev, cmd, 1);
+    // The uploads (earlier submits) wrote the inputs.
+    memory_barrier(
+        dev,
+        cmd,
+        (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+        (build_stage, vk::AccessFlags::SHADER_READ | build),
+    );
+    for (i, (info, range)) in levels.into_iter().enumerate() {
+        if i > 0 {
+            // The TLAS build reads the BLAS.
+            memory_barrier(dev, cmd, (build_stage, build), (build_stage, build));
+        }
+        if timestamps {
+            queries.start(dev, cmd, i as u32);
+        }
+        loader.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[range]);
+        if timestamps {
+            queries.end(dev, cmd, i as u32);
+        }
+    }
+    // Ray queries in later compute dispatches read the structures.
+    memory_barrier(
+        dev,
+        cmd,
+        (build_stage, vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR),
+        (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR),
+    );
+}
+
 impl AccelStructure {
     /// Builds the BLAS and TLAS of `mesh`, or returns [`Error::Unsupported`] where the context
     /// has no ray query.
@@ -202,33 +288,12 @@ impl AccelStructure {
             .flags(vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_TRACE)
             .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
             .geometries(&blas_geometry);
-        let mut blas_sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
-        // SAFETY: the build info is complete (addresses are ignored by the size query).
-        unsafe {
-            loader.get_acceleration_structure_build_sizes(
-                vk::AccelerationStructureBuildTypeKHR::DEVICE,
-                &blas_info,
-                &[blas_count],
-                &mut blas_sizes,
-            )
-        };
-        let blas = create_as(
-            ctx,
-            &loader,
-            "ray query: BLAS",
-            vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
-            blas_sizes.acceleration_structure_size,
-        )?;
-        let (blas_scratch, blas_scratch_address) =
-            scratch(ctx, "ray query: BLAS build scratch", blas_sizes.build_scratch_size, scratch_align)?;
-        blas_info = blas_info
-            .dst_acceleration_structure(blas.raw)
-            .scratch_data(vk::DeviceOrHostAddressKHR { device_address: blas_scratch_address });
+        let blas = prepare_level(ctx, &loader, "ray query: BLAS", &mut blas_info, blas_count, scratch_align)?;
 
         // Top level: one identity instance of the BLAS.
         let instances = ctx.upload(
             "ray query: TLAS instances",
-            bytemuck::bytes_of(&AsInstance::identity(blas.address)),
+            bytemuck::bytes_of(&AsInstance::identity(blas.handle.address)),
             INPUT_USAGE,
         )?;
         let instance_data = vk::AccelerationStructureGeometryInstancesDataKHR::default()
@@ -242,71 +307,25 @@ impl AccelStructure {
             .flags(vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_TRACE)
             .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
             .geometries(&tlas_geometry);
-        let mut tlas_sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
-        // SAFETY: as for the BLAS.
-        unsafe {
-            loader.get_acceleration_structure_build_sizes(
-                vk::AccelerationStructureBuildTypeKHR::DEVICE,
-                &tlas_info,
-                &[1],
-                &mut tlas_sizes,
-            )
-        };
-        let tlas = create_as(
-            ctx,
-            &loader,
-            "ray query: TLAS",
-            vk::AccelerationStructureTypeKHR::TOP_LEVEL,
-            tlas_sizes.acceleration_structure_size,
-        )?;
-        let (tlas_scratch, tlas_scratch_address) =
-            scratch(ctx, "ray query: TLAS build scratch", tlas_sizes.build_scratch_size, scratch_align)?;
-        tlas_info = tlas_info
-            .dst_acceleration_structure(tlas.raw)
-            .scratch_data(vk::DeviceOrHostAddressKHR { device_address: tlas_scratch_address });
+        let tlas = prepare_level(ctx, &loader, "ray query: TLAS", &mut tlas_info, 1, scratch_align)?;
 
         let timestamps = Timestamps::supported(ctx);
         let queries = Timestamps::new(ctx, 2)?;
         let blas_range = [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(blas_count)];
         let tlas_range = [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)];
-        let build =
-            vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR | vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR;
-        let build_stage = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR;
-        ctx.one_shot("building the ray-query acceleration structures", |dev, cmd| unsafe {
+        ctx.one_shot("building the ray-query acceleration structures", |dev, cmd| {
             // SAFETY: every buffer and structure named in the build infos is alive until
             // one_shot has waited for the submit; the scratch ranges do not overlap.
-            queries.reset(dev, cmd, 0);
-            queries.reset(dev, cmd, 1);
-            // The uploads (earlier submits) wrote the inputs.
-            memory_barrier(
-                dev,
-                cmd,
-                (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
-                (build_stage, vk::AccessFlags::SHADER_READ | build),
-            );
-            if timestamps {
-                queries.start(dev, cmd, 0);
+            unsafe {
+                record_builds(
+                    dev,
+                    cmd,
+                    &loader,
+                    &queries,
+                    timestamps,
+                    [(&blas_info, &blas_range), (&tlas_info, &tlas_range)],
+                )
             }
-            loader.cmd_build_acceleration_structures(cmd, std::slice::from_ref(&blas_info), &[&blas_range]);
-            if timestamps {
-                queries.end(dev, cmd, 0);
-            }
-            // The TLAS build reads the BLAS.
-            memory_barrier(dev, cmd, (build_stage, build), (build_stage, build));
-            if timestamps {
-                queries.start(dev, cmd, 1);
-            }
-            loader.cmd_build_acceleration_structures(cmd, std::slice::from_ref(&tlas_info), &[&tlas_range]);
-            if timestamps {
-                queries.end(dev, cmd, 1);
-            }
-            // Ray queries in later compute dispatches read the structures.
-            memory_barrier(
-                dev,
-                cmd,
-                (build_stage, vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR),
-                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR),
-            );
         })?;
         let (blas_build_ms, tlas_build_ms) = if timestamps {
             let ms = queries.read_ms()?;
@@ -316,22 +335,22 @@ impl AccelStructure {
         };
         drop(queries);
         // Build inputs, freed now (see the module comment), last created first.
-        drop(tlas_scratch);
+        drop(tlas.scratch);
         drop(instances);
-        drop(blas_scratch);
+        drop(blas.scratch);
         drop(index_buffer);
         drop(vertices);
         let stats = AccelStats {
             triangles: ids.len(),
-            blas_bytes: blas_sizes.acceleration_structure_size,
-            tlas_bytes: tlas_sizes.acceleration_structure_size,
-            blas_scratch_bytes: blas_sizes.build_scratch_size,
-            tlas_scratch_bytes: tlas_sizes.build_scratch_size,
+            blas_bytes: blas.sizes.acceleration_structure_size,
+            tlas_bytes: tlas.sizes.acceleration_structure_size,
+            blas_scratch_bytes: blas.sizes.build_scratch_size,
+            tlas_scratch_bytes: tlas.sizes.build_scratch_size,
             blas_build_ms,
             tlas_build_ms,
             wall_ms: t0.elapsed().as_secs_f64() * 1e3,
         };
-        Ok(AccelStructure { tlas, blas, prim_ids, stats })
+        Ok(AccelStructure { tlas: tlas.handle, blas: blas.handle, prim_ids, stats })
     }
 
     pub(crate) fn tlas(&self) -> vk::AccelerationStructureKHR {

@@ -225,86 +225,7 @@ impl Context {
         // libvulkan.so.1.
         let entry = unsafe { ash::Entry::load() }.map_err(|e| Error::Loader(e.to_string()))?;
         let log = Arc::new(ValidationLog::default());
-
-        // SAFETY: plain queries on a loaded entry.
-        let layers = unsafe { entry.enumerate_instance_layer_properties() }.during("enumerating instance layers")?;
-        let have_validation = layers.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
-        let want_validation = match options.validation {
-            Validation::Off => false,
-            Validation::IfAvailable => have_validation,
-            Validation::Required if !have_validation => {
-                return Err(Error::NoDevice(
-                    "the Vulkan validation layer (VK_LAYER_KHRONOS_validation) is required but not installed; \
-                     install vulkan-validationlayers (scripts/install-deps.sh)"
-                        .into(),
-                ))
-            }
-            Validation::Required => true,
-        };
-        let exts =
-            unsafe { entry.enumerate_instance_extension_properties(None) }.during("enumerating instance extensions")?;
-        let have_debug_utils = device_info::has_extension(&exts, ash::ext::debug_utils::NAME);
-
-        let app_name = CString::new("trilab").unwrap();
-        let app = vk::ApplicationInfo::default()
-            .application_name(&app_name)
-            .application_version(vk::make_api_version(0, 0, 1, 0))
-            .engine_name(&app_name)
-            .api_version(vk::API_VERSION_1_2);
-        let layer_ptrs: Vec<*const std::ffi::c_char> =
-            if want_validation { vec![VALIDATION_LAYER.as_ptr()] } else { vec![] };
-        let use_debug = want_validation && have_debug_utils;
-        let mut ext_ptrs: Vec<*const std::ffi::c_char> =
-            if use_debug { vec![ash::ext::debug_utils::NAME.as_ptr()] } else { vec![] };
-        // Synchronization validation whenever the layer is on, through VK_EXT_validation_features
-        // (the layer provides the extension; VK_EXT_layer_settings is newer than the 1.3.239
-        // layer Debian 12 ships). GPU-assisted validation and best practices stay off: the
-        // first instruments every kernel (slow on a CPU driver), the second warns about choices
-        // made on purpose (one small allocation per buffer in tests, say).
-        let sync_validation = want_validation && {
-            // SAFETY: plain query on a loaded entry.
-            let layer_exts = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
-                .during("enumerating the validation layer's extensions")?;
-            device_info::has_extension(&layer_exts, ash::ext::validation_features::NAME)
-        };
-        if sync_validation {
-            ext_ptrs.push(ash::ext::validation_features::NAME.as_ptr());
-        }
-        let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
-        let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
-        let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-            .message_severity(
-                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
-            )
-            .message_type(
-                vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
-                    | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                    | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-            )
-            .pfn_user_callback(Some(debug_callback))
-            .user_data(Arc::as_ptr(&log) as *mut c_void);
-        let mut create = vk::InstanceCreateInfo::default()
-            .application_info(&app)
-            .enabled_layer_names(&layer_ptrs)
-            .enabled_extension_names(&ext_ptrs);
-        if use_debug {
-            // Also catches messages from vkCreateInstance/vkDestroyInstance themselves.
-            create = create.push_next(&mut messenger_info);
-        }
-        if sync_validation {
-            create = create.push_next(&mut features);
-        }
-        // SAFETY: the create info and everything it points to live until the call returns.
-        let instance = unsafe { entry.create_instance(&create, None) }.during("vkCreateInstance")?;
-        let mut guard = InstanceGuard { instance: Some(instance), debug: None };
-
-        if use_debug {
-            let loader = ash::ext::debug_utils::Instance::new(&entry, guard.instance());
-            // SAFETY: valid instance with the debug-utils extension enabled.
-            let messenger = unsafe { loader.create_debug_utils_messenger(&messenger_info, None) }
-                .during("vkCreateDebugUtilsMessengerEXT")?;
-            guard.debug = Some((loader, messenger));
-        }
+        let (guard, sync_validation) = InstanceGuard::create(&entry, options.validation, &log)?;
 
         let instance = guard.instance();
         // SAFETY: valid instance.
@@ -316,84 +237,11 @@ impl Context {
         let physical = physicals[chosen];
         let queue_family = info.compute_queue_family.expect("usable device has a compute queue");
 
-        let priorities = [1.0f32];
-        let queue_info =
-            [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
-        // Optional features the profiling, ray-query and f64 kernels use, enabled wherever the
-        // device has them (DeviceInfo says which); `Context::enabled` tells callers which are on.
-        let mut enabled = EnabledFeatures::for_device(&info);
-        enabled.ray_query &= options.ray_query;
-        enabled.shader_float64 &= options.shader_float64;
-        let mut ext_names: Vec<*const std::ffi::c_char> = Vec::new();
-        let core = vk::PhysicalDeviceFeatures::default()
-            .pipeline_statistics_query(enabled.pipeline_statistics_query)
-            .shader_float64(enabled.shader_float64)
-            .shader_int64(enabled.shader_int64);
-        let mut f12 =
-            vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(enabled.buffer_device_address);
-        let mut clock = vk::PhysicalDeviceShaderClockFeaturesKHR::default().shader_subgroup_clock(true);
-        let mut ssc = vk::PhysicalDeviceSubgroupSizeControlFeatures::default()
-            .subgroup_size_control(true)
-            .compute_full_subgroups(info.compute_full_subgroups);
-        let mut pep =
-            vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default().pipeline_executable_info(true);
-        let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
-        let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
-        let mut features2 = vk::PhysicalDeviceFeatures2::default().features(core).push_next(&mut f12);
-        if enabled.shader_clock {
-            ext_names.push(ash::khr::shader_clock::NAME.as_ptr());
-            features2 = features2.push_next(&mut clock);
-        }
-        // The instance asks for Vulkan 1.2, so this is the extension even on a 1.3 device.
-        if enabled.subgroup_size_control {
-            ext_names.push(ash::ext::subgroup_size_control::NAME.as_ptr());
-            features2 = features2.push_next(&mut ssc);
-        }
-        if enabled.pipeline_executable_properties {
-            ext_names.push(ash::khr::pipeline_executable_properties::NAME.as_ptr());
-            features2 = features2.push_next(&mut pep);
-        }
-        if enabled.ray_query {
-            ext_names.push(ash::khr::acceleration_structure::NAME.as_ptr());
-            ext_names.push(ash::khr::ray_query::NAME.as_ptr());
-            ext_names.push(ash::khr::deferred_host_operations::NAME.as_ptr());
-            features2 = features2.push_next(&mut accel).push_next(&mut rq);
-        }
-        let device_create = vk::DeviceCreateInfo::default()
-            .queue_create_infos(&queue_info)
-            .enabled_extension_names(&ext_names)
-            .push_next(&mut features2);
-        // SAFETY: physical device from this instance; create info valid for the call.
-        let raw = unsafe { instance.create_device(physical, &device_create, None) }.during("vkCreateDevice")?;
-        // SAFETY: queue family and index 0 were requested above.
+        let (raw, enabled) = create_device(instance, physical, &info, options)?;
+        // SAFETY: queue family and index 0 were requested by create_device.
         let queue = unsafe { raw.get_device_queue(queue_family, 0) };
-        let pool_info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(queue_family)
-            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        let command_pool = match unsafe { raw.create_command_pool(&pool_info, None) } {
-            Ok(p) => p,
-            Err(e) => {
-                unsafe { raw.destroy_device(None) };
-                return Err(e).during("vkCreateCommandPool");
-            }
-        };
-        let mut allocator = match Allocator::new(&AllocatorCreateDesc {
-            instance: instance.clone(),
-            device: raw.clone(),
-            physical_device: physical,
-            debug_settings: Default::default(),
-            buffer_device_address: enabled.buffer_device_address,
-            allocation_sizes: Default::default(),
-        }) {
-            Ok(a) => a,
-            Err(source) => {
-                unsafe {
-                    raw.destroy_command_pool(command_pool, None);
-                    raw.destroy_device(None);
-                }
-                return Err(Error::Allocation { name: "allocator".into(), source });
-            }
-        };
+        let (command_pool, mut allocator) =
+            create_pool_and_allocator(instance, &raw, physical, queue_family, &enabled)?;
         let markers = Markers::new(&raw, &mut allocator, fault);
         let (instance, debug) = guard.release();
         Ok(Context {
@@ -537,6 +385,95 @@ struct InstanceGuard {
 }
 
 impl InstanceGuard {
+    /// Creates the Vulkan 1.2 instance, with the validation layer as `validation` asks. With the
+    /// layer on: synchronization validation where the layer offers it, and a debug messenger
+    /// that records warnings and errors in `log`. Returns whether synchronization validation is
+    /// on.
+    fn create(entry: &ash::Entry, validation: Validation, log: &Arc<ValidationLog>) -> Result<(InstanceGuard, bool)> {
+        // SAFETY: plain queries on a loaded entry.
+        let layers = unsafe { entry.enumerate_instance_layer_properties() }.during("enumerating instance layers")?;
+        let have_validation = layers.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
+        let want_validation = match validation {
+            Validation::Off => false,
+            Validation::IfAvailable => have_validation,
+            Validation::Required if !have_validation => {
+                return Err(Error::NoDevice(
+                    "the Vulkan validation layer (VK_LAYER_KHRONOS_validation) is required but not installed; \
+                     install vulkan-validationlayers (scripts/install-deps.sh)"
+                        .into(),
+                ))
+            }
+            Validation::Required => true,
+        };
+        let exts =
+            unsafe { entry.enumerate_instance_extension_properties(None) }.during("enumerating instance extensions")?;
+        let have_debug_utils = device_info::has_extension(&exts, ash::ext::debug_utils::NAME);
+
+        let app_name = CString::new("trilab").unwrap();
+        let app = vk::ApplicationInfo::default()
+            .application_name(&app_name)
+            .application_version(vk::make_api_version(0, 0, 1, 0))
+            .engine_name(&app_name)
+            .api_version(vk::API_VERSION_1_2);
+        let layer_ptrs: Vec<*const std::ffi::c_char> =
+            if want_validation { vec![VALIDATION_LAYER.as_ptr()] } else { vec![] };
+        let use_debug = want_validation && have_debug_utils;
+        let mut ext_ptrs: Vec<*const std::ffi::c_char> =
+            if use_debug { vec![ash::ext::debug_utils::NAME.as_ptr()] } else { vec![] };
+        // Synchronization validation whenever the layer is on, through VK_EXT_validation_features
+        // (the layer provides the extension; VK_EXT_layer_settings is newer than the 1.3.239
+        // layer Debian 12 ships). GPU-assisted validation and best practices stay off: the
+        // first instruments every kernel (slow on a CPU driver), the second warns about choices
+        // made on purpose (one small allocation per buffer in tests, say).
+        let sync_validation = want_validation && {
+            // SAFETY: plain query on a loaded entry.
+            let layer_exts = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
+                .during("enumerating the validation layer's extensions")?;
+            device_info::has_extension(&layer_exts, ash::ext::validation_features::NAME)
+        };
+        if sync_validation {
+            ext_ptrs.push(ash::ext::validation_features::NAME.as_ptr());
+        }
+        let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+        let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
+        // The callback writes to `log` through this pointer; the Arc outlives the instance
+        // (Device keeps it, and drops the instance first).
+        let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+            .message_severity(
+                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+            )
+            .message_type(
+                vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                    | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                    | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+            )
+            .pfn_user_callback(Some(debug_callback))
+            .user_data(Arc::as_ptr(log) as *mut c_void);
+        let mut create = vk::InstanceCreateInfo::default()
+            .application_info(&app)
+            .enabled_layer_names(&layer_ptrs)
+            .enabled_extension_names(&ext_ptrs);
+        if use_debug {
+            // Also catches messages from vkCreateInstance/vkDestroyInstance themselves.
+            create = create.push_next(&mut messenger_info);
+        }
+        if sync_validation {
+            create = create.push_next(&mut features);
+        }
+        // SAFETY: the create info and everything it points to live until the call returns.
+        let instance = unsafe { entry.create_instance(&create, None) }.during("vkCreateInstance")?;
+        let mut guard = InstanceGuard { instance: Some(instance), debug: None };
+
+        if use_debug {
+            let loader = ash::ext::debug_utils::Instance::new(entry, guard.instance());
+            // SAFETY: valid instance with the debug-utils extension enabled.
+            let messenger = unsafe { loader.create_debug_utils_messenger(&messenger_info, None) }
+                .during("vkCreateDebugUtilsMessengerEXT")?;
+            guard.debug = Some((loader, messenger));
+        }
+        Ok((guard, sync_validation))
+    }
+
     fn instance(&self) -> &ash::Instance {
         self.instance.as_ref().unwrap()
     }
@@ -559,6 +496,106 @@ impl Drop for InstanceGuard {
             }
         }
     }
+}
+
+/// Creates the logical device on `physical` with one queue of its compute family and the
+/// optional features the profiling, ray-query and f64 kernels use, wherever the device has them
+/// (`info` says which) and `options` allow; returns the device and what is on.
+fn create_device(
+    instance: &ash::Instance,
+    physical: vk::PhysicalDevice,
+    info: &DeviceInfo,
+    options: &ContextOptions,
+) -> Result<(ash::Device, EnabledFeatures)> {
+    let queue_family = info.compute_queue_family.expect("usable device has a compute queue");
+    let priorities = [1.0f32];
+    let queue_info =
+        [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
+    let mut enabled = EnabledFeatures::for_device(info);
+    enabled.ray_query &= options.ray_query;
+    enabled.shader_float64 &= options.shader_float64;
+    let mut ext_names: Vec<*const std::ffi::c_char> = Vec::new();
+    let core = vk::PhysicalDeviceFeatures::default()
+        .pipeline_statistics_query(enabled.pipeline_statistics_query)
+        .shader_float64(enabled.shader_float64)
+        .shader_int64(enabled.shader_int64);
+    let mut f12 = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(enabled.buffer_device_address);
+    let mut clock = vk::PhysicalDeviceShaderClockFeaturesKHR::default().shader_subgroup_clock(true);
+    let mut ssc = vk::PhysicalDeviceSubgroupSizeControlFeatures::default()
+        .subgroup_size_control(true)
+        .compute_full_subgroups(info.compute_full_subgroups);
+    let mut pep = vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default().pipeline_executable_info(true);
+    let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
+    let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
+    let mut features2 = vk::PhysicalDeviceFeatures2::default().features(core).push_next(&mut f12);
+    if enabled.shader_clock {
+        ext_names.push(ash::khr::shader_clock::NAME.as_ptr());
+        features2 = features2.push_next(&mut clock);
+    }
+    // The instance asks for Vulkan 1.2, so this is the extension even on a 1.3 device.
+    if enabled.subgroup_size_control {
+        ext_names.push(ash::ext::subgroup_size_control::NAME.as_ptr());
+        features2 = features2.push_next(&mut ssc);
+    }
+    if enabled.pipeline_executable_properties {
+        ext_names.push(ash::khr::pipeline_executable_properties::NAME.as_ptr());
+        features2 = features2.push_next(&mut pep);
+    }
+    if enabled.ray_query {
+        ext_names.push(ash::khr::acceleration_structure::NAME.as_ptr());
+        ext_names.push(ash::khr::ray_query::NAME.as_ptr());
+        ext_names.push(ash::khr::deferred_host_operations::NAME.as_ptr());
+        features2 = features2.push_next(&mut accel).push_next(&mut rq);
+    }
+    let device_create = vk::DeviceCreateInfo::default()
+        .queue_create_infos(&queue_info)
+        .enabled_extension_names(&ext_names)
+        .push_next(&mut features2);
+    // SAFETY: physical device from this instance; create info valid for the call.
+    let raw = unsafe { instance.create_device(physical, &device_create, None) }.during("vkCreateDevice")?;
+    Ok((raw, enabled))
+}
+
+/// The command pool (resettable buffers, on `queue_family`) and the memory allocator of `raw`.
+/// On failure it destroys what it created and the device itself, which nothing else owns yet.
+fn create_pool_and_allocator(
+    instance: &ash::Instance,
+    raw: &ash::Device,
+    physical: vk::PhysicalDevice,
+    queue_family: u32,
+    enabled: &EnabledFeatures,
+) -> Result<(vk::CommandPool, Allocator)> {
+    let pool_info = vk::CommandPoolCreateInfo::default()
+        .queue_family_index(queue_family)
+        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+    // SAFETY: valid device and create info; on failure the device is destroyed with nothing
+    // created from it left.
+    let command_pool = match unsafe { raw.create_command_pool(&pool_info, None) } {
+        Ok(p) => p,
+        Err(e) => {
+            unsafe { raw.destroy_device(None) };
+            return Err(e).during("vkCreateCommandPool");
+        }
+    };
+    let allocator = match Allocator::new(&AllocatorCreateDesc {
+        instance: instance.clone(),
+        device: raw.clone(),
+        physical_device: physical,
+        debug_settings: Default::default(),
+        buffer_device_address: enabled.buffer_device_address,
+        allocation_sizes: Default::default(),
+    }) {
+        Ok(a) => a,
+        Err(source) => {
+            // SAFETY: the pool is unused, and the device has nothing else created from it.
+            unsafe {
+                raw.destroy_command_pool(command_pool, None);
+                raw.destroy_device(None);
+            }
+            return Err(Error::Allocation { name: "allocator".into(), source });
+        }
+    };
+    Ok((command_pool, allocator))
 }
 
 /// Picks the device: by `--device` (index or name/driver substring), else discrete GPU >

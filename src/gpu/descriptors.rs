@@ -158,13 +158,8 @@ impl Context {
         }
         self.one_shot(&format!("dispatching {}", kernel.name), |d, cmd| unsafe {
             // SAFETY: pipeline, layout and set are alive until one_shot's wait returns.
-            d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-            d.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline_layout, 0, &sets, &[]);
-            if !push.is_empty() {
-                d.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, push);
-            }
             let marker = self.mark_begin(d, cmd, format!("{} ({groups} workgroups)", kernel.name));
-            d.cmd_dispatch(cmd, groups, 1, 1);
+            kernel.record(d, cmd, sets[0], push, groups);
             self.mark_end(d, cmd, marker);
         })
     }
@@ -207,19 +202,7 @@ impl Context {
                             ),
                         );
                     }
-                    d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-                    d.cmd_bind_descriptor_sets(
-                        cmd,
-                        vk::PipelineBindPoint::COMPUTE,
-                        kernel.pipeline_layout,
-                        0,
-                        &[*set],
-                        &[],
-                    );
-                    if !push.is_empty() {
-                        d.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, push);
-                    }
-                    d.cmd_dispatch(cmd, *groups, 1, 1);
+                    kernel.record(d, cmd, *set, push, *groups);
                 }
             }
         })

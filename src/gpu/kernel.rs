@@ -41,6 +41,28 @@ impl Kernel {
     pub fn bindings(&self) -> BTreeMap<u32, vk::DescriptorType> {
         self.layout.sets.get(&0).map(|s| s.iter().map(|(&b, d)| (b, d.ty)).collect()).unwrap_or_default()
     }
+
+    /// Records binding this pipeline with descriptor set `set` and push constants `push` (none
+    /// when empty), and a dispatch of `groups` workgroups.
+    ///
+    /// # Safety
+    /// `cmd` is recording on this kernel's device; `set` was written for this kernel's layout;
+    /// the pipeline, the set and what it binds outlive the command buffer's execution.
+    pub unsafe fn record(
+        &self,
+        dev: &ash::Device,
+        cmd: vk::CommandBuffer,
+        set: vk::DescriptorSet,
+        push: &[u8],
+        groups: u32,
+    ) {
+        dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
+        dev.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline_layout, 0, &[set], &[]);
+        if !push.is_empty() {
+            dev.cmd_push_constants(cmd, self.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+        }
+        dev.cmd_dispatch(cmd, groups, 1, 1);
+    }
 }
 
 impl Context {

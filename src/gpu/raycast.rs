@@ -159,11 +159,8 @@ pub fn cast_rays(
             );
             let marker = ctx.mark_begin(dev, cmd, what[bi].clone());
             queries.start(dev, cmd, q);
-            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-            dev.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline_layout, 0, &[set], &[]);
             // `Push { uint ray_count; }` in raycast.comp (checked by tests/reflection.rs).
-            dev.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, &count.to_le_bytes());
-            dev.cmd_dispatch(cmd, count.div_ceil(local as u32), 1, 1);
+            kernel.record(dev, cmd, set, &count.to_le_bytes(), count.div_ceil(local as u32));
             queries.end(dev, cmd, q);
             ctx.mark_end(dev, cmd, marker);
             dev.end_command_buffer(cmd).during("recording a dispatch")?;

@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use crate::bvh::{BuildOptions, LeafPolicy};
 use crate::compare::compare_closest;
-use crate::encoding::{Method, SceneAccess};
+use crate::encoding::{AccessPath, Method, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::rayquery::{self, raycast_rq, Peer};
 use crate::gpu::{AccelStats, AccelStructure, Context, RaycastOptions};
@@ -108,6 +108,8 @@ pub struct BenchRow {
     pub sah_group: Option<u32>,
     /// Our encoded scene, or for the ray-query peer the driver's BLAS + TLAS.
     pub scene_bytes: usize,
+    /// How our kernels read the scene (`None` for a peer).
+    pub scene_access: Option<AccessPath>,
     /// Kernel time (GPU timestamps), milliseconds.
     pub kernel_ms: Summary,
     /// Rays per second at the median, min and max kernel time, millions.
@@ -273,7 +275,8 @@ fn rate(x: f64) -> String {
     }
 }
 
-/// One table row; `o` is `None` for a peer (no leaf size or SAH grouping).
+/// One table row; `o` is `None` for a peer (no leaf size or SAH grouping); `footprint` is the
+/// scene's GPU bytes and the access path it was read through.
 #[allow(clippy::too_many_arguments)]
 fn row(
     scene: &str,
@@ -282,7 +285,7 @@ fn row(
     rays: &[Ray],
     method: Tracer,
     o: Option<&BenchOptions>,
-    scene_bytes: usize,
+    footprint: (usize, Option<AccessPath>),
     ms: Summary,
     agreement: &crate::compare::Agreement,
 ) -> BenchRow {
@@ -295,7 +298,8 @@ fn row(
         method,
         leaf_size: o.map(|o| o.leaf_size),
         sah_group: o.map(|o| o.sah_group),
-        scene_bytes,
+        scene_bytes: footprint.0,
+        scene_access: footprint.1,
         kernel_ms: ms,
         mrays_per_s: mr.median,
         mrays_per_s_min: mr.min,
@@ -414,7 +418,8 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 ));
                 best = best.max(mr.median);
                 let tracer = Tracer::Method(method);
-                report.rows.push(row(&name, &mesh, set, rays, tracer, Some(o), scene.bytes, ms, &agreement));
+                let bytes = (scene.bytes, Some(scene.access));
+                report.rows.push(row(&name, &mesh, set, rays, tracer, Some(o), bytes, ms, &agreement));
             }
             if let (Some(kernel), Some(accel)) = (&rq_kernel, &accel) {
                 // The driver's answer may differ on edge rays: report the agreement, refuse only
@@ -441,7 +446,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 }
                 let bytes = (accel.stats.blas_bytes + accel.stats.tlas_bytes) as usize;
                 let tracer = Tracer::Peer(Peer::RayQuery);
-                report.rows.push(row(&name, &mesh, set, rays, tracer, None, bytes, ms, &agreement));
+                report.rows.push(row(&name, &mesh, set, rays, tracer, None, (bytes, None), ms, &agreement));
             }
             if let Some(bin) = &o.embree {
                 let rays_file = tmp.path().join(format!("{name}.{set}.rays"));

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use serde::ser::{Serialize, SerializeStruct, Serializer};
 
 use crate::bvh::BuildOptions;
-use crate::encoding::{Method, Raycast};
+use crate::encoding::{AccessPath, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, RaycastOptions, TraversalCounts, TraversalSummary};
 use crate::pipeline::{HostScene, SceneRequest};
@@ -33,6 +33,8 @@ pub struct StepsRequest {
 #[derive(Clone, Debug)]
 pub struct GpuSteps {
     pub method: Method,
+    /// How the kernel read the scene.
+    pub access: AccessPath,
     pub summary: TraversalSummary,
     /// Rays whose (inner, leaves, triangles) differ from the CPU mirror's.
     pub rays_differing_from_cpu: usize,
@@ -50,8 +52,9 @@ pub struct StepsReport {
 
 impl Serialize for GpuSteps {
     fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        let mut st = s.serialize_struct("GpuSteps", 3)?;
+        let mut st = s.serialize_struct("GpuSteps", 4)?;
         st.serialize_field("method", &self.method)?;
+        st.serialize_field("access", &self.access)?;
         st.serialize_field("summary", &self.summary)?;
         st.serialize_field("rays_differing_from_cpu", &self.rays_differing_from_cpu)?;
         st.end()
@@ -119,7 +122,8 @@ fn gpu_steps(
             .zip(reference)
             .filter(|(g, c)| (g.inner, g.leaves, g.triangles) != (c.inner, c.leaves, c.triangles))
             .count();
-        rows.push(GpuSteps { method: m, summary: TraversalSummary::of(&counts), rays_differing_from_cpu: differing });
+        let summary = TraversalSummary::of(&counts);
+        rows.push(GpuSteps { method: m, access: scene.access, summary, rays_differing_from_cpu: differing });
     }
     Ok((TraversalSummary::of(&cpu), rows))
 }

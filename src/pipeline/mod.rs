@@ -309,7 +309,7 @@ mod tests {
         let r = SceneRequest::new(Method::Unit).texel_only("the path tracer reads scenes through texel buffers only");
         match host.plan_for(Method::Unit, None, &r, &l) {
             Err(Error::SceneTooLarge(t)) => {
-                assert!(t.hint.starts_with("the path tracer"), "{}", t.hint);
+                assert!(t.hint.ends_with("(the path tracer reads scenes through texel buffers only)"), "{}", t.hint);
                 assert_eq!((t.scene.as_str(), t.buffer.as_str()), ("grid", "unit triangles"));
             }
             Err(e) => panic!("expected SceneTooLarge, got {e}"),

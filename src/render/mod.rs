@@ -12,33 +12,25 @@
 
 pub mod bsdf;
 pub mod output;
+mod passes;
 pub mod plan;
 pub mod rng;
 pub mod session;
 
-use std::time::Instant;
+pub use passes::render;
 
-use ash::vk;
 use glam::{DVec3, Vec3};
 
 use crate::analyze::MethodChoice;
 use crate::encoding::{EncodedScene, Method};
 use crate::error::{Error, Result};
-use crate::gpu::buffer::read_back;
-use crate::gpu::commands::memory_barrier;
-use crate::gpu::descriptors::{write_set, DescriptorPool, Resource};
-use crate::gpu::timestamps::Timestamps;
 use crate::gpu::Context;
 use crate::kernels::{self, KernelSource};
 use crate::named::named_enum;
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::Camera;
 use crate::scene::{BsdfKind, GpuMaterial, Mesh};
-use crate::shared::Texel;
-use crate::shared::{
-    BINDING_ACCUM, BINDING_LIGHTS, BINDING_MATERIALS, BINDING_PARAMS, BINDING_SHADING, BINDING_STATS, BSDF_MASK_ALL,
-    MISS_ID,
-};
+use crate::shared::{BSDF_MASK_ALL, MISS_ID};
 
 /// Everything a render is asked for.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -423,245 +415,6 @@ impl RenderTarget {
     /// GPU bytes of the scene and the path tracer's buffers beside it.
     pub fn gpu_bytes(&self) -> usize {
         self.device.bytes + self.scene.gpu_bytes()
-    }
-}
-
-/// Renders `target` with its kernel. `progress` is called after each pass over the image;
-/// returning `false` stops the render there, keeping what it has.
-///
-/// After each pass the accumulation is copied to a host-visible buffer and from there to
-/// `RenderResult::accum`, so when a later submit fails (device lost, out of memory, timeout)
-/// the error is [`RenderFailure::Partial`], carrying the last whole pass; a lost device or
-/// out-of-memory inside it is an `Error::GpuFault` naming the dispatch (`gpu::markers`).
-pub fn render(
-    ctx: &Context,
-    target: &RenderTarget,
-    s: &RenderSettings,
-    progress: &mut dyn FnMut(Progress) -> bool,
-) -> std::result::Result<RenderResult, RenderFailure> {
-    s.check()?;
-    let (gpu, scene, kernel) = (&target.device, &target.scene, target.kernel);
-    let k = ctx.kernel_specialized(kernel.source, &[(0, kernel.spec_mask)])?;
-    let pixels = s.pixels() as usize;
-    let materials = ctx.upload_texels("materials", bytemuck::cast_slice(&scene.materials), Texel::Rgba32Float)?;
-    let shading = ctx.upload_texels("shading", bytemuck::cast_slice(&scene.shading), Texel::Rgba32Float)?;
-    let lights = ctx.upload_texels("lights", bytemuck::cast_slice(&scene.lights), Texel::Rgba32Float)?;
-    let params = GpuParams::new(s, scene);
-    let params_buf = ctx.upload("render params", bytemuck::bytes_of(&params), vk::BufferUsageFlags::UNIFORM_BUFFER)?;
-    let zeros = vec![0u8; pixels * 16];
-    let accum = ctx.upload(
-        "accumulation image",
-        &zeros,
-        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
-    )?;
-    drop(zeros);
-    const STATS: u64 = 4;
-    let stats = ctx.create_buffer(
-        "render counters",
-        4 * STATS,
-        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST,
-        gpu_allocator::MemoryLocation::GpuOnly,
-    )?;
-    let readback = ctx.create_buffer(
-        "render counters (readback)",
-        4 * STATS,
-        vk::BufferUsageFlags::TRANSFER_DST,
-        gpu_allocator::MemoryLocation::GpuToCpu,
-    )?;
-
-    // The accumulation as of the last whole pass, copied back after each pass.
-    let host_accum = ctx.create_buffer(
-        "accumulation image (readback)",
-        pixels as u64 * 16,
-        vk::BufferUsageFlags::TRANSFER_DST,
-        gpu_allocator::MemoryLocation::GpuToCpu,
-    )?;
-    let (_pool, sets) = DescriptorPool::new(ctx, &k, 1)?;
-    let mut resources: Vec<(u32, Resource)> = gpu.resources().collect();
-    resources.extend([
-        (BINDING_MATERIALS, Resource::Texels(&materials)),
-        (BINDING_SHADING, Resource::Texels(&shading)),
-        (BINDING_LIGHTS, Resource::Texels(&lights)),
-        (BINDING_PARAMS, Resource::whole(&params_buf)),
-        (BINDING_ACCUM, Resource::whole(&accum)),
-        (BINDING_STATS, Resource::whole(&stats)),
-    ]);
-    write_set(ctx, &k, sets[0], &resources)?;
-    let set = sets[0];
-
-    let info = ctx.info();
-    let timestamps = Timestamps::supported(ctx);
-    let queries = Timestamps::new(ctx, 1)?;
-    let local = k.layout.local_size.0;
-    let max_groups = info.max_compute_workgroup_count[0] as u64;
-
-    let mut result = RenderResult {
-        width: s.width,
-        height: s.height,
-        accum: vec![],
-        spp: 0,
-        interrupted: false,
-        failed: None,
-        closest_rays: 0,
-        shadow_rays: 0,
-        dropped_samples: 0,
-        gpu_ms: timestamps.then_some(0.0),
-        wall_ms: 0.0,
-        submits: 0,
-        kernel: kernel.source.name,
-        spec_mask: kernel.spec_mask,
-    };
-    let start = Instant::now();
-    let mut pass = 0u32;
-    // The loop as a closure so that any failure part-way (a lost device, out of memory, a
-    // timeout) still hands back the last whole pass, which `result.accum` holds.
-    let mut run = |result: &mut RenderResult| -> Result<()> {
-        // Seconds per pixel-sample, measured; the first pass runs 1 spp in chunks of at most
-        // 65,536 pixels to measure it safely.
-        let mut cost: Option<f64> = None;
-        let target = s.submit_ms * 1e-3;
-        while result.spp < s.spp {
-            let remaining = s.spp - result.spp;
-            let (samples, chunk) = match cost {
-                None => (1, 65_536u64),
-                Some(c) => {
-                    let per_pass = c * pixels as f64;
-                    let samples = ((target / per_pass).floor() as u64).clamp(1, remaining as u64) as u32;
-                    let chunk = if per_pass > target { ((target / c) as u64).max(local as u64) } else { pixels as u64 };
-                    (samples, chunk)
-                }
-            };
-            let chunk = chunk.min(max_groups * local as u64).max(1);
-            // The kernel counts rays in 32-bit counters per submit: a sample traces at most
-            // 2 (max_depth + 1) rays, so keep pixels x samples of one submit below 2^32 / that.
-            let max_work = (u32::MAX as u64 / (2 * (s.max_depth as u64 + 1))).max(1);
-            let samples = (samples as u64).min((max_work / chunk.min(pixels as u64)).max(1)) as u32;
-            let chunk = chunk.min(max_work / samples as u64).max(1);
-            pass += 1;
-            let mut first = 0u64;
-            while first < pixels as u64 {
-                let count = chunk.min(pixels as u64 - first);
-                let last_of_pass = first + count == pixels as u64;
-                let push = PathtracePush {
-                    sample_first: result.spp,
-                    sample_count: samples,
-                    pixel_first: first as u32,
-                    pixel_count: count as u32,
-                };
-                let what = format!(
-                    "{} pass {pass} dispatch {} (samples {}..{}, pixels {}..{})",
-                    k.name,
-                    result.submits + 1,
-                    push.sample_first,
-                    push.sample_first + samples,
-                    first,
-                    first + count
-                );
-                let t0 = Instant::now();
-                ctx.one_shot(&what, |dev, cmd| {
-                    // SAFETY: one_shot records into a fresh command buffer and waits for it;
-                    // every object recorded here outlives that wait.
-                    unsafe {
-                        queries.reset(dev, cmd, 0);
-                        // The previous submit's copy of the counters (a transfer read) before
-                        // this fill overwrites them.
-                        memory_barrier(
-                            dev,
-                            cmd,
-                            (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::empty()),
-                            (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
-                        );
-                        dev.cmd_fill_buffer(cmd, stats.raw, 0, vk::WHOLE_SIZE, 0);
-                        // The fill, the previous dispatch's accumulation and the previous
-                        // pass's copy of it (a transfer read) before this dispatch.
-                        memory_barrier(
-                            dev,
-                            cmd,
-                            (
-                                vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER,
-                                vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE,
-                            ),
-                            (
-                                vk::PipelineStageFlags::COMPUTE_SHADER,
-                                vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
-                            ),
-                        );
-                        let marker = ctx.mark_begin(dev, cmd, what.clone());
-                        queries.start(dev, cmd, 0);
-                        dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, k.pipeline);
-                        dev.cmd_bind_descriptor_sets(
-                            cmd,
-                            vk::PipelineBindPoint::COMPUTE,
-                            k.pipeline_layout,
-                            0,
-                            &[set],
-                            &[],
-                        );
-                        dev.cmd_push_constants(
-                            cmd,
-                            k.pipeline_layout,
-                            vk::ShaderStageFlags::COMPUTE,
-                            0,
-                            bytemuck::bytes_of(&push),
-                        );
-                        dev.cmd_dispatch(cmd, (count as u32).div_ceil(local), 1, 1);
-                        queries.end(dev, cmd, 0);
-                        ctx.mark_end(dev, cmd, marker);
-                        read_back(dev, cmd, &stats, &readback, 4 * STATS);
-                        if last_of_pass {
-                            // The whole pass is in: keep a host copy (what a failure later on
-                            // still has to write out).
-                            read_back(dev, cmd, &accum, &host_accum, pixels as u64 * 16);
-                        }
-                    }
-                })?;
-                let seconds = t0.elapsed().as_secs_f64();
-                if let Some(gpu_ms) = result.gpu_ms.as_mut() {
-                    *gpu_ms += queries.read_ms()?[0];
-                }
-                let counters: [u32; STATS as usize] = bytemuck::pod_read_unaligned(
-                    readback.mapped().ok_or_else(|| Error::NoDevice("readback buffer is not host-visible".into()))?,
-                );
-                result.closest_rays += counters[0] as u64;
-                result.shadow_rays += counters[1] as u64;
-                result.dropped_samples += counters[2] as u64;
-                result.submits += 1;
-                let c = seconds / (count as f64 * samples as f64);
-                cost = Some(match cost {
-                    None => c,
-                    Some(old) => 0.5 * (old + c),
-                });
-                first += count;
-            }
-            let copy = host_accum
-                .mapped()
-                .ok_or_else(|| Error::NoDevice("accumulation readback buffer is not host-visible".into()))?;
-            result.accum.clear();
-            result.accum.extend(copy.chunks_exact(16).map(bytemuck::pod_read_unaligned::<[f32; 4]>));
-            result.spp += samples;
-            let keep_going = progress(Progress {
-                spp_done: result.spp,
-                spp_total: s.spp,
-                seconds: start.elapsed().as_secs_f64(),
-                accum: &result.accum,
-            });
-            if !keep_going && result.spp < s.spp {
-                result.interrupted = true;
-                break;
-            }
-        }
-        Ok(())
-    };
-    let outcome = run(&mut result);
-    result.wall_ms = start.elapsed().as_secs_f64() * 1e3;
-    match outcome {
-        Ok(()) => Ok(result),
-        Err(e) if result.spp > 0 => {
-            let source = ctx.fault(e);
-            result.failed = Some(source.to_string());
-            Err(RenderFailure::Partial(PartialRender { result: Box::new(result), source }))
-        }
-        Err(e) => Err(RenderFailure::Error(ctx.fault(e))),
     }
 }
 

@@ -59,7 +59,7 @@ named_enum! {
     #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
     #[serde(rename_all = "kebab-case")]
     pub enum Preset: "accuracy preset" {
-        /// The whole sweep: about 20 minutes or less on a 2-core lavapipe machine with 7 methods.
+        /// The whole sweep: about 4 minutes on a 2-core lavapipe machine with the eight methods.
         Full = "full",
         /// Seconds, for CI.
         Smoke = "smoke",
@@ -221,6 +221,8 @@ pub struct ExtremeRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct FrontierRow {
     pub method: Method,
+    /// How the kernel read the scene.
+    pub scene_access: AccessPath,
     pub mrays_per_s: Option<Summary>,
     /// Why there is no speed (validation failed), if there is none.
     pub note: Option<String>,
@@ -775,6 +777,7 @@ fn frontier(
         let err = report.errors.iter().find(|r| r.method == t.method && r.leaf_size == FIXED_LEAF);
         let row = FrontierRow {
             method: t.method,
+            scene_access: scene.access,
             mrays_per_s: speed,
             note,
             leaks_per_million: leaks,

@@ -112,15 +112,12 @@ pub fn dispatch_once(
             if let Some(q) = &query {
                 d.cmd_reset_query_pool(cmd, q.pool, 0, 1);
             }
-            d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-            d.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline_layout, 0, &sets, &[]);
-            // `Push { uint ray_count; }` in raycast.comp (checked by tests/reflection.rs).
-            d.cmd_push_constants(cmd, kernel.pipeline_layout, vk::ShaderStageFlags::COMPUTE, 0, &count.to_le_bytes());
             let marker = ctx.mark_begin(d, cmd, format!("{} single dispatch (rays 0..{n})", kernel.name));
             if let Some(q) = &query {
                 d.cmd_begin_query(cmd, q.pool, 0, vk::QueryControlFlags::empty());
             }
-            d.cmd_dispatch(cmd, workgroups, 1, 1);
+            // `Push { uint ray_count; }` in raycast.comp (checked by tests/reflection.rs).
+            kernel.record(d, cmd, sets[0], &count.to_le_bytes(), workgroups);
             if let Some(q) = &query {
                 d.cmd_end_query(cmd, q.pool, 0);
             }

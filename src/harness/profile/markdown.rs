@@ -61,7 +61,17 @@ fn size_table(rows: &[Row<SizeTiming>], subgroup: bool) -> Table {
     t
 }
 
+/// `profile.md`: the header, then one section per tool, each with its status and rows.
 pub fn render(r: &ProfileReport, command: &str) -> String {
+    let mut out = header(r, command);
+    for section in [timestamps, pipeline_statistics, shader_clock, executable_properties, size_sweeps, lp_threads] {
+        section(&mut out, r);
+    }
+    out
+}
+
+/// The device, host, scene, rays, timing method and command.
+fn header(r: &ProfileReport, command: &str) -> String {
     let mut out = String::new();
     let _ = writeln!(out, "# Driver-level profile: {} on {}\n", r.scene, r.tag.device);
     let _ = writeln!(
@@ -90,8 +100,13 @@ pub fn render(r: &ProfileReport, command: &str) -> String {
     );
     let _ = writeln!(out, "Every row in `profile.json` carries device, driver and Mesa version.\n");
 
+    out
+}
+
+/// 1. Per-dispatch kernel time.
+fn timestamps(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "## 1. Per-dispatch kernel time (GPU timestamps)\n");
-    status(&mut out, &r.timestamps);
+    status(out, &r.timestamps);
     let mut t = Table::new([
         "method",
         "set",
@@ -118,10 +133,13 @@ pub fn render(r: &ProfileReport, command: &str) -> String {
             device_cell(row),
         ]);
     }
-    out += &t.to_markdown();
+    *out += &t.to_markdown();
+}
 
+/// 2. Invocations counted by pipeline statistics.
+fn pipeline_statistics(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "\n## 2. Pipeline statistics\n");
-    status(&mut out, &r.pipeline_statistics);
+    status(out, &r.pipeline_statistics);
     if !r.pipeline_statistics.rows.is_empty() {
         let mut t = Table::new([
             "method",
@@ -148,16 +166,19 @@ pub fn render(r: &ProfileReport, command: &str) -> String {
                 device_cell(row),
             ]);
         }
-        out += &t.to_markdown();
+        *out += &t.to_markdown();
         let _ = writeln!(
             out,
             "\nDispatched invocations = ceil(rays / workgroup size) x workgroup size: the invocations past the \
              last ray start and return at once."
         );
     }
+}
 
+/// 3. Shader-clock ticks per ray, and the heat maps.
+fn shader_clock(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "\n## 3. Shader clock: ticks per ray\n");
-    status(&mut out, &r.shader_clock);
+    status(out, &r.shader_clock);
     if !r.shader_clock.rows.is_empty() {
         let mut t = Table::new([
             "method",
@@ -188,7 +209,7 @@ pub fn render(r: &ProfileReport, command: &str) -> String {
                 device_cell(row),
             ]);
         }
-        out += &t.to_markdown();
+        *out += &t.to_markdown();
         let _ = writeln!(
             out,
             "\nTicks are the driver's shader-clock units (not calibrated here). The clock keeps counting while the \
@@ -211,9 +232,12 @@ pub fn render(r: &ProfileReport, command: &str) -> String {
             }
         }
     }
+}
 
+/// 4. What the driver says it compiled.
+fn executable_properties(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "\n## 4. Pipeline executable properties\n");
-    status(&mut out, &r.executable_properties);
+    status(out, &r.executable_properties);
     if !r.executable_properties.rows.is_empty() {
         let mut t = Table::new([
             "method",
@@ -236,25 +260,31 @@ pub fn render(r: &ProfileReport, command: &str) -> String {
                 device_cell(row),
             ]);
         }
-        out += &t.to_markdown();
+        *out += &t.to_markdown();
     }
+}
 
+/// 5 and 6. The subgroup- and workgroup-size sweeps.
+fn size_sweeps(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "\n## 5. Subgroup-size sweep (VK_EXT_subgroup_size_control)\n");
-    status(&mut out, &r.subgroup_sizes);
+    status(out, &r.subgroup_sizes);
     if !r.subgroup_sizes.rows.is_empty() {
         let _ = writeln!(out, "Ray set: {}; workgroup size {}.\n", r.sweep_set, r.default_local_size);
-        out += &size_table(&r.subgroup_sizes.rows, true).to_markdown();
+        *out += &size_table(&r.subgroup_sizes.rows, true).to_markdown();
     }
 
     let _ = writeln!(out, "\n## 6. Workgroup-size sweep (specialisation constant)\n");
-    status(&mut out, &r.workgroup_sizes);
+    status(out, &r.workgroup_sizes);
     if !r.workgroup_sizes.rows.is_empty() {
         let _ = writeln!(out, "Ray set: {}; the default is {}.\n", r.sweep_set, r.default_local_size);
-        out += &size_table(&r.workgroup_sizes.rows, false).to_markdown();
+        *out += &size_table(&r.workgroup_sizes.rows, false).to_markdown();
     }
+}
 
+/// 7. LP_NUM_THREADS scaling.
+fn lp_threads(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "\n## 7. LP_NUM_THREADS scaling\n");
-    status(&mut out, &r.lp_num_threads_scaling);
+    status(out, &r.lp_num_threads_scaling);
     if !r.lp_num_threads_scaling.rows.is_empty() {
         let mut t = Table::new([
             "method",
@@ -292,7 +322,6 @@ pub fn render(r: &ProfileReport, command: &str) -> String {
                 device_cell(row),
             ]);
         }
-        out += &t.to_markdown();
+        *out += &t.to_markdown();
     }
-    out
 }

@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::bvh::BuildOptions;
-use crate::encoding::{Method, Raycast};
+use crate::encoding::{AccessPath, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, EnabledFeatures, Kernel, PipelineOptions, RaycastOptions};
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
@@ -150,6 +150,8 @@ impl<T> Row<T> {
 #[derive(Clone, Debug, Serialize)]
 pub struct Timing {
     pub ray_set: RaySet,
+    /// How the kernel read the scene.
+    pub scene_access: AccessPath,
     pub rays: usize,
     /// Dispatches per run (each its own submit with its own timestamp pair).
     pub dispatches: usize,
@@ -357,6 +359,7 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
             (self.progress)(&format!("{what}: {:.2} ms ({:.2} Mrays/s)", ms.median, mrays(rays.len(), ms.median)));
             let timing = Timing {
                 ray_set: set,
+                scene_access: self.scene.access,
                 rays: rays.len(),
                 dispatches: res.batches,
                 kernel_ms: ms,

@@ -314,7 +314,8 @@ mod tests {
             Method::Unit => 1.03,
             Method::QuadMt => 0.95,
             Method::QuadUnit => 1.0 / 1.12,
-            Method::Watertight | Method::BaldwinWeber | Method::F64 => 1.0,
+            // The claims read only the paper's four methods.
+            _ => 1.0,
         }
     }
 
@@ -336,7 +337,7 @@ mod tests {
                     Method::Unit => 0.9,
                     Method::QuadMt => 1.0,
                     Method::QuadUnit => 1.1,
-                    Method::Watertight | Method::BaldwinWeber | Method::F64 => 1.0,
+                    _ => 1.0,
                 }
         };
         let r = report(&["bunny"], t, 0.01);

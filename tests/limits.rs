@@ -1,0 +1,233 @@
+//! One scene pipeline for every command: with the device's limits lowered for tests
+//! (`TRILAB_TEST_LIMITS`), the bunny no longer fits one texel binding per buffer, and every command
+//! that uploads a scene either reads it through buffer device addresses (and its results still
+//! agree with the f64 reference) or, where the reader has only the texel path (the path tracer),
+//! refuses it before any work with the same "does not fit" error, naming the scene, the method,
+//! the buffer, what it needs and what the device allows.
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// 4096 texels per binding: every buffer of the bunny's encodings (69,451 triangles) is larger.
+const LIMITS: &str = "max_texel_buffer_elements=4096";
+
+fn trilab(args: &[&str], limits: bool) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_trilab"));
+    c.args(args).current_dir(env!("CARGO_MANIFEST_DIR")).env("TRILAB_VALIDATION", "1");
+    c.env_remove("TRILAB_TEST_LIMITS");
+    if limits {
+        c.env("TRILAB_TEST_LIMITS", LIMITS);
+    }
+    let mut child = c.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        assert!(start.elapsed() < Duration::from_secs(600), "trilab {args:?} did not finish within 600 s");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+fn ok(o: &Output, what: &str) -> String {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{what} failed: {err}");
+    assert!(!err.contains("validation:"), "{what}: validation messages: {err}");
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn s(p: &Path) -> String {
+    p.to_string_lossy().into_owned()
+}
+
+/// The paths every row of `rows` read its scene through (`key` names the field).
+fn paths(rows: &serde_json::Value, key: &str) -> Vec<String> {
+    rows.as_array().unwrap().iter().filter_map(|r| r[key].as_str().map(str::to_owned)).collect()
+}
+
+fn all_address(p: &[String], what: &str) {
+    assert!(!p.is_empty() && p.iter().all(|a| a == "address"), "{what}: {p:?}");
+}
+
+#[test]
+fn every_command_reads_a_scene_beyond_one_binding_through_addresses() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |f: &str| s(&dir.path().join(f));
+    ok(
+        &trilab(&["rays", "random", "--scene", "scenes/bunny.obj", "--count", "3000", "--out", &d("r.rays")], false),
+        "rays",
+    );
+
+    // raycast: as the device is, the texel path; lowered, the address path, validated.
+    for (limits, want) in [(false, "texel"), (true, "address")] {
+        for method in ["mt", "quad-unit", "watertight"] {
+            let args = ["raycast", "--scene", "scenes/bunny.obj", "--rays", &d("r.rays"), "--out", &d("h.hits")];
+            let o =
+                trilab(&[&args[..], &["--method", method, "--validate", "--json", "--repeat", "1"]].concat(), limits);
+            let v: serde_json::Value = serde_json::from_str(&ok(&o, "raycast")).unwrap();
+            assert_eq!(v["scene_access"], want, "raycast {method}, limits {limits}");
+            assert_eq!(v["validation"]["passes"], true, "raycast {method}: {}", v["validation"]);
+        }
+    }
+
+    // bench: every row on the address path, each validated before it has a speed.
+    let o = trilab(
+        &[
+            "bench",
+            "--width",
+            "48",
+            "--height",
+            "36",
+            "--diffuse-per-hit",
+            "1",
+            "--random-rays",
+            "3000",
+            "--repeat",
+            "1",
+            "--ray-query",
+            "off",
+            "--methods",
+            "mt,unit,quad-mt",
+            "--json-out",
+            &d("bench.json"),
+        ],
+        true,
+    );
+    ok(&o, "bench");
+    let bench = json(&dir.path().join("bench.json"));
+    all_address(&paths(&bench["rows"], "scene_access"), "bench");
+    assert_eq!(bench["rows"].as_array().unwrap().len(), 9);
+
+    // scale: the plan's choice is in each row, and the sample agrees with the reference.
+    let o = trilab(
+        &[
+            "scale",
+            "--scenes",
+            "scenes/bunny.obj",
+            "--methods",
+            "mt,quad-unit",
+            "--rays",
+            "3000",
+            "--validate",
+            "500",
+            "--repeat",
+            "1",
+            "--out",
+            &d("scale"),
+        ],
+        true,
+    );
+    ok(&o, "scale");
+    let scale = json(&dir.path().join("scale/scale.json"));
+    all_address(&paths(&scale["rows"], "access"), "scale");
+    assert!(scale["rows"].as_array().unwrap().iter().all(|r| r["validation_passes"] == true), "{scale}");
+
+    // steps --gpu: the stats kernels on the address path count what the CPU mirror counts.
+    let o = trilab(
+        &["steps", "--scene", "scenes/bunny.obj", "--rays", &d("r.rays"), "--gpu", "--methods", "mt,quad-mt", "--json"],
+        true,
+    );
+    let steps: serde_json::Value = serde_json::from_str(&ok(&o, "steps")).unwrap();
+    all_address(&paths(&steps["gpu"], "access"), "steps");
+    for r in steps["gpu"].as_array().unwrap() {
+        assert!(r["rays_differing_from_cpu"].as_u64().unwrap() <= 3, "steps: {r}");
+    }
+
+    // profile: timings, clock and sweeps, every one validated.
+    let o = trilab(
+        &[
+            "profile",
+            "--scene",
+            "scenes/bunny.obj",
+            "--methods",
+            "unit",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--diffuse-per-hit",
+            "1",
+            "--random-rays",
+            "2000",
+            "--repeat",
+            "1",
+            "--no-threads",
+            "--workgroup-sizes",
+            "64",
+            "--out",
+            &d("profile"),
+        ],
+        true,
+    );
+    ok(&o, "profile");
+    let profile = json(&dir.path().join("profile/profile.json"));
+    all_address(&paths(&profile["timestamps"]["rows"], "scene_access"), "profile");
+
+    // accuracy: its small closed meshes fit; the bunny of the frontier takes the address path.
+    let o = trilab(&["accuracy", "--preset", "smoke", "--methods", "mt,watertight", "--out", &d("accuracy")], true);
+    ok(&o, "accuracy");
+    let accuracy = json(&dir.path().join("accuracy/accuracy.json"));
+    all_address(&paths(&accuracy["frontier"], "scene_access"), "accuracy frontier");
+    assert!(accuracy["frontier"].as_array().unwrap().iter().all(|r| r["mrays_per_s"].is_object()), "{accuracy}");
+}
+
+#[test]
+fn the_path_tracer_refuses_a_scene_beyond_one_binding_in_every_command_the_same_way() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |f: &str| s(&dir.path().join(f));
+    let commands: [Vec<String>; 3] = [
+        [
+            "render",
+            "--scene",
+            "scenes/bunny.obj",
+            "--out",
+            &d("x.exr"),
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "--spp",
+            "1",
+        ]
+        .map(String::from)
+        .to_vec(),
+        [
+            "bench-render",
+            "--scenes",
+            "scenes/bunny.obj",
+            "--methods",
+            "mt",
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "--spp",
+            "1",
+        ]
+        .map(String::from)
+        .to_vec(),
+        ["study", "--preset", "smoke", "--methods", "mt", "--leaf-sizes", "4", "--out", &d("study")]
+            .map(String::from)
+            .to_vec(),
+    ];
+    let mut messages = vec![];
+    for args in &commands {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = trilab(&args, true);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(!o.status.success(), "{}: should refuse: {err}", args[0]);
+        assert!(!err.contains("panicked"), "{}: {err}", args[0]);
+        let line = err.lines().find(|l| l.starts_with("trilab: error:")).unwrap_or_else(|| panic!("{err}")).to_owned();
+        for want in ["scene `bunny` does not fit", "method mt", "needs", "texels", "4096", "texel buffers only"] {
+            assert!(line.contains(want), "{}: `{want}` missing from: {line}", args[0]);
+        }
+        messages.push(line);
+    }
+    // One plan, one message: every command refuses in the same words.
+    assert!(messages.windows(2).all(|w| w[0] == w[1]), "{messages:#?}");
+    // Nothing was written: the refusal comes before any work.
+    assert!(!dir.path().join("x.exr").exists() && !dir.path().join("study/study.json").exists());
+}
