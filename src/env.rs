@@ -34,3 +34,8 @@ pub fn help_text() -> String {
     let width = ENV_VARS.iter().map(|v| v.name.len()).max().unwrap_or(0);
     ENV_VARS.iter().map(|v| format!("  {:width$}  {}\n", v.name, v.help)).collect()
 }
+
+/// The list as README.md's Markdown (between its `env: begin`/`env: end` markers).
+pub fn markdown() -> String {
+    ENV_VARS.iter().map(|v| format!("- `{}`: {}.\n", v.name, v.help)).collect()
+}

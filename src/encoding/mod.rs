@@ -15,7 +15,7 @@
 //! all of it from counts alone.
 //!
 //! Adding an intersector: `glsl/intersect/<glsl>.glsl`, `src/encoding/<name>.rs` with its
-//! `INTERSECTOR`, and one line in `registry!` below; then `trilab spirv --write spirv` and
+//! `INTERSECTOR`, and one line in `registry!` below; then `trilab spirv --out spirv` and
 //! `trilab methods --markdown` refresh the generated files.
 
 pub mod kernels;
