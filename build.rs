@@ -16,6 +16,10 @@
 //!   traversal (`#define CONSERVATIVE_TRAVERSAL`), found by preprocessing the intersector with
 //!   its includes.
 //!
+//! A variant's name is `<kernel>.<method>.<variant>` with the method's command-line name, the
+//! intersector's file stem with `-` for `_` (`raycast.quad-mt.closest` from `quad_mt.glsl`; a
+//! test in `src/encoding` holds every method's name to it).
+//!
 //! Outputs in `$OUT_DIR`: one `<kernel>.<method>.<variant>.spv` per variant, `kernels.rs` (the
 //! registry that embeds them, and the intersectors' facts) and `shared_consts.rs`.
 
@@ -80,7 +84,7 @@ fn main() {
         let kernel_methods: &[String] = if no_intersector { &none } else { &methods };
         for method in kernel_methods {
             for variant in &variants {
-                let name = format!("{kernel}.{method}.{}", variant.name);
+                let name = format!("{kernel}.{}.{}", method.replace('_', "-"), variant.name);
                 match compile(&compiler, &glsl_dir, kernel_path, &source, method, variant) {
                     Ok(words) => {
                         let file = out_dir.join(format!("{name}.spv"));

@@ -1,6 +1,7 @@
 //! The kernel registry: the SPIR-V modules build.rs compiled from `glsl/`, embedded in the
-//! binary, one per kernel x intersector x variant, named `<kernel>.<intersector>.<variant>`
-//! (`raycast.mt.closest`), and what each intersector's GLSL states about itself.
+//! binary, one per kernel x intersector x variant, named `<kernel>.<method>.<variant>` with the
+//! method's command-line name (`raycast.quad-mt.closest` from `glsl/intersect/quad_mt.glsl`),
+//! and what each intersector's GLSL states about itself.
 //!
 //! This is the ground floor: it knows kernels by the names the GLSL gives them. The typed ways to
 //! pick one live with what they are for: a method's ray-casting kernels in `pipeline`, the path
@@ -9,7 +10,8 @@
 /// One compiled kernel variant.
 #[derive(Debug)]
 pub struct KernelSource {
-    /// `<kernel>.<intersector>.<variant>`; also the file name under `spirv/`.
+    /// `<kernel>.<method>.<variant>`, the method by its command-line name (the intersector's
+    /// stem with `-` for `_`); also the file name under `spirv/`.
     pub name: &'static str,
     /// The `glsl/<kernel>.comp` it came from.
     pub kernel: &'static str,
@@ -71,7 +73,7 @@ mod tests {
         for k in KERNELS {
             assert_eq!(k.spirv.len() % 4, 0, "{}", k.name);
             assert_eq!(k.words()[0], 0x0723_0203, "{}: SPIR-V magic", k.name);
-            assert_eq!(k.name, format!("{}.{}.{}", k.kernel, k.method, k.variant));
+            assert_eq!(k.name, format!("{}.{}.{}", k.kernel, k.method.replace('_', "-"), k.variant));
             if k.method != NO_INTERSECTOR {
                 for glsl in intersectors() {
                     assert!(find(k.kernel, glsl, k.variant).is_some(), "{} has no {glsl} build", k.name);

@@ -3,16 +3,12 @@
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod cli;
 
 #[derive(Parser)]
-#[command(
-    name = "trilab",
-    version,
-    about = "GPU ray-triangle intersection laboratory: BVH traversal with hand-written Vulkan compute kernels, one per intersection method"
-)]
+#[command(name = "trilab", version, about = cli::about(), after_help = cli::after_help())]
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
@@ -36,10 +32,23 @@ enum Cmd {
     Profile(cli::profile::ProfileArgs),
     Accuracy(cli::accuracy::AccuracyArgs),
     Analyze(cli::analyze::AnalyzeArgs),
+    Completions(cli::completions::CompletionsArgs),
+    Man(cli::man::ManArgs),
+    #[command(name = "__dump-cli", hide = true)]
+    DumpCli(cli::dump::DumpArgs),
 }
 
 fn main() -> ExitCode {
-    let result = match Cli::parse().command {
+    let matches = match Cli::command().try_get_matches() {
+        Ok(m) => m,
+        Err(e) => return cli::exit_parse_error(e),
+    };
+    cli::json_errors(cli::asks_for_json(&matches));
+    let command = match Cli::from_arg_matches(&matches) {
+        Ok(c) => c.command,
+        Err(e) => return cli::exit_parse_error(e),
+    };
+    let result = match command {
         Cmd::Devices(a) => cli::devices::run(a),
         Cmd::Methods(a) => cli::methods::run(a),
         Cmd::Rays(a) => cli::rays::run(a),
@@ -56,6 +65,9 @@ fn main() -> ExitCode {
         Cmd::Profile(a) => cli::profile::run(a),
         Cmd::Accuracy(a) => cli::accuracy::run(a),
         Cmd::Analyze(a) => cli::analyze::run(a),
+        Cmd::Completions(a) => cli::completions::run(a, Cli::command()),
+        Cmd::Man(a) => cli::man::run(a, Cli::command()),
+        Cmd::DumpCli(a) => cli::dump::run(a, Cli::command()),
     };
     cli::exit(result)
 }

@@ -183,7 +183,7 @@ fn render_writes_exr_png_and_json() {
     let png = image::open(dir.path().join("bunny.png")).unwrap();
     assert_eq!((png.width(), png.height()), (24, 18));
     let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("bunny.json")).unwrap()).unwrap();
-    assert_eq!(j["kernel"], "pathtrace.quad_unit.lambert");
+    assert_eq!(j["kernel"], "pathtrace.quad-unit.lambert");
     assert_eq!(j["spp_done"], 2);
     assert_eq!(j["interrupted"], false);
     assert_eq!(j["dropped_samples_nan_or_inf"], 0);

@@ -203,7 +203,7 @@ fn kernel_carries_only_the_scene_bsdfs() {
     assert_eq!(k.source.name, "pathtrace.mt.lambert");
     let two = BsdfKind::Glass.bit() | BsdfKind::Phong.bit();
     let k = PathtraceKernel::choose(Method::QuadMt, two, KernelChoice::Specialised);
-    assert_eq!((k.source.name, k.spec_mask), ("pathtrace.quad_mt.all", two));
+    assert_eq!((k.source.name, k.spec_mask), ("pathtrace.quad-mt.all", two));
     assert_eq!(k.bsdfs(), vec!["phong", "glass"]);
     let k = PathtraceKernel::choose(Method::Unit, BsdfKind::Lambert.bit(), KernelChoice::General);
     assert_eq!((k.source.name, k.spec_mask), ("pathtrace.unit.all", 0x7f));

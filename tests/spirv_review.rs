@@ -7,7 +7,7 @@ use std::process::Command;
 
 use trilab::kernels::KERNELS;
 
-const REFRESH: &str = "cargo run --release -- spirv --write spirv";
+const REFRESH: &str = "cargo run --release -- spirv --out spirv";
 
 #[test]
 fn committed_spirv_matches_the_kernels() {
@@ -42,7 +42,7 @@ fn tool(name: &str) -> String {
 fn counts_agree_with_spirv_dis() {
     let dis = tool("spirv-dis");
     let dir = tempfile::tempdir().unwrap();
-    for k in KERNELS.iter().filter(|k| k.name == "raycast.mt.closest" || k.name == "raycast.quad_unit.any") {
+    for k in KERNELS.iter().filter(|k| k.name == "raycast.mt.closest" || k.name == "raycast.quad-unit.any") {
         let path = dir.path().join(format!("{}.spv", k.name));
         std::fs::write(&path, k.spirv).unwrap();
         let out = Command::new(&dis).arg("--raw-id").arg(&path).output().unwrap();

@@ -5,10 +5,9 @@ use std::path::PathBuf;
 use clap::Args;
 use trilab::error::Result;
 use trilab::harness::accuracy::{self, AccuracyOptions, Preset};
-use trilab::report::Report;
 
 use super::choice::choice;
-use super::{results_dir, GpuArgs, MethodsArg};
+use super::{results_dir, GpuArgs, JsonArg, MethodsArg};
 
 /// Intersection accuracy per method x leaf size: leaks on closed meshes, false hits,
 /// t/barycentric error, self-intersection per offset scheme, extremes, and the speed frontier;
@@ -22,14 +21,16 @@ pub struct AccuracyArgs {
     #[command(flatten)]
     methods: MethodsArg,
     /// Leaf sizes of the leak, false-hit and error tables (default: 1,2,3,4,8,16).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "N,...", value_delimiter = ',')]
     leaf_sizes: Vec<u32>,
-    /// Leak rays per closed mesh and kind (default: the preset's).
-    #[arg(long)]
-    rays: Option<usize>,
-    /// Output directory. Default: results/<device>/accuracy/.
-    #[arg(long)]
+    /// Leak rays per closed mesh and kind (default: the preset's; was `--rays`).
+    #[arg(long, value_name = "N", alias = "rays")]
+    leak_rays: Option<usize>,
+    /// Output directory for accuracy.csv/json/md and plots. Default: results/<device>/accuracy/.
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -42,14 +43,14 @@ pub fn run(a: AccuracyArgs) -> Result<()> {
     if !a.leaf_sizes.is_empty() {
         o.leaf_sizes = a.leaf_sizes.clone();
     }
-    if let Some(n) = a.rays {
+    if let Some(n) = a.leak_rays {
         o.leak_rays = n;
     }
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.clone(), "accuracy");
     let t = std::time::Instant::now();
     let report = accuracy::run(&ctx, &o, |m| eprintln!("  [{:5.0} s] {m}", t.elapsed().as_secs_f64()))?;
-    print!("{}", report.to_text());
+    a.json.print(&report);
     for w in accuracy::write(&report, &out)? {
         eprintln!("  wrote {}", w.display());
     }

@@ -6,24 +6,24 @@ use clap::Args;
 use trilab::analyze::Target;
 use trilab::error::Result;
 
-use super::{GpuArgs, JsonArg};
+use super::{scene_help, GpuArgs, JsonArg};
 
 /// A scene's numerical conditioning (coordinate magnitude against edge length, smallest edge,
 /// slivers, distance from the origin) and the cheapest method, offset scheme and placement that
 /// meet an accuracy target on it.
 #[derive(Args)]
 pub struct AnalyzeArgs {
-    #[arg(long)]
+    #[arg(long, value_name = "S", help = scene_help!())]
     scene: PathBuf,
     /// Target: most leaks per 10^6 rays on closed meshes (rays at shared edges and vertices
     /// included), as `trilab accuracy` measures them.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, value_name = "N", default_value_t = 0.0)]
     max_leaks_per_million: f64,
     /// Target: largest 99th-percentile t error, in f32 ULPs of t.
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, value_name = "X", default_value_t = 4.0)]
     max_t_ulps: f64,
     /// `frontier.csv` from `trilab accuracy` on your device (default: the committed lavapipe one).
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     frontier: Option<PathBuf>,
     #[command(flatten)]
     json: JsonArg,

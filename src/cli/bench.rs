@@ -4,41 +4,46 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::encoding::SceneAccess;
-use trilab::error::Result;
+use trilab::error::{Error, Result};
 use trilab::harness::bench::{self, BenchOptions};
 
 use super::choice::choice;
-use super::{BuildArgs, GpuArgs, MethodsArg};
+use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg};
 
 /// Ray-casting benchmark: primary, diffuse and random rays, every method, validated against
 /// the f64 reference, optionally beside the Embree peer.
 #[derive(Args)]
 pub struct BenchArgs {
-    /// Scenes (OBJ files); default: the bundled bunny.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(scenes_help!(), "; default: bunny"))]
     scenes: Vec<PathBuf>,
     /// Methods (default: every method the device runs).
     #[command(flatten)]
     methods: MethodsArg,
     #[command(flatten)]
     bvh: BuildArgs,
-    #[arg(long, default_value_t = 5)]
+    /// Timed runs per ray set and method after one warm-up (at least 1; median, min, max).
+    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
-    #[arg(long, default_value_t = 800)]
+    /// Primary rays: the camera image's width in pixels.
+    #[arg(long, value_name = "W", default_value_t = 800)]
     width: u32,
-    #[arg(long, default_value_t = 600)]
+    /// Primary rays: the camera image's height in pixels.
+    #[arg(long, value_name = "H", default_value_t = 600)]
     height: u32,
-    #[arg(long, default_value_t = 8)]
+    /// Diffuse rays: cosine-distributed bounces per primary hit.
+    #[arg(long, value_name = "N", default_value_t = 8, alias = "per-hit")]
     diffuse_per_hit: u32,
-    #[arg(long, default_value_t = 1_000_000)]
+    /// Random rays: how many, from a sphere around the scene into its box.
+    #[arg(long, value_name = "N", default_value_t = 1_000_000, alias = "count")]
     random_rays: usize,
-    #[arg(long, default_value_t = 7)]
+    /// Seed of the diffuse and random ray sets.
+    #[arg(long, value_name = "N", default_value_t = 7)]
     seed: u64,
     /// Read <scene>.{primary,diffuse,random}.rays from this directory instead of generating.
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     rays_dir: Option<PathBuf>,
     /// The Embree peer (`embree_rays` from scripts/embree-peer.sh), run on the same rays.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     embree: Option<PathBuf>,
     /// The driver's ray-query peer row: `auto` runs it wherever the device has ray query except
     /// on CPU devices (on lavapipe it traces 12-1,266x slower than our kernels, hours at the
@@ -49,26 +54,55 @@ pub struct BenchArgs {
     /// binding, else buffer device addresses (`trilab scale` reports which).
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
-    /// Write the report as JSON here.
-    #[arg(long)]
+    /// Directory to write bench.json (the report) and bench.md (the tables) into.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Old spelling: write the report as JSON to this file (use --out DIR).
+    #[arg(long, value_name = "FILE", hide = true)]
     json_out: Option<PathBuf>,
-    /// Write the tables as Markdown here.
-    #[arg(long)]
+    /// Old spelling: write the tables as Markdown to this file (use --out DIR).
+    #[arg(long, value_name = "FILE", hide = true)]
     md_out: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum RayQueryChoice {
+    /// The peer except on CPU devices.
     Auto,
+    /// The peer wherever the device has ray query.
     On,
+    /// No peer row.
     Off,
+}
+
+/// `--out DIR` as the two files, or the old `--json-out`/`--md-out` files.
+pub fn output_files(
+    out: &Option<PathBuf>,
+    json_out: &Option<PathBuf>,
+    md_out: &Option<PathBuf>,
+    stem: &str,
+) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
+    match out {
+        Some(dir) => {
+            if dir.is_file() {
+                return Err(Error::Usage(format!("--out {}: is a file; --out names a directory", dir.display())));
+            }
+            let json = json_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.json")));
+            let md = md_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.md")));
+            Ok((Some(json), Some(md)))
+        }
+        None => Ok((json_out.clone(), md_out.clone())),
+    }
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {
     let scenes = if a.scenes.is_empty() { vec![PathBuf::from("scenes/bunny.obj")] } else { a.scenes.clone() };
-    for out in [&a.json_out, &a.md_out].into_iter().flatten() {
+    let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench")?;
+    for out in [&json_out, &md_out].into_iter().flatten() {
         trilab::io::ensure_not_input(out, &scenes.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     }
     let ctx = a.gpu.context()?;
@@ -76,9 +110,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
         scenes,
         methods: a.methods.or_device(&ctx),
         leaf_size: a.bvh.leaf_size,
-        leaf_policy: a.bvh.leaf_policy,
-        sah_group: a.bvh.sah_group,
-        repeat: a.repeat.max(1),
+        leaf_policy: a.bvh.shape.leaf_policy,
+        sah_group: a.bvh.shape.sah_group,
+        repeat: a.repeat,
         width: a.width,
         height: a.height,
         diffuse_per_hit: a.diffuse_per_hit,
@@ -95,6 +129,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
         ..Default::default()
     };
     let report = bench::run(&ctx, &o, |m| eprintln!("  {m}"))?;
-    print!("{}", trilab::report::Report::to_text(&report));
-    report.write(a.json_out.as_deref(), a.md_out.as_deref())
+    a.json.print(&report);
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    report.write(json_out.as_deref(), md_out.as_deref())
 }

@@ -3,18 +3,18 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use trilab::error::Result;
+use trilab::error::{Error, Result};
 use trilab::harness::bench_render::{self, RenderBenchOptions};
 use trilab::render::KernelChoice;
 
+use super::bench::output_files;
 use super::choice::choice;
-use super::{GpuArgs, MethodsArg};
+use super::{repeat, scenes_help, GpuArgs, JsonArg, MethodsArg};
 
 /// Path-tracing benchmark: samples/s and rays/s per scene, method and kernel choice.
 #[derive(Args)]
 pub struct BenchRenderArgs {
-    /// Scenes (OBJ files); default: the bundled bunny, dragon and buddha.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(scenes_help!(), "; default: bunny, dragon, buddha"))]
     scenes: Vec<PathBuf>,
     /// Methods (default: every method the device runs).
     #[command(flatten)]
@@ -22,23 +22,35 @@ pub struct BenchRenderArgs {
     /// Kernel choices to time (specialised, general).
     #[arg(long, value_parser = choice::<KernelChoice>(), value_delimiter = ',', default_value = "specialised")]
     kernels: Vec<KernelChoice>,
-    #[arg(long, default_value_t = 4)]
+    /// Max triangles per BVH leaf (1..=16).
+    #[arg(long, value_name = "N", default_value_t = 4)]
     leaf_size: u32,
-    #[arg(long, default_value_t = 200)]
+    /// Image width in pixels.
+    #[arg(long, value_name = "W", default_value_t = 200)]
     width: u32,
-    #[arg(long, default_value_t = 150)]
+    /// Image height in pixels.
+    #[arg(long, value_name = "H", default_value_t = 150)]
     height: u32,
-    #[arg(long, default_value_t = 16)]
+    /// Samples per pixel.
+    #[arg(long, value_name = "N", default_value_t = 16)]
     spp: u32,
-    #[arg(long, default_value_t = 16)]
+    /// Most scattering events per path.
+    #[arg(long, value_name = "N", default_value_t = 16)]
     max_depth: u32,
-    /// Timed renders per configuration (after one warm-up).
-    #[arg(long, default_value_t = 3)]
+    /// Timed renders per configuration after one warm-up (at least 1).
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = repeat)]
     repeat: usize,
-    #[arg(long)]
+    /// Directory to write bench.json (the report) and bench.md (the table) into.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Old spelling: write the report as JSON to this file (use --out DIR).
+    #[arg(long, value_name = "FILE", hide = true)]
     json_out: Option<PathBuf>,
-    #[arg(long)]
+    /// Old spelling: write the table as Markdown to this file (use --out DIR).
+    #[arg(long, value_name = "FILE", hide = true)]
     md_out: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -49,7 +61,8 @@ pub fn run(a: BenchRenderArgs) -> Result<()> {
     } else {
         a.scenes
     };
-    for out in [&a.json_out, &a.md_out].into_iter().flatten() {
+    let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench")?;
+    for out in [&json_out, &md_out].into_iter().flatten() {
         trilab::io::ensure_not_input(out, &scenes.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     }
     let ctx = a.gpu.context()?;
@@ -66,6 +79,13 @@ pub fn run(a: BenchRenderArgs) -> Result<()> {
         repeat: a.repeat,
     };
     let report = bench_render::run(&ctx, &o, |m| eprintln!("  {m}"))?;
-    println!("{}", trilab::report::Report::to_text(&report));
-    report.write(a.json_out.as_deref(), a.md_out.as_deref())
+    if a.json.json {
+        a.json.print(&report);
+    } else {
+        println!("{}", trilab::report::Report::to_text(&report));
+    }
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    report.write(json_out.as_deref(), md_out.as_deref())
 }

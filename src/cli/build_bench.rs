@@ -8,40 +8,42 @@ use trilab::error::Result;
 use trilab::harness::build_bench::{self, BuildBenchOptions};
 
 use super::choice::choice;
-use super::JsonArg;
+use super::{repeat, JsonArg};
 
 /// BVH build benchmark: seconds, Mtris/s, SAH cost, nodes and depth per scene and thread
 /// count for the parallel and serial binned SAH and the full sweep, optionally beside
 /// Embree 3's builder on the same triangles; build.csv/json/md.
 #[derive(Args)]
 pub struct BuildBenchArgs {
-    /// Scenes, comma-separated: OBJ files (.obj, .obj.gz) or synth:<kind>:<N>.
-    #[arg(long, value_delimiter = ',', required = true)]
+    #[arg(long, value_name = "A,B", value_delimiter = ',', required = true, help = super::scenes_help!())]
     scenes: Vec<PathBuf>,
-    #[arg(long, default_value_t = 4)]
+    /// Max triangles per BVH leaf (1..=16).
+    #[arg(long, value_name = "N", default_value_t = 4)]
     leaf_size: u32,
+    /// `fill`: nodes with <= leaf-size triangles become leaves (the paper's); `sah`: the SAH
+    /// decides and leaf-size is only a cap.
     #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
     leaf_policy: LeafPolicy,
     /// Triangles the SAH prices as one test (1: classic; Embree's SAH block size).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, value_name = "N", default_value_t = 1)]
     sah_group: u32,
-    /// Thread counts, comma-separated (default: one per logical CPU).
-    #[arg(long, value_delimiter = ',')]
+    /// Thread counts, comma-separated, each run in turn (default: one per logical CPU).
+    #[arg(long, value_name = "N,...", value_delimiter = ',')]
     threads: Vec<usize>,
-    /// Timed runs after one warm-up.
-    #[arg(long, default_value_t = 5)]
+    /// Timed runs after one warm-up (at least 1).
+    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
     /// Leave out the single-threaded reference loop.
     #[arg(long)]
     no_serial: bool,
     /// Full-sweep SAH reference only on scenes of at most this many triangles.
-    #[arg(long, default_value_t = 300_000)]
+    #[arg(long, value_name = "N", default_value_t = 300_000)]
     sweep_max: usize,
     /// The Embree build peer (`embree_build` from scripts/embree-peer.sh).
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     embree: Option<PathBuf>,
     /// Directory for build.csv, build.json and build.md (e.g. results/<host>/build).
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     #[command(flatten)]
     json: JsonArg,

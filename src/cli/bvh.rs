@@ -3,40 +3,45 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use trilab::bvh::LeafPolicy;
 use trilab::error::Result;
 use trilab::harness::{build_bench, bvh_stats};
 
-use super::choice::choice;
-use super::JsonArg;
+use super::{scene_help, JsonArg, TreeShapeArgs};
 
 /// Build the BVH and report its statistics (nodes, depth, leaf sizes, SAH cost, end-point
 /// overlap, time).
 #[derive(Args)]
 pub struct BvhArgs {
-    #[arg(long)]
+    #[arg(long, value_name = "S", help = scene_help!())]
     scene: PathBuf,
-    /// Max triangles per leaf; repeat or omit for 1, 2, 3, 4, 8, 16.
-    #[arg(long = "leaf-size")]
+    /// Max triangles per leaf, comma-separated, each built in turn (default: 1,2,3,4,8,16; the
+    /// old repeatable `--leaf-size N` still works).
+    #[arg(long, value_name = "N,...", value_delimiter = ',', alias = "leaf-size")]
     leaf_sizes: Vec<u32>,
-    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
-    leaf_policy: LeafPolicy,
-    /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
-    /// Quad kernels test them.
-    #[arg(long, default_value_t = 1)]
-    sah_group: u32,
-    /// Build threads (default: one per logical CPU). The tree does not depend on it.
-    #[arg(long)]
-    threads: Option<usize>,
+    #[command(flatten)]
+    shape: TreeShapeArgs,
+    /// Build threads, comma-separated, each run in turn (default: one per logical CPU). The
+    /// tree does not depend on them; the build time does.
+    #[arg(long, value_name = "N,...", value_delimiter = ',')]
+    threads: Vec<usize>,
     #[command(flatten)]
     json: JsonArg,
 }
 
 pub fn run(a: BvhArgs) -> Result<()> {
-    let build = || bvh_stats::run(&a.scene, &a.leaf_sizes, a.leaf_policy, a.sah_group);
-    let report = match a.threads {
-        Some(t) => build_bench::pool(t)?.install(build)?,
-        None => build()?,
+    let build = || bvh_stats::run(&a.scene, &a.leaf_sizes, a.shape.leaf_policy, a.shape.sah_group);
+    let report = if a.threads.is_empty() {
+        build()?
+    } else {
+        let mut report: Option<bvh_stats::BvhReport> = None;
+        for &t in &a.threads {
+            let r = build_bench::pool(t)?.install(build)?;
+            match &mut report {
+                Some(all) => all.rows.extend(r.rows),
+                None => report = Some(r),
+            }
+        }
+        report.expect("at least one thread count")
     };
     a.json.print(&report);
     Ok(())

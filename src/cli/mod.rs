@@ -9,7 +9,10 @@ pub mod bench_render;
 pub mod build_bench;
 pub mod bvh;
 pub mod choice;
+pub mod completions;
 pub mod devices;
+pub mod dump;
+pub mod man;
 pub mod methods;
 pub mod profile;
 pub mod raycast;
@@ -22,16 +25,40 @@ pub mod study;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use clap::Args;
 use trilab::bvh::{BuildOptions, LeafPolicy};
 use trilab::encoding::Method;
-use trilab::error::Result;
+use trilab::error::{Error, Result};
 use trilab::gpu::{Context, ContextOptions, Validation, ValidationLog};
 use trilab::report::Report;
 
 use choice::choice;
+
+/// The help of `--scene`: every command takes a bundled scene's name or a path.
+macro_rules! scene_help {
+    () => {
+        "Scene: a name (bunny, dragon, buddha, cornell, bsdfs) or a path (.obj, .obj.gz, synth:<kind>:<N>)"
+    };
+}
+/// The help of `--scenes`.
+macro_rules! scenes_help {
+    () => {
+        "Scenes, comma-separated: names (bunny, dragon, buddha, cornell, bsdfs) or paths (.obj, .obj.gz, synth:<kind>:<N>)"
+    };
+}
+pub(crate) use {scene_help, scenes_help};
+
+/// `--repeat N`: timed runs, at least one (every command; 0 is refused here, at parse time).
+pub fn repeat(s: &str) -> std::result::Result<usize, String> {
+    let n: usize = s.trim().parse().map_err(|_| format!("`{s}` is not a whole number of timed runs"))?;
+    if n == 0 {
+        return Err("must be at least 1 (0 timed runs would measure nothing)".into());
+    }
+    Ok(n)
+}
 
 /// The device and the validation layer (every command that uses a device).
 #[derive(Args, Clone)]
@@ -67,28 +94,42 @@ impl GpuArgs {
 #[derive(Args, Clone)]
 pub struct BuildArgs {
     /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, value_name = "N", default_value_t = 4)]
     pub leaf_size: u32,
+    #[command(flatten)]
+    pub shape: TreeShapeArgs,
+}
+
+/// `--leaf-policy` and `--sah-group`: how the SAH shapes the tree (beside one leaf size, or a
+/// list of them).
+#[derive(Args, Clone)]
+pub struct TreeShapeArgs {
     /// `fill`: nodes with <= leaf-size triangles become leaves (the paper's); `sah`: the SAH
     /// decides and leaf-size is only a cap.
     #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
     pub leaf_policy: LeafPolicy,
     /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
     /// Quad kernels test them.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, value_name = "N", default_value_t = 1)]
     pub sah_group: u32,
 }
 
 impl BuildArgs {
     pub fn options(&self) -> BuildOptions {
-        BuildOptions { leaf_policy: self.leaf_policy, sah_group: self.sah_group, ..BuildOptions::new(self.leaf_size) }
+        BuildOptions {
+            leaf_policy: self.shape.leaf_policy,
+            sah_group: self.shape.sah_group,
+            ..BuildOptions::new(self.leaf_size)
+        }
     }
 }
 
 /// Which methods (comma-separated; each command says its default).
 #[derive(Args, Clone)]
 pub struct MethodsArg {
-    #[arg(long, value_parser = choice::<Method>(), value_delimiter = ',')]
+    /// Intersection methods, comma-separated (`trilab methods` lists them); default: every
+    /// method the device runs, unless the command says otherwise.
+    #[arg(long, value_name = "M,...", value_parser = choice::<Method>(), value_delimiter = ',')]
     pub methods: Vec<Method>,
 }
 
@@ -106,7 +147,8 @@ impl MethodsArg {
 /// `--json`: the report as JSON instead of text.
 #[derive(Args, Clone, Copy)]
 pub struct JsonArg {
-    /// Print the report as JSON instead of text.
+    /// Print the report as JSON on stdout instead of text (an error too: `{"error": {"kind",
+    /// "message"}}`, with the same exit code).
     #[arg(long)]
     pub json: bool,
 }
@@ -120,6 +162,55 @@ impl JsonArg {
             print!("{}", report.to_text());
         }
     }
+}
+
+/// Whether errors are printed as JSON on stdout (the command was given `--json`).
+static JSON_ERRORS: AtomicBool = AtomicBool::new(false);
+
+/// Asks [`exit`] (and [`exit_parse_error`]) to print errors as JSON on stdout.
+pub fn json_errors(on: bool) {
+    JSON_ERRORS.store(on, Ordering::Relaxed);
+}
+
+/// The `kind` of an error as `--json` prints it.
+pub fn error_kind(e: &Error) -> &'static str {
+    match e {
+        Error::Io { .. } => "io",
+        Error::BadInput { .. } => "bad-input",
+        Error::Usage(_) => "usage",
+        Error::Loader(_) => "loader",
+        Error::NoDevice(_) => "no-device",
+        Error::Vulkan { .. } => "vulkan",
+        Error::Allocation { .. } => "allocation",
+        Error::Spirv { .. } => "spirv",
+        Error::Unsupported(_) => "unsupported",
+        Error::Timeout { .. } => "timeout",
+        Error::SceneTooLarge(_) => "scene-too-large",
+        Error::GpuFault { .. } => "gpu-fault",
+    }
+}
+
+/// `{"error": {"kind": .., "message": .., "validation": [..]}}`: an error as `--json` prints it.
+fn json_error(kind: &str, message: &str, validation: &[String]) -> String {
+    let mut e = serde_json::json!({ "kind": kind, "message": message });
+    if !validation.is_empty() {
+        e["validation"] = serde_json::json!(validation);
+    }
+    serde_json::json!({ "error": e }).to_string()
+}
+
+/// A command line clap refused: its usual message (and exit code 2), or with `--json` among the
+/// arguments the message as a JSON error on stdout, kind `arguments`, with the same exit code.
+pub fn exit_parse_error(e: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    let json = std::env::args_os().skip(1).any(|a| a == "--json");
+    if !json || matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        e.exit();
+    }
+    let text = e.render().to_string();
+    let message = text.lines().next().unwrap_or_default().trim_start_matches("error: ").to_owned();
+    println!("{}", json_error("arguments", &message, &[]));
+    ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2))
 }
 
 /// `results/<device>/<what>` unless `out` is given (`lavapipe` for Mesa's CPU driver).
@@ -139,15 +230,56 @@ pub fn exit(result: Result<()>) -> ExitCode {
     for m in &messages {
         eprintln!("trilab: validation: {m}");
     }
+    let json = JSON_ERRORS.load(Ordering::Relaxed);
     match result {
         Err(e) => {
             eprintln!("trilab: error: {e}");
+            if json {
+                println!("{}", json_error(error_kind(&e), &e.to_string(), &messages));
+            }
             ExitCode::FAILURE
         }
         Ok(()) if !messages.is_empty() => {
-            eprintln!("trilab: error: {} validation message(s)", messages.len());
+            let message = format!("{} validation message(s)", messages.len());
+            eprintln!("trilab: error: {message}");
+            if json {
+                println!("{}", json_error("validation", &message, &messages));
+            }
             ExitCode::FAILURE
         }
         Ok(()) => ExitCode::SUCCESS,
+    }
+}
+
+/// The top line of `trilab --help`: how many methods there are, from the registry.
+pub fn about() -> String {
+    format!(
+        "GPU ray-triangle intersection laboratory: BVH traversal with hand-written Vulkan compute kernels, \
+         one per intersection method ({} methods: {})",
+        Method::ALL.len(),
+        Method::ALL.iter().map(|m| m.name()).collect::<Vec<_>>().join(", ")
+    )
+}
+
+/// After `trilab --help`'s commands: the environment variables (`trilab::env`, the one list)
+/// and where the file formats are documented.
+pub fn after_help() -> String {
+    format!(
+        "Environment variables:\n{}\nRay and hit files: docs/formats.md. Options shared by several commands: README.md, \"Options\".",
+        trilab::env::help_text()
+    )
+}
+
+/// Whether the (sub)command the user ran was given `--json`.
+pub fn asks_for_json(matches: &clap::ArgMatches) -> bool {
+    let mut m = matches;
+    loop {
+        if let Ok(Some(&true)) = m.try_get_one::<bool>("json") {
+            return true;
+        }
+        match m.subcommand() {
+            Some((_, sub)) => m = sub,
+            None => return false,
+        }
     }
 }

@@ -6,51 +6,59 @@ use clap::Args;
 use trilab::error::{Error, Result};
 use trilab::harness::profile::{self, ProfileOptions};
 use trilab::harness::rayset::RaySet;
-use trilab::report::Report;
 
 use super::choice::choice;
-use super::{results_dir, GpuArgs, MethodsArg};
+use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, MethodsArg};
 
 /// Driver-level profile of the ray-casting kernels: timestamps, pipeline statistics,
 /// shader-clock heat maps, executable statistics, subgroup/workgroup-size sweeps,
 /// LP_NUM_THREADS scaling; profile.md, profile.json and PNGs.
 #[derive(Args)]
 pub struct ProfileArgs {
-    #[arg(long)]
+    #[arg(long, value_name = "S", help = scene_help!())]
     scene: PathBuf,
     /// Methods (default: every method the device runs).
     #[command(flatten)]
     methods: MethodsArg,
-    #[arg(long, default_value_t = 4)]
+    /// Max triangles per BVH leaf (1..=16).
+    #[arg(long, value_name = "N", default_value_t = 4)]
     leaf_size: u32,
-    /// Output directory; default results/<device>/profile (lavapipe for Mesa's llvmpipe).
-    #[arg(long)]
+    /// Output directory for profile.md, profile.json and the PNGs; default
+    /// results/<device>/profile (lavapipe for Mesa's llvmpipe).
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Primary rays: a width x height camera image (also the heat maps' size).
-    #[arg(long, default_value_t = 800)]
+    #[arg(long, value_name = "W", default_value_t = 800)]
     width: u32,
-    #[arg(long, default_value_t = 600)]
+    /// Primary rays: the camera image's height in pixels.
+    #[arg(long, value_name = "H", default_value_t = 600)]
     height: u32,
-    #[arg(long, default_value_t = 2)]
+    /// Diffuse rays: cosine-distributed bounces per primary hit.
+    #[arg(long, value_name = "N", default_value_t = 2, alias = "per-hit")]
     diffuse_per_hit: u32,
-    #[arg(long, default_value_t = 250_000)]
+    /// Random rays: how many, from a sphere around the scene into its box.
+    #[arg(long, value_name = "N", default_value_t = 250_000, alias = "count")]
     random_rays: usize,
-    #[arg(long, default_value_t = 7)]
+    /// Seed of the diffuse and random ray sets.
+    #[arg(long, value_name = "N", default_value_t = 7)]
     seed: u64,
-    /// Timed runs after one warm-up; median, min and max are reported.
-    #[arg(long, default_value_t = 5)]
+    /// Timed runs after one warm-up (at least 1); median, min and max are reported.
+    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
     /// The ray set the subgroup- and workgroup-size sweeps time.
     #[arg(long, value_parser = choice::<RaySet>(), default_value_t = RaySet::Random)]
     sweep_set: RaySet,
-    #[arg(long, value_delimiter = ',', default_values_t = [32u32, 64, 128, 256])]
+    /// Workgroup sizes the workgroup-size sweep times, comma-separated.
+    #[arg(long, value_name = "N,...", value_delimiter = ',', default_values_t = [32u32, 64, 128, 256])]
     workgroup_sizes: Vec<u32>,
-    /// LP_NUM_THREADS values to run (lavapipe only); default 1..=host cores.
-    #[arg(long, value_delimiter = ',')]
+    /// LP_NUM_THREADS values to run, comma-separated (lavapipe only); default 1..=host cores.
+    #[arg(long, value_name = "N,...", value_delimiter = ',')]
     threads: Vec<usize>,
     /// Leave out the LP_NUM_THREADS section.
     #[arg(long)]
     no_threads: bool,
+    #[command(flatten)]
+    json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -71,7 +79,7 @@ pub fn run(a: ProfileArgs) -> Result<()> {
         diffuse_per_hit: a.diffuse_per_hit,
         random_rays: a.random_rays,
         seed: a.seed,
-        repeat: a.repeat.max(1),
+        repeat: a.repeat,
         sweep_set: a.sweep_set,
         workgroup_sizes: a.workgroup_sizes.clone(),
         thread_counts: a.threads.clone(),
@@ -83,8 +91,8 @@ pub fn run(a: ProfileArgs) -> Result<()> {
     trilab::io::check_outputs(&out, &["profile.json", "profile.md"], &[&a.scene])?;
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;
-    print!("{}", report.to_text());
+    a.json.print(&report);
     profile::write(&report, &out)?;
-    println!("\nwrote {}", out.display());
+    eprintln!("wrote {}", out.display());
     Ok(())
 }

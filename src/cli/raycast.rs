@@ -9,22 +9,22 @@ use trilab::error::Result;
 use trilab::gpu::Peer;
 use trilab::harness::raycast::{self, RaycastRequest};
 
-use super::choice::choice;
-use super::{note, BuildArgs, GpuArgs, JsonArg};
+use super::choice::{choice, method_choice, method_help};
+use super::{note, repeat, scene_help, BuildArgs, GpuArgs, JsonArg};
 
 /// Cast rays from a ray file; write hits and report kernel time.
 #[derive(Args)]
 pub struct RaycastArgs {
-    #[arg(long)]
+    #[arg(long, value_name = "S", help = scene_help!())]
     scene: PathBuf,
-    #[arg(long)]
+    /// Ray file to cast (32-byte rays, docs/formats.md; `trilab rays` makes one).
+    #[arg(long, value_name = "FILE")]
     rays: PathBuf,
-    /// Hit file to write (../shared/formats.md).
-    #[arg(long)]
+    /// Hit file to write (16-byte hits, docs/formats.md).
+    #[arg(long, value_name = "FILE")]
     out: PathBuf,
-    /// Intersection method, or `auto`: the cheapest that meets the default accuracy target on
-    /// this scene (see `trilab analyze`); what it picked and why goes to stderr and the JSON.
-    #[arg(long, default_value = "mt")]
+    #[arg(long, value_name = "M", default_value = "mt", value_parser = method_choice(), hide_possible_values = true,
+          help = method_help("Intersection method:"))]
     method: MethodChoice,
     /// Translate the scene to its bounding-box centre, and the ray origins with it, in f64
     /// before rounding to f32 and uploading (t, ids and barycentrics are unchanged in exact
@@ -45,15 +45,15 @@ pub struct RaycastArgs {
     /// every buffer fits one binding, else buffer device addresses (the JSON says which).
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
-    /// Timed runs after one warm-up; the median is reported.
-    #[arg(long, default_value_t = 5)]
+    /// Timed runs after one warm-up (at least 1); the median is reported.
+    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
     /// Most rays per dispatch (each dispatch is its own submit).
-    #[arg(long, default_value_t = 1 << 20)]
+    #[arg(long, value_name = "N", default_value_t = 1 << 20)]
     batch_rays: usize,
-    /// Also check every hit against the f64 reference and report agreement.
-    #[arg(long)]
-    validate: bool,
+    /// Also check every hit against the f64 reference and report agreement (was `--validate`).
+    #[arg(long, alias = "validate")]
+    reference: bool,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -73,7 +73,7 @@ pub fn run(a: RaycastArgs) -> Result<()> {
         access: a.scene_access,
         repeat: a.repeat,
         batch_rays: a.batch_rays,
-        validate: a.validate,
+        validate: a.reference,
     };
     let report = raycast::run(&a.gpu.context()?, &req, note)?;
     a.json.print(&report);

@@ -8,7 +8,7 @@ use trilab::harness::make_rays::{self, RaysKind};
 
 use super::JsonArg;
 
-/// Make a ray file (../shared/formats.md).
+/// Make a ray file (32-byte rays, docs/formats.md).
 #[derive(Args)]
 pub struct RaysArgs {
     #[command(subcommand)]
@@ -21,41 +21,49 @@ enum RaysCmd {
     Primary {
         #[command(flatten)]
         common: RaysCommon,
-        #[arg(long, default_value_t = 800)]
+        /// Image width in pixels.
+        #[arg(long, value_name = "W", default_value_t = 800)]
         width: u32,
-        #[arg(long, default_value_t = 600)]
+        /// Image height in pixels.
+        #[arg(long, value_name = "H", default_value_t = 600)]
         height: u32,
     },
     /// Cosine-distributed bounces off the primary hits (hits from the f64 reference).
     Diffuse {
         #[command(flatten)]
         common: RaysCommon,
-        #[arg(long, default_value_t = 800)]
+        /// Width in pixels of the primary image whose hits bounce.
+        #[arg(long, value_name = "W", default_value_t = 800)]
         width: u32,
-        #[arg(long, default_value_t = 600)]
+        /// Height in pixels of the primary image whose hits bounce.
+        #[arg(long, value_name = "H", default_value_t = 600)]
         height: u32,
-        /// Rays per primary hit.
-        #[arg(long, default_value_t = 8)]
-        per_hit: u32,
-        #[arg(long, default_value_t = 7)]
+        /// Rays per primary hit (was `--per-hit`).
+        #[arg(long, value_name = "N", default_value_t = 8, alias = "per-hit")]
+        diffuse_per_hit: u32,
+        /// Random seed.
+        #[arg(long, value_name = "N", default_value_t = 7)]
         seed: u64,
     },
     /// Rays from a sphere around the scene towards random points in its box.
     Random {
         #[command(flatten)]
         common: RaysCommon,
-        #[arg(long, default_value_t = 1_000_000)]
-        count: usize,
-        #[arg(long, default_value_t = 7)]
+        /// How many rays (was `--count`).
+        #[arg(long, value_name = "N", default_value_t = 1_000_000, alias = "count")]
+        random_rays: usize,
+        /// Random seed.
+        #[arg(long, value_name = "N", default_value_t = 7)]
         seed: u64,
     },
 }
 
 #[derive(Args)]
 struct RaysCommon {
-    #[arg(long)]
+    #[arg(long, value_name = "S", help = super::scene_help!())]
     scene: PathBuf,
-    #[arg(long)]
+    /// Ray file to write (32-byte rays: origin, tmin, direction, tmax; docs/formats.md).
+    #[arg(long, value_name = "FILE")]
     out: PathBuf,
     #[command(flatten)]
     json: JsonArg,
@@ -64,10 +72,10 @@ struct RaysCommon {
 pub fn run(a: RaysArgs) -> Result<()> {
     let (common, kind) = match a.kind {
         RaysCmd::Primary { common, width, height } => (common, RaysKind::Primary { width, height }),
-        RaysCmd::Diffuse { common, width, height, per_hit, seed } => {
-            (common, RaysKind::Diffuse { width, height, per_hit, seed })
+        RaysCmd::Diffuse { common, width, height, diffuse_per_hit, seed } => {
+            (common, RaysKind::Diffuse { width, height, per_hit: diffuse_per_hit, seed })
         }
-        RaysCmd::Random { common, count, seed } => (common, RaysKind::Random { count, seed }),
+        RaysCmd::Random { common, random_rays, seed } => (common, RaysKind::Random { count: random_rays, seed }),
     };
     common.json.print(&make_rays::run(&common.scene, &common.out, kind)?);
     Ok(())

@@ -9,36 +9,37 @@ use trilab::analyze::MethodChoice;
 use trilab::error::{Error, Result};
 use trilab::render::session::{self, RenderRequest};
 use trilab::render::KernelChoice;
-use trilab::report::Report;
 
-use super::choice::choice;
-use super::{note, BuildArgs, GpuArgs};
+use super::choice::{choice, method_choice, method_help};
+use super::{note, scene_help, BuildArgs, GpuArgs, JsonArg};
 
 /// Path-trace a scene: linear RGBA EXR, a tone-mapped sRGB PNG and a JSON sidecar.
 #[derive(Args)]
 pub struct RenderArgs {
-    #[arg(long)]
+    #[arg(long, value_name = "S", help = scene_help!())]
     scene: PathBuf,
-    /// Intersection method, or `auto`: the cheapest that meets the default accuracy target on
-    /// this scene (see `trilab analyze`); what it picked and why goes to stderr and the JSON.
-    #[arg(long, default_value = "mt")]
+    #[arg(long, value_name = "M", default_value = "mt", value_parser = method_choice(), hide_possible_values = true,
+          help = method_help("Intersection method:"))]
     method: MethodChoice,
     #[command(flatten)]
     bvh: BuildArgs,
-    #[arg(long, default_value_t = 800)]
+    /// Image width in pixels.
+    #[arg(long, value_name = "W", default_value_t = 800)]
     width: u32,
-    #[arg(long, default_value_t = 600)]
+    /// Image height in pixels.
+    #[arg(long, value_name = "H", default_value_t = 600)]
     height: u32,
     /// Samples per pixel.
-    #[arg(long, default_value_t = 500)]
+    #[arg(long, value_name = "N", default_value_t = 500)]
     spp: u32,
     /// Most scattering events per path.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, value_name = "N", default_value_t = 16)]
     max_depth: u32,
     /// Russian roulette from this many scattering events on.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, value_name = "N", default_value_t = 3)]
     rr_depth: u32,
-    #[arg(long, default_value_t = 1)]
+    /// Random seed of the sample sequence.
+    #[arg(long, value_name = "N", default_value_t = 1)]
     seed: u32,
     /// `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,fov_y_degrees`; default: frames
     /// the scene as the ray generators do.
@@ -57,7 +58,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 250.0)]
     submit_ms: f64,
     /// Output OpenEXR file; the PNG and JSON are written beside it (same stem).
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     out: PathBuf,
     /// No progress bar.
     #[arg(long)]
@@ -66,6 +67,8 @@ pub struct RenderArgs {
     /// seconds, so a killed process still leaves one; 0 turns checkpoints off.
     #[arg(long, default_value_t = 300.0)]
     checkpoint_secs: f64,
+    #[command(flatten)]
+    json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -132,6 +135,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
         &mut |m| bar.suspend(|| note(m)),
     );
     bar.finish_and_clear();
-    print!("{}", report?.to_text());
+    a.json.print(&report?);
     Ok(())
 }

@@ -5,47 +5,55 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use trilab::encoding::SceneAccess;
 use trilab::error::Result;
-use trilab::harness::scale::{self, RayKind, ScaleOptions};
+use trilab::harness::rayset::RaySet;
+use trilab::harness::scale::{self, ScaleOptions};
 
 use super::choice::choice;
-use super::{results_dir, GpuArgs, MethodsArg};
+use super::{repeat, results_dir, GpuArgs, JsonArg, MethodsArg};
 
 /// Large scenes: load and BVH-build times, each method's GPU memory plan (bytes per buffer and
 /// per triangle, access path), upload and a timed, validated cast; writes scale.csv/json/md.
 #[derive(Args)]
 pub struct ScaleArgs {
-    /// Scenes; default: ../shared/scenes/dragon_full_draco11.obj.gz if present, and a
-    /// 10M-triangle synthetic scene.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(super::scenes_help!(),
+          "; default: ../shared/scenes/dragon_full_draco11.obj.gz if present, and a 10M-triangle synthetic scene"))]
     scenes: Vec<String>,
     /// Methods (default: every method the device runs).
     #[command(flatten)]
     methods: MethodsArg,
-    #[arg(long, default_value_t = 4)]
+    /// Max triangles per BVH leaf (1..=16).
+    #[arg(long, value_name = "N", default_value_t = 4)]
     leaf_size: u32,
-    /// Rays cast per scene and method.
-    #[arg(long, default_value_t = 1_000_000)]
-    rays: usize,
-    #[arg(long, value_parser = choice::<RayKind>(), default_value_t = RayKind::Random)]
-    ray_kind: RayKind,
-    /// Timed runs after one warm-up (median, min, max reported).
-    #[arg(long, default_value_t = 5)]
+    /// Rays cast per scene and method (was `--rays`).
+    #[arg(long, value_name = "N", default_value_t = 1_000_000, alias = "rays")]
+    ray_count: usize,
+    /// The ray set cast (was `--ray-kind`).
+    #[arg(long, value_parser = choice::<RaySet>(), default_value_t = RaySet::Random, alias = "ray-kind")]
+    ray_set: RaySet,
+    /// Timed runs after one warm-up (at least 1; median, min, max reported).
+    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
-    /// Hits checked against the f64 reference (evenly spaced over the ray set).
-    #[arg(long, default_value_t = 20_000)]
-    validate: usize,
+    /// Hits checked against the f64 reference, evenly spaced over the ray set (was `--validate`).
+    #[arg(long, value_name = "N", default_value_t = 20_000, alias = "validate")]
+    reference_rays: usize,
+    /// How the kernels read the scenes: `auto` uses texel buffers when every buffer fits one
+    /// binding, else buffer device addresses.
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
-    #[arg(long, default_value_t = 1 << 20)]
+    /// Most rays per dispatch (each dispatch is its own submit).
+    #[arg(long, value_name = "N", default_value_t = 1 << 20)]
     batch_rays: usize,
-    #[arg(long, default_value_t = 7)]
+    /// Seed of the ray set.
+    #[arg(long, value_name = "N", default_value_t = 7)]
     seed: u64,
     /// Only the memory plan (bytes per triangle, access path): no upload, no cast.
     #[arg(long)]
     plan_only: bool,
-    /// Output directory; default results/<device>/scale/.
-    #[arg(long)]
+    /// Output directory for scale.csv/json/md; default results/<device>/scale/.
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -61,18 +69,22 @@ pub fn run(a: ScaleArgs) -> Result<()> {
         scenes,
         methods: a.methods.or_device(&ctx),
         leaf_size: a.leaf_size,
-        rays: a.rays,
-        ray_kind: a.ray_kind,
+        rays: a.ray_count,
+        ray_kind: a.ray_set,
         warmup: 1,
-        repeat: a.repeat.max(1),
-        validate: a.validate,
+        repeat: a.repeat,
+        validate: a.reference_rays,
         scene_access: a.scene_access,
         batch_rays: a.batch_rays,
         seed: a.seed,
         plan_only: a.plan_only,
     };
     let report = scale::run(&ctx, &o, |m| eprintln!("  {m}"))?;
-    print!("{}", report.markdown());
+    if a.json.json {
+        a.json.print(&report);
+    } else {
+        print!("{}", report.markdown());
+    }
     for p in report.write(&out)? {
         eprintln!("wrote {}", p.display());
     }

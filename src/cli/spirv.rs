@@ -7,17 +7,20 @@ use trilab::error::Result;
 
 use super::JsonArg;
 
-/// SPIR-V instruction counts of every kernel variant; `--write DIR` refreshes spirv/.
+/// SPIR-V instruction counts of every kernel variant (`<kernel>.<method>.<variant>`); `--out
+/// DIR` writes the review files instead (`trilab spirv --out spirv` refreshes spirv/).
 #[derive(Args)]
 pub struct SpirvArgs {
-    #[arg(long)]
-    write: Option<PathBuf>,
+    /// Directory to write every variant's disassembly and instruction_counts.csv into (stale
+    /// disassembly there is removed; was `--write`).
+    #[arg(long, value_name = "DIR", alias = "write")]
+    out: Option<PathBuf>,
     #[command(flatten)]
     json: JsonArg,
 }
 
 pub fn run(a: SpirvArgs) -> Result<()> {
-    match &a.write {
+    match &a.out {
         Some(dir) => {
             let n = trilab::harness::spirv::write(dir)?;
             println!("wrote {n} files to {}", dir.display());

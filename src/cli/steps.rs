@@ -6,20 +6,21 @@ use clap::Args;
 use trilab::error::{Error, Result};
 use trilab::harness::steps::{self, StepsRequest};
 
-use super::{BuildArgs, GpuArgs, JsonArg, MethodsArg};
+use super::{scene_help, BuildArgs, GpuArgs, JsonArg, MethodsArg};
 
 /// Traversal work per ray (CPU mirror of the kernels' loop): steps, triangle tests, and the
 /// iterations SIMD lock-step costs at each width; `--gpu` adds the kernels' own counts.
 #[derive(Args)]
 pub struct StepsArgs {
-    #[arg(long)]
+    #[arg(long, value_name = "S", help = scene_help!())]
     scene: PathBuf,
-    #[arg(long)]
+    /// Ray file to trace (32-byte rays, docs/formats.md; `trilab rays` makes one).
+    #[arg(long, value_name = "FILE")]
     rays: PathBuf,
     #[command(flatten)]
     bvh: BuildArgs,
     /// SIMD widths to model (lavapipe: 8, or 4 with LP_NATIVE_VECTOR_WIDTH=128).
-    #[arg(long, value_delimiter = ',', default_values_t = [1usize, 4, 8, 32])]
+    #[arg(long, value_name = "N,...", value_delimiter = ',', default_values_t = [1usize, 4, 8, 32])]
     widths: Vec<usize>,
     /// Also run each method's traversal-statistics kernel (`raycast.<method>.stats`) and report
     /// its per-ray nodes visited and triangles tested (mean, max) beside the CPU mirror's.

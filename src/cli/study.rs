@@ -5,38 +5,39 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use trilab::error::Result;
 use trilab::harness::study::{self, Preset, StudyOptions};
-use trilab::report::Report;
 
 use super::choice::choice;
-use super::{results_dir, GpuArgs, MethodsArg};
+use super::{repeat, results_dir, GpuArgs, JsonArg, MethodsArg};
 
 /// The paper's study on this device: scene x leaf size {1,2,3,4,8,16} x method, path-trace
 /// seconds and Mrays/s per ray set, validated; writes study.csv/json/md and plots.
 #[derive(Args)]
 pub struct StudyArgs {
-    /// Scenes: names of bundled scenes (bunny, dragon, buddha) or OBJ paths. Default: the
-    /// preset's (bunny, dragon, buddha; the smoke preset only the bunny).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(super::scenes_help!(),
+          "; default: the preset's (bunny, dragon, buddha; the smoke preset only the bunny)"))]
     scenes: Vec<String>,
     /// paper: 800x600, 500 spp, depth 16; lavapipe: scaled to about 20 minutes on 2 CPU cores;
     /// smoke: seconds, for CI.
     #[arg(long, value_parser = choice::<Preset>(), default_value_t = Preset::Lavapipe)]
     preset: Preset,
-    /// Output directory. Default: results/<device>/study/ (lavapipe, or the device name).
-    #[arg(long)]
+    /// Output directory for study.csv/json/md and plots. Default: results/<device>/study/
+    /// (lavapipe, or the device name).
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
-    /// Leaf sizes (default: 1,2,3,4,8,16).
-    #[arg(long, value_delimiter = ',')]
+    /// Leaf sizes, comma-separated (default: 1,2,3,4,8,16).
+    #[arg(long, value_name = "N,...", value_delimiter = ',')]
     leaf_sizes: Vec<u32>,
     /// Methods (default: the paper's four, mt,unit,quad-mt,quad-unit).
     #[command(flatten)]
     methods: MethodsArg,
-    /// Timed rounds after the warm-up round (default: the preset's).
-    #[arg(long)]
+    /// Timed rounds after the warm-up round (at least 1; default: the preset's).
+    #[arg(long, value_name = "N", value_parser = repeat)]
     repeat: Option<usize>,
     /// Triangles the SAH prices as one test: 1 (the paper's SAH) or 4 (quad-aware).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, value_name = "N", default_value_t = 1)]
     sah_group: u32,
+    #[command(flatten)]
+    json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -53,7 +54,7 @@ pub fn run(a: StudyArgs) -> Result<()> {
         o.methods = a.methods.methods.clone();
     }
     if let Some(r) = a.repeat {
-        o.repeat = r.max(1);
+        o.repeat = r;
     }
     o.sah_group = a.sah_group;
     o.check()?;
@@ -63,7 +64,7 @@ pub fn run(a: StudyArgs) -> Result<()> {
     trilab::io::check_outputs(&out, &["study.csv", "study.json", "study.md"], &inputs)?;
     eprintln!("study: {}", o.scaling());
     let report = study::run(&ctx, &o, |m| eprintln!("  {m}"))?;
-    print!("{}", report.to_text());
+    a.json.print(&report);
     let written = study::write(&report, &out)?;
     eprintln!("study took {:.0} s; wrote:", report.seconds);
     for w in written {

@@ -30,7 +30,7 @@ impl Method {
             (k, AccessPath::Address) => format!("{k}_bda"),
         };
         find("raycast", self.glsl_name(), &variant)
-            .unwrap_or_else(|| panic!("raycast.{}.{variant} was not compiled (glsl/raycast.comp)", self.glsl_name()))
+            .unwrap_or_else(|| panic!("raycast.{}.{variant} was not compiled (glsl/raycast.comp)", self.name()))
     }
 
     /// The layout probe (`glsl/probe.comp`): copies nodes, primitives and slot ids out through the

@@ -15,7 +15,7 @@
 //! all of it from counts alone.
 //!
 //! Adding an intersector: `glsl/intersect/<glsl>.glsl`, `src/encoding/<name>.rs` with its
-//! `INTERSECTOR`, and one line in `registry!` below; then `trilab spirv --write spirv` and
+//! `INTERSECTOR`, and one line in `registry!` below; then `trilab spirv --out spirv` and
 //! `trilab methods --markdown` refresh the generated files.
 
 pub mod kernels;
@@ -369,6 +369,11 @@ mod tests {
             assert!(crate::kernels::facts(m.glsl_name()).is_some(), "{m}: no glsl/intersect/{}.glsl", m.glsl_name());
             assert_eq!(m.name().parse::<Method>(), Ok(m));
             assert_eq!(serde_json::to_string(&m).unwrap(), format!("\"{}\"", m.name()));
+            // build.rs names kernel variants after the method's command-line name, which it
+            // derives from the file stem: the two must stay in step.
+            assert_eq!(m.name(), m.glsl_name().replace('_', "-"), "{m}: name and GLSL stem");
+            let k = m.raycast_kernel(Raycast::Closest, AccessPath::Texel);
+            assert_eq!(k.name, format!("raycast.{}.closest", m.name()), "{m}: the kernel's name");
         }
         let mut names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
         names.sort_unstable();

@@ -79,54 +79,58 @@ impl Report for BvhReport {
 
     fn to_text(&self) -> String {
         let s = format!(
-            "{}: {} triangles, {} vertices; SAH with {} triangle(s) per test, leaf policy {}\n",
+            "{}: {} triangles, {} vertices\nSAH with {} triangle(s) per test, leaf policy {}\n",
             self.scene.display(),
             self.triangles,
             self.vertices,
             self.sah_group,
             self.leaf_policy
         );
-        // Scene sizes of the paper's four (the others share MT's data or Woop's size).
-        let paper = Method::paper();
-        let mut headers: Vec<String> = [
+        // Two tables that each fit 100 columns: the tree, then the build and the GPU scene sizes
+        // of the paper's four (the others share MT's data or Woop's size). The leaf-size
+        // histogram and every method's size are in --json.
+        let mut tree = Table::new([
             "leaf",
             "builder",
             "nodes",
+            "leaves",
+            "tris/leaf",
             "depth",
             "SAH cost",
             "EPO",
             "EPO ms",
-            "quad padding",
-            "build ms",
-            "threads",
-            "Mtris/s",
-            "leaf sizes (count:leaves)",
-        ]
-        .map(String::from)
-        .to_vec();
-        headers.extend(paper.iter().map(|m| format!("MB {m}")));
-        let mut t = Table::new(headers);
+            "quad pad",
+        ]);
+        let paper = Method::paper();
+        let mut build_headers: Vec<String> =
+            ["leaf", "builder", "threads", "build ms", "Mtris/s"].map(String::from).to_vec();
+        build_headers.extend(paper.iter().map(|m| format!("MB {m}")));
+        let mut build = Table::new(build_headers);
         for r in &self.rows {
             let st = &r.stats;
-            let hist: Vec<String> =
-                st.leaf_histogram.iter().enumerate().filter(|(_, &n)| n > 0).map(|(k, n)| format!("{k}:{n}")).collect();
-            let mut cells = vec![
+            let in_leaves: usize = st.leaf_histogram.iter().enumerate().map(|(k, n)| k * n).sum();
+            tree.row([
                 st.max_leaf_size.to_string(),
                 st.builder.clone(),
                 st.nodes.to_string(),
+                st.leaves.to_string(),
+                if st.leaves == 0 { "-".into() } else { format!("{:.2}", in_leaves as f64 / st.leaves as f64) },
                 st.depth.to_string(),
                 format!("{:.2}", st.sah_cost),
                 st.epo.map_or("-".into(), |e| format!("{e:.3}")),
                 st.epo_ms.map_or("-".into(), |t| format!("{t:.0}")),
                 st.quad_padding.to_string(),
-                format!("{:.1}", st.build_ms),
+            ]);
+            let mut cells = vec![
+                st.max_leaf_size.to_string(),
+                st.builder.clone(),
                 st.build_threads.to_string(),
+                format!("{:.1}", st.build_ms),
                 format!("{:.2}", st.mtris_per_s),
-                hist.join(" "),
             ];
             cells.extend(paper.iter().map(|m| format!("{:.2}", r.gpu_scene_bytes[m.name()] as f64 / 1e6)));
-            t.row(cells);
+            build.row(cells);
         }
-        s + &t.to_text()
+        format!("{s}\n{}\n{}", tree.to_text(), build.to_text())
     }
 }

@@ -63,6 +63,20 @@ impl Validation {
             Validation::Closest { passes, .. } | Validation::Any { passes, .. } => *passes,
         }
     }
+
+    /// The verdict as `reference:` lines of the text report.
+    pub fn to_text(&self) -> String {
+        let verdict = if self.passes() { "agrees" } else { "DISAGREES" };
+        match self {
+            Validation::Closest { summary, .. } => {
+                format!("reference: {verdict} with the f64 reference: {summary}\n")
+            }
+            Validation::Any { any_hit_status_mismatches, bogus, .. } => format!(
+                "reference: {verdict} with the f64 reference: {any_hit_status_mismatches} rays hit where the \
+                 reference misses or miss where it hits; {bogus} hits are not real intersections\n"
+            ),
+        }
+    }
 }
 
 /// What `trilab raycast` reports (`--json` prints it).
@@ -156,7 +170,7 @@ impl Report for RaycastReport {
             self.mrays_per_s
         );
         if let Some(v) = &self.validation {
-            s += &format!("reference: {}\n", serde_json::to_value(v).expect("serialisable"));
+            s += &v.to_text();
         }
         s
     }

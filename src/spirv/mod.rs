@@ -2,7 +2,7 @@
 //!
 //! `spirv/` in the repository holds, for every kernel variant, its disassembly and a row of
 //! `spirv/instruction_counts.csv`; `tests/spirv_review.rs` regenerates both and fails when the
-//! committed files differ (`trilab spirv --write spirv` refreshes them).
+//! committed files differ (`trilab spirv --out spirv` refreshes them).
 
 pub mod capabilities;
 pub mod counts;

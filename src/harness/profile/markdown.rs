@@ -6,10 +6,6 @@ use super::{ProfileReport, Row, Section, SizeTiming, Status};
 use crate::report::Summary;
 use crate::report::Table;
 
-fn device_cell<T>(r: &Row<T>) -> String {
-    format!("{} / {}", r.tag.device, r.tag.driver)
-}
-
 fn ms(s: &Summary) -> [String; 2] {
     [format!("{:.2}", s.median), format!("{:.2}..{:.2}", s.min, s.max)]
 }
@@ -35,7 +31,6 @@ fn size_table(rows: &[Row<SizeTiming>], subgroup: bool) -> Table {
         "Mrays/s",
         "agree %",
         "hits differing from default",
-        "device / driver",
     ]);
     for r in rows {
         let d = &r.data;
@@ -55,7 +50,6 @@ fn size_table(rows: &[Row<SizeTiming>], subgroup: bool) -> Table {
             format!("{:.2}", d.mrays_per_s),
             format!("{:.4}", 100.0 * d.agreement),
             d.hits_differing_from_default.to_string(),
-            device_cell(r),
         ]);
     }
     t
@@ -98,7 +92,10 @@ fn header(r: &ProfileReport, command: &str) -> String {
         r.warmup,
         r.repeat,
     );
-    let _ = writeln!(out, "Every row in `profile.json` carries device, driver and Mesa version.\n");
+    let _ = writeln!(
+        out,
+        "Every table below ran on this device and driver (each row of `profile.json` also names them).\n"
+    );
 
     out
 }
@@ -107,17 +104,7 @@ fn header(r: &ProfileReport, command: &str) -> String {
 fn timestamps(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "## 1. Per-dispatch kernel time (GPU timestamps)\n");
     status(out, &r.timestamps);
-    let mut t = Table::new([
-        "method",
-        "set",
-        "rays",
-        "dispatches",
-        "kernel ms",
-        "min..max",
-        "Mrays/s",
-        "agree %",
-        "device / driver",
-    ]);
+    let mut t = Table::new(["method", "set", "rays", "dispatches", "kernel ms", "min..max", "Mrays/s", "agree %"]);
     for row in &r.timestamps.rows {
         let d = &row.data;
         let [med, range] = ms(&d.kernel_ms);
@@ -130,7 +117,6 @@ fn timestamps(out: &mut String, r: &ProfileReport) {
             range,
             format!("{:.2}", d.mrays_per_s),
             format!("{:.4}", 100.0 * d.agreement),
-            device_cell(row),
         ]);
     }
     *out += &t.to_markdown();
@@ -150,7 +136,6 @@ fn pipeline_statistics(out: &mut String, r: &ProfileReport) {
             "dispatched invocations",
             "COMPUTE_SHADER_INVOCATIONS",
             "equal",
-            "device / driver",
         ]);
         for row in &r.pipeline_statistics.rows {
             let d = &row.data;
@@ -163,7 +148,6 @@ fn pipeline_statistics(out: &mut String, r: &ProfileReport) {
                 d.dispatched.to_string(),
                 d.compute_shader_invocations.to_string(),
                 if d.dispatched == d.compute_shader_invocations { "yes" } else { "NO" }.to_string(),
-                device_cell(row),
             ]);
         }
         *out += &t.to_markdown();
@@ -191,7 +175,6 @@ fn shader_clock(out: &mut String, r: &ProfileReport) {
             "max",
             "saturated",
             "hits differing from closest",
-            "device / driver",
         ]);
         for row in &r.shader_clock.rows {
             let d = &row.data;
@@ -206,7 +189,6 @@ fn shader_clock(out: &mut String, r: &ProfileReport) {
                 d.ticks.max.to_string(),
                 d.ticks.saturated.to_string(),
                 d.hits_differing_from_closest.to_string(),
-                device_cell(row),
             ]);
         }
         *out += &t.to_markdown();
@@ -239,15 +221,7 @@ fn executable_properties(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "\n## 4. Pipeline executable properties\n");
     status(out, &r.executable_properties);
     if !r.executable_properties.rows.is_empty() {
-        let mut t = Table::new([
-            "method",
-            "executable",
-            "subgroup size",
-            "statistic",
-            "value",
-            "description",
-            "device / driver",
-        ]);
+        let mut t = Table::new(["method", "executable", "subgroup size", "statistic", "value", "description"]);
         for row in &r.executable_properties.rows {
             let d = &row.data;
             t.row([
@@ -257,7 +231,6 @@ fn executable_properties(out: &mut String, r: &ProfileReport) {
                 d.name.clone(),
                 d.value.clone(),
                 d.description.clone(),
-                device_cell(row),
             ]);
         }
         *out += &t.to_markdown();
@@ -286,17 +259,8 @@ fn lp_threads(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "\n## 7. LP_NUM_THREADS scaling\n");
     status(out, &r.lp_num_threads_scaling);
     if !r.lp_num_threads_scaling.rows.is_empty() {
-        let mut t = Table::new([
-            "method",
-            "set",
-            "rays",
-            "LP_NUM_THREADS",
-            "kernel ms",
-            "min..max",
-            "Mrays/s",
-            "vs 1 thread",
-            "device / driver",
-        ]);
+        let mut t =
+            Table::new(["method", "set", "rays", "LP_NUM_THREADS", "kernel ms", "min..max", "Mrays/s", "vs 1 thread"]);
         let rows = &r.lp_num_threads_scaling.rows;
         let mut sorted: Vec<_> = rows.iter().collect();
         sorted.sort_by(|a, b| {
@@ -319,7 +283,6 @@ fn lp_threads(out: &mut String, r: &ProfileReport) {
                 range,
                 format!("{:.2}", d.mrays_per_s),
                 one,
-                device_cell(row),
             ]);
         }
         *out += &t.to_markdown();
