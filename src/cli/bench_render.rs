@@ -49,8 +49,11 @@ pub fn run(a: BenchRenderArgs) -> Result<()> {
     } else {
         a.scenes
     };
-    for out in [&a.json_out, &a.md_out].into_iter().flatten() {
-        trilab::io::ensure_not_input(out, &scenes.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    let inputs: Vec<&std::path::Path> = scenes.iter().map(PathBuf::as_path).collect();
+    for (option, out) in [("--json-out", &a.json_out), ("--md-out", &a.md_out)] {
+        if let Some(out) = out {
+            trilab::io::check_output(option, trilab::io::Output::File(out), &inputs)?;
+        }
     }
     let ctx = a.gpu.context()?;
     let o = RenderBenchOptions {

@@ -132,6 +132,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
         &mut |m| bar.suspend(|| note(m)),
     );
     bar.finish_and_clear();
-    print!("{}", report?.to_text());
+    let report = report?;
+    print!("{}", report.to_text());
+    if report.interrupted {
+        // Saved; now exit as an interrupted process does (128 + SIGINT), like `study`.
+        drop(ctx);
+        super::exit_interrupted();
+    }
     Ok(())
 }
