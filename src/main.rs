@@ -36,6 +36,7 @@ enum Cmd {
     Profile(cli::profile::ProfileArgs),
     Accuracy(cli::accuracy::AccuracyArgs),
     Analyze(cli::analyze::AnalyzeArgs),
+    Hits(cli::hits::HitsArgs),
 }
 
 fn main() -> ExitCode {
@@ -56,6 +57,7 @@ fn main() -> ExitCode {
         Cmd::Profile(a) => cli::profile::run(a),
         Cmd::Accuracy(a) => cli::accuracy::run(a),
         Cmd::Analyze(a) => cli::analyze::run(a),
+        Cmd::Hits(a) => cli::hits::run(a),
     };
     cli::exit(result)
 }

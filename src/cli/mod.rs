@@ -10,6 +10,7 @@ pub mod build_bench;
 pub mod bvh;
 pub mod choice;
 pub mod devices;
+pub mod hits;
 pub mod methods;
 pub mod profile;
 pub mod raycast;
