@@ -83,7 +83,7 @@ fn check_output_file(option: &str, path: &Path, inputs: &[&Path]) -> Result<()> 
         return Err(bad(format!("{} is not a folder", dir.display())));
     }
     probe_writable(&dir).map_err(|e| bad(format!("cannot write in {}: {e}", dir.display())))?;
-    ensure_not_input(path, inputs)
+    ensure_not_input(path, inputs).map_err(|e| Error::Usage(format!("{option}: {e}")))
 }
 
 fn check_output_dir(option: &str, dir: &Path, files: &[&str], inputs: &[&Path]) -> Result<()> {
@@ -109,7 +109,7 @@ fn check_output_dir(option: &str, dir: &Path, files: &[&str], inputs: &[&Path]) 
         }
         probe_writable(&ancestor).map_err(|e| bad(format!("cannot create it in {}: {e}", ancestor.display())))?;
     }
-    check_outputs(dir, files, inputs)
+    check_outputs(dir, files, inputs).map_err(|e| Error::Usage(format!("{option}: {e}")))
 }
 
 /// Creates and removes a temporary file in `dir` (the only reliable test: permissions, root,
