@@ -421,7 +421,8 @@ pub fn recommend(
                 .map(|p| p.method)
                 .unwrap_or(Method::Mt);
             if missing.is_empty() {
-                reasons.push(format!("no available method meets the target; {fallback} is the most accurate available"));
+                reasons
+                    .push(format!("no available method meets the target; {fallback} is the most accurate available"));
             } else {
                 reasons.push(format!(
                     "no method in the frontier meets the target, and the frontier ({}) lacks {missing_names}, which \

@@ -11,8 +11,12 @@ use trilab::rays::{read_hits, write_hits};
 const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny.obj");
 
 fn trilab(args: &[&str]) -> Output {
-    let mut child =
-        Command::new(env!("CARGO_BIN_EXE_trilab")).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
     let start = Instant::now();
     while child.try_wait().unwrap().is_none() {
         if start.elapsed() > Duration::from_secs(120) {
@@ -94,7 +98,10 @@ fn show_check_and_diff() {
     let o = trilab(&["hits", "diff", &hits, &s(&changed_path), "--t-tolerance", "1e-6", "--json"]);
     assert_eq!(o.status.code(), Some(1), "{}", err(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!((v["changed"].as_u64(), v["miss_to_hit"].as_u64(), v["triangle_changed"].as_u64()), (Some(2), Some(1), Some(1)));
+    assert_eq!(
+        (v["changed"].as_u64(), v["miss_to_hit"].as_u64(), v["triangle_changed"].as_u64()),
+        (Some(2), Some(1), Some(1))
+    );
     let rays_listed: Vec<u64> = v["changes"].as_array().unwrap().iter().map(|c| c["ray"].as_u64().unwrap()).collect();
     assert_eq!(rays_listed, vec![first_miss.min(last_hit) as u64, first_miss.max(last_hit) as u64]);
     // Without the tolerance the t change counts too.

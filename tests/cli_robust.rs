@@ -86,8 +86,13 @@ fn empty_ray_sets_never_panic() {
     // profile times every set: refused at once, naming the option.
     let dir = tempfile::tempdir().unwrap();
     let out = s(&dir.path().join("profile"));
-    for (opt, needle) in [("--random-rays", "--random-rays 0"), ("--width", "--width 0"), ("--diffuse-per-hit", "--diffuse-per-hit 0")] {
-        refused(&["profile", "--scene", BUNNY, opt, "0", "--out", &out, "--no-threads", "--methods", "mt", "--validation"], &[needle]);
+    for (opt, needle) in
+        [("--random-rays", "--random-rays 0"), ("--width", "--width 0"), ("--diffuse-per-hit", "--diffuse-per-hit 0")]
+    {
+        refused(
+            &["profile", "--scene", BUNNY, opt, "0", "--out", &out, "--no-threads", "--methods", "mt", "--validation"],
+            &[needle],
+        );
     }
 }
 
@@ -107,7 +112,8 @@ fn bad_values_are_refused_naming_the_option() {
     std::fs::write(&empty_obj, "").unwrap();
     let exr = s(&d.join("r.exr"));
     let raycast = |extra: &[&str], needles: &[&str]| {
-        let mut a = vec!["raycast", "--scene", BUNNY, "--rays", &rays, "--out", &hits, "--method", "mt", "--validation"];
+        let mut a =
+            vec!["raycast", "--scene", BUNNY, "--rays", &rays, "--out", &hits, "--method", "mt", "--validation"];
         a.extend_from_slice(extra);
         refused(&a, needles);
     };
@@ -222,7 +228,8 @@ fn ctrl_c_during_render_saves_the_image_and_exits_130() {
 fn analyze_names_methods_the_frontier_lacks() {
     let dir = tempfile::tempdir().unwrap();
     let builtin =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/results/lavapipe/accuracy/frontier.csv")).unwrap();
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/results/lavapipe/accuracy/frontier.csv"))
+            .unwrap();
     // Only Möller-Trumbore, which leaks: no method in this frontier meets the default target.
     let frontier = dir.path().join("frontier.csv");
     std::fs::write(&frontier, builtin.lines().take(2).collect::<Vec<_>>().join("\n") + "\n").unwrap();
@@ -238,7 +245,10 @@ fn analyze_names_methods_the_frontier_lacks() {
 fn smoke_study_says_it_cannot_judge_the_claims() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("study");
-    let (o, _) = trilab(&["study", "--preset", "smoke", "--methods", "mt,unit,quad-unit", "--out", &s(&out), "--validation"], 300);
+    let (o, _) = trilab(
+        &["study", "--preset", "smoke", "--methods", "mt,unit,quad-unit", "--out", &s(&out), "--validation"],
+        300,
+    );
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     let md = std::fs::read_to_string(out.join("study.md")).unwrap();

@@ -74,13 +74,8 @@ fn hit_table<'a>(rows: impl IntoIterator<Item = &'a HitRow>) -> Table {
 
 impl Report for ShowReport {
     fn to_text(&self) -> String {
-        let mut s = format!(
-            "{}: {} rays, {} hits, {} misses\n",
-            self.file.display(),
-            self.rays,
-            self.hits,
-            self.misses
-        );
+        let mut s =
+            format!("{}: {} rays, {} hits, {} misses\n", self.file.display(), self.rays, self.hits, self.misses);
         if !self.shown.is_empty() {
             s += &format!("\n{}", hit_table(&self.shown).to_text());
             if self.shown.len() < self.rays {
@@ -344,7 +339,18 @@ impl Report for DiffReport {
     fn to_text(&self) -> String {
         let mut s = String::new();
         if !self.changes.is_empty() {
-            let mut t = Table::new(["ray", "change", "a: t", "a: u", "a: v", "a: triangle", "b: t", "b: u", "b: v", "b: triangle"]);
+            let mut t = Table::new([
+                "ray",
+                "change",
+                "a: t",
+                "a: u",
+                "a: v",
+                "a: triangle",
+                "b: t",
+                "b: u",
+                "b: v",
+                "b: triangle",
+            ]);
             for c in &self.changes {
                 let [_, at, au, av, aid] = c.a.cells();
                 let [_, bt, bu, bv, bid] = c.b.cells();

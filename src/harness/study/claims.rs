@@ -256,8 +256,7 @@ pub fn markdown(report: &StudyReport) -> String {
             "**This run cannot judge the paper's claims:** it has {} timed round ({} preset), so no run-to-run \
              spread to tell a real difference from noise; the numbers below are shown, not judged. Run \
              `trilab study --preset lavapipe` (or `--repeat 3` or more) for verdicts.\n",
-            report.options.repeat,
-            report.options.preset
+            report.options.repeat, report.options.preset
         );
     }
     for c in all(report) {
