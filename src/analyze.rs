@@ -319,6 +319,10 @@ pub struct Recommendation {
     pub recentre: bool,
     /// False when no method met the target; `method` is then the most accurate available.
     pub meets_target: bool,
+    /// Methods the device can run that the frontier has no row for: never judged, so a faster
+    /// or more accurate choice may be among them.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub missing_from_frontier: Vec<Method>,
     pub reasons: Vec<String>,
 }
 
@@ -345,6 +349,9 @@ pub fn recommend(
     }
     let bits = cond.effective_edge_bits();
     let points: Vec<&FrontierPoint> = frontier.points.iter().filter(|p| available.contains(&p.method)).collect();
+    let missing: Vec<Method> =
+        available.iter().copied().filter(|m| !frontier.points.iter().any(|p| p.method == *m)).collect();
+    let missing_names = missing.iter().map(|m| m.name()).collect::<Vec<_>>().join(", ");
     let f32_ok = bits >= MIN_EDGE_BITS;
     if !f32_ok {
         reasons.push(format!(
@@ -413,14 +420,38 @@ pub fn recommend(
                 .or_else(|| points.iter().min_by(|a, b| a.leaks_per_million.total_cmp(&b.leaks_per_million)))
                 .map(|p| p.method)
                 .unwrap_or(Method::Mt);
-            reasons.push(format!("no available method meets the target; {fallback} is the most accurate available"));
+            if missing.is_empty() {
+                reasons
+                    .push(format!("no available method meets the target; {fallback} is the most accurate available"));
+            } else {
+                reasons.push(format!(
+                    "no method in the frontier meets the target, and the frontier ({}) lacks {missing_names}, which \
+                     this device can run: measure them (`trilab accuracy --methods {}`) and pass that frontier.csv; \
+                     {fallback} is only the most accurate method the frontier has",
+                    frontier.source,
+                    missing.iter().map(|m| m.name()).collect::<Vec<_>>().join(",")
+                ));
+            }
             (fallback, false)
         }
     };
+    if meets && !missing.is_empty() {
+        reasons.push(format!(
+            "not judged: the frontier ({}) has no row for {missing_names}, which this device can run",
+            frontier.source
+        ));
+    }
     reasons.push(format!(
         "offset scheme {offset_scheme}: it had zero self-hits at every scale `trilab accuracy` tried (1e-8 to 1e8)"
     ));
-    Recommendation { method, offset_scheme: offset_scheme.to_owned(), recentre, meets_target: meets, reasons }
+    Recommendation {
+        method,
+        offset_scheme: offset_scheme.to_owned(),
+        recentre,
+        meets_target: meets,
+        missing_from_frontier: missing,
+        reasons,
+    }
 }
 
 /// `--method`: a method, or `auto` (the recommendation for the scene and device).

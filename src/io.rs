@@ -7,24 +7,115 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 
 /// Writes `bytes` to `path` atomically (temporary file in the same directory, then rename).
+/// Every error names `path`, never the temporary file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_owned(),
-        _ => PathBuf::from("."),
-    };
-    let mut tmp =
-        tempfile::Builder::new().prefix(".trilab-").suffix(".tmp").tempfile_in(&dir).map_err(|e| Error::io(path, e))?;
-    tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
+    let dir = parent_dir(path);
+    // tempfile's errors carry the temporary file's name ("... at path .trilab-XXXX.tmp"); the
+    // user never named it, so keep only the error's kind and OS message.
+    let err = |e: std::io::Error| Error::io(path, plain(e));
+    if path.is_dir() {
+        return Err(Error::Usage(format!("output {}: is a directory, not a file", path.display())));
+    }
+    let mut tmp = tempfile::Builder::new().prefix(".trilab-").suffix(".tmp").tempfile_in(&dir).map_err(err)?;
+    tmp.write_all(bytes).map_err(err)?;
     // tempfile creates 0600; an output is an ordinary file (0644, as `File::create` under the
     // usual umask would make it).
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
-        tmp.as_file().set_permissions(std::fs::Permissions::from_mode(0o644)).map_err(|e| Error::io(path, e))?;
+        tmp.as_file().set_permissions(std::fs::Permissions::from_mode(0o644)).map_err(err)?;
     }
-    tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    tmp.as_file().sync_all().map_err(err)?;
+    tmp.persist(path).map_err(|e| err(e.error))?;
     Ok(())
+}
+
+/// The directory a file `path` lands in (`.` for a bare name).
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_owned(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// `e` without any path text a wrapper added: its kind and the OS's message only.
+fn plain(e: std::io::Error) -> std::io::Error {
+    match e.raw_os_error() {
+        Some(code) => std::io::Error::from_raw_os_error(code),
+        None => std::io::Error::new(e.kind(), e.kind().to_string()),
+    }
+}
+
+/// A command's output, as [`check_output`] checks it.
+#[derive(Clone, Copy, Debug)]
+pub enum Output<'a> {
+    /// One file.
+    File(&'a Path),
+    /// A folder and the files the command writes into it.
+    Dir(&'a Path, &'a [&'a str]),
+}
+
+/// Checks, before any work, that a command can write its output, and names the option and the
+/// user's path when it cannot. A FILE: its folder exists and is writable (probed by creating and
+/// removing a temporary file there), the path is not an existing directory, and it is not one
+/// of `inputs`. A DIR: not an existing file; writable if it exists, creatable (its nearest
+/// existing ancestor is a writable folder) if not; none of its files is one of `inputs`.
+pub fn check_output(option: &str, output: Output, inputs: &[&Path]) -> Result<()> {
+    match output {
+        Output::File(path) => check_output_file(option, path, inputs),
+        Output::Dir(dir, files) => check_output_dir(option, dir, files, inputs),
+    }
+}
+
+fn check_output_file(option: &str, path: &Path, inputs: &[&Path]) -> Result<()> {
+    let bad = |why: String| Error::Usage(format!("{option} {}: {why}", path.display()));
+    if path.as_os_str().is_empty() {
+        return Err(bad("empty path".into()));
+    }
+    if path.is_dir() {
+        return Err(bad("is an existing directory; give a file name".into()));
+    }
+    let dir = parent_dir(path);
+    if !dir.exists() {
+        return Err(bad(format!("folder {} does not exist", dir.display())));
+    }
+    if !dir.is_dir() {
+        return Err(bad(format!("{} is not a folder", dir.display())));
+    }
+    probe_writable(&dir).map_err(|e| bad(format!("cannot write in {}: {e}", dir.display())))?;
+    ensure_not_input(path, inputs).map_err(|e| Error::Usage(format!("{option}: {e}")))
+}
+
+fn check_output_dir(option: &str, dir: &Path, files: &[&str], inputs: &[&Path]) -> Result<()> {
+    let bad = |why: String| Error::Usage(format!("{option} {}: {why}", dir.display()));
+    if dir.as_os_str().is_empty() {
+        return Err(bad("empty path".into()));
+    }
+    if dir.exists() {
+        if !dir.is_dir() {
+            return Err(bad("is an existing file; give a folder".into()));
+        }
+        probe_writable(dir).map_err(|e| bad(format!("cannot write in it: {e}")))?;
+    } else {
+        let mut ancestor = dir.to_path_buf();
+        loop {
+            ancestor = parent_dir(&ancestor);
+            if ancestor.exists() || ancestor == Path::new(".") || ancestor == Path::new("/") {
+                break;
+            }
+        }
+        if !ancestor.is_dir() {
+            return Err(bad(format!("cannot create it: {} is not a folder", ancestor.display())));
+        }
+        probe_writable(&ancestor).map_err(|e| bad(format!("cannot create it in {}: {e}", ancestor.display())))?;
+    }
+    check_outputs(dir, files, inputs).map_err(|e| Error::Usage(format!("{option}: {e}")))
+}
+
+/// Creates and removes a temporary file in `dir` (the only reliable test: permissions, root,
+/// read-only file systems and ACLs all answer it).
+fn probe_writable(dir: &Path) -> std::io::Result<()> {
+    tempfile::Builder::new().prefix(".trilab-probe-").tempfile_in(dir).map(drop).map_err(plain)
 }
 
 /// Refuses an output path that names one of the inputs (after resolving links and `..`).
@@ -47,13 +138,13 @@ pub fn check_outputs(dir: &Path, files: &[&str], inputs: &[&Path]) -> Result<()>
     files.iter().try_for_each(|f| ensure_not_input(&dir.join(f), inputs))
 }
 
-/// [`ensure_not_input`] for an output of a command that read `scene`, the MTL files `mtls` it
-/// names, and `other` inputs (ray files).
+/// [`check_output`] for the `--out` file of a command that read `scene`, the MTL files
+/// `mtls` it names, and `other` inputs (ray files): writable, and none of them.
 pub fn ensure_not_inputs(output: &Path, scene: &Path, mtls: &[PathBuf], other: &[&Path]) -> Result<()> {
     let mut inputs: Vec<&Path> = vec![scene];
     inputs.extend(mtls.iter().map(PathBuf::as_path));
     inputs.extend_from_slice(other);
-    ensure_not_input(output, &inputs)
+    check_output("--out", Output::File(output), &inputs)
 }
 
 fn resolve(p: &Path) -> PathBuf {
@@ -83,6 +174,33 @@ mod tests {
         assert_eq!(std::fs::read(&p).unwrap(), b"second");
         let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
         assert_eq!(leftovers.len(), 1, "temporary files left behind");
+    }
+
+    #[test]
+    fn write_errors_name_the_output_not_the_temporary_file() {
+        let e = write_atomic(Path::new("/nonexistent-trilab-dir/x.exr"), b"x").unwrap_err().to_string();
+        assert!(e.contains("/nonexistent-trilab-dir/x.exr"), "{e}");
+        assert!(!e.contains(".tmp"), "{e}");
+    }
+
+    #[test]
+    fn outputs_are_checked_before_work() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("f.txt");
+        std::fs::write(&file, "x").unwrap();
+        // A file where a folder is wanted, a folder where a file is wanted, a missing folder.
+        assert!(check_output_dir("--out", &file, &[], &[]).unwrap_err().to_string().contains("existing file"));
+        assert!(check_output_file("--out", dir.path(), &[]).unwrap_err().to_string().contains("directory"));
+        let missing = dir.path().join("no/x.exr");
+        assert!(check_output_file("--out", &missing, &[]).unwrap_err().to_string().contains("does not exist"));
+        assert!(check_output_dir("--out", &file.join("sub"), &[], &[]).is_err());
+        // Fine: a new file, a new nested folder, an existing folder; nothing left behind.
+        check_output_file("--out", &dir.path().join("new.exr"), &[]).unwrap();
+        check_output_dir("--out", &dir.path().join("a/b"), &[], &[]).unwrap();
+        check_output_dir("--out", dir.path(), &["r.json"], &[]).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        // Not an input.
+        assert!(check_output_file("--out", &file, &[&file]).is_err());
     }
 
     #[test]

@@ -36,6 +36,7 @@ enum Cmd {
     Man(cli::man::ManArgs),
     #[command(name = "__dump-cli", hide = true)]
     DumpCli(cli::dump::DumpArgs),
+    Hits(cli::hits::HitsArgs),
 }
 
 fn main() -> ExitCode {
@@ -68,6 +69,7 @@ fn main() -> ExitCode {
         Cmd::Completions(a) => cli::completions::run(a, Cli::command()),
         Cmd::Man(a) => cli::man::run(a, Cli::command()),
         Cmd::DumpCli(a) => cli::dump::run(a, Cli::command()),
+        Cmd::Hits(a) => cli::hits::run(a),
     };
     cli::exit(result)
 }

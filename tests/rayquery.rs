@@ -46,7 +46,7 @@ fn closest_hit_ray_query_agrees_with_the_f64_reference_on_the_bunny() {
         for (set, rays) in bunny_rays(&mesh) {
             let res = raycast_rq(ctx, &kernel, &accel, &rays, &OPTS).unwrap();
             let a = compare_closest(&mesh, &rays, &res.hits, &reference.trace_all(&rays, false));
-            lines.push(format!("{set}: {} ({:.1} ms)", a.summary(), res.time_ms().median));
+            lines.push(format!("{set}: {} ({:.1} ms)", a.summary(), res.time_ms().unwrap().median));
             assert!(a.invalid.is_empty(), "{set}: invalid results {:?}", &a.invalid[..a.invalid.len().min(5)]);
             assert!(a.fraction() >= MIN_AGREEMENT, "{set}: {}", a.summary());
             assert!(a.reference_hits > rays.len() / 5, "{set}: the rays should hit the bunny often");

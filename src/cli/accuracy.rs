@@ -44,10 +44,15 @@ pub fn run(a: AccuracyArgs) -> Result<()> {
         o.leaf_sizes = a.leaf_sizes.clone();
     }
     if let Some(n) = a.leak_rays {
+        if n == 0 {
+            return Err(trilab::error::Error::Usage("--leak-rays 0: the leak probes need at least one ray".into()));
+        }
         o.leak_rays = n;
     }
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.clone(), "accuracy");
+    let files = ["accuracy.csv", "frontier.csv", "translation.csv", "accuracy.json", "accuracy.md"];
+    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &[])?;
     let t = std::time::Instant::now();
     let report = accuracy::run(&ctx, &o, |m| eprintln!("  [{:5.0} s] {m}", t.elapsed().as_secs_f64()))?;
     a.json.print(&report);

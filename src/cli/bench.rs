@@ -102,8 +102,12 @@ pub fn output_files(
 pub fn run(a: BenchArgs) -> Result<()> {
     let scenes = if a.scenes.is_empty() { vec![PathBuf::from("scenes/bunny.obj")] } else { a.scenes.clone() };
     let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench")?;
-    for out in [&json_out, &md_out].into_iter().flatten() {
-        trilab::io::ensure_not_input(out, &scenes.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    let inputs: Vec<&std::path::Path> = scenes.iter().map(PathBuf::as_path).collect();
+    for (option, out) in [("--json-out", &json_out), ("--md-out", &md_out)] {
+        if let Some(out) = out {
+            let option = if a.out.is_some() { "--out" } else { option };
+            trilab::io::check_output(option, trilab::io::Output::File(out), &inputs)?;
+        }
     }
     let ctx = a.gpu.context()?;
     let o = BenchOptions {

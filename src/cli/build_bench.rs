@@ -64,7 +64,8 @@ pub fn run(a: BuildBenchArgs) -> Result<()> {
     };
     let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
     if let Some(out) = &a.out {
-        trilab::io::check_outputs(out, &["build.csv", "build.json", "build.md"], &inputs)?;
+        let files = ["build.csv", "build.json", "build.md"];
+        trilab::io::check_output("--out", trilab::io::Output::Dir(out, &files), &inputs)?;
     }
     let report = build_bench::run(&o, |m| eprintln!("{m}"))?;
     a.json.print(&report);

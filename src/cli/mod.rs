@@ -13,6 +13,7 @@ pub mod completions;
 pub mod devices;
 pub mod dump;
 pub mod man;
+pub mod hits;
 pub mod methods;
 pub mod profile;
 pub mod raycast;
@@ -221,6 +222,27 @@ pub fn results_dir(ctx: &Context, out: Option<PathBuf>, what: &str) -> PathBuf {
 /// A line to stderr, as every command reports progress and warnings.
 pub fn note(line: &str) {
     eprintln!("trilab: {line}");
+}
+
+/// Exit status of a command stopped by Ctrl-C after saving what it had (128 + SIGINT), as a
+/// shell reports a process the signal ended.
+pub const EXIT_INTERRUPTED: i32 = 130;
+
+/// Ends the process after an interrupt whose partial output was saved: reports any validation
+/// message as [`exit`] does, then exits [`EXIT_INTERRUPTED`] (1 if the layer reported anything).
+pub fn exit_interrupted() -> ! {
+    let messages = VALIDATION_LOG.get().map(|l| l.messages()).unwrap_or_default();
+    for m in &messages {
+        eprintln!("trilab: validation: {m}");
+    }
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    if messages.is_empty() {
+        eprintln!("trilab: interrupted; the partial output was saved");
+        std::process::exit(EXIT_INTERRUPTED)
+    }
+    eprintln!("trilab: error: {} validation message(s)", messages.len());
+    std::process::exit(1)
 }
 
 /// The process's exit: the command's error, or any validation message (the contexts are gone

@@ -88,7 +88,9 @@ pub fn run(a: ProfileArgs) -> Result<()> {
         ..Default::default()
     };
     let out = results_dir(&ctx, a.out.clone(), "profile");
-    trilab::io::check_outputs(&out, &["profile.json", "profile.md"], &[&a.scene])?;
+    let files = ["profile.json", "profile.md"];
+    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &[&a.scene])?;
+    o.sizes().require_all()?;
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;
     a.json.print(&report);

@@ -135,6 +135,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
         &mut |m| bar.suspend(|| note(m)),
     );
     bar.finish_and_clear();
-    a.json.print(&report?);
+    let report = report?;
+    a.json.print(&report);
+    if report.interrupted {
+        // Saved; now exit as an interrupted process does (128 + SIGINT), like `study`.
+        drop(ctx);
+        super::exit_interrupted();
+    }
     Ok(())
 }

@@ -64,7 +64,8 @@ pub fn run(a: ScaleArgs) -> Result<()> {
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.clone(), "scale");
     let inputs: Vec<&Path> = scenes.iter().map(Path::new).collect();
-    trilab::io::check_outputs(&out, &["scale.csv", "scale.json", "scale.md"], &inputs)?;
+    let files = ["scale.csv", "scale.json", "scale.md"];
+    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &inputs)?;
     let o = ScaleOptions {
         scenes,
         methods: a.methods.or_device(&ctx),

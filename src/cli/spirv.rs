@@ -22,6 +22,7 @@ pub struct SpirvArgs {
 pub fn run(a: SpirvArgs) -> Result<()> {
     match &a.out {
         Some(dir) => {
+            trilab::io::check_output("--write", trilab::io::Output::Dir(dir, &[]), &[])?;
             let n = trilab::harness::spirv::write(dir)?;
             println!("wrote {n} files to {}", dir.display());
         }

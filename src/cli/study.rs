@@ -61,7 +61,8 @@ pub fn run(a: StudyArgs) -> Result<()> {
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.clone(), "study");
     let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
-    trilab::io::check_outputs(&out, &["study.csv", "study.json", "study.md"], &inputs)?;
+    let files = ["study.csv", "study.json", "study.md"];
+    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &inputs)?;
     eprintln!("study: {}", o.scaling());
     let report = study::run(&ctx, &o, |m| eprintln!("  {m}"))?;
     a.json.print(&report);

@@ -11,7 +11,7 @@ use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;
 use super::timestamps::Timestamps;
 use super::traversal_stats::TraversalCounts;
-use crate::error::{Result, VkContext};
+use crate::error::{Error, Result, VkContext};
 use crate::rays::{Hit, Ray};
 use crate::report::Summary;
 use crate::shared::{BINDING_HITS, BINDING_RAYS, BINDING_TRAVERSAL_STATS};
@@ -48,9 +48,16 @@ pub struct RaycastResult {
 }
 
 impl RaycastResult {
-    /// Kernel time summary (GPU timestamps), or host wall time where there are none.
-    pub fn time_ms(&self) -> Summary {
-        Summary::of(&self.kernel_ms).or_else(|| Summary::of(&self.wall_ms)).expect("at least one timed run")
+    /// Kernel time summary (GPU timestamps), or host wall time where there are none. An error
+    /// when nothing was timed: an empty ray set (which has no speed) or no timed run.
+    pub fn time_ms(&self) -> Result<Summary> {
+        Summary::of(&self.kernel_ms).or_else(|| Summary::of(&self.wall_ms)).ok_or_else(|| {
+            Error::Usage(if self.hits.is_empty() {
+                "no rays to time: the ray set is empty".into()
+            } else {
+                "no timed run (repeat 0)".into()
+            })
+        })
     }
 
     pub fn timed_on_gpu(&self) -> bool {
@@ -84,6 +91,9 @@ pub fn cast_rays(
     rays: &[Ray],
     opts: &RaycastOptions,
 ) -> Result<RaycastResult> {
+    if opts.batch_rays == 0 {
+        return Err(Error::Usage("--batch-rays 0: a batch holds at least one ray".into()));
+    }
     if rays.is_empty() {
         let traversal = kernel.bindings().contains_key(&BINDING_TRAVERSAL_STATS).then(Vec::new);
         return Ok(RaycastResult { hits: vec![], kernel_ms: vec![], wall_ms: vec![], batches: 0, traversal });

@@ -97,13 +97,22 @@ impl Report for AnalyzeReport {
             self.device_note,
             self.available_methods.iter().map(|m| m.name()).collect::<Vec<_>>().join(", ")
         );
-        s += &format!(
-            "recommendation: --method {}, offset scheme {}, {}{}\n",
-            rec.method,
-            rec.offset_scheme,
-            if rec.recentre { "recentre the scene in f64 before upload" } else { "no recentring needed" },
-            if rec.meets_target { "" } else { " (the target is NOT met)" }
-        );
+        if !rec.meets_target && !rec.missing_from_frontier.is_empty() {
+            s += &format!(
+                "recommendation: none: no method in the frontier meets the target, and it lacks {} (which this \
+                 device can run); {} is only its most accurate method, and it does NOT meet the target\n",
+                rec.missing_from_frontier.iter().map(|m| m.name()).collect::<Vec<_>>().join(", "),
+                rec.method
+            );
+        } else {
+            s += &format!(
+                "recommendation: --method {}, offset scheme {}, {}{}\n",
+                rec.method,
+                rec.offset_scheme,
+                if rec.recentre { "recentre the scene in f64 before upload" } else { "no recentring needed" },
+                if rec.meets_target { "" } else { " (the target is NOT met)" }
+            );
+        }
         for r in &rec.reasons {
             s += &format!("  {r}\n");
         }

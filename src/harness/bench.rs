@@ -137,6 +137,8 @@ pub struct BenchReport {
     pub accel: Vec<(String, AccelStats)>,
     /// "ray query: unsupported on <device>" where the device (or the options) left it out.
     pub ray_query_note: Option<String>,
+    /// Ray sets skipped because they hold no rays (for example `--random-rays 0`).
+    pub notes: Vec<String>,
 }
 
 impl Report for BenchReport {
@@ -152,6 +154,9 @@ impl Report for BenchReport {
             );
         }
         if let Some(note) = &self.ray_query_note {
+            s += &format!("\n{note}\n");
+        }
+        for note in &self.notes {
             s += &format!("\n{note}\n");
         }
         s
@@ -179,6 +184,9 @@ impl BenchReport {
             md += &format!("\n{}", self.accel_table().to_markdown());
         }
         if let Some(note) = &self.ray_query_note {
+            md += &format!("\n{note}\n");
+        }
+        for note in &self.notes {
             md += &format!("\n{note}\n");
         }
         md
@@ -362,6 +370,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         embree: vec![],
         accel: vec![],
         ray_query_note: None,
+        notes: vec![],
     };
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
     let rq_kernel = if !o.ray_query {
@@ -382,7 +391,16 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let t = Instant::now();
         let host = HostScene::build(&name, &mesh, &o.build_options())?;
         let reference = host.reference();
-        let sets = ray_sets(&mesh, &name, &reference, &o.sizes(), o.rays_dir.as_deref())?;
+        let mut sets = ray_sets(&mesh, &name, &reference, &o.sizes(), o.rays_dir.as_deref())?;
+        // An empty set has no speed: it is skipped with a note, and the other sets still run.
+        sets.retain(|(set, rays)| {
+            if rays.is_empty() {
+                let note = format!("{name} {set}: skipped, no rays ({})", o.sizes().why_empty(*set));
+                progress(&note);
+                report.notes.push(note);
+            }
+            !rays.is_empty()
+        });
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
         // Each method's plan picks its access path before encoding (and fails clearly if the
         // scene cannot fit); its kernels read the scene through that path.
@@ -428,7 +446,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: batch };
                 let res = raycast_rq(ctx, kernel, accel, rays, &opts)?;
                 let agreement = compare_closest(&mesh, rays, &res.hits, &ref_hits);
-                let ms = res.time_ms();
+                let ms = res.time_ms()?;
                 progress(&format!(
                     "{name} {set} ray-query: {} Mrays/s ({:.1} ms, {} rays per submit), {}",
                     rate(rays.len() as f64 / (ms.median * 1e-3) / 1e6),

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::bvh::BuildOptions;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::harness::rayset::RaySet;
 use crate::pipeline::HostScene;
 use crate::rays::{self, Camera};
@@ -50,6 +50,16 @@ pub fn run(scene: &Path, out: &Path, kind: RaysKind) -> Result<RaysReport> {
         }
         RaysKind::Random { count, seed } => rays::random_rays(&mesh.bounds(), count, seed),
     };
+    if rays.is_empty() {
+        // A ray file holds at least one ray (`read_rays` refuses an empty one).
+        let why = match kind {
+            RaysKind::Random { .. } => "--random-rays 0",
+            RaysKind::Diffuse { per_hit: 0, .. } => "--diffuse-per-hit 0",
+            RaysKind::Diffuse { width, height, .. } if width > 0 && height > 0 => "no primary ray hit the scene",
+            _ => "--width or --height 0",
+        };
+        return Err(Error::Usage(format!("{}: no rays to write ({why})", out.display())));
+    }
     rays::write_rays(out, &rays)?;
     Ok(RaysReport { rays: rays.len(), out: out.to_owned() })
 }

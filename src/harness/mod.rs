@@ -11,6 +11,7 @@ pub mod bench_render;
 pub mod build_bench;
 pub mod bvh_stats;
 pub mod devices;
+pub mod hits;
 pub mod make_rays;
 pub mod methods;
 pub mod plots;

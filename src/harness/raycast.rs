@@ -208,7 +208,7 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
     };
     rays::write_hits(&req.out, &traced.result.hits)?;
     let validation = req.validate.then(|| validate(&host, &rays, &traced.result, req.any_hit));
-    let t = traced.result.time_ms();
+    let t = traced.result.time_ms()?;
     let mrays = |ms: f64| rays.len() as f64 / (ms * 1e-3) / 1e6;
     let info = ctx.info();
     let (method, access, auto) = match traced.method {

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::named::{named_enum, Named};
 use crate::rays::{self, Camera, Hit, Ray};
 use crate::reference::Reference;
@@ -37,6 +37,45 @@ pub struct RaySetSizes {
     pub diffuse_per_hit: u32,
     pub random_rays: usize,
     pub seed: u64,
+}
+
+impl RaySetSizes {
+    /// Which size makes `set` empty, as the option that sets it (`--width 0`); otherwise the
+    /// diffuse set is empty because no primary ray hit the scene.
+    pub fn why_empty(&self, set: RaySet) -> String {
+        let mut why = vec![];
+        if matches!(set, RaySet::Primary | RaySet::Diffuse) {
+            if self.width == 0 {
+                why.push("--width 0");
+            }
+            if self.height == 0 {
+                why.push("--height 0");
+            }
+        }
+        if set == RaySet::Diffuse && self.diffuse_per_hit == 0 {
+            why.push("--diffuse-per-hit 0");
+        }
+        if set == RaySet::Random && self.random_rays == 0 {
+            why.push("--random-rays 0");
+        }
+        if why.is_empty() {
+            "no primary ray hit the scene".into()
+        } else {
+            why.join(", ")
+        }
+    }
+
+    /// Refuses sizes that leave any set empty, naming the option (for harnesses that need all
+    /// three sets, such as the profile).
+    pub fn require_all(&self) -> Result<()> {
+        for set in RaySet::ALL {
+            let why = self.why_empty(*set);
+            if why.starts_with("--") {
+                return Err(Error::Usage(format!("{why}: the {set} ray set would be empty; every set is timed here")));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The primary rays' hits, from the f64 reference, rounded to hit records.

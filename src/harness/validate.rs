@@ -60,7 +60,7 @@ pub fn measure_rays(
 ) -> Result<RayMeasure> {
     let res = scene.cast(ctx, Raycast::Closest, rays, opts)?;
     let agreement = validate_hits(mesh, rays, &res.hits, ref_hits)?;
-    let ms = res.time_ms();
+    let ms = res.time_ms()?;
     let mrays_per_s = mrays_summary(rays.len(), ms);
     Ok(RayMeasure { kernel_ms: ms, mrays_per_s, agreement, hits: res.hits })
 }

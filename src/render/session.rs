@@ -206,6 +206,9 @@ pub fn run(
     if req.out.extension().and_then(|e| e.to_str()) != Some("exr") {
         return Err(Error::Usage(format!("--out {}: the output must be an .exr file", req.out.display())));
     }
+    if !(req.submit_ms > 0.0 && req.submit_ms.is_finite()) {
+        return Err(Error::Usage(format!("--submit-ms {}: must be a positive number of milliseconds", req.submit_ms)));
+    }
     if !(req.checkpoint_secs >= 0.0 && req.checkpoint_secs.is_finite()) {
         return Err(Error::Usage(format!("--checkpoint-secs {}: must be a finite number >= 0", req.checkpoint_secs)));
     }

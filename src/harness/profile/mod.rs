@@ -355,7 +355,7 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
             let what = format!("{} {set} {method}", self.name);
             let res = self.scene.cast_with(self.ctx, &closest, rays, &self.ropts)?;
             let agreement = validated(self.mesh, rays, &res.hits, refs, &what)?;
-            let ms = res.time_ms();
+            let ms = res.time_ms()?;
             (self.progress)(&format!("{what}: {:.2} ms ({:.2} Mrays/s)", ms.median, mrays(rays.len(), ms.median)));
             let timing = Timing {
                 ray_set: set,
@@ -431,7 +431,7 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
         let what = format!("{} {set} {} ({}, workgroup {local})", self.name, self.method(), kernel.name);
         let res = self.scene.cast_with(self.ctx, kernel, rays, &self.ropts)?;
         let agreement = validated(self.mesh, rays, &res.hits, &self.refs[self.sweep_idx], &what)?;
-        let ms = res.time_ms();
+        let ms = res.time_ms()?;
         let label = subgroup_size.map(|s| format!(", subgroup {s}")).unwrap_or_default();
         (self.progress)(&format!("{what}{label}: {:.2} ms", ms.median));
         Ok(SizeTiming {
@@ -479,6 +479,7 @@ pub fn run(
     out_dir: Option<&Path>,
     mut progress: impl FnMut(&str),
 ) -> Result<ProfileReport> {
+    o.sizes().require_all()?;
     let info = ctx.info();
     let host_load_before = load_average();
     let name = crate::scene::scene_name(&o.scene);

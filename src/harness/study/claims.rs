@@ -24,6 +24,8 @@ pub enum Verdict {
     DoesNotHold,
     /// The study lacks the cells the claim needs.
     NotMeasured,
+    /// One timed round: no run-to-run spread to tell a real difference from noise.
+    NotJudged,
 }
 
 impl Verdict {
@@ -35,6 +37,7 @@ impl Verdict {
             Verdict::Inconclusive => "inconclusive (all differences within the run-to-run spread)",
             Verdict::DoesNotHold => "does not hold",
             Verdict::NotMeasured => "not measured",
+            Verdict::NotJudged => "not judged (a single timed round has no run-to-run spread)",
         }
     }
 }
@@ -226,13 +229,36 @@ pub fn quad_unit_faster_than_mt(report: &StudyReport) -> Claim {
     }
 }
 
+/// Whether the study can judge the claims: a difference is real only when the min-max ranges of
+/// the timed rounds do not overlap, and a single round has no range.
+pub fn can_judge(report: &StudyReport) -> bool {
+    report.options.repeat >= 2
+}
+
 pub fn all(report: &StudyReport) -> Vec<Claim> {
-    vec![leaf_four_optimal(report), mt_faster_than_unit(report), quad_unit_faster_than_mt(report)]
+    let mut claims = vec![leaf_four_optimal(report), mt_faster_than_unit(report), quad_unit_faster_than_mt(report)];
+    if !can_judge(report) {
+        for c in &mut claims {
+            if c.verdict != Verdict::NotMeasured {
+                c.verdict = Verdict::NotJudged;
+            }
+        }
+    }
+    claims
 }
 
 pub fn markdown(report: &StudyReport) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "Measured on {} with render times (the paper's metric).\n", report.provenance.device);
+    if !can_judge(report) {
+        let _ = writeln!(
+            s,
+            "**This run cannot judge the paper's claims:** it has {} timed round ({} preset), so no run-to-run \
+             spread to tell a real difference from noise; the numbers below are shown, not judged. Run \
+             `trilab study --preset lavapipe` (or `--repeat 3` or more) for verdicts.\n",
+            report.options.repeat, report.options.preset
+        );
+    }
     for c in all(report) {
         let _ = writeln!(s, "**({}) {}: {}.** {}.\n", c.id, c.statement, c.verdict.label(), c.summary);
         for e in &c.evidence {

@@ -331,7 +331,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                             let counts = stats.traversal.expect("a stats kernel returns its counts");
                             cell.set_traversal[si] = Some(TraversalSummary::of(&counts));
                         } else {
-                            cell.set_ms[si].push(res.time_ms().median);
+                            cell.set_ms[si].push(res.time_ms()?.median);
                         }
                     }
                     if round > 0 {
