@@ -14,6 +14,9 @@ mod cli;
     about = "GPU ray-triangle intersection laboratory: BVH traversal with hand-written Vulkan compute kernels, one per intersection method"
 )]
 struct Cli {
+    /// Folder searched first for scene names (`--scene bunny`), before TRILAB_SCENES, scenes/ beside the executable, the built-in bunny and the source tree.
+    #[arg(long, global = true, value_name = "DIR")]
+    scene_dir: Option<std::path::PathBuf>,
     #[command(subcommand)]
     command: Cmd,
 }
@@ -39,7 +42,8 @@ enum Cmd {
 }
 
 fn main() -> ExitCode {
-    let result = match Cli::parse().command {
+    let cli = Cli::parse();
+    let result = trilab::scene::set_scene_dir(cli.scene_dir).and_then(|()| match cli.command {
         Cmd::Devices(a) => cli::devices::run(a),
         Cmd::Methods(a) => cli::methods::run(a),
         Cmd::Rays(a) => cli::rays::run(a),
@@ -56,6 +60,6 @@ fn main() -> ExitCode {
         Cmd::Profile(a) => cli::profile::run(a),
         Cmd::Accuracy(a) => cli::accuracy::run(a),
         Cmd::Analyze(a) => cli::analyze::run(a),
-    };
+    });
     cli::exit(result)
 }

@@ -27,6 +27,11 @@ pub struct AccuracyArgs {
     /// Leak rays per closed mesh and kind (default: the preset's).
     #[arg(long)]
     rays: Option<usize>,
+    /// Also measure leaks on this mesh (a path or a scene name; repeatable). It must be proven
+    /// closed (every edge shared by exactly two consistently wound triangles), else the run is
+    /// refused at once with the reason.
+    #[arg(long)]
+    scene: Vec<PathBuf>,
     /// Output directory. Default: results/<device>/accuracy/.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -45,6 +50,9 @@ pub fn run(a: AccuracyArgs) -> Result<()> {
     if let Some(n) = a.rays {
         o.leak_rays = n;
     }
+    o.scenes = a.scene.clone();
+    // Refused before the device is even opened: the proof needs no GPU.
+    accuracy::load_user_scenes(&o.scenes)?;
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.clone(), "accuracy");
     let t = std::time::Instant::now();

@@ -14,7 +14,8 @@ use super::{BuildArgs, GpuArgs, MethodsArg};
 /// the f64 reference, optionally beside the Embree peer.
 #[derive(Args)]
 pub struct BenchArgs {
-    /// Scenes (OBJ files); default: the bundled bunny.
+    /// Scenes: OBJ paths or names of bundled scenes (bunny, dragon, buddha, cornell, bsdfs), found
+    /// from any folder (see --scene-dir); default: bunny.
     #[arg(long, value_delimiter = ',')]
     scenes: Vec<PathBuf>,
     /// Methods (default: every method the device runs).
@@ -67,9 +68,11 @@ enum RayQueryChoice {
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {
-    let scenes = if a.scenes.is_empty() { vec![PathBuf::from("scenes/bunny.obj")] } else { a.scenes.clone() };
+    let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
+    // Names (`bunny`) resolve from any folder; the files found are the inputs to protect.
+    let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
     for out in [&a.json_out, &a.md_out].into_iter().flatten() {
-        trilab::io::ensure_not_input(out, &scenes.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+        trilab::io::ensure_not_input(out, &files.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     }
     let ctx = a.gpu.context()?;
     let o = BenchOptions {

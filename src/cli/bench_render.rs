@@ -44,11 +44,8 @@ pub struct BenchRenderArgs {
 }
 
 pub fn run(a: BenchRenderArgs) -> Result<()> {
-    let scenes = if a.scenes.is_empty() {
-        ["bunny", "dragon", "buddha"].iter().map(|s| PathBuf::from(format!("scenes/{s}.obj"))).collect()
-    } else {
-        a.scenes
-    };
+    let scenes =
+        if a.scenes.is_empty() { ["bunny", "dragon", "buddha"].iter().map(PathBuf::from).collect() } else { a.scenes };
     for out in [&a.json_out, &a.md_out].into_iter().flatten() {
         trilab::io::ensure_not_input(out, &scenes.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     }

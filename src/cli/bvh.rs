@@ -38,6 +38,7 @@ pub fn run(a: BvhArgs) -> Result<()> {
         Some(t) => build_bench::pool(t)?.install(build)?,
         None => build()?,
     };
+    report.warnings.iter().for_each(|w| super::note(w));
     a.json.print(&report);
     Ok(())
 }

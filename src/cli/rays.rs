@@ -8,7 +8,7 @@ use trilab::harness::make_rays::{self, RaysKind};
 
 use super::JsonArg;
 
-/// Make a ray file (../shared/formats.md).
+/// Make a ray file and its sidecar `<out>.json` (scene hash, generator, settings; docs/formats.md).
 #[derive(Args)]
 pub struct RaysArgs {
     #[command(subcommand)]
@@ -69,6 +69,8 @@ pub fn run(a: RaysArgs) -> Result<()> {
         }
         RaysCmd::Random { common, count, seed } => (common, RaysKind::Random { count, seed }),
     };
-    common.json.print(&make_rays::run(&common.scene, &common.out, kind)?);
+    let report = make_rays::run(&common.scene, &common.out, kind)?;
+    report.warnings.iter().for_each(|w| super::note(w));
+    common.json.print(&report);
     Ok(())
 }

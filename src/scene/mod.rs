@@ -4,10 +4,12 @@
 //! file order (../shared/formats.md); every later stage keeps them.
 
 mod aabb;
+pub mod find;
 mod material;
 mod obj;
 pub mod synthetic;
 
+pub use find::{resolve, set_scene_dir, SceneSource};
 pub use material::{BsdfKind, GpuMaterial, Material};
 pub use obj::{load_obj, parse_obj_bytes};
 
