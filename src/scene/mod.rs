@@ -1,7 +1,7 @@
 //! Scenes: triangle meshes loaded from OBJ+MTL.
 //!
 //! Triangle ids are OBJ face order after fan triangulation, across all objects and groups in
-//! file order (../shared/formats.md); every later stage keeps them.
+//! file order (docs/formats.md); every later stage keeps them.
 
 mod aabb;
 pub mod find;
