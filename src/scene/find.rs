@@ -79,9 +79,12 @@ pub fn is_builtin(path: &Path) -> bool {
     path == Path::new(BUILTIN_BUNNY)
 }
 
+/// A folder to search, and what it is.
+type Place = (PathBuf, &'static str);
+
 /// The folders searched for a name, in order, with what each is (for `found` and messages).
 /// The compiled-in bunny sits between the last two (see the module's documentation).
-fn search_dirs() -> (Vec<(PathBuf, &'static str)>, Vec<(PathBuf, &'static str)>) {
+fn search_dirs() -> (Vec<Place>, Vec<Place>) {
     let mut before = Vec::new();
     if let Some(d) = scene_dir_cell().lock().unwrap_or_else(|e| e.into_inner()).clone() {
         before.push((d, "--scene-dir"));

@@ -343,31 +343,25 @@ fn check_mtl(path: &Path, bytes: &[u8]) -> Result<()> {
         let mut words = line.split_whitespace();
         let Some(key) = words.next() else { continue };
         let args: Vec<&str> = words.collect();
-        let bad = |what: &str| Err(Error::bad_input(path, Some(n + 1), format!("`{key}` {what}: `{}`", line.trim())));
-        let number = |w: &str| w.parse::<f32>().is_ok();
-        match key {
-            "Ka" | "Kd" | "Ks" | "Ke" => {
-                if args.len() < 3 || !args[..3].iter().all(|w| number(w)) {
-                    return bad("needs three numbers (r g b)");
-                }
+        let number = |w: &&str| w.parse::<f32>().is_ok();
+        let problem = match key {
+            "Ka" | "Kd" | "Ks" | "Ke" if args.len() < 3 || !args[..3].iter().all(number) => {
+                Some("needs three numbers (r g b)")
             }
-            "Ns" | "Ni" | "d" => {
-                if !args.first().is_some_and(|w| number(w)) {
-                    return bad("needs a number");
-                }
-            }
-            "illum" => {
-                if !args.first().is_some_and(|w| w.parse::<u8>().is_ok()) {
-                    return bad("needs an illumination model number (0-10)");
-                }
+            "Ns" | "Ni" | "d" if !args.first().is_some_and(number) => Some("needs a number"),
+            "illum" if args.first().is_none_or(|w| w.parse::<u8>().is_err()) => {
+                Some("needs an illumination model number (0-10)")
             }
             "newmtl" | "map_Ka" | "map_Kd" | "map_Ks" | "map_Bump" | "map_bump" | "map_Ns" | "map_ns" | "map_NS"
-            | "bump" | "map_d" => {
-                if args.is_empty() {
-                    return bad("needs a name");
-                }
+            | "bump" | "map_d"
+                if args.is_empty() =>
+            {
+                Some("needs a name")
             }
-            _ => {}
+            _ => None,
+        };
+        if let Some(what) = problem {
+            return Err(Error::bad_input(path, Some(n + 1), format!("`{key}` {what}: `{}`", line.trim())));
         }
     }
     Ok(())
