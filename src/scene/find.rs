@@ -128,7 +128,7 @@ pub fn resolve(spec: &Path) -> Result<SceneSource> {
 fn resolve_quiet(spec: &Path) -> Result<SceneSource> {
     let text = spec.to_string_lossy().into_owned();
     let found = |path: PathBuf, how: &str| SceneSource { spec: text.clone(), path, found: how.to_owned() };
-    if super::synthetic::is_spec(spec) {
+    if crate::scene::synthetic::is_spec(spec) {
         return Ok(found(spec.to_owned(), "synthetic"));
     }
     if is_builtin(spec) {
@@ -140,7 +140,7 @@ fn resolve_quiet(spec: &Path) -> Result<SceneSource> {
         return Ok(found(spec.to_owned(), "path"));
     }
     if !is_name {
-        let stem = super::scene_name(spec);
+        let stem = crate::scene::scene_name(spec);
         let hint = if BUNDLED.contains(&stem.as_str()) {
             format!(" (the bundled scene's name, `{stem}`, is found from any folder)")
         } else {
@@ -209,12 +209,12 @@ mod tests {
 
     #[test]
     fn the_builtin_bunny_is_the_bundled_file() {
-        let built = super::super::load_obj(Path::new(BUILTIN_BUNNY)).unwrap();
-        let file = super::super::load_obj(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bunny.obj")).unwrap();
+        let built = crate::scene::load_obj(Path::new(BUILTIN_BUNNY)).unwrap();
+        let file = crate::scene::load_obj(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bunny.obj")).unwrap();
         assert_eq!(built.positions, file.positions);
         assert_eq!(built.triangles, file.triangles);
         assert_eq!(built.materials, file.materials);
         assert!(built.mtl_files.is_empty());
-        assert_eq!(super::super::scene_name(Path::new(BUILTIN_BUNNY)), "bunny");
+        assert_eq!(crate::scene::scene_name(Path::new(BUILTIN_BUNNY)), "bunny");
     }
 }
