@@ -10,6 +10,9 @@ mod cli;
 #[derive(Parser)]
 #[command(name = "trilab", version, about = cli::about(), after_help = cli::after_help())]
 struct Cli {
+    /// Folder searched first for scene names (`--scene bunny`), before TRILAB_SCENES, scenes/ beside the executable, the built-in bunny and the source tree.
+    #[arg(long, global = true, value_name = "DIR")]
+    scene_dir: Option<std::path::PathBuf>,
     #[command(subcommand)]
     command: Cmd,
 }
@@ -45,11 +48,11 @@ fn main() -> ExitCode {
         Err(e) => return cli::exit_parse_error(e),
     };
     cli::json_errors(cli::asks_for_json(&matches));
-    let command = match Cli::from_arg_matches(&matches) {
-        Ok(c) => c.command,
+    let args = match Cli::from_arg_matches(&matches) {
+        Ok(c) => c,
         Err(e) => return cli::exit_parse_error(e),
     };
-    let result = match command {
+    let result = trilab::scene::set_scene_dir(args.scene_dir).and_then(|()| match args.command {
         Cmd::Devices(a) => cli::devices::run(a),
         Cmd::Methods(a) => cli::methods::run(a),
         Cmd::Rays(a) => cli::rays::run(a),
@@ -70,6 +73,6 @@ fn main() -> ExitCode {
         Cmd::Man(a) => cli::man::run(a, Cli::command()),
         Cmd::DumpCli(a) => cli::dump::run(a, Cli::command()),
         Cmd::Hits(a) => cli::hits::run(a),
-    };
+    });
     cli::exit(result)
 }

@@ -26,6 +26,11 @@ pub struct AccuracyArgs {
     /// Leak rays per closed mesh and kind (default: the preset's; was `--rays`).
     #[arg(long, value_name = "N", alias = "rays")]
     leak_rays: Option<usize>,
+    /// Also measure leaks on this mesh (a path or a scene name; repeatable). It must be proven
+    /// closed (every edge shared by exactly two consistently wound triangles), else the run is
+    /// refused at once with the reason.
+    #[arg(long, value_name = "S")]
+    scene: Vec<PathBuf>,
     /// Output directory for accuracy.csv/json/md and plots. Default: results/<device>/accuracy/.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
@@ -49,6 +54,9 @@ pub fn run(a: AccuracyArgs) -> Result<()> {
         }
         o.leak_rays = n;
     }
+    o.scenes = a.scene.clone();
+    // Refused before the device is even opened: the proof needs no GPU.
+    accuracy::load_user_scenes(&o.scenes)?;
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.clone(), "accuracy");
     let files = ["accuracy.csv", "frontier.csv", "translation.csv", "accuracy.json", "accuracy.md"];

@@ -100,9 +100,11 @@ pub fn output_files(
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {
-    let scenes = if a.scenes.is_empty() { vec![PathBuf::from("scenes/bunny.obj")] } else { a.scenes.clone() };
+    let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
     let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench")?;
-    let inputs: Vec<&std::path::Path> = scenes.iter().map(PathBuf::as_path).collect();
+    // Names (`bunny`) resolve from any folder; the files found are the inputs to protect.
+    let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
+    let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
     for (option, out) in [("--json-out", &json_out), ("--md-out", &md_out)] {
         if let Some(out) = out {
             let option = if a.out.is_some() { "--out" } else { option };

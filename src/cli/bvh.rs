@@ -43,6 +43,7 @@ pub fn run(a: BvhArgs) -> Result<()> {
         }
         report.expect("at least one thread count")
     };
+    report.warnings.iter().for_each(|w| super::note(w));
     a.json.print(&report);
     Ok(())
 }

@@ -8,7 +8,7 @@ use trilab::harness::make_rays::{self, RaysKind};
 
 use super::JsonArg;
 
-/// Make a ray file (32-byte rays, docs/formats.md).
+/// Make a ray file and its sidecar `<out>.json` (scene hash, generator, settings; docs/formats.md).
 #[derive(Args)]
 pub struct RaysArgs {
     #[command(subcommand)]
@@ -77,6 +77,8 @@ pub fn run(a: RaysArgs) -> Result<()> {
         }
         RaysCmd::Random { common, random_rays, seed } => (common, RaysKind::Random { count: random_rays, seed }),
     };
-    common.json.print(&make_rays::run(&common.scene, &common.out, kind)?);
+    let report = make_rays::run(&common.scene, &common.out, kind)?;
+    report.warnings.iter().for_each(|w| super::note(w));
+    common.json.print(&report);
     Ok(())
 }

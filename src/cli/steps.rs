@@ -47,6 +47,8 @@ pub fn run(a: StepsArgs) -> Result<()> {
         gpu_methods: a.gpu.then(|| a.methods.methods.clone()),
     };
     let ctx = if a.gpu { Some(a.gpu_args.context()?) } else { None };
-    a.json.print(&steps::run(ctx.as_ref(), &req)?);
+    let report = steps::run(ctx.as_ref(), &req)?;
+    report.warnings.iter().for_each(|w| super::note(w));
+    a.json.print(&report);
     Ok(())
 }

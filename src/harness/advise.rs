@@ -26,6 +26,9 @@ pub struct AnalyzeReport {
     /// Where the available methods come from.
     #[serde(skip)]
     pub device_note: String,
+    /// What loading the scene warned about (a missing MTL, ignored normals): the CLI prints them.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Analyzes the scene at `scene` for `target`, judging methods by `frontier` (a `frontier.csv`,
@@ -60,6 +63,7 @@ pub fn run(scene: &Path, target: Target, frontier: Option<&Path>, device: Option
         available_methods: available,
         recommendation,
         device_note,
+        warnings: mesh.warnings.clone(),
     })
 }
 

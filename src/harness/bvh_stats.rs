@@ -39,6 +39,8 @@ pub struct BvhReport {
     pub sah_group: u32,
     pub leaf_policy: LeafPolicy,
     pub rows: Vec<BvhRow>,
+    /// What loading the scene warned about (a missing MTL, ignored normals): the CLI prints them.
+    pub warnings: Vec<String>,
 }
 
 impl Serialize for BvhReport {
@@ -69,6 +71,7 @@ pub fn run(scene: &Path, leaf_sizes: &[u32], leaf_policy: LeafPolicy, sah_group:
         sah_group,
         leaf_policy,
         rows,
+        warnings: mesh.warnings.clone(),
     })
 }
 

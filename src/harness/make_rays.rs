@@ -1,14 +1,17 @@
-//! `trilab rays`: a ray file (../shared/formats.md) for a scene: primary, diffuse or random rays.
+//! `trilab rays`: a ray file (docs/formats.md) for a scene: primary, diffuse or random rays,
+//! and its sidecar `<file>.json` (the scene's hash, the generator and its settings).
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
+use serde_json::json;
 
 use crate::bvh::BuildOptions;
 use crate::error::{Error, Result};
 use crate::harness::rayset::RaySet;
 use crate::pipeline::HostScene;
-use crate::rays::{self, Camera};
+use crate::rays::{self, Camera, RaySidecar};
 use crate::report::Report;
 use crate::scene::load_obj;
 
@@ -27,11 +30,33 @@ pub enum RaysKind {
 pub struct RaysReport {
     pub rays: usize,
     pub out: PathBuf,
+    /// The sidecar written beside `out`.
+    pub sidecar: PathBuf,
+    /// What loading the scene warned about.
+    pub warnings: Vec<String>,
 }
 
 impl Report for RaysReport {
     fn to_text(&self) -> String {
-        format!("wrote {} rays to {}\n", self.rays, self.out.display())
+        format!("wrote {} rays to {} (sidecar {})\n", self.rays, self.out.display(), self.sidecar.display())
+    }
+}
+
+impl RaysKind {
+    /// The generator's name, settings and seed, for the sidecar.
+    fn describe(&self) -> (&'static str, BTreeMap<String, serde_json::Value>, Option<u64>) {
+        let map = |kv: &[(&str, serde_json::Value)]| kv.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        match *self {
+            RaysKind::Primary { width, height } => {
+                ("primary", map(&[("width", json!(width)), ("height", json!(height))]), None)
+            }
+            RaysKind::Diffuse { width, height, per_hit, seed } => (
+                "diffuse",
+                map(&[("width", json!(width)), ("height", json!(height)), ("per_hit", json!(per_hit))]),
+                Some(seed),
+            ),
+            RaysKind::Random { count, seed } => ("random", map(&[("count", json!(count))]), Some(seed)),
+        }
     }
 }
 
@@ -39,7 +64,10 @@ impl Report for RaysReport {
 /// an MTL it reads).
 pub fn run(scene: &Path, out: &Path, kind: RaysKind) -> Result<RaysReport> {
     let mesh = load_obj(scene)?;
-    crate::io::ensure_not_inputs(out, scene, &mesh.mtl_files, &[])?;
+    let sidecar_path = rays::sidecar::sidecar_path(out);
+    for o in [out, sidecar_path.as_path()] {
+        crate::io::ensure_not_inputs(o, &mesh.source, &mesh.mtl_files, &[])?;
+    }
     let camera = || Camera::framing(&mesh.bounds());
     let rays = match kind {
         RaysKind::Primary { width, height } => rays::primary_rays(&camera(), width, height),
@@ -50,6 +78,7 @@ pub fn run(scene: &Path, out: &Path, kind: RaysKind) -> Result<RaysReport> {
         }
         RaysKind::Random { count, seed } => rays::random_rays(&mesh.bounds(), count, seed),
     };
+    let (generator, settings, seed) = kind.describe();
     if rays.is_empty() {
         // A ray file holds at least one ray (`read_rays` refuses an empty one).
         let why = match kind {
@@ -60,6 +89,23 @@ pub fn run(scene: &Path, out: &Path, kind: RaysKind) -> Result<RaysReport> {
         };
         return Err(Error::Usage(format!("{}: no rays to write ({why})", out.display())));
     }
+    // A set that cannot be represented is refused here, naming the scene's bounds.
+    let rays = rays::check_rays(generator, &mesh.bounds(), rays)?;
     rays::write_rays(out, &rays)?;
-    Ok(RaysReport { rays: rays.len(), out: out.to_owned() })
+    let name = crate::scene::scene_name(scene);
+    let sidecar = RaySidecar {
+        format: rays::sidecar::SIDECAR_FORMAT.into(),
+        count: rays.len(),
+        scene: name,
+        scene_source: mesh.source.display().to_string(),
+        scene_triangles: mesh.triangle_count(),
+        scene_sha256: rays::sidecar::scene_hash(&mesh),
+        generator: generator.into(),
+        settings,
+        seed,
+        trilab_version: env!("CARGO_PKG_VERSION").into(),
+        trilab_commit: crate::harness::provenance::commit(),
+    };
+    rays::sidecar::write_sidecar(out, &sidecar)?;
+    Ok(RaysReport { rays: rays.len(), out: out.to_owned(), sidecar: sidecar_path, warnings: mesh.warnings.clone() })
 }

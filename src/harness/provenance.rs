@@ -3,6 +3,7 @@
 use serde::Serialize;
 
 use crate::gpu::Context;
+use crate::scene::SceneSource;
 
 /// Where and when a measurement ran: device, driver, commit, date and host, carried by every
 /// report (and by every row of the study and the accuracy tables), so results from many runs and
@@ -17,6 +18,10 @@ pub struct Provenance {
     pub host_cpus: usize,
     pub lp_num_threads: Option<String>,
     pub timed_on_gpu: bool,
+    /// Where each scene named so far came from (a path as given, or a name found in
+    /// `--scene-dir`, `TRILAB_SCENES`, beside the executable, built in, or the source tree).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub scenes: Vec<SceneSource>,
 }
 
 impl Provenance {
@@ -31,6 +36,7 @@ impl Provenance {
             host_cpus: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
             lp_num_threads: std::env::var("LP_NUM_THREADS").ok(),
             timed_on_gpu: info.timestamp_valid_bits > 0,
+            scenes: crate::scene::find::resolved_scenes(),
         }
     }
 }

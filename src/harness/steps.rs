@@ -48,6 +48,8 @@ pub struct StepsReport {
     pub cpu: Vec<StepStats>,
     /// The mirror's own summary and each method's kernel counts.
     pub gpu: Option<(TraversalSummary, Vec<GpuSteps>)>,
+    /// What the CLI should tell the user (the ray file's sidecar names another scene).
+    pub warnings: Vec<String>,
 }
 
 impl Serialize for GpuSteps {
@@ -84,6 +86,8 @@ pub fn run(ctx: Option<&Context>, req: &StepsRequest) -> Result<StepsReport> {
     }
     let mesh = load_obj(&req.scene)?;
     let rays = rays::read_rays(&req.rays)?;
+    let warnings =
+        rays::check_sidecar(&req.rays, rays.len(), &crate::scene::scene_name(&req.scene), &mesh).into_iter().collect();
     let host = HostScene::build(crate::scene::scene_name(&req.scene), &mesh, &req.build)?;
     let cpu = req.widths.iter().map(|&w| step_stats(&mesh, &host.bvh, &rays, w)).collect();
     let gpu = match (&req.gpu_methods, ctx) {
@@ -91,7 +95,7 @@ pub fn run(ctx: Option<&Context>, req: &StepsRequest) -> Result<StepsReport> {
         (Some(methods), Some(ctx)) => Some(gpu_steps(ctx, &host, &rays, methods)?),
         (Some(_), None) => return Err(Error::Usage("steps: the kernels' counts need a device".into())),
     };
-    Ok(StepsReport { build: req.build, cpu, gpu })
+    Ok(StepsReport { build: req.build, cpu, gpu, warnings })
 }
 
 /// Each method's `stats` kernel beside the CPU mirror (the conservative mirror for methods that

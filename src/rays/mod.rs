@@ -1,12 +1,15 @@
-//! Ray and hit files (../shared/formats.md), ray-set generators and ray-spawn offsets.
+//! Ray and hit files (docs/formats.md) and their sidecars, ray-set generators and ray-spawn
+//! offsets.
 //!
 //! Both formats are headerless little-endian records, so the structs below are the records:
 //! [`Ray`] (32 bytes) and [`Hit`] (16 bytes) are also the GPU's buffer layouts.
 
 mod generate;
 pub mod offset;
+pub mod sidecar;
 
-pub use generate::{diffuse_rays, primary_rays, random_rays, Camera};
+pub use generate::{check_rays, diffuse_rays, primary_rays, random_rays, Camera};
+pub use sidecar::{check_sidecar, RaySidecar};
 
 use std::path::Path;
 

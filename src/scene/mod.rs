@@ -1,13 +1,15 @@
 //! Scenes: triangle meshes loaded from OBJ+MTL.
 //!
 //! Triangle ids are OBJ face order after fan triangulation, across all objects and groups in
-//! file order (../shared/formats.md); every later stage keeps them.
+//! file order (docs/formats.md); every later stage keeps them.
 
 mod aabb;
+pub mod find;
 mod material;
 mod obj;
 pub mod synthetic;
 
+pub use find::{resolve, set_scene_dir, SceneSource};
 pub use material::{BsdfKind, GpuMaterial, Material};
 pub use obj::{load_obj, parse_obj_bytes};
 

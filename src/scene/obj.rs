@@ -27,9 +27,22 @@ fn max_scene_bytes() -> u64 {
 /// points and lines are ignored. Errors: missing or unreadable file, corrupt gzip, text over
 /// the size limit, unparsable line, face index out of range, NaN/Inf coordinate, no triangles,
 /// missing or malformed MTL.
+///
+/// `path` may also be a scene's name (`bunny`), found as [`super::find`] says; the mesh's
+/// `source` is then the file read.
 pub fn load_obj(path: &Path) -> Result<Mesh> {
     if super::synthetic::is_spec(path) {
         return super::synthetic::load(path);
+    }
+    let found = super::find::resolve(path)?;
+    let path = found.path.as_path();
+    if super::find::is_builtin(path) {
+        let mut mesh = parse_obj_bytes(path, super::find::BUNNY_OBJ, |mtl| {
+            (mtl.file_name() == Some("bunny.mtl".as_ref())).then(|| super::find::BUNNY_MTL.to_vec())
+        })?;
+        // No file on disk that an output could overwrite.
+        mesh.mtl_files.clear();
+        return Ok(mesh);
     }
     let bytes = read_bytes(path, max_scene_bytes())?;
     parse_obj_bytes(path, &bytes, |mtl| std::fs::read(mtl).ok())
@@ -91,6 +104,8 @@ fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u
     let mtl_failure: RefCell<Option<Error>> = RefCell::new(None);
     // Each MTL file read, with how many materials it gave (tobj appends them in this order).
     let mtl_files: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
+    // Material libraries that could not be opened, as warnings.
+    let missing_mtl: RefCell<Vec<String>> = RefCell::new(Vec::new());
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = BufReader::new(text.as_bytes());
     // tobj indexes with unchecked integer arithmetic on some hostile inputs; [`check_face_indices`]
@@ -104,12 +119,15 @@ fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u
                 Err(kind)
             };
             let Some(bytes) = mtl_source(&full) else {
-                let e = Error::bad_input(
-                    &full,
-                    None,
-                    format!("material library named by {} (mtllib): cannot open it", path.display()),
-                );
-                return fail(e, tobj::LoadError::OpenFileFailed);
+                // Geometry needs no materials: a warning, and the default material for the
+                // triangles that name this library's materials.
+                missing_mtl.borrow_mut().push(format!(
+                    "{}: material library named by {} (mtllib) cannot be opened: its materials are \
+                     replaced by the default material (grey Lambert)",
+                    full.display(),
+                    path.display()
+                ));
+                return Ok((Vec::new(), Default::default()));
             };
             if let Err(e) = check_mtl(&full, &bytes) {
                 return fail(e, tobj::LoadError::MaterialParseError);
@@ -143,7 +161,8 @@ fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u
                 .unwrap_or_else(|| Error::bad_input(path, None, format!("material library (mtllib): {e}"))))
         }
     };
-    let mut warnings = Vec::new();
+    let mut warnings = missing_mtl.into_inner();
+    undefined_materials(path, text, &materials, &mut warnings);
     let files = mtl_files.into_inner();
     let file_of = |i: usize| {
         let mut end = 0;
@@ -292,20 +311,57 @@ fn first_index_over(text: &str, k: usize, total: u64) -> Option<(usize, i64)> {
     })
 }
 
-/// Rejects MTL colour lines with fewer than three values, which tobj 4's `parse_float3`
-/// unwraps (a panic on `Kd 1 2`). Everything else is left to tobj.
+/// Warns, once per name, about `usemtl` lines naming a material no library defines (tobj
+/// gives those triangles no material; they get the default one).
+fn undefined_materials(path: &Path, text: &str, materials: &[tobj::Material], warnings: &mut Vec<String>) {
+    let mut named: Vec<&str> = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        if line.split_whitespace().next() != Some("usemtl") {
+            continue;
+        }
+        let name = line.split_once(' ').map_or("", |x| x.1).trim();
+        if name.is_empty() || named.contains(&name) || materials.iter().any(|m| m.name == name) {
+            continue;
+        }
+        named.push(name);
+        warnings.push(format!(
+            "{}:{}: usemtl `{name}`: no material library defines it; using the default material (grey Lambert)",
+            path.display(),
+            n + 1
+        ));
+    }
+}
+
+/// Checks every MTL line tobj parses strictly, so a malformed one is named by file, line and
+/// key (tobj says only "material parse error"), and rejects colour lines with fewer than three
+/// values, which tobj 4's `parse_float3` unwraps (a panic on `Kd 1 2`). The rules are tobj's:
+/// colours take three numbers, `Ns`, `Ni` and `d` one, `illum` an integer 0-255, texture maps
+/// and `newmtl` a name.
 fn check_mtl(path: &Path, bytes: &[u8]) -> Result<()> {
     for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
         let Ok(line) = std::str::from_utf8(line) else { continue };
         let mut words = line.split_whitespace();
-        if let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() {
-            if words.count() < 3 {
-                return Err(Error::bad_input(
-                    path,
-                    Some(n + 1),
-                    format!("`{key}` needs three numbers (r g b): `{}`", line.trim()),
-                ));
+        let Some(key) = words.next() else { continue };
+        let args: Vec<&str> = words.collect();
+        let number = |w: &&str| w.parse::<f32>().is_ok();
+        let problem = match key {
+            "Ka" | "Kd" | "Ks" | "Ke" if args.len() < 3 || !args[..3].iter().all(number) => {
+                Some("needs three numbers (r g b)")
             }
+            "Ns" | "Ni" | "d" if !args.first().is_some_and(number) => Some("needs a number"),
+            "illum" if args.first().is_none_or(|w| w.parse::<u8>().is_err()) => {
+                Some("needs an illumination model number (0-10)")
+            }
+            "newmtl" | "map_Ka" | "map_Kd" | "map_Ks" | "map_Bump" | "map_bump" | "map_Ns" | "map_ns" | "map_NS"
+            | "bump" | "map_d"
+                if args.is_empty() =>
+            {
+                Some("needs a name")
+            }
+            _ => None,
+        };
+        if let Some(what) = problem {
+            return Err(Error::bad_input(path, Some(n + 1), format!("`{key}` {what}: `{}`", line.trim())));
         }
     }
     Ok(())
@@ -510,8 +566,45 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let obj = dir.path().join("a.obj");
         std::fs::write(&obj, "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
-        let e = load_obj(&obj).unwrap_err().to_string();
-        assert!(e.contains("missing.mtl") && e.contains("cannot open"), "{e}");
+        // A missing material library is a warning: geometry needs no materials.
+        let m = load_obj(&obj).unwrap();
+        assert_eq!(m.materials.len(), 1);
+        assert!(
+            m.warnings.iter().any(|w| w.contains("missing.mtl") && w.contains("cannot be opened")),
+            "{:?}",
+            m.warnings
+        );
+    }
+
+    #[test]
+    fn missing_mtllib_and_undefined_usemtl_warn_and_use_the_default() {
+        let obj = b"mtllib gone.mtl\nmtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\nusemtl blue\nf 1 2 3\nusemtl blue\nf 1 2 3\n";
+        let m = parse_obj_bytes(Path::new("d/a.obj"), obj, |p| {
+            (p == Path::new("d/m.mtl")).then(|| b"newmtl red\nKd 1 0 0\n".to_vec())
+        })
+        .unwrap();
+        assert_eq!(m.warnings.len(), 2, "{:?}", m.warnings);
+        assert!(m.warnings[0].starts_with("d/gone.mtl: material library named by d/a.obj"), "{:?}", m.warnings);
+        assert!(m.warnings[1].starts_with("d/a.obj:8: usemtl `blue`"), "{:?}", m.warnings);
+        assert_eq!(m.materials[m.material_ids[0] as usize].name, "red");
+        assert_eq!(m.materials[m.material_ids[1] as usize], Material::default());
+        assert_eq!(m.material_ids[1], m.material_ids[2]);
+    }
+
+    #[test]
+    fn malformed_mtl_lines_name_file_line_and_key() {
+        let obj = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        for (mtl, line, key) in [
+            ("newmtl a\nKd 1 x 0\n", 2, "`Kd`"),
+            ("newmtl a\nKd 1 1 1\n\nNs high\n", 4, "`Ns`"),
+            ("newmtl a\r\nillum two\r\n", 2, "`illum`"),
+            ("newmtl\n", 1, "`newmtl`"),
+            ("newmtl a\nmap_Kd\n", 2, "`map_Kd`"),
+        ] {
+            let e = parse_obj_bytes(Path::new("d/a.obj"), obj, |_| Some(mtl.as_bytes().to_vec()));
+            let e = e.unwrap_err().to_string();
+            assert!(e.starts_with(&format!("d/m.mtl:{line}:")) && e.contains(key), "{mtl:?}: {e}");
+        }
     }
 
     #[test]

@@ -93,6 +93,9 @@ pub struct AccuracyOptions {
     pub repeat: usize,
     /// Bundled scenes whose closedness is checked (and, if proven closed, used for leaks).
     pub real_scenes: Vec<PathBuf>,
+    /// The user's own meshes (`--scene`): each must be proven closed (else the run is refused
+    /// before any work), then its leaks are measured beside the generated meshes'.
+    pub scenes: Vec<PathBuf>,
     pub seed: u64,
 }
 
@@ -118,7 +121,8 @@ impl AccuracyOptions {
             bench_width: 800,
             bench_height: 600,
             repeat: 3,
-            real_scenes: vec![PathBuf::from("scenes/bunny.obj")],
+            real_scenes: vec![PathBuf::from("bunny")],
+            scenes: vec![],
             seed: 7,
         };
         match preset {
@@ -323,11 +327,33 @@ fn leak_scene(cm: &ClosedMesh, place: Placement, origins: usize, rng: &mut Rng) 
     }
 }
 
+/// The user's meshes (`--scene`), loaded and proven closed: a mesh that is not closed is
+/// refused with the proof's reason, before any ray is cast.
+pub fn load_user_scenes(paths: &[PathBuf]) -> Result<Vec<(String, Mesh)>> {
+    paths
+        .iter()
+        .map(|path| {
+            let mesh = crate::scene::load_obj(path)?;
+            if let Err(why) = prove_closed(&mesh.triangles) {
+                return Err(Error::Usage(format!(
+                    "accuracy --scene {}: not proven closed ({why}); leaks can only be measured on a closed mesh",
+                    path.display()
+                )));
+            }
+            Ok((crate::scene::scene_name(path), mesh))
+        })
+        .collect()
+}
+
 /// A real scene: checked for closedness; if closed, origins are drawn from its bounds and kept
 /// where the winding number proves them inside.
 fn real_leak_scene(path: &Path, origins: usize, rng: &mut Rng) -> Result<(LeakScene, bool)> {
     let mesh = crate::scene::load_obj(path)?;
-    let name = crate::scene::scene_name(path);
+    Ok(leak_scene_of(crate::scene::scene_name(path), mesh, origins, rng))
+}
+
+/// [`real_leak_scene`] for a loaded mesh.
+fn leak_scene_of(name: String, mesh: Mesh, origins: usize, rng: &mut Rng) -> (LeakScene, bool) {
     let closed = prove_closed(&mesh.triangles);
     let mut o = Vec::new();
     let mut rejected = 0;
@@ -354,7 +380,7 @@ fn real_leak_scene(path: &Path, origins: usize, rng: &mut Rng) -> Result<(LeakSc
         origins: o.len(),
         rejected_origins: rejected,
     };
-    Ok((LeakScene { name, mesh, origins: o, info }, ok))
+    (LeakScene { name, mesh, origins: o, info }, ok)
 }
 
 /// Runs the study. `progress` gets one line per step.
@@ -367,6 +393,15 @@ pub fn run(ctx: &Context, o: &AccuracyOptions, mut progress: impl FnMut(&str)) -
         if !(1..=crate::bvh::MAX_LEAF_SIZE).contains(&l) {
             return Err(Error::Usage(format!("accuracy: leaf size {l} is not 1..={}", crate::bvh::MAX_LEAF_SIZE)));
         }
+    }
+    // The user's meshes are refused now, not after the generated meshes' rays.
+    let user_scenes = load_user_scenes(&o.scenes)?;
+    // Bundled scenes are found (or refused) now, and so named in the provenance.
+    for path in &o.real_scenes {
+        crate::scene::resolve(path)?;
+    }
+    if o.bench_width > 0 && o.bench_height > 0 {
+        crate::scene::resolve(Path::new("bunny"))?;
     }
     let (tracers, unsupported) = tracers(ctx, &o.methods)?;
     for (m, why) in &unsupported {
@@ -390,7 +425,7 @@ pub fn run(ctx: &Context, o: &AccuracyOptions, mut progress: impl FnMut(&str)) -
     };
     let mut rng = Rng::new(o.seed);
     if o.leak_rays > 0 {
-        leaks_and_false_hits(ctx, o, &tracers, &mut report, &mut rng, &mut progress)?;
+        leaks_and_false_hits(ctx, o, user_scenes, &tracers, &mut report, &mut rng, &mut progress)?;
     }
     if o.self_rays > 0 {
         for &k in &o.self_scales {
@@ -420,6 +455,7 @@ pub fn run(ctx: &Context, o: &AccuracyOptions, mut progress: impl FnMut(&str)) -
 fn leaks_and_false_hits(
     ctx: &Context,
     o: &AccuracyOptions,
+    user_scenes: Vec<(String, Mesh)>,
     tracers: &[Tracer],
     report: &mut AccuracyReport,
     rng: &mut Rng,
@@ -430,10 +466,7 @@ fn leaks_and_false_hits(
         .map(|cm| leak_scene(cm, Placement::IDENTITY, o.origins, rng))
         .collect();
     for path in &o.real_scenes {
-        if !path.is_file() {
-            progress(&format!("{}: not found; closedness not checked", path.display()));
-            continue;
-        }
+        // Bundled names resolve from any folder; one found nowhere is an error, not a skip.
         let (scene, usable) = real_leak_scene(path, o.origins, rng)?;
         report.real_scenes.push((scene.name.clone(), scene.info.triangles, scene.info.closed.clone()));
         match &scene.info.closed {
@@ -443,6 +476,21 @@ fn leaks_and_false_hits(
         if usable {
             scenes.push(scene);
         }
+    }
+    for (name, mesh) in user_scenes {
+        // Proven closed by `load_user_scenes`; origins still have to be found inside it.
+        let (scene, usable) = leak_scene_of(name, mesh, o.origins, rng);
+        if !usable {
+            return Err(Error::Usage(format!(
+                "accuracy --scene {}: closed, but none of {} random points in its bounds is proven inside it \
+                 (a very thin mesh?); no leak rays can start inside it",
+                scene.name,
+                o.origins * 8
+            )));
+        }
+        progress(&format!("{}: proven closed; {} inside origins; used for leaks", scene.name, scene.origins.len()));
+        report.real_scenes.push((scene.name.clone(), scene.info.triangles, scene.info.closed.clone()));
+        scenes.push(scene);
     }
     // Per leaf size and method: (all leak rays' GPU hits, reference hits) for the error rows.
     let mut errors: Vec<ErrorSample> = Vec::new();
@@ -740,9 +788,7 @@ fn frontier(
     report: &mut AccuracyReport,
     progress: &mut impl FnMut(&str),
 ) -> Result<()> {
-    let path = PathBuf::from("scenes/bunny.obj");
-    let path = if path.is_file() { path } else { PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/bunny.obj") };
-    let mesh = crate::scene::load_obj(&path)?;
+    let mesh = crate::scene::load_obj(Path::new("bunny"))?;
     let host = HostScene::build("bunny", &mesh, &BuildOptions::new(FIXED_LEAF))?;
     let reference = host.reference();
     let primary = crate::rays::primary_rays(&Camera::framing(&mesh.bounds()), o.bench_width, o.bench_height);

@@ -74,7 +74,7 @@ pub struct ProfileOptions {
 impl Default for ProfileOptions {
     fn default() -> Self {
         ProfileOptions {
-            scene: PathBuf::from("scenes/bunny.obj"),
+            scene: PathBuf::from("bunny"),
             methods: Method::ALL.to_vec(),
             leaf_size: 4,
             width: 800,

@@ -291,6 +291,7 @@ mod tests {
             host_cpus: 1,
             lp_num_threads: None,
             timed_on_gpu: true,
+            scenes: vec![],
         };
         let mut rows = vec![];
         for sc in scenes {

@@ -74,19 +74,15 @@ pub struct StudyOptions {
     pub seed: u64,
 }
 
-/// A `--scenes` entry: a bundled scene's name (`bunny`) or a path.
+/// A `--scenes` entry: a scene's name (`bunny`, found from any folder by
+/// [`crate::scene::resolve`]) or a path.
 pub fn scene_path(s: &str) -> PathBuf {
-    let p = PathBuf::from(s);
-    if p.extension().is_none() && p.components().count() == 1 {
-        PathBuf::from(format!("scenes/{s}.obj"))
-    } else {
-        p
-    }
+    PathBuf::from(s)
 }
 
 impl StudyOptions {
     pub fn preset(preset: Preset) -> StudyOptions {
-        let scenes = |names: &[&str]| names.iter().map(|s| PathBuf::from(format!("scenes/{s}.obj"))).collect();
+        let scenes = |names: &[&str]| names.iter().map(PathBuf::from).collect();
         let base = StudyOptions {
             preset,
             scenes: scenes(&["bunny", "dragon", "buddha"]),
@@ -143,9 +139,7 @@ impl StudyOptions {
             return Err(Error::Usage(format!("--sah-group {}: expected 1 or 4", self.sah_group)));
         }
         for scene in &self.scenes {
-            if !scene.is_file() {
-                return Err(Error::Usage(format!("study: scene {} does not exist", scene.display())));
-            }
+            crate::scene::resolve(scene)?;
         }
         Ok(())
     }
