@@ -141,7 +141,7 @@ fn bad_values_are_refused_naming_the_option() {
     refused(&["rays", "random", "--scene", BUNNY, "--out", &x, "--random-rays", "0"], &["--random-rays 0"]);
     refused(&["rays", "primary", "--scene", BUNNY, "--out", &x, "--width", "0"], &["--width"]);
     assert!(!d.join("x.rays").exists());
-    refused(&["accuracy", "--preset", "smoke", "--rays", "0", "--out", &s(&d.join("acc"))], &["--rays 0"]);
+    refused(&["accuracy", "--preset", "smoke", "--leak-rays", "0", "--out", &s(&d.join("acc"))], &["--leak-rays 0"]);
     refused(&["study", "--preset", "smoke", "--leaf-sizes", "0", "--out", &s(&d.join("st"))], &["--leaf-size 0"]);
     refused(&["bvh", "--scene", BUNNY, "--threads", "0"], &["--threads"]);
     refused(&["analyze", "--scene", &s(&empty_obj)], &["empty.obj"]);

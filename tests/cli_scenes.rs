@@ -252,7 +252,7 @@ fn ray_files_carry_a_sidecar_and_another_scene_is_warned_about() {
     let o = trilab_in(
         d,
         &[],
-        &["rays", "random", "--scene", "bunny", "--count", "2000", "--seed", "3", "--out", "b.rays"],
+        &["rays", "random", "--scene", "bunny", "--random-rays", "2000", "--seed", "3", "--out", "b.rays"],
         60,
     );
     ok(&o);
@@ -273,6 +273,10 @@ fn ray_files_carry_a_sidecar_and_another_scene_is_warned_about() {
         trilab_in(d, &[], &["raycast", "--scene", scene, "--rays", rays, "--out", "h.hits", "--method", "mt"], 120)
     };
     let e = ok(&cast("ball.obj", "b.rays"));
+    assert!(e.contains("made for scene `bunny`") && e.contains("`ball`"), "{e}");
+    // `hits check` reads the same sidecar (its exit code is the check's, not the warning's).
+    let o = trilab_in(d, &[], &["hits", "check", "--scene", "ball.obj", "--rays", "b.rays", "h.hits"], 120);
+    let e = String::from_utf8_lossy(&o.stderr).into_owned();
     assert!(e.contains("made for scene `bunny`") && e.contains("`ball`"), "{e}");
     let e = ok(&cast("bunny", "b.rays"));
     assert!(!e.contains("made for scene"), "{e}");

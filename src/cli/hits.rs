@@ -72,6 +72,7 @@ pub fn run(a: HitsArgs) -> Result<()> {
         HitsCmd::Show { file, limit, json } => json.print(&hits::show(&file, limit)?),
         HitsCmd::Check { scene, rays, file, any_hit, bvh, json } => {
             let report = hits::check(&scene, &rays, &file, any_hit, &bvh.options())?;
+            report.warnings.iter().for_each(|w| super::note(w));
             json.print(&report);
             if !report.passes {
                 return Err(Error::Usage(format!(

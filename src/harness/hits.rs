@@ -108,6 +108,9 @@ pub struct CheckReport {
     pub examples: Vec<Disagreement>,
     /// The first impossible values: (ray, what).
     pub invalid_examples: Vec<(usize, String)>,
+    /// The scene's load warnings, and the ray file's sidecar naming another scene.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Checks `file` (closest hits, or any-hit results with `any_hit`) for `rays_file` over `scene`
@@ -145,7 +148,9 @@ pub fn check(scene: &Path, rays_file: &Path, file: &Path, any_hit: bool, build: 
         summary: String::new(),
         examples: vec![],
         invalid_examples: vec![],
+        warnings: mesh.warnings.clone(),
     };
+    report.warnings.extend(rays::check_sidecar(rays_file, rays.len(), &crate::scene::scene_name(scene), &mesh));
     if any_hit {
         let closest: Vec<Hit> = reference.iter().map(|h| h.to_hit()).collect();
         let c = compare_any(&mesh, &rays, &closest, &hits);
