@@ -467,7 +467,7 @@ fn with_json_errors_are_json_with_the_same_exit_code() {
     assert!(!plain.status.success());
     assert_eq!(json.status.code(), plain.status.code(), "the same exit code");
     let v: Value = serde_json::from_str(stdout(&json).trim()).unwrap_or_else(|e| panic!("{e}: {}", stdout(&json)));
-    assert_eq!(v["error"]["kind"], "io");
+    assert_eq!(v["error"]["kind"], "bad-input");
     assert!(v["error"]["message"].as_str().unwrap().contains("/no/such/scene.obj"), "{v}");
     // An argument clap refuses: JSON too, with clap's exit code.
     let o = trilab(&["bvh", "--scene", "x.obj", "--leaf-sizes", "four", "--json"], 30);

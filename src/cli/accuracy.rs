@@ -7,7 +7,7 @@ use trilab::error::Result;
 use trilab::harness::accuracy::{self, AccuracyOptions, Preset};
 
 use super::choice::choice;
-use super::{results_dir, GpuArgs, JsonArg, MethodsArg};
+use super::{results_dir, scene_help, GpuArgs, JsonArg, MethodsArg};
 
 /// Intersection accuracy per method x leaf size: leaks on closed meshes, false hits,
 /// t/barycentric error, self-intersection per offset scheme, extremes, and the speed frontier;
@@ -26,10 +26,9 @@ pub struct AccuracyArgs {
     /// Leak rays per closed mesh and kind (default: the preset's; was `--rays`).
     #[arg(long, value_name = "N", alias = "rays")]
     leak_rays: Option<usize>,
-    /// Also measure leaks on this mesh (a path or a scene name; repeatable). It must be proven
-    /// closed (every edge shared by exactly two consistently wound triangles), else the run is
-    /// refused at once with the reason.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", help = concat!(scene_help!(), ". Also measure leaks on this mesh \
+        (repeatable); it must be proven closed (every edge shared by exactly two consistently wound \
+        triangles), else the run is refused at once with the reason"))]
     scene: Vec<PathBuf>,
     /// Output directory for accuracy.csv/json/md and plots. Default: results/<device>/accuracy/.
     #[arg(long, value_name = "DIR")]

@@ -6,7 +6,7 @@ use clap::{Args, Subcommand};
 use trilab::error::{Error, Result};
 use trilab::harness::hits::{self, DiffTolerance};
 
-use super::{BuildArgs, JsonArg};
+use super::{scene_help, BuildArgs, JsonArg};
 
 /// Hit files (`raycast --out`): print one, check one against the CPU f64 reference, or diff two
 /// (exit status 1 when they differ, as `diff`'s).
@@ -32,11 +32,10 @@ enum HitsCmd {
     /// and the disagreements rounding explains (near an edge or a tie) or does not. Exit status
     /// 1 when any is unexplained or a record is impossible.
     Check {
-        /// The scene the rays were cast against (OBJ).
-        #[arg(long)]
+        #[arg(long, value_name = "S", help = concat!(scene_help!(), "; the scene the rays were cast against"))]
         scene: PathBuf,
-        /// The ray file the hits answer.
-        #[arg(long)]
+        /// The ray file the hits answer (32-byte rays, docs/formats.md).
+        #[arg(long, value_name = "FILE")]
         rays: PathBuf,
         /// The hit file.
         file: PathBuf,
@@ -51,7 +50,11 @@ enum HitsCmd {
     /// Print the rays whose hit changed between two hit files (a different triangle, miss <->
     /// hit, t or u/v beyond the tolerances) and the totals; exit status 1 when any differ.
     Diff {
+        /// The first (base) hit file.
+        #[arg(value_name = "BASE")]
         a: PathBuf,
+        /// The second (new) hit file, compared with BASE ray by ray.
+        #[arg(value_name = "NEW")]
         b: PathBuf,
         /// Relative difference in t still counted as the same hit.
         #[arg(long, default_value_t = 0.0)]

@@ -159,6 +159,7 @@ impl JsonArg {
     pub fn print(&self, report: &impl Report) {
         if self.json {
             println!("{}", report.to_json());
+            REPORT_PRINTED.store(true, Ordering::Relaxed);
         } else {
             print!("{}", report.to_text());
         }
@@ -167,6 +168,11 @@ impl JsonArg {
 
 /// Whether errors are printed as JSON on stdout (the command was given `--json`).
 static JSON_ERRORS: AtomicBool = AtomicBool::new(false);
+
+/// Whether a JSON report is already on stdout: a command whose report carries its own failure
+/// (`raycast --reference`, `hits check`, `hits diff`) then leaves stdout one JSON document and
+/// says the error on stderr only.
+static REPORT_PRINTED: AtomicBool = AtomicBool::new(false);
 
 /// Asks [`exit`] (and [`exit_parse_error`]) to print errors as JSON on stdout.
 pub fn json_errors(on: bool) {
@@ -256,7 +262,7 @@ pub fn exit(result: Result<()>) -> ExitCode {
     match result {
         Err(e) => {
             eprintln!("trilab: error: {e}");
-            if json {
+            if json && !REPORT_PRINTED.load(Ordering::Relaxed) {
                 println!("{}", json_error(error_kind(&e), &e.to_string(), &messages));
             }
             ExitCode::FAILURE
