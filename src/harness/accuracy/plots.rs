@@ -45,6 +45,8 @@ fn panel(
         .map_err(|e| plot_err(what, e))?;
     chart
         .configure_mesh()
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
         .x_desc(format!("{x_desc} (0 drawn at {floor:.2e})"))
         .y_desc("Mrays/s (median, min-max)")
         .draw()

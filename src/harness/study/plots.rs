@@ -41,6 +41,8 @@ fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
             .map_err(|e| plot_err(what, e))?;
         chart
             .configure_mesh()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
             .x_desc("triangles per leaf")
             .y_desc("seconds (median, min-max)")
             .x_label_formatter(&|v| match v {
@@ -103,6 +105,8 @@ fn mrays_per_set(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
             .map_err(|e| plot_err(what, e))?;
         chart
             .configure_mesh()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
             .disable_x_mesh()
             .x_labels(sets.len())
             .x_label_formatter(&|x| {
@@ -174,6 +178,8 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
             .map_err(|e| plot_err(what, e))?;
         chart
             .configure_mesh()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
             .x_desc("SPIR-V function-body instructions")
             .x_label_formatter(&|x| format!("{x:.0}"))
             .y_desc("time relative to Möller-Trumbore")
