@@ -227,7 +227,11 @@ impl FromStr for CameraSpec {
             .collect::<std::result::Result<_, _>>()
             .map_err(|e| format!("`{s}`: {e}; expected {}", CameraSpec::HELP))?;
         if v.len() != 10 || v.iter().any(|x| !x.is_finite()) {
-            return Err(format!("`{s}`: expected {}", CameraSpec::HELP));
+            return Err(format!(
+                "`{s}`: {} numbers, expected 10 finite ones (eye, target, up, fov), or a preset: {}",
+                v.len(),
+                CameraSpec::HELP
+            ));
         }
         let spec = CameraSpec::Look {
             eye: [v[0], v[1], v[2]],
