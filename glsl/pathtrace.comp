@@ -240,58 +240,67 @@ void main() {
             vec3 wo = vec3(dot(-dir, tx), dot(-dir, ty), dot(-dir, n));
             uint dim = DIMS_PER_VERTEX * depth;
 
-            // Next-event estimation: one point on one emissive triangle.
-            if (lights && !bsdf_is_delta(m.kind)) {
-                uint li = pick_light(rand01(key, dim + DIM_LIGHT_PICK));
-                vec4 l0 = imageLoad(scene_lights, int(3u * li));
-                vec4 l1 = imageLoad(scene_lights, int(3u * li + 1u));
-                vec4 l2 = imageLoad(scene_lights, int(3u * li + 2u));
-                float a = rand01(key, dim + DIM_LIGHT_U);
-                float b = rand01(key, dim + DIM_LIGHT_V);
-                if (a + b > 1.0) {
-                    a = 1.0 - a;
-                    b = 1.0 - b;
-                }
-                vec3 lp = l0.xyz + a * l1.xyz + b * l2.xyz;
-                vec3 ln = normalize(cross(l1.xyz, l2.xyz));
-                vec3 o = spawn(p, n, lp - p);
-                vec3 to_light = lp - o;
-                float dist2 = dot(to_light, to_light);
-                float dist = sqrt(dist2);
-                vec3 wl = to_light / dist;
-                float cos_light = -dot(ln, wl);
-                vec3 wi = vec3(dot(wl, tx), dot(wl, ty), dot(wl, n));
-                Material lm = load_material(floatBitsToUint(l1.w));
-                vec3 f = bsdf_eval(m, wo, wi);
-                if (cos_light > 0.0 && max3(f) > 0.0 && max3(lm.emission) > 0.0) {
-                    float light_pdf = light_area_pdf(lm.emission) * dist2 / cos_light;
-                    float bsdf_pdf_v = bsdf_pdf(m, wo, wi);
-                    ++shadow_rays;
-                    if (!occluded(o, wl, dist * (1.0 - 1.0e-4))) {
-                        float w = power_heuristic(light_pdf, bsdf_pdf_v);
-                        radiance += beta * f * abs(wi.z) * lm.emission * (w / light_pdf);
+            // Next-event estimation, one sample per light kind: k = 0, one point on one emissive
+            // triangle; k = 1, a direction uniform over the sun's cone (density 1 / solid angle).
+            // One occlusion ray each; one loop, so the traversal is compiled once.
+            if (!bsdf_is_delta(m.kind)) {
+                for (uint k = 0u; k < 2u; ++k) {
+                    vec3 o;
+                    vec3 wl;
+                    float tmax;
+                    vec3 le;
+                    float light_pdf = 0.0;
+                    if (k == 0u) {
+                        if (!lights) {
+                            continue;
+                        }
+                        uint li = pick_light(rand01(key, dim + DIM_LIGHT_PICK));
+                        vec4 l0 = imageLoad(scene_lights, int(3u * li));
+                        vec4 l1 = imageLoad(scene_lights, int(3u * li + 1u));
+                        vec4 l2 = imageLoad(scene_lights, int(3u * li + 2u));
+                        float a = rand01(key, dim + DIM_LIGHT_U);
+                        float b = rand01(key, dim + DIM_LIGHT_V);
+                        if (a + b > 1.0) {
+                            a = 1.0 - a;
+                            b = 1.0 - b;
+                        }
+                        vec3 lp = l0.xyz + a * l1.xyz + b * l2.xyz;
+                        vec3 ln = normalize(cross(l1.xyz, l2.xyz));
+                        o = spawn(p, n, lp - p);
+                        vec3 to_light = lp - o;
+                        float dist2 = dot(to_light, to_light);
+                        float dist = sqrt(dist2);
+                        wl = to_light / dist;
+                        tmax = dist * (1.0 - 1.0e-4);
+                        float cos_light = -dot(ln, wl);
+                        le = load_material(floatBitsToUint(l1.w)).emission;
+                        if (cos_light > 0.0 && max3(le) > 0.0) {
+                            light_pdf = light_area_pdf(le) * dist2 / cos_light;
+                        }
+                    } else {
+                        if (!sun_nee) {
+                            continue;
+                        }
+                        float cos_max = params.sun_dir.w;
+                        float cos_t = 1.0 - rand01(key, dim + DIM_SUN_U) * (1.0 - cos_max);
+                        float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
+                        float phi = 6.28318530717958647692 * rand01(key, dim + DIM_SUN_V);
+                        vec3 sx, sy;
+                        basis_from(params.sun_dir.xyz, sx, sy);
+                        wl = normalize(sin_t * (cos(phi) * sx + sin(phi) * sy) + cos_t * params.sun_dir.xyz);
+                        o = spawn(p, n, wl);
+                        tmax = uintBitsToFloat(0x7f800000u);
+                        le = params.sun_radiance.rgb;
+                        light_pdf = params.sun_radiance.w;
                     }
-                }
-            }
-
-            // Next-event estimation towards the sun: a direction uniform over its cone (density
-            // 1 / solid angle), an occlusion ray to infinity.
-            if (sun_nee && !bsdf_is_delta(m.kind)) {
-                float cos_max = params.sun_dir.w;
-                float cos_t = 1.0 - rand01(key, dim + DIM_SUN_U) * (1.0 - cos_max);
-                float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
-                float phi = 6.28318530717958647692 * rand01(key, dim + DIM_SUN_V);
-                vec3 sx, sy;
-                basis_from(params.sun_dir.xyz, sx, sy);
-                vec3 wl = normalize(sin_t * (cos(phi) * sx + sin(phi) * sy) + cos_t * params.sun_dir.xyz);
-                vec3 wi = vec3(dot(wl, tx), dot(wl, ty), dot(wl, n));
-                vec3 f = bsdf_eval(m, wo, wi);
-                if (max3(f) > 0.0) {
-                    ++shadow_rays;
-                    if (!occluded(spawn(p, n, wl), wl, uintBitsToFloat(0x7f800000u))) {
-                        float sun_pdf = params.sun_radiance.w;
-                        float w = power_heuristic(sun_pdf, bsdf_pdf(m, wo, wi));
-                        radiance += beta * f * abs(wi.z) * params.sun_radiance.rgb * (w / sun_pdf);
+                    vec3 wi = vec3(dot(wl, tx), dot(wl, ty), dot(wl, n));
+                    vec3 f = bsdf_eval(m, wo, wi);
+                    if (light_pdf > 0.0 && max3(f) > 0.0) {
+                        ++shadow_rays;
+                        if (!occluded(o, wl, tmax)) {
+                            float w = power_heuristic(light_pdf, bsdf_pdf(m, wo, wi));
+                            radiance += beta * f * abs(wi.z) * le * (w / light_pdf);
+                        }
                     }
                 }
             }
