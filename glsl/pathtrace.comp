@@ -5,9 +5,14 @@
 //
 // Per vertex: closest hit (the variant's intersector and traverse.glsl, as in raycast.comp),
 // emission weighted by MIS, next-event estimation towards one emissive triangle with an
-// occlusion ray, BSDF sampling, Russian roulette. Lights: a constant environment (reached by
-// BSDF sampling only) and emissive triangles (sampled by area x mean emitted radiance).
-// MIS: power heuristic, beta = 2 (Veach & Guibas, SIGGRAPH 1995).
+// occlusion ray, next-event estimation towards the sun with an occlusion ray, BSDF sampling,
+// Russian roulette. Lights: the environment (a sky gradient and a ground, reached by BSDF
+// sampling only; a constant environment is the case of equal colours), the sun (a small disc of
+// constant radiance, sampled uniformly over its cone) and emissive triangles (sampled by area x
+// mean emitted radiance). Each light is found two ways, by its own next-event sample and by BSDF
+// sampling, and the two are combined by multiple importance sampling with the power heuristic,
+// beta = 2: w_s = p_s^2 / (p_light^2 + p_bsdf^2), both densities per unit solid angle (Veach &
+// Guibas, SIGGRAPH 1995; Veach's thesis, 1997, section 9.2; pbrt-v3, section 13.10.1).
 //
 // Variants: `all` carries every BSDF; the others carry one each (BSDF_MASK). SPEC_BSDF_MASK,
 // a specialisation constant, narrows `all` to a scene's set at pipeline creation, so the driver
@@ -27,7 +32,7 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform Params {
     vec4 cam_right;     // xyz: unit right; w: width / height
     vec4 cam_up;        // xyz: unit up
     vec4 cam_forward;   // xyz: unit forward
-    vec4 env;           // rgb: constant environment radiance; w: total light weight (sum over emissive triangles of area * mean Ke)
+    vec4 env;           // rgb: environment radiance below the horizon (ground); w: total light weight (sum over emissive triangles of area * mean Ke)
     uint width;
     uint height;
     uint max_depth;     // most scattering events per path
@@ -36,6 +41,10 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform Params {
     uint light_count;   // emissive triangles
     float ray_eps;      // spawn offset, relative to max(|p|, scene_extent)
     float scene_extent; // largest side of the scene's bounds
+    vec4 sky_zenith;    // rgb: environment radiance towards +y (linear in d.y down to the horizon)
+    vec4 sky_horizon;   // rgb: environment radiance at the horizon
+    vec4 sun_dir;       // xyz: unit direction towards the sun; w: cos of its angular radius
+    vec4 sun_radiance;  // rgb: radiance within the sun's disc (beyond the sky); w: 1 / its solid angle, 0 without next-event estimation
 } params;
 
 // Sum of radiance (rgb) and of primary-ray coverage (a) per pixel, over all samples so far.
@@ -62,7 +71,7 @@ layout(push_constant) uniform Push {
 layout(local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
 
 // Draws per scattering event (dimension = DIMS_PER_VERTEX * depth + one of the offsets below).
-const uint DIMS_PER_VERTEX = 10u;
+const uint DIMS_PER_VERTEX = 12u;
 const uint DIM_PIXEL_X = 0u;
 const uint DIM_PIXEL_Y = 1u;
 const uint DIM_LIGHT_PICK = 2u;
@@ -70,6 +79,8 @@ const uint DIM_LIGHT_U = 3u;
 const uint DIM_LIGHT_V = 4u;
 const uint DIM_BSDF = 5u; // three draws
 const uint DIM_RR = 8u;
+const uint DIM_SUN_U = 9u;
+const uint DIM_SUN_V = 10u;
 
 float mean3(vec3 c) {
     return (c.x + c.y + c.z) * (1.0 / 3.0);
@@ -122,6 +133,17 @@ bool occluded(vec3 o, vec3 d, float tmax) {
     return h.slot != MISS_ID;
 }
 
+// Environment radiance towards `d` (unit), the sun excluded: the ground below the horizon, above
+// it a gradient linear in d.y from the horizon's colour to the zenith's.
+vec3 sky_radiance(vec3 d) {
+    return d.y < 0.0 ? params.env.rgb : mix(params.sky_horizon.rgb, params.sky_zenith.rgb, d.y);
+}
+
+// Whether unit direction `d` falls within the sun's disc.
+bool in_sun(vec3 d) {
+    return dot(d, params.sun_dir.xyz) >= params.sun_dir.w;
+}
+
 // Light selection: the first light whose cdf exceeds u (binary search).
 uint pick_light(float u) {
     uint lo = 0u;
@@ -172,12 +194,22 @@ void main() {
         vec3 beta = vec3(1.0);
         float prev_pdf = 0.0;
         bool prev_delta = true; // the camera vertex: emission seen directly gets full weight
+        bool sun_nee = params.sun_radiance.w > 0.0 && max3(params.sun_radiance.rgb) > 0.0;
         float coverage = 0.0;
         for (uint depth = 0u;; ++depth) {
             HitState h = trace_closest(origin, dir);
             ++closest_rays;
             if (h.slot == MISS_ID) {
-                radiance += beta * params.env.rgb;
+                radiance += beta * sky_radiance(dir);
+                if (in_sun(dir)) {
+                    // The sun found by BSDF sampling, weighted against its next-event sample
+                    // (full weight when that could not have drawn it).
+                    float w = 1.0;
+                    if (sun_nee && !prev_delta) {
+                        w = power_heuristic(prev_pdf, params.sun_radiance.w);
+                    }
+                    radiance += beta * params.sun_radiance.rgb * w;
+                }
                 break;
             }
             if (depth == 0u) {
@@ -208,36 +240,67 @@ void main() {
             vec3 wo = vec3(dot(-dir, tx), dot(-dir, ty), dot(-dir, n));
             uint dim = DIMS_PER_VERTEX * depth;
 
-            // Next-event estimation: one point on one emissive triangle.
-            if (lights && !bsdf_is_delta(m.kind)) {
-                uint li = pick_light(rand01(key, dim + DIM_LIGHT_PICK));
-                vec4 l0 = imageLoad(scene_lights, int(3u * li));
-                vec4 l1 = imageLoad(scene_lights, int(3u * li + 1u));
-                vec4 l2 = imageLoad(scene_lights, int(3u * li + 2u));
-                float a = rand01(key, dim + DIM_LIGHT_U);
-                float b = rand01(key, dim + DIM_LIGHT_V);
-                if (a + b > 1.0) {
-                    a = 1.0 - a;
-                    b = 1.0 - b;
-                }
-                vec3 lp = l0.xyz + a * l1.xyz + b * l2.xyz;
-                vec3 ln = normalize(cross(l1.xyz, l2.xyz));
-                vec3 o = spawn(p, n, lp - p);
-                vec3 to_light = lp - o;
-                float dist2 = dot(to_light, to_light);
-                float dist = sqrt(dist2);
-                vec3 wl = to_light / dist;
-                float cos_light = -dot(ln, wl);
-                vec3 wi = vec3(dot(wl, tx), dot(wl, ty), dot(wl, n));
-                Material lm = load_material(floatBitsToUint(l1.w));
-                vec3 f = bsdf_eval(m, wo, wi);
-                if (cos_light > 0.0 && max3(f) > 0.0 && max3(lm.emission) > 0.0) {
-                    float light_pdf = light_area_pdf(lm.emission) * dist2 / cos_light;
-                    float bsdf_pdf_v = bsdf_pdf(m, wo, wi);
-                    ++shadow_rays;
-                    if (!occluded(o, wl, dist * (1.0 - 1.0e-4))) {
-                        float w = power_heuristic(light_pdf, bsdf_pdf_v);
-                        radiance += beta * f * abs(wi.z) * lm.emission * (w / light_pdf);
+            // Next-event estimation, one sample per light kind: k = 0, one point on one emissive
+            // triangle; k = 1, a direction uniform over the sun's cone (density 1 / solid angle).
+            // One occlusion ray each; one loop, so the traversal is compiled once.
+            if (!bsdf_is_delta(m.kind)) {
+                for (uint k = 0u; k < 2u; ++k) {
+                    vec3 o;
+                    vec3 wl;
+                    float tmax;
+                    vec3 le;
+                    float light_pdf = 0.0;
+                    if (k == 0u) {
+                        if (!lights) {
+                            continue;
+                        }
+                        uint li = pick_light(rand01(key, dim + DIM_LIGHT_PICK));
+                        vec4 l0 = imageLoad(scene_lights, int(3u * li));
+                        vec4 l1 = imageLoad(scene_lights, int(3u * li + 1u));
+                        vec4 l2 = imageLoad(scene_lights, int(3u * li + 2u));
+                        float a = rand01(key, dim + DIM_LIGHT_U);
+                        float b = rand01(key, dim + DIM_LIGHT_V);
+                        if (a + b > 1.0) {
+                            a = 1.0 - a;
+                            b = 1.0 - b;
+                        }
+                        vec3 lp = l0.xyz + a * l1.xyz + b * l2.xyz;
+                        vec3 ln = normalize(cross(l1.xyz, l2.xyz));
+                        o = spawn(p, n, lp - p);
+                        vec3 to_light = lp - o;
+                        float dist2 = dot(to_light, to_light);
+                        float dist = sqrt(dist2);
+                        wl = to_light / dist;
+                        tmax = dist * (1.0 - 1.0e-4);
+                        float cos_light = -dot(ln, wl);
+                        le = load_material(floatBitsToUint(l1.w)).emission;
+                        if (cos_light > 0.0 && max3(le) > 0.0) {
+                            light_pdf = light_area_pdf(le) * dist2 / cos_light;
+                        }
+                    } else {
+                        if (!sun_nee) {
+                            continue;
+                        }
+                        float cos_max = params.sun_dir.w;
+                        float cos_t = 1.0 - rand01(key, dim + DIM_SUN_U) * (1.0 - cos_max);
+                        float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
+                        float phi = 6.28318530717958647692 * rand01(key, dim + DIM_SUN_V);
+                        vec3 sx, sy;
+                        basis_from(params.sun_dir.xyz, sx, sy);
+                        wl = normalize(sin_t * (cos(phi) * sx + sin(phi) * sy) + cos_t * params.sun_dir.xyz);
+                        o = spawn(p, n, wl);
+                        tmax = uintBitsToFloat(0x7f800000u);
+                        le = params.sun_radiance.rgb;
+                        light_pdf = params.sun_radiance.w;
+                    }
+                    vec3 wi = vec3(dot(wl, tx), dot(wl, ty), dot(wl, n));
+                    vec3 f = bsdf_eval(m, wo, wi);
+                    if (light_pdf > 0.0 && max3(f) > 0.0) {
+                        ++shadow_rays;
+                        if (!occluded(o, wl, tmax)) {
+                            float w = power_heuristic(light_pdf, bsdf_pdf(m, wo, wi));
+                            radiance += beta * f * abs(wi.z) * le * (w / light_pdf);
+                        }
                     }
                 }
             }

@@ -187,7 +187,8 @@ fn profile_reports_unsupported_exactly_where_features_are_absent() {
         for m in ["mt", "quad-unit"] {
             let png = out.join(format!("heatmap-{m}.png"));
             let img = image::open(&png).unwrap();
-            assert_eq!((img.width(), img.height()), (40, 30));
+            // The 40x30 ray image scaled up to a readable size, with a title, axes and a colour bar.
+            assert!(img.width() >= 480 + 200 && img.height() >= 360 + 60, "{}x{}", img.width(), img.height());
         }
         assert!(r.shader_clock.rows.iter().all(|x| x.data.hits_differing_from_closest == 0));
         assert!(r.heat_scale.is_some());

@@ -92,6 +92,10 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
                 offset_of!(GpuParams, light_count),
                 offset_of!(GpuParams, ray_eps),
                 offset_of!(GpuParams, scene_extent),
+                offset_of!(GpuParams, sky_zenith),
+                offset_of!(GpuParams, sky_horizon),
+                offset_of!(GpuParams, sun_dir),
+                offset_of!(GpuParams, sun_radiance),
             ]
             .iter()
             .map(|&o| o as u32)

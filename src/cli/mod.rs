@@ -8,6 +8,7 @@ pub mod bench;
 pub mod bench_render;
 pub mod build_bench;
 pub mod bvh;
+pub mod camera;
 pub mod choice;
 pub mod completions;
 pub mod devices;

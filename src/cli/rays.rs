@@ -6,6 +6,7 @@ use clap::{Args, Subcommand};
 use trilab::error::Result;
 use trilab::harness::make_rays::{self, RaysKind};
 
+use super::camera::CameraArg;
 use super::JsonArg;
 
 /// Make a ray file and its sidecar `<out>.json` (scene hash, generator, settings; docs/formats.md).
@@ -17,10 +18,12 @@ pub struct RaysArgs {
 
 #[derive(Subcommand)]
 enum RaysCmd {
-    /// One ray per pixel from a camera framing the scene.
+    /// One ray per pixel through pixel centres, from the camera `render` uses (`--camera`).
     Primary {
         #[command(flatten)]
         common: RaysCommon,
+        #[command(flatten)]
+        camera: CameraArg,
         /// Image width in pixels.
         #[arg(long, value_name = "W", default_value_t = 800)]
         width: u32,
@@ -32,6 +35,8 @@ enum RaysCmd {
     Diffuse {
         #[command(flatten)]
         common: RaysCommon,
+        #[command(flatten)]
+        camera: CameraArg,
         /// Width in pixels of the primary image whose hits bounce.
         #[arg(long, value_name = "W", default_value_t = 800)]
         width: u32,
@@ -71,9 +76,11 @@ struct RaysCommon {
 
 pub fn run(a: RaysArgs) -> Result<()> {
     let (common, kind) = match a.kind {
-        RaysCmd::Primary { common, width, height } => (common, RaysKind::Primary { width, height }),
-        RaysCmd::Diffuse { common, width, height, diffuse_per_hit, seed } => {
-            (common, RaysKind::Diffuse { width, height, per_hit: diffuse_per_hit, seed })
+        RaysCmd::Primary { common, camera, width, height } => {
+            (common, RaysKind::Primary { camera: camera.camera, width, height })
+        }
+        RaysCmd::Diffuse { common, camera, width, height, diffuse_per_hit, seed } => {
+            (common, RaysKind::Diffuse { camera: camera.camera, width, height, per_hit: diffuse_per_hit, seed })
         }
         RaysCmd::Random { common, random_rays, seed } => (common, RaysKind::Random { count: random_rays, seed }),
     };

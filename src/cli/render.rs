@@ -8,8 +8,9 @@ use clap::Args;
 use trilab::analyze::MethodChoice;
 use trilab::error::{Error, Result};
 use trilab::render::session::{self, RenderRequest};
-use trilab::render::KernelChoice;
+use trilab::render::{EnvSpec, KernelChoice};
 
+use super::camera::CameraArg;
 use super::choice::{choice, method_choice, method_help};
 use super::{note, scene_help, BuildArgs, GpuArgs, JsonArg};
 
@@ -41,13 +42,17 @@ pub struct RenderArgs {
     /// Random seed of the sample sequence.
     #[arg(long, value_name = "N", default_value_t = 1)]
     seed: u32,
-    /// `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,fov_y_degrees`; default: frames
-    /// the scene as the ray generators do.
+    #[command(flatten)]
+    camera: CameraArg,
+    /// `sky`: a sky gradient over a ground with a sun, sampled by next-event estimation (the
+    /// default for scenes without emitters); or a constant radiance `v` or `r,g,b` (`0`: none,
+    /// the default for scenes with emitters).
     #[arg(long, allow_hyphen_values = true)]
-    camera: Option<String>,
-    /// Constant environment radiance `r,g,b` (or one value).
-    #[arg(long, default_value = "1")]
-    env: String,
+    env: Option<EnvSpec>,
+    /// Direction towards the sun of `--env sky`, `x,y,z` (y up; default -0.45,0.75,0.5: high on
+    /// the left of the default front view).
+    #[arg(long, allow_hyphen_values = true)]
+    sun_dir: Option<String>,
     /// PNG exposure in stops (the EXR is not scaled).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     exposure: f32,
@@ -73,7 +78,7 @@ pub struct RenderArgs {
     gpu: GpuArgs,
 }
 
-/// `--camera`/`--env`: comma-separated finite numbers, as many as one of `n`.
+/// `--sun-dir`: comma-separated finite numbers, as many as one of `n`.
 fn parse_floats(what: &str, s: &str, n: &[usize]) -> Result<Vec<f32>> {
     let v: Vec<f32> = s
         .split(',')
@@ -87,9 +92,11 @@ fn parse_floats(what: &str, s: &str, n: &[usize]) -> Result<Vec<f32>> {
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
-    let env = parse_floats("env", &a.env, &[1, 3])?;
-    let camera = match &a.camera {
-        Some(c) => Some(<[f32; 10]>::try_from(parse_floats("camera", c, &[10])?).expect("ten numbers")),
+    let sun_dir = match &a.sun_dir {
+        Some(d) => {
+            let v = parse_floats("sun-dir", d, &[3])?;
+            Some([v[0], v[1], v[2]])
+        }
         None => None,
     };
     let req = RenderRequest {
@@ -103,8 +110,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         max_depth: a.max_depth,
         rr_depth: a.rr_depth,
         seed: a.seed,
-        camera,
-        env: if env.len() == 1 { [env[0]; 3] } else { [env[0], env[1], env[2]] },
+        camera: a.camera.camera,
+        env: a.env,
+        sun_dir,
         exposure: a.exposure,
         kernel: a.kernel,
         submit_ms: a.submit_ms,

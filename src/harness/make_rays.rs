@@ -11,17 +11,17 @@ use crate::bvh::BuildOptions;
 use crate::error::{Error, Result};
 use crate::harness::rayset::RaySet;
 use crate::pipeline::HostScene;
-use crate::rays::{self, Camera, RaySidecar};
+use crate::rays::{self, CameraSpec, RaySidecar};
 use crate::report::Report;
 use crate::scene::load_obj;
 
 /// Which rays, and how many.
 #[derive(Clone, Copy, Debug)]
 pub enum RaysKind {
-    /// One ray per pixel of a `width` x `height` image from a camera framing the scene.
-    Primary { width: u32, height: u32 },
+    /// One ray per pixel of a `width` x `height` image from `camera` (as `render` places it).
+    Primary { camera: CameraSpec, width: u32, height: u32 },
     /// `per_hit` cosine-distributed bounces off the f64 reference's hits of those primary rays.
-    Diffuse { width: u32, height: u32, per_hit: u32, seed: u64 },
+    Diffuse { camera: CameraSpec, width: u32, height: u32, per_hit: u32, seed: u64 },
     /// `count` rays from a sphere around the scene towards random points in its box.
     Random { count: usize, seed: u64 },
 }
@@ -46,16 +46,23 @@ impl RaysKind {
     /// The generator's name, settings and seed, for the sidecar.
     fn describe(&self) -> (&'static str, BTreeMap<String, serde_json::Value>, Option<u64>) {
         let map = |kv: &[(&str, serde_json::Value)]| kv.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
-        match *self {
-            RaysKind::Primary { width, height } => {
-                ("primary", map(&[("width", json!(width)), ("height", json!(height))]), None)
-            }
-            RaysKind::Diffuse { width, height, per_hit, seed } => (
-                "diffuse",
-                map(&[("width", json!(width)), ("height", json!(height)), ("per_hit", json!(per_hit))]),
-                Some(seed),
+        match self {
+            RaysKind::Primary { camera, width, height } => (
+                "primary",
+                map(&[("camera", json!(camera.to_string())), ("width", json!(width)), ("height", json!(height))]),
+                None,
             ),
-            RaysKind::Random { count, seed } => ("random", map(&[("count", json!(count))]), Some(seed)),
+            RaysKind::Diffuse { camera, width, height, per_hit, seed } => (
+                "diffuse",
+                map(&[
+                    ("camera", json!(camera.to_string())),
+                    ("width", json!(width)),
+                    ("height", json!(height)),
+                    ("per_hit", json!(per_hit)),
+                ]),
+                Some(*seed),
+            ),
+            RaysKind::Random { count, seed } => ("random", map(&[("count", json!(count))]), Some(*seed)),
         }
     }
 }
@@ -68,11 +75,12 @@ pub fn run(scene: &Path, out: &Path, kind: RaysKind) -> Result<RaysReport> {
     for o in [out, sidecar_path.as_path()] {
         crate::io::ensure_not_inputs(o, &mesh.source, &mesh.mtl_files, &[])?;
     }
-    let camera = || Camera::framing(&mesh.bounds());
     let rays = match kind {
-        RaysKind::Primary { width, height } => rays::primary_rays(&camera(), width, height),
-        RaysKind::Diffuse { width, height, per_hit, seed } => {
-            let primary = rays::primary_rays(&camera(), width, height);
+        RaysKind::Primary { camera, width, height } => {
+            rays::primary_rays(&camera.camera(&mesh.bounds())?, width, height)
+        }
+        RaysKind::Diffuse { camera, width, height, per_hit, seed } => {
+            let primary = rays::primary_rays(&camera.camera(&mesh.bounds())?, width, height);
             let host = HostScene::build(crate::scene::scene_name(scene), &mesh, &BuildOptions::new(4))?;
             RaySet::diffuse_from(&mesh, &host.reference(), &primary, per_hit, seed)
         }

@@ -1,6 +1,7 @@
 //! What every harness's plots share (plotters, drawn into memory and written as PNG
 //! atomically): the bundled font (assets/fonts, DejaVu Sans, Bitstream Vera licence, so plots
-//! look the same on every machine), one colour per method, panels and legends.
+//! look the same on every machine), one colour per method, panels, and a legend in a strip
+//! beside the panels (never over data), axis label areas wide enough for their text.
 
 use std::path::{Path, PathBuf};
 use std::sync::Once;
@@ -11,7 +12,7 @@ use crate::encoding::Method;
 use crate::error::{Error, Result};
 
 const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
-const SIZE_PER_PANEL: (u32, u32) = (560, 440);
+const SIZE_PER_PANEL: (u32, u32) = (640, 480);
 
 /// A plot written by [`all`].
 #[derive(Clone, Debug)]
@@ -20,7 +21,7 @@ pub struct Plot {
     pub path: PathBuf,
 }
 
-fn register_font() {
+pub(crate) fn register_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         // The bundled font is a valid TrueType file; failure would only make text invisible.
@@ -62,45 +63,119 @@ pub fn plot_err(what: &str, e: impl std::fmt::Display) -> Error {
     Error::Usage(format!("drawing the {what} plot: {e}"))
 }
 
+/// Room for the x axis's tick labels and description below a chart, pixels.
+pub const X_LABEL_AREA: u32 = 60;
+/// Room for the y axis's tick labels and description left of a chart, pixels.
+pub const Y_LABEL_AREA: u32 = 85;
+/// Width of the legend strip right of the panels, pixels.
+const LEGEND_WIDTH: u32 = 190;
+
+/// How a legend entry shows its series.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Marker {
+    Line,
+    Dot,
+    Bar,
+}
+
+/// One legend entry: a series' label, colour and marker.
+#[derive(Clone, Debug)]
+pub struct LegendEntry {
+    pub label: String,
+    pub colour: RGBColor,
+    pub marker: Marker,
+}
+
+impl LegendEntry {
+    pub fn new(label: impl Into<String>, colour: RGBColor, marker: Marker) -> LegendEntry {
+        LegendEntry { label: label.into(), colour, marker }
+    }
+}
+
 /// Draws `panels` side by side with `draw(area, panel index)` and writes the PNG atomically.
+/// The legend (shared by every panel) goes in a strip right of the panels, never over data.
 pub fn render_png(
     path: &Path,
     panels: usize,
     what: &str,
+    legend: &[LegendEntry],
     mut draw: impl FnMut(&DrawingArea<BitMapBackend, plotters::coord::Shift>, usize) -> Result<()>,
 ) -> Result<()> {
     register_font();
-    let (w, h) = (SIZE_PER_PANEL.0 * panels.max(1) as u32, SIZE_PER_PANEL.1);
+    let strip = if legend.is_empty() { 0 } else { LEGEND_WIDTH };
+    let (pw, h) = (SIZE_PER_PANEL.0 * panels.max(1) as u32, SIZE_PER_PANEL.1);
+    let w = pw + strip;
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(what, e))?;
-        for (i, area) in root.split_evenly((1, panels.max(1))).iter().enumerate() {
+        let (charts, side) = root.split_horizontally(pw);
+        for (i, area) in charts.split_evenly((1, panels.max(1))).iter().enumerate() {
             draw(area, i)?;
+        }
+        if !legend.is_empty() {
+            draw_legend(&side, legend, what)?;
         }
         root.present().map_err(|e| plot_err(what, e))?;
     }
+    write_png(path, w, h, buf, what)
+}
+
+/// Writes an RGB buffer as a PNG, atomically.
+pub(crate) fn write_png(path: &Path, w: u32, h: u32, buf: Vec<u8>, what: &str) -> Result<()> {
+    crate::io::write_atomic(path, &encode_png(w, h, buf, what)?)
+}
+
+/// An RGB buffer as PNG bytes.
+pub(crate) fn encode_png(w: u32, h: u32, buf: Vec<u8>, what: &str) -> Result<Vec<u8>> {
     let img = image::RgbImage::from_raw(w, h, buf).expect("buffer sized for the image");
     let mut png = std::io::Cursor::new(vec![]);
     img.write_to(&mut png, image::ImageFormat::Png).map_err(|e| plot_err(what, e))?;
-    crate::io::write_atomic(path, png.get_ref())
+    Ok(png.into_inner())
 }
 
-/// The legend every plot draws, at `pos`.
-pub fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
-    chart: &mut ChartContext<'a, DB, CT>,
-    pos: SeriesLabelPosition,
+/// The legend: one row per entry, from the top of `area` (the strip beside the panels).
+fn draw_legend(
+    area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    entries: &[LegendEntry],
     what: &str,
-) -> Result<()>
-where
-    DB::ErrorType: 'static,
-{
-    chart
-        .configure_series_labels()
-        .position(pos)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(|e| plot_err(what, e))
+) -> Result<()> {
+    let font = ("sans-serif", 15).into_font().color(&BLACK);
+    let err = |e| plot_err(what, e);
+    for (i, e) in entries.iter().enumerate() {
+        let (x, y) = (8, 56 + 26 * i as i32);
+        let c = e.colour;
+        match e.marker {
+            Marker::Line => area.draw(&PathElement::new(vec![(x, y), (x + 26, y)], c.stroke_width(3))),
+            Marker::Dot => area.draw(&Circle::new((x + 13, y), 6, c.filled())),
+            Marker::Bar => area.draw(&Rectangle::new([(x + 5, y - 7), (x + 21, y + 7)], c.filled())),
+        }
+        .map_err(err)?;
+        area.draw(&Text::new(e.label.clone(), (x + 34, y - 8), font.clone())).map_err(err)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The legend strip lies right of the panels: drawing every panel full of data leaves the
+    /// legend's pixels as the legend drew them.
+    #[test]
+    fn the_legend_never_covers_a_panel() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.png");
+        let entries = [LegendEntry::new("mt", RGBColor(255, 0, 0), Marker::Bar)];
+        render_png(&path, 2, "test", &entries, |area, _| {
+            area.fill(&RGBColor(0, 0, 255)).map_err(|e| plot_err("test", e))
+        })
+        .unwrap();
+        let img = image::open(&path).unwrap().to_rgb8();
+        assert_eq!(img.width(), 2 * SIZE_PER_PANEL.0 + LEGEND_WIDTH);
+        let panels_x = 2 * SIZE_PER_PANEL.0;
+        // The panels are all data (blue); the legend's marker (red) is beside them.
+        assert!((0..panels_x).all(|x| img.get_pixel(x, 100).0 == [0, 0, 255]));
+        assert_eq!(img.get_pixel(panels_x + 8 + 13, 56).0, [255, 0, 0]);
+    }
 }

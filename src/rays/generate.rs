@@ -1,5 +1,5 @@
-//! Ray sets: primary (pinhole camera), diffuse (cosine bounces off primary hits) and random
-//! (from a sphere around the scene towards points in its box).
+//! Ray sets: diffuse (cosine bounces off primary hits) and random (from a sphere around the
+//! scene towards points in its box); primary rays are `super::camera`'s.
 //!
 //! They follow the distributions of the Embree peer in ../shared/peers (same camera, same
 //! offsets), so trilab's numbers can be set beside the peer's; all are deterministic for a seed.
@@ -35,53 +35,6 @@ pub fn check_rays(set: &str, bounds: &Aabb, rays: Vec<Ray>) -> Result<Vec<Ray>> 
             f32::MAX
         ))),
     }
-}
-
-/// A pinhole camera.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    pub eye: Vec3,
-    pub forward: Vec3,
-    pub right: Vec3,
-    pub up: Vec3,
-    /// Vertical field of view, radians.
-    pub fov_y: f32,
-}
-
-impl Camera {
-    /// Looks at the box centre from direction (0.3, 0.25, 1), 45 degree vertical field of view,
-    /// framing the bounding sphere (as the peer's `gen-primary`).
-    pub fn framing(bounds: &Aabb) -> Camera {
-        let c = bounds.center();
-        let radius = 0.5 * bounds.extent().length();
-        let fov_y = 45f32.to_radians();
-        let forward = -Vec3::new(0.3, 0.25, 1.0).normalize();
-        let eye = c - forward * (radius / (fov_y / 2.0).tan() * 0.9);
-        Camera::look(eye, forward, Vec3::Y, fov_y)
-    }
-
-    /// A camera at `eye` looking along `forward` with `up` roughly up.
-    pub fn look(eye: Vec3, forward: Vec3, up: Vec3, fov_y: f32) -> Camera {
-        let forward = forward.normalize();
-        let right = forward.cross(up).normalize();
-        let up = right.cross(forward);
-        Camera { eye, forward, right, up, fov_y }
-    }
-
-    /// The ray through the centre of pixel (x, y) of a w x h image (y down).
-    pub fn ray(&self, x: u32, y: u32, w: u32, h: u32) -> Ray {
-        let th = (self.fov_y / 2.0).tan();
-        let aspect = w as f32 / h as f32;
-        let px = (2.0 * (x as f32 + 0.5) / w as f32 - 1.0) * th * aspect;
-        let py = (1.0 - 2.0 * (y as f32 + 0.5) / h as f32) * th;
-        let d = (self.forward + self.right * px + self.up * py).normalize();
-        Ray::new(self.eye.to_array(), d.to_array())
-    }
-}
-
-/// One ray per pixel of a w x h image, row by row.
-pub fn primary_rays(camera: &Camera, w: u32, h: u32) -> Vec<Ray> {
-    (0..h).flat_map(|y| (0..w).map(move |x| camera.ray(x, y, w, h))).collect()
 }
 
 /// For every primary ray that hits (`hits[i]` is `primary[i]`'s hit: the f64 reference's, rounded
@@ -220,20 +173,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn primary_rays_cover_the_image_and_look_at_the_scene() {
-        let b = Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) };
-        let cam = Camera::framing(&b);
-        let rays = primary_rays(&cam, 8, 6);
-        assert_eq!(rays.len(), 48);
-        // The centre pixels point (almost) at the box centre.
-        let centre = Vec3::from_array(cam.ray(4, 3, 8, 6).dir);
-        let to_c = (b.center() - cam.eye).normalize();
-        assert!(centre.dot(to_c) > 0.99);
-        // Top-left pixel is up and left of forward.
-        let tl = Vec3::from_array(rays[0].dir);
-        assert!(tl.dot(cam.up) > 0.0 && tl.dot(cam.right) < 0.0);
-    }
-
     /// A scene near 1e20 overflows f32 (its diagonal, its edges' cross products): the sets are
     /// computed in f64 and come out finite; near 3e38 the random set cannot be represented and
     /// `check_rays` refuses it, naming the bounds.

@@ -4,11 +4,13 @@
 //! Both formats are headerless little-endian records, so the structs below are the records:
 //! [`Ray`] (32 bytes) and [`Hit`] (16 bytes) are also the GPU's buffer layouts.
 
+pub mod camera;
 mod generate;
 pub mod offset;
 pub mod sidecar;
 
-pub use generate::{check_rays, diffuse_rays, primary_rays, random_rays, Camera};
+pub use camera::{primary_rays, Camera, CameraSpec};
+pub use generate::{check_rays, diffuse_rays, random_rays};
 pub use sidecar::{check_sidecar, RaySidecar};
 
 use std::path::Path;

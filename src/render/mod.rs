@@ -11,6 +11,7 @@
 //!   in sample order, so the image does not depend on the batching.
 
 pub mod bsdf;
+pub mod env;
 pub mod output;
 mod passes;
 pub mod plan;
@@ -30,7 +31,9 @@ use crate::named::named_enum;
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::Camera;
 use crate::scene::{BsdfKind, GpuMaterial, Mesh};
+
 use crate::shared::{BSDF_MASK_ALL, MISS_ID};
+pub use env::{EnvSpec, Sky};
 
 /// Everything a render is asked for.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -46,8 +49,12 @@ pub struct RenderSettings {
     pub seed: u32,
     #[serde(skip)]
     pub camera: Camera,
-    /// Constant environment radiance (linear RGB).
+    /// Constant environment radiance (linear RGB), when `sky` is `None`.
     pub env: [f32; 3],
+    /// A sky with a sun instead of the constant environment (`render`'s default for scenes
+    /// without emitters); the benchmarks keep the constant one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sky: Option<Sky>,
     /// Ray spawn offset, relative to max(|p|, scene extent).
     pub ray_eps: f32,
     /// Wall-clock target per submit, milliseconds.
@@ -58,7 +65,9 @@ pub struct RenderSettings {
 }
 
 impl RenderSettings {
-    /// The paper's setting (800x600, 500 spp, depth 16) with the default camera for `mesh`.
+    /// The paper's setting (800x600, 500 spp, depth 16) with the benchmarks' camera (the peer's
+    /// 3/4 view, [`Camera::framing`]) and a white constant environment: what bench-render and the
+    /// study measure. `trilab render`'s defaults (front camera, sky) are `session`'s.
     pub fn paper(mesh: &Mesh) -> RenderSettings {
         RenderSettings {
             width: 800,
@@ -69,6 +78,7 @@ impl RenderSettings {
             seed: 1,
             camera: Camera::framing(&mesh.bounds()),
             env: [1.0; 3],
+            sky: None,
             ray_eps: 1e-5,
             submit_ms: 250.0,
             next_event: true,
@@ -89,6 +99,9 @@ impl RenderSettings {
         }
         if !self.env.iter().all(|c| c.is_finite() && *c >= 0.0) {
             return bad(format!("environment radiance {:?} must be finite and non-negative", self.env));
+        }
+        if let Some(sky) = &self.sky {
+            sky.check().map_err(Error::Usage)?;
         }
         let c = &self.camera;
         let finite = [c.eye, c.forward, c.right, c.up].iter().all(|v| v.is_finite());
@@ -257,20 +270,37 @@ pub struct GpuParams {
     pub light_count: u32,
     pub ray_eps: f32,
     pub scene_extent: f32,
+    pub sky_zenith: [f32; 4],
+    pub sky_horizon: [f32; 4],
+    pub sun_dir: [f32; 4],
+    pub sun_radiance: [f32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 112);
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 176);
 
 impl GpuParams {
     pub fn new(s: &RenderSettings, scene: &RenderScene) -> GpuParams {
         let c = &s.camera;
         let v4 = |v: Vec3, w: f32| [v.x, v.y, v.z, w];
+        // A constant environment is a sky whose three colours are equal and whose sun is dark.
+        let (zenith, horizon, ground, sun_dir, sun_radiance) = match &s.sky {
+            None => (s.env, s.env, s.env, [0.0, 1.0, 0.0, 1.0], [0.0; 4]),
+            Some(sky) => {
+                let d = sky.sun_dir_f64().as_vec3();
+                let radius = f64::from(sky.sun_radius_degrees).to_radians();
+                let l = sky.sun_radiance().map(|x| x as f32);
+                // w: the density of next-event estimation's uniform cone sampling, 0 when off
+                // (the sun is then found by BSDF sampling alone).
+                let pdf = if s.next_event { (1.0 / sky.sun_solid_angle()) as f32 } else { 0.0 };
+                (sky.zenith, sky.horizon, sky.ground, v4(d, radius.cos() as f32), [l[0], l[1], l[2], pdf])
+            }
+        };
         GpuParams {
             cam_eye: v4(c.eye, (c.fov_y / 2.0).tan()),
             cam_right: v4(c.right, s.width as f32 / s.height as f32),
             cam_up: v4(c.up, 0.0),
             cam_forward: v4(c.forward, 0.0),
-            env: [s.env[0], s.env[1], s.env[2], scene.light_weight],
+            env: [ground[0], ground[1], ground[2], scene.light_weight],
             width: s.width,
             height: s.height,
             max_depth: s.max_depth,
@@ -279,13 +309,17 @@ impl GpuParams {
             light_count: if s.next_event { scene.light_count } else { 0 },
             ray_eps: s.ray_eps,
             scene_extent: scene.extent,
+            sky_zenith: [zenith[0], zenith[1], zenith[2], 0.0],
+            sky_horizon: [horizon[0], horizon[1], horizon[2], 0.0],
+            sun_dir,
+            sun_radiance,
         }
     }
 }
 
 /// Random-number dimensions of one path vertex (`DIMS_PER_VERTEX` and `DIM_*` in
 /// `glsl/pathtrace.comp`): draw `DIMS_PER_VERTEX * depth + DIM_*`.
-pub const DIMS_PER_VERTEX: u32 = 10;
+pub const DIMS_PER_VERTEX: u32 = 12;
 pub const DIM_PIXEL_X: u32 = 0;
 pub const DIM_PIXEL_Y: u32 = 1;
 

@@ -357,6 +357,7 @@ mod tests {
             seed: 1,
             camera: Camera::look(Vec3::ZERO, Vec3::Z, Vec3::Y, 1.0),
             env: [0.0; 3],
+            sky: None,
             ray_eps: 1e-4,
             submit_ms,
             next_event: true,

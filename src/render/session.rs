@@ -7,17 +7,18 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use glam::Vec3;
 use serde::Serialize;
 
-use super::{output, render, KernelChoice, PartialRender, Progress, RenderFailure, RenderSettings, RenderTarget};
+use super::{
+    output, render, EnvSpec, KernelChoice, PartialRender, Progress, RenderFailure, RenderSettings, RenderTarget, Sky,
+};
 use crate::analyze::{MethodChoice, Recommendation};
 use crate::bvh::BuildOptions;
 use crate::encoding::Method;
 use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::pipeline::HostScene;
-use crate::rays::Camera;
+use crate::rays::CameraSpec;
 use crate::report::Report;
 use crate::scene::{load_obj, BsdfKind};
 
@@ -35,11 +36,12 @@ pub struct RenderRequest {
     pub max_depth: u32,
     pub rr_depth: u32,
     pub seed: u32,
-    /// eye, target, up (x, y, z each) and the vertical field of view in degrees; `None` frames
-    /// the scene as the ray generators do.
-    pub camera: Option<[f32; 10]>,
-    /// Constant environment radiance.
-    pub env: [f32; 3],
+    /// The camera: `front` (the default), `peer` or explicit.
+    pub camera: CameraSpec,
+    /// The environment; `None`: none for a scene with emitters, else the sky.
+    pub env: Option<EnvSpec>,
+    /// Direction towards the sun of the sky (default [`Sky::default`]'s).
+    pub sun_dir: Option<[f32; 3]>,
     /// PNG exposure in stops.
     pub exposure: f32,
     pub kernel: KernelChoice,
@@ -75,7 +77,11 @@ pub struct RenderReport {
     pub bsdfs_in_kernel: Vec<&'static str>,
     pub bsdfs_in_scene: Vec<&'static str>,
     pub settings: RenderSettings,
+    /// `--camera` as asked (`front`, `peer` or the numbers).
+    pub camera_choice: String,
     pub camera: CameraRecord,
+    /// The environment: `sky` (its parameters are `settings.sky`) or the constant radiance.
+    pub environment: String,
     pub emissive_triangles: u32,
     pub gpu_scene_bytes: usize,
     pub device: String,
@@ -176,20 +182,46 @@ impl Outputs<'_> {
     }
 }
 
-/// The settings `req` asks for, on `mesh`'s default camera unless it gives one.
-fn settings(req: &RenderRequest, mesh: &crate::scene::Mesh) -> RenderSettings {
+/// The settings `req` asks for on `mesh`, and the environment chosen: the camera `req` names
+/// (front by default) and, unless `req` names one, no environment for a scene with emitters
+/// and the sky for one without. Warns (`note`) when nothing can light the scene.
+fn settings(
+    req: &RenderRequest,
+    mesh: &crate::scene::Mesh,
+    note: &mut dyn FnMut(&str),
+) -> Result<(RenderSettings, EnvSpec)> {
     let mut s = RenderSettings::paper(mesh);
     (s.width, s.height, s.spp, s.max_depth, s.rr_depth, s.seed) =
         (req.width, req.height, req.spp, req.max_depth, req.rr_depth, req.seed);
     s.submit_ms = req.submit_ms;
-    s.env = req.env;
-    if let Some(v) = req.camera {
-        let eye = Vec3::new(v[0], v[1], v[2]);
-        let target = Vec3::new(v[3], v[4], v[5]);
-        let up = Vec3::new(v[6], v[7], v[8]);
-        s.camera = Camera::look(eye, target - eye, up, v[9].to_radians());
+    s.camera = req.camera.camera(&mesh.bounds())?;
+    let emitters = (0..mesh.triangle_count())
+        .any(|id| !mesh.is_degenerate(id) && mesh.materials[mesh.material_ids[id] as usize].is_emissive());
+    let env = req.env.unwrap_or(EnvSpec::default_for(emitters));
+    match env {
+        EnvSpec::Sky => {
+            let mut sky = Sky::default();
+            if let Some(d) = req.sun_dir {
+                sky.sun_dir = d;
+            }
+            sky.check().map_err(|e| Error::Usage(format!("--sun-dir: {e}")))?;
+            (s.env, s.sky) = ([0.0; 3], Some(sky));
+        }
+        EnvSpec::Constant(c) => {
+            if req.sun_dir.is_some() {
+                return Err(Error::Usage(format!("--sun-dir is for --env sky, not --env {env}")));
+            }
+            (s.env, s.sky) = (c, None);
+        }
     }
-    s
+    if env.is_black() && !emitters {
+        note(&format!(
+            "warning: --env {env} on {}, which has no emitting material: nothing lights the scene and the image \
+             will be black (--env sky or a constant radiance lights it)",
+            req.scene.display()
+        ));
+    }
+    Ok((s, env))
 }
 
 /// Renders `req`: writes the outputs and returns the sidecar. `interrupted` stops the render
@@ -220,7 +252,7 @@ pub fn run(
     for w in &mesh.warnings {
         note(&format!("warning: {w}"));
     }
-    let settings = settings(req, &mesh);
+    let (settings, env) = settings(req, &mesh, note)?;
     let t_build = Instant::now();
     let host = HostScene::build(crate::scene::scene_name(&req.scene), &mesh, &req.build)?;
     // The plan refuses, before anything is encoded, a scene or image that cannot fit.
@@ -249,6 +281,8 @@ pub fn run(
         bsdfs_in_kernel: target.kernel.bsdfs(),
         bsdfs_in_scene: BsdfKind::in_mask(target.scene.bsdf_mask).map(|k| k.name()).collect(),
         settings: settings.clone(),
+        camera_choice: req.camera.to_string(),
+        environment: env.to_string(),
         camera: CameraRecord {
             eye: c.eye.to_array(),
             forward: c.forward.to_array(),

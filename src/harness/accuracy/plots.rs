@@ -8,7 +8,7 @@ use plotters::prelude::*;
 
 use super::AccuracyReport;
 use crate::error::Result;
-use crate::harness::plots::{colour, legend, plot_err, render_png, Plot};
+use crate::harness::plots::{colour, plot_err, render_png, LegendEntry, Marker, Plot, X_LABEL_AREA, Y_LABEL_AREA};
 
 /// x values on a log axis: 0 is drawn at a tenth of the smallest positive value (labelled in
 /// the table), so perfect methods stay on the plot.
@@ -39,12 +39,14 @@ fn panel(
     let mut chart = ChartBuilder::on(area)
         .caption(title, ("sans-serif", 18))
         .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(Y_LABEL_AREA)
         .build_cartesian_2d((floor / 2.0..xmax).log_scale(), 0f64..ymax.max(1e-9))
         .map_err(|e| plot_err(what, e))?;
     chart
         .configure_mesh()
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
         .x_desc(format!("{x_desc} (0 drawn at {floor:.2e})"))
         .y_desc("Mrays/s (median, min-max)")
         .draw()
@@ -53,16 +55,22 @@ fn panel(
         let s = r.mrays_per_s.expect("filtered");
         let c = colour(r.method);
         let p = (xv(x(r)), s.median);
-        chart
-            .draw_series(std::iter::once(Circle::new(p, 6, c.filled())))
-            .map_err(|e| plot_err(what, e))?
-            .label(r.method.to_string())
-            .legend(move |(x, y)| Circle::new((x + 10, y), 5, c.filled()));
+        chart.draw_series(std::iter::once(Circle::new(p, 6, c.filled()))).map_err(|e| plot_err(what, e))?;
         chart
             .draw_series(std::iter::once(ErrorBar::new_vertical(p.0, s.min, s.median, s.max, c.filled(), 6)))
             .map_err(|e| plot_err(what, e))?;
     }
-    legend(&mut chart, SeriesLabelPosition::UpperRight, what)
+    Ok(())
+}
+
+/// One legend entry per method with a speed.
+fn legend(report: &AccuracyReport) -> Vec<LegendEntry> {
+    report
+        .frontier
+        .iter()
+        .filter(|r| r.mrays_per_s.is_some())
+        .map(|r| LegendEntry::new(r.method.to_string(), colour(r.method), Marker::Dot))
+        .collect()
 }
 
 /// Writes `frontier_leaks.png` and `frontier_t_error.png`.
@@ -74,7 +82,7 @@ pub fn all(report: &AccuracyReport, dir: &Path) -> Result<Vec<Plot>> {
         title: "Mrays/s against leaks and false hits per 10^6 rays (leaf 4)".into(),
         path: dir.join("frontier_leaks.png"),
     };
-    render_png(&leaks.path, 2, "frontier", |area, i| {
+    render_png(&leaks.path, 2, "frontier", &legend(report), |area, i| {
         if i == 0 {
             panel(report, area, "Mrays/s vs leaks", "leaks per 10^6 rays", &|r| r.leaks_per_million)
         } else {
@@ -85,7 +93,7 @@ pub fn all(report: &AccuracyReport, dir: &Path) -> Result<Vec<Plot>> {
         title: "Mrays/s against t error in f32 ULPs, median and p99 (leaf 4)".into(),
         path: dir.join("frontier_t_error.png"),
     };
-    render_png(&terr.path, 2, "frontier", |area, i| {
+    render_png(&terr.path, 2, "frontier", &legend(report), |area, i| {
         if i == 0 {
             panel(report, area, "Mrays/s vs median t error", "median |t - t_ref| (ULPs)", &|r| r.t_ulps_median)
         } else {

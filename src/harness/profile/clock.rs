@@ -84,18 +84,87 @@ fn inferno(t: f64) -> [u8; 3] {
     [c(0), c(1), c(2)]
 }
 
+/// Least width of a heat map's image area, pixels: smaller ray images are scaled up (nearest
+/// neighbour) so the plot stays readable.
+const HEAT_MIN_WIDTH: u32 = 480;
+
 /// A PNG of `cycles` as a `width` x `height` image (rays row by row, as `rays::primary_rays`
-/// makes them).
-pub fn heat_map_png(cycles: &[u32], width: u32, height: u32, scale: &HeatScale) -> Result<Vec<u8>> {
-    if cycles.len() != (width as usize) * (height as usize) {
+/// makes them) under `title`, with pixel axes and a colour bar labelled in ticks per ray.
+pub fn heat_map_png(cycles: &[u32], width: u32, height: u32, scale: &HeatScale, title: &str) -> Result<Vec<u8>> {
+    use plotters::prelude::*;
+
+    use crate::harness::plots::{encode_png, plot_err, register_font, X_LABEL_AREA, Y_LABEL_AREA};
+    if width == 0 || height == 0 || cycles.len() != (width as usize) * (height as usize) {
         return Err(Error::Usage(format!("{} cycle counts for a {width}x{height} image", cycles.len())));
     }
-    let pixels: Vec<u8> = cycles.iter().flat_map(|&c| inferno(scale.position(c))).collect();
-    let img = image::RgbImage::from_raw(width, height, pixels).expect("buffer matches the image size");
-    let mut png = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut png, image::ImageFormat::Png)
-        .map_err(|e| Error::Usage(format!("encoding a {width}x{height} heat map: {e}")))?;
-    Ok(png.into_inner())
+    register_font();
+    let what = "heat map";
+    let zoom = HEAT_MIN_WIDTH.div_ceil(width).max(1);
+    let (iw, ih) = (width.saturating_mul(zoom).min(4096), height.saturating_mul(zoom).min(4096));
+    let (bar_w, caption, margin) = (170u32, 44u32, 10u32);
+    let (w, h) = (iw + Y_LABEL_AREA + bar_w + 2 * margin, ih + caption + X_LABEL_AREA + 2 * margin);
+    let mut buf = vec![255u8; (w as usize) * (h as usize) * 3];
+    let err = |e| plot_err(what, e);
+    let (xs, ys) = {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(err)?;
+        let (main, bar) = root.split_horizontally(w - bar_w);
+        let mut chart = ChartBuilder::on(&main)
+            .caption(title, ("sans-serif", 20))
+            .margin(margin)
+            .x_label_area_size(X_LABEL_AREA)
+            .y_label_area_size(Y_LABEL_AREA)
+            .build_cartesian_2d(0u32..width, height..0u32)
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
+            .x_desc("pixel x")
+            .y_desc("pixel y (rays row by row)")
+            .draw()
+            .map_err(err)?;
+        let range = chart.plotting_area().get_pixel_range();
+        // The colour bar: ticks per ray on the log scale the image uses.
+        let mut cb = ChartBuilder::on(&bar)
+            .margin_top(caption as i32 + margin as i32)
+            .margin_bottom(X_LABEL_AREA as i32 + margin as i32)
+            .margin_right(30)
+            .y_label_area_size(95)
+            .build_cartesian_2d(0f64..1.0, (scale.lo..scale.hi).log_scale())
+            .map_err(err)?;
+        cb.configure_mesh()
+            .disable_mesh()
+            .disable_x_axis()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
+            .y_desc(format!("ticks per ray (p{} to p{})", scale.percentile_lo, scale.percentile_hi))
+            .y_label_formatter(&|v| format!("{v:.0}"))
+            .draw()
+            .map_err(err)?;
+        let steps = 128;
+        let at = |i: usize| (scale.lo.ln() + (scale.hi.ln() - scale.lo.ln()) * i as f64 / steps as f64).exp();
+        cb.draw_series((0..steps).map(|i| {
+            let [r, g, b] = inferno((i as f64 + 0.5) / steps as f64);
+            Rectangle::new([(0.0, at(i)), (1.0, at(i + 1))], RGBColor(r, g, b).filled())
+        }))
+        .map_err(err)?;
+        root.present().map_err(err)?;
+        range
+    };
+    // The image itself, nearest neighbour into the plotting area.
+    let (x0, x1, y0, y1) = (xs.start.max(0) as u32, xs.end.max(0) as u32, ys.start.max(0) as u32, ys.end.max(0) as u32);
+    for py in y0..y1.min(h) {
+        let ry = (((py - y0) as u64 * height as u64) / (y1 - y0).max(1) as u64).min(height as u64 - 1) as usize;
+        for px in x0..x1.min(w) {
+            let rx = (((px - x0) as u64 * width as u64) / (x1 - x0).max(1) as u64).min(width as u64 - 1) as usize;
+            let c = inferno(scale.position(cycles[ry * width as usize + rx]));
+            let o = (py as usize * w as usize + px as usize) * 3;
+            buf[o..o + 3].copy_from_slice(&c);
+        }
+    }
+    encode_png(w, h, buf, what)
 }
 
 #[cfg(test)]
@@ -114,8 +183,16 @@ mod tests {
         assert_eq!(scale.position(1000), 1.0);
         assert_eq!(inferno(0.0), [0, 0, 4]);
         assert_eq!(inferno(1.0), [252, 255, 164]);
-        let png = heat_map_png(&c, 10, 10, &scale).unwrap();
+        let png = heat_map_png(&c, 10, 10, &scale, "test").unwrap();
         assert_eq!(&png[1..4], b"PNG");
-        assert!(heat_map_png(&c, 10, 9, &scale).is_err());
+        assert!(heat_map_png(&c, 10, 9, &scale, "test").is_err());
+        // A useful size: a title, axes and a colour bar around an image scaled up to be seen.
+        let img = image::load_from_memory(&png).unwrap();
+        assert!(
+            img.width() >= HEAT_MIN_WIDTH + 200 && img.height() >= HEAT_MIN_WIDTH + 60,
+            "{}x{}",
+            img.width(),
+            img.height()
+        );
     }
 }

@@ -518,7 +518,8 @@ pub fn run(
     if let (Some(dir), Some(scale)) = (out_dir, &heat_scale) {
         for (method, cycles) in &primary_cycles {
             let file = format!("heatmap-{method}.png");
-            let png = clock::heat_map_png(cycles, o.width, o.height, scale)?;
+            let title = format!("{method}: shader-clock ticks per primary ray, {}", host.name);
+            let png = clock::heat_map_png(cycles, o.width, o.height, scale, &title)?;
             crate::io::write_atomic(&dir.join(&file), &png)?;
             for r in s.shader_clock.rows.iter_mut().filter(|r| r.method == *method && r.data.ray_set == RaySet::Primary)
             {

@@ -12,7 +12,9 @@ use super::{counts, scenes, StudyReport, StudyRow};
 use crate::encoding::Method;
 use crate::error::Result;
 pub use crate::harness::plots::Plot;
-use crate::harness::plots::{colour, legend, plot_err, render_png, SCENE_COLOURS};
+use crate::harness::plots::{
+    colour, plot_err, render_png, LegendEntry, Marker, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA,
+};
 use crate::harness::rayset::RaySet;
 
 fn rows_of<'a>(report: &'a StudyReport, scene: &'a str) -> impl Iterator<Item = &'a StudyRow> + 'a {
@@ -24,19 +26,23 @@ fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
     let scenes = scenes(report);
     let leaves = report.options.leaf_sizes.clone();
     let what = "time against leaf size";
-    render_png(path, scenes.len(), what, |area, i| {
+    let legend: Vec<_> =
+        report.options.methods.iter().map(|&m| LegendEntry::new(m.to_string(), colour(m), Marker::Line)).collect();
+    render_png(path, scenes.len(), what, &legend, |area, i| {
         let scene = &scenes[i];
         let ymax = rows_of(report, scene).map(|r| r.render_seconds().max).fold(0.0, f64::max) * 1.1;
         let mut chart = ChartBuilder::on(area)
             .caption(format!("{scene}: path-trace time"), ("sans-serif", 20))
             .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
+            .x_label_area_size(X_LABEL_AREA)
+            .y_label_area_size(Y_LABEL_AREA)
             // Integer ranges include their end in plotters: n points are 0..n-1.
             .build_cartesian_2d((0u32..leaves.len().saturating_sub(1) as u32).into_segmented(), 0f64..ymax.max(1e-9))
             .map_err(|e| plot_err(what, e))?;
         chart
             .configure_mesh()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
             .x_desc("triangles per leaf")
             .y_desc("seconds (median, min-max)")
             .x_label_formatter(&|v| match v {
@@ -58,9 +64,7 @@ fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
             let c = colour(m);
             chart
                 .draw_series(LineSeries::new(pts.iter().map(|p| (SegmentValue::CenterOf(p.0), p.1)), c.stroke_width(2)))
-                .map_err(|e| plot_err(what, e))?
-                .label(m.to_string())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+                .map_err(|e| plot_err(what, e))?;
             chart
                 .draw_series(
                     pts.iter()
@@ -68,7 +72,7 @@ fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
                 )
                 .map_err(|e| plot_err(what, e))?;
         }
-        legend(&mut chart, SeriesLabelPosition::UpperLeft, what)
+        Ok(())
     })
 }
 
@@ -87,19 +91,22 @@ fn mrays_per_set(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
             Some(r.render.mrays_per_s.median)
         }
     };
-    render_png(path, scenes.len(), what, |area, i| {
+    let legend: Vec<_> = methods.iter().map(|&m| LegendEntry::new(m.to_string(), colour(m), Marker::Bar)).collect();
+    render_png(path, scenes.len(), what, &legend, |area, i| {
         let scene = &scenes[i];
         let rows: Vec<&StudyRow> = rows_of(report, scene).filter(|r| r.leaf_size == leaf).collect();
         let ymax = rows.iter().flat_map(|r| (0..sets.len()).filter_map(|s| value(r, s))).fold(0.0, f64::max) * 1.15;
         let mut chart = ChartBuilder::on(area)
             .caption(format!("{scene}: Mrays/s, leaf {leaf}"), ("sans-serif", 20))
             .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
+            .x_label_area_size(X_LABEL_AREA)
+            .y_label_area_size(Y_LABEL_AREA)
             .build_cartesian_2d(-0.5f64..(sets.len() as f64 - 0.5), 0f64..ymax.max(1e-9))
             .map_err(|e| plot_err(what, e))?;
         chart
             .configure_mesh()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
             .disable_x_mesh()
             .x_labels(sets.len())
             .x_label_formatter(&|x| {
@@ -123,13 +130,9 @@ fn mrays_per_set(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
                     Some(Rectangle::new([(x0, 0.0), (x0 + width * 0.9, value(r, s)?)], c.filled()))
                 })
                 .collect();
-            chart
-                .draw_series(bars)
-                .map_err(|e| plot_err(what, e))?
-                .label(m.to_string())
-                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], c.filled()));
+            chart.draw_series(bars).map_err(|e| plot_err(what, e))?;
         }
-        legend(&mut chart, SeriesLabelPosition::UpperRight, what)
+        Ok(())
     })
 }
 
@@ -139,7 +142,12 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
     let scenes = scenes(report);
     let what = "instructions against time";
     let panels = ["path tracer: render time / MT", "ray cast, primary rays: time / MT"];
-    render_png(path, panels.len(), what, |area, p| {
+    let legend: Vec<_> = scenes
+        .iter()
+        .enumerate()
+        .map(|(i, s)| LegendEntry::new(s.clone(), SCENE_COLOURS[i % SCENE_COLOURS.len()], Marker::Dot))
+        .collect();
+    render_png(path, panels.len(), what, &legend, |area, p| {
         // (scene index, method, instructions, relative time)
         let mut pts: Vec<(usize, Method, f64, f64)> = vec![];
         for (si, scene) in scenes.iter().enumerate() {
@@ -164,25 +172,25 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
         let mut chart = ChartBuilder::on(area)
             .caption(format!("{}, leaf {leaf}", panels[p]), ("sans-serif", 18))
             .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
+            .x_label_area_size(X_LABEL_AREA)
+            .y_label_area_size(Y_LABEL_AREA)
             .build_cartesian_2d(xr, yr)
             .map_err(|e| plot_err(what, e))?;
         chart
             .configure_mesh()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
             .x_desc("SPIR-V function-body instructions")
             .x_label_formatter(&|x| format!("{x:.0}"))
             .y_desc("time relative to Möller-Trumbore")
             .draw()
             .map_err(|e| plot_err(what, e))?;
-        for (si, scene) in scenes.iter().enumerate() {
+        for si in 0..scenes.len() {
             let c = SCENE_COLOURS[si % SCENE_COLOURS.len()];
             let mine: Vec<_> = pts.iter().filter(|q| q.0 == si).collect();
             chart
                 .draw_series(mine.iter().map(|q| Circle::new((q.2, q.3), 5, c.filled())))
-                .map_err(|e| plot_err(what, e))?
-                .label(scene.clone())
-                .legend(move |(x, y)| Circle::new((x + 6, y), 5, c.filled()));
+                .map_err(|e| plot_err(what, e))?;
             if si == 0 {
                 chart
                     .draw_series(
@@ -193,7 +201,7 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
                     .map_err(|e| plot_err(what, e))?;
             }
         }
-        legend(&mut chart, SeriesLabelPosition::UpperLeft, what)
+        Ok(())
     })
 }
 
