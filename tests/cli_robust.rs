@@ -135,7 +135,7 @@ fn bad_values_are_refused_naming_the_option() {
     render(&["--spp", "0"], &["--spp"]);
     render(&["--spp", "1", "--submit-ms", "0"], &["--submit-ms 0"]);
     render(&["--spp", "1", "--leaf-size", "0"], &["--leaf-size 0"]);
-    render(&["--spp", "1", "--width", "0"], &["0x8"]);
+    render(&["--spp", "1", "--width", "0"], &["--width 0", "empty"]);
     // Generators refuse to write a ray file with no rays (which every reader refuses).
     let x = s(&d.join("x.rays"));
     refused(&["rays", "random", "--scene", BUNNY, "--out", &x, "--random-rays", "0"], &["--random-rays 0"]);

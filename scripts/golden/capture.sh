@@ -5,6 +5,9 @@
 # scenes/*.obj resolve) over a broad, fast, deterministic set of workloads and stores every
 # output under OUTDIR:
 #
+# The option spellings are those before issue 14 (`--validate`, `--count`, `--json-out`, ...):
+# later binaries still take them as hidden aliases, so one script runs both sides of an A/B.
+#
 #   OUTDIR/commands.txt      name <TAB> exit code <TAB> command line  (paths under OUTDIR are
 #                            written as <OUT>, BIN as "trilab"; compared by compare.sh)
 #   OUTDIR/timings.txt       name <TAB> wall seconds  (NOT compared; for humans)

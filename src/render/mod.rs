@@ -91,8 +91,20 @@ impl RenderSettings {
 
     fn check(&self) -> Result<()> {
         let bad = |m: String| Err(Error::Usage(m));
-        if self.width == 0 || self.height == 0 || self.pixels() > u32::MAX as u64 / 2 {
-            return bad(format!("image size {}x{} is empty or too large", self.width, self.height));
+        if self.width == 0 || self.height == 0 {
+            return bad(format!(
+                "--width {} --height {}: the image is empty; both must be at least 1",
+                self.width, self.height
+            ));
+        }
+        if self.pixels() > u32::MAX as u64 / 2 {
+            return bad(format!(
+                "--width {} --height {}: {} pixels is too many (at most {})",
+                self.width,
+                self.height,
+                self.pixels(),
+                u32::MAX / 2
+            ));
         }
         if self.spp == 0 {
             return bad("--spp must be at least 1".into());
