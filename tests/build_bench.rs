@@ -5,12 +5,11 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use trilab::bvh::{BuildOptions, Bvh, LeafPolicy};
 
 fn trilab(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_trilab")).args(args).output().unwrap()
+    common::cli::trilab(args, 300)
 }
 
 fn tiny_scene(dir: &Path) -> PathBuf {

@@ -11,24 +11,7 @@ use std::time::{Duration, Instant};
 use trilab::rays::{read_hits, write_rays, Ray};
 
 fn trilab(args: &[&str], timeout_s: u64) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    loop {
-        if child.try_wait().unwrap().is_some() {
-            break;
-        }
-        if start.elapsed() > Duration::from_secs(timeout_s) {
-            let _ = child.kill();
-            panic!("trilab {args:?} did not finish within {timeout_s} s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    common::cli::trilab(args, timeout_s)
 }
 
 fn stderr(o: &Output) -> String {

@@ -2,30 +2,17 @@
 //! CPU f64 reference, diffed; bad files named. Every run has a wall-clock limit; hits are made
 //! by `raycast` on the device with the validation layer.
 
+mod common;
+
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Output;
 
 use trilab::rays::{read_hits, write_hits};
 
 const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny.obj");
 
 fn trilab(args: &[&str]) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(120) {
-            let _ = child.kill();
-            panic!("trilab {args:?} did not finish within 120 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    common::cli::trilab(args, 120)
 }
 
 fn out(o: &Output) -> String {

@@ -9,8 +9,7 @@
 mod common;
 
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Output;
 
 use glam::DVec3;
 use trilab::bvh::BuildOptions;
@@ -21,23 +20,7 @@ use trilab::render::{self, KernelChoice, RenderSettings, RenderTarget, Sky};
 use trilab::scene::Mesh;
 
 fn trilab(args: &[&str], timeout_s: u64) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env("TRILAB_VALIDATION", "1")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(timeout_s) {
-            let _ = child.kill();
-            panic!("trilab {args:?} did not finish within {timeout_s} s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    common::cli::trilab(args, timeout_s)
 }
 
 fn stderr(o: &Output) -> String {

@@ -4,6 +4,8 @@
 //! `analyze` and the smoke study saying what they cannot judge. Every run has a wall-clock
 //! limit; commands that use a device run with the validation layer (`--validation`).
 
+mod common;
+
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -11,22 +13,7 @@ use std::time::{Duration, Instant};
 const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny.obj");
 
 fn trilab(args: &[&str], timeout_s: u64) -> (Output, Duration) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(timeout_s) {
-            let _ = child.kill();
-            panic!("trilab {args:?} did not finish within {timeout_s} s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    (child.wait_with_output().unwrap(), start.elapsed())
+    common::cli::run(args, None, &[], timeout_s)
 }
 
 fn text(o: &Output) -> String {

@@ -5,8 +5,10 @@
 //! leaks on a user's closed mesh. Every command runs the binary from a temporary directory, with
 //! the validation layer on (`TRILAB_VALIDATION=1`) and a wall-clock limit.
 
+mod common;
+
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
 use std::time::{Duration, Instant};
 
 use trilab::harness::accuracy::closed::{icosphere, Placement};
@@ -14,21 +16,7 @@ use trilab::scene::Mesh;
 
 /// Runs `trilab args` in `cwd` with `env`, killed after `timeout_s`.
 fn trilab_in(cwd: &Path, env: &[(&str, &str)], args: &[&str], timeout_s: u64) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_trilab"));
-    cmd.args(args).current_dir(cwd).env("TRILAB_VALIDATION", "1").env_remove("TRILAB_SCENES");
-    for (k, v) in env {
-        cmd.env(k, v);
-    }
-    let mut child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(timeout_s) {
-            let _ = child.kill();
-            panic!("trilab {args:?} did not finish within {timeout_s} s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    common::cli::run(args, Some(cwd), env, timeout_s).0
 }
 
 fn stderr(o: &Output) -> String {

@@ -5,27 +5,17 @@
 //! refuses it before any work with the same "does not fit" error, naming the scene, the method,
 //! the buffer, what it needs and what the device allows.
 
+mod common;
+
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Output;
 
 /// 4096 texels per binding: every buffer of the bunny's encodings (69,451 triangles) is larger.
 const LIMITS: &str = "max_texel_buffer_elements=4096";
 
 fn trilab(args: &[&str], limits: bool) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_trilab"));
-    c.args(args).current_dir(env!("CARGO_MANIFEST_DIR")).env("TRILAB_VALIDATION", "1");
-    c.env_remove("TRILAB_TEST_LIMITS");
-    if limits {
-        c.env("TRILAB_TEST_LIMITS", LIMITS);
-    }
-    let mut child = c.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        assert!(start.elapsed() < Duration::from_secs(600), "trilab {args:?} did not finish within 600 s");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    let env: &[(&str, &str)] = if limits { &[("TRILAB_TEST_LIMITS", LIMITS)] } else { &[] };
+    common::cli::run(args, None, env, 600).0
 }
 
 fn ok(o: &Output, what: &str) -> String {

@@ -3,26 +3,10 @@
 //! matrix of leaf sizes x methods, every row validated and carrying its provenance, the paper's
 //! table and claims in study.md, and plots that decode as PNG.
 
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+mod common;
 
 fn run(args: &[&str], timeout_s: u64) -> std::process::Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(timeout_s) {
-            let _ = child.kill();
-            panic!("trilab {args:?} did not finish within {timeout_s} s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    child.wait_with_output().unwrap()
+    common::cli::trilab(args, timeout_s)
 }
 
 #[test]

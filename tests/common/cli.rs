@@ -1,0 +1,58 @@
+//! Running the `trilab` binary from the tests: one runner for every CLI test. Each run has a
+//! wall-clock limit (the test fails, naming the command, past it), the Khronos validation layer
+//! on (`TRILAB_VALIDATION=1`; any message fails the command, so the test), stdin closed, and both
+//! pipes drained while the process runs, so a command that prints more than a pipe holds never
+//! stalls until the limit. Variables that change what trilab does (`TRILAB_SCENES`,
+//! `TRILAB_TEST_LIMITS`, `TRILAB_INJECT_FAULT`) are cleared unless the test sets them.
+
+use std::io::Read;
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// `trilab args` in the source tree; panics past `timeout_s` seconds.
+pub fn trilab(args: &[&str], timeout_s: u64) -> Output {
+    run(args, None, &[], timeout_s).0
+}
+
+/// `trilab args` in `cwd` (default: the source tree) with `env` added; the output and the wall
+/// time. Panics past `timeout_s` seconds, after killing the process.
+pub fn run(args: &[&str], cwd: Option<&Path>, env: &[(&str, &str)], timeout_s: u64) -> (Output, Duration) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_trilab"));
+    cmd.args(args)
+        .current_dir(cwd.unwrap_or(Path::new(env!("CARGO_MANIFEST_DIR"))))
+        .env("TRILAB_VALIDATION", "1")
+        .env_remove("TRILAB_SCENES")
+        .env_remove("TRILAB_TEST_LIMITS")
+        .env_remove("TRILAB_INJECT_FAULT")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let start = Instant::now();
+    let mut child = cmd.spawn().unwrap_or_else(|e| panic!("cannot start trilab {args:?}: {e}"));
+    let drain = |mut pipe: Box<dyn Read + Send>| {
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            let _ = pipe.read_to_end(&mut buf);
+            buf
+        })
+    };
+    let stdout = drain(Box::new(child.stdout.take().expect("piped stdout")));
+    let stderr = drain(Box::new(child.stderr.take().expect("piped stderr")));
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("waiting for trilab") {
+            break status;
+        }
+        if start.elapsed() > Duration::from_secs(timeout_s) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("trilab {args:?} did not finish within {timeout_s} s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let took = start.elapsed();
+    (Output { status, stdout: stdout.join().unwrap(), stderr: stderr.join().unwrap() }, took)
+}
