@@ -79,38 +79,41 @@ enum RayQueryChoice {
     Off,
 }
 
-/// `--out DIR` as the two files, or the old `--json-out`/`--md-out` files.
+/// `--out DIR` as the two report files (`<stem>.json`, `<stem>.md`), or the old
+/// `--json-out`/`--md-out` files, each checked before any work: writable, and not one of the
+/// `scenes` (names are resolved to the files they find).
 pub fn output_files(
     out: &Option<PathBuf>,
     json_out: &Option<PathBuf>,
     md_out: &Option<PathBuf>,
     stem: &str,
+    scenes: &[PathBuf],
 ) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
-    match out {
+    let (json, md) = match out {
         Some(dir) => {
             if dir.is_file() {
                 return Err(Error::Usage(format!("--out {}: is a file; --out names a directory", dir.display())));
             }
             let json = json_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.json")));
             let md = md_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.md")));
-            Ok((Some(json), Some(md)))
+            (Some(json), Some(md))
         }
-        None => Ok((json_out.clone(), md_out.clone())),
+        None => (json_out.clone(), md_out.clone()),
+    };
+    let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
+    let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
+    for (option, file) in [("--json-out", &json), ("--md-out", &md)] {
+        if let Some(file) = file {
+            let option = if out.is_some() { "--out" } else { option };
+            trilab::io::check_output(option, trilab::io::Output::File(file), &inputs)?;
+        }
     }
+    Ok((json, md))
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {
     let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
-    let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench")?;
-    // Names (`bunny`) resolve from any folder; the files found are the inputs to protect.
-    let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
-    let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
-    for (option, out) in [("--json-out", &json_out), ("--md-out", &md_out)] {
-        if let Some(out) = out {
-            let option = if a.out.is_some() { "--out" } else { option };
-            trilab::io::check_output(option, trilab::io::Output::File(out), &inputs)?;
-        }
-    }
+    let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench", &scenes)?;
     let ctx = a.gpu.context()?;
     let o = BenchOptions {
         scenes,

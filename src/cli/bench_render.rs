@@ -58,15 +58,7 @@ pub struct BenchRenderArgs {
 pub fn run(a: BenchRenderArgs) -> Result<()> {
     let scenes =
         if a.scenes.is_empty() { ["bunny", "dragon", "buddha"].iter().map(PathBuf::from).collect() } else { a.scenes };
-    let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench")?;
-    let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
-    let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
-    for (option, out) in [("--json-out", &json_out), ("--md-out", &md_out)] {
-        if let Some(out) = out {
-            let option = if a.out.is_some() { "--out" } else { option };
-            trilab::io::check_output(option, trilab::io::Output::File(out), &inputs)?;
-        }
-    }
+    let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench", &scenes)?;
     let ctx = a.gpu.context()?;
     let o = RenderBenchOptions {
         scenes,
