@@ -16,7 +16,7 @@ pub mod wide;
 pub use crate::scene::Aabb;
 pub use builder::{BuildOptions, Builder, LeafPolicy, MAX_DEPTH, MAX_LEAF_SIZE, PAPER_LEAF_SIZES};
 pub use node::BvhNode;
-pub use wide::{Bvh2Node, Bvh4, Bvh4Node, Bvh8, Bvh8Node, Collapse, WideBvh, WideNode, WideStats};
+pub use wide::{Bvh2Node, Bvh4, Bvh4Node, Bvh8, Bvh8Node, Collapse, WideBvh, WideHit, WideNode, WideStats, WideSteps};
 
 use crate::scene::Mesh;
 
