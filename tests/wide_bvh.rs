@@ -11,6 +11,7 @@
 use std::path::Path;
 
 use trilab::bvh::{BuildOptions, Bvh, Collapse, WideBvh, WideSteps};
+use trilab::encoding::Method;
 use trilab::rays::{diffuse_rays, primary_rays, random_rays, Camera, Ray};
 use trilab::reference::{intersect, Ray64, RefHit, Reference};
 use trilab::scene::{load_obj, Mesh};
@@ -107,10 +108,45 @@ fn a_corrupted_child_box_is_caught_and_loses_hits() {
     n.max_x[slot] = 0.5 * (n.min_x[slot] + n.max_x[slot]);
     let e = bad.validate(&bvh, &mesh).expect_err("a shrunk child box must be caught");
     assert!(e.contains("not inside the node's box"), "{e}");
-    let lost = (0..rays.len())
-        .filter(|&i| trace(&mesh, &bad, &rays[i], false).0 != reference[i])
-        .count();
+    let lost = (0..rays.len()).filter(|&i| trace(&mesh, &bad, &rays[i], false).0 != reference[i]).count();
     assert!(lost > 0, "the shrunk box should hide some closest hits");
+}
+
+/// A wide kernel gets its nodes by collapsing an encoding's binary nodes (leaves in the
+/// encoding's units, e.g. quads): the same tree, each leaf child's first slot mapped as the
+/// encoding maps that binary leaf.
+#[test]
+fn collapsing_an_encodings_nodes_keeps_its_leaf_units() {
+    let mesh = bunny();
+    for leaf in [3, 4, 8] {
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
+        let plain = WideBvh::<8>::collapse(&bvh);
+        for method in Method::ALL {
+            let e = method.encode(&mesh, &bvh);
+            assert_eq!(e.nodes.len(), bvh.nodes.len(), "{method}: encodings keep the node order");
+            let map: std::collections::HashMap<u32, u32> = bvh
+                .nodes
+                .iter()
+                .zip(&e.nodes)
+                .filter(|(b, _)| b.is_leaf())
+                .map(|(b, enc)| (b.left_or_first, enc.left_or_first))
+                .collect();
+            let wide = WideBvh::<8>::collapse_nodes(&e.nodes, &bvh.options, Collapse::Sah);
+            assert_eq!(wide.len(), plain.nodes.len(), "{method} leaf {leaf}");
+            let mut leaves = 0;
+            for (a, b) in plain.nodes.iter().zip(&wide) {
+                assert_eq!(bytemuck::bytes_of(&a.min_x), bytemuck::bytes_of(&b.min_x));
+                assert_eq!(bytemuck::bytes_of(&a.max_z), bytemuck::bytes_of(&b.max_z));
+                assert_eq!(a.count, b.count, "{method} leaf {leaf}");
+                for s in 0..8 {
+                    let want = if a.is_leaf(s) { map[&a.child[s]] } else { a.child[s] };
+                    assert_eq!(b.child[s], want, "{method} leaf {leaf}");
+                    leaves += a.is_leaf(s) as usize;
+                }
+            }
+            assert_eq!(leaves, map.len());
+        }
+    }
 }
 
 /// Mean per ray.

@@ -61,7 +61,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use serde::Serialize;
 
-use super::{Aabb, BuildOptions, Bvh, PAD_SLOT};
+use super::{Aabb, BuildOptions, Bvh, BvhNode, PAD_SLOT};
 use crate::rays::Ray;
 use crate::scene::Mesh;
 use crate::shared::MISS_ID;
@@ -166,7 +166,7 @@ pub struct WideBvh<const N: usize> {
 pub type Bvh4 = WideBvh<4>;
 pub type Bvh8 = WideBvh<8>;
 
-/// Sizes and costs of a wide tree (`trilab bvh`'s numbers for one width).
+/// Sizes and costs of a wide tree.
 #[derive(Clone, Debug, Serialize)]
 pub struct WideStats {
     pub width: usize,
@@ -261,8 +261,8 @@ pub fn slab_ordered(origin: Vec3, inv_dir: Vec3, b: &Aabb, tmin: f32, tmax: f32)
 
 /// The children of binary node `b` as the wide node collapsed from it sees them: greedy
 /// opening of the largest-area inner child (see the module docs).
-fn open<const N: usize>(bvh: &Bvh, b: usize) -> Vec<usize> {
-    let n = &bvh.nodes[b];
+fn open<const N: usize>(nodes: &[BvhNode], b: usize) -> Vec<usize> {
+    let n = &nodes[b];
     if n.is_leaf() {
         return vec![b];
     }
@@ -271,7 +271,7 @@ fn open<const N: usize>(bvh: &Bvh, b: usize) -> Vec<usize> {
     while kids.len() < N {
         let mut best: Option<(usize, f64)> = None;
         for (slot, &k) in kids.iter().enumerate() {
-            let kn = &bvh.nodes[k];
+            let kn = &nodes[k];
             if !kn.is_leaf() {
                 let a = kn.aabb().area();
                 if best.is_none_or(|(_, ba)| a > ba) {
@@ -280,12 +280,11 @@ fn open<const N: usize>(bvh: &Bvh, b: usize) -> Vec<usize> {
             }
         }
         let Some((slot, _)) = best else { break };
-        let l = bvh.nodes[kids[slot]].left_or_first as usize;
+        let l = nodes[kids[slot]].left_or_first as usize;
         kids.splice(slot..=slot, [l, l + 1]);
     }
     kids
 }
-
 
 /// How [`WideBvh::collapse_with`] chooses each wide node's children.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -318,14 +317,13 @@ struct SahPlan {
 }
 
 impl SahPlan {
-    fn new(bvh: &Bvh, n: usize) -> SahPlan {
-        let o = &bvh.options;
-        let len = bvh.nodes.len();
+    fn new(nodes: &[BvhNode], o: &BuildOptions, n: usize) -> SahPlan {
+        let len = nodes.len();
         let mut p = SahPlan { n, cost: vec![0.0; len * n], choice: vec![0; len * n] };
         // Children have larger indices than their parent (the builder's order; validate checks
         // it), so one reverse sweep sees every child before its parent.
         for i in (0..len).rev() {
-            let b = &bvh.nodes[i];
+            let b = &nodes[i];
             let area = b.aabb().area();
             if b.is_leaf() {
                 let c = o.cost_intersect as f64 * o.tests(b.count as usize) * area;
@@ -354,28 +352,28 @@ impl SahPlan {
     }
 
     /// The child slots of the wide node collapsed from binary node `b`.
-    fn children(&self, bvh: &Bvh, b: usize) -> Vec<usize> {
-        let node = &bvh.nodes[b];
+    fn children(&self, nodes: &[BvhNode], b: usize) -> Vec<usize> {
+        let node = &nodes[b];
         if node.is_leaf() {
             return vec![b];
         }
         let mut out = Vec::with_capacity(self.n);
         let l = node.left_or_first as usize;
         let k = self.split(l, self.n).1;
-        self.expand(bvh, l, k, &mut out);
-        self.expand(bvh, l + 1, self.n - k, &mut out);
+        self.expand(nodes, l, k, &mut out);
+        self.expand(nodes, l + 1, self.n - k, &mut out);
         out
     }
 
     /// The slots (binary nodes) that cover `i`'s subtree with at most `j` slots.
-    fn expand(&self, bvh: &Bvh, i: usize, j: usize, out: &mut Vec<usize>) {
+    fn expand(&self, nodes: &[BvhNode], i: usize, j: usize, out: &mut Vec<usize>) {
         let k = self.choice[i * self.n + j - 1] as usize;
         if k == 0 {
             out.push(i);
         } else {
-            let l = bvh.nodes[i].left_or_first as usize;
-            self.expand(bvh, l, k, out);
-            self.expand(bvh, l + 1, j - k, out);
+            let l = nodes[i].left_or_first as usize;
+            self.expand(nodes, l, k, out);
+            self.expand(nodes, l + 1, j - k, out);
         }
     }
 }
@@ -388,12 +386,29 @@ impl<const N: usize> WideBvh<N> {
 
     /// Collapses `bvh` the way `how` says (see the module docs).
     pub fn collapse_with(bvh: &Bvh, how: Collapse) -> WideBvh<N> {
+        let t0 = Instant::now();
+        let nodes = Self::collapse_nodes(&bvh.nodes, &bvh.options, how);
+        WideBvh {
+            nodes,
+            bounds: bvh.nodes[0].aabb(),
+            prim_ids: bvh.prim_ids.clone(),
+            max_leaf_size: bvh.options.max_leaf_size,
+            collapse_seconds: t0.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// The wide nodes of a binary node array (root at 0, the children of an inner node
+    /// adjacent and after it, as [`Bvh::nodes`]) priced with `o`. A leaf child copies its
+    /// binary leaf's `(left_or_first, count)` as they are, so collapsing an encoding's nodes
+    /// (`encoding::EncodedScene::nodes`, leaves in the encoding's units, e.g. quads) gives the
+    /// same tree with the leaves in that encoding's units (tested): that is how a wide kernel
+    /// gets its nodes.
+    pub fn collapse_nodes(binary: &[BvhNode], o: &BuildOptions, how: Collapse) -> Vec<WideNode<N>> {
         #[allow(clippy::let_unit_value)]
         let () = WideNode::<N>::WIDTH_OK;
-        let t0 = Instant::now();
         let plan = match how {
             Collapse::Greedy => None,
-            Collapse::Sah => Some(SahPlan::new(bvh, N)),
+            Collapse::Sah => Some(SahPlan::new(binary, o, N)),
         };
         let mut nodes = vec![WideNode::<N>::EMPTY];
         // (wide node to fill, binary node it is collapsed from)
@@ -401,11 +416,11 @@ impl<const N: usize> WideBvh<N> {
         while let Some((w, b)) = work.pop() {
             let mut node = WideNode::<N>::EMPTY;
             let kids = match &plan {
-                None => open::<N>(bvh, b),
-                Some(p) => p.children(bvh, b),
+                None => open::<N>(binary, b),
+                Some(p) => p.children(binary, b),
             };
             for (slot, k) in kids.into_iter().enumerate() {
-                let kn = &bvh.nodes[k];
+                let kn = &binary[k];
                 node.set_child_box(slot, &kn.aabb());
                 if kn.is_leaf() {
                     node.child[slot] = kn.left_or_first;
@@ -419,13 +434,7 @@ impl<const N: usize> WideBvh<N> {
             }
             nodes[w] = node;
         }
-        WideBvh {
-            nodes,
-            bounds: bvh.nodes[0].aabb(),
-            prim_ids: bvh.prim_ids.clone(),
-            max_leaf_size: bvh.options.max_leaf_size,
-            collapse_seconds: t0.elapsed().as_secs_f64(),
-        }
+        nodes
     }
 
     /// Calls `f(node_index, depth, area of the node's box)` for every node, depth first.
@@ -619,7 +628,9 @@ impl<const N: usize> WideBvh<N> {
             }
             for s in 0..k {
                 let b = n.child_box(s);
-                if !parent_box.contains(&b) && !(n.is_leaf(s) && b.is_empty()) {
+                // A padding-only leaf (an all-degenerate scene) has an empty box.
+                let padding_leaf = n.is_leaf(s) && b.is_empty();
+                if !parent_box.contains(&b) && !padding_leaf {
                     return Err(format!("node {i}: the box of child slot {s} is not inside the node's box"));
                 }
                 if n.is_leaf(s) {
@@ -709,7 +720,9 @@ mod tests {
             s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             ((s >> 40) as f32) / (1u64 << 24) as f32
         };
-        (0..n).map(|_| Ray::new([rnd() * 40.0, rnd() * 80.0, -5.0], [0.2 * rnd() - 0.1, 0.2 * rnd() - 0.1, 1.0])).collect()
+        (0..n)
+            .map(|_| Ray::new([rnd() * 40.0, rnd() * 80.0, -5.0], [0.2 * rnd() - 0.1, 0.2 * rnd() - 0.1, 1.0]))
+            .collect()
     }
 
     #[test]
@@ -738,7 +751,7 @@ mod tests {
             assert!(w4.sah_cost(o) <= c4 * (1.0 + 1e-12), "leaf {leaf}: {} > greedy {c4}", w4.sah_cost(o));
             assert!(w8.sah_cost(o) <= c8 * (1.0 + 1e-12), "leaf {leaf}: {} > greedy {c8}", w8.sah_cost(o));
             // ... and its cost is the dynamic program's.
-            let plan = SahPlan::new(&bvh, 8);
+            let plan = SahPlan::new(&bvh.nodes, &bvh.options, 8);
             let dp = plan.cost[0] / bvh.nodes[0].aabb().area();
             assert!((dp - w8.sah_cost(o)).abs() <= 1e-9 * dp, "{dp} vs {}", w8.sah_cost(o));
             let (s2, s4, s8) = (w2.stats(o), w4.stats(o), w8.stats(o));
@@ -760,7 +773,7 @@ mod tests {
     fn greedy_opening_takes_the_largest_inner_child() {
         let mesh = grid(500);
         let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
-        let kids = open::<3>(&bvh, 0);
+        let kids = open::<3>(&bvh.nodes, 0);
         let root = &bvh.nodes[0];
         let (l, r) = (root.left_or_first as usize, root.left_or_first as usize + 1);
         let big = if bvh.nodes[l].aabb().area() >= bvh.nodes[r].aabb().area() { l } else { r };
@@ -769,7 +782,7 @@ mod tests {
         assert_eq!(kids, expect);
         // A leaf never opens.
         let leaf = (0..bvh.nodes.len()).find(|&i| bvh.nodes[i].is_leaf()).unwrap();
-        assert_eq!(open::<8>(&bvh, leaf), vec![leaf]);
+        assert_eq!(open::<8>(&bvh.nodes, leaf), vec![leaf]);
     }
 
     #[test]
@@ -844,7 +857,8 @@ mod tests {
                         continue;
                     }
                     // make_trace_ray()'s guard against zero components.
-                    let safe = Vec3::select(dir.cmplt(Vec3::ZERO), -Vec3::ONE, Vec3::ONE) * dir.abs().max(Vec3::splat(1e-30));
+                    let safe =
+                        Vec3::select(dir.cmplt(Vec3::ZERO), -Vec3::ONE, Vec3::ONE) * dir.abs().max(Vec3::splat(1e-30));
                     for origin in [Vec3::ZERO, Vec3::splat(1e30), Vec3::new(-3.0, 5.0, 1e-20)] {
                         let inv = Vec3::ONE / safe;
                         assert_eq!(slab_ordered(origin, inv, &EMPTY_BOX, 0.0, f32::INFINITY), None, "{dir} {origin}");
