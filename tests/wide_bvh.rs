@@ -38,11 +38,14 @@ fn trace<const N: usize>(mesh: &Mesh, w: &WideBvh<N>, r: &Ray, any: bool) -> (Re
 }
 
 /// Rays whose wide closest hit differs from the reference's; panics on a wrong any-hit.
+/// The traversal's stack never outgrows [`WideBvh::stack_bound`].
 fn disagreements<const N: usize>(mesh: &Mesh, w: &WideBvh<N>, rays: &[Ray], reference: &[RefHit]) -> usize {
     let mut differ = 0;
+    let bound = w.stack_bound() as u32;
     for (r, want) in rays.iter().zip(reference) {
-        let (got, _) = trace(mesh, w, r, false);
+        let (got, steps) = trace(mesh, w, r, false);
         differ += (got != *want) as usize;
+        assert!(steps.stack_peak <= bound, "N {N}: stack {} > bound {bound}", steps.stack_peak);
         let (any, _) = trace(mesh, w, r, true);
         if any.is_hit() {
             // A real hit of that triangle at that distance.
@@ -178,7 +181,7 @@ fn wide_trees_cost_less_and_visit_fewer_nodes() {
         .chain(trees8.iter().zip(["sah", "greedy"]).map(|(w, h)| (h, w.stats(o))))
     {
         eprintln!(
-            "N {} {how:>6}: nodes {:>6} ({:>5.1} B/tri, {} B/node), mean children {:.2}, depth {:>2}, SAH {:.3} (per box {:.3}), collapse {:.1} ms",
+            "N {} {how:>6}: nodes {:>6} ({:>5.1} B/tri, {} B/node), mean children {:.2}, depth {:>2}, SAH {:.3} (per box {:.3}), collapse {:.1} ms, stack bound {}",
             s.width,
             s.nodes,
             s.node_bytes_per_triangle,
@@ -187,7 +190,8 @@ fn wide_trees_cost_less_and_visit_fewer_nodes() {
             s.depth,
             s.sah_cost,
             s.sah_cost_per_box,
-            s.collapse_ms
+            s.collapse_ms,
+            s.stack_bound
         );
         assert!(s.sah_cost <= binary.sah_cost * (1.0 + 1e-12));
     }
@@ -207,11 +211,12 @@ fn wide_trees_cost_less_and_visit_fewer_nodes() {
         );
         for (name, s) in [("bvh2", &s2), ("bvh4", &s4), ("bvh8", &s8), ("bvh8 greedy", &g8)] {
             eprintln!(
-                "{set:>7} {name:>11}: nodes {:>5.2}, boxes {:>6.2}, leaves {:>5.2}, triangles {:>5.2} per ray",
+                "{set:>7} {name:>11}: nodes {:>5.2}, boxes {:>6.2}, leaves {:>5.2}, triangles {:>5.2} per ray; stack peak {}",
                 per(&|x| x.nodes, s),
                 per(&|x| x.boxes, s),
                 per(&|x| x.leaves, s),
-                per(&|x| x.triangles, s)
+                per(&|x| x.triangles, s),
+                s.iter().map(|x| x.stack_peak).max().unwrap_or(0)
             );
         }
         // Fewer node visits is the point of a wide tree (not a bound worth more than that).

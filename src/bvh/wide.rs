@@ -186,6 +186,9 @@ pub struct WideStats {
     /// `node_bytes` over the triangles in the hierarchy.
     pub node_bytes_per_triangle: f64,
     pub collapse_ms: f64,
+    /// Most entries [`WideBvh::trace`]'s stack can hold, whatever the ray: the size of a
+    /// kernel's fixed stack ([`WideBvh::stack_bound`]).
+    pub stack_bound: usize,
 }
 
 /// Work of one ray in [`WideBvh::trace`].
@@ -199,6 +202,8 @@ pub struct WideSteps {
     pub leaves: u32,
     /// Triangles tested (padding excluded).
     pub triangles: u32,
+    /// Most stack entries held at once.
+    pub stack_peak: u32,
 }
 
 /// A hit of [`WideBvh::trace`], in the f64 of the triangle test it was given. `id ==
@@ -483,6 +488,24 @@ impl<const N: usize> WideBvh<N> {
         self.sah(o, true)
     }
 
+    /// Most entries the traversal stack can hold: a node of `k` children pushes `k` entries and
+    /// pops one to descend, so the worst path from the root adds `k - 1` per node above the
+    /// last, which pushes all of its `k`. A kernel's fixed stack needs this many entries.
+    pub fn stack_bound(&self) -> usize {
+        // Nodes come after their parents (validate checks it): one reverse sweep.
+        let mut need = vec![0usize; self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let n = &self.nodes[i];
+            let k = n.children();
+            let below = (0..k).filter(|&s| !n.is_leaf(s)).map(|s| need[n.child[s] as usize]).max();
+            need[i] = match below {
+                Some(b) => (k - 1 + b).max(k),
+                None => k,
+            };
+        }
+        need[0]
+    }
+
     /// Triangles in the hierarchy (padding not counted).
     pub fn triangle_count(&self) -> usize {
         self.prim_ids.iter().filter(|&&p| p != PAD_SLOT).count()
@@ -510,6 +533,7 @@ impl<const N: usize> WideBvh<N> {
             node_bytes,
             node_bytes_per_triangle: node_bytes as f64 / self.triangle_count().max(1) as f64,
             collapse_ms: self.collapse_seconds * 1e3,
+            stack_bound: self.stack_bound(),
         }
     }
 
@@ -580,6 +604,7 @@ impl<const N: usize> WideBvh<N> {
             for &(t, s) in hits.iter().rev() {
                 stack.push((n.child[s], n.count[s], t));
             }
+            steps.stack_peak = steps.stack_peak.max(stack.len() as u32);
         }
         (best, steps)
     }
