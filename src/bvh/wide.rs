@@ -92,7 +92,8 @@ unsafe impl<const N: usize> Zeroable for WideNode<N> {}
 // SAFETY: as above.
 unsafe impl<const N: usize> Pod for WideNode<N> {}
 
-/// The binary tree in the wide layout (Aila & Laine's 64-byte node: both children's boxes).
+/// The binary tree in the wide layout: 64 bytes, both children's boxes in the parent, like
+/// Aila & Laine's node (whose fields are ordered per child, not per plane).
 pub type Bvh2Node = WideNode<2>;
 /// 4 children, 128 bytes.
 pub type Bvh4Node = WideNode<4>;
@@ -229,7 +230,7 @@ impl WideHit {
 const BOX_SLACK: f64 = 1e-9;
 
 /// The f64 slab test of [`WideBvh::trace`]: near and far planes chosen by the direction's sign
-/// (no min/max swap), intervals widened by [`BOX_SLACK`] where finite. Returns the entry
+/// (no min/max swap), intervals widened by `BOX_SLACK` (1e-9, relative) where finite. Returns the entry
 /// distance, or `None` when the ray misses the box within `[tmin, tmax]`. An inverted box
 /// (`min > max` on an axis) is always missed.
 pub fn slab_f64(origin: [f64; 3], dir: [f64; 3], b: &Aabb, tmin: f64, tmax: f64) -> Option<f64> {
