@@ -13,14 +13,17 @@
 //!   keep the leaves (see `SahPlan`). Unlike the paper, leaves are never merged (so the
 //!   encodings' leaf ranges stay valid) and the price is our SAH's, not the paper's per-slot
 //!   one. O(N²) per binary node.
-//! - [`Collapse::Greedy`]: as Embree's BVH4/BVH8 and tinybvh's `BVH4`/`BVH8` conversions do
-//!   (Wald, Benthin & Boulos, "Getting Rid of Packets", IEEE RT 2008, sec. 3): a wide node
-//!   starts from the two children of a binary inner node and repeatedly *opens* the inner
-//!   child with the largest surface area (ties: the first in slot order), replacing it in
-//!   place by its two children, until it has `N` children or only leaves are left; each inner
-//!   child then becomes a wide node of its own. On a balanced tree this fills the top levels
-//!   and leaves many half-empty nodes at the bottom (bunny, leaf 4, N = 8: more nodes than
-//!   N = 4), which the SAH collapse avoids.
+//! - [`Collapse::Greedy`]: as tinybvh's `MBVH<M>::ConvertFrom` (tiny_bvh.h, the peer in
+//!   `../shared/peers/tinybvh/`) and Wald, Benthin & Boulos, "Getting Rid of Packets" (IEEE RT
+//!   2008, sec. 3) collapse a binary tree: a wide node starts from the two children of a
+//!   binary inner node and repeatedly *opens* the inner child with the largest surface area
+//!   (ties: the first in slot order), replacing it by its two children, until it has `N`
+//!   children or only leaves are left; each inner child then becomes a wide node of its own.
+//!   (tinybvh puts the second grandchild in the last slot; here both take the opened child's
+//!   place, so slots keep the binary tree's left-to-right order.) On a balanced tree this
+//!   fills the top levels and leaves half-empty nodes at the bottom: bunny, leaf 4, N = 8 uses
+//!   4.6 of 8 slots per node (22.0 node bytes per triangle) against the SAH collapse's 6.0
+//!   (15.5 bytes); on a 3,000-triangle grid its 8-wide tree has more nodes than its 4-wide one.
 //!
 //! Leaves are never split or merged: every leaf of the wide tree is a leaf of the binary tree
 //! with the same `(first, count)` range of [`Bvh::prim_ids`], so every encoding's per-slot
