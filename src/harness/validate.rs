@@ -15,8 +15,8 @@ use crate::scene::Mesh;
 pub const MIN_AGREEMENT: f64 = 0.9999;
 
 /// Compares GPU hits with the f64 reference; an error (never a reported speed) when fewer than
-/// 99.99 % agree, any disagreement is unexplained (not an edge, vertex or tie case) or any hit is
-/// invalid.
+/// 99.99 % agree (the share of disagreements rounded up to whole rays), any disagreement is
+/// unexplained (not an edge, vertex or tie case) or any hit is invalid.
 pub fn validate_hits(mesh: &Mesh, rays: &[Ray], hits: &[Hit], ref_hits: &[RefHit]) -> Result<Agreement> {
     let agreement = compare_closest(mesh, rays, hits, ref_hits);
     if !agreement.passes(MIN_AGREEMENT) {
