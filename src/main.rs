@@ -42,7 +42,21 @@ enum Cmd {
     Hits(cli::hits::HitsArgs),
 }
 
+/// A closed pipe on stdout (`trilab completions bash | head`) ends the process quietly, as it
+/// ends `cat`, instead of a panic in `println!` (Rust ignores SIGPIPE before `main`).
+#[cfg(unix)]
+fn default_sigpipe() {
+    // SAFETY: runs first in `main`, before any thread is started; `signal` with SIG_DFL only
+    // restores the default disposition of SIGPIPE and touches no handler state of ours. trilab
+    // writes to no child's stdin, so no write of its own depends on seeing EPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    #[cfg(unix)]
+    default_sigpipe();
     let matches = match Cli::command().try_get_matches() {
         Ok(m) => m,
         Err(e) => return cli::exit_parse_error(e),

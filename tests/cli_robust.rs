@@ -247,3 +247,29 @@ fn smoke_study_says_it_cannot_judge_the_claims() {
         assert!(s.contains("not judged"), "{what}:\n{s}");
     }
 }
+
+/// Output into a pipe whose reader has gone (`trilab completions bash | head -1`) ends trilab
+/// quietly, never with a panic (without the SIGPIPE reset in main.rs, `completions` panicked:
+/// "failed to write completion file: Broken pipe", exit 101).
+#[test]
+fn a_closed_stdout_pipe_is_not_a_panic() {
+    use std::process::{Command, Stdio};
+    for args in [&["completions", "bash"][..], &["man", "--help"][..], &["methods", "--markdown"][..]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take()); // the reader is gone before trilab writes
+        let start = std::time::Instant::now();
+        while child.try_wait().unwrap().is_none() {
+            assert!(start.elapsed().as_secs() < 60, "trilab {args:?} did not finish within 60 s");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        let o = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!err.contains("panicked") && o.status.code() != Some(101), "trilab {args:?}: {:?} {err}", o.status);
+    }
+}
