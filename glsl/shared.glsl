@@ -11,6 +11,9 @@
 #define SPEC_ID_WORKGROUP_SIZE 1
 // Traversal stack entries: the BVH builder guarantees depth <= STACK_SIZE.
 #define STACK_SIZE 64
+// Stack entries of the 4-wide traversal (traverse_bvh4.glsl); the host refuses a 4-wide tree
+// whose WideBvh::stack_bound exceeds it.
+#define BVH4_STACK_SIZE 64
 
 // Descriptor set 0. Rays and hits: storage buffers holding one dispatch's sub-range.
 #define BINDING_RAYS 0

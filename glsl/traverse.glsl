@@ -222,6 +222,10 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool a
 #error "PRIM_TRIANGLES must be 1 or 4"
 #endif
 
+#ifdef WIDE_BVH
+// The wide traversal replaces the binary one below (raycast.comp's `*_bvh4` variants).
+#include "traverse_bvh4.glsl"
+#else
 // Traces `r` through the BVH, updating `h` (h.t must start at the ray's tmax).
 // With `any_hit` it returns at the first accepted intersection (occlusion). Pass a constant:
 // every call site is inlined and specialised by the compiler.
@@ -277,5 +281,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
         }
     }
 }
+
+#endif // WIDE_BVH
 
 #endif

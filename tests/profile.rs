@@ -45,7 +45,10 @@ fn pipeline_statistics_count_every_invocation_dispatched() {
         assert!(sizes.contains(&WORKGROUP_SIZE));
         for s in sizes {
             let k = ctx
-                .create_kernel_specialized(scene.kernel_source(Raycast::Closest), &[(SPEC_ID_WORKGROUP_SIZE, s)])
+                .create_kernel_specialized(
+                    scene.kernel_source(Raycast::Closest).unwrap(),
+                    &[(SPEC_ID_WORKGROUP_SIZE, s)],
+                )
                 .unwrap();
             let d = dispatch_once(ctx, &k, &scene, &rays, true).unwrap();
             let expected = (rays.len() as u64).div_ceil(u64::from(s)) * u64::from(s);
@@ -98,7 +101,10 @@ fn workgroup_size_specialisation_gives_identical_hits_at_each_size() {
             assert!(sizes.starts_with(&[32, 64, 128]), "{sizes:?}");
             for s in sizes {
                 let k = ctx
-                    .create_kernel_specialized(scene.kernel_source(Raycast::Closest), &[(SPEC_ID_WORKGROUP_SIZE, s)])
+                    .create_kernel_specialized(
+                        scene.kernel_source(Raycast::Closest).unwrap(),
+                        &[(SPEC_ID_WORKGROUP_SIZE, s)],
+                    )
                     .unwrap();
                 assert_eq!(k.layout.local_size, (s, 1, 1), "reflection after specialisation");
                 let r = scene.cast_with(ctx, &k, &rays, &opts).unwrap();
@@ -133,7 +139,7 @@ fn subgroup_size_sweep_runs_every_allowed_size_or_says_why_not() {
                 for s in sizes {
                     let k = ctx
                         .create_kernel_with(
-                            scene.kernel_source(Raycast::Closest),
+                            scene.kernel_source(Raycast::Closest).unwrap(),
                             &PipelineOptions { required_subgroup_size: Some(s), ..Default::default() },
                         )
                         .unwrap();

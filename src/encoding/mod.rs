@@ -21,7 +21,7 @@
 pub mod kernels;
 pub mod plan;
 
-pub use kernels::Raycast;
+pub use kernels::{Layout, Raycast};
 pub use plan::{AccessPath, BufferPlan, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
 
 use crate::bvh::{Bvh, BvhNode, PAD_SLOT};

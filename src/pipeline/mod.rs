@@ -19,10 +19,10 @@ mod upload;
 use std::sync::Arc;
 
 use crate::analyze::{self, MethodChoice, Recommendation};
-use crate::bvh::{BuildOptions, Bvh};
+use crate::bvh::{BuildOptions, Bvh, Bvh4Node, Collapse, WideBvh};
 use crate::encoding::plan::check_extras;
 use crate::encoding::{
-    AccessPath, BufferPlan, DeviceLimits, EncodedScene, MemoryPlan, Method, Raycast, SceneAccess, SceneCounts,
+    AccessPath, BufferPlan, DeviceLimits, EncodedScene, Layout, MemoryPlan, Method, Raycast, SceneAccess, SceneCounts,
 };
 use crate::error::{Error, Result};
 use crate::gpu::raycast::cast_rays;
@@ -30,6 +30,7 @@ use crate::gpu::{Context, Kernel, RaycastOptions, RaycastResult, Resource};
 use crate::kernels::KernelSource;
 use crate::reference::Reference;
 use crate::scene::Mesh;
+use crate::shared::BVH4_STACK_SIZE;
 
 use upload::SceneBuffers;
 
@@ -53,17 +54,26 @@ pub struct SceneRequest {
     /// A reader of the scene that has only the texel path (the path tracer), and why: the plan
     /// must then fit texel bindings, and a "does not fit" error says what helps that reader.
     pub texel_only: Option<&'static str>,
+    /// The node layout the kernels read ([`Layout::Bvh2`] unless asked): [`Layout::Bvh4`]
+    /// binds the 4-wide nodes collapsed from the encoding's binary nodes where the binary ones
+    /// would be, and has only the closest-hit kernel on the texel path so far.
+    pub layout: Layout,
 }
 
 impl SceneRequest {
     /// `method` (or `auto`), read through whichever path fits.
     pub fn new(method: impl Into<MethodChoice>) -> SceneRequest {
-        SceneRequest { method: method.into(), access: SceneAccess::Auto, texel_only: None }
+        SceneRequest { method: method.into(), access: SceneAccess::Auto, texel_only: None, layout: Layout::Bvh2 }
     }
 
     /// The same, read through `access`.
     pub fn access(self, access: SceneAccess) -> SceneRequest {
         SceneRequest { access, ..self }
+    }
+
+    /// The same, with the nodes in `layout`.
+    pub fn layout(self, layout: Layout) -> SceneRequest {
+        SceneRequest { layout, ..self }
     }
 
     /// The same, for a reader that has only the texel path (`why` names it).
@@ -115,7 +125,16 @@ impl<'m> HostScene<'m> {
             Some(why) => memory.choose_texel_only(&self.name, limits, why)?,
             None => memory.choose(&self.name, request.access, limits)?,
         };
-        Ok(ScenePlan { host: self, method, auto, memory, access, limits: *limits })
+        if request.layout != Layout::Bvh2 && access != AccessPath::Texel {
+            return Err(Error::Usage(format!(
+                "scene `{}`: the {} layout has kernels on the texel path only, and the scene needs \
+                 the {} path",
+                self.name,
+                request.layout,
+                access.name()
+            )));
+        }
+        Ok(ScenePlan { host: self, method, auto, memory, access, layout: request.layout, limits: *limits })
     }
 
     /// [`HostScene::plan`] then [`ScenePlan::upload`]: `request`'s scene on the device.
@@ -133,6 +152,9 @@ pub struct ScenePlan<'h, 'm> {
     pub auto: Option<Recommendation>,
     pub memory: MemoryPlan,
     pub access: AccessPath,
+    /// The node layout. The memory plan prices the binary nodes; a wide layout's node buffer
+    /// is checked against the texel limit when it is made, before it is uploaded.
+    pub layout: Layout,
     /// The limits it was checked against.
     pub limits: DeviceLimits,
 }
@@ -165,10 +187,16 @@ impl<'m> ScenePlan<'_, 'm> {
     ) -> Result<DeviceScene> {
         let encoded = self.method.encode(self.host.mesh, &self.host.bvh);
         inspect(&encoded);
-        let buffers = SceneBuffers::upload(ctx, &encoded, self.access, reader)?;
+        let wide = match self.layout {
+            Layout::Bvh2 => None,
+            Layout::Bvh4 => Some(self.bvh4_nodes(&encoded)?),
+        };
+        let wide_bytes = wide.as_deref().map(bytemuck::cast_slice::<Bvh4Node, u8>);
+        let buffers = SceneBuffers::upload(ctx, &encoded, self.access, reader, wide_bytes)?;
         Ok(DeviceScene {
             name: self.host.name.clone(),
             method: self.method,
+            layout: self.layout,
             leaf_size: encoded.leaf_size,
             auto: self.auto,
             plan: self.memory,
@@ -180,11 +208,45 @@ impl<'m> ScenePlan<'_, 'm> {
     }
 }
 
+impl ScenePlan<'_, '_> {
+    /// The encoding's binary nodes collapsed into 4-wide ones ([`Collapse::Sah`], leaves in
+    /// the encoding's units), refused when the kernel's fixed stack (`BVH4_STACK_SIZE`) could
+    /// overflow or the buffer exceeds one texel binding.
+    fn bvh4_nodes(&self, encoded: &EncodedScene) -> Result<Vec<Bvh4Node>> {
+        let nodes = WideBvh::<4>::collapse_nodes(&encoded.nodes, &self.host.bvh.options, Collapse::Sah);
+        let tree = WideBvh::<4> {
+            nodes,
+            bounds: self.host.bvh.nodes[0].aabb(),
+            prim_ids: vec![],
+            max_leaf_size: self.host.bvh.options.max_leaf_size,
+            collapse_seconds: 0.0,
+        };
+        let bound = tree.stack_bound();
+        if bound > BVH4_STACK_SIZE as usize {
+            return Err(Error::Usage(format!(
+                "scene `{}`: its 4-wide tree needs a traversal stack of {bound} entries; the bvh4 \
+                 kernel has {BVH4_STACK_SIZE} (BVH4_STACK_SIZE in glsl/shared.glsl)",
+                self.host.name
+            )));
+        }
+        let texels = tree.nodes.len() as u64 * 8;
+        if texels > self.limits.max_texel_buffer_elements {
+            return Err(Error::Usage(format!(
+                "scene `{}`: its 4-wide nodes need {texels} texels; one texel binding holds {}",
+                self.host.name, self.limits.max_texel_buffer_elements
+            )));
+        }
+        Ok(tree.nodes)
+    }
+}
+
 /// A method's encoding of a scene on the device, read through the access path it was planned
 /// for; its kernels come from it.
 pub struct DeviceScene {
     pub name: String,
     pub method: Method,
+    /// The node layout its kernels read.
+    pub layout: Layout,
     pub leaf_size: u32,
     /// Why `auto` picked the method (`None` when it was given).
     pub auto: Option<Recommendation>,
@@ -198,14 +260,15 @@ pub struct DeviceScene {
 }
 
 impl DeviceScene {
-    /// The ray-casting kernel computing `kind` over this scene (its method, its access path).
-    pub fn kernel_source(&self, kind: Raycast) -> &'static KernelSource {
-        self.method.raycast_kernel(kind, self.access)
+    /// The ray-casting kernel computing `kind` over this scene (its method, its access path,
+    /// its layout); an error where the layout has no such kernel.
+    pub fn kernel_source(&self, kind: Raycast) -> Result<&'static KernelSource> {
+        self.method.layout_kernel(kind, self.access, self.layout)
     }
 
     /// That kernel, created once per context.
     pub fn kernel(&self, ctx: &Context, kind: Raycast) -> Result<Arc<Kernel>> {
-        ctx.kernel(self.kernel_source(kind))
+        ctx.kernel(self.kernel_source(kind)?)
     }
 
     /// The scene's bindings, for a descriptor set.
@@ -244,15 +307,16 @@ impl DeviceScene {
     /// Fails unless `kernel` is one of this scene's ray-casting kernels (its method, its path).
     pub fn check_kernel(&self, kernel: &Kernel) -> Result<()> {
         use crate::named::Named;
-        if Raycast::ALL.iter().any(|&k| self.kernel_source(k).name == kernel.name) {
+        if Raycast::ALL.iter().any(|&k| self.kernel_source(k).is_ok_and(|s| s.name == kernel.name)) {
             return Ok(());
         }
         Err(Error::Usage(format!(
-            "kernel {} cannot read scene `{}` ({} on the {} path)",
+            "kernel {} cannot read scene `{}` ({} on the {} path, {} layout)",
             kernel.name,
             self.name,
             self.method,
-            self.access.name()
+            self.access.name(),
+            self.layout
         )))
     }
 }

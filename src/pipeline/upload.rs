@@ -8,6 +8,7 @@ use crate::encoding::{AccessPath, EncodedScene, SceneBufferRef};
 use crate::error::{Error, Result};
 use crate::gpu::{Buffer, Context, Resource, TexelBuffer};
 use crate::kernels::KernelSource;
+use crate::shared::BINDING_NODES;
 
 /// One scene buffer as the kernels reach it.
 enum SceneBinding {
@@ -22,12 +23,14 @@ enum SceneBinding {
 pub(super) struct SceneBuffers(Vec<(u32, SceneBinding)>);
 
 impl SceneBuffers {
-    /// Uploads `scene` for `access`: every buffer, or only those `reader` reads.
+    /// Uploads `scene` for `access`: every buffer, or only those `reader` reads; with `nodes`,
+    /// those bytes (a wide layout's nodes) at `BINDING_NODES` instead of the binary nodes.
     pub(super) fn upload(
         ctx: &Context,
         scene: &EncodedScene,
         access: AccessPath,
         reader: Option<&'static KernelSource>,
+        nodes: Option<&[u8]>,
     ) -> Result<SceneBuffers> {
         scene
             .check_limits()
@@ -57,6 +60,10 @@ impl SceneBuffers {
         let buffers = scene
             .buffers()
             .into_iter()
+            .map(|b| match nodes {
+                Some(bytes) if b.binding == BINDING_NODES => SceneBufferRef { bytes, ..b },
+                _ => b,
+            })
             .filter(|b| read.as_ref().is_none_or(|r| r.contains_key(&b.binding)))
             .map(upload)
             .collect::<Result<Vec<_>>>()?;

@@ -449,7 +449,7 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
     /// Sections 4-6: executable statistics and the subgroup- and workgroup-size sweeps.
     fn pipelines(&mut self, s: &mut Sections, sweep_hits: &[Hit]) -> Result<()> {
         let (method, info) = (self.method(), self.info);
-        let src = self.scene.kernel_source(Raycast::Closest);
+        let src = self.scene.kernel_source(Raycast::Closest)?;
         if self.en.pipeline_executable_properties {
             let opts = PipelineOptions { capture_statistics: true, ..Default::default() };
             let k = self.ctx.create_kernel_with(src, &opts)?;

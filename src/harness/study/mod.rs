@@ -368,7 +368,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                     bvh: quality.clone(),
                     render: m,
                     render_kernel: cell.target.kernel.source.name,
-                    raycast_kernel: scene.kernel_source(Raycast::Closest).name,
+                    raycast_kernel: scene.kernel_source(Raycast::Closest)?.name,
                     sets: set_results,
                     provenance: provenance.clone(),
                 });
