@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::analyze::MethodChoice;
-use trilab::encoding::SceneAccess;
+use trilab::encoding::{Layout, SceneAccess};
 use trilab::error::Result;
 use trilab::gpu::Peer;
 use trilab::harness::raycast::{self, RaycastRequest};
@@ -45,6 +45,10 @@ pub struct RaycastArgs {
     /// every buffer fits one binding, else buffer device addresses (the JSON says which).
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
+    /// BVH node layout: `bvh2` (the paper's binary tree, every kernel) or `bvh4` (the SAH tree
+    /// collapsed into 4-wide nodes; closest hits on the texel path only, so far).
+    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
+    layout: Layout,
     /// Timed runs after one warm-up (at least 1); the median is reported.
     #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
@@ -71,6 +75,7 @@ pub fn run(a: RaycastArgs) -> Result<()> {
         build: a.bvh.options(),
         any_hit: a.any_hit,
         access: a.scene_access,
+        layout: a.layout,
         repeat: a.repeat,
         batch_rays: a.batch_rays,
         validate: a.reference,

@@ -9,7 +9,7 @@ use serde::Serialize;
 use crate::analyze::{MethodChoice, Recommendation};
 use crate::bvh::BuildOptions;
 use crate::compare::{compare_any, compare_closest};
-use crate::encoding::{AccessPath, Method, Raycast, SceneAccess};
+use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{rayquery, AccelStats, AccelStructure, Context, Peer, RaycastOptions, RaycastResult};
 use crate::pipeline::{HostScene, SceneRequest};
@@ -32,6 +32,8 @@ pub struct RaycastRequest {
     pub build: BuildOptions,
     pub any_hit: bool,
     pub access: SceneAccess,
+    /// How the BVH's nodes are laid out for the kernel (bvh4: closest hits on the texel path).
+    pub layout: Layout,
     /// Timed runs after one warm-up.
     pub repeat: usize,
     pub batch_rays: usize,
@@ -108,6 +110,8 @@ pub struct RaycastReport {
     pub scene_bytes: usize,
     /// How our kernels read the scene (`None` for a peer).
     pub scene_access: Option<AccessPath>,
+    /// The BVH node layout our kernels traversed (`None` for a peer).
+    pub layout: Option<Layout>,
     pub triangles: usize,
     pub degenerate_triangles: usize,
     pub device: String,
@@ -240,6 +244,7 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
         batches: traced.result.batches,
         scene_bytes: traced.bytes,
         scene_access: access,
+        layout: req.peer.is_none().then_some(req.layout),
         triangles: mesh.triangle_count(),
         degenerate_triangles: host.bvh.degenerate_excluded,
         device: info.name.clone(),
@@ -262,7 +267,7 @@ fn trace_ours(
     opts: &RaycastOptions,
     note: &mut impl FnMut(&str),
 ) -> Result<Traced> {
-    let plan = host.plan(ctx, &SceneRequest::new(req.method).access(req.access))?;
+    let plan = host.plan(ctx, &SceneRequest::new(req.method).access(req.access).layout(req.layout))?;
     if let Some(r) = &plan.auto {
         note(&format!("--method auto picked {}:", plan.method));
         for line in &r.reasons {
@@ -279,7 +284,8 @@ fn trace_ours(
     }
     let kind = if req.any_hit { Raycast::Any } else { Raycast::Closest };
     let result = scene.cast(ctx, kind, rays, opts)?;
-    let tracer = format!("{} leaf size {} ({})", scene.method, req.build.max_leaf_size, req.build.leaf_policy);
+    let tracer =
+        format!("{} leaf size {} ({}), {}", scene.method, req.build.max_leaf_size, req.build.leaf_policy, req.layout);
     Ok(Traced {
         result,
         tracer,
