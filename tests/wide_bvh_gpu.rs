@@ -219,3 +219,45 @@ fn raycast_takes_the_layout_from_the_command_line() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("bvh4"), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// `bench --layouts bvh2,bvh4` times every method on both layouts in one run, each row
+/// validated against the f64 reference and naming its layout.
+#[test]
+fn bench_times_each_method_on_each_layout() {
+    let o = common::cli::trilab(
+        &[
+            "bench",
+            "--methods",
+            "mt,quad-unit",
+            "--layouts",
+            "bvh2,bvh4",
+            "--width",
+            "48",
+            "--height",
+            "36",
+            "--diffuse-per-hit",
+            "1",
+            "--random-rays",
+            "3000",
+            "--repeat",
+            "1",
+            "--json",
+        ],
+        300,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    for set in ["primary", "diffuse", "random"] {
+        for method in ["mt", "quad-unit"] {
+            for layout in ["bvh2", "bvh4"] {
+                let n = rows
+                    .iter()
+                    .filter(|r| r["ray_set"] == set && r["method"] == method && r["layout"] == layout)
+                    .inspect(|r| assert!(r["agreement"].as_f64().unwrap() >= 0.9999 && r["invalid"] == 0, "{r}"))
+                    .count();
+                assert_eq!(n, 1, "{set} {method} {layout}: {v}");
+            }
+        }
+    }
+}

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use trilab::encoding::SceneAccess;
+use trilab::encoding::{Layout, SceneAccess};
 use trilab::error::{Error, Result};
 use trilab::harness::bench::{self, BenchOptions};
 
@@ -54,6 +54,10 @@ pub struct BenchArgs {
     /// binding, else buffer device addresses (`trilab scale` reports which).
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
+    /// BVH node layouts, comma-separated (`bvh2`, `bvh4`): every method is timed on each, side
+    /// by side in one run (default: bvh2; bvh4 has only the closest-hit texel kernel so far).
+    #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
+    layouts: Vec<Layout>,
     /// Directory to write bench.json (the report) and bench.md (the tables) into.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
@@ -130,6 +134,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         rays_dir: a.rays_dir,
         embree: a.embree,
         scene_access: a.scene_access,
+        layouts: if a.layouts.is_empty() { vec![Layout::Bvh2] } else { a.layouts },
         ray_query: match a.ray_query {
             RayQueryChoice::On => true,
             RayQueryChoice::Off => false,

@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use crate::bvh::{BuildOptions, LeafPolicy};
 use crate::compare::compare_closest;
-use crate::encoding::{AccessPath, Method, SceneAccess};
+use crate::encoding::{AccessPath, Layout, Method, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::rayquery::{self, raycast_rq, Peer};
 use crate::gpu::{AccelStats, AccelStructure, Context, RaycastOptions};
@@ -48,6 +48,8 @@ pub struct BenchOptions {
     pub ray_query: bool,
     /// How the kernels read each scene (`encoding::plan`; `auto`: texel buffers when they fit).
     pub scene_access: SceneAccess,
+    /// BVH node layouts, each method timed on each, side by side in one run (default: bvh2).
+    pub layouts: Vec<Layout>,
 }
 
 /// Wall-clock target of one ray-query submit (its batch is sized to it, [`rayquery::batch_for`]).
@@ -73,6 +75,7 @@ impl Default for BenchOptions {
             batch_rays: 1 << 20,
             ray_query: true,
             scene_access: SceneAccess::Auto,
+            layouts: vec![Layout::Bvh2],
         }
     }
 }
@@ -110,6 +113,8 @@ pub struct BenchRow {
     pub scene_bytes: usize,
     /// How our kernels read the scene (`None` for a peer).
     pub scene_access: Option<AccessPath>,
+    /// The BVH node layout our kernel traversed (`None` for a peer).
+    pub layout: Option<Layout>,
     /// Kernel time (GPU timestamps), milliseconds.
     pub kernel_ms: Summary,
     /// Rays per second at the median, min and max kernel time, millions.
@@ -209,6 +214,7 @@ impl BenchReport {
             "rays",
             "set",
             "method",
+            "layout",
             "leaf",
             "MB",
             "kernel ms",
@@ -223,6 +229,7 @@ impl BenchReport {
                 r.rays.to_string(),
                 r.ray_set.to_string(),
                 r.method.to_string(),
+                r.layout.map_or_else(|| "-".into(), |l| l.to_string()),
                 r.leaf_size.map_or_else(|| "-".into(), |l| l.to_string()),
                 format!("{:.2}", r.scene_bytes as f64 / 1e6),
                 format!("{:.1}", r.kernel_ms.median),
@@ -308,6 +315,7 @@ fn row(
         sah_group: o.map(|o| o.sah_group),
         scene_bytes: footprint.0,
         scene_access: footprint.1,
+        layout: o.map(|_| Layout::Bvh2),
         kernel_ms: ms,
         mrays_per_s: mr.median,
         mrays_per_s_min: mr.min,
@@ -404,10 +412,12 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
         // Each method's plan picks its access path before encoding (and fails clearly if the
         // scene cannot fit); its kernels read the scene through that path.
+        let layouts = if o.layouts.is_empty() { vec![Layout::Bvh2] } else { o.layouts.clone() };
         let scenes: Vec<DeviceScene> = o
             .methods
             .iter()
-            .map(|&m| host.upload(ctx, &SceneRequest::new(m).access(o.scene_access)))
+            .flat_map(|&m| layouts.iter().map(move |&l| SceneRequest::new(m).access(o.scene_access).layout(l)))
+            .map(|req| host.upload(ctx, &req))
             .collect::<Result<_>>()?;
         let accel = match &rq_kernel {
             Some(_) => {
@@ -424,12 +434,17 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             let mut best: f64 = 0.0;
             for scene in &scenes {
                 let method = scene.method;
+                let label = if scene.layout == Layout::Bvh2 {
+                    method.to_string()
+                } else {
+                    format!("{method} {}", scene.layout)
+                };
                 let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: o.batch_rays };
                 let m = measure_rays(ctx, scene, &mesh, rays, &ref_hits, &opts)
-                    .map_err(|e| Error::Usage(format!("{name} {set} {method}: {e}")))?;
+                    .map_err(|e| Error::Usage(format!("{name} {set} {label}: {e}")))?;
                 let (ms, mr, agreement) = (m.kernel_ms, m.mrays_per_s, m.agreement);
                 progress(&format!(
-                    "{name} {set} {method}: {:.2} Mrays/s ({:.1} ms), {}",
+                    "{name} {set} {label}: {:.2} Mrays/s ({:.1} ms), {}",
                     mr.median,
                     ms.median,
                     agreement.summary()
@@ -437,7 +452,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 best = best.max(mr.median);
                 let tracer = Tracer::Method(method);
                 let bytes = (scene.bytes, Some(scene.access));
-                report.rows.push(row(&name, &mesh, set, rays, tracer, Some(o), bytes, ms, &agreement));
+                let mut r = row(&name, &mesh, set, rays, tracer, Some(o), bytes, ms, &agreement);
+                r.layout = Some(scene.layout);
+                report.rows.push(r);
             }
             if let (Some(kernel), Some(accel)) = (&rq_kernel, &accel) {
                 // The driver's answer may differ on edge rays: report the agreement, refuse only
