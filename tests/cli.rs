@@ -4,6 +4,8 @@
 
 mod common;
 
+use common::cli::{expect_error, s, stderr};
+
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -14,27 +16,9 @@ fn trilab(args: &[&str], timeout_s: u64) -> Output {
     common::cli::trilab(args, timeout_s)
 }
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// Fails unless the command failed cleanly with a message containing every needle.
-fn expect_error(o: &Output, needles: &[&str]) {
-    let e = stderr(o);
-    assert!(!o.status.success(), "should fail: {e}");
-    assert!(!e.contains("panicked"), "panicked instead of reporting an error: {e}");
-    for n in needles {
-        assert!(e.contains(n), "error should mention `{n}`: {e}");
-    }
-}
-
 fn tiny_scene(dir: &Path) -> String {
     let p = dir.join("tri.obj");
     std::fs::write(&p, "v 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\nf 1 2 3\nf 2 4 3\n").unwrap();
-    p.to_string_lossy().into_owned()
-}
-
-fn s(p: &Path) -> String {
     p.to_string_lossy().into_owned()
 }
 

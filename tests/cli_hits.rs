@@ -4,6 +4,8 @@
 
 mod common;
 
+use common::cli::s;
+
 use std::path::Path;
 use std::process::Output;
 
@@ -21,10 +23,6 @@ fn out(o: &Output) -> String {
 
 fn err(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn s(p: &Path) -> String {
-    p.to_string_lossy().into_owned()
 }
 
 /// Primary rays of the bunny (24 x 16) and their closest hits from `raycast --method mt`.

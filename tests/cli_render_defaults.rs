@@ -8,6 +8,8 @@
 
 mod common;
 
+use common::cli::{expect_error, ok, s};
+
 use std::path::Path;
 use std::process::Output;
 
@@ -21,30 +23,6 @@ use trilab::scene::Mesh;
 
 fn trilab(args: &[&str], timeout_s: u64) -> Output {
     common::cli::trilab(args, timeout_s)
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn ok(o: &Output) -> String {
-    let e = stderr(o);
-    assert!(o.status.success() && !e.contains("validation:"), "should succeed: {e}");
-    e
-}
-
-fn expect_error(o: &Output, needles: &[&str]) -> String {
-    let e = stderr(o);
-    assert!(!o.status.success(), "should fail: {e}");
-    assert!(!e.contains("panicked"), "panicked instead of reporting an error: {e}");
-    for n in needles {
-        assert!(e.contains(n), "error should mention `{n}`: {e}");
-    }
-    e
-}
-
-fn s(p: &Path) -> String {
-    p.to_string_lossy().into_owned()
 }
 
 /// A render's EXR (rgb radiance, a coverage) as rows of pixels, and its JSON sidecar.

@@ -6,7 +6,8 @@
 
 mod common;
 
-use std::path::Path;
+use common::cli::s;
+
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
@@ -37,10 +38,6 @@ fn no_panic(args: &[&str], needles: &[&str]) -> Output {
 fn refused(args: &[&str], needles: &[&str]) {
     let o = no_panic(args, needles);
     assert!(matches!(o.status.code(), Some(1 | 2)), "trilab {args:?} should be refused:\n{}", text(&o));
-}
-
-fn s(p: &Path) -> String {
-    p.to_string_lossy().into_owned()
 }
 
 #[test]

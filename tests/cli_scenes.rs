@@ -7,6 +7,8 @@
 
 mod common;
 
+use common::cli::{expect_error, ok, s};
+
 use std::path::Path;
 use std::process::Output;
 use std::time::{Duration, Instant};
@@ -17,30 +19,6 @@ use trilab::scene::Mesh;
 /// Runs `trilab args` in `cwd` with `env`, killed after `timeout_s`.
 fn trilab_in(cwd: &Path, env: &[(&str, &str)], args: &[&str], timeout_s: u64) -> Output {
     common::cli::run(args, Some(cwd), env, timeout_s).0
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn ok(o: &Output) -> String {
-    let e = stderr(o);
-    assert!(o.status.success(), "should succeed: {e}");
-    e
-}
-
-fn expect_error(o: &Output, needles: &[&str]) -> String {
-    let e = stderr(o);
-    assert!(!o.status.success(), "should fail: {e}");
-    assert!(!e.contains("panicked"), "panicked instead of reporting an error: {e}");
-    for n in needles {
-        assert!(e.contains(n), "error should mention `{n}`: {e}");
-    }
-    e
-}
-
-fn s(p: &Path) -> String {
-    p.to_string_lossy().into_owned()
 }
 
 fn json(path: &Path) -> serde_json::Value {

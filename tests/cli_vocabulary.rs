@@ -6,6 +6,8 @@
 
 mod common;
 
+use common::cli::{s, stderr};
+
 use std::path::Path;
 use std::process::Output;
 
@@ -20,18 +22,10 @@ fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
 fn ok(args: &[&str], timeout_s: u64) -> String {
     let o = trilab(args, timeout_s);
     assert!(o.status.success(), "trilab {args:?} failed: {}", stderr(&o));
     stdout(&o)
-}
-
-fn s(p: &Path) -> String {
-    p.to_string_lossy().into_owned()
 }
 
 fn bunny() -> String {

@@ -6,7 +6,8 @@
 
 mod common;
 
-use std::path::Path;
+use common::cli::s;
+
 use std::process::{Command, Output};
 
 use ash::vk;
@@ -152,10 +153,6 @@ fn trilab_env(args: &[&str], env: &[(&str, &str)]) -> Output {
     }
     // Bounded by the kernel sizes used (seconds); the harness' own timeout catches a hang.
     c.output().unwrap()
-}
-
-fn s(p: &Path) -> String {
-    p.to_string_lossy().into_owned()
 }
 
 fn expect_failure(o: &Output, needles: &[&str]) -> String {

@@ -7,6 +7,8 @@
 
 mod common;
 
+use common::cli::s;
+
 use std::path::Path;
 use std::process::Output;
 
@@ -27,10 +29,6 @@ fn ok(o: &Output, what: &str) -> String {
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
-fn s(p: &Path) -> String {
-    p.to_string_lossy().into_owned()
 }
 
 /// The paths every row of `rows` read its scene through (`key` names the field).

@@ -239,8 +239,8 @@ impl Bvh {
 mod tests {
     use super::*;
 
-    /// A jittered grid of small triangles (deterministic), for builder tests.
-    fn grid(n: usize) -> Mesh {
+    /// A jittered grid of small triangles (deterministic), for builder tests (and `wide`'s).
+    pub(super) fn grid(n: usize) -> Mesh {
         let mut pos = Vec::new();
         let mut tris = Vec::new();
         for i in 0..n {

@@ -711,20 +711,7 @@ mod tests {
     use super::*;
     use glam::DVec3;
 
-    /// A jittered grid of small triangles (deterministic), as `bvh::tests::grid`.
-    fn grid(n: usize) -> Mesh {
-        let mut pos = Vec::new();
-        let mut tris = Vec::new();
-        for i in 0..n {
-            let x = (i % 37) as f32 + 0.13 * ((i * 7919) % 11) as f32;
-            let y = (i / 37) as f32;
-            let z = 0.3 * ((i * 104729) % 13) as f32;
-            let b = pos.len() as u32;
-            pos.extend([[x, y, z], [x + 0.5, y, z + 0.1], [x, y + 0.5, z - 0.1]]);
-            tris.push([b, b + 1, b + 2]);
-        }
-        Mesh::from_triangles(pos, tris)
-    }
+    use crate::bvh::tests::grid;
 
     /// Möller–Trumbore in f64 (the bvh layer cannot import `reference`; tests/wide_bvh.rs uses
     /// the reference's own).

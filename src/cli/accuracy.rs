@@ -53,9 +53,8 @@ pub fn run(a: AccuracyArgs) -> Result<()> {
         }
         o.leak_rays = n;
     }
+    // `accuracy::run` loads and proves them closed before any ray is cast (once, not here too).
     o.scenes = a.scene.clone();
-    // Refused before the device is even opened: the proof needs no GPU.
-    accuracy::load_user_scenes(&o.scenes)?;
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.clone(), "accuracy");
     let files = ["accuracy.csv", "frontier.csv", "translation.csv", "accuracy.json", "accuracy.md"];

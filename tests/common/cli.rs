@@ -56,3 +56,32 @@ pub fn run(args: &[&str], cwd: Option<&Path>, env: &[(&str, &str)], timeout_s: u
     let took = start.elapsed();
     (Output { status, stdout: stdout.join().unwrap(), stderr: stderr.join().unwrap() }, took)
 }
+
+/// A command's stderr, as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Fails unless the command succeeded without a validation message; its stderr.
+pub fn ok(o: &Output) -> String {
+    let e = stderr(o);
+    assert!(o.status.success() && !e.contains("validation:"), "should succeed: {e}");
+    e
+}
+
+/// Fails unless the command failed cleanly (no panic) with a message containing every needle;
+/// its stderr.
+pub fn expect_error(o: &Output, needles: &[&str]) -> String {
+    let e = stderr(o);
+    assert!(!o.status.success(), "should fail: {e}");
+    assert!(!e.contains("panicked"), "panicked instead of reporting an error: {e}");
+    for n in needles {
+        assert!(e.contains(n), "error should mention `{n}`: {e}");
+    }
+    e
+}
+
+/// A path as a command-line argument.
+pub fn s(p: &Path) -> String {
+    p.to_string_lossy().into_owned()
+}

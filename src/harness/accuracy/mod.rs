@@ -329,7 +329,7 @@ fn leak_scene(cm: &ClosedMesh, place: Placement, origins: usize, rng: &mut Rng) 
 
 /// The user's meshes (`--scene`), loaded and proven closed: a mesh that is not closed is
 /// refused with the proof's reason, before any ray is cast.
-pub fn load_user_scenes(paths: &[PathBuf]) -> Result<Vec<(String, Mesh)>> {
+fn load_user_scenes(paths: &[PathBuf]) -> Result<Vec<(String, Mesh)>> {
     paths
         .iter()
         .map(|path| {
