@@ -90,7 +90,10 @@ fn peers_are_validated_then_timed_beside_trilabs_best() {
     let (embree, tinybvh) = (s(&fake_embree(dir.path())), s(&fake_tinybvh(dir.path())));
     let out = s(dir.path());
     let layouts = "cpu-bvh8,ocl-bvh2,ocl-cwbvh";
-    let o = bench(&["--embree", &embree, "--tinybvh", &tinybvh, "--tinybvh-layouts", layouts, "--json", "--out", &out], 300);
+    let o = bench(
+        &["--embree", &embree, "--tinybvh", &tinybvh, "--tinybvh-layouts", layouts, "--json", "--out", &out],
+        300,
+    );
     let err = ok(&o);
     let j: Value = serde_json::from_slice(&o.stdout).expect("bench --json prints JSON");
     let notes: Vec<&str> = j["notes"].as_array().unwrap().iter().map(|n| n.as_str().unwrap()).collect();
@@ -140,11 +143,16 @@ fn peers_are_validated_then_timed_beside_trilabs_best() {
     assert!(err.contains("tinybvh ocl-bvh2: failed validation"), "{err}");
     // The Markdown file carries the same tables and says why a peer failed.
     let md = std::fs::read_to_string(Path::new(&out).join("bench.md")).unwrap();
-    for needle in ["| trilab mt bvh2 |", "| embree3 | 3.25 |", "wrong hits", "Speed target", "failed validation, not timed"] {
+    for needle in
+        ["| trilab mt bvh2 |", "| embree3 | 3.25 |", "wrong hits", "Speed target", "failed validation, not timed"]
+    {
         assert!(md.contains(needle), "bench.md lacks `{needle}`:\n{md}");
     }
     let line = md.lines().find(|l| l.contains("| random |") && l.contains("tinybvh cpu-bvh8")).unwrap();
-    assert!(line.contains(&format!("{:.2}", comparisons[2]["trilab"]["mrays_per_s"].as_f64().unwrap() / 2.5)), "{line}");
+    assert!(
+        line.contains(&format!("{:.2}", comparisons[2]["trilab"]["mrays_per_s"].as_f64().unwrap() / 2.5)),
+        "{line}"
+    );
 }
 
 #[test]
@@ -176,7 +184,8 @@ fn a_peer_that_cannot_report_is_an_error_naming_it_before_the_long_work() {
 fn missing_or_unrunnable_peer_programs_are_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
     let missing = s(&dir.path().join("tinybvh_rays"));
-    let e = expect_error(&bench(&["--tinybvh", &missing], 60), &["--tinybvh", &missing, "no such file", "tinybvh-peer.sh"]);
+    let e =
+        expect_error(&bench(&["--tinybvh", &missing], 60), &["--tinybvh", &missing, "no such file", "tinybvh-peer.sh"]);
     assert!(!e.contains("ray sets ready"), "{e}");
     let plain = dir.path().join("embree_rays");
     std::fs::write(&plain, "#!/bin/sh\n").unwrap();

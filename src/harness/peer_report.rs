@@ -219,7 +219,7 @@ mod tests {
         let o = c.target.vs_best_opencl.as_ref().unwrap();
         assert_eq!(o.peer, PeerKind::Tinybvh(TinybvhLayout::OclBvh2), "the fastest OpenCL layout");
         assert!((o.ratio - 1.5).abs() < 1e-12 && o.met);
-        let text = target_table(&[c.clone()]).to_text();
+        let text = target_table(std::slice::from_ref(&c)).to_text();
         assert!(
             text.contains("0.60 met") && text.contains("0.50 short") && text.contains("1.50 met (ocl-bvh2)"),
             "{text}"
@@ -243,7 +243,7 @@ mod tests {
             },
         ]);
         assert_eq!(c.target, TargetCheck::default());
-        let text = peer_table(&[c.clone()]).to_text();
+        let text = peer_table(std::slice::from_ref(&c)).to_text();
         let line = text.lines().find(|l| l.contains("embree3")).unwrap();
         assert!(line.contains("wrong hits") && line.contains("50.0000") && !line.contains("met"), "{line}");
         let notes = peer_notes(&[c]);
