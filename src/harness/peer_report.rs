@@ -103,10 +103,11 @@ impl PeerComparison {
 }
 
 /// What the peer table says about how the figures were taken.
-pub const PEER_NOTE: &str = "Peers on the same ray files, each validated against the f64 reference \
-before its speed counts; a peer's Mrays/s is its best of the runs (its own clock), trilab's the \
-median of its rows. trilab / peer >= 0.6 vs embree3 and tinybvh cpu-bvh8, >= 1.5 vs the fastest \
-tinybvh ocl-* layout: issue 15's speed target.";
+pub const PEER_NOTE: &str = "\
+Peers on the same ray files, each validated against the f64 reference before its speed counts;
+a peer's Mrays/s is its best of the runs (its own clock), trilab's the median of its rows.
+Issue 15's speed target: trilab / peer >= 0.6 vs embree3 and tinybvh cpu-bvh8, >= 1.5 vs the
+fastest tinybvh ocl-* layout.";
 
 /// One line per tracer: trilab's best, then each peer with its ratio and target cell.
 pub fn peer_table(comparisons: &[PeerComparison]) -> Table {
