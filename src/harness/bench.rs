@@ -512,7 +512,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                         &ref_hits,
                         o.repeat.max(3),
                     )?;
-                    progress(&peer_line(&name, set, &r, best));
+                    progress(&format!("{name} {set} {}", r.progress(best)));
                     results.push(r);
                 }
                 if let Some(e) = results.iter().find(|r| r.peer == PeerKind::Embree).and_then(|r| r.mrays_per_s()) {
@@ -520,35 +520,16 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                         r.embree_mrays_per_s = Some(e);
                     }
                 }
-                let best = best_row(&report.rows, &name, set);
+                let mine = report.rows.iter().filter(|r| r.scene == name && r.ray_set == set);
+                let best = TrilabBest::fastest(mine.filter_map(|r| match r.method {
+                    Tracer::Method(m) => Some((m.to_string(), r.layout, r.mrays_per_s)),
+                    Tracer::Peer(_) => None, // the driver's ray query is not ours
+                }));
                 report.peers.push(PeerComparison::new(&name, set, rays.len(), best, results));
             }
         }
     }
     Ok(report)
-}
-
-/// The fastest trilab row of a scene and ray set (any method, any layout; the ray-query peer
-/// row is the driver's, not ours).
-fn best_row(rows: &[BenchRow], scene: &str, set: RaySet) -> TrilabBest {
-    rows.iter()
-        .filter(|r| r.scene == scene && r.ray_set == set && matches!(r.method, Tracer::Method(_)))
-        .max_by(|a, b| a.mrays_per_s.total_cmp(&b.mrays_per_s))
-        .map(|r| TrilabBest { method: r.method.to_string(), layout: r.layout, mrays_per_s: r.mrays_per_s })
-        .unwrap_or(TrilabBest { method: "-".into(), layout: None, mrays_per_s: 0.0 })
-}
-
-/// The progress line of one peer's result.
-fn peer_line(scene: &str, set: RaySet, r: &peers::PeerResult, best: f64) -> String {
-    match &r.outcome {
-        peers::PeerOutcome::Timed { mrays_per_s: m, .. } => {
-            format!("{scene} {set} {}: {m:.2} Mrays/s; best trilab / it = {:.2}", r.peer, best / m)
-        }
-        peers::PeerOutcome::Skipped { reason } => format!("{scene} {set} {}: skipped: {reason}", r.peer),
-        peers::PeerOutcome::WrongHits { reason, .. } => {
-            format!("{scene} {set} {}: failed validation, not timed: {reason}", r.peer)
-        }
-    }
 }
 
 /// The progress line of the driver's acceleration structure.

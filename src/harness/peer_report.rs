@@ -27,6 +27,14 @@ pub struct TrilabBest {
 }
 
 impl TrilabBest {
+    /// The fastest of `(method, layout, Mrays/s)` rows (`-` at 0 where there are none).
+    pub fn fastest(rows: impl IntoIterator<Item = (String, Option<Layout>, f64)>) -> TrilabBest {
+        rows.into_iter()
+            .max_by(|a, b| a.2.total_cmp(&b.2))
+            .map(|(method, layout, mrays_per_s)| TrilabBest { method, layout, mrays_per_s })
+            .unwrap_or(TrilabBest { method: "-".into(), layout: None, mrays_per_s: 0.0 })
+    }
+
     pub fn label(&self) -> String {
         match self.layout {
             Some(l) => format!("{} {l}", self.method),
@@ -229,6 +237,14 @@ mod tests {
         assert!(text.contains("trilab mt bvh4"), "{text}");
         assert!(text.lines().any(|l| l.contains("tinybvh ocl-cwbvh") && l.contains("3.00") && !l.contains("met")));
         assert!(text.lines().all(|l| l.chars().count() < 100), "{text}");
+    }
+
+    #[test]
+    fn the_fastest_row_is_trilabs_best_whatever_its_layout() {
+        let rows = [("mt", Some(Layout::Bvh2), 3.0), ("unit", Some(Layout::Bvh4), 5.0), ("quad-mt", None, 4.0)];
+        let best = TrilabBest::fastest(rows.map(|(m, l, r)| (m.to_string(), l, r)));
+        assert_eq!((best.label(), best.mrays_per_s), ("unit bvh4".to_string(), 5.0));
+        assert_eq!(TrilabBest::fastest([]).label(), "-");
     }
 
     #[test]

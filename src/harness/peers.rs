@@ -264,6 +264,17 @@ pub struct PeerResult {
 }
 
 impl PeerResult {
+    /// `<peer>: 3.25 Mrays/s; best trilab / it = 0.52`, or why it has no speed.
+    pub fn progress(&self, best_trilab: f64) -> String {
+        match &self.outcome {
+            PeerOutcome::Timed { mrays_per_s: m, .. } => {
+                format!("{}: {m:.2} Mrays/s; best trilab / it = {:.2}", self.peer, best_trilab / m)
+            }
+            PeerOutcome::Skipped { reason } => format!("{}: skipped: {reason}", self.peer),
+            PeerOutcome::WrongHits { reason, .. } => format!("{}: failed validation, not timed: {reason}", self.peer),
+        }
+    }
+
     /// Its validated Mrays/s (best run), if it was timed.
     pub fn mrays_per_s(&self) -> Option<f64> {
         match self.outcome {
