@@ -246,7 +246,10 @@ fn with_layouts(path: &Path, source: &str, mut variants: Vec<Variant>, layouts: 
             let only: Vec<String> = list.split(',').map(|l| l.trim().to_owned()).collect();
             for l in &only {
                 if !layouts.contains(l) {
-                    fail(&format!("{}: `// trilab:layouts({list})` names `{l}`, not a file in glsl/layout/", path.display()));
+                    fail(&format!(
+                        "{}: `// trilab:layouts({list})` names `{l}`, not a file in glsl/layout/",
+                        path.display()
+                    ));
                 }
             }
             (Some(only), line)

@@ -155,8 +155,7 @@ fn stats_and_occlusion_follow_the_algorithm() {
                     if t == Traversal::WhileWhile {
                         let any = scene.cast(ctx, Raycast::Any, rays, &common::ONCE).unwrap().hits;
                         let wrong_any = any.iter().zip(&ref_hits).filter(|(a, r)| a.is_hit() != r.is_hit()).count();
-                        let wrong =
-                            closest.iter().zip(&ref_hits).filter(|(a, r)| a.is_hit() != r.is_hit()).count();
+                        let wrong = closest.iter().zip(&ref_hits).filter(|(a, r)| a.is_hit() != r.is_hit()).count();
                         assert!(
                             wrong_any <= wrong + rays.len() / 10_000,
                             "{method} {t}: any-hit answers {wrong_any} rays wrongly, closest {wrong}"

@@ -60,10 +60,12 @@ impl Traversal {
     /// four lanes.
     pub fn unsupported(self, subgroup_size: u32, subgroup_operations: u32) -> Option<String> {
         match self {
-            Traversal::Coop if subgroup_operations & COOP_SUBGROUP_OPERATIONS != COOP_SUBGROUP_OPERATIONS => Some(format!(
+            Traversal::Coop if subgroup_operations & COOP_SUBGROUP_OPERATIONS != COOP_SUBGROUP_OPERATIONS => {
+                Some(format!(
                 "--traversal coop needs subgroup basic, vote, arithmetic, ballot and shuffle operations in compute \
                  shaders (the device has {subgroup_operations:#x})"
-            )),
+            ))
+            }
             Traversal::Coop if subgroup_size < 4 => {
                 Some(format!("--traversal coop needs a subgroup of at least 4 lanes (the device has {subgroup_size})"))
             }
