@@ -7,7 +7,8 @@
 //!   intersector × variant; inside a kernel `#include "intersector.glsl"` resolves to the
 //!   intersector of that variant, and `METHOD_<METHOD>` is defined.
 //! - `layout/<name>.glsl` are node layouts (their `trace()`). A kernel's line
-//!   `// trilab:layouts closest any ...` names variants compiled once more per layout, as
+//!   `// trilab:layouts closest any ...` (or `// trilab:layouts(bvh4,bvh8) ...`: those layouts
+//!   only) names variants compiled once more per layout, as
 //!   `<variant>_<name>` with `WIDE_LAYOUT` and `LAYOUT_<NAME>` defined; `#include "layout.glsl"`
 //!   resolves to the layout's file. The registry records each module's layout (`bvh2` for the
 //!   binary nodes). Modules compile on every core, each thread with its own compiler.
@@ -235,8 +236,28 @@ fn with_layouts(path: &Path, source: &str, mut variants: Vec<Variant>, layouts: 
     let Some(line) = source.lines().find_map(|l| l.trim().strip_prefix("// trilab:layouts")) else {
         return variants;
     };
+    // `// trilab:layouts(bvh4,bvh8) closest ...`: only those layouts (a kernel that reads their
+    // node formats itself, like raycast_coop.comp).
+    let (only, line) = match line.strip_prefix('(') {
+        Some(rest) => {
+            let Some((list, line)) = rest.split_once(')') else {
+                fail(&format!("{}: `// trilab:layouts(` without `)`", path.display()))
+            };
+            let only: Vec<String> = list.split(',').map(|l| l.trim().to_owned()).collect();
+            for l in &only {
+                if !layouts.contains(l) {
+                    fail(&format!(
+                        "{}: `// trilab:layouts({list})` names `{l}`, not a file in glsl/layout/",
+                        path.display()
+                    ));
+                }
+            }
+            (Some(only), line)
+        }
+        None => (None, line),
+    };
     let mut extra = Vec::new();
-    for layout in layouts {
+    for layout in layouts.iter().filter(|l| only.as_ref().is_none_or(|o| o.contains(l))) {
         for name in line.split_whitespace() {
             let Some(v) = variants.iter().find(|v| v.name == name) else {
                 fail(&format!(

@@ -1,5 +1,5 @@
 #version 460
-// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS clock=SHADER_CLOCK closest_bda=SCENE_ADDRESS any_bda=ANY_HIT,SCENE_ADDRESS stats_bda=TRAVERSAL_STATS,SCENE_ADDRESS clock_bda=SHADER_CLOCK,SCENE_ADDRESS
+// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS clock=SHADER_CLOCK closest_bda=SCENE_ADDRESS any_bda=ANY_HIT,SCENE_ADDRESS stats_bda=TRAVERSAL_STATS,SCENE_ADDRESS clock_bda=SHADER_CLOCK,SCENE_ADDRESS closest_ww=WHILE_WHILE any_ww=ANY_HIT,WHILE_WHILE stats_ww=TRAVERSAL_STATS,WHILE_WHILE
 // trilab:layouts closest any stats clock closest_bda any_bda stats_bda clock_bda
 // Ray casting: one ray per invocation, closest hit (t, u, v, OBJ triangle id) or, with ANY_HIT,
 // any hit in [tmin, tmax] (occlusion). The intersector is chosen per variant by build.rs.
@@ -14,12 +14,17 @@
 // Each of the eight once more per layout in glsl/layout/ (`closest_bvh4`, `any_bda_bvh8`, ...):
 // that layout's traversal (WIDE_LAYOUT), whose nodes the pipeline binds at BINDING_NODES in
 // place of the binary ones.
+// WHILE_WHILE (`closest_ww`, `any_ww`, `stats_ww`; binary nodes): Aila & Laine's while-while
+// traversal with leaf postponing (glsl/while_while.glsl) in place of while-if.
 #extension GL_GOOGLE_include_directive : require
 #ifdef SHADER_CLOCK
 #extension GL_ARB_shader_clock : require
 #endif
 #ifdef SCENE_ADDRESS
 #extension GL_EXT_buffer_reference : require
+#endif
+#ifdef WHILE_WHILE
+#extension GL_KHR_shader_subgroup_vote : require
 #endif
 
 #include "types.glsl"

@@ -232,6 +232,9 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool a
 // A wide layout's traversal (glsl/layout/<layout>.glsl) replaces the binary one below: the
 // variants compiled per layout (`// trilab:layouts` in the kernel).
 #include "layout.glsl"
+#elif defined(WHILE_WHILE)
+// While-while with leaf postponing (the `*_ww` variants; binary nodes only).
+#include "while_while.glsl"
 #else
 // Traces `r` through the BVH, updating `h` (h.t must start at the ray's tmax).
 // With `any_hit` it returns at the first accepted intersection (occlusion). Pass a constant:

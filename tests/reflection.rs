@@ -132,7 +132,7 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
 /// bsdf_probe a `ProbePush` (mode, count).
 fn host_push(kernel: &str) -> Vec<u32> {
     match kernel {
-        "raycast" | "rayquery" => vec![0],
+        "raycast" | "raycast_coop" | "rayquery" => vec![0],
         "probe" => vec![0, 4, 8],
         "pathtrace" => vec![
             offset_of!(PathtracePush, sample_first) as u32,
@@ -171,7 +171,7 @@ fn rust_structs_match_spirv_offsets_and_strides() {
         .iter()
         .map(|k| match (k.kernel, k.variant) {
             ("pathtrace" | "rng_probe", _) => 1,
-            ("raycast", v) if v.starts_with("stats") => 3,
+            ("raycast" | "raycast_coop", v) if v.starts_with("stats") => 3,
             _ => 2,
         })
         .sum();
@@ -197,7 +197,7 @@ fn kernels_bind_what_the_host_provides() {
             // The BSDF probe reads only materials.
             ("bsdf_probe", _) => vec![BINDING_MATERIALS],
             ("rng_probe", _) => vec![],
-            ("raycast", Some(_)) => scene,
+            ("raycast" | "raycast_coop", Some(_)) => scene,
             // The driver's structure replaces ours; the BLAS primitive -> OBJ id table remains.
             ("rayquery", _) => vec![BINDING_SLOT_IDS],
             // The path tracer shades by slot and never reads the slot -> OBJ id table.
@@ -213,9 +213,11 @@ fn kernels_bind_what_the_host_provides() {
         };
         let accels = if k.kernel == "rayquery" { vec![BINDING_TLAS] } else { vec![] };
         let buffers = match (k.kernel, k.variant) {
-            ("raycast", v) if v.starts_with("stats") => vec![BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS],
+            ("raycast" | "raycast_coop", v) if v.starts_with("stats") => {
+                vec![BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS]
+            }
             ("raycast", v) if v.starts_with("clock") => vec![BINDING_RAYS, BINDING_HITS, BINDING_CYCLES],
-            ("raycast" | "rayquery", _) => vec![BINDING_RAYS, BINDING_HITS],
+            ("raycast" | "raycast_coop" | "rayquery", _) => vec![BINDING_RAYS, BINDING_HITS],
             ("pathtrace", _) => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             ("bsdf_probe", _) => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
             ("rng_probe", _) => vec![BINDING_RNG_PROBE_OUT],
@@ -290,7 +292,7 @@ fn clock_variant_adds_only_the_cycles_buffer() {
 fn raycast_workgroup_size_is_a_specialisation_constant() {
     for k in KERNELS {
         let mut l = reflect(k.name, &k.words()).unwrap();
-        if k.kernel != "raycast" {
+        if !matches!(k.kernel, "raycast" | "raycast_coop") {
             assert_eq!(l.local_size_spec_ids, [None; 3], "{}", k.name);
             continue;
         }

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::analyze::MethodChoice;
-use trilab::encoding::{Layout, SceneAccess};
+use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::Result;
 use trilab::gpu::Peer;
 use trilab::harness::raycast::{self, RaycastRequest};
@@ -49,6 +49,11 @@ pub struct RaycastArgs {
     /// them); every kernel exists for every layout.
     #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
     layout: Layout,
+    /// How the kernel walks the tree: `while-if` (one ray per invocation, every layout and
+    /// kind), `while-while` (leaf postponing; bvh2), `coop` (the subgroup shares one ray's wide
+    /// node and leaf; bvh2, bvh4, bvh8, closest hit).
+    #[arg(long, value_parser = choice::<Traversal>(), default_value_t = Traversal::WhileIf)]
+    traversal: Traversal,
     /// Timed runs after one warm-up (at least 1); the median is reported.
     #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
@@ -76,6 +81,7 @@ pub fn run(a: RaycastArgs) -> Result<()> {
         any_hit: a.any_hit,
         access: a.scene_access,
         layout: a.layout,
+        traversal: a.traversal,
         repeat: a.repeat,
         batch_rays: a.batch_rays,
         validate: a.reference,

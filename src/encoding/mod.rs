@@ -22,7 +22,7 @@ pub mod kernels;
 pub mod layout;
 pub mod plan;
 
-pub use kernels::Raycast;
+pub use kernels::{Raycast, Traversal, COOP_SUBGROUP_OPERATIONS};
 pub use layout::{Layout, LayoutNodes, LayoutSpec};
 pub use plan::{AccessPath, BufferPlan, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
 

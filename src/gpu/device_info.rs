@@ -35,6 +35,9 @@ pub struct DeviceInfo {
     /// "25.0.7" for Mesa drivers, parsed from `driver_info`.
     pub mesa_version: Option<String>,
     pub subgroup_size: u32,
+    /// `subgroupSupportedOperations` (`VkSubgroupFeatureFlags` bits), 0 where compute shaders
+    /// get none (`subgroupSupportedStages` without COMPUTE).
+    pub subgroup_operations: u32,
     /// `VK_EXT_subgroup_size_control` (or Vulkan 1.3): (min, max) subgroup size.
     pub subgroup_size_control: Option<(u32, u32)>,
     pub compute_full_subgroups: bool,
@@ -198,6 +201,11 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         driver_info,
         driver_version: base.driver_version,
         subgroup_size: v11.subgroup_size,
+        subgroup_operations: if v11.subgroup_supported_stages.contains(vk::ShaderStageFlags::COMPUTE) {
+            v11.subgroup_supported_operations.as_raw()
+        } else {
+            0
+        },
         subgroup_size_control: (has_ssc && sscf.subgroup_size_control == vk::TRUE)
             .then_some((ssc.min_subgroup_size, ssc.max_subgroup_size)),
         compute_full_subgroups: sscf.compute_full_subgroups == vk::TRUE,

@@ -9,7 +9,7 @@ use serde::Serialize;
 use crate::analyze::{MethodChoice, Recommendation};
 use crate::bvh::BuildOptions;
 use crate::compare::{compare_any, compare_closest};
-use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess};
+use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
 use crate::gpu::{rayquery, AccelStats, AccelStructure, Context, Peer, RaycastOptions, RaycastResult};
 use crate::pipeline::{HostScene, SceneRequest};
@@ -34,6 +34,8 @@ pub struct RaycastRequest {
     pub access: SceneAccess,
     /// How the BVH's nodes are laid out for the kernel (bvh4: closest hits on the texel path).
     pub layout: Layout,
+    /// How the kernel walks the tree (`while-if` unless asked).
+    pub traversal: Traversal,
     /// Timed runs after one warm-up.
     pub repeat: usize,
     pub batch_rays: usize,
@@ -112,6 +114,10 @@ pub struct RaycastReport {
     pub scene_access: Option<AccessPath>,
     /// The BVH node layout our kernels traversed (`None` for a peer).
     pub layout: Option<Layout>,
+    /// How our kernel walked the tree (`None` for a peer).
+    pub traversal: Option<Traversal>,
+    /// The device's subgroup size (the lanes `--traversal coop` shares a ray among).
+    pub subgroup_size: u32,
     pub triangles: usize,
     pub degenerate_triangles: usize,
     pub device: String,
@@ -245,6 +251,8 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
         scene_bytes: traced.bytes,
         scene_access: access,
         layout: req.peer.is_none().then_some(req.layout),
+        traversal: req.peer.is_none().then_some(req.traversal),
+        subgroup_size: info.subgroup_size,
         triangles: mesh.triangle_count(),
         degenerate_triangles: host.bvh.degenerate_excluded,
         device: info.name.clone(),
@@ -267,7 +275,14 @@ fn trace_ours(
     opts: &RaycastOptions,
     note: &mut impl FnMut(&str),
 ) -> Result<Traced> {
-    let plan = host.plan(ctx, &SceneRequest::new(req.method).access(req.access).layout(req.layout))?;
+    let request = SceneRequest::new(req.method).access(req.access).layout(req.layout).traversal(req.traversal);
+    let plan = host.plan(ctx, &request)?;
+    let kind = if req.any_hit { Raycast::Any } else { Raycast::Closest };
+    // A traversal without this kernel, or that the device cannot run, is refused before upload.
+    plan.method.traversal_kernel(kind, plan.access, plan.layout, plan.traversal)?;
+    if let Some(why) = plan.traversal.unsupported(ctx.info().subgroup_size, ctx.info().subgroup_operations) {
+        return Err(Error::Unsupported(format!("{why}, on {}", ctx.info().name)));
+    }
     if let Some(r) = &plan.auto {
         note(&format!("--method auto picked {}:", plan.method));
         for line in &r.reasons {
@@ -282,10 +297,12 @@ fn trace_ours(
             scene.method
         ));
     }
-    let kind = if req.any_hit { Raycast::Any } else { Raycast::Closest };
     let result = scene.cast(ctx, kind, rays, opts)?;
-    let tracer =
+    let mut tracer =
         format!("{} leaf size {} ({}), {}", scene.method, req.build.max_leaf_size, req.build.leaf_policy, req.layout);
+    if req.traversal != Traversal::WhileIf {
+        tracer.push_str(&format!(", {} traversal", req.traversal));
+    }
     Ok(Traced {
         result,
         tracer,

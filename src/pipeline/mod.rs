@@ -23,7 +23,7 @@ use crate::bvh::{BuildOptions, Bvh};
 use crate::encoding::plan::check_extras;
 use crate::encoding::{
     AccessPath, BufferPlan, DeviceLimits, EncodedScene, Layout, LayoutNodes, MemoryPlan, Method, Raycast, SceneAccess,
-    SceneCounts,
+    SceneCounts, Traversal,
 };
 use crate::error::{Error, Result};
 use crate::gpu::raycast::cast_rays;
@@ -58,6 +58,9 @@ pub struct SceneRequest {
     /// nodes, made from the encoding's binary nodes, where the binary ones would be; every
     /// kernel exists for every layout (`encoding::layout`).
     pub layout: Layout,
+    /// How the ray-casting kernels walk the tree ([`Traversal::WhileIf`] unless asked; the
+    /// others have kernels for some layouts, kinds and paths only: `Method::traversal_kernel`).
+    pub traversal: Traversal,
 }
 
 impl<M: Into<MethodChoice>> From<M> for SceneRequest {
@@ -69,7 +72,13 @@ impl<M: Into<MethodChoice>> From<M> for SceneRequest {
 impl SceneRequest {
     /// `method` (or `auto`), read through whichever path fits.
     pub fn new(method: impl Into<MethodChoice>) -> SceneRequest {
-        SceneRequest { method: method.into(), access: SceneAccess::Auto, texel_only: None, layout: Layout::Bvh2 }
+        SceneRequest {
+            method: method.into(),
+            access: SceneAccess::Auto,
+            texel_only: None,
+            layout: Layout::Bvh2,
+            traversal: Traversal::WhileIf,
+        }
     }
 
     /// The same, read through `access`.
@@ -80,6 +89,11 @@ impl SceneRequest {
     /// The same, with the nodes in `layout`.
     pub fn layout(self, layout: Layout) -> SceneRequest {
         SceneRequest { layout, ..self }
+    }
+
+    /// The same, its ray-casting kernels walking the tree with `traversal`.
+    pub fn traversal(self, traversal: Traversal) -> SceneRequest {
+        SceneRequest { traversal, ..self }
     }
 
     /// The same, for a reader that has only the texel path (`why` names it).
@@ -131,7 +145,16 @@ impl<'m> HostScene<'m> {
             Some(why) => memory.choose_texel_only(&self.name, limits, why)?,
             None => memory.choose(&self.name, request.access, limits)?,
         };
-        Ok(ScenePlan { host: self, method, auto, memory, access, layout: request.layout, limits: *limits })
+        Ok(ScenePlan {
+            host: self,
+            method,
+            auto,
+            memory,
+            access,
+            layout: request.layout,
+            traversal: request.traversal,
+            limits: *limits,
+        })
     }
 
     /// [`HostScene::plan`] then [`ScenePlan::upload`]: `request`'s scene on the device.
@@ -152,6 +175,8 @@ pub struct ScenePlan<'h, 'm> {
     /// The node layout. The memory plan prices its node buffer by the layout's bound from
     /// counts; the built buffer and the stack it needs are checked again before upload.
     pub layout: Layout,
+    /// How the ray-casting kernels walk the tree.
+    pub traversal: Traversal,
     /// The limits it was checked against.
     pub limits: DeviceLimits,
 }
@@ -190,6 +215,7 @@ impl<'m> ScenePlan<'_, 'm> {
             name: self.host.name.clone(),
             method: self.method,
             layout: self.layout,
+            traversal: self.traversal,
             leaf_size: encoded.leaf_size,
             auto: self.auto,
             plan: self.memory,
@@ -239,6 +265,9 @@ pub struct DeviceScene {
     pub method: Method,
     /// The node layout its kernels read.
     pub layout: Layout,
+    /// How its ray-casting kernels walk the tree. The same buffers serve every traversal of the
+    /// layout, so a caller may change it between casts (the traversal figures do).
+    pub traversal: Traversal,
     pub leaf_size: u32,
     /// Why `auto` picked the method (`None` when it was given).
     pub auto: Option<Recommendation>,
@@ -253,14 +282,20 @@ pub struct DeviceScene {
 
 impl DeviceScene {
     /// The ray-casting kernel computing `kind` over this scene (its method, its access path,
-    /// its layout); an error where the layout has no such kernel.
+    /// its layout, its traversal); an error where there is no such kernel.
     pub fn kernel_source(&self, kind: Raycast) -> Result<&'static KernelSource> {
-        self.method.layout_kernel(kind, self.access, self.layout)
+        self.method.traversal_kernel(kind, self.access, self.layout, self.traversal)
     }
 
-    /// That kernel, created once per context.
+    /// That kernel, created once per context; an error where the device cannot run the
+    /// traversal (the cooperative kernel's subgroup operations).
     pub fn kernel(&self, ctx: &Context, kind: Raycast) -> Result<Arc<Kernel>> {
-        ctx.kernel(self.kernel_source(kind)?)
+        let source = self.kernel_source(kind)?;
+        let info = ctx.info();
+        if let Some(why) = self.traversal.unsupported(info.subgroup_size, info.subgroup_operations) {
+            return Err(Error::Unsupported(format!("{why}, on {}", info.name)));
+        }
+        ctx.kernel(source)
     }
 
     /// The scene's bindings, for a descriptor set.

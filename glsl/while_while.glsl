@@ -1,0 +1,100 @@
+// "While-while" traversal of the binary BVH with leaf postponing (the `*_ww` variants of
+// raycast.comp, WHILE_WHILE): Aila & Laine, "Understanding the Efficiency of Ray Traversal on
+// GPUs", HPG 2009, sec. 3 (while-while, postponed leaves), as in their 2012 kernels' structure.
+// Included by traverse.glsl in place of its while-if trace() (binary nodes only); the box test,
+// the packed entries ((first << 5) | count) and the leaf loop are traverse.glsl's.
+//
+// One ray per invocation. The inner loop runs over inner nodes only: when it reaches a leaf and
+// has none postponed, it keeps that leaf for later and goes on with the next entry of the stack;
+// it ends for a lane when it reaches a second leaf or runs out of nodes, and for the whole
+// subgroup as soon as every lane still in it holds a postponed leaf (subgroupAll). Then the leaf
+// loop tests the postponed leaf, and the current entry too while that is a leaf. On SIMD
+// hardware (a lavapipe subgroup is a CPU vector register) this keeps the lanes doing the same
+// kind of work: box tests with box tests, triangles with triangles.
+//
+// Same results as while-if: the leaves are tested in the same order; a postponed leaf only lets
+// the inner loop test a few boxes against a farther h.t than while-if would have (more boxes,
+// never fewer, so never a missed hit). Stack: STACK_SIZE entries plus the sentinel at the bottom.
+#ifndef TRILAB_WHILE_WHILE
+#define TRILAB_WHILE_WHILE
+
+// Bottom-of-stack sentinel (the count bits are 31 > MAX_LEAF_SIZE: no real entry has it).
+const uint WW_DONE = 0xFFFFFFFFu;
+
+bool ww_is_leaf(uint e) {
+    return e != WW_DONE && (e & 31u) != 0u;
+}
+
+// Traces `r` through the BVH, updating `h` (h.t must start at the ray's tmax).
+void trace(TraceRay r, inout HitState h, bool any_hit) {
+#ifdef INTERSECTOR_RAY_SETUP
+    INTERSECTOR_RAY_SETUP(r, h);
+#endif
+    float troot;
+    BvhNode root = load_node(0u);
+#ifdef CONSERVATIVE_TRAVERSAL
+    ConservativeRay cons = make_conservative_ray(r, root.bmin, root.bmax);
+#endif
+    COUNT_BOXES(1u);
+    if (!HIT_BOX(root.bmin, root.bmax, h.t, troot)) {
+        return;
+    }
+    uint stack[STACK_SIZE + 1];
+    stack[0] = WW_DONE;
+    uint sp = 1u;
+    uint current = pack_node(root);
+    uint leaf = WW_DONE; // the postponed leaf, or none
+    if (ww_is_leaf(current)) {
+        leaf = current;
+        current = WW_DONE;
+    }
+    while (true) {
+        // Inner nodes, until a second leaf or the end (or every lane holds a leaf).
+        while ((current & 31u) == 0u) {
+            COUNT_INNER();
+            COUNT_BOXES(2u);
+            uint first = current >> 5u;
+            BvhNode l = load_node(first);
+            BvhNode rr = load_node(first + 1u);
+            float tl, tr;
+            bool want_l = HIT_BOX(l.bmin, l.bmax, h.t, tl);
+            bool want_r = HIT_BOX(rr.bmin, rr.bmax, h.t, tr);
+            if (want_l && want_r) {
+                bool left_first = tl <= tr;
+                stack[sp++] = pack_node(left_first ? rr : l);
+                current = pack_node(left_first ? l : rr);
+            } else if (want_l || want_r) {
+                current = pack_node(want_l ? l : rr);
+            } else {
+                current = stack[--sp];
+            }
+            // Postpone a leaf: keep it and go on with the next entry.
+            if (leaf == WW_DONE && ww_is_leaf(current)) {
+                leaf = current;
+                current = stack[--sp];
+            }
+            if (subgroupAll(leaf != WW_DONE)) {
+                break;
+            }
+        }
+        // The postponed leaf, then the current entry while it is a leaf.
+        while (leaf != WW_DONE) {
+            uint count = leaf & 31u;
+            COUNT_LEAF(count);
+            bool found = intersect_leaf(r, leaf >> 5u, count, h, any_hit);
+            if (any_hit && found) {
+                return;
+            }
+            leaf = WW_DONE;
+            if (ww_is_leaf(current)) {
+                leaf = current;
+                current = stack[--sp];
+            }
+        }
+        if (current == WW_DONE) {
+            return;
+        }
+    }
+}
+
+#endif
