@@ -1,6 +1,9 @@
 // Stack-based "while-if" BVH traversal (Shumskiy & Parshin, appendix 8.3; after Aila & Laine
 // 2009): one node per loop iteration, both children's boxes tested, the nearer child visited
-// first and the farther pushed; and the leaf loop, written once for every intersector.
+// first and the farther pushed with its box's entry distance; a popped node whose entry distance
+// is beyond the closest hit so far is skipped without being visited (as the wide layouts do;
+// measured 1.04-1.09x on the bunny, results/lavapipe/traversals/bvh2-cull-ab.md); and the leaf
+// loop, written once for every intersector.
 //
 // The intersector, included before this file, provides the primitive test only:
 // - PRIM_TRIANGLES: triangle slots per primitive, 1 or 4 (a plain integer literal);
@@ -255,10 +258,12 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
     }
     uint current = pack_node(root);
     uint stack[STACK_SIZE];
+    float stack_t[STACK_SIZE];
     uint sp = 0u;
     while (true) {
         uint count = current & 31u;
         uint first = current >> 5u;
+        bool pop = true;
         if (count > 0u) {
             // Leaf.
             COUNT_LEAF(count);
@@ -266,10 +271,6 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
             if (any_hit && found) {
                 return;
             }
-            if (sp == 0u) {
-                return;
-            }
-            current = stack[--sp];
         } else {
             COUNT_INNER();
             COUNT_BOXES(2u);
@@ -280,15 +281,27 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
             bool want_r = HIT_BOX(rr.bmin, rr.bmax, h.t, tr);
             if (want_l && want_r) {
                 bool left_first = tl <= tr;
-                stack[sp++] = pack_node(left_first ? rr : l);
+                stack[sp] = pack_node(left_first ? rr : l);
+                stack_t[sp] = left_first ? tr : tl;
+                sp += 1u;
                 current = pack_node(left_first ? l : rr);
+                pop = false;
             } else if (want_l || want_r) {
                 current = pack_node(want_l ? l : rr);
-            } else {
+                pop = false;
+            }
+        }
+        if (pop) {
+            // The nearest pushed node whose box entry is not beyond the closest hit so far.
+            while (true) {
                 if (sp == 0u) {
                     return;
                 }
-                current = stack[--sp];
+                sp -= 1u;
+                if (stack_t[sp] <= h.t) {
+                    current = stack[sp];
+                    break;
+                }
             }
         }
     }

@@ -74,7 +74,8 @@ struct Walk<'a> {
     ray: Ray64,
     /// Packed like the kernel: (first, count) of the node to visit next.
     current: Option<(u32, u32)>,
-    stack: Vec<(u32, u32)>,
+    /// Pushed nodes with their box's entry distance.
+    stack: Vec<(u32, u32, f32)>,
     steps: RaySteps,
 }
 
@@ -117,8 +118,16 @@ impl<'a> Walk<'a> {
         (tnear <= tfar).then_some(tnear)
     }
 
+    /// The nearest pushed node whose entry distance is not beyond the closest hit so far (the
+    /// kernel skips the others without visiting them).
     fn pop(&mut self) {
-        self.current = self.stack.pop();
+        self.current = None;
+        while let Some((first, count, t)) = self.stack.pop() {
+            if t <= self.ray.tmax as f32 {
+                self.current = Some((first, count));
+                break;
+            }
+        }
     }
 
     /// One loop iteration; returns the leaf size it tested (0 at an inner node).
@@ -142,8 +151,8 @@ impl<'a> Walk<'a> {
             let (l, r) = (&self.bvh.nodes[first as usize], &self.bvh.nodes[first as usize + 1]);
             match (self.hit_box(l.min, l.max), self.hit_box(r.min, r.max)) {
                 (Some(tl), Some(tr)) => {
-                    let (near, far) = if tl <= tr { (l, r) } else { (r, l) };
-                    self.stack.push((far.left_or_first, far.count));
+                    let (near, far, t_far) = if tl <= tr { (l, r, tr) } else { (r, l, tl) };
+                    self.stack.push((far.left_or_first, far.count, t_far));
                     self.current = Some((near.left_or_first, near.count));
                 }
                 (Some(_), None) => self.current = Some((l.left_or_first, l.count)),
