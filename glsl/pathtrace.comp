@@ -1,5 +1,6 @@
 #version 460
 // trilab:variants all lambert=BSDF_MASK:0x1 oren_nayar=BSDF_MASK:0x2 phong=BSDF_MASK:0x4 blinn_phong=BSDF_MASK:0x8 ashikhmin_shirley=BSDF_MASK:0x10 glass=BSDF_MASK:0x20 mirror=BSDF_MASK:0x40
+// trilab:layouts all
 // Unidirectional path tracer, one pixel per invocation, `pc.sample_count` samples per dispatch
 // accumulated in sample order (so the image does not depend on how samples are batched).
 //

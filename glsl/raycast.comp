@@ -1,5 +1,6 @@
 #version 460
-// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS clock=SHADER_CLOCK closest_bda=SCENE_ADDRESS any_bda=ANY_HIT,SCENE_ADDRESS stats_bda=TRAVERSAL_STATS,SCENE_ADDRESS clock_bda=SHADER_CLOCK,SCENE_ADDRESS closest_bvh4=WIDE_BVH:4
+// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS clock=SHADER_CLOCK closest_bda=SCENE_ADDRESS any_bda=ANY_HIT,SCENE_ADDRESS stats_bda=TRAVERSAL_STATS,SCENE_ADDRESS clock_bda=SHADER_CLOCK,SCENE_ADDRESS
+// trilab:layouts closest any stats clock closest_bda any_bda stats_bda clock_bda
 // Ray casting: one ray per invocation, closest hit (t, u, v, OBJ triangle id) or, with ANY_HIT,
 // any hit in [tmin, tmax] (occlusion). The intersector is chosen per variant by build.rs.
 // With TRAVERSAL_STATS (closest hit) it also writes each ray's traversal work (traverse.glsl).
@@ -10,8 +11,9 @@
 // SCENE_ADDRESS (`*_bda`: each of the four above): the scene is read through buffer device
 // addresses instead of storage texel buffers (types.glsl), for scenes beyond
 // maxTexelBufferElements.
-// WIDE_BVH 4 (`closest_bvh4`): closest hit through the 4-wide BVH (traverse_bvh4.glsl), whose
-// 128-byte nodes the pipeline binds at BINDING_NODES in place of the binary ones (texel path).
+// Each of the eight once more per layout in glsl/layout/ (`closest_bvh4`, `any_bda_bvh8`, ...):
+// that layout's traversal (WIDE_LAYOUT), whose nodes the pipeline binds at BINDING_NODES in
+// place of the binary ones.
 #extension GL_GOOGLE_include_directive : require
 #ifdef SHADER_CLOCK
 #extension GL_ARB_shader_clock : require

@@ -11,9 +11,10 @@
 #define SPEC_ID_WORKGROUP_SIZE 1
 // Traversal stack entries: the BVH builder guarantees depth <= STACK_SIZE.
 #define STACK_SIZE 64
-// Stack entries of the 4-wide traversal (traverse_bvh4.glsl); the host refuses a 4-wide tree
-// whose WideBvh::stack_bound exceeds it.
+// Stack entries of the wide traversals (glsl/layout/bvh4.glsl, bvh8.glsl); the host refuses a
+// tree whose stack bound (LayoutNodes::stack_bound) exceeds its layout's.
 #define BVH4_STACK_SIZE 64
+#define BVH8_STACK_SIZE 96
 
 // Descriptor set 0. Rays and hits: storage buffers holding one dispatch's sub-range.
 #define BINDING_RAYS 0

@@ -43,16 +43,21 @@ const float SLAB_FAR_SCALE = 1.0000003576;
 //   triangles: sum of `count` over the leaves visited: real triangles tested;
 //   slots:     triangle slots evaluated: `count` rounded up to a whole primitive
 //              (PRIM_TRIANGLES: 4 for the Quad intersectors, whose padding lanes are computed
-//              too; equal to `triangles` for the one-triangle intersectors).
-// A ray that misses the root box does no work (all zero).
+//              too; equal to `triangles` for the one-triangle intersectors);
+//   boxes:     slab tests: the root's and both children's per inner iteration here; in a wide
+//              layout, each occupied child slot of a visited node (glsl/layout/).
+// A ray that misses the root box does no other work (boxes 1, the rest zero).
+// With a wide layout, `inner` counts wide nodes visited.
 struct TraversalCounts {
     uint inner;
     uint leaves;
     uint triangles;
     uint slots;
+    uint boxes;
 };
-TraversalCounts trav_counts = TraversalCounts(0u, 0u, 0u, 0u);
+TraversalCounts trav_counts = TraversalCounts(0u, 0u, 0u, 0u, 0u);
 #define COUNT_INNER() trav_counts.inner += 1u
+#define COUNT_BOXES(n) trav_counts.boxes += (n)
 #define COUNT_LEAF(count)                                                                      \
     trav_counts.leaves += 1u;                                                                  \
     trav_counts.triangles += (count);                                                          \
@@ -60,6 +65,7 @@ TraversalCounts trav_counts = TraversalCounts(0u, 0u, 0u, 0u);
 #else
 #define COUNT_INNER()
 #define COUNT_LEAF(count)
+#define COUNT_BOXES(n)
 #endif
 
 TraceRay make_trace_ray(Ray r) {
@@ -222,9 +228,10 @@ bool intersect_leaf(TraceRay r, uint first, uint count, inout HitState h, bool a
 #error "PRIM_TRIANGLES must be 1 or 4"
 #endif
 
-#ifdef WIDE_BVH
-// The wide traversal replaces the binary one below (raycast.comp's `*_bvh4` variants).
-#include "traverse_bvh4.glsl"
+#ifdef WIDE_LAYOUT
+// A wide layout's traversal (glsl/layout/<layout>.glsl) replaces the binary one below: the
+// variants compiled per layout (`// trilab:layouts` in the kernel).
+#include "layout.glsl"
 #else
 // Traces `r` through the BVH, updating `h` (h.t must start at the ray's tmax).
 // With `any_hit` it returns at the first accepted intersection (occlusion). Pass a constant:
@@ -239,6 +246,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
 #ifdef CONSERVATIVE_TRAVERSAL
     ConservativeRay cons = make_conservative_ray(r, root.bmin, root.bmax);
 #endif
+    COUNT_BOXES(1u);
     if (!HIT_BOX(root.bmin, root.bmax, h.t, troot)) {
         return;
     }
@@ -261,6 +269,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
             current = stack[--sp];
         } else {
             COUNT_INNER();
+            COUNT_BOXES(2u);
             BvhNode l = load_node(first);
             BvhNode rr = load_node(first + 1u);
             float tl, tr;
@@ -282,6 +291,6 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
     }
 }
 
-#endif // WIDE_BVH
+#endif // WIDE_LAYOUT
 
 #endif

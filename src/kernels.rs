@@ -18,8 +18,11 @@ pub struct KernelSource {
     /// The intersector, `glsl/intersect/<intersector>.glsl`, or `none` for kernels that trace no
     /// rays (`// trilab:intersector none`).
     pub method: &'static str,
-    /// The variant from the kernel's `// trilab:variants` line.
+    /// The variant from the kernel's `// trilab:variants` line (with `_<layout>` for a variant
+    /// compiled per layout: the kernel's `// trilab:layouts` line).
     pub variant: &'static str,
+    /// The node layout it reads: `glsl/layout/<layout>.glsl`, or `bvh2` (the binary nodes).
+    pub layout: &'static str,
     /// SPIR-V words, little-endian bytes.
     pub spirv: &'static [u8],
 }

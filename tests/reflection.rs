@@ -10,6 +10,7 @@ use trilab::bvh::BvhNode;
 use trilab::encoding::{AccessPath, Method, Raycast};
 use trilab::gpu::TraversalCounts;
 use trilab::kernels::KERNELS;
+use trilab::named::Named;
 use trilab::rays::{Hit, Ray};
 use trilab::render::bsdf::{ProbeIn, ProbeOut, ProbePush};
 use trilab::render::{GpuParams, PathtracePush};
@@ -61,6 +62,7 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
                 offset_of!(TraversalCounts, leaves),
                 offset_of!(TraversalCounts, triangles),
                 offset_of!(TraversalCounts, slots),
+                offset_of!(TraversalCounts, boxes),
             ],
         ),
         (_, BINDING_PROBE_NODES) => node(),
@@ -223,7 +225,7 @@ fn kernels_bind_what_the_host_provides() {
         expected.sort();
         assert_eq!(set.keys().copied().collect::<Vec<_>>(), expected, "{} bindings", k.name);
         for (b, d) in set {
-            let want = if texels.contains(b) && k.variant.ends_with("_bda") {
+            let want = if texels.contains(b) && k.variant.contains("_bda") {
                 // The address path: a uniform block holding the buffer's device address.
                 vk::DescriptorType::UNIFORM_BUFFER
             } else if texels.contains(b) {
@@ -280,8 +282,8 @@ fn clock_variant_adds_only_the_cycles_buffer() {
             assert!(!set.contains_key(&BINDING_CYCLES), "{}: only the clock variants bind the cycles buffer", k.name);
         }
     }
-    // One per method and access path.
-    assert_eq!(clock_kernels, 2 * Method::ALL.len());
+    // One per method, access path and layout.
+    assert_eq!(clock_kernels, 2 * Method::ALL.len() * trilab::encoding::Layout::ALL.len());
 }
 
 #[test]

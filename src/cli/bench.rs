@@ -54,8 +54,8 @@ pub struct BenchArgs {
     /// binding, else buffer device addresses (`trilab scale` reports which).
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
-    /// BVH node layouts, comma-separated (`bvh2`, `bvh4`): every method is timed on each, side
-    /// by side in one run (default: bvh2; bvh4 has only the closest-hit texel kernel so far).
+    /// BVH node layouts, comma-separated (`bvh2`, `bvh4`, `bvh8`, ...): every method is timed on
+    /// each, side by side in one run (default: bvh2).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
     /// Directory to write bench.json (the report) and bench.md (the tables) into.

@@ -45,8 +45,8 @@ pub struct RaycastArgs {
     /// every buffer fits one binding, else buffer device addresses (the JSON says which).
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
-    /// BVH node layout: `bvh2` (the paper's binary tree, every kernel) or `bvh4` (the SAH tree
-    /// collapsed into 4-wide nodes; closest hits on the texel path only, so far).
+    /// BVH node layout: `bvh2` (the paper's binary tree) or a wide one (`trilab methods` lists
+    /// them); every kernel exists for every layout.
     #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
     layout: Layout,
     /// Timed runs after one warm-up (at least 1); the median is reported.

@@ -6,11 +6,13 @@ use std::sync::Arc;
 
 use clap::Args;
 use trilab::analyze::MethodChoice;
+use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
 use trilab::render::session::{self, RenderRequest};
 use trilab::render::{EnvSpec, KernelChoice};
 
 use super::camera::CameraArg;
+
 use super::choice::{choice, method_choice, method_help};
 use super::{note, scene_help, BuildArgs, GpuArgs, JsonArg};
 
@@ -22,6 +24,9 @@ pub struct RenderArgs {
     #[arg(long, value_name = "M", default_value = "mt", value_parser = method_choice(), hide_possible_values = true,
           help = method_help("Intersection method:"))]
     method: MethodChoice,
+    /// BVH node layout the path tracer traverses (`trilab methods` lists them).
+    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
+    layout: Layout,
     #[command(flatten)]
     bvh: BuildArgs,
     /// Image width in pixels.
@@ -103,6 +108,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         scene: a.scene,
         out: a.out,
         method: a.method,
+        layout: a.layout,
         build: a.bvh.options(),
         width: a.width,
         height: a.height,

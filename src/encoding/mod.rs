@@ -19,9 +19,11 @@
 //! `trilab methods --markdown` refresh the generated files.
 
 pub mod kernels;
+pub mod layout;
 pub mod plan;
 
-pub use kernels::{Layout, Raycast};
+pub use kernels::Raycast;
+pub use layout::{Layout, LayoutNodes, LayoutSpec};
 pub use plan::{AccessPath, BufferPlan, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
 
 use crate::bvh::{Bvh, BvhNode, PAD_SLOT};

@@ -16,7 +16,7 @@
 //! kernels) when every buffer fits one binding, else buffer device addresses (the raycast
 //! kernels' `*_bda` variants).
 
-use super::Method;
+use super::{Layout, Method};
 use crate::bvh::{Bvh, BvhNode};
 use crate::error::{Error, Result, TooLarge};
 use crate::named::named_enum;
@@ -194,6 +194,8 @@ impl SceneCounts {
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct MemoryPlan {
     pub method: Method,
+    /// The node layout whose node buffer is planned ([`MemoryPlan::with_layout`]).
+    pub layout: Layout,
     pub counts: SceneCounts,
     pub buffers: Vec<BufferPlan>,
 }
@@ -213,7 +215,25 @@ impl MemoryPlan {
             BufferPlan::new("slot ids", BINDING_SLOT_IDS, Texel::R32Uint, slot_ids, 4),
         ];
         buffers.extend((method.intersector().plan)(c));
-        MemoryPlan { method, counts: *c, buffers }
+        MemoryPlan { method, layout: Layout::Bvh2, counts: *c, buffers }
+    }
+
+    /// This plan with `layout`'s node buffer in place of the binary nodes, priced by the
+    /// layout's bound from counts ([`super::LayoutSpec::plan_bytes`]; the built buffer is checked
+    /// against the limits again before it is uploaded).
+    pub fn with_layout(mut self, layout: Layout) -> MemoryPlan {
+        let spec = layout.spec();
+        let bytes = (spec.plan_bytes)(&self.counts);
+        for b in self.buffers.iter_mut().filter(|b| b.binding == BINDING_NODES) {
+            *b = BufferPlan {
+                name: spec.buffer,
+                binding: BINDING_NODES,
+                bytes,
+                texel_size: Texel::Rgba32Uint.size() as u64,
+            };
+        }
+        self.layout = layout;
+        self
     }
 
     /// The plan of an already encoded scene (its real buffer sizes).
@@ -235,7 +255,7 @@ impl MemoryPlan {
             slots: scene.slot_ids.len() as u64,
             ..Default::default()
         };
-        MemoryPlan { method: scene.method, counts, buffers }
+        MemoryPlan { method: scene.method, layout: Layout::Bvh2, counts, buffers }
     }
 
     pub fn for_bvh(method: Method, mesh: &Mesh, bvh: &Bvh) -> MemoryPlan {

@@ -6,7 +6,7 @@
 use bytemuck::{Pod, Zeroable};
 use serde::Serialize;
 
-/// One ray's traversal work, GLSL `TraversalCounts` (16 bytes, std430 at
+/// One ray's traversal work, GLSL `TraversalCounts` (20 bytes, std430 at
 /// `BINDING_TRAVERSAL_STATS`; `tests/reflection.rs` checks the offsets).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable, Serialize)]
@@ -20,9 +20,12 @@ pub struct TraversalCounts {
     /// Triangle slots evaluated: each leaf's count rounded up to whole primitives (4 for the
     /// Quad methods, padding lanes included; equal to `triangles` for MT and unit).
     pub slots: u32,
+    /// Slab tests: the root's and two per inner iteration in the binary tree; in a wide layout
+    /// one per occupied child slot of each node visited.
+    pub boxes: u32,
 }
 
-const _: () = assert!(std::mem::size_of::<TraversalCounts>() == 16);
+const _: () = assert!(std::mem::size_of::<TraversalCounts>() == 20);
 const _: () = assert!(std::mem::align_of::<TraversalCounts>() == 4);
 
 impl TraversalCounts {
@@ -58,6 +61,8 @@ pub struct TraversalSummary {
     pub triangles: MeanMax,
     /// Triangle slots evaluated (padding included).
     pub slots: MeanMax,
+    /// Boxes slab-tested.
+    pub boxes: MeanMax,
 }
 
 impl TraversalSummary {
@@ -69,6 +74,7 @@ impl TraversalSummary {
             leaves: MeanMax::of(counts, |c| c.leaves),
             triangles: MeanMax::of(counts, |c| c.triangles),
             slots: MeanMax::of(counts, |c| c.slots),
+            boxes: MeanMax::of(counts, |c| c.boxes),
         }
     }
 }
@@ -79,7 +85,8 @@ mod tests {
 
     #[test]
     fn summary_means_and_maxima() {
-        let c = |inner, leaves, triangles, slots| TraversalCounts { inner, leaves, triangles, slots };
+        let c =
+            |inner, leaves, triangles, slots| TraversalCounts { inner, leaves, triangles, slots, boxes: 2 * inner + 1 };
         let s = TraversalSummary::of(&[c(3, 1, 4, 4), c(0, 0, 0, 0), c(6, 3, 7, 12)]);
         assert_eq!(s.rays, 3);
         assert_eq!(s.nodes, MeanMax { mean: 13.0 / 3.0, max: 9 });

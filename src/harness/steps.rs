@@ -109,7 +109,13 @@ fn gpu_steps(
     let mirror = |conservative| -> Vec<TraversalCounts> {
         ray_steps_with(host.mesh, &host.bvh, rays, conservative)
             .iter()
-            .map(|s| TraversalCounts { inner: s.inner, leaves: s.leaves, triangles: s.triangles, slots: 0 })
+            .map(|s| TraversalCounts {
+                inner: s.inner,
+                leaves: s.leaves,
+                triangles: s.triangles,
+                slots: 0,
+                boxes: 2 * s.inner + 1,
+            })
             .collect()
     };
     let (cpu, cpu_conservative) = (mirror(false), mirror(true));

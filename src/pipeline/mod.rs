@@ -19,10 +19,11 @@ mod upload;
 use std::sync::Arc;
 
 use crate::analyze::{self, MethodChoice, Recommendation};
-use crate::bvh::{BuildOptions, Bvh, Bvh4Node, Collapse, WideBvh};
+use crate::bvh::{BuildOptions, Bvh};
 use crate::encoding::plan::check_extras;
 use crate::encoding::{
-    AccessPath, BufferPlan, DeviceLimits, EncodedScene, Layout, MemoryPlan, Method, Raycast, SceneAccess, SceneCounts,
+    AccessPath, BufferPlan, DeviceLimits, EncodedScene, Layout, LayoutNodes, MemoryPlan, Method, Raycast, SceneAccess,
+    SceneCounts,
 };
 use crate::error::{Error, Result};
 use crate::gpu::raycast::cast_rays;
@@ -30,7 +31,6 @@ use crate::gpu::{Context, Kernel, RaycastOptions, RaycastResult, Resource};
 use crate::kernels::KernelSource;
 use crate::reference::Reference;
 use crate::scene::Mesh;
-use crate::shared::BVH4_STACK_SIZE;
 
 use upload::SceneBuffers;
 
@@ -54,10 +54,16 @@ pub struct SceneRequest {
     /// A reader of the scene that has only the texel path (the path tracer), and why: the plan
     /// must then fit texel bindings, and a "does not fit" error says what helps that reader.
     pub texel_only: Option<&'static str>,
-    /// The node layout the kernels read ([`Layout::Bvh2`] unless asked): [`Layout::Bvh4`]
-    /// binds the 4-wide nodes collapsed from the encoding's binary nodes where the binary ones
-    /// would be, and has only the closest-hit kernel on the texel path so far.
+    /// The node layout the kernels read ([`Layout::Bvh2`] unless asked): a wide layout binds its
+    /// nodes, made from the encoding's binary nodes, where the binary ones would be; every
+    /// kernel exists for every layout (`encoding::layout`).
     pub layout: Layout,
+}
+
+impl<M: Into<MethodChoice>> From<M> for SceneRequest {
+    fn from(method: M) -> SceneRequest {
+        SceneRequest::new(method)
+    }
 }
 
 impl SceneRequest {
@@ -120,20 +126,11 @@ impl<'m> HostScene<'m> {
         request: &SceneRequest,
         limits: &DeviceLimits,
     ) -> Result<ScenePlan<'_, 'm>> {
-        let memory = MemoryPlan::of(method, &self.counts());
+        let memory = MemoryPlan::of(method, &self.counts()).with_layout(request.layout);
         let access = match request.texel_only {
             Some(why) => memory.choose_texel_only(&self.name, limits, why)?,
             None => memory.choose(&self.name, request.access, limits)?,
         };
-        if request.layout != Layout::Bvh2 && access != AccessPath::Texel {
-            return Err(Error::Usage(format!(
-                "scene `{}`: the {} layout has kernels on the texel path only, and the scene needs \
-                 the {} path",
-                self.name,
-                request.layout,
-                access.name()
-            )));
-        }
         Ok(ScenePlan { host: self, method, auto, memory, access, layout: request.layout, limits: *limits })
     }
 
@@ -152,8 +149,8 @@ pub struct ScenePlan<'h, 'm> {
     pub auto: Option<Recommendation>,
     pub memory: MemoryPlan,
     pub access: AccessPath,
-    /// The node layout. The memory plan prices the binary nodes; a wide layout's node buffer
-    /// is checked against the texel limit when it is made, before it is uploaded.
+    /// The node layout. The memory plan prices its node buffer by the layout's bound from
+    /// counts; the built buffer and the stack it needs are checked again before upload.
     pub layout: Layout,
     /// The limits it was checked against.
     pub limits: DeviceLimits,
@@ -187,12 +184,8 @@ impl<'m> ScenePlan<'_, 'm> {
     ) -> Result<DeviceScene> {
         let encoded = self.method.encode(self.host.mesh, &self.host.bvh);
         inspect(&encoded);
-        let wide = match self.layout {
-            Layout::Bvh2 => None,
-            Layout::Bvh4 => Some(self.bvh4_nodes(&encoded)?),
-        };
-        let wide_bytes = wide.as_deref().map(bytemuck::cast_slice::<Bvh4Node, u8>);
-        let buffers = SceneBuffers::upload(ctx, &encoded, self.access, reader, wide_bytes)?;
+        let wide = self.layout_nodes(&encoded)?;
+        let buffers = SceneBuffers::upload(ctx, &encoded, self.access, reader, wide.as_ref().map(|w| &w.bytes[..]))?;
         Ok(DeviceScene {
             name: self.host.name.clone(),
             method: self.method,
@@ -209,34 +202,33 @@ impl<'m> ScenePlan<'_, 'm> {
 }
 
 impl ScenePlan<'_, '_> {
-    /// The encoding's binary nodes collapsed into 4-wide ones ([`Collapse::Sah`], leaves in
-    /// the encoding's units), refused when the kernel's fixed stack (`BVH4_STACK_SIZE`) could
-    /// overflow or the buffer exceeds one texel binding.
-    fn bvh4_nodes(&self, encoded: &EncodedScene) -> Result<Vec<Bvh4Node>> {
-        let nodes = WideBvh::<4>::collapse_nodes(&encoded.nodes, &self.host.bvh.options, Collapse::Sah);
-        let tree = WideBvh::<4> {
-            nodes,
-            bounds: self.host.bvh.nodes[0].aabb(),
-            prim_ids: vec![],
-            max_leaf_size: self.host.bvh.options.max_leaf_size,
-            collapse_seconds: 0.0,
+    /// The layout's node buffer made from the encoding's binary nodes (`None` for the binary
+    /// layout), refused when the kernel's fixed stack could overflow on this tree or the buffer
+    /// exceeds what the access path can bind.
+    fn layout_nodes(&self, encoded: &EncodedScene) -> Result<Option<LayoutNodes>> {
+        let Some(built) = self.layout.nodes(&encoded.nodes, &self.host.bvh.options) else {
+            return Ok(None);
         };
-        let bound = tree.stack_bound();
-        if bound > BVH4_STACK_SIZE as usize {
+        let spec = self.layout.spec();
+        if built.stack_bound > spec.stack_size as usize {
             return Err(Error::Usage(format!(
-                "scene `{}`: its 4-wide tree needs a traversal stack of {bound} entries; the bvh4 \
-                 kernel has {BVH4_STACK_SIZE} (BVH4_STACK_SIZE in glsl/shared.glsl)",
-                self.host.name
+                "scene `{}`: its {} tree needs a traversal stack of {} entries; the kernel has {} \
+                 (glsl/shared.glsl)",
+                self.host.name, self.layout, built.stack_bound, spec.stack_size
             )));
         }
-        let texels = tree.nodes.len() as u64 * 8;
-        if texels > self.limits.max_texel_buffer_elements {
+        let texels = built.bytes.len() as u64 / 16;
+        let limit = match self.access {
+            AccessPath::Texel => self.limits.max_texel_buffer_elements,
+            AccessPath::Address => crate::encoding::plan::MAX_ADDRESS_TEXELS,
+        };
+        if texels > limit {
             return Err(Error::Usage(format!(
-                "scene `{}`: its 4-wide nodes need {texels} texels; one texel binding holds {}",
-                self.host.name, self.limits.max_texel_buffer_elements
+                "scene `{}`: its {} nodes need {texels} texels; one binding holds {limit}",
+                self.host.name, self.layout
             )));
         }
-        Ok(tree.nodes)
+        Ok(Some(built))
     }
 }
 

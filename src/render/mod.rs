@@ -22,8 +22,7 @@ pub use passes::render;
 
 use glam::{DVec3, Vec3};
 
-use crate::analyze::MethodChoice;
-use crate::encoding::{EncodedScene, Method};
+use crate::encoding::{EncodedScene, Layout, Method};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::kernels::{self, KernelSource};
@@ -162,6 +161,20 @@ impl PathtraceKernel {
             (KernelChoice::Specialised, None) => PathtraceKernel { source: variant("all"), spec_mask: mask.max(1) },
             (KernelChoice::General, _) => PathtraceKernel { source: variant("all"), spec_mask: BSDF_MASK_ALL },
         }
+    }
+
+    /// [`PathtraceKernel::choose`] for a scene whose nodes are in `layout`: a wide layout has the
+    /// `all_<layout>` variant only (`// trilab:layouts all` in `glsl/pathtrace.comp`), narrowed
+    /// to the same BSDFs by the specialisation constant.
+    pub fn choose_on(method: Method, layout: Layout, mask: u32, choice: KernelChoice) -> PathtraceKernel {
+        let k = Self::choose(method, mask, choice);
+        if layout == Layout::Bvh2 {
+            return k;
+        }
+        let v = format!("all{}", layout.variant_suffix());
+        let source = kernels::find("pathtrace", method.glsl_name(), &v)
+            .unwrap_or_else(|| panic!("pathtrace.{}.{v} was not compiled", method.glsl_name()));
+        PathtraceKernel { source, spec_mask: k.spec_mask.max(1) }
     }
 
     /// BSDFs carried, by name.
@@ -437,21 +450,21 @@ pub struct RenderTarget {
 }
 
 impl RenderTarget {
-    /// Plans `host` for `method` (or `auto`) with the path tracer's own buffers for an image of
+    /// Plans `host` for `request` (a method or `auto`, and the node layout) with the path tracer's own buffers for an image of
     /// `pixels` (refusing, before anything is encoded, what does not fit), picks the kernel for
     /// its materials (`choice`), and uploads it. With `raycast_too` every buffer of the scene is
     /// uploaded, so that the ray-casting kernels can read it as well (the study).
     pub fn new(
         ctx: &Context,
         host: &HostScene,
-        method: MethodChoice,
+        request: SceneRequest,
         choice: KernelChoice,
         pixels: u64,
         raycast_too: bool,
     ) -> Result<RenderTarget> {
-        let plan = host.plan(ctx, &SceneRequest::new(method).texel_only(plan::TEXEL_ONLY))?;
+        let plan = host.plan(ctx, &request.texel_only(plan::TEXEL_ONLY))?;
         plan.check_extras(&plan::extras_for(host.mesh, plan.method, &plan.memory.counts, pixels))?;
-        let kernel = PathtraceKernel::choose(plan.method, RenderScene::bsdf_mask(host.mesh), choice);
+        let kernel = PathtraceKernel::choose_on(plan.method, plan.layout, RenderScene::bsdf_mask(host.mesh), choice);
         let reader = if raycast_too { None } else { Some(kernel.source) };
         let mut scene = None;
         let device = plan.upload_with(ctx, reader, |e| scene = Some(RenderScene::new(host.mesh, e)))?;

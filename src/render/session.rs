@@ -14,10 +14,10 @@ use super::{
 };
 use crate::analyze::{MethodChoice, Recommendation};
 use crate::bvh::BuildOptions;
-use crate::encoding::Method;
+use crate::encoding::{Layout, Method};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
-use crate::pipeline::HostScene;
+use crate::pipeline::{HostScene, SceneRequest};
 use crate::rays::CameraSpec;
 use crate::report::Report;
 use crate::scene::{load_obj, BsdfKind};
@@ -29,6 +29,8 @@ pub struct RenderRequest {
     /// The OpenEXR file; the PNG and JSON go beside it (same stem).
     pub out: PathBuf,
     pub method: MethodChoice,
+    /// The node layout the path tracer traverses.
+    pub layout: Layout,
     pub build: BuildOptions,
     pub width: u32,
     pub height: u32,
@@ -68,6 +70,8 @@ pub struct RenderReport {
     pub triangles: usize,
     pub method: Method,
     pub method_choice: String,
+    /// The node layout traversed.
+    pub layout: Layout,
     pub auto: Option<Recommendation>,
     pub leaf_size: u32,
     pub leaf_policy: crate::bvh::LeafPolicy,
@@ -256,7 +260,14 @@ pub fn run(
     let t_build = Instant::now();
     let host = HostScene::build(crate::scene::scene_name(&req.scene), &mesh, &req.build)?;
     // The plan refuses, before anything is encoded, a scene or image that cannot fit.
-    let target = RenderTarget::new(ctx, &host, req.method, req.kernel, settings.pixels(), false)?;
+    let target = RenderTarget::new(
+        ctx,
+        &host,
+        SceneRequest::new(req.method).layout(req.layout),
+        req.kernel,
+        settings.pixels(),
+        false,
+    )?;
     let build_ms = t_build.elapsed().as_secs_f64() * 1e3;
     if let Some(r) = &target.device.auto {
         note(&format!("--method auto picked {}:", target.device.method));
@@ -272,6 +283,7 @@ pub fn run(
         triangles: mesh.triangle_count(),
         method: target.device.method,
         method_choice: req.method.to_string(),
+        layout: target.device.layout,
         auto: target.device.auto.clone(),
         leaf_size: req.build.max_leaf_size,
         leaf_policy: req.build.leaf_policy,

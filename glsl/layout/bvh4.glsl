@@ -1,7 +1,7 @@
-// 4-wide BVH traversal (raycast.comp's `closest_bvh4` variant, WIDE_BVH 4): the first step of
-// issue 15. Included by traverse.glsl in place of the binary trace(); the leaf loop
+// The bvh4 layout's traversal (the `*_bvh4` variants: `// trilab:layouts` in raycast.comp and
+// pathtrace.comp). Included by traverse.glsl in place of the binary trace(); the leaf loop
 // (intersect_leaf), the box test (HIT_BOX, conservative for watertight) and the packed stack
-// entries ((first << 5) | count) are traverse.glsl's.
+// entries ((first << 5) | count) are traverse.glsl's. Host side: src/encoding/layout/bvh4.rs.
 //
 // Nodes are src/bvh/wide.rs's `Bvh4Node` (128 bytes, structure of arrays), bound at
 // BINDING_NODES in place of the binary nodes: 8 texels per node, one per field, so node i is
@@ -24,14 +24,11 @@
 // Stack: BVH4_STACK_SIZE entries (shared.glsl). The host refuses a tree whose
 // WideBvh::stack_bound exceeds it before anything is uploaded (pipeline), so the kernel needs no
 // check per push.
-#ifndef TRILAB_TRAVERSE_BVH4
-#define TRILAB_TRAVERSE_BVH4
+#ifndef TRILAB_LAYOUT_BVH4
+#define TRILAB_LAYOUT_BVH4
 
-#if WIDE_BVH != 4
-#error "traverse_bvh4.glsl is the 4-wide traversal (WIDE_BVH 4)"
-#endif
+#include "wide.glsl"
 
-const uint EMPTY_CHILD = 0xFFFFFFFFu;
 // -FLT_MAX: below every entry distance (tnear >= the ray's tmin), so misses sort after every hit.
 const float NO_HIT = -3.40282347e38;
 
@@ -52,6 +49,7 @@ const float NO_HIT = -3.40282347e38;
     t##i = NO_HIT;                                                                             \
     e##i = 0u;                                                                                 \
     if (kid.k != EMPTY_CHILD) {                                                              \
+        COUNT_BOXES(1u);                                                                       \
         float tn;                                                                              \
         if (HIT_BOX(vec3(mnx.k, mny.k, mnz.k), vec3(mxx.k, mxy.k, mxz.k), h.t, tn)) {          \
             t##i = tn;                                                                         \

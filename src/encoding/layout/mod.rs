@@ -1,0 +1,233 @@
+//! Node layouts: how the BVH's inner nodes reach the ray-casting and path-tracing kernels
+//! (issue 15's second axis beside the intersectors).
+//!
+//! A layout is one unit, like an intersector: `glsl/layout/<name>.glsl` holds its traversal
+//! (`trace()`, in place of `glsl/traverse.glsl`'s binary one; the leaf loop and the box test stay
+//! `traverse.glsl`'s, so every intersector runs on every layout), `src/encoding/layout/<name>.rs`
+//! holds everything the host knows about it in one [`LayoutSpec`] (names, node size, how its node
+//! buffer is made from the encoding's binary nodes, the memory plan's bound, the kernel's stack),
+//! and one line of `layouts!` below. build.rs compiles the variants a kernel lists on its
+//! `// trilab:layouts` line once per file in `glsl/layout/` (`closest_bvh4`, `any_bda_bvh8`, ...);
+//! everything that lists layouts (the CLI's values, `bench --layouts`, the study) reads
+//! [`Layout::ALL`].
+//!
+//! The paper's binary tree, `bvh2`, has no layout file: its nodes are the encoding's own
+//! (`bvh::BvhNode`, 32 bytes), uploaded as they are. Every other layout's node buffer replaces
+//! them at `BINDING_NODES`; the triangles, slot ids and leaves (first unit, count) are the
+//! encoding's, unchanged.
+
+mod bvh2;
+mod bvh4;
+mod bvh8;
+
+use crate::bvh::{BuildOptions, BvhNode};
+use crate::named::Named;
+
+use super::plan::SceneCounts;
+
+/// A node buffer made for a layout.
+#[derive(Clone, Debug, Default)]
+pub struct LayoutNodes {
+    /// The bytes bound at `BINDING_NODES` (a whole number of 16-byte texels).
+    pub bytes: Vec<u8>,
+    /// Nodes in it.
+    pub nodes: usize,
+    /// Most entries the layout's traversal stack can hold on this tree.
+    pub stack_bound: usize,
+    /// The tree's SAH cost, priced with the build options (node cost per node visited).
+    pub sah_cost: f64,
+}
+
+/// Everything the host knows about one layout (`src/encoding/layout/<name>.rs`'s `LAYOUT`).
+#[derive(Clone, Copy, Debug)]
+pub struct LayoutSpec {
+    /// Command-line name (`--layout`), also `glsl/layout/<name>.glsl` and the kernels' variant
+    /// suffix (`closest_<name>`); `bvh2` has no file and no suffix.
+    pub name: &'static str,
+    /// Column title in tables and plots.
+    pub title: &'static str,
+    /// One line: the node and the traversal, and where they come from.
+    pub about: &'static str,
+    /// Children per node.
+    pub width: u32,
+    /// Bytes per node (what the node buffer costs per node).
+    pub node_bytes: usize,
+    /// The node buffer's name in memory plans and errors.
+    pub buffer: &'static str,
+    /// The node buffer from the encoding's binary nodes (leaves in the encoding's units), or
+    /// `None` for the binary nodes themselves.
+    pub build: Option<fn(&[BvhNode], &BuildOptions) -> LayoutNodes>,
+    /// An upper bound of the node buffer's bytes from counts alone, for the memory plan (a
+    /// test holds every built buffer within it).
+    pub plan_bytes: fn(&SceneCounts) -> u64,
+    /// Entries of the kernel's traversal stack: a tree that could need more is refused before
+    /// anything is uploaded.
+    pub stack_size: u32,
+}
+
+/// One line per layout: `Variant => module`. Generates the modules, [`Layout`] and its lookup
+/// of each layout's [`LayoutSpec`]; the first is the default.
+macro_rules! layouts {
+    ($first:ident => $first_module:ident $(, $variant:ident => $module:ident)* $(,)?) => {
+        /// How the BVH's nodes are laid out for the kernels: one per line of the registry.
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum Layout {
+            #[default]
+            $first,
+            $($variant),*
+        }
+
+        impl Layout {
+            /// Everything the host knows about this layout.
+            pub fn spec(self) -> &'static LayoutSpec {
+                match self {
+                    Layout::$first => &$first_module::LAYOUT,
+                    $(Layout::$variant => &$module::LAYOUT),*
+                }
+            }
+        }
+
+        impl Named for Layout {
+            const ALL: &'static [Layout] = &[Layout::$first, $(Layout::$variant),*];
+
+            fn name(self) -> &'static str {
+                self.spec().name
+            }
+
+            fn help(self) -> &'static str {
+                self.spec().about
+            }
+        }
+    };
+}
+
+layouts! {
+    Bvh2 => bvh2,
+    Bvh4 => bvh4,
+    Bvh8 => bvh8,
+}
+
+impl Layout {
+    /// The column title.
+    pub fn title(self) -> &'static str {
+        self.spec().title
+    }
+
+    /// The suffix of this layout's kernel variants (`""` for the binary nodes, `_bvh4`, ...).
+    pub fn variant_suffix(self) -> String {
+        match self.spec().build {
+            None => String::new(),
+            Some(_) => format!("_{}", self.name()),
+        }
+    }
+
+    /// The node buffer for `binary` (the encoding's nodes), `None` for the binary layout.
+    pub fn nodes(self, binary: &[BvhNode], o: &BuildOptions) -> Option<LayoutNodes> {
+        self.spec().build.map(|b| b(binary, o))
+    }
+}
+
+impl std::fmt::Display for Layout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Layout {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Layout::parse_named("BVH layout", s)
+    }
+}
+
+impl serde::Serialize for Layout {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+/// A wide tree's node buffer: the binary nodes collapsed with [`crate::bvh::Collapse::Sah`].
+pub(super) fn wide_nodes<const N: usize>(binary: &[BvhNode], o: &BuildOptions) -> LayoutNodes {
+    use crate::bvh::{Collapse, WideBvh};
+    let start = std::time::Instant::now();
+    let nodes = WideBvh::<N>::collapse_nodes(binary, o, Collapse::Sah);
+    let tree = WideBvh::<N> {
+        nodes,
+        bounds: binary[0].aabb(),
+        prim_ids: vec![],
+        max_leaf_size: o.max_leaf_size,
+        collapse_seconds: start.elapsed().as_secs_f64(),
+    };
+    LayoutNodes {
+        bytes: bytemuck::cast_slice(&tree.nodes).to_vec(),
+        nodes: tree.nodes.len(),
+        stack_bound: tree.stack_bound(),
+        sah_cost: tree.sah_cost(o),
+    }
+}
+
+/// Inner nodes of the binary tree: a collapsed tree has at most this many nodes (each wide node
+/// takes at least one binary inner node; a tree of one leaf still gets a root).
+pub(super) fn inner_nodes(c: &SceneCounts) -> u64 {
+    (c.nodes / 2).max(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::{Bvh, PAD_SLOT};
+    use crate::scene::Mesh;
+
+    fn grid(n: u32) -> Mesh {
+        let mut pos = Vec::new();
+        let mut tris = Vec::new();
+        for i in 0..n {
+            let (x, y) = ((i % 23) as f32, (i / 23) as f32);
+            pos.extend([[x, y, 0.1 * x], [x + 0.9, y, 0.3], [x, y + 0.9, 0.6]]);
+            tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        Mesh::from_triangles(pos, tris)
+    }
+
+    #[test]
+    fn names_parse_and_the_binary_layout_is_the_default() {
+        assert_eq!(Layout::default(), Layout::Bvh2);
+        for &l in Layout::ALL {
+            assert_eq!(l.name().parse::<Layout>(), Ok(l));
+            assert!(!l.help().is_empty() && !l.title().is_empty(), "{l}");
+        }
+        assert!("bvh3".parse::<Layout>().unwrap_err().contains("bvh2"));
+        assert_eq!(Layout::Bvh2.variant_suffix(), "");
+        assert_eq!(Layout::Bvh4.variant_suffix(), "_bvh4");
+    }
+
+    /// The memory plan's bound holds every built node buffer, over leaf sizes and tree shapes
+    /// (one leaf, a few, thousands), and the buffer is whole texels of whole nodes.
+    #[test]
+    fn the_plan_bounds_every_node_buffer() {
+        for n in [1, 3, 40, 2000] {
+            let mesh = grid(n);
+            for leaf in [1, 4, 16] {
+                let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
+                let counts = SceneCounts {
+                    triangles: n as u64,
+                    nodes: bvh.nodes.len() as u64,
+                    slots: bvh.prim_ids.iter().filter(|&&p| p != PAD_SLOT).count() as u64,
+                    ..Default::default()
+                };
+                for &l in Layout::ALL {
+                    let Some(built) = l.nodes(&bvh.nodes, &bvh.options) else { continue };
+                    let bound = (l.spec().plan_bytes)(&counts);
+                    assert!(
+                        built.bytes.len() as u64 <= bound,
+                        "{l} n={n} leaf={leaf}: {} > {bound}",
+                        built.bytes.len()
+                    );
+                    assert_eq!(built.bytes.len() % 16, 0, "{l}: whole texels");
+                    assert!(built.nodes >= 1 && built.stack_bound <= l.spec().stack_size as usize, "{l} n={n}");
+                }
+            }
+        }
+    }
+}
