@@ -39,6 +39,9 @@ pub struct LayoutNodes {
     pub sah_cost: f64,
 }
 
+/// Makes a layout's node buffer from the encoding's binary nodes, or says why it cannot.
+pub type BuildNodes = fn(&[BvhNode], &BuildOptions) -> Result<LayoutNodes, String>;
+
 /// Everything the host knows about one layout (`src/encoding/layout/<name>.rs`'s `LAYOUT`).
 #[derive(Clone, Copy, Debug)]
 pub struct LayoutSpec {
@@ -58,7 +61,7 @@ pub struct LayoutSpec {
     /// The node buffer from the encoding's binary nodes (leaves in the encoding's units), or
     /// `None` for the binary nodes themselves; an error where the tree cannot be represented
     /// (cwbvh: a box without a grid, word indices beyond 32 bits).
-    pub build: Option<fn(&[BvhNode], &BuildOptions) -> Result<LayoutNodes, String>>,
+    pub build: Option<BuildNodes>,
     /// An upper bound of the node buffer's bytes from counts alone, for the memory plan (a
     /// test holds every built buffer within it).
     pub plan_bytes: fn(&SceneCounts) -> u64,
