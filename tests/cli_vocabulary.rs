@@ -308,6 +308,9 @@ fn the_readme_documents_the_options_and_the_environment() {
         "--out",
         "--json",
         "--repeat",
+        "--embree",
+        "--tinybvh",
+        "--tinybvh-layouts",
     ] {
         assert!(section.contains(&format!("`{opt}")), "README's Options table lists {opt}");
     }

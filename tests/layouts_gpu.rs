@@ -373,3 +373,43 @@ fn the_path_tracer_renders_the_same_image_on_every_layout() {
         assert_eq!(differ, 0, "{layout}: {differ} pixels differ from bvh2's image");
     }
 }
+
+/// `profile --layout` profiles the layout's kernels (its shader-clock and sweeps run the
+/// `*_<layout>` variants, each validated against the f64 reference) and says so in profile.md.
+#[test]
+fn profile_takes_the_layout() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("prof");
+    let o = common::cli::trilab(
+        &[
+            "profile",
+            "--scene",
+            "bunny",
+            "--layout",
+            "bvh4",
+            "--methods",
+            "mt",
+            "--random-rays",
+            "5000",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--repeat",
+            "1",
+            "--workgroup-sizes",
+            "64",
+            "--threads",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        600,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(out.join("profile.md")).unwrap();
+    assert!(md.contains("layout `bvh4`"), "{md}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("profile.json")).unwrap()).unwrap();
+    assert!(json.to_string().contains("\"layout\":\"bvh4\""), "the JSON names the layout");
+}

@@ -6,12 +6,13 @@ use clap::Args;
 use trilab::encoding::{Layout, SceneAccess};
 use trilab::error::{Error, Result};
 use trilab::harness::bench::{self, BenchOptions};
+use trilab::harness::peers::TinybvhLayout;
 
 use super::choice::choice;
 use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg};
 
 /// Ray-casting benchmark: primary, diffuse and random rays, every method, validated against
-/// the f64 reference, optionally beside the Embree peer.
+/// the f64 reference, optionally beside the Embree and tinybvh peers.
 #[derive(Args)]
 pub struct BenchArgs {
     #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(scenes_help!(), "; default: bunny"))]
@@ -42,9 +43,19 @@ pub struct BenchArgs {
     /// Read <scene>.{primary,diffuse,random}.rays from this directory instead of generating.
     #[arg(long, value_name = "DIR")]
     rays_dir: Option<PathBuf>,
-    /// The Embree peer (`embree_rays` from scripts/embree-peer.sh), run on the same rays.
+    /// The Embree peer (`embree_rays` from scripts/embree-peer.sh), run on the same rays; its
+    /// hits are checked against the f64 reference before its speed counts.
     #[arg(long, value_name = "FILE")]
     embree: Option<PathBuf>,
+    /// The tinybvh peer (`tinybvh_rays` from scripts/tinybvh-peer.sh), run on the same rays in
+    /// each of --tinybvh-layouts; its hits are checked against the f64 reference before its speed
+    /// counts. An ocl-* layout without OpenCL is skipped with a note.
+    #[arg(long, value_name = "FILE")]
+    tinybvh: Option<PathBuf>,
+    /// tinybvh's layouts, comma-separated (default: cpu-bvh8,ocl-bvh2,ocl-cwbvh: its fastest CPU
+    /// traversal and both OpenCL kernels).
+    #[arg(long, value_name = "L,...", value_parser = choice::<TinybvhLayout>(), value_delimiter = ',', requires = "tinybvh")]
+    tinybvh_layouts: Vec<TinybvhLayout>,
     /// The driver's ray-query peer row: `auto` runs it wherever the device has ray query except
     /// on CPU devices (on lavapipe it traces 12-1,266x slower than our kernels, hours at the
     /// default sizes); `on` runs it there too; `off` leaves it out.
@@ -133,6 +144,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
         seed: a.seed,
         rays_dir: a.rays_dir,
         embree: a.embree,
+        tinybvh: a.tinybvh,
+        tinybvh_layouts: a.tinybvh_layouts,
         scene_access: a.scene_access,
         layouts: if a.layouts.is_empty() { vec![Layout::Bvh2] } else { a.layouts },
         ray_query: match a.ray_query {

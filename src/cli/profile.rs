@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
 use trilab::harness::profile::{self, ProfileOptions};
 use trilab::harness::rayset::RaySet;
@@ -23,6 +24,9 @@ pub struct ProfileArgs {
     /// Max triangles per BVH leaf (1..=16).
     #[arg(long, value_name = "N", default_value_t = 4)]
     leaf_size: u32,
+    /// BVH node layout every kernel traverses (`bvh2`, `bvh4`, `bvh8`, ...).
+    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
+    layout: Layout,
     /// Output directory for profile.md, profile.json and the PNGs; default
     /// results/<device>/profile (lavapipe for Mesa's llvmpipe).
     #[arg(long, value_name = "DIR")]
@@ -74,6 +78,7 @@ pub fn run(a: ProfileArgs) -> Result<()> {
         scene: a.scene.clone(),
         methods: a.methods.or_device(&ctx),
         leaf_size: a.leaf_size,
+        layout: a.layout,
         width: a.width,
         height: a.height,
         diffuse_per_hit: a.diffuse_per_hit,

@@ -1,10 +1,9 @@
 //! The ray-casting benchmark (`trilab bench`, `cargo bench`): primary, diffuse and random ray
 //! sets on each scene, every method, each result validated against the f64 reference before
-//! its speed is reported (as tinybvh's speed test does), optionally beside Embree on the same
-//! ray files in the same run.
+//! its speed is reported (as tinybvh's speed test does), optionally beside the peers (Embree,
+//! tinybvh: `harness::peers`) on the same ray files in the same run, each validated the same way.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
 use serde::Serialize;
@@ -15,6 +14,8 @@ use crate::encoding::{AccessPath, Layout, Method, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::rayquery::{self, raycast_rq, Peer};
 use crate::gpu::{AccelStats, AccelStructure, Context, RaycastOptions};
+use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
+use crate::harness::peers::{self, PeerKind, TinybvhLayout};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
 use crate::harness::validate::{measure_rays, mrays_summary};
@@ -43,6 +44,10 @@ pub struct BenchOptions {
     pub rays_dir: Option<PathBuf>,
     /// The Embree peer program (`embree_rays`), run on the same ray files.
     pub embree: Option<PathBuf>,
+    /// The tinybvh peer program (`tinybvh_rays`), run on the same ray files.
+    pub tinybvh: Option<PathBuf>,
+    /// Its layouts (empty: [`TinybvhLayout::DEFAULT`]).
+    pub tinybvh_layouts: Vec<TinybvhLayout>,
     pub batch_rays: usize,
     /// Add the driver's ray query as a peer row where the device has it.
     pub ray_query: bool,
@@ -72,6 +77,8 @@ impl Default for BenchOptions {
             seed: 7,
             rays_dir: None,
             embree: None,
+            tinybvh: None,
+            tinybvh_layouts: vec![],
             batch_rays: 1 << 20,
             ray_query: true,
             scene_access: SceneAccess::Auto,
@@ -136,8 +143,8 @@ pub struct BenchReport {
     /// Timed runs per measurement (after one warm-up).
     pub repeat: usize,
     pub rows: Vec<BenchRow>,
-    /// (scene, ray set, Embree Mrays/s, best trilab Mrays/s, ratio)
-    pub embree: Vec<(String, RaySet, f64, f64, f64)>,
+    /// Per scene and ray set with peers: trilab's best row beside each peer, and the speed target.
+    pub peers: Vec<PeerComparison>,
     /// The driver's acceleration structure per scene, for the ray-query peer rows.
     pub accel: Vec<(String, AccelStats)>,
     /// "ray query: unsupported on <device>" where the device (or the options) left it out.
@@ -149,8 +156,16 @@ pub struct BenchReport {
 impl Report for BenchReport {
     fn to_text(&self) -> String {
         let mut s = format!("{}\n\n{}", self.header(), self.table().to_text());
-        if !self.embree.is_empty() {
-            s += &format!("\n{}", self.embree_table().to_text());
+        if !self.peers.is_empty() {
+            s += &format!(
+                "\n{}\n\n{}\nspeed target (trilab / peer):\n\n{}",
+                peer_report::PEER_NOTE,
+                peer_report::peer_table(&self.peers).to_text(),
+                peer_report::target_table(&self.peers).to_text()
+            );
+            for note in peer_report::peer_notes(&self.peers) {
+                s += &format!("\n{note}\n");
+            }
         }
         if !self.accel.is_empty() {
             s += &format!(
@@ -182,8 +197,16 @@ impl BenchReport {
     /// The tables in Markdown, under the header.
     pub fn markdown(&self) -> String {
         let mut md = format!("{}\n\n{}", self.header(), self.table().to_markdown());
-        if !self.embree.is_empty() {
-            md += &format!("\n{}", self.embree_table().to_markdown());
+        if !self.peers.is_empty() {
+            md += &format!(
+                "\n{}\n\n{}\nSpeed target (trilab / peer):\n\n{}",
+                peer_report::PEER_NOTE,
+                peer_report::peer_table(&self.peers).to_markdown(),
+                peer_report::target_table(&self.peers).to_markdown()
+            );
+            for note in peer_report::peer_notes(&self.peers) {
+                md += &format!("\n{note}\n");
+            }
         }
         if !self.accel.is_empty() {
             md += &format!("\n{}", self.accel_table().to_markdown());
@@ -269,14 +292,6 @@ impl BenchReport {
         }
         t
     }
-
-    pub fn embree_table(&self) -> Table {
-        let mut t = Table::new(["scene", "set", "Embree Mrays/s", "best trilab Mrays/s", "trilab / Embree"]);
-        for (s, set, e, b, ratio) in &self.embree {
-            t.row([s.clone(), set.to_string(), format!("{e:.2}"), format!("{b:.2}"), format!("{ratio:.2}")]);
-        }
-        t
-    }
 }
 
 /// Mrays/s with two decimals, or three significant digits below 1 (lavapipe's ray query runs at
@@ -327,30 +342,6 @@ fn row(
     }
 }
 
-/// Runs the Embree peer on a ray file; returns its best Mrays/s.
-fn run_embree(bin: &Path, scene: &Path, rays: &Path, out: &Path, repeat: usize) -> Result<f64> {
-    let output = Command::new(bin)
-        .arg("trace")
-        .arg(scene)
-        .arg(rays)
-        .arg(out)
-        .arg(repeat.max(1).to_string())
-        .output()
-        .map_err(|e| Error::io(bin, e))?;
-    let text = String::from_utf8_lossy(&output.stdout);
-    if !output.status.success() {
-        return Err(Error::Usage(format!(
-            "{} failed: {}{}",
-            bin.display(),
-            text,
-            String::from_utf8_lossy(&output.stderr)
-        )));
-    }
-    text.split_whitespace()
-        .find_map(|w| w.strip_prefix("mrays_per_s=").and_then(|v| v.parse().ok()))
-        .ok_or_else(|| Error::Usage(format!("cannot read Mrays/s from {}: {text}", bin.display())))
-}
-
 impl BenchOptions {
     /// The BVH every method's encoding shares.
     pub fn build_options(&self) -> BuildOptions {
@@ -375,12 +366,29 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         leaf_size: o.leaf_size,
         repeat: o.repeat,
         rows: vec![],
-        embree: vec![],
+        peers: vec![],
         accel: vec![],
         ray_query_note: None,
         notes: vec![],
     };
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
+    // The peers first: a missing program, a garbage line or no OpenCL is found before any work.
+    if let Some(p) = &o.embree {
+        peers::check_program("--embree", p)?;
+    }
+    if let Some(p) = &o.tinybvh {
+        peers::check_program("--tinybvh", p)?;
+    }
+    let programs = peers::programs(o.embree.as_deref(), o.tinybvh.as_deref(), &o.tinybvh_layouts);
+    if !programs.is_empty() {
+        progress(&format!("checking {} peer(s) on a small scene", programs.len()));
+    }
+    let mut peer_notes = vec![];
+    let programs = peers::probe(&programs, tmp.path(), &mut peer_notes)?;
+    for note in peer_notes {
+        progress(&note);
+        report.notes.push(note);
+    }
     let rq_kernel = if !o.ray_query {
         report.ray_query_note = Some("ray query: not run (--ray-query off, or auto on a CPU device)".into());
         None
@@ -392,9 +400,14 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         report.ray_query_note = Some(note);
         None
     };
-    for scene_path in &o.scenes {
+    for (scene_index, scene_path) in o.scenes.iter().enumerate() {
         let name = crate::scene::scene_name(scene_path);
         let mesh = load_obj(scene_path)?;
+        // The peers read the scene as we loaded it (same triangles, same ids, any scene spec).
+        let scene_obj = tmp.path().join(format!("scene{scene_index}.obj"));
+        if !programs.is_empty() {
+            peers::write_obj(&mesh, &scene_obj)?;
+        }
         progress(&format!("{name}: {} triangles; making ray sets", mesh.triangle_count()));
         let t = Instant::now();
         let host = HostScene::build(&name, &mesh, &o.build_options())?;
@@ -483,15 +496,36 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 let tracer = Tracer::Peer(Peer::RayQuery);
                 report.rows.push(row(&name, &mesh, set, rays, tracer, None, (bytes, None), ms, &agreement));
             }
-            if let Some(bin) = &o.embree {
-                let rays_file = tmp.path().join(format!("{name}.{set}.rays"));
+            if !programs.is_empty() {
+                let rays_file = tmp.path().join(format!("scene{scene_index}.{set}.rays"));
                 rays::write_rays(&rays_file, rays)?;
-                let e = run_embree(bin, scene_path, &rays_file, &tmp.path().join("embree.hits"), o.repeat.max(3))?;
-                progress(&format!("{name} {set} Embree: {e:.2} Mrays/s; best trilab / Embree = {:.2}", best / e));
-                for r in report.rows.iter_mut().filter(|r| r.scene == name && r.ray_set == set) {
-                    r.embree_mrays_per_s = Some(e);
+                let hits_file = tmp.path().join("peer.hits");
+                let mut results = vec![];
+                for p in &programs {
+                    let r = peers::run_peer(
+                        p,
+                        &scene_obj,
+                        &rays_file,
+                        &hits_file,
+                        &mesh,
+                        rays,
+                        &ref_hits,
+                        o.repeat.max(3),
+                    )?;
+                    progress(&format!("{name} {set} {}", r.progress(best)));
+                    results.push(r);
                 }
-                report.embree.push((name.clone(), set, e, best, best / e));
+                if let Some(e) = results.iter().find(|r| r.peer == PeerKind::Embree).and_then(|r| r.mrays_per_s()) {
+                    for r in report.rows.iter_mut().filter(|r| r.scene == name && r.ray_set == set) {
+                        r.embree_mrays_per_s = Some(e);
+                    }
+                }
+                let mine = report.rows.iter().filter(|r| r.scene == name && r.ray_set == set);
+                let best = TrilabBest::fastest(mine.filter_map(|r| match r.method {
+                    Tracer::Method(m) => Some((m.to_string(), r.layout, r.mrays_per_s)),
+                    Tracer::Peer(_) => None, // the driver's ray query is not ours
+                }));
+                report.peers.push(PeerComparison::new(&name, set, rays.len(), best, results));
             }
         }
     }

@@ -14,6 +14,8 @@ pub mod devices;
 pub mod hits;
 pub mod make_rays;
 pub mod methods;
+pub mod peer_report;
+pub mod peers;
 pub mod plots;
 pub mod profile;
 pub mod provenance;

@@ -71,7 +71,7 @@ fn header(r: &ProfileReport, command: &str) -> String {
     let _ = writeln!(
         out,
         "- **device**: {} ({}), driver {}, Mesa {}\n- **host CPUs**: {}; LP_NUM_THREADS of the profiling process: {}; load average (1, 5, 15 min) before {}, after {}\n\
-         - **scene**: {} ({} triangles), leaf size {}, binned SAH, leaf policy `fill`\n- **rays**: {} (primary: a {}x{} camera image)\n\
+         - **scene**: {} ({} triangles), leaf size {}, binned SAH, leaf policy `fill`, layout `{}`\n- **rays**: {} (primary: a {}x{} camera image)\n\
          - **timing**: GPU timestamps around each dispatch, {} warm-up run(s), then the median (min..max) of {} runs; \
          every result's hits checked against the f64 reference (at least 99.99% agreement) before it is reported\n\
          - **command**: `{command}`\n",
@@ -86,6 +86,7 @@ fn header(r: &ProfileReport, command: &str) -> String {
         r.scene,
         r.triangles,
         r.leaf_size,
+        r.layout,
         r.ray_sets.iter().map(|(n, c)| format!("{n} {c}")).collect::<Vec<_>>().join(", "),
         r.width,
         r.height,

@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::bvh::BuildOptions;
-use crate::encoding::{AccessPath, Method, Raycast};
+use crate::encoding::{AccessPath, Layout, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, EnabledFeatures, Kernel, PipelineOptions, RaycastOptions};
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
@@ -52,6 +52,8 @@ pub struct ProfileOptions {
     pub scene: PathBuf,
     pub methods: Vec<Method>,
     pub leaf_size: u32,
+    /// The node layout every kernel traverses (its `*_<layout>` variants).
+    pub layout: Layout,
     /// Primary rays: a `width` x `height` camera image (the heat maps' size).
     pub width: u32,
     pub height: u32,
@@ -77,6 +79,7 @@ impl Default for ProfileOptions {
             scene: PathBuf::from("bunny"),
             methods: Method::ALL.to_vec(),
             leaf_size: 4,
+            layout: Layout::Bvh2,
             width: 800,
             height: 600,
             diffuse_per_hit: 2,
@@ -214,6 +217,7 @@ pub struct ProfileReport {
     pub scene: String,
     pub triangles: usize,
     pub leaf_size: u32,
+    pub layout: Layout,
     pub warmup: usize,
     pub repeat: usize,
     pub width: u32,
@@ -503,7 +507,7 @@ pub fn run(
             en: *ctx.enabled(),
             name: &name,
             mesh: &mesh,
-            scene: host.upload(ctx, &SceneRequest::new(method))?,
+            scene: host.upload(ctx, &SceneRequest::new(method).layout(o.layout))?,
             sets: &sets,
             refs: &refs,
             sweep_idx,
@@ -539,6 +543,7 @@ pub fn run(
         scene: name,
         triangles: mesh.triangle_count(),
         leaf_size: o.leaf_size,
+        layout: o.layout,
         warmup: o.warmup,
         repeat: o.repeat.max(1),
         width: o.width,
@@ -588,6 +593,7 @@ fn threads_section(
         rays_dir: dir.path(),
         methods: &o.methods,
         leaf_size: o.leaf_size,
+        layout: o.layout,
         repeat: o.repeat.max(1),
         device_index: info.index,
     };

@@ -43,6 +43,7 @@ pub struct BenchRun<'a> {
     pub rays_dir: &'a Path,
     pub methods: &'a [Method],
     pub leaf_size: u32,
+    pub layout: crate::encoding::Layout,
     pub repeat: usize,
     /// `--device` index of the device the profile runs on.
     pub device_index: usize,
@@ -63,6 +64,8 @@ pub fn bench_with_threads(run: &BenchRun, threads: usize) -> Result<Vec<ThreadMe
         .arg(methods.join(","))
         .arg("--leaf-size")
         .arg(run.leaf_size.to_string())
+        .arg("--layouts")
+        .arg(run.layout.to_string())
         .arg("--repeat")
         .arg(run.repeat.to_string())
         .arg("--device")
