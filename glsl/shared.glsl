@@ -15,6 +15,8 @@
 // tree whose stack bound (LayoutNodes::stack_bound) exceeds its layout's.
 #define BVH4_STACK_SIZE 64
 #define BVH8_STACK_SIZE 96
+// Node groups of the cwbvh traversal's stack (glsl/layout/cwbvh.glsl; CwBvh::stack_bound).
+#define CWBVH_STACK_SIZE 32
 
 // Descriptor set 0. Rays and hits: storage buffers holding one dispatch's sub-range.
 #define BINDING_RAYS 0

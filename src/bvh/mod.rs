@@ -5,16 +5,20 @@
 //! - `builder`: binned and full-sweep SAH construction with a depth bound.
 //! - [`wide`]: the binary tree collapsed into 4- and 8-wide nodes (child boxes in the parent),
 //!   their SAH cost and a CPU traversal (issue 15 groundwork).
+//! - [`cwbvh`]: the 8-wide tree compressed into Ylitie et al.'s 80-byte nodes (quantized
+//!   child boxes, octant-ordered slots) and its hit-mask traversal on the CPU.
 //! - `BvhStats`: nodes, depth, leaf-size histogram, SAH cost, build time, and (with the mesh)
 //!   end-point overlap ([`epo`]).
 
 pub mod builder;
+pub mod cwbvh;
 pub mod epo;
 mod node;
 pub mod wide;
 
 pub use crate::scene::Aabb;
 pub use builder::{BuildOptions, Builder, LeafPolicy, MAX_DEPTH, MAX_LEAF_SIZE, PAPER_LEAF_SIZES};
+pub use cwbvh::{CwBvh, CwNode, CwStats, SlotOrder};
 pub use node::BvhNode;
 pub use wide::{Bvh2Node, Bvh4, Bvh4Node, Bvh8, Bvh8Node, Collapse, WideBvh, WideHit, WideNode, WideStats, WideSteps};
 

@@ -232,7 +232,10 @@ impl ScenePlan<'_, '_> {
     /// layout), refused when the kernel's fixed stack could overflow on this tree or the buffer
     /// exceeds what the access path can bind.
     fn layout_nodes(&self, encoded: &EncodedScene) -> Result<Option<LayoutNodes>> {
-        let Some(built) = self.layout.nodes(&encoded.nodes, &self.host.bvh.options) else {
+        let built = self.layout.nodes(&encoded.nodes, &self.host.bvh.options).map_err(|e| {
+            Error::Usage(format!("scene `{}`: its {} nodes cannot be built: {e}", self.host.name, self.layout))
+        })?;
+        let Some(built) = built else {
             return Ok(None);
         };
         let spec = self.layout.spec();

@@ -19,6 +19,7 @@
 mod bvh2;
 mod bvh4;
 mod bvh8;
+mod cwbvh;
 
 use crate::bvh::{BuildOptions, BvhNode};
 use crate::named::Named;
@@ -38,6 +39,9 @@ pub struct LayoutNodes {
     pub sah_cost: f64,
 }
 
+/// Makes a layout's node buffer from the encoding's binary nodes, or says why it cannot.
+pub type BuildNodes = fn(&[BvhNode], &BuildOptions) -> Result<LayoutNodes, String>;
+
 /// Everything the host knows about one layout (`src/encoding/layout/<name>.rs`'s `LAYOUT`).
 #[derive(Clone, Copy, Debug)]
 pub struct LayoutSpec {
@@ -55,8 +59,9 @@ pub struct LayoutSpec {
     /// The node buffer's name in memory plans and errors.
     pub buffer: &'static str,
     /// The node buffer from the encoding's binary nodes (leaves in the encoding's units), or
-    /// `None` for the binary nodes themselves.
-    pub build: Option<fn(&[BvhNode], &BuildOptions) -> LayoutNodes>,
+    /// `None` for the binary nodes themselves; an error where the tree cannot be represented
+    /// (cwbvh: a box without a grid, word indices beyond 32 bits).
+    pub build: Option<BuildNodes>,
     /// An upper bound of the node buffer's bytes from counts alone, for the memory plan (a
     /// test holds every built buffer within it).
     pub plan_bytes: fn(&SceneCounts) -> u64,
@@ -105,6 +110,7 @@ layouts! {
     Bvh2 => bvh2,
     Bvh4 => bvh4,
     Bvh8 => bvh8,
+    Cwbvh => cwbvh,
 }
 
 impl Layout {
@@ -122,8 +128,8 @@ impl Layout {
     }
 
     /// The node buffer for `binary` (the encoding's nodes), `None` for the binary layout.
-    pub fn nodes(self, binary: &[BvhNode], o: &BuildOptions) -> Option<LayoutNodes> {
-        self.spec().build.map(|b| b(binary, o))
+    pub fn nodes(self, binary: &[BvhNode], o: &BuildOptions) -> Result<Option<LayoutNodes>, String> {
+        self.spec().build.map(|b| b(binary, o)).transpose()
     }
 }
 
@@ -148,7 +154,7 @@ impl serde::Serialize for Layout {
 }
 
 /// A wide tree's node buffer: the binary nodes collapsed with [`crate::bvh::Collapse::Sah`].
-pub(super) fn wide_nodes<const N: usize>(binary: &[BvhNode], o: &BuildOptions) -> LayoutNodes {
+pub(super) fn wide_nodes<const N: usize>(binary: &[BvhNode], o: &BuildOptions) -> Result<LayoutNodes, String> {
     use crate::bvh::{Collapse, WideBvh};
     let start = std::time::Instant::now();
     let nodes = WideBvh::<N>::collapse_nodes(binary, o, Collapse::Sah);
@@ -159,12 +165,12 @@ pub(super) fn wide_nodes<const N: usize>(binary: &[BvhNode], o: &BuildOptions) -
         max_leaf_size: o.max_leaf_size,
         collapse_seconds: start.elapsed().as_secs_f64(),
     };
-    LayoutNodes {
+    Ok(LayoutNodes {
         bytes: bytemuck::cast_slice(&tree.nodes).to_vec(),
         nodes: tree.nodes.len(),
         stack_bound: tree.stack_bound(),
         sah_cost: tree.sah_cost(o),
-    }
+    })
 }
 
 /// Inner nodes of the binary tree: a collapsed tree has at most this many nodes (each wide node
@@ -217,7 +223,7 @@ mod tests {
                     ..Default::default()
                 };
                 for &l in Layout::ALL {
-                    let Some(built) = l.nodes(&bvh.nodes, &bvh.options) else { continue };
+                    let Some(built) = l.nodes(&bvh.nodes, &bvh.options).unwrap() else { continue };
                     let bound = (l.spec().plan_bytes)(&counts);
                     assert!(
                         built.bytes.len() as u64 <= bound,

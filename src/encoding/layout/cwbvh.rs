@@ -1,0 +1,39 @@
+//! Compressed 8-wide nodes (Ylitie, Karras & Laine, HPG 2017): the SAH 8-wide collapse
+//! (`bvh::Collapse::Sah`) compressed into 80-byte nodes whose child boxes are quantized to 8
+//! bits per plane on a power-of-two grid, slots in octant order, plus a leaf table of the
+//! encoding's `(first << 5) | count` entries (`bvh::cwbvh`, which also documents the format and
+//! the outward rounding); `glsl/layout/cwbvh.glsl` walks it with the paper's hit-mask node
+//! groups.
+
+use super::{inner_nodes, LayoutNodes, LayoutSpec};
+use crate::bvh::cwbvh::CW_NODE_TEXELS;
+use crate::bvh::{BuildOptions, BvhNode, CwBvh, CwNode, SlotOrder};
+use crate::shared::CWBVH_STACK_SIZE;
+
+fn build(binary: &[BvhNode], o: &BuildOptions) -> Result<LayoutNodes, String> {
+    let cw = CwBvh::from_binary_nodes(binary, o, SlotOrder::Greedy)?;
+    Ok(LayoutNodes {
+        bytes: bytemuck::cast_slice(&cw.words()).to_vec(),
+        nodes: cw.nodes.len(),
+        stack_bound: cw.stack_bound(),
+        sah_cost: cw.sah_cost(o),
+    })
+}
+
+pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
+    name: "cwbvh",
+    title: "CWBVH",
+    about:
+        "Ylitie et al.'s compressed 8-wide BVH: 80-byte nodes, 8-bit child planes, octant-ordered hit-mask traversal.",
+    width: 8,
+    node_bytes: std::mem::size_of::<CwNode>(),
+    buffer: "cwbvh nodes",
+    build: Some(build),
+    // The nodes, then one 4-byte leaf-table entry per binary leaf (at most half the binary
+    // nodes, rounded up), padded to a whole texel.
+    plan_bytes: |c| {
+        let words = inner_nodes(c) * 4 * CW_NODE_TEXELS as u64 + c.nodes.div_ceil(2);
+        words.div_ceil(4) * 16
+    },
+    stack_size: CWBVH_STACK_SIZE,
+};
