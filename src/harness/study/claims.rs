@@ -308,8 +308,12 @@ pub fn verdicts_table(report: &StudyReport, claims: &[Claim]) -> crate::report::
     let mut head = vec!["claim".to_string()];
     head.extend(ls.iter().map(|l| format!("{} ({l})", l.title())));
     let mut t = crate::report::Table::new(head);
-    let mut ids: Vec<char> = claims.iter().map(|c| c.id).collect();
-    ids.dedup();
+    let mut ids: Vec<char> = vec![];
+    for c in claims {
+        if !ids.contains(&c.id) {
+            ids.push(c.id);
+        }
+    }
     for id in ids {
         let mut cells = vec![format!("({id})")];
         for &l in &ls {
@@ -422,5 +426,6 @@ mod tests {
         }
         let md = markdown(&r);
         assert!(md.contains("### On BVH8 (`bvh8`)") && md.contains("| (a) | holds | does not hold |"), "{md}");
+        assert_eq!(md.matches("| (a) |").count(), 1, "one row per claim: {md}");
     }
 }

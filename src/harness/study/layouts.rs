@@ -179,8 +179,14 @@ pub fn best_leaves(report: &StudyReport) -> Vec<BestLeaf> {
     out
 }
 
+/// Seconds to three significant figures (a smoke run's renders take milliseconds).
+fn secs(x: f64) -> String {
+    let decimals = if x > 0.0 { (2 - x.log10().floor() as i32).clamp(0, 9) as usize } else { 3 };
+    format!("{x:.decimals$}")
+}
+
 fn range(s: Summary) -> String {
-    format!("{:.3} s ({:.3}-{:.3})", s.median, s.min, s.max)
+    format!("{} s ({}-{})", secs(s.median), secs(s.min), secs(s.max))
 }
 
 /// The best intersector table: scene, layout, fastest cell, the reference's winner here.
@@ -228,13 +234,15 @@ pub fn leaves_table(report: &StudyReport, rows: &[BestLeaf]) -> Table {
                 cells.push(mine.iter().find(|r| r.layout == l).map_or_else(
                     || "-".into(),
                     |r| match (r.change, r.reference_seconds) {
-                        (Change::Reference | Change::Same, _) => format!("{} ({:.3} s)", r.leaf_size, r.seconds.median),
+                        (Change::Reference | Change::Same, _) => {
+                            format!("{} ({} s)", r.leaf_size, secs(r.seconds.median))
+                        }
                         (c, theirs) => format!(
-                            "{} ({:.3} s; leaf {}: {}): {}",
+                            "{} ({} s; leaf {}: {}): {}",
                             r.leaf_size,
-                            r.seconds.median,
+                            secs(r.seconds.median),
                             r.reference_leaf,
-                            theirs.map_or("-".into(), |s| format!("{:.3} s", s.median)),
+                            theirs.map_or("-".into(), |s| format!("{} s", secs(s.median))),
                             c.label()
                         ),
                     },
