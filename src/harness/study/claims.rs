@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::{cell, layouts, names_layouts, scenes, StudyReport, StudyRow};
+use super::{cell, layouts_of, names_layouts, scenes, StudyReport, StudyRow};
 use crate::encoding::{Layout, Method};
 use crate::report::Summary;
 
@@ -254,7 +254,7 @@ pub fn can_judge(report: &StudyReport) -> bool {
 
 /// Every claim on every layout of the report, layout by layout.
 pub fn all(report: &StudyReport) -> Vec<Claim> {
-    let mut claims: Vec<Claim> = layouts(report)
+    let mut claims: Vec<Claim> = layouts_of(report)
         .into_iter()
         .flat_map(|l| {
             [leaf_four_optimal(report, l), mt_faster_than_unit(report, l), quad_unit_faster_than_mt(report, l)]
@@ -304,7 +304,7 @@ pub fn markdown(report: &StudyReport) -> String {
 
 /// One row per claim, one verdict column per layout.
 pub fn verdicts_table(report: &StudyReport, claims: &[Claim]) -> crate::report::Table {
-    let ls = layouts(report);
+    let ls = layouts_of(report);
     let mut head = vec!["claim".to_string()];
     head.extend(ls.iter().map(|l| format!("{} ({l})", l.title())));
     let mut t = crate::report::Table::new(head);

@@ -18,7 +18,7 @@ use std::fmt::Write as _;
 use serde::Serialize;
 
 use super::claims::{can_judge, overlap, time};
-use super::{layouts, scenes, StudyReport};
+use super::{layouts_of, scenes, StudyReport};
 use crate::encoding::{Layout, Method};
 use crate::report::{Summary, Table};
 
@@ -93,7 +93,7 @@ pub struct BestLeaf {
 
 /// The layout every other is compared with: bvh2 when measured, else the first.
 pub fn reference(report: &StudyReport) -> Layout {
-    let ls = layouts(report);
+    let ls = layouts_of(report);
     if ls.contains(&Layout::Bvh2) {
         Layout::Bvh2
     } else {
@@ -125,7 +125,7 @@ pub fn best_methods(report: &StudyReport) -> Vec<BestMethod> {
     let mut out = vec![];
     for scene in scenes(report) {
         let Some(((ref_method, _), _)) = best_cell_of(report, &scene, base) else { continue };
-        for l in layouts(report) {
+        for l in layouts_of(report) {
             let Some(((method, leaf_size), seconds)) = best_cell_of(report, &scene, l) else { continue };
             let theirs = best_leaf_of(report, &scene, ref_method, l).map(|(_, s)| s);
             let change = if l == base {
@@ -155,7 +155,7 @@ pub fn best_leaves(report: &StudyReport) -> Vec<BestLeaf> {
     for scene in scenes(report) {
         for &m in &report.options.methods {
             let Some((ref_leaf, _)) = best_leaf_of(report, &scene, m, base) else { continue };
-            for l in layouts(report) {
+            for l in layouts_of(report) {
                 let Some((leaf_size, seconds)) = best_leaf_of(report, &scene, m, l) else { continue };
                 let theirs = time(report, &scene, ref_leaf, m, l);
                 let change = if l == base {
@@ -219,7 +219,7 @@ pub fn methods_table(report: &StudyReport, rows: &[BestMethod]) -> Table {
 
 /// The best leaf size table: one row per scene and method, one column per layout.
 pub fn leaves_table(report: &StudyReport, rows: &[BestLeaf]) -> Table {
-    let ls = layouts(report);
+    let ls = layouts_of(report);
     let mut head = vec!["scene".to_string(), "method".into()];
     head.extend(ls.iter().map(|l| format!("best leaf on {l}")));
     let mut t = Table::new(head);
@@ -279,7 +279,7 @@ fn tally(changes: &[Change]) -> String {
 pub fn answer(report: &StudyReport, methods: &[BestMethod], leaves: &[BestLeaf]) -> String {
     let base = reference(report);
     let mut s = String::new();
-    for l in layouts(report).into_iter().filter(|&l| l != base) {
+    for l in layouts_of(report).into_iter().filter(|&l| l != base) {
         let m: Vec<&BestMethod> = methods.iter().filter(|r| r.layout == l).collect();
         let lf: Vec<&BestLeaf> = leaves.iter().filter(|r| r.layout == l).collect();
         let mc: Vec<Change> = m.iter().map(|r| r.change).collect();

@@ -430,7 +430,7 @@ pub fn scenes(report: &StudyReport) -> Vec<String> {
 }
 
 /// The report's layouts, in the order asked (bvh2 alone for a report without any).
-pub fn layouts(report: &StudyReport) -> Vec<Layout> {
+pub fn layouts_of(report: &StudyReport) -> Vec<Layout> {
     if report.options.layouts.is_empty() {
         vec![Layout::Bvh2]
     } else {
@@ -441,7 +441,7 @@ pub fn layouts(report: &StudyReport) -> Vec<Layout> {
 /// Whether the report has a layout other than the paper's binary tree: then its tables and
 /// plots name the layout of every figure.
 pub fn names_layouts(report: &StudyReport) -> bool {
-    layouts(report) != [Layout::Bvh2]
+    layouts_of(report) != [Layout::Bvh2]
 }
 
 /// The cell (scene, leaf size, method, layout), if measured.
@@ -477,7 +477,7 @@ impl crate::report::Report for StudyReport {
     /// The paper's table on this device and the paper's claims, checked.
     fn to_text(&self) -> String {
         let mut s = String::new();
-        for l in layouts(self) {
+        for l in layouts_of(self) {
             if names_layouts(self) {
                 s += &format!("{} ({l}):\n", l.title());
             }

@@ -9,7 +9,7 @@ use std::path::Path;
 use plotters::coord::ranged1d::SegmentValue;
 use plotters::prelude::*;
 
-use super::{counts, layouts, names_layouts, scenes, StudyReport, StudyRow};
+use super::{counts, layouts_of, names_layouts, scenes, StudyReport, StudyRow};
 use crate::encoding::{Layout, Method};
 use crate::error::Result;
 pub use crate::harness::plots::Plot;
@@ -24,7 +24,7 @@ fn rows_of<'a>(report: &'a StudyReport, scene: &'a str) -> impl Iterator<Item = 
 
 /// The panels: (scene, layout), scene by scene.
 fn panels(report: &StudyReport) -> Vec<(String, Layout)> {
-    let ls = layouts(report);
+    let ls = layouts_of(report);
     scenes(report).into_iter().flat_map(|s| ls.iter().map(move |&l| (s.clone(), l))).collect()
 }
 
@@ -161,7 +161,7 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
     let scenes = scenes(report);
     let what = "instructions against time";
     let panels = ["path tracer: render time / MT", "ray cast, primary rays: time / MT"];
-    let ls = layouts(report);
+    let ls = layouts_of(report);
     let legend: Vec<_> = scenes
         .iter()
         .enumerate()

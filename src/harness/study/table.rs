@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 
 use super::claims;
-use super::{cell, counts, layouts, names_layouts, scenes, StudyReport, StudyRow};
+use super::{cell, counts, layouts_of, names_layouts, scenes, StudyReport, StudyRow};
 use crate::encoding::{Layout, Method};
 use crate::error::{Error, Result};
 use crate::harness::plots::Plot;
@@ -278,7 +278,7 @@ pub fn traversal_table(report: &StudyReport) -> Table {
     let mut t = Table::new(head);
     for scene in scenes(report) {
         for &leaf in &report.options.leaf_sizes {
-            for l in layouts(report) {
+            for l in layouts_of(report) {
                 let rows: Vec<&StudyRow> =
                     report.rows.iter().filter(|r| r.scene == scene && r.leaf_size == leaf && r.layout == l).collect();
                 let Some(first) = rows.first() else { continue };
@@ -383,7 +383,7 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
     let _ = writeln!(s, "## Path tracing, the paper's table format\n");
     let _ = writeln!(s, "GPU scene size lists each method's encoding ({}).\n", method_list(report));
     if names_layouts(report) {
-        for l in layouts(report) {
+        for l in layouts_of(report) {
             let _ = writeln!(s, "### {} (`{l}`): {}\n", l.title(), l.spec().about);
             s += &paper_table(report, l).to_markdown();
             s.push('\n');
@@ -428,7 +428,7 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
 
 /// (method, layout) of every cell of a (scene, leaf size), in the order run.
 fn cells(report: &StudyReport) -> Vec<(Method, Layout)> {
-    let ls = layouts(report);
+    let ls = layouts_of(report);
     report.options.methods.iter().flat_map(|&m| ls.iter().map(move |&l| (m, l))).collect()
 }
 
