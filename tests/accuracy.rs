@@ -158,3 +158,50 @@ fn recommended_offset_has_no_self_hits_in_1e5_rays_at_every_scale() {
         }
     }
 }
+
+/// Issue 15's claim for the layout axis: `watertight` stays leak-free on every node layout (the
+/// wide layouts' box tests must be as conservative as the binary one's), on the leak study's own
+/// rays (vertices, shared edges, random directions from proven-inside origins). The count can
+/// fail: Möller-Trumbore leaks on the same rays, on every layout.
+#[test]
+fn watertight_stays_leak_free_on_every_layout() {
+    use trilab::encoding::Layout;
+    use trilab::named::Named;
+    let report = common::with_gpu(300, |ctx| {
+        let o = AccuracyOptions {
+            methods: vec![Method::Watertight, Method::Mt],
+            leaf_sizes: vec![1, 4],
+            layouts: Layout::ALL.to_vec(),
+            silhouette_rays: 100,
+            self_rays: 0,
+            extreme_rays: 0,
+            bench_width: 0,
+            ..AccuracyOptions::preset(Preset::Smoke)
+        };
+        accuracy::run(ctx, &o, |_| {}).expect("accuracy run on every layout")
+    });
+    for &l in Layout::ALL {
+        for leaf in [1, 4] {
+            let leaks = |m: Method| {
+                let rows: Vec<_> =
+                    report.leaks.iter().filter(|r| r.method == m && r.layout == l && r.leaf_size == leaf).collect();
+                assert_eq!(rows.len(), 3 * 3, "{m} on {l} leaf {leaf}: mesh x kind");
+                let rays: usize = rows.iter().map(|r| r.tally.rays).sum();
+                assert_eq!(rays, 3 * 3 * 2000, "{m} on {l} leaf {leaf}");
+                rows.iter().map(|r| r.tally.leaks).sum::<usize>()
+            };
+            assert_eq!(leaks(Method::Watertight), 0, "watertight leaks on {l} at leaf {leaf}");
+            let mt = leaks(Method::Mt);
+            assert!(mt > 100, "{l} leaf {leaf}: MT leaks only {mt} of the rays aimed at vertices and edges");
+        }
+        // The errors are measured per layout too.
+        assert!(report
+            .errors
+            .iter()
+            .any(|r| r.layout == l && r.method == Method::Watertight && r.tally.t_ulps.n > 1000));
+    }
+    let md = trilab::harness::accuracy::table::markdown(&report, &[]);
+    assert!(md.contains("## Leaks per node layout"), "{md}");
+    assert!(md.contains("**watertight stays leak-free on every layout**"), "{md}");
+    assert!(md.contains("| mt |") && md.contains("| no |"), "MT is not leak-free: {md}");
+}

@@ -7,6 +7,8 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use trilab::bvh::{BuildOptions, Bvh, LeafPolicy};
+use trilab::encoding::Layout;
+use trilab::named::Named;
 
 fn trilab(args: &[&str]) -> std::process::Output {
     common::cli::trilab(args, 300)
@@ -78,6 +80,57 @@ fn build_bench_writes_parsable_outputs() {
     assert!(json["provenance"]["cores"].as_u64().unwrap() >= 1);
     let md = std::fs::read_to_string(out.join("build.md")).unwrap();
     assert!(md.contains("| trilab-serial") && md.contains("Mtris/s"), "{md}");
+
+    // Node layouts (default: every layout): per scene one row each, the wide ones converted and
+    // timed, each buffer whole nodes of the layout's size, fewer nodes the wider the layout.
+    assert!(md.contains("## Node layouts") && md.contains("node B/tri"), "{md}");
+    let mut lcsv = csv::Reader::from_path(out.join("layouts.csv")).unwrap();
+    let lh = lcsv.headers().unwrap().clone();
+    let lcol = |name: &str| lh.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let lrows: Vec<csv::StringRecord> = lcsv.records().map(Result::unwrap).collect();
+    assert_eq!(lrows.len(), 2 * Layout::ALL.len(), "{lrows:?}");
+    for scene in ["quads", "soup"] {
+        let mine: Vec<_> = lrows.iter().filter(|r| r[lcol("scene")].contains(scene)).collect();
+        let nodes = |l: Layout| -> usize {
+            let r = mine.iter().find(|r| &r[lcol("layout")] == l.name()).unwrap_or_else(|| panic!("{scene} {l}"));
+            let n: usize = r[lcol("nodes")].parse().unwrap();
+            let bytes: usize = r[lcol("node_bytes")].parse().unwrap();
+            let tris: f64 = r[lcol("triangles")].parse().unwrap();
+            assert_eq!(bytes, n * l.spec().node_bytes, "{scene} {l}: whole nodes");
+            let per_tri: f64 = r[lcol("node_bytes_per_triangle")].parse().unwrap();
+            assert!((per_tri - bytes as f64 / tris).abs() < 1e-9, "{scene} {l}: {per_tri}");
+            let converted = !r[lcol("convert_median_s")].is_empty();
+            assert_eq!(converted, l != Layout::Bvh2, "{scene} {l}: only wide layouts are converted");
+            if converted {
+                let s = |c: &str| r[lcol(c)].parse::<f64>().unwrap();
+                assert!(s("convert_min_s") > 0.0 && s("convert_min_s") <= s("convert_median_s"));
+                assert!(s("convert_median_s") <= s("convert_max_s"));
+                assert_eq!(&r[lcol("convert_runs")], "2");
+            }
+            n
+        };
+        assert!(nodes(Layout::Bvh8) < nodes(Layout::Bvh4) && nodes(Layout::Bvh4) < nodes(Layout::Bvh2), "{scene}");
+    }
+    // Asked for one layout, only that one.
+    let one = dir.path().join("one");
+    let o = trilab(&[
+        "build-bench",
+        "--scenes",
+        "synth:soup:500",
+        "--threads",
+        "1",
+        "--repeat",
+        "1",
+        "--no-serial",
+        "--layouts",
+        "bvh8",
+        "--out",
+        one.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(one.join("layouts.csv")).unwrap();
+    assert_eq!(text.lines().count(), 2, "{text}");
+    assert!(text.lines().nth(1).unwrap().contains(",bvh8,"), "{text}");
 }
 
 #[test]
@@ -88,6 +141,8 @@ fn build_bench_rejects_bad_options_cleanly() {
         (vec!["--scenes", "synth:soup:100", "--repeat", "0"], "--repeat"),
         (vec!["--scenes", "/nonexistent/scene.obj"], "/nonexistent/scene.obj"),
         (vec!["--scenes", "synth:soup:100", "--embree", "/nonexistent/embree_build"], "/nonexistent/embree_build"),
+        (vec!["--scenes", "synth:soup:100", "--layouts", "bvh3"], "bvh3"),
+        (vec!["--scenes", "synth:soup:100", "--layouts", "bvh8,bvh8"], "--layouts"),
     ] {
         let o = trilab(&[&["build-bench"][..], &args].concat());
         let e = String::from_utf8_lossy(&o.stderr);

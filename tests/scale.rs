@@ -155,3 +155,39 @@ fn a_million_triangles_through_the_automatically_chosen_address_path_match_the_r
     assert!(agreement.passes(0.9999), "{}", agreement.summary());
     assert!(any.passes(), "{any:?}");
 }
+
+/// `trilab scale --plan-only` names each layout's node bytes per triangle: the binary tree's
+/// exactly, every wide layout's a bound that holds the node buffer really built from the bunny's
+/// tree.
+#[test]
+fn plan_only_prices_every_layouts_nodes() {
+    use trilab::encoding::Layout;
+    use trilab::named::Named;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scale");
+    let o = common::cli::trilab(
+        &["scale", "--scenes", "bunny", "--plan-only", "--methods", "mt", "--out", out.to_str().unwrap()],
+        300,
+    );
+    common::cli::ok(&o);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("scale.json")).unwrap()).unwrap();
+    let rows = json["layouts"].as_array().unwrap();
+    assert_eq!(rows.len(), Layout::ALL.len());
+    let mesh = common::bunny();
+    let bvh = Bvh::build(&mesh, &BuildOptions::new(4));
+    let bytes = |l: Layout| {
+        let r = rows.iter().find(|r| r["layout"] == l.name()).unwrap_or_else(|| panic!("no row for {l}"));
+        let b = r["node_bytes"].as_u64().unwrap();
+        let per_tri = r["node_bytes_per_triangle"].as_f64().unwrap();
+        assert!((per_tri - b as f64 / mesh.triangle_count() as f64).abs() < 1e-9, "{l}");
+        b
+    };
+    assert_eq!(bytes(Layout::Bvh2), bvh.nodes.len() as u64 * 32);
+    for &l in Layout::ALL.iter().filter(|&&l| l != Layout::Bvh2) {
+        let built = l.nodes(&bvh.nodes, &bvh.options).unwrap().expect("a wide layout builds its nodes");
+        assert!(built.bytes.len() as u64 <= bytes(l), "{l}: built {} > planned {}", built.bytes.len(), bytes(l));
+    }
+    let md = std::fs::read_to_string(out.join("scale.md")).unwrap();
+    assert!(md.contains("## Node bytes per layout") && md.contains("| bunny | 69451 | bvh8 |"), "{md}");
+}

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use trilab::bvh::LeafPolicy;
+use trilab::encoding::Layout;
 use trilab::error::Result;
 use trilab::harness::build_bench::{self, BuildBenchOptions};
 
@@ -12,7 +13,8 @@ use super::{repeat, JsonArg};
 
 /// BVH build benchmark: seconds, Mtris/s, SAH cost, nodes and depth per scene and thread
 /// count for the parallel and serial binned SAH and the full sweep, optionally beside
-/// Embree 3's builder on the same triangles; build.csv/json/md.
+/// Embree 3's builder on the same triangles, and each node layout's conversion time and bytes
+/// per triangle; build.csv, layouts.csv, build.json, build.md.
 #[derive(Args)]
 pub struct BuildBenchArgs {
     #[arg(long, value_name = "A,B", value_delimiter = ',', required = true, help = super::scenes_help!())]
@@ -42,7 +44,11 @@ pub struct BuildBenchArgs {
     /// The Embree build peer (`embree_build` from scripts/embree-peer.sh).
     #[arg(long, value_name = "FILE")]
     embree: Option<PathBuf>,
-    /// Directory for build.csv, build.json and build.md (e.g. results/<host>/build).
+    /// Node layouts whose node buffer is made from the binary tree and timed, comma-separated
+    /// (`bvh2`, `bvh4`, `bvh8`, ...; default: every layout).
+    #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
+    layouts: Vec<Layout>,
+    /// Directory for build.csv, layouts.csv, build.json and build.md (e.g. results/<host>/build).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     #[command(flatten)]
@@ -61,17 +67,18 @@ pub fn run(a: BuildBenchArgs) -> Result<()> {
         serial: !a.no_serial,
         sweep_max_triangles: a.sweep_max,
         embree: a.embree,
+        layouts: if a.layouts.is_empty() { d.layouts } else { a.layouts },
     };
     let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
     if let Some(out) = &a.out {
-        let files = ["build.csv", "build.json", "build.md"];
+        let files = ["build.csv", "layouts.csv", "build.json", "build.md"];
         trilab::io::check_output("--out", trilab::io::Output::Dir(out, &files), &inputs)?;
     }
     let report = build_bench::run(&o, |m| eprintln!("{m}"))?;
     a.json.print(&report);
     if let Some(out) = &a.out {
         report.write(out)?;
-        eprintln!("wrote {}/build.{{csv,json,md}}", out.display());
+        eprintln!("wrote {}/build.{{csv,json,md}} and layouts.csv", out.display());
     }
     Ok(())
 }

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use trilab::encoding::Layout;
 use trilab::error::Result;
 use trilab::harness::study::{self, Preset, StudyOptions};
 
@@ -30,6 +31,11 @@ pub struct StudyArgs {
     /// Methods (default: the paper's four, mt,unit,quad-mt,quad-unit).
     #[command(flatten)]
     methods: MethodsArg,
+    /// BVH node layouts, comma-separated (`bvh2`, `bvh4`, `bvh8`, ...): every method and leaf size
+    /// runs on each, interleaved; claims are judged per layout and study.md answers whether the
+    /// best intersector and leaf size change with it (default: bvh2).
+    #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
+    layouts: Vec<Layout>,
     /// Timed rounds after the warm-up round (at least 1; default: the preset's).
     #[arg(long, value_name = "N", value_parser = repeat)]
     repeat: Option<usize>,
@@ -52,6 +58,9 @@ pub fn run(a: StudyArgs) -> Result<()> {
     }
     if !a.methods.methods.is_empty() {
         o.methods = a.methods.methods.clone();
+    }
+    if !a.layouts.is_empty() {
+        o.layouts = a.layouts.clone();
     }
     if let Some(r) = a.repeat {
         o.repeat = r;

@@ -8,6 +8,11 @@
 //! it built in trilab's node layout, and it is validated ([`Bvh::validate`]: every triangle in
 //! exactly one leaf, boxes containing their triangles and children, depth and leaf-size
 //! bounds) before any of its numbers is reported.
+//!
+//! Beside the builds, each node layout's conversion (`--layouts`, default all of
+//! [`Layout::ALL`]): the time to make its node buffer from the binary tree
+//! ([`Layout::nodes`], median of the repeats after a warm-up; `bvh2` uploads the binary nodes as
+//! they are and converts nothing), its nodes, bytes and bytes per triangle.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -16,7 +21,9 @@ use std::process::Command;
 use serde::Serialize;
 
 use crate::bvh::{BuildOptions, Builder, Bvh, BvhNode, LeafPolicy, MAX_DEPTH};
+use crate::encoding::Layout;
 use crate::error::{Error, Result};
+use crate::named::Named;
 use crate::report::Summary;
 use crate::report::Table;
 use crate::scene::{load_obj, Mesh};
@@ -39,6 +46,8 @@ pub struct BuildBenchOptions {
     pub sweep_max_triangles: usize,
     /// The `embree_build` peer.
     pub embree: Option<PathBuf>,
+    /// Node layouts whose node buffer is made from the binary tree and timed.
+    pub layouts: Vec<Layout>,
 }
 
 impl Default for BuildBenchOptions {
@@ -53,6 +62,7 @@ impl Default for BuildBenchOptions {
             serial: true,
             sweep_max_triangles: 300_000,
             embree: None,
+            layouts: Layout::ALL.to_vec(),
         }
     }
 }
@@ -117,11 +127,33 @@ fn embree_version() -> Option<String> {
     out.status.success().then(|| String::from_utf8_lossy(&out.stdout).trim().to_owned()).filter(|s| !s.is_empty())
 }
 
+/// One layout's node buffer made from one scene's binary tree (`trilab-binned`'s).
+#[derive(Clone, Debug, Serialize)]
+pub struct LayoutRow {
+    pub scene: String,
+    pub triangles: usize,
+    pub layout: Layout,
+    /// Seconds to make the node buffer from the binary nodes (`None` for `bvh2`: its nodes are
+    /// the binary tree's, nothing is converted).
+    pub convert_seconds: Option<Summary>,
+    /// The binary tree's build (`trilab-binned`'s median at the last thread count listed), for
+    /// scale.
+    pub build_seconds: f64,
+    pub nodes: usize,
+    /// Bytes of the node buffer.
+    pub node_bytes: usize,
+    pub node_bytes_per_triangle: f64,
+    /// The tree's SAH cost as this layout prices it (node cost per node visited).
+    pub sah_cost: f64,
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct BuildBenchReport {
     pub options: BuildBenchOptions,
     pub provenance: Provenance,
     pub rows: Vec<BuildRow>,
+    /// Each layout's node buffer per scene.
+    pub layouts: Vec<LayoutRow>,
 }
 
 impl BuildBenchOptions {
@@ -150,6 +182,11 @@ impl BuildBenchOptions {
         }
         if self.repeat == 0 {
             return bad("--repeat must be at least 1".into());
+        }
+        for (i, l) in self.layouts.iter().enumerate() {
+            if self.layouts[..i].contains(l) {
+                return bad(format!("--layouts: {l} is named twice"));
+            }
         }
         if self.embree.is_some() && !self.sah_group.is_power_of_two() {
             return bad(format!("--sah-group {}: Embree's SAH block size must be a power of two", self.sah_group));
@@ -203,6 +240,7 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
     o.check()?;
     let provenance = Provenance::here(o.embree.is_some());
     let mut rows = vec![];
+    let mut layout_rows = vec![];
     let binned = o.build_options(Builder::default());
     let max_threads = *o.threads.iter().max().expect("checked non-empty");
     for scene in &o.scenes {
@@ -228,6 +266,12 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
             rows.push(r);
         }
         let first = first.expect("at least one thread count");
+        let build_seconds = rows.last().map_or(f64::NAN, |r: &BuildRow| r.seconds.median);
+        for &layout in &o.layouts {
+            let r = layout_row(&name, n, layout, &first, build_seconds, o.repeat)?;
+            progress(&layout_line(&r));
+            layout_rows.push(r);
+        }
         if o.serial {
             let (s, bvh) = time_builds(o.repeat, || Bvh::build_serial(&mesh, &binned));
             if !first.same_tree(&bvh) {
@@ -271,7 +315,61 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
             }
         }
     }
-    Ok(BuildBenchReport { options: o.clone(), provenance, rows })
+    Ok(BuildBenchReport { options: o.clone(), provenance, rows, layouts: layout_rows })
+}
+
+/// `layout`'s node buffer made from `bvh`: a warm-up and `repeat` timed conversions.
+fn layout_row(
+    scene: &str,
+    triangles: usize,
+    layout: Layout,
+    bvh: &Bvh,
+    build_seconds: f64,
+    repeat: usize,
+) -> Result<LayoutRow> {
+    let built = layout
+        .nodes(&bvh.nodes, &bvh.options)
+        .map_err(|e| Error::Usage(format!("scene `{scene}`: the {layout} layout cannot hold its tree: {e}")))?;
+    let (convert_seconds, nodes, bytes, sah_cost) = match built {
+        None => (None, bvh.nodes.len(), std::mem::size_of_val(&bvh.nodes[..]), bvh.sah_cost(&bvh.options)),
+        Some(built) => {
+            let secs: Vec<f64> = (0..repeat)
+                .map(|_| {
+                    let t = std::time::Instant::now();
+                    let again = layout.nodes(&bvh.nodes, &bvh.options);
+                    let s = t.elapsed().as_secs_f64();
+                    let _ = std::hint::black_box(again);
+                    s
+                })
+                .collect();
+            (Summary::of(&secs), built.nodes, built.bytes.len(), built.sah_cost)
+        }
+    };
+    Ok(LayoutRow {
+        scene: scene.into(),
+        triangles,
+        layout,
+        convert_seconds,
+        build_seconds,
+        nodes,
+        node_bytes: bytes,
+        node_bytes_per_triangle: bytes as f64 / triangles.max(1) as f64,
+        sah_cost,
+    })
+}
+
+fn layout_line(r: &LayoutRow) -> String {
+    format!(
+        "{} layout {}: {}, {} nodes, {:.1} node bytes per triangle",
+        r.scene,
+        r.layout,
+        r.convert_seconds.map_or_else(
+            || "the binary nodes as built".into(),
+            |s| format!("converted in {:.4} s ({:.4}-{:.4})", s.median, s.min, s.max)
+        ),
+        r.nodes,
+        r.node_bytes_per_triangle
+    )
 }
 
 fn line(r: &BuildRow) -> String {
@@ -447,6 +545,81 @@ impl BuildBenchReport {
         t
     }
 
+    /// One row per scene and layout: conversion time beside the build, nodes, bytes.
+    pub fn layouts_table(&self) -> Table {
+        let mut t = Table::new([
+            "scene",
+            "layout",
+            "convert median s (min-max)",
+            "BVH build s",
+            "nodes",
+            "node bytes",
+            "node B/tri",
+            "SAH cost",
+        ]);
+        for r in &self.layouts {
+            t.row([
+                r.scene.clone(),
+                r.layout.to_string(),
+                r.convert_seconds.map_or_else(
+                    || "- (binary nodes)".into(),
+                    |s| format!("{:.4} ({:.4}-{:.4})", s.median, s.min, s.max),
+                ),
+                format!("{:.4}", r.build_seconds),
+                r.nodes.to_string(),
+                r.node_bytes.to_string(),
+                format!("{:.1}", r.node_bytes_per_triangle),
+                format!("{:.3}", r.sah_cost),
+            ]);
+        }
+        t
+    }
+
+    /// `layouts.csv`: one row per scene and layout.
+    pub fn layouts_csv(&self) -> Result<String> {
+        let mut w = csv::Writer::from_writer(vec![]);
+        let io = |e: csv::Error| Error::Usage(format!("writing layouts.csv: {e}"));
+        w.write_record([
+            "scene",
+            "triangles",
+            "layout",
+            "convert_runs",
+            "convert_median_s",
+            "convert_min_s",
+            "convert_max_s",
+            "build_s",
+            "nodes",
+            "node_bytes",
+            "node_bytes_per_triangle",
+            "sah_cost",
+            "leaf_size",
+            "commit",
+        ])
+        .map_err(io)?;
+        for r in &self.layouts {
+            let c = |f: fn(&Summary) -> f64| r.convert_seconds.as_ref().map(|s| f(s).to_string()).unwrap_or_default();
+            w.write_record([
+                r.scene.clone(),
+                r.triangles.to_string(),
+                r.layout.to_string(),
+                r.convert_seconds.map(|s| s.runs.to_string()).unwrap_or_default(),
+                c(|s| s.median),
+                c(|s| s.min),
+                c(|s| s.max),
+                r.build_seconds.to_string(),
+                r.nodes.to_string(),
+                r.node_bytes.to_string(),
+                r.node_bytes_per_triangle.to_string(),
+                r.sah_cost.to_string(),
+                self.options.leaf_size.to_string(),
+                self.provenance.commit.clone(),
+            ])
+            .map_err(io)?;
+        }
+        let bytes = w.into_inner().map_err(|e| Error::Usage(format!("writing layouts.csv: {e}")))?;
+        Ok(String::from_utf8(bytes).expect("CSV of UTF-8 strings"))
+    }
+
     pub fn csv(&self) -> Result<String> {
         let mut w = csv::Writer::from_writer(vec![]);
         let io = |e: csv::Error| Error::Usage(format!("writing build.csv: {e}"));
@@ -534,13 +707,23 @@ impl BuildBenchReport {
               - `embree-commit`: `rtcCommitScene` of the triangle mesh at RTC_BUILD_QUALITY_HIGH (Embree's \
               BVH4/8 with spatial splits): a reference time only, no tree to price.\n\n";
         s += &self.table().to_markdown();
+        if !self.layouts.is_empty() {
+            s += "\n## Node layouts\n\n";
+            s += "Each layout's node buffer made from the `trilab-binned` tree (`Layout::nodes`: the wide \
+                  layouts collapse it with the SAH), timed like the builds (median, min-max of the timed runs \
+                  after one warm-up) beside that build's median; `bvh2` uploads the binary nodes as built. \
+                  Node bytes per triangle: the node buffer alone (triangle data and slot ids are the method's, \
+                  the same on every layout). SAH cost as the layout prices its own tree.\n\n";
+            s += &self.layouts_table().to_markdown();
+        }
         s
     }
 
-    /// Writes build.csv, build.json and build.md into `dir` (each atomically).
+    /// Writes build.csv, layouts.csv, build.json and build.md into `dir` (each atomically).
     pub fn write(&self, dir: &Path) -> Result<()> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         crate::io::write_atomic(&dir.join("build.csv"), self.csv()?.as_bytes())?;
+        crate::io::write_atomic(&dir.join("layouts.csv"), self.layouts_csv()?.as_bytes())?;
         let json = serde_json::to_string_pretty(self).expect("serialisable report");
         crate::io::write_atomic(&dir.join("build.json"), json.as_bytes())?;
         crate::io::write_atomic(&dir.join("build.md"), self.markdown().as_bytes())
@@ -549,7 +732,11 @@ impl BuildBenchReport {
 
 impl crate::report::Report for BuildBenchReport {
     fn to_text(&self) -> String {
-        self.table().to_text()
+        if self.layouts.is_empty() {
+            self.table().to_text()
+        } else {
+            format!("{}\n{}", self.table().to_text(), self.layouts_table().to_text())
+        }
     }
 }
 

@@ -4,7 +4,8 @@
 //! median/min/max Mrays/s), a sample of hits validated against the CPU f64 reference, peak
 //! host RSS. Writes scale.csv, scale.json and scale.md (atomically, `io::write_atomic`).
 //! `--plan-only` stops after the plan: the bytes-per-triangle table without touching the GPU's
-//! memory.
+//! memory. Beside it, per scene, every node layout's node buffer as the memory plan prices it
+//! ([`crate::encoding::MemoryPlan::with_layout`]): the methods' rows are the binary tree's.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -14,14 +15,16 @@ use serde::Serialize;
 use crate::bvh::BuildOptions;
 use crate::compare::compare_closest;
 use crate::encoding::plan::check_rays;
-use crate::encoding::{DeviceLimits, Method, Raycast, SceneAccess};
+use crate::encoding::{DeviceLimits, Layout, MemoryPlan, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, RaycastOptions};
 use crate::harness::rayset::RaySet;
+use crate::named::Named;
 use crate::pipeline::{HostScene, ScenePlan, SceneRequest};
 use crate::rays::{random_rays, Ray};
 use crate::render::plan::extras_for as pathtrace_extras_for;
 use crate::report::Summary;
+use crate::shared::BINDING_NODES;
 
 /// Which rays `trilab scale` casts: random (uniform origins in the scene's sphere towards the
 /// box, `rays::random_rays`), diffuse (one bounce from the hits of primary rays through a
@@ -82,6 +85,17 @@ pub struct ScaleRow {
     pub peak_rss_bytes: Option<u64>,
 }
 
+/// One scene's node buffer in one layout, as the memory plan prices it (a bound from counts;
+/// the same for every method: leaves are the encoding's units, the nodes are the tree's).
+#[derive(Clone, Debug, Serialize)]
+pub struct LayoutPlanRow {
+    pub scene: String,
+    pub triangles: u64,
+    pub layout: Layout,
+    pub node_bytes: u64,
+    pub node_bytes_per_triangle: f64,
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct ScaleReport {
     pub device: String,
@@ -89,6 +103,26 @@ pub struct ScaleReport {
     pub limits: DeviceLimits,
     pub ray_kind: RayKind,
     pub rows: Vec<ScaleRow>,
+    /// Every layout's node buffer per scene.
+    pub layouts: Vec<LayoutPlanRow>,
+}
+
+/// Every layout's planned node buffer for a scene of `counts`.
+pub fn layout_plans(scene: &str, counts: &crate::encoding::SceneCounts) -> Vec<LayoutPlanRow> {
+    Layout::ALL
+        .iter()
+        .map(|&layout| {
+            let plan = MemoryPlan::of(Method::Mt, counts).with_layout(layout);
+            let node_bytes = plan.buffers.iter().filter(|b| b.binding == BINDING_NODES).map(|b| b.bytes).sum();
+            LayoutPlanRow {
+                scene: scene.to_owned(),
+                triangles: counts.triangles,
+                layout,
+                node_bytes,
+                node_bytes_per_triangle: node_bytes as f64 / counts.triangles.max(1) as f64,
+            }
+        })
+        .collect()
 }
 
 /// Peak resident set size (Linux `VmHWM`), where readable.
@@ -124,6 +158,7 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
     let limits = ctx.limits()?;
     let info = ctx.info();
     let mut rows = vec![];
+    let mut layouts = vec![];
     for spec in &o.scenes {
         let name = crate::scene::scene_name(Path::new(spec));
         let t = Instant::now();
@@ -135,6 +170,7 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
         let bvh_s = host.bvh.build_seconds;
         let bvh_mtris_per_s = triangles as f64 / bvh_s.max(1e-9) / 1e6;
         progress(&format!("{name}: BVH (leaf {}) in {bvh_s:.2} s, {bvh_mtris_per_s:.2} Mtris/s", o.leaf_size));
+        layouts.extend(layout_plans(&name, &host.counts()));
         let rays = if o.plan_only { vec![] } else { make_rays(&host, o) };
         let sample: Vec<usize> = if rays.is_empty() {
             vec![]
@@ -200,7 +236,14 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
             rows.push(row);
         }
     }
-    Ok(ScaleReport { device: info.name.clone(), driver: info.driver_label(), limits, ray_kind: o.ray_kind, rows })
+    Ok(ScaleReport {
+        device: info.name.clone(),
+        driver: info.driver_label(),
+        limits,
+        ray_kind: o.ray_kind,
+        rows,
+        layouts,
+    })
 }
 
 /// Uploads the planned scene, casts `rays` (timed), and checks the `sample` of them against the
@@ -357,6 +400,18 @@ impl ScaleReport {
                 },
                 r.peak_rss_bytes.map_or("-".into(), |v| format!("{}", v >> 20)),
             );
+        }
+        if !self.layouts.is_empty() {
+            s += "\n## Node bytes per layout\n\nThe node buffer of each layout as the memory plan prices it \
+                  (a bound from counts, the same for every method; the rows above are the binary tree's, `bvh2`). \
+                  A wide layout replaces `bvh nodes` above by its own buffer.\n\n";
+            s += "| scene | triangles | layout | node bytes | node B/tri |\n|---|---:|---|---:|---:|\n";
+            for r in &self.layouts {
+                s += &format!(
+                    "| {} | {} | {} | {} | {:.1} |\n",
+                    r.scene, r.triangles, r.layout, r.node_bytes, r.node_bytes_per_triangle
+                );
+            }
         }
         s
     }

@@ -17,6 +17,12 @@
 //! - **Frontier**: Mrays/s (bunny diffuse rays, leaf 4, validated, [`crate::harness::bench::measure_rays`])
 //!   against leak rate and t error per method.
 //!
+//! - **Layouts** (`--layouts`, default `bvh2`): leaks, false hits and errors are measured with
+//!   every layout's kernels (the same rays, the same leaves; only the node layout and its
+//!   traversal differ), the claim to hold being that a watertight test stays leak-free on every
+//!   layout (the box test must not cull what the triangle test would hit). The extremes, the
+//!   self-intersection study and the frontier stay on `bvh2`.
+//!
 //! Every output carries the device's float controls and the run's provenance. A method whose
 //! kernel the device cannot create (`Error::Unsupported`, e.g. f64 without shaderFloat64) is
 //! listed as unsupported and skipped.
@@ -39,7 +45,7 @@ use self::closed::{prove_closed, ClosedMesh, Placement};
 use self::metrics::{per_million, Tally};
 use self::probes::{LeakKind, Rng};
 use crate::bvh::{BuildOptions, Bvh};
-use crate::encoding::{AccessPath, Method, Raycast};
+use crate::encoding::{AccessPath, Layout, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, RaycastOptions};
 use crate::harness::provenance::Provenance;
@@ -71,6 +77,8 @@ pub struct AccuracyOptions {
     pub preset: Preset,
     pub methods: Vec<Method>,
     pub leaf_sizes: Vec<u32>,
+    /// Node layouts the leaks, false hits and errors are measured on (each method on each).
+    pub layouts: Vec<Layout>,
     /// Leak rays per (closed mesh, kind); 0 skips leaks, false hits and errors.
     pub leak_rays: usize,
     /// Proven-inside origins per closed mesh (rays share them).
@@ -110,6 +118,7 @@ impl AccuracyOptions {
             preset,
             methods: Method::ALL.to_vec(),
             leaf_sizes: crate::harness::study::PAPER_LEAF_SIZES.to_vec(),
+            layouts: vec![Layout::Bvh2],
             leak_rays: 400_000,
             origins: 64,
             fine_meshes: true,
@@ -161,6 +170,7 @@ pub struct MeshInfo {
 pub struct LeakRow {
     pub method: Method,
     pub leaf_size: u32,
+    pub layout: Layout,
     pub mesh: String,
     pub kind: LeakKind,
     pub tally: Tally,
@@ -170,6 +180,7 @@ pub struct LeakRow {
 pub struct FalseHitRow {
     pub method: Method,
     pub leaf_size: u32,
+    pub layout: Layout,
     pub mesh: String,
     /// log10 of the offset relative to the edge length.
     pub d_exp: i32,
@@ -178,11 +189,12 @@ pub struct FalseHitRow {
     pub tally: Tally,
 }
 
-/// t and barycentric errors over all leak rays of a (method, leaf size).
+/// t and barycentric errors over all leak rays of a (method, leaf size, layout).
 #[derive(Clone, Debug, Serialize)]
 pub struct ErrorRow {
     pub method: Method,
     pub leaf_size: u32,
+    pub layout: Layout,
     pub tally: Tally,
 }
 
@@ -225,6 +237,8 @@ pub struct ExtremeRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct FrontierRow {
     pub method: Method,
+    /// The layout it was timed on (and whose leaks it shows): bvh2 when measured, else the first.
+    pub layout: Layout,
     /// How the kernel read the scene.
     pub scene_access: AccessPath,
     pub mrays_per_s: Option<Summary>,
@@ -263,10 +277,12 @@ struct Tracer {
 /// Methods the device cannot run, with the reason.
 type Unsupported = Vec<(Method, String)>;
 
-/// Every leak ray of one (method, leaf size) with its GPU and reference hits, for the error rows.
+/// Every leak ray of one (method, leaf size, layout) with its GPU and reference hits, for the
+/// error rows.
 struct ErrorSample {
     method: Method,
     leaf: u32,
+    layout: Layout,
     rays: Vec<Ray>,
     hits: Vec<Hit>,
     refs: Vec<RefHit>,
@@ -287,10 +303,10 @@ fn tracers(ctx: &Context, methods: &[Method]) -> Result<(Vec<Tracer>, Unsupporte
     Ok((ok, unsupported))
 }
 
-/// Closest hits of `rays` with `t`'s method over `host`; also the number of
-/// triangles the encoding could not represent.
-fn cast(ctx: &Context, t: &Tracer, host: &HostScene, rays: &[Ray]) -> Result<(Vec<Hit>, usize)> {
-    let scene = host.upload(ctx, &SceneRequest::new(t.method))?;
+/// Closest hits of `rays` with `t`'s method over `host`'s nodes in `layout`; also the number
+/// of triangles the encoding could not represent.
+fn cast(ctx: &Context, t: &Tracer, host: &HostScene, layout: Layout, rays: &[Ray]) -> Result<(Vec<Hit>, usize)> {
+    let scene = host.upload(ctx, &SceneRequest::new(t.method).layout(layout))?;
     let res = scene.cast(ctx, Raycast::Closest, rays, &RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 })?;
     Ok((res.hits, scene.unrepresentable.len()))
 }
@@ -388,6 +404,14 @@ pub fn run(ctx: &Context, o: &AccuracyOptions, mut progress: impl FnMut(&str)) -
     let start = Instant::now();
     if o.methods.is_empty() {
         return Err(Error::Usage("accuracy: no methods".into()));
+    }
+    if o.layouts.is_empty() {
+        return Err(Error::Usage("accuracy --layouts: name at least one layout".into()));
+    }
+    for (i, l) in o.layouts.iter().enumerate() {
+        if o.layouts[..i].contains(l) {
+            return Err(Error::Usage(format!("accuracy --layouts: {l} is named twice")));
+        }
     }
     for &l in &o.leaf_sizes {
         if !(1..=crate::bvh::MAX_LEAF_SIZE).contains(&l) {
@@ -536,8 +560,8 @@ fn leaks_and_false_hits(
         ));
         for &leaf in &o.leaf_sizes {
             let host = build(mesh, leaf);
-            for t in tracers {
-                let (hits, _) = cast(ctx, t, &host, &rays)?;
+            for (t, &layout) in tracers.iter().flat_map(|t| o.layouts.iter().map(move |l| (t, l))) {
+                let (hits, _) = cast(ctx, t, &host, layout, &rays)?;
                 let mut leaks = 0;
                 for (pi, (label, s, n)) in parts.iter().enumerate() {
                     let (r, h, rh) = (&rays[*s..s + n], &hits[*s..s + n], &ref_hits[*s..s + n]);
@@ -548,6 +572,7 @@ fn leaks_and_false_hits(
                         report.leaks.push(LeakRow {
                             method: t.method,
                             leaf_size: leaf,
+                            layout,
                             mesh: scene.name.clone(),
                             kind,
                             tally,
@@ -557,6 +582,7 @@ fn leaks_and_false_hits(
                         report.false_hits.push(FalseHitRow {
                             method: t.method,
                             leaf_size: leaf,
+                            layout,
                             mesh: scene.name.clone(),
                             d_exp,
                             candidates: candidates[pi - LeakKind::ALL.len()],
@@ -564,10 +590,18 @@ fn leaks_and_false_hits(
                         });
                     }
                 }
-                let pos = match errors.iter().position(|e| e.method == t.method && e.leaf == leaf) {
+                let pos = match errors.iter().position(|e| e.method == t.method && e.leaf == leaf && e.layout == layout)
+                {
                     Some(p) => p,
                     None => {
-                        errors.push(ErrorSample { method: t.method, leaf, rays: vec![], hits: vec![], refs: vec![] });
+                        errors.push(ErrorSample {
+                            method: t.method,
+                            leaf,
+                            layout,
+                            rays: vec![],
+                            hits: vec![],
+                            refs: vec![],
+                        });
                         errors.len() - 1
                     }
                 };
@@ -575,13 +609,14 @@ fn leaks_and_false_hits(
                 e.rays.extend_from_slice(&rays[..leak_count]);
                 e.hits.extend_from_slice(&hits[..leak_count]);
                 e.refs.extend_from_slice(&ref_hits[..leak_count]);
-                progress(&format!("{} leaf {leaf} {}: {leaks} leaks in {leak_count} rays", scene.name, t.method));
+                let on = if layout == Layout::Bvh2 { String::new() } else { format!(" on {layout}") };
+                progress(&format!("{} leaf {leaf} {}{on}: {leaks} leaks in {leak_count} rays", scene.name, t.method));
             }
         }
     }
     for e in errors {
         let tally = Tally::of(&e.rays, &e.hits, &e.refs, true, &[]);
-        report.errors.push(ErrorRow { method: e.method, leaf_size: e.leaf, tally });
+        report.errors.push(ErrorRow { method: e.method, leaf_size: e.leaf, layout: e.layout, tally });
     }
     Ok(())
 }
@@ -623,7 +658,7 @@ fn self_intersection(
     let near = 1e-4 * 2.0 * scale;
     let mut rows = Vec::new();
     for t in tracers {
-        let (hits, _) = cast(ctx, t, &host, &primary)?;
+        let (hits, _) = cast(ctx, t, &host, Layout::Bvh2, &primary)?;
         let mut points = Vec::with_capacity(n);
         for (i, (r, h)) in primary.iter().zip(&hits).enumerate() {
             if points.len() == n {
@@ -649,7 +684,7 @@ fn self_intersection(
                     tmax: f32::INFINITY,
                 })
                 .collect();
-            let (sec, _) = cast(ctx, t, &host, &rays)?;
+            let (sec, _) = cast(ctx, t, &host, Layout::Bvh2, &rays)?;
             let mut row = SelfHitRow {
                 method: t.method,
                 leaf_size: FIXED_LEAF,
@@ -694,7 +729,7 @@ fn extreme_case(
     let ref_hits = host.reference().trace_all(rays, false);
     let cond = crate::analyze::Conditioning::of(mesh);
     for t in tracers {
-        let (hits, unrepresentable) = cast(ctx, t, &host, rays)?;
+        let (hits, unrepresentable) = cast(ctx, t, &host, Layout::Bvh2, rays)?;
         report.extremes.push(ExtremeRow {
             kind: kind.into(),
             param: param.clone(),
@@ -795,8 +830,9 @@ fn frontier(
     let rays = RaySet::diffuse_from(&mesh, &reference, &primary, 1, o.seed);
     let ref_hits = reference.trace_all(&rays, false);
     report.frontier_rays = rays.len();
+    let layout = if o.layouts.contains(&Layout::Bvh2) { Layout::Bvh2 } else { o.layouts[0] };
     for t in tracers {
-        let scene = host.upload(ctx, &SceneRequest::new(t.method))?;
+        let scene = host.upload(ctx, &SceneRequest::new(t.method).layout(layout))?;
         let opts = RaycastOptions { warmup: 1, repeat: o.repeat.max(1), batch_rays: 1 << 20 };
         let (speed, note) = match measure_rays(ctx, &scene, &mesh, &rays, &ref_hits, &opts) {
             Ok(m) => (Some(m.mrays_per_s), None),
@@ -811,18 +847,24 @@ fn frontier(
             per_million(bad, n)
         };
         let leaks = at_leaf(
-            &mut report.leaks.iter().filter(|r| r.method == t.method && r.leaf_size == FIXED_LEAF).map(|r| &r.tally),
+            &mut report
+                .leaks
+                .iter()
+                .filter(|r| r.method == t.method && r.leaf_size == FIXED_LEAF && r.layout == layout)
+                .map(|r| &r.tally),
         );
         let false_hits = at_leaf(
             &mut report
                 .false_hits
                 .iter()
-                .filter(|r| r.method == t.method && r.leaf_size == FIXED_LEAF)
+                .filter(|r| r.method == t.method && r.leaf_size == FIXED_LEAF && r.layout == layout)
                 .map(|r| &r.tally),
         );
-        let err = report.errors.iter().find(|r| r.method == t.method && r.leaf_size == FIXED_LEAF);
+        let err =
+            report.errors.iter().find(|r| r.method == t.method && r.leaf_size == FIXED_LEAF && r.layout == layout);
         let row = FrontierRow {
             method: t.method,
+            layout,
             scene_access: scene.access,
             mrays_per_s: speed,
             note,

@@ -8,7 +8,7 @@ use serde::Serialize;
 use super::metrics::{per_million, Tally};
 use super::probes::LeakKind;
 use super::{AccuracyReport, SelfHitRow, FALSE_HIT_OFFSETS, FIXED_LEAF};
-use crate::encoding::Method;
+use crate::encoding::{Layout, Method};
 use crate::error::{Error, Result};
 use crate::harness::study::plots::Plot;
 use crate::rays::offset::{Offset, RECOMMENDED};
@@ -22,6 +22,7 @@ struct CsvRow {
     param: String,
     method: String,
     leaf_size: u32,
+    layout: String,
     rays: usize,
     reference_hits: Option<usize>,
     gpu_hits: Option<usize>,
@@ -56,6 +57,7 @@ fn from_tally(section: &str, case: &str, param: String, method: Method, leaf: u3
         param,
         method: method.to_string(),
         leaf_size: leaf,
+        layout: Layout::Bvh2.to_string(),
         rays: t.rays,
         reference_hits: Some(t.reference_hits),
         gpu_hits: Some(t.gpu_hits),
@@ -96,14 +98,20 @@ pub fn float_controls(report: &AccuracyReport) -> String {
 /// `accuracy.csv`.
 pub fn csv(report: &AccuracyReport) -> Result<String> {
     let mut rows = Vec::new();
+    let on = |mut row: CsvRow, l: Layout| {
+        row.layout = l.to_string();
+        row
+    };
     for r in &report.leaks {
-        rows.push(from_tally("leaks", &r.mesh, r.kind.name().into(), r.method, r.leaf_size, &r.tally));
+        rows.push(on(from_tally("leaks", &r.mesh, r.kind.name().into(), r.method, r.leaf_size, &r.tally), r.layout));
     }
     for r in &report.false_hits {
-        rows.push(from_tally("false-hits", &r.mesh, format!("d=1e{}", r.d_exp), r.method, r.leaf_size, &r.tally));
+        let param = format!("d=1e{}", r.d_exp);
+        rows.push(on(from_tally("false-hits", &r.mesh, param, r.method, r.leaf_size, &r.tally), r.layout));
     }
     for r in &report.errors {
-        rows.push(from_tally("errors", "all closed meshes", "leak rays".into(), r.method, r.leaf_size, &r.tally));
+        let row = from_tally("errors", "all closed meshes", "leak rays".into(), r.method, r.leaf_size, &r.tally);
+        rows.push(on(row, r.layout));
     }
     for r in &report.self_hits {
         rows.push(CsvRow {
@@ -112,6 +120,7 @@ pub fn csv(report: &AccuracyReport) -> Result<String> {
             param: format!("scale=1e{}", r.scale_exp),
             method: r.method.to_string(),
             leaf_size: r.leaf_size,
+            layout: Layout::Bvh2.to_string(),
             rays: r.rays,
             nan: Some(r.nan),
             self_hits: Some(r.self_hits),
@@ -130,6 +139,7 @@ pub fn csv(report: &AccuracyReport) -> Result<String> {
             param: r.note.clone().unwrap_or_default(),
             method: r.method.to_string(),
             leaf_size: FIXED_LEAF,
+            layout: r.layout.to_string(),
             rays: report.frontier_rays,
             leaks_per_million: Some(r.leaks_per_million),
             t_ulps_median: Some(r.t_ulps_median),
@@ -173,6 +183,49 @@ fn methods(report: &AccuracyReport) -> Vec<Method> {
     seen
 }
 
+/// The layouts of the leak study, in the order asked.
+fn layouts(report: &AccuracyReport) -> Vec<Layout> {
+    if report.options.layouts.is_empty() {
+        vec![Layout::Bvh2]
+    } else {
+        report.options.layouts.clone()
+    }
+}
+
+/// Whether the tables name layouts (a layout other than bvh2 was measured).
+pub fn names_layouts(report: &AccuracyReport) -> bool {
+    layouts(report) != [Layout::Bvh2]
+}
+
+/// (method, leaf size, layout) rows of the leak study's tables, method by method.
+fn configurations(report: &AccuracyReport) -> Vec<(Method, u32, Layout)> {
+    let ls = layouts(report);
+    let mut v = vec![];
+    for m in methods(report) {
+        for &leaf in &report.options.leaf_sizes {
+            v.extend(ls.iter().map(|&l| (m, leaf, l)));
+        }
+    }
+    v
+}
+
+/// `head` (method first) with a layout column after the method when the report names layouts.
+fn layout_head(report: &AccuracyReport, mut head: Vec<String>) -> Vec<String> {
+    if names_layouts(report) {
+        head.insert(1, "layout".into());
+    }
+    head
+}
+
+/// A row's first cells: method, (layout,) leaf.
+fn first_cells(report: &AccuracyReport, m: Method, leaf: u32, l: Layout) -> Vec<String> {
+    let mut v = vec![m.to_string(), leaf.to_string()];
+    if names_layouts(report) {
+        v.insert(1, l.to_string());
+    }
+    v
+}
+
 fn sum_tallies<'a>(it: impl Iterator<Item = &'a Tally>) -> Tally {
     let mut t = Tally::default();
     for x in it {
@@ -196,14 +249,15 @@ pub fn leaks_table(report: &AccuracyReport) -> Table {
     head.extend(meshes.iter().cloned());
     head.extend(LeakKind::ALL.iter().map(|k| format!("at {}", k.name())));
     head.extend(["all".into(), "rays".into()]);
-    let mut t = Table::new(head);
-    for m in methods(report) {
-        for &leaf in &report.options.leaf_sizes {
-            let rows: Vec<_> = report.leaks.iter().filter(|r| r.method == m && r.leaf_size == leaf).collect();
+    let mut t = Table::new(layout_head(report, head));
+    for (m, leaf, l) in configurations(report) {
+        {
+            let rows: Vec<_> =
+                report.leaks.iter().filter(|r| r.method == m && r.leaf_size == leaf && r.layout == l).collect();
             if rows.is_empty() {
                 continue;
             }
-            let mut cells = vec![m.to_string(), leaf.to_string()];
+            let mut cells = first_cells(report, m, leaf, l);
             for mesh in &meshes {
                 let s = sum_tallies(rows.iter().filter(|r| &r.mesh == mesh).map(|r| &r.tally));
                 cells.push(rate(s.leaks, s.rays));
@@ -221,18 +275,72 @@ pub fn leaks_table(report: &AccuracyReport) -> Table {
     t
 }
 
+/// Leaks per method and layout over every leaf size, mesh and kind: (leaks, rays).
+pub fn leaks_per_layout(report: &AccuracyReport, m: Method, l: Layout) -> (usize, usize) {
+    let t = sum_tallies(report.leaks.iter().filter(|r| r.method == m && r.layout == l).map(|r| &r.tally));
+    (t.leaks, t.rays)
+}
+
+/// One row per method, one column per layout: leaks of all leak rays (every leaf size, mesh and
+/// kind), and whether the method is leak-free on every layout.
+pub fn layouts_table(report: &AccuracyReport) -> Table {
+    let ls = layouts(report);
+    let mut head = vec!["method".to_string()];
+    head.extend(ls.iter().map(|l| format!("leaks on {l} (of rays)")));
+    head.push("leak-free on every layout".into());
+    let mut t = Table::new(head);
+    for m in methods(report) {
+        let counts: Vec<(usize, usize)> = ls.iter().map(|&l| leaks_per_layout(report, m, l)).collect();
+        if counts.iter().all(|c| c.1 == 0) {
+            continue;
+        }
+        let mut cells = vec![m.to_string()];
+        cells.extend(counts.iter().map(|(k, n)| format!("{k} ({n})")));
+        cells.push(if counts.iter().all(|c| c.0 == 0 && c.1 > 0) { "yes" } else { "no" }.into());
+        t.row(cells);
+    }
+    t
+}
+
+/// The claim the layout axis must keep: `watertight` leak-free on every layout, in words.
+pub fn watertight_on_layouts(report: &AccuracyReport) -> Option<String> {
+    let counts: Vec<(Layout, usize, usize)> = layouts(report)
+        .into_iter()
+        .map(|l| {
+            let (k, n) = leaks_per_layout(report, Method::Watertight, l);
+            (l, k, n)
+        })
+        .filter(|c| c.2 > 0)
+        .collect();
+    if counts.is_empty() {
+        return None;
+    }
+    let leaky: Vec<String> =
+        counts.iter().filter(|c| c.1 > 0).map(|(l, k, n)| format!("{k} of {n} rays on {l}")).collect();
+    Some(if leaky.is_empty() {
+        format!(
+            "**watertight stays leak-free on every layout**: 0 leaks in {} rays on each of {}.",
+            counts[0].2,
+            counts.iter().map(|c| c.0.to_string()).collect::<Vec<_>>().join(", ")
+        )
+    } else {
+        format!("**watertight leaks on a layout**: {}.", leaky.join("; "))
+    })
+}
+
 /// False hits: per method x leaf, per offset d (false hits / rays the reference misses).
 pub fn false_hits_table(report: &AccuracyReport) -> Table {
     let mut head = vec!["method".to_string(), "leaf".into()];
     head.extend(FALSE_HIT_OFFSETS.iter().map(|d| format!("d=1e{d}")));
-    let mut t = Table::new(head);
-    for m in methods(report) {
-        for &leaf in &report.options.leaf_sizes {
-            let rows: Vec<_> = report.false_hits.iter().filter(|r| r.method == m && r.leaf_size == leaf).collect();
+    let mut t = Table::new(layout_head(report, head));
+    for (m, leaf, l) in configurations(report) {
+        {
+            let rows: Vec<_> =
+                report.false_hits.iter().filter(|r| r.method == m && r.leaf_size == leaf && r.layout == l).collect();
             if rows.is_empty() {
                 continue;
             }
-            let mut cells = vec![m.to_string(), leaf.to_string()];
+            let mut cells = first_cells(report, m, leaf, l);
             for &d in &FALSE_HIT_OFFSETS {
                 let s = sum_tallies(rows.iter().filter(|r| r.d_exp == d).map(|r| &r.tally));
                 cells.push(format!("{}/{}", s.false_hits, s.rays));
@@ -245,7 +353,7 @@ pub fn false_hits_table(report: &AccuracyReport) -> Table {
 
 /// t and barycentric error per method x leaf over every leak ray both hit on the same triangle.
 pub fn errors_table(report: &AccuracyReport) -> Table {
-    let mut t = Table::new([
+    let head = [
         "method",
         "leaf",
         "compared",
@@ -257,12 +365,12 @@ pub fn errors_table(report: &AccuracyReport) -> Table {
         "bary max",
         "different triangle",
         "NaN",
-    ]);
+    ];
+    let mut t = Table::new(layout_head(report, head.map(String::from).to_vec()));
     for r in &report.errors {
         let e = &r.tally;
-        t.row([
-            r.method.to_string(),
-            r.leaf_size.to_string(),
+        let mut cells = first_cells(report, r.method, r.leaf_size, r.layout);
+        cells.extend([
             e.t_ulps.n.to_string(),
             format!("{:.2}", e.t_ulps.median),
             format!("{:.2}", e.t_ulps.p99),
@@ -273,6 +381,7 @@ pub fn errors_table(report: &AccuracyReport) -> Table {
             e.different_triangle.to_string(),
             e.nan.to_string(),
         ]);
+        t.row(cells);
     }
     t
 }
@@ -485,6 +594,16 @@ pub fn markdown(report: &AccuracyReport, plots: &[Plot]) -> String {
          the tree only decides which triangles are tested.\n",
         o.leak_rays, o.origins, o.silhouette_rays, o.self_rays, o.extreme_rays, report.frontier_rays, o.repeat
     );
+    if names_layouts(report) {
+        let ls: Vec<String> = layouts(report).iter().map(|l| format!("`{l}`")).collect();
+        let _ = writeln!(
+            s,
+            "Node layouts: {} for the leaks, false hits and errors (each method on each); the extremes and the \
+             self-intersection study on `bvh2`, the frontier on `{}`.\n",
+            ls.join(", "),
+            report.frontier.first().map_or(Layout::Bvh2, |f| f.layout)
+        );
+    }
     for (m, why) in &report.unsupported {
         let _ = writeln!(s, "- **{m}: unsupported** on this device ({why}); not measured.");
     }
@@ -518,6 +637,19 @@ pub fn markdown(report: &AccuracyReport, plots: &[Plot]) -> String {
             "\n## Leaks per 10^6 rays\n\nA leak is a ray from a proven-inside origin that hits nothing.\n\n{}",
             leaks_table(report).to_markdown()
         );
+        if names_layouts(report) {
+            let _ = writeln!(
+                s,
+                "## Leaks per node layout\n\nThe same leak rays traced with each layout's kernels (same leaves, \
+                 only the nodes and their traversal differ); every leaf size, mesh and kind together. A \
+                 watertight triangle test stays leak-free only if the layout's box test never culls a box the \
+                 ray touches (its conservative test).\n\n{}",
+                layouts_table(report).to_markdown()
+            );
+            if let Some(w) = watertight_on_layouts(report) {
+                let _ = writeln!(s, "{w}\n");
+            }
+        }
         let _ = writeln!(
             s,
             "## False hits\n\nRays aimed at points d x edge length outside silhouette edges, across the line of \

@@ -3,13 +3,16 @@
 //! unit-triangle test; (c) Quad unit triangle is 5-20 % faster than Möller-Trumbore on NVIDIA and
 //! up to 2x on VLIW AMD. Each verdict comes with the numbers it rests on. A difference counts as
 //! real only when the two configurations' min-max ranges over the timed rounds do not overlap.
+//!
+//! Each claim is judged per node layout (`--layouts`): a verdict for the binary tree the paper
+//! measured, and one for each wide layout on the same scenes.
 
 use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::{scenes, StudyReport, StudyRow};
-use crate::encoding::Method;
+use super::{cell, layouts_of, names_layouts, scenes, StudyReport, StudyRow};
+use crate::encoding::{Layout, Method};
 use crate::report::Summary;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -45,6 +48,8 @@ impl Verdict {
 #[derive(Clone, Debug, Serialize)]
 pub struct Claim {
     pub id: char,
+    /// The layout whose render times judged it.
+    pub layout: Layout,
     pub statement: &'static str,
     pub verdict: Verdict,
     /// One line per scene (and method or leaf size) with the numbers.
@@ -52,31 +57,38 @@ pub struct Claim {
     pub summary: String,
 }
 
-fn time(report: &StudyReport, scene: &str, leaf: u32, m: Method) -> Option<Summary> {
-    report.rows.iter().find(|r| r.scene == scene && r.leaf_size == leaf && r.method == m).map(StudyRow::render_seconds)
+/// Render seconds of the cell (scene, leaf, method, layout).
+pub fn time(report: &StudyReport, scene: &str, leaf: u32, m: Method, l: Layout) -> Option<Summary> {
+    cell(report, scene, leaf, m, l).map(StudyRow::render_seconds)
 }
 
-fn overlap(a: Summary, b: Summary) -> bool {
+/// Whether two min-max ranges overlap: then their difference is not called real.
+pub fn overlap(a: Summary, b: Summary) -> bool {
     a.min <= b.max && b.min <= a.max
 }
 
-/// Geometric mean over scenes of `m`'s render time over `base`'s at `leaf`.
-pub fn relative_time(report: &StudyReport, m: Method, base: Method, leaf: u32) -> Option<f64> {
+/// Geometric mean over scenes of `m`'s render time over `base`'s at `leaf`, both on `layout`.
+pub fn relative_time(report: &StudyReport, m: Method, base: Method, leaf: u32, layout: Layout) -> Option<f64> {
     let ratios: Vec<f64> = scenes(report)
         .iter()
-        .filter_map(|s| Some(time(report, s, leaf, m)?.median / time(report, s, leaf, base)?.median))
+        .filter_map(|s| Some(time(report, s, leaf, m, layout)?.median / time(report, s, leaf, base, layout)?.median))
         .collect();
     (!ratios.is_empty()).then(|| (ratios.iter().map(|r| r.ln()).sum::<f64>() / ratios.len() as f64).exp())
 }
 
-/// (a) 4 triangles per leaf is optimal: for each scene and method, the fastest leaf size.
-pub fn leaf_four_optimal(report: &StudyReport) -> Claim {
+/// (a) 4 triangles per leaf is optimal: for each scene and method, the fastest leaf size on
+/// `layout`.
+pub fn leaf_four_optimal(report: &StudyReport, layout: Layout) -> Claim {
     let mut evidence = vec![];
     let (mut best4, mut noise, mut other, mut total) = (0, 0, 0, 0);
     for scene in scenes(report) {
         for &m in &report.options.methods {
-            let times: Vec<(u32, Summary)> =
-                report.options.leaf_sizes.iter().filter_map(|&l| Some((l, time(report, &scene, l, m)?))).collect();
+            let times: Vec<(u32, Summary)> = report
+                .options
+                .leaf_sizes
+                .iter()
+                .filter_map(|&l| Some((l, time(report, &scene, l, m, layout)?)))
+                .collect();
             let Some(&(best_leaf, best)) = times.iter().min_by(|a, b| a.1.median.total_cmp(&b.1.median)) else {
                 continue;
             };
@@ -109,6 +121,7 @@ pub fn leaf_four_optimal(report: &StudyReport) -> Claim {
     };
     Claim {
         id: 'a',
+        layout,
         statement: "4 triangles per BVH leaf is optimal",
         verdict,
         summary: format!(
@@ -119,14 +132,15 @@ pub fn leaf_four_optimal(report: &StudyReport) -> Claim {
     }
 }
 
-/// (b) Möller-Trumbore is up to 5 % faster than the unit-triangle test (every leaf size).
-pub fn mt_faster_than_unit(report: &StudyReport) -> Claim {
+/// (b) Möller-Trumbore is up to 5 % faster than the unit-triangle test (every leaf size), on
+/// `layout`.
+pub fn mt_faster_than_unit(report: &StudyReport, layout: Layout) -> Claim {
     let mut evidence = vec![];
     let (mut mt_wins, mut unit_wins, mut ties, mut ratios) = (0, 0, 0, vec![]);
     for scene in scenes(report) {
         for &leaf in &report.options.leaf_sizes {
             let (Some(mt), Some(unit)) =
-                (time(report, &scene, leaf, Method::Mt), time(report, &scene, leaf, Method::Unit))
+                (time(report, &scene, leaf, Method::Mt, layout), time(report, &scene, leaf, Method::Unit, layout))
             else {
                 continue;
             };
@@ -161,6 +175,7 @@ pub fn mt_faster_than_unit(report: &StudyReport) -> Claim {
     let (lo, hi) = ratios.iter().fold((f64::MAX, f64::MIN), |(a, b), &r| (a.min(r), b.max(r)));
     Claim {
         id: 'b',
+        layout,
         statement: "Möller-Trumbore is up to 5 % faster than unit triangle",
         verdict,
         summary: if n == 0 {
@@ -176,13 +191,14 @@ pub fn mt_faster_than_unit(report: &StudyReport) -> Claim {
 }
 
 /// (c) Quad unit triangle is 5-20 % faster than Möller-Trumbore (NVIDIA), up to 2x (VLIW AMD),
-/// at the paper's 4 triangles per leaf.
-pub fn quad_unit_faster_than_mt(report: &StudyReport) -> Claim {
+/// at the paper's 4 triangles per leaf, on `layout`.
+pub fn quad_unit_faster_than_mt(report: &StudyReport, layout: Layout) -> Claim {
     let mut evidence = vec![];
     let mut speedups = vec![];
     let mut real_5 = 0;
     for scene in scenes(report) {
-        let (Some(mt), Some(q)) = (time(report, &scene, 4, Method::Mt), time(report, &scene, 4, Method::QuadUnit))
+        let (Some(mt), Some(q)) =
+            (time(report, &scene, 4, Method::Mt, layout), time(report, &scene, 4, Method::QuadUnit, layout))
         else {
             continue;
         };
@@ -215,6 +231,7 @@ pub fn quad_unit_faster_than_mt(report: &StudyReport) -> Claim {
     };
     Claim {
         id: 'c',
+        layout,
         statement: "Quad unit triangle is 5-20 % faster than Möller-Trumbore on NVIDIA, up to 2x on VLIW",
         verdict,
         summary: if n == 0 {
@@ -235,8 +252,14 @@ pub fn can_judge(report: &StudyReport) -> bool {
     report.options.repeat >= 2
 }
 
+/// Every claim on every layout of the report, layout by layout.
 pub fn all(report: &StudyReport) -> Vec<Claim> {
-    let mut claims = vec![leaf_four_optimal(report), mt_faster_than_unit(report), quad_unit_faster_than_mt(report)];
+    let mut claims: Vec<Claim> = layouts_of(report)
+        .into_iter()
+        .flat_map(|l| {
+            [leaf_four_optimal(report, l), mt_faster_than_unit(report, l), quad_unit_faster_than_mt(report, l)]
+        })
+        .collect();
     if !can_judge(report) {
         for c in &mut claims {
             if c.verdict != Verdict::NotMeasured {
@@ -259,7 +282,17 @@ pub fn markdown(report: &StudyReport) -> String {
             report.options.repeat, report.options.preset
         );
     }
-    for c in all(report) {
+    let claims = all(report);
+    if names_layouts(report) {
+        let _ = writeln!(s, "Each claim is judged on each node layout's render times.\n");
+        let _ = writeln!(s, "{}", verdicts_table(report, &claims).to_markdown());
+    }
+    let mut last = None;
+    for c in claims {
+        if names_layouts(report) && last != Some(c.layout) {
+            let _ = writeln!(s, "### On {} (`{}`)\n", c.layout.title(), c.layout);
+            last = Some(c.layout);
+        }
         let _ = writeln!(s, "**({}) {}: {}.** {}.\n", c.id, c.statement, c.verdict.label(), c.summary);
         for e in &c.evidence {
             let _ = writeln!(s, "- {e}");
@@ -269,67 +302,37 @@ pub fn markdown(report: &StudyReport) -> String {
     s
 }
 
+/// One row per claim, one verdict column per layout.
+pub fn verdicts_table(report: &StudyReport, claims: &[Claim]) -> crate::report::Table {
+    let ls = layouts_of(report);
+    let mut head = vec!["claim".to_string()];
+    head.extend(ls.iter().map(|l| format!("{} ({l})", l.title())));
+    let mut t = crate::report::Table::new(head);
+    let mut ids: Vec<char> = vec![];
+    for c in claims {
+        if !ids.contains(&c.id) {
+            ids.push(c.id);
+        }
+    }
+    for id in ids {
+        let mut cells = vec![format!("({id})")];
+        for &l in &ls {
+            let c = claims.iter().find(|c| c.id == id && c.layout == l);
+            cells.push(c.map_or_else(|| "-".into(), |c| c.verdict.label().to_string()));
+        }
+        t.row(cells);
+    }
+    t
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::harness::bench_render::RenderMeasure;
-    use crate::harness::study::{BvhQuality, Preset, Provenance, StudyOptions};
+    use crate::harness::study::testing::synthetic;
 
-    fn s(median: f64, spread: f64) -> Summary {
-        Summary { median, min: median - spread, max: median + spread, runs: 3 }
-    }
-
-    /// A report with render times (seconds) `t(scene, leaf, method)` and +-`spread`.
+    /// A report of one layout (bvh2) with render times `t(scene, leaf, method)` and +-`spread`.
     fn report(scenes: &[&str], t: impl Fn(&str, u32, Method) -> f64, spread: f64) -> StudyReport {
-        let mut o = StudyOptions::preset(Preset::Smoke);
-        let prov = Provenance {
-            device: "test".into(),
-            driver: "test".into(),
-            mesa_version: None,
-            commit: "x".into(),
-            date: "d".into(),
-            host_cpus: 1,
-            lp_num_threads: None,
-            timed_on_gpu: true,
-            scenes: vec![],
-        };
-        let mut rows = vec![];
-        for sc in scenes {
-            for &leaf in &o.leaf_sizes {
-                for &m in &o.methods {
-                    let ms = s(t(sc, leaf, m) * 1e3, spread * 1e3);
-                    rows.push(StudyRow {
-                        scene: sc.to_string(),
-                        triangles: 1,
-                        leaf_size: leaf,
-                        method: m,
-                        scene_bytes: 1,
-                        bvh: BvhQuality {
-                            nodes: 1,
-                            leaves: 1,
-                            depth: 0,
-                            sah_cost: 1.0,
-                            epo: 0.0,
-                            quad_padding: 0,
-                            build_ms: 0.0,
-                        },
-                        render: RenderMeasure {
-                            msamples_per_s: ms,
-                            mrays_per_s: ms,
-                            ms,
-                            rays_per_sample: 1.0,
-                            image_mean: 1.0,
-                        },
-                        render_kernel: "pathtrace.mt.lambert",
-                        raycast_kernel: "raycast.mt.closest",
-                        sets: vec![],
-                        provenance: prov.clone(),
-                    });
-                }
-            }
-        }
-        o.scenes = vec![];
-        StudyReport { options: o, scaling: String::new(), provenance: prov, rows, seconds: 0.0 }
+        synthetic(scenes, &[Layout::Bvh2], |sc, leaf, m, _| t(sc, leaf, m), spread)
     }
 
     /// The paper's shape: a U in leaf size with its minimum at 4; MT 3 % faster than unit; Quad
@@ -349,9 +352,9 @@ mod tests {
     #[test]
     fn the_papers_own_numbers_make_every_claim_hold() {
         let r = report(&["bunny", "dragon"], paperlike, 0.001);
-        assert_eq!(leaf_four_optimal(&r).verdict, Verdict::Holds);
-        assert_eq!(mt_faster_than_unit(&r).verdict, Verdict::Holds);
-        assert_eq!(quad_unit_faster_than_mt(&r).verdict, Verdict::Holds);
+        assert_eq!(leaf_four_optimal(&r, Layout::Bvh2).verdict, Verdict::Holds);
+        assert_eq!(mt_faster_than_unit(&r, Layout::Bvh2).verdict, Verdict::Holds);
+        assert_eq!(quad_unit_faster_than_mt(&r, Layout::Bvh2).verdict, Verdict::Holds);
     }
 
     #[test]
@@ -368,19 +371,19 @@ mod tests {
                 }
         };
         let r = report(&["bunny"], t, 0.01);
-        assert_eq!(leaf_four_optimal(&r).verdict, Verdict::DoesNotHold);
-        assert_eq!(mt_faster_than_unit(&r).verdict, Verdict::DoesNotHold);
-        assert_eq!(quad_unit_faster_than_mt(&r).verdict, Verdict::DoesNotHold);
+        assert_eq!(leaf_four_optimal(&r, Layout::Bvh2).verdict, Verdict::DoesNotHold);
+        assert_eq!(mt_faster_than_unit(&r, Layout::Bvh2).verdict, Verdict::DoesNotHold);
+        assert_eq!(quad_unit_faster_than_mt(&r, Layout::Bvh2).verdict, Verdict::DoesNotHold);
     }
 
     #[test]
     fn differences_inside_the_spread_are_not_called_real() {
         // Same shape as the paper's but with a run-to-run spread of +-20 %.
         let r = report(&["bunny"], paperlike, 0.2);
-        let b = mt_faster_than_unit(&r);
+        let b = mt_faster_than_unit(&r, Layout::Bvh2);
         assert_eq!(b.verdict, Verdict::HoldsWithinNoise, "{}", b.summary);
         // Quad unit's 12 % is inside +-20 %: not beyond the spread.
-        assert_eq!(quad_unit_faster_than_mt(&r).verdict, Verdict::HoldsWithinNoise);
+        assert_eq!(quad_unit_faster_than_mt(&r, Layout::Bvh2).verdict, Verdict::HoldsWithinNoise);
     }
 
     #[test]
@@ -395,6 +398,34 @@ mod tests {
             }
         };
         let r = report(&["a", "b"], t, 0.0);
-        assert!((relative_time(&r, Method::Unit, Method::Mt, 4).unwrap() - 1.0).abs() < 1e-12);
+        assert!((relative_time(&r, Method::Unit, Method::Mt, 4, Layout::Bvh2).unwrap() - 1.0).abs() < 1e-12);
+    }
+
+    /// Verdicts are per layout: the paper's shape on bvh2, the contrary on bvh8 (leaf 16
+    /// fastest, unit beating MT, Quad unit slower), in one report.
+    #[test]
+    fn each_layout_gets_its_own_verdict() {
+        let t = |sc: &str, leaf: u32, m: Method, l: Layout| {
+            if l == Layout::Bvh2 {
+                paperlike(sc, leaf, m)
+            } else {
+                (20.0 - leaf as f64)
+                    * match m {
+                        Method::Unit => 0.9,
+                        Method::QuadUnit => 1.1,
+                        _ => 1.0,
+                    }
+            }
+        };
+        let r = synthetic(&["bunny"], &[Layout::Bvh2, Layout::Bvh8], t, 0.001);
+        let claims = all(&r);
+        assert_eq!(claims.len(), 6, "three claims on each of two layouts");
+        for c in &claims {
+            let want = if c.layout == Layout::Bvh2 { Verdict::Holds } else { Verdict::DoesNotHold };
+            assert_eq!(c.verdict, want, "({}) on {}: {}", c.id, c.layout, c.summary);
+        }
+        let md = markdown(&r);
+        assert!(md.contains("### On BVH8 (`bvh8`)") && md.contains("| (a) | holds | does not hold |"), "{md}");
+        assert_eq!(md.matches("| (a) |").count(), 1, "one row per claim: {md}");
     }
 }

@@ -1,18 +1,20 @@
 //! `trilab study`: the paper's Tables 1-4 on this device. The matrix scene x leaf size x method
-//! is path-traced (the paper's "seconds per method") and ray-cast with the primary, diffuse and
+//! (x node layout, `--layouts`: issue 15's second axis, bvh2 unless asked) is path-traced (the paper's "seconds per method") and ray-cast with the primary, diffuse and
 //! random ray sets (Mrays/s), every result validated before its time counts: renders must have
 //! no NaN/Inf sample and the same image mean as the scene's first render (2 %), ray casts must
 //! agree with the f64 reference (see [`crate::harness::validate::validate_hits`]).
 //!
-//! Timing is interleaved: each round renders and casts with every method of a leaf size in
-//! turn, so a shared machine's drift spreads over all methods instead of favouring one. Round 0
+//! Timing is interleaved: each round renders and casts with every method (on every layout) of a
+//! leaf size in turn, so a shared machine's drift spreads over all methods instead of favouring one. Round 0
 //! is the warm-up; the others give median, min and max.
 //!
 //! Outputs ([`write`]): `study.csv`, `study.json`, `study.md` (the paper's table format, the
-//! ray-set table, BVH quality, SPIR-V cost against time and the paper's claims checked) and
-//! PNG plots ([`plots`]).
+//! ray-set table, BVH quality, SPIR-V cost against time, the paper's claims checked per layout
+//! and, with more than one layout, whether the best intersector and leaf size change with it
+//! ([`layouts`])) and PNG plots ([`plots`]).
 
 pub mod claims;
+pub mod layouts;
 pub mod plots;
 pub mod table;
 
@@ -22,14 +24,14 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::bvh::BuildOptions;
-use crate::encoding::{Method, Raycast};
+use crate::encoding::{Layout, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, RaycastOptions, TraversalSummary};
 use crate::harness::bench_render::{bench_settings, check_image_mean, summarise_renders, RenderMeasure};
 use crate::harness::rayset::{RaySet, RaySetSizes};
 use crate::harness::validate::{mrays_summary, validate_hits};
 use crate::named::{named_enum, Named};
-use crate::pipeline::HostScene;
+use crate::pipeline::{HostScene, SceneRequest};
 use crate::render::{render, KernelChoice, RenderTarget};
 use crate::report::Summary;
 use crate::scene::load_obj;
@@ -56,6 +58,8 @@ pub struct StudyOptions {
     pub scenes: Vec<PathBuf>,
     pub leaf_sizes: Vec<u32>,
     pub methods: Vec<Method>,
+    /// BVH node layouts: every method runs on each (default: `bvh2`, the paper's binary tree).
+    pub layouts: Vec<Layout>,
     /// Path tracing.
     pub width: u32,
     pub height: u32,
@@ -89,6 +93,7 @@ impl StudyOptions {
             leaf_sizes: PAPER_LEAF_SIZES.to_vec(),
             // The paper's four; `--methods` adds the others (watertight, Baldwin-Weber, f64).
             methods: Method::paper(),
+            layouts: vec![Layout::Bvh2],
             width: 800,
             height: 600,
             spp: 500,
@@ -130,8 +135,16 @@ impl StudyOptions {
     }
 
     /// Refuses options the study cannot run, before any work: leaf sizes outside 1..=16, a SAH
-    /// grouping other than 1 or 4, scenes that do not exist.
+    /// grouping other than 1 or 4, no layout or one named twice, scenes that do not exist.
     pub fn check(&self) -> Result<()> {
+        if self.layouts.is_empty() {
+            return Err(Error::Usage("--layouts: name at least one layout".into()));
+        }
+        for (i, l) in self.layouts.iter().enumerate() {
+            if self.layouts[..i].contains(l) {
+                return Err(Error::Usage(format!("--layouts: {l} is named twice")));
+            }
+        }
         for &l in &self.leaf_sizes {
             BuildOptions::new(l).check()?;
         }
@@ -195,15 +208,18 @@ pub struct BvhQuality {
     pub build_ms: f64,
 }
 
-/// One cell: scene x leaf size x method.
+/// One cell: scene x leaf size x method x layout.
 #[derive(Clone, Debug, Serialize)]
 pub struct StudyRow {
     pub scene: String,
     pub triangles: usize,
     pub leaf_size: u32,
     pub method: Method,
-    /// Bytes this method's encoding uploads (nodes, triangle data, slot ids).
+    /// The node layout the kernels traversed.
+    pub layout: Layout,
+    /// Bytes this method's encoding uploads (the layout's nodes, triangle data, slot ids).
     pub scene_bytes: usize,
+    /// The binary tree's quality (every layout is made from it).
     pub bvh: BvhQuality,
     /// Path tracing (render seconds = `render.ms / 1000`).
     pub render: RenderMeasure,
@@ -221,6 +237,20 @@ impl StudyRow {
 
     pub fn set(&self, set: RaySet) -> Option<&SetResult> {
         self.sets.iter().find(|s| s.set == set)
+    }
+
+    /// `mt`, or `mt bvh8` on a layout other than the binary one (progress and errors).
+    pub fn label(&self) -> String {
+        label(self.method, self.layout)
+    }
+}
+
+/// `method`, or `method layout` on a layout other than the binary one.
+pub fn label(method: Method, layout: Layout) -> String {
+    if layout == Layout::Bvh2 {
+        method.to_string()
+    } else {
+        format!("{method} {layout}")
     }
 }
 
@@ -293,20 +323,23 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
             };
             let mut cells = vec![];
             for &method in &o.methods {
-                let pixels = settings.pixels();
-                cells.push(Cell {
-                    target: RenderTarget::new(ctx, &host, method.into(), KernelChoice::Specialised, pixels, true)?,
-                    renders: vec![],
-                    set_ms: vec![vec![]; sets.len()],
-                    set_agreement: vec![0.0; sets.len()],
-                    set_traversal: vec![None; sets.len()],
-                });
+                for &layout in &o.layouts {
+                    let pixels = settings.pixels();
+                    let request = SceneRequest::new(method).layout(layout);
+                    cells.push(Cell {
+                        target: RenderTarget::new(ctx, &host, request, KernelChoice::Specialised, pixels, true)?,
+                        renders: vec![],
+                        set_ms: vec![vec![]; sets.len()],
+                        set_agreement: vec![0.0; sets.len()],
+                        set_traversal: vec![None; sets.len()],
+                    });
+                }
             }
             for round in 0..=o.repeat.max(1) {
                 progress(&format!("{name} leaf {leaf}: round {round}/{}", o.repeat.max(1)));
                 for cell in cells.iter_mut() {
                     let scene = &cell.target.device;
-                    let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", scene.method);
+                    let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", label(scene.method, scene.layout));
                     let r = render(ctx, &cell.target, &settings, &mut |_| true)?;
                     for (si, ((set, rays), refs)) in sets.iter().zip(&ref_hits).enumerate() {
                         let res = scene.cast(ctx, Raycast::Closest, rays, &RaycastOptions::default())?;
@@ -335,7 +368,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
             }
             for cell in cells {
                 let scene = &cell.target.device;
-                let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", scene.method);
+                let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", label(scene.method, scene.layout));
                 let m = summarise_renders(&cell.renders).map_err(|e| Error::Usage(what(&e.to_string())))?;
                 check_image_mean(m.image_mean, &mut scene_mean).map_err(|e| Error::Usage(what(&e)))?;
                 let set_results = sets
@@ -355,7 +388,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                     .collect();
                 progress(&format!(
                     "{name} leaf {leaf} {}: render {:.3} s, {:.2} Msamples/s",
-                    scene.method,
+                    label(scene.method, scene.layout),
                     m.ms.median * 1e-3,
                     m.msamples_per_s.median
                 ));
@@ -364,6 +397,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                     triangles: mesh.triangle_count(),
                     leaf_size: leaf,
                     method: scene.method,
+                    layout: scene.layout,
                     scene_bytes: scene.bytes,
                     bvh: quality.clone(),
                     render: m,
@@ -395,6 +429,26 @@ pub fn scenes(report: &StudyReport) -> Vec<String> {
     v
 }
 
+/// The report's layouts, in the order asked (bvh2 alone for a report without any).
+pub fn layouts_of(report: &StudyReport) -> Vec<Layout> {
+    if report.options.layouts.is_empty() {
+        vec![Layout::Bvh2]
+    } else {
+        report.options.layouts.clone()
+    }
+}
+
+/// Whether the report has a layout other than the paper's binary tree: then its tables and
+/// plots name the layout of every figure.
+pub fn names_layouts(report: &StudyReport) -> bool {
+    layouts_of(report) != [Layout::Bvh2]
+}
+
+/// The cell (scene, leaf size, method, layout), if measured.
+pub fn cell<'a>(report: &'a StudyReport, scene: &str, leaf: u32, m: Method, l: Layout) -> Option<&'a StudyRow> {
+    report.rows.iter().find(|r| r.scene == scene && r.leaf_size == leaf && r.method == m && r.layout == l)
+}
+
 /// SPIR-V instruction counts of the embedded kernel variant `kernel`.
 pub fn counts(kernel: &str) -> crate::spirv::InstructionCounts {
     let k = crate::kernels::KERNELS.iter().find(|k| k.name == kernel).expect("the study's kernels are embedded");
@@ -422,6 +476,94 @@ pub fn write(report: &StudyReport, dir: &Path) -> Result<Vec<PathBuf>> {
 impl crate::report::Report for StudyReport {
     /// The paper's table on this device and the paper's claims, checked.
     fn to_text(&self) -> String {
-        format!("{}\n{}", table::paper_table(self).to_text(), claims::markdown(self))
+        let mut s = String::new();
+        for l in layouts_of(self) {
+            if names_layouts(self) {
+                s += &format!("{} ({l}):\n", l.title());
+            }
+            s += &table::paper_table(self, l).to_text();
+            s.push('\n');
+        }
+        s += &claims::markdown(self);
+        if names_layouts(self) {
+            s.push('\n');
+            s += &layouts::markdown(self);
+        }
+        s
+    }
+}
+
+/// Synthetic reports for the unit tests of the claims, tables and the layout question.
+#[cfg(test)]
+pub(crate) mod testing {
+    use super::*;
+    use crate::harness::bench_render::RenderMeasure;
+
+    fn s(median: f64, spread: f64) -> Summary {
+        Summary { median, min: median - spread, max: median + spread, runs: 3 }
+    }
+
+    /// A report of three timed rounds over the smoke preset's leaf sizes and methods on `layouts`,
+    /// with render times (seconds) `t(scene, leaf, method, layout)` and +-`spread`.
+    pub(crate) fn synthetic(
+        scenes: &[&str],
+        layouts: &[Layout],
+        t: impl Fn(&str, u32, Method, Layout) -> f64,
+        spread: f64,
+    ) -> StudyReport {
+        let mut o = StudyOptions::preset(Preset::Smoke);
+        o.layouts = layouts.to_vec();
+        o.repeat = 3;
+        let prov = Provenance {
+            device: "test".into(),
+            driver: "test".into(),
+            mesa_version: None,
+            commit: "x".into(),
+            date: "d".into(),
+            host_cpus: 1,
+            lp_num_threads: None,
+            timed_on_gpu: true,
+            scenes: vec![],
+        };
+        let mut rows = vec![];
+        for sc in scenes {
+            for &leaf in &o.leaf_sizes {
+                for &m in &o.methods {
+                    for &l in layouts {
+                        let ms = s(t(sc, leaf, m, l) * 1e3, spread * 1e3);
+                        rows.push(StudyRow {
+                            scene: sc.to_string(),
+                            triangles: 1,
+                            leaf_size: leaf,
+                            method: m,
+                            layout: l,
+                            scene_bytes: 1,
+                            bvh: BvhQuality {
+                                nodes: 1,
+                                leaves: 1,
+                                depth: 0,
+                                sah_cost: 1.0,
+                                epo: 0.0,
+                                quad_padding: 0,
+                                build_ms: 0.0,
+                            },
+                            render: RenderMeasure {
+                                msamples_per_s: ms,
+                                mrays_per_s: ms,
+                                ms,
+                                rays_per_sample: 1.0,
+                                image_mean: 1.0,
+                            },
+                            render_kernel: "pathtrace.mt.lambert",
+                            raycast_kernel: "raycast.mt.closest",
+                            sets: vec![],
+                            provenance: prov.clone(),
+                        });
+                    }
+                }
+            }
+        }
+        o.scenes = vec![];
+        StudyReport { options: o, scaling: String::new(), provenance: prov, rows, seconds: 0.0 }
     }
 }

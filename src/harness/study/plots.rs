@@ -1,6 +1,7 @@
 //! The study's plots (plotters, drawn into memory and written as PNG atomically):
 //! render time against leaf size per method and scene, Mrays/s per method and ray set, and
-//! SPIR-V instruction counts against time. The font is bundled (assets/fonts, DejaVu Sans,
+//! SPIR-V instruction counts against time. With layouts other than bvh2 (`--layouts`) every plot
+//! has one panel per scene and layout (a scene's panels share their y axis). The font is bundled (assets/fonts, DejaVu Sans,
 //! Bitstream Vera licence) so plots look the same on every machine.
 
 use std::path::Path;
@@ -8,8 +9,8 @@ use std::path::Path;
 use plotters::coord::ranged1d::SegmentValue;
 use plotters::prelude::*;
 
-use super::{counts, scenes, StudyReport, StudyRow};
-use crate::encoding::Method;
+use super::{counts, layouts_of, names_layouts, scenes, StudyReport, StudyRow};
+use crate::encoding::{Layout, Method};
 use crate::error::Result;
 pub use crate::harness::plots::Plot;
 use crate::harness::plots::{
@@ -21,18 +22,34 @@ fn rows_of<'a>(report: &'a StudyReport, scene: &'a str) -> impl Iterator<Item = 
     report.rows.iter().filter(move |r| r.scene == scene)
 }
 
-/// Render time against leaf size, one panel per scene, one line per method (min-max bars).
+/// The panels: (scene, layout), scene by scene.
+fn panels(report: &StudyReport) -> Vec<(String, Layout)> {
+    let ls = layouts_of(report);
+    scenes(report).into_iter().flat_map(|s| ls.iter().map(move |&l| (s.clone(), l))).collect()
+}
+
+/// A panel's caption: `scene: what`, naming the layout when the report names layouts.
+fn caption(report: &StudyReport, scene: &str, layout: Layout, what: &str) -> String {
+    if names_layouts(report) {
+        format!("{scene}, {}: {what}", layout.title())
+    } else {
+        format!("{scene}: {what}")
+    }
+}
+
+/// Render time against leaf size, one panel per scene (and layout), one line per method
+/// (min-max bars).
 fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
-    let scenes = scenes(report);
+    let panels = panels(report);
     let leaves = report.options.leaf_sizes.clone();
     let what = "time against leaf size";
     let legend: Vec<_> =
         report.options.methods.iter().map(|&m| LegendEntry::new(m.to_string(), colour(m), Marker::Line)).collect();
-    render_png(path, scenes.len(), what, &legend, |area, i| {
-        let scene = &scenes[i];
+    render_png(path, panels.len(), what, &legend, |area, i| {
+        let (scene, layout) = (&panels[i].0, panels[i].1);
         let ymax = rows_of(report, scene).map(|r| r.render_seconds().max).fold(0.0, f64::max) * 1.1;
         let mut chart = ChartBuilder::on(area)
-            .caption(format!("{scene}: path-trace time"), ("sans-serif", 20))
+            .caption(caption(report, scene, layout, "path-trace time"), ("sans-serif", 20))
             .margin(12)
             .x_label_area_size(X_LABEL_AREA)
             .y_label_area_size(Y_LABEL_AREA)
@@ -56,7 +73,7 @@ fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
                 .iter()
                 .enumerate()
                 .filter_map(|(i, &l)| {
-                    let r = rows_of(report, scene).find(|r| r.leaf_size == l && r.method == m)?;
+                    let r = rows_of(report, scene).find(|r| r.leaf_size == l && r.method == m && r.layout == layout)?;
                     let s = r.render_seconds();
                     Some((i as u32, s.median, s.min, s.max))
                 })
@@ -77,9 +94,9 @@ fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
 }
 
 /// Mrays/s per method and ray set at one leaf size (4 when the study has it), one panel per
-/// scene.
+/// scene (and layout).
 fn mrays_per_set(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
-    let scenes = scenes(report);
+    let panels = panels(report);
     let sets = ["primary", "diffuse", "random", "path trace"];
     let ray_sets = [RaySet::Primary, RaySet::Diffuse, RaySet::Random];
     let methods = report.options.methods.clone();
@@ -92,12 +109,13 @@ fn mrays_per_set(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
         }
     };
     let legend: Vec<_> = methods.iter().map(|&m| LegendEntry::new(m.to_string(), colour(m), Marker::Bar)).collect();
-    render_png(path, scenes.len(), what, &legend, |area, i| {
-        let scene = &scenes[i];
-        let rows: Vec<&StudyRow> = rows_of(report, scene).filter(|r| r.leaf_size == leaf).collect();
-        let ymax = rows.iter().flat_map(|r| (0..sets.len()).filter_map(|s| value(r, s))).fold(0.0, f64::max) * 1.15;
+    render_png(path, panels.len(), what, &legend, |area, i| {
+        let (scene, layout) = (&panels[i].0, panels[i].1);
+        let at_leaf: Vec<&StudyRow> = rows_of(report, scene).filter(|r| r.leaf_size == leaf).collect();
+        let ymax = at_leaf.iter().flat_map(|r| (0..sets.len()).filter_map(|s| value(r, s))).fold(0.0, f64::max) * 1.15;
+        let rows: Vec<&StudyRow> = at_leaf.into_iter().filter(|r| r.layout == layout).collect();
         let mut chart = ChartBuilder::on(area)
-            .caption(format!("{scene}: Mrays/s, leaf {leaf}"), ("sans-serif", 20))
+            .caption(caption(report, scene, layout, &format!("Mrays/s, leaf {leaf}")), ("sans-serif", 20))
             .margin(12)
             .x_label_area_size(X_LABEL_AREA)
             .y_label_area_size(Y_LABEL_AREA)
@@ -137,21 +155,29 @@ fn mrays_per_set(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
 }
 
 /// SPIR-V function-body instructions of each method's kernels against time relative to the
-/// scene's Möller-Trumbore time, at one leaf size: path tracer (left), primary ray cast (right).
+/// scene's Möller-Trumbore time (on the same layout), at one leaf size: path tracer (left),
+/// primary ray cast (right); a pair of panels per layout.
 fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
     let scenes = scenes(report);
     let what = "instructions against time";
     let panels = ["path tracer: render time / MT", "ray cast, primary rays: time / MT"];
+    let ls = layouts_of(report);
     let legend: Vec<_> = scenes
         .iter()
         .enumerate()
         .map(|(i, s)| LegendEntry::new(s.clone(), SCENE_COLOURS[i % SCENE_COLOURS.len()], Marker::Dot))
         .collect();
-    render_png(path, panels.len(), what, &legend, |area, p| {
+    render_png(path, panels.len() * ls.len(), what, &legend, |area, panel| {
+        let (layout, p) = (ls[panel / panels.len()], panel % panels.len());
         // (scene index, method, instructions, relative time)
         let mut pts: Vec<(usize, Method, f64, f64)> = vec![];
         for (si, scene) in scenes.iter().enumerate() {
-            let at = |m: Method| report.rows.iter().find(|r| &r.scene == scene && r.leaf_size == leaf && r.method == m);
+            let at = |m: Method| {
+                report
+                    .rows
+                    .iter()
+                    .find(|r| &r.scene == scene && r.leaf_size == leaf && r.method == m && r.layout == layout)
+            };
             let Some(mt) = at(Method::Mt) else { continue };
             for &m in &report.options.methods {
                 let Some(r) = at(m) else { continue };
@@ -170,7 +196,14 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
         let xr = if pts.is_empty() { 0.0..1.0 } else { (xmin - xpad)..(xmax + xpad) };
         let yr = if pts.is_empty() { 0.0..1.0 } else { (ymin - ypad)..(ymax + ypad) };
         let mut chart = ChartBuilder::on(area)
-            .caption(format!("{}, leaf {leaf}", panels[p]), ("sans-serif", 18))
+            .caption(
+                if names_layouts(report) {
+                    format!("{}, {}, leaf {leaf}", layout.title(), panels[p])
+                } else {
+                    format!("{}, leaf {leaf}", panels[p])
+                },
+                ("sans-serif", 18),
+            )
             .margin(12)
             .x_label_area_size(X_LABEL_AREA)
             .y_label_area_size(Y_LABEL_AREA)

@@ -1,11 +1,12 @@
-//! The study's tables: CSV (one row per scene x leaf size x method, every figure with its
-//! min/max and the row's provenance) and Markdown in the paper's table format.
+//! The study's tables: CSV (one row per scene x leaf size x method x layout, every figure with
+//! its min/max and the row's provenance) and Markdown in the paper's table format (one table per
+//! layout). With layouts other than bvh2 every other table gains a layout column.
 
 use std::fmt::Write as _;
 
 use super::claims;
-use super::{counts, scenes, StudyReport, StudyRow};
-use crate::encoding::Method;
+use super::{cell, counts, layouts_of, names_layouts, scenes, StudyReport, StudyRow};
+use crate::encoding::{Layout, Method};
 use crate::error::{Error, Result};
 use crate::harness::plots::Plot;
 use crate::report::Table;
@@ -23,6 +24,7 @@ pub fn csv(report: &StudyReport) -> Result<String> {
         "triangles",
         "leaf_size",
         "method",
+        "layout",
         "scene_mb",
         "bvh_nodes",
         "sah_cost",
@@ -51,6 +53,7 @@ pub fn csv(report: &StudyReport) -> Result<String> {
             "triangles_mean",
             "triangles_max",
             "slots_mean",
+            "boxes_mean",
         ] {
             header.push(format!("{s}_{f}"));
         }
@@ -68,6 +71,7 @@ pub fn csv(report: &StudyReport) -> Result<String> {
             r.triangles.to_string(),
             r.leaf_size.to_string(),
             r.method.to_string(),
+            r.layout.to_string(),
             format!("{:.3}", r.scene_bytes as f64 / 1e6),
             r.bvh.nodes.to_string(),
             format!("{:.3}", r.bvh.sah_cost),
@@ -95,8 +99,9 @@ pub fn csv(report: &StudyReport) -> Result<String> {
                     format!("{:.3}", x.traversal.triangles.mean),
                     x.traversal.triangles.max.to_string(),
                     format!("{:.3}", x.traversal.slots.mean),
+                    format!("{:.3}", x.traversal.boxes.mean),
                 ]),
-                None => rec.extend(std::iter::repeat_n(String::new(), 10)),
+                None => rec.extend(std::iter::repeat_n(String::new(), 11)),
             }
         }
         let p = &r.provenance;
@@ -133,20 +138,15 @@ fn thousands(n: usize) -> String {
     out
 }
 
-/// Rows of the report for (scene, leaf), in method order.
-fn cell<'a>(report: &'a StudyReport, scene: &str, leaf: u32, method: Method) -> Option<&'a StudyRow> {
-    report.rows.iter().find(|r| r.scene == scene && r.leaf_size == leaf && r.method == method)
-}
-
-/// The paper's table: scene, triangles per leaf, GPU scene size, seconds per method.
-pub fn paper_table(report: &StudyReport) -> Table {
+/// The paper's table on `layout`: scene, triangles per leaf, GPU scene size, seconds per method.
+pub fn paper_table(report: &StudyReport, layout: Layout) -> Table {
     let methods = &report.options.methods;
     let mut headers = vec!["Scene".to_owned(), "# Triangles per BVH leaf".into(), "GPU scene size, MB".into()];
     headers.extend(methods.iter().map(|m| format!("{}, s (min-max)", m.title())));
     let mut t = Table::new(headers);
     for scene in scenes(report) {
         for (i, &leaf) in report.options.leaf_sizes.iter().enumerate() {
-            let rows: Vec<Option<&StudyRow>> = methods.iter().map(|&m| cell(report, &scene, leaf, m)).collect();
+            let rows: Vec<Option<&StudyRow>> = methods.iter().map(|&m| cell(report, &scene, leaf, m, layout)).collect();
             let Some(first) = rows.iter().flatten().next() else { continue };
             let label = if i == 0 {
                 format!("{}, {} triangles", title(&scene), thousands(first.triangles))
@@ -185,21 +185,26 @@ fn sig(x: f64) -> String {
 
 /// Mrays/s per ray set and for the path tracer's own rays.
 pub fn rays_table(report: &StudyReport) -> Table {
-    let mut t = Table::new([
-        "scene",
-        "leaf",
-        "method",
-        "primary Mrays/s",
-        "diffuse Mrays/s",
-        "random Mrays/s",
-        "path-trace Mrays/s",
-        "Msamples/s",
-        "agree % (p/d/r)",
-    ]);
+    let mut t = Table::new(with_layout(
+        report,
+        3,
+        [
+            "scene",
+            "leaf",
+            "method",
+            "primary Mrays/s",
+            "diffuse Mrays/s",
+            "random Mrays/s",
+            "path-trace Mrays/s",
+            "Msamples/s",
+            "agree % (p/d/r)",
+        ],
+        None,
+    ));
     for scene in scenes(report) {
         for &leaf in &report.options.leaf_sizes {
-            for &m in &report.options.methods {
-                let Some(r) = cell(report, &scene, leaf, m) else { continue };
+            for (m, l) in cells(report) {
+                let Some(r) = cell(report, &scene, leaf, m, l) else { continue };
                 let set = |s: RaySet| {
                     r.set(s)
                         .map(|x| {
@@ -211,17 +216,22 @@ pub fn rays_table(report: &StudyReport) -> Table {
                     .iter()
                     .map(|&s| r.set(s).map(|x| format!("{:.3}", 100.0 * x.agreement)).unwrap_or("-".into()))
                     .collect();
-                t.row([
-                    scene.clone(),
-                    leaf.to_string(),
-                    m.to_string(),
-                    set(RaySet::Primary),
-                    set(RaySet::Diffuse),
-                    set(RaySet::Random),
-                    format!("{:.2}", r.render.mrays_per_s.median),
-                    format!("{:.3}", r.render.msamples_per_s.median),
-                    agree.join(" / "),
-                ]);
+                t.row(with_layout(
+                    report,
+                    3,
+                    [
+                        scene.clone(),
+                        leaf.to_string(),
+                        m.to_string(),
+                        set(RaySet::Primary),
+                        set(RaySet::Diffuse),
+                        set(RaySet::Random),
+                        format!("{:.2}", r.render.mrays_per_s.median),
+                        format!("{:.3}", r.render.msamples_per_s.median),
+                        agree.join(" / "),
+                    ],
+                    Some(l),
+                ));
             }
         }
     }
@@ -253,31 +263,48 @@ pub fn bvh_table(report: &StudyReport) -> Table {
 }
 
 /// Traversal work per ray from the statistics kernels: nodes visited and triangles tested
-/// (mean, max) per ray set; the same for every method on one BVH, except the slots a Quad
-/// kernel evaluates (padding included), given for the Quad methods.
+/// (mean, max) per ray set; the same for every method on one BVH and layout, except the slots a
+/// Quad kernel evaluates (padding included), given for the Quad methods. With layouts other than
+/// bvh2, one row per layout and the boxes slab-tested per ray beside them.
 pub fn traversal_table(report: &StudyReport) -> Table {
-    let mut t = Table::new(["scene", "leaf", "set", "nodes mean (max)", "triangles mean (max)", "Quad slots mean"]);
+    let named = names_layouts(report);
+    let mut head: Vec<String> = ["scene", "leaf", "set", "nodes mean (max)", "triangles mean (max)", "Quad slots mean"]
+        .map(String::from)
+        .to_vec();
+    if named {
+        head.insert(2, "layout".into());
+        head.push("boxes mean".into());
+    }
+    let mut t = Table::new(head);
     for scene in scenes(report) {
         for &leaf in &report.options.leaf_sizes {
-            let rows: Vec<&StudyRow> = report.rows.iter().filter(|r| r.scene == scene && r.leaf_size == leaf).collect();
-            let Some(first) = rows.first() else { continue };
-            for &set in SETS {
-                let Some(x) = first.set(set) else { continue };
-                let quad = rows
-                    .iter()
-                    .find(|r| r.method.group_size() > 1)
-                    .and_then(|r| r.set(set))
-                    .map(|q| format!("{:.1}", q.traversal.slots.mean))
-                    .unwrap_or_else(|| "-".into());
-                let tr = &x.traversal;
-                t.row([
-                    scene.clone(),
-                    leaf.to_string(),
-                    set.to_string(),
-                    format!("{:.1} ({})", tr.nodes.mean, tr.nodes.max),
-                    format!("{:.1} ({})", tr.triangles.mean, tr.triangles.max),
-                    quad,
-                ]);
+            for l in layouts_of(report) {
+                let rows: Vec<&StudyRow> =
+                    report.rows.iter().filter(|r| r.scene == scene && r.leaf_size == leaf && r.layout == l).collect();
+                let Some(first) = rows.first() else { continue };
+                for &set in SETS {
+                    let Some(x) = first.set(set) else { continue };
+                    let quad = rows
+                        .iter()
+                        .find(|r| r.method.group_size() > 1)
+                        .and_then(|r| r.set(set))
+                        .map(|q| format!("{:.1}", q.traversal.slots.mean))
+                        .unwrap_or_else(|| "-".into());
+                    let tr = &x.traversal;
+                    let mut cells = vec![
+                        scene.clone(),
+                        leaf.to_string(),
+                        set.to_string(),
+                        format!("{:.1} ({})", tr.nodes.mean, tr.nodes.max),
+                        format!("{:.1} ({})", tr.triangles.mean, tr.triangles.max),
+                        quad,
+                    ];
+                    if named {
+                        cells.insert(2, l.to_string());
+                        cells.push(format!("{:.1}", tr.boxes.mean));
+                    }
+                    t.row(cells);
+                }
             }
         }
     }
@@ -285,7 +312,8 @@ pub fn traversal_table(report: &StudyReport) -> Table {
 }
 
 /// SPIR-V instruction counts of the kernels the study ran, beside their measured time at each
-/// leaf size (geometric mean over scenes of time relative to Möller-Trumbore's).
+/// leaf size (geometric mean over scenes of time relative to Möller-Trumbore's on the same
+/// layout).
 pub fn spirv_table(report: &StudyReport) -> Table {
     let mut headers: Vec<String> = [
         "method",
@@ -301,9 +329,9 @@ pub fn spirv_table(report: &StudyReport) -> Table {
     .map(String::from)
     .to_vec();
     headers.extend(report.options.leaf_sizes.iter().map(|l| format!("time / MT, leaf {l}")));
-    let mut t = Table::new(headers);
-    for &m in &report.options.methods {
-        let Some(r) = report.rows.iter().find(|r| r.method == m) else { continue };
+    let mut t = Table::new(with_layout(report, 1, headers, None));
+    for (m, l) in cells(report) {
+        let Some(r) = report.rows.iter().find(|r| r.method == m && r.layout == l) else { continue };
         let pc = counts(r.render_kernel);
         let rc = counts(r.raycast_kernel);
         let mut cells = vec![
@@ -319,10 +347,10 @@ pub fn spirv_table(report: &StudyReport) -> Table {
         ];
         for &leaf in &report.options.leaf_sizes {
             cells.push(
-                claims::relative_time(report, m, Method::Mt, leaf).map(|x| format!("{x:.3}")).unwrap_or("-".into()),
+                claims::relative_time(report, m, Method::Mt, leaf, l).map(|x| format!("{x:.3}")).unwrap_or("-".into()),
             );
         }
-        t.row(cells);
+        t.row(with_layout(report, 1, cells, Some(l)));
     }
     t
 }
@@ -354,7 +382,15 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
     );
     let _ = writeln!(s, "## Path tracing, the paper's table format\n");
     let _ = writeln!(s, "GPU scene size lists each method's encoding ({}).\n", method_list(report));
-    s += &paper_table(report).to_markdown();
+    if names_layouts(report) {
+        for l in layouts_of(report) {
+            let _ = writeln!(s, "### {} (`{l}`): {}\n", l.title(), l.spec().about);
+            s += &paper_table(report, l).to_markdown();
+            s.push('\n');
+        }
+    } else {
+        s += &paper_table(report, Layout::Bvh2).to_markdown();
+    }
     let _ = writeln!(s, "\n## Ray sets: Mrays/s, median (min-max)\n");
     s += &rays_table(report).to_markdown();
     let _ = writeln!(s, "\n## BVH quality\n");
@@ -376,6 +412,10 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
     s += &spirv_table(report).to_markdown();
     let _ = writeln!(s, "\n## The paper's claims on this device\n");
     s += &claims::markdown(report);
+    if names_layouts(report) {
+        let _ = writeln!(s, "\n## Does the best intersector, and the best leaf size, change with the layout?\n");
+        s += &super::layouts::markdown(report);
+    }
     if !plots.is_empty() {
         let _ = writeln!(s, "\n## Plots\n");
         for pl in plots {
@@ -386,6 +426,82 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
     s
 }
 
+/// (method, layout) of every cell of a (scene, leaf size), in the order run.
+fn cells(report: &StudyReport) -> Vec<(Method, Layout)> {
+    let ls = layouts_of(report);
+    report.options.methods.iter().flat_map(|&m| ls.iter().map(move |&l| (m, l))).collect()
+}
+
+/// `cells` with `layout`'s name inserted at `at` when the report names layouts (a header row
+/// gets "layout").
+fn with_layout<S: Into<String>>(
+    report: &StudyReport,
+    at: usize,
+    cells: impl IntoIterator<Item = S>,
+    layout: Option<Layout>,
+) -> Vec<String> {
+    let mut v: Vec<String> = cells.into_iter().map(Into::into).collect();
+    if names_layouts(report) {
+        v.insert(at, layout.map_or_else(|| "layout".to_owned(), |l| l.to_string()));
+    }
+    v
+}
+
 fn method_list(report: &StudyReport) -> String {
     report.options.methods.iter().map(|m| m.to_string()).collect::<Vec<_>>().join(" / ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::study::testing::synthetic;
+
+    /// Layout-dependent times: bvh8 half of bvh2's, so a table that mixed them up shows it.
+    fn t(_: &str, leaf: u32, m: Method, l: Layout) -> f64 {
+        let base = 1.0 + 0.01 * leaf as f64 + if m == Method::Unit { 0.5 } else { 0.0 };
+        if l == Layout::Bvh8 {
+            base / 2.0
+        } else {
+            base
+        }
+    }
+
+    #[test]
+    fn one_paper_table_per_layout_each_with_its_own_times() {
+        let r = synthetic(&["bunny"], &[Layout::Bvh2, Layout::Bvh8], t, 0.0);
+        let cell = |l: Layout| paper_table(&r, l).to_markdown();
+        // Leaf 4, MT: 1.04 s on bvh2, 0.52 s on bvh8.
+        assert!(
+            cell(Layout::Bvh2).contains("| 4 | 0.00 / 0.00 / 0.00 / 0.00 | 1.040 (1.040-1.040) |"),
+            "{}",
+            cell(Layout::Bvh2)
+        );
+        assert!(
+            cell(Layout::Bvh8).contains("| 4 | 0.00 / 0.00 / 0.00 / 0.00 | 0.520 (0.520-0.520) |"),
+            "{}",
+            cell(Layout::Bvh8)
+        );
+        let md = markdown(&r, &[]);
+        for needle in [
+            "### BVH2 (`bvh2`)",
+            "### BVH8 (`bvh8`)",
+            "## Does the best intersector, and the best leaf size, change with the layout?",
+            "| scene | leaf | method | layout | primary Mrays/s",
+        ] {
+            assert!(md.contains(needle), "study.md lacks `{needle}`:\n{md}");
+        }
+        // CSV: one row per cell, each naming its layout.
+        let csv = csv(&r).unwrap();
+        let layouts: Vec<&str> = csv.lines().skip(1).map(|l| l.split(',').nth(4).unwrap()).collect();
+        assert_eq!(layouts.len(), 6 * 4 * 2);
+        assert_eq!(layouts.iter().filter(|l| **l == "bvh8").count(), 6 * 4);
+    }
+
+    #[test]
+    fn a_bvh2_study_names_no_layout_in_its_tables() {
+        let r = synthetic(&["bunny"], &[Layout::Bvh2], t, 0.0);
+        let md = markdown(&r, &[]);
+        assert!(!md.contains("### BVH2") && !md.contains("change with the layout"), "{md}");
+        assert!(md.contains("| scene | leaf | method | primary Mrays/s"), "{md}");
+    }
 }
