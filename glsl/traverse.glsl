@@ -175,6 +175,21 @@ uint pack_node(BvhNode n) {
     return (n.left_or_first << 5u) | n.count;
 }
 
+// Every stack loop's pop (trace() below, glsl/layout/bvh4.glsl, bvh8.glsl): the nearest pushed
+// entry whose box entry distance (stack_t) is not beyond the closest hit so far becomes
+// `current`, the others are dropped unvisited; with none left, trace() returns.
+#define POP_NEAREST_OR_RETURN()                                                                \
+    while (true) {                                                                             \
+        if (sp == 0u) {                                                                        \
+            return;                                                                            \
+        }                                                                                      \
+        sp -= 1u;                                                                              \
+        if (stack_t[sp] <= h.t) {                                                              \
+            current = stack[sp];                                                               \
+            break;                                                                             \
+        }                                                                                      \
+    }
+
 #if PRIM_TRIANGLES == 1
 // The leaf loop: tests the leaf's `count` triangle slots from `first` in order; a hit at
 // tmin <= t <= h.t becomes the closest so far (so of two hits at the same t the later slot is
@@ -292,17 +307,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
             }
         }
         if (pop) {
-            // The nearest pushed node whose box entry is not beyond the closest hit so far.
-            while (true) {
-                if (sp == 0u) {
-                    return;
-                }
-                sp -= 1u;
-                if (stack_t[sp] <= h.t) {
-                    current = stack[sp];
-                    break;
-                }
-            }
+            POP_NEAREST_OR_RETURN();
         }
     }
 }

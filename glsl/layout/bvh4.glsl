@@ -141,17 +141,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
                 continue;
             }
         }
-        // Pop the nearest entry that may still hold a closer hit.
-        while (true) {
-            if (sp == 0u) {
-                return;
-            }
-            sp -= 1u;
-            if (stack_t[sp] <= h.t) {
-                current = stack[sp];
-                break;
-            }
-        }
+        POP_NEAREST_OR_RETURN();
     }
 }
 
