@@ -234,10 +234,8 @@ fn parse_variants(path: &Path, source: &str) -> Vec<Variant> {
 /// `glsl/layout/` as `<variant>_<layout>`, with `WIDE_LAYOUT` and `LAYOUT_<LAYOUT>` defined and
 /// `#include "layout.glsl"` resolving to `layout/<layout>.glsl`.
 fn with_layouts(path: &Path, source: &str, mut variants: Vec<Variant>, layouts: &[String]) -> Vec<Variant> {
-    let Some(line) = source
-        .lines()
-        .filter(|l| l.trim() != LAYOUTS_ONLY)
-        .find_map(|l| l.trim().strip_prefix("// trilab:layouts"))
+    let Some(line) =
+        source.lines().filter(|l| l.trim() != LAYOUTS_ONLY).find_map(|l| l.trim().strip_prefix("// trilab:layouts"))
     else {
         return variants;
     };
