@@ -11,8 +11,7 @@
 //!   only) names variants compiled once more per layout, as
 //!   `<variant>_<name>` with `WIDE_LAYOUT` and `LAYOUT_<NAME>` defined; `#include "layout.glsl"`
 //!   resolves to the layout's file. The registry records each module's layout (`bvh2` for the
-//!   binary nodes). A line `// trilab:layouts-only` drops the binary variants (the kernel is
-//!   compiled for the listed layouts only). Modules compile on every core, each thread with its own compiler.
+//!   binary nodes). Modules compile on every core, each thread with its own compiler.
 //! - A kernel whose first lines say `// trilab:intersector none` uses no intersector (the BSDF
 //!   probe, say): it is compiled once per variant, with method `none`.
 //! - `shared.glsl` holds the constants shared with Rust: every `#define NAME <integer>` becomes
@@ -234,9 +233,7 @@ fn parse_variants(path: &Path, source: &str) -> Vec<Variant> {
 /// `glsl/layout/` as `<variant>_<layout>`, with `WIDE_LAYOUT` and `LAYOUT_<LAYOUT>` defined and
 /// `#include "layout.glsl"` resolving to `layout/<layout>.glsl`.
 fn with_layouts(path: &Path, source: &str, mut variants: Vec<Variant>, layouts: &[String]) -> Vec<Variant> {
-    let Some(line) =
-        source.lines().filter(|l| l.trim() != LAYOUTS_ONLY).find_map(|l| l.trim().strip_prefix("// trilab:layouts"))
-    else {
+    let Some(line) = source.lines().find_map(|l| l.trim().strip_prefix("// trilab:layouts")) else {
         return variants;
     };
     // `// trilab:layouts(bvh4,bvh8) closest ...`: only those layouts (a kernel that reads their
@@ -274,18 +271,9 @@ fn with_layouts(path: &Path, source: &str, mut variants: Vec<Variant>, layouts: 
             extra.push(Variant { name: format!("{name}_{layout}"), macros, layout: Some(layout.clone()) });
         }
     }
-    // `// trilab:layouts-only`: the per-layout variants only (a kernel that reads no binary nodes,
-    // like raycast_persistent.comp).
-    if source.lines().any(|l| l.trim() == LAYOUTS_ONLY) {
-        return extra;
-    }
     variants.extend(extra);
     variants
 }
-
-/// The line that drops a kernel's binary variants, keeping those its `// trilab:layouts` line
-/// compiles per layout.
-const LAYOUTS_ONLY: &str = "// trilab:layouts-only";
 
 fn compile(
     compiler: &shaderc::Compiler,

@@ -1,7 +1,6 @@
 #version 460
 // trilab:variants closest
 // trilab:layouts(bvh4) closest
-// trilab:layouts-only
 // Persistent threads with dynamic ray fetch (`--traversal persistent`): Aila & Laine,
 // "Understanding the Efficiency of Ray Traversal on GPUs", HPG 2009, sec. 4 ("persistent
 // threads", "dynamic fetch"). The host launches a fixed number of workgroups
@@ -12,10 +11,12 @@
 // for the rest of its subgroup. Where the paper fetches a batch for the whole warp when most of
 // its lanes are idle, each lane fetches its own ray here (one atomic per ray).
 //
-// The traversal is glsl/layout/bvh4.glsl's trace() step for step (its node tests, sorting
-// network, push order and the skip of popped entries beyond the closest hit), so the hits equal
-// the per-ray bvh4 kernel's ray for ray; only the loop around it differs. bvh4 only (the
-// `trilab:layouts-only` line: no binary variant), closest hit only, texel path.
+// The traversal is the per-ray kernels' step for step, so the hits equal theirs ray for ray; only
+// the loop around it differs: `closest` walks the binary nodes as traverse.glsl's trace() does
+// (the root box tested when a ray starts: a ray that misses it is written at once and the next
+// one fetched), `closest_bvh4` the bvh4 nodes as glsl/layout/bvh4.glsl's trace() does (its node
+// tests, sorting network, push order, the skip of popped entries beyond the closest hit).
+// Closest hit only, texel path.
 #extension GL_GOOGLE_include_directive : require
 
 #include "types.glsl"
@@ -31,8 +32,8 @@ layout(push_constant) uniform Push {
 #include "intersector.glsl"
 #include "traverse.glsl"
 
-#ifndef LAYOUT_BVH4
-#error "raycast_persistent.comp reads the bvh4 nodes only (its `// trilab:layouts(bvh4)` line)"
+#if defined(WIDE_LAYOUT) && !defined(LAYOUT_BVH4)
+#error "raycast_persistent.comp reads the binary and bvh4 nodes only (its `// trilab:layouts(bvh4)` line)"
 #endif
 
 layout(local_size_x_id = SPEC_ID_WORKGROUP_SIZE, local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
@@ -53,6 +54,94 @@ void write_hit(uint i, HitState h) {
     hits[i] = o;
 }
 
+#ifndef WIDE_LAYOUT
+// Binary nodes: traverse.glsl's trace(), with the fetch at the top of the loop (a ray whose root
+// box is missed needs no step).
+void main() {
+    BvhNode root = load_node(0u);
+    uint ray_id = 0u;
+    Ray ray;
+    TraceRay r;
+    HitState h;
+#ifdef CONSERVATIVE_TRAVERSAL
+    ConservativeRay cons;
+#endif
+    uint stack[STACK_SIZE];
+    float stack_t[STACK_SIZE];
+    uint sp = 0u;
+    uint current = 0u;
+    bool fetch = true;
+    while (true) {
+        if (fetch) {
+            ray_id = atomicAdd(next_ray, 1u);
+            if (ray_id >= pc.ray_count) {
+                return;
+            }
+            ray = rays[ray_id];
+            r = make_trace_ray(ray);
+            h.t = ray.tmax;
+            h.slot = MISS_ID;
+            h.u = 0.0;
+            h.v = 0.0;
+#ifdef INTERSECTOR_RAY_SETUP
+            INTERSECTOR_RAY_SETUP(r, h);
+#endif
+#ifdef CONSERVATIVE_TRAVERSAL
+            cons = make_conservative_ray(r, root.bmin, root.bmax);
+#endif
+            float troot;
+            if (!HIT_BOX(root.bmin, root.bmax, h.t, troot)) {
+                write_hit(ray_id, h);
+                continue;
+            }
+            current = pack_node(root);
+            sp = 0u;
+            fetch = false;
+        }
+        uint count = current & 31u;
+        uint first = current >> 5u;
+        bool pop = true;
+        if (count > 0u) {
+            intersect_leaf(r, first, count, h, false);
+        } else {
+            BvhNode l = load_node(first);
+            BvhNode rr = load_node(first + 1u);
+            float tl, tr;
+            bool want_l = HIT_BOX(l.bmin, l.bmax, h.t, tl);
+            bool want_r = HIT_BOX(rr.bmin, rr.bmax, h.t, tr);
+            if (want_l && want_r) {
+                bool left_first = tl <= tr;
+                stack[sp] = pack_node(left_first ? rr : l);
+                stack_t[sp] = left_first ? tr : tl;
+                sp += 1u;
+                current = pack_node(left_first ? l : rr);
+                pop = false;
+            } else if (want_l || want_r) {
+                current = pack_node(want_l ? l : rr);
+                pop = false;
+            }
+        }
+        if (!pop) {
+            continue;
+        }
+        // The nearest pushed node whose box entry is not beyond the closest hit so far.
+        fetch = true;
+        while (sp > 0u) {
+            sp -= 1u;
+            if (stack_t[sp] <= h.t) {
+                current = stack[sp];
+                fetch = false;
+                break;
+            }
+        }
+        if (fetch) {
+            // The ray is done: store its hit; the next one is fetched at the top.
+            write_hit(ray_id, h);
+        }
+    }
+}
+#else
+// bvh4 nodes: glsl/layout/bvh4.glsl's trace().
 void main() {
     uint ray_id = atomicAdd(next_ray, 1u);
     if (ray_id >= pc.ray_count) {
@@ -181,3 +270,4 @@ void main() {
         current = 0u;
     }
 }
+#endif

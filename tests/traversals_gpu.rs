@@ -1,7 +1,7 @@
 //! The traversals beside while-if on the GPU (issue 15, "traversals worth measuring"):
 //! while-while with leaf postponing (`*_ww` variants of raycast.comp, glsl/while_while.glsl,
 //! binary nodes), the subgroup-cooperative kernel (glsl/raycast_coop.comp; bvh2, bvh4, bvh8) and
-//! persistent threads with dynamic ray fetch (glsl/raycast_persistent.comp; bvh4, closest).
+//! persistent threads with dynamic ray fetch (glsl/raycast_persistent.comp; bvh2, bvh4, closest).
 //! With validation on, on the bunny's primary, diffuse and random sets, for every method:
 //! - each traversal's closest hits pass the agreement rule against the CPU f64 reference and equal
 //!   while-if's hits on the same layout ray for ray (and so bvh2's: tests/layouts_gpu.rs);
@@ -17,7 +17,7 @@
 //!
 //! `traversal_speed_on_the_bunny` (ignored; `--ignored --nocapture`) prints the speed figure:
 //! every traversal x layout side by side, interleaved, GPU timestamps, after a warm-up;
-//! `TRILAB_FIGURE=bvh2:while-if,bvh4:while-if,bvh4:persistent` keeps those pairs only (the first
+//! `TRILAB_FIGURE=bvh2:while-if,bvh2:persistent,bvh4:while-if,bvh4:persistent` keeps those pairs only (the first
 //! is the ratios' base).
 
 mod common;
@@ -58,9 +58,9 @@ fn every_traversal_equals_while_if_ray_for_ray() {
         let refs: Vec<_> = sets.iter().map(|(_, rays)| reference.trace_all(rays, false)).collect();
         let combos = combos();
         // Every layout has its while-if, bvh2 while-while, and the layouts whose node formats
-        // the cooperative kernel reads (bvh2, bvh4, bvh8; not cwbvh's) the cooperative kernel, bvh4
-        // persistent threads.
-        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 3 + 1, "{combos:?}");
+        // the cooperative kernel reads (bvh2, bvh4, bvh8; not cwbvh's) the cooperative kernel, bvh2 and
+        // bvh4 persistent threads.
+        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 3 + 2, "{combos:?}");
         let mut lines = vec![];
         for method in Method::ALL {
             for &layout in Layout::ALL {
@@ -102,7 +102,7 @@ fn every_traversal_equals_while_if_ray_for_ray() {
 /// Persistent threads over batches of 256 rays (a 4,800-ray set: 19 dispatches of 64 invocations
 /// x PERSISTENT_WORKGROUPS at most) after a warm-up run: every dispatch must start its counter at
 /// zero, or a batch after the first (and every batch of the second run) finds it past its ray
-/// count and writes no hit. Hits equal while-if's on bvh4 and pass the f64 check.
+/// count and writes no hit. Hits equal while-if's on bvh2 and bvh4 and pass the f64 check.
 #[test]
 fn persistent_threads_refill_over_many_batches() {
     let lines = common::with_gpu(600, |ctx| {
@@ -114,8 +114,11 @@ fn persistent_threads_refill_over_many_batches() {
         let ref_hits = reference.trace_all(rays, false);
         let small = RaycastOptions { warmup: 1, repeat: 1, batch_rays: 256 };
         let mut lines = vec![];
-        for method in [Method::Mt, Method::Watertight, Method::F64] {
-            let mut scene = host.upload(ctx, &SceneRequest::new(method).layout(Layout::Bvh4)).unwrap();
+        for (method, layout) in [Method::Mt, Method::Watertight, Method::F64]
+            .into_iter()
+            .flat_map(|m| [(m, Layout::Bvh2), (m, Layout::Bvh4)])
+        {
+            let mut scene = host.upload(ctx, &SceneRequest::new(method).layout(layout)).unwrap();
             let base = scene.cast(ctx, Raycast::Closest, rays, &common::ONCE).unwrap().hits;
             scene.traversal = Traversal::Persistent;
             let r = scene.cast(ctx, Raycast::Closest, rays, &small).unwrap();
@@ -124,12 +127,13 @@ fn persistent_threads_refill_over_many_batches() {
             assert_eq!(
                 differ,
                 0,
-                "{method}: {differ} of {} rays differ from while-if over {} batches",
+                "{method} {layout}: {differ} of {} rays differ from while-if over {} batches",
                 rays.len(),
                 r.batches
             );
-            let agreement = validate_hits(&bunny, rays, &r.hits, &ref_hits).unwrap_or_else(|e| panic!("{method}: {e}"));
-            lines.push(format!("{method:>13} persistent, {} batches: {}", r.batches, agreement.summary()));
+            let agreement =
+                validate_hits(&bunny, rays, &r.hits, &ref_hits).unwrap_or_else(|e| panic!("{method} {layout}: {e}"));
+            lines.push(format!("{method:>13} {layout} persistent, {} batches: {}", r.batches, agreement.summary()));
         }
         lines
     });
@@ -275,6 +279,7 @@ fn raycast_takes_the_traversal_from_the_command_line() {
         runs.push((layout, "coop", vec![("LP_NATIVE_VECTOR_WIDTH", "128")]));
     }
     runs.push(("bvh8", "coop", vec![]));
+    runs.push(("bvh2", "persistent", vec![]));
     runs.push(("bvh4", "persistent", vec![]));
     for (layout, traversal, env) in runs {
         let name = format!("{layout}-{traversal}-{}.hits", env.len());
@@ -290,7 +295,7 @@ fn raycast_takes_the_traversal_from_the_command_line() {
         (&["--layout", "bvh4", "--traversal", "while-while"][..], "while-while"),
         (&["--traversal", "coop", "--any-hit"][..], "coop"),
         (&["--traversal", "coop", "--scene-access", "address"][..], "address"),
-        (&["--traversal", "persistent"][..], "persistent"),
+        (&["--layout", "bvh8", "--traversal", "persistent"][..], "persistent"),
         (&["--layout", "bvh4", "--traversal", "persistent", "--any-hit"][..], "persistent"),
     ] {
         let rays = p("r.rays");
@@ -382,7 +387,7 @@ fn traversal_speed_on_the_bunny() {
             // The work per ray (stats kernels, the last set cast once more).
             for (set, rays) in &sets {
                 for ((l, t), scene) in combos.iter().zip(&scenes) {
-                    // Persistent threads have no stats kernel (their work is bvh4 while-if's).
+                    // Persistent threads have no stats kernel (their work is while-if's).
                     if scene.kernel_source(Raycast::Stats).is_err() {
                         continue;
                     }

@@ -39,8 +39,8 @@ named_enum! {
         Coop = "coop",
         /// Persistent threads with dynamic ray fetch (Aila & Laine, HPG 2009): a fixed number of
         /// workgroups, each invocation takes ray indices from an atomic counter and starts the
-        /// next ray inside the traversal loop (glsl/raycast_persistent.comp): bvh4, texel path,
-        /// closest.
+        /// next ray inside the traversal loop (glsl/raycast_persistent.comp): bvh2 (the control)
+        /// and bvh4, texel path, closest.
         Persistent = "persistent",
     }
 }
@@ -175,7 +175,7 @@ mod tests {
         }
         // The other traversals: while-while on the binary nodes (closest, any, stats), the
         // cooperative kernel on bvh2, bvh4 and bvh8 (closest, stats; it reads their node formats
-        // itself, and cwbvh's it does not); persistent threads on bvh4 (closest); texel path only.
+        // itself, and cwbvh's it does not); persistent threads on bvh2 and bvh4 (closest); texel path only.
         for m in Method::ALL {
             for &layout in Layout::ALL {
                 for &kind in Raycast::ALL {
@@ -183,7 +183,9 @@ mod tests {
                         let k = m.traversal_kernel(kind, AccessPath::Texel, layout, t);
                         let expected = match t {
                             Traversal::WhileWhile => layout == Layout::Bvh2 && kind != Raycast::Clock,
-                            Traversal::Persistent => layout == Layout::Bvh4 && kind == Raycast::Closest,
+                            Traversal::Persistent => {
+                                matches!(layout, Layout::Bvh2 | Layout::Bvh4) && kind == Raycast::Closest
+                            }
                             _ => {
                                 matches!(kind, Raycast::Closest | Raycast::Stats)
                                     && matches!(layout, Layout::Bvh2 | Layout::Bvh4 | Layout::Bvh8)
