@@ -51,6 +51,9 @@
 // rayquery.comp: the driver's top-level acceleration structure (its primitive index -> OBJ id
 // table is bound at BINDING_SLOT_IDS).
 #define BINDING_TLAS 20
+// raycast_persistent.comp: the next ray index of the dispatch (one uint, atomicAdd per fetch);
+// the host zeroes it before each dispatch (gpu::raycast::cast_rays).
+#define BINDING_RAY_COUNTER 21
 
 // BSDF kinds (Material.kind; one file each in bsdf/). A kernel's BSDF_MASK has bit (1 << kind)
 // set for every kind it carries.

@@ -109,6 +109,10 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
         // raycast's `clock` variants: shader-clock ticks per ray, read back as u32.
         (glsl, BINDING_CYCLES) if method_of(glsl).is_some() => array_of(size_of::<u32>(), &[]),
+        // raycast_persistent's next-ray counter: one u32 (gpu::raycast zeroes 4 bytes).
+        (glsl, BINDING_RAY_COUNTER) if method_of(glsl).is_some() => {
+            BufferLayout { array_stride: None, member_offsets: vec![0] }
+        }
         ("none", BINDING_BSDF_PROBE_IN) => array_of(
             size_of::<ProbeIn>(),
             &[offset_of!(ProbeIn, wo), offset_of!(ProbeIn, material), offset_of!(ProbeIn, v), offset_of!(ProbeIn, pad)],
@@ -132,7 +136,7 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
 /// bsdf_probe a `ProbePush` (mode, count).
 fn host_push(kernel: &str) -> Vec<u32> {
     match kernel {
-        "raycast" | "raycast_coop" | "rayquery" => vec![0],
+        "raycast" | "raycast_coop" | "raycast_persistent" | "rayquery" => vec![0],
         "probe" => vec![0, 4, 8],
         "pathtrace" => vec![
             offset_of!(PathtracePush, sample_first) as u32,
@@ -197,7 +201,7 @@ fn kernels_bind_what_the_host_provides() {
             // The BSDF probe reads only materials.
             ("bsdf_probe", _) => vec![BINDING_MATERIALS],
             ("rng_probe", _) => vec![],
-            ("raycast" | "raycast_coop", Some(_)) => scene,
+            ("raycast" | "raycast_coop" | "raycast_persistent", Some(_)) => scene,
             // The driver's structure replaces ours; the BLAS primitive -> OBJ id table remains.
             ("rayquery", _) => vec![BINDING_SLOT_IDS],
             // The path tracer shades by slot and never reads the slot -> OBJ id table.
@@ -217,6 +221,7 @@ fn kernels_bind_what_the_host_provides() {
                 vec![BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS]
             }
             ("raycast", v) if v.starts_with("clock") => vec![BINDING_RAYS, BINDING_HITS, BINDING_CYCLES],
+            ("raycast_persistent", _) => vec![BINDING_RAYS, BINDING_HITS, BINDING_RAY_COUNTER],
             ("raycast" | "raycast_coop" | "rayquery", _) => vec![BINDING_RAYS, BINDING_HITS],
             ("pathtrace", _) => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             ("bsdf_probe", _) => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
@@ -292,7 +297,7 @@ fn clock_variant_adds_only_the_cycles_buffer() {
 fn raycast_workgroup_size_is_a_specialisation_constant() {
     for k in KERNELS {
         let mut l = reflect(k.name, &k.words()).unwrap();
-        if !matches!(k.kernel, "raycast" | "raycast_coop") {
+        if !matches!(k.kernel, "raycast" | "raycast_coop" | "raycast_persistent") {
             assert_eq!(l.local_size_spec_ids, [None; 3], "{}", k.name);
             continue;
         }

@@ -1,6 +1,7 @@
 //! The traversals beside while-if on the GPU (issue 15, "traversals worth measuring"):
 //! while-while with leaf postponing (`*_ww` variants of raycast.comp, glsl/while_while.glsl,
-//! binary nodes) and the subgroup-cooperative kernel (glsl/raycast_coop.comp; bvh2, bvh4, bvh8).
+//! binary nodes), the subgroup-cooperative kernel (glsl/raycast_coop.comp; bvh2, bvh4, bvh8) and
+//! persistent threads with dynamic ray fetch (glsl/raycast_persistent.comp; bvh2, bvh4, closest).
 //! With validation on, on the bunny's primary, diffuse and random sets, for every method:
 //! - each traversal's closest hits pass the agreement rule against the CPU f64 reference and equal
 //!   while-if's hits on the same layout ray for ray (and so bvh2's: tests/layouts_gpu.rs);
@@ -8,12 +9,16 @@
 //!   while-while tests every leaf while-if tests (postponing only delays them), the cooperative
 //!   kernel visits the nodes while-if visits on the same layout;
 //! - while-while's any-hit answers occlusion as the reference does;
+//! - persistent threads over many batches, run twice, equal while-if (the ray counter is zeroed
+//!   before every dispatch);
 //! - from the command line the cooperative kernel runs at subgroup size 4 too
 //!   (`LP_NATIVE_VECTOR_WIDTH=128` on lavapipe) with the same hit file, and the traversals that
 //!   lack a kernel are refused by name.
 //!
 //! `traversal_speed_on_the_bunny` (ignored; `--ignored --nocapture`) prints the speed figure:
-//! every traversal x layout side by side, interleaved, GPU timestamps, after a warm-up.
+//! every traversal x layout side by side, interleaved, GPU timestamps, after a warm-up;
+//! `TRILAB_FIGURE=bvh2:while-if,bvh2:persistent,bvh4:while-if,bvh4:persistent` keeps those pairs only (the first
+//! is the ratios' base).
 
 mod common;
 
@@ -53,8 +58,9 @@ fn every_traversal_equals_while_if_ray_for_ray() {
         let refs: Vec<_> = sets.iter().map(|(_, rays)| reference.trace_all(rays, false)).collect();
         let combos = combos();
         // Every layout has its while-if, bvh2 while-while, and the layouts whose node formats
-        // the cooperative kernel reads (bvh2, bvh4, bvh8; not cwbvh's) the cooperative kernel.
-        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 3, "{combos:?}");
+        // the cooperative kernel reads (bvh2, bvh4, bvh8; not cwbvh's) the cooperative kernel, bvh2 and
+        // bvh4 persistent threads.
+        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 3 + 2, "{combos:?}");
         let mut lines = vec![];
         for method in Method::ALL {
             for &layout in Layout::ALL {
@@ -87,6 +93,47 @@ fn every_traversal_equals_while_if_ray_for_ray() {
                     }
                 }
             }
+        }
+        lines
+    });
+    println!("{}", lines.join("\n"));
+}
+
+/// Persistent threads over batches of 256 rays (a 4,800-ray set: 19 dispatches of 64 invocations
+/// x PERSISTENT_WORKGROUPS at most) after a warm-up run: every dispatch must start its counter at
+/// zero, or a batch after the first (and every batch of the second run) finds it past its ray
+/// count and writes no hit. Hits equal while-if's on bvh2 and bvh4 and pass the f64 check.
+#[test]
+fn persistent_threads_refill_over_many_batches() {
+    let lines = common::with_gpu(600, |ctx| {
+        let bunny = common::bunny();
+        let host = HostScene::build("bunny", &bunny, &BuildOptions::new(4)).unwrap();
+        let reference = host.reference();
+        let sets = ray_sets(&bunny, "bunny", &reference, &SIZES, None).unwrap();
+        let rays = &sets.iter().find(|(s, _)| s.to_string() == "primary").unwrap().1;
+        let ref_hits = reference.trace_all(rays, false);
+        let small = RaycastOptions { warmup: 1, repeat: 1, batch_rays: 256 };
+        let mut lines = vec![];
+        for (method, layout) in [Method::Mt, Method::Watertight, Method::F64]
+            .into_iter()
+            .flat_map(|m| [(m, Layout::Bvh2), (m, Layout::Bvh4)])
+        {
+            let mut scene = host.upload(ctx, &SceneRequest::new(method).layout(layout)).unwrap();
+            let base = scene.cast(ctx, Raycast::Closest, rays, &common::ONCE).unwrap().hits;
+            scene.traversal = Traversal::Persistent;
+            let r = scene.cast(ctx, Raycast::Closest, rays, &small).unwrap();
+            assert!(r.batches >= 10, "{} batches: too few to test the reset", r.batches);
+            let differ = (0..rays.len()).filter(|&i| base[i] != r.hits[i]).count();
+            assert_eq!(
+                differ,
+                0,
+                "{method} {layout}: {differ} of {} rays differ from while-if over {} batches",
+                rays.len(),
+                r.batches
+            );
+            let agreement =
+                validate_hits(&bunny, rays, &r.hits, &ref_hits).unwrap_or_else(|e| panic!("{method} {layout}: {e}"));
+            lines.push(format!("{method:>13} {layout} persistent, {} batches: {}", r.batches, agreement.summary()));
         }
         lines
     });
@@ -232,6 +279,8 @@ fn raycast_takes_the_traversal_from_the_command_line() {
         runs.push((layout, "coop", vec![("LP_NATIVE_VECTOR_WIDTH", "128")]));
     }
     runs.push(("bvh8", "coop", vec![]));
+    runs.push(("bvh2", "persistent", vec![]));
+    runs.push(("bvh4", "persistent", vec![]));
     for (layout, traversal, env) in runs {
         let name = format!("{layout}-{traversal}-{}.hits", env.len());
         let v = cast(layout, traversal, &env, &name);
@@ -246,6 +295,8 @@ fn raycast_takes_the_traversal_from_the_command_line() {
         (&["--layout", "bvh4", "--traversal", "while-while"][..], "while-while"),
         (&["--traversal", "coop", "--any-hit"][..], "coop"),
         (&["--traversal", "coop", "--scene-access", "address"][..], "address"),
+        (&["--layout", "bvh8", "--traversal", "persistent"][..], "persistent"),
+        (&["--layout", "bvh4", "--traversal", "persistent", "--any-hit"][..], "persistent"),
     ] {
         let rays = p("r.rays");
         let out = p("refused.hits");
@@ -275,7 +326,19 @@ fn traversal_speed_on_the_bunny() {
         let host = HostScene::build("bunny", &bunny, &o.build_options()).unwrap();
         let reference = host.reference();
         let sets = ray_sets(&bunny, "bunny", &reference, &FIGURE_SIZES, None).unwrap();
-        let combos = combos();
+        let mut combos = combos();
+        if let Ok(only) = std::env::var("TRILAB_FIGURE") {
+            let want: Vec<&str> = only.split(',').collect();
+            combos = want
+                .iter()
+                .map(|w| {
+                    *combos
+                        .iter()
+                        .find(|(l, t)| format!("{}:{}", l.name(), t.name()) == *w)
+                        .unwrap_or_else(|| panic!("TRILAB_FIGURE: no layout:traversal pair {w} in {combos:?}"))
+                })
+                .collect();
+        }
         let mut out = vec![format!(
             "{} | {} | subgroup {} | bunny leaf {} | {} rounds, interleaved, 1 warm-up each | Mrays/s median (min-max), ratio to bvh2 while-if; GPU timestamps",
             ctx.info().name,
@@ -324,6 +387,10 @@ fn traversal_speed_on_the_bunny() {
             // The work per ray (stats kernels, the last set cast once more).
             for (set, rays) in &sets {
                 for ((l, t), scene) in combos.iter().zip(&scenes) {
+                    // Persistent threads have no stats kernel (their work is while-if's).
+                    if scene.kernel_source(Raycast::Stats).is_err() {
+                        continue;
+                    }
                     let c = scene.cast(ctx, Raycast::Stats, rays, &common::ONCE).unwrap().traversal.unwrap();
                     out.push(format!(
                         "  stats {method} {set} {l} {t}: nodes {:.2}, boxes {:.2}, leaves {:.2}, triangles {:.2} per ray",

@@ -37,6 +37,11 @@ named_enum! {
         /// Stamminger & Selgrad, HPG 2018; glsl/raycast_coop.comp): bvh2, bvh4, bvh8, texel path,
         /// closest and stats.
         Coop = "coop",
+        /// Persistent threads with dynamic ray fetch (Aila & Laine, HPG 2009): a fixed number of
+        /// workgroups, each invocation takes ray indices from an atomic counter and starts the
+        /// next ray inside the traversal loop (glsl/raycast_persistent.comp): bvh2 (the control)
+        /// and bvh4, texel path, closest.
+        Persistent = "persistent",
     }
 }
 
@@ -52,6 +57,7 @@ impl Traversal {
             Traversal::WhileIf => ("raycast", ""),
             Traversal::WhileWhile => ("raycast", "_ww"),
             Traversal::Coop => ("raycast_coop", ""),
+            Traversal::Persistent => ("raycast_persistent", ""),
         }
     }
 
@@ -169,14 +175,17 @@ mod tests {
         }
         // The other traversals: while-while on the binary nodes (closest, any, stats), the
         // cooperative kernel on bvh2, bvh4 and bvh8 (closest, stats; it reads their node formats
-        // itself, and cwbvh's it does not); texel path only.
+        // itself, and cwbvh's it does not); persistent threads on bvh2 and bvh4 (closest); texel path only.
         for m in Method::ALL {
             for &layout in Layout::ALL {
                 for &kind in Raycast::ALL {
-                    for t in [Traversal::WhileWhile, Traversal::Coop] {
+                    for t in [Traversal::WhileWhile, Traversal::Coop, Traversal::Persistent] {
                         let k = m.traversal_kernel(kind, AccessPath::Texel, layout, t);
                         let expected = match t {
                             Traversal::WhileWhile => layout == Layout::Bvh2 && kind != Raycast::Clock,
+                            Traversal::Persistent => {
+                                matches!(layout, Layout::Bvh2 | Layout::Bvh4) && kind == Raycast::Closest
+                            }
                             _ => {
                                 matches!(kind, Raycast::Closest | Raycast::Stats)
                                     && matches!(layout, Layout::Bvh2 | Layout::Bvh4 | Layout::Bvh8)
@@ -192,7 +201,7 @@ mod tests {
                 }
             }
         }
-        for k in KERNELS.iter().filter(|k| k.kernel == "raycast" || k.kernel == "raycast_coop") {
+        for k in KERNELS.iter().filter(|k| k.kernel.starts_with("raycast")) {
             assert!(reached.contains(&k.name), "{} cannot be asked for by kind and access path", k.name);
         }
     }

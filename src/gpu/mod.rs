@@ -35,6 +35,6 @@ pub use descriptors::Resource;
 pub use device_info::DeviceInfo;
 pub use kernel::{Kernel, PipelineOptions};
 pub use markers::{Fault, FaultKind};
-pub use raycast::{cast_rays, RaycastOptions, RaycastResult};
+pub use raycast::{cast_rays, RaycastOptions, RaycastResult, PERSISTENT_WORKGROUPS};
 pub use rayquery::{raycast_rq, Peer};
 pub use traversal_stats::{MeanMax, TraversalCounts, TraversalSummary};

@@ -14,7 +14,15 @@ use super::traversal_stats::TraversalCounts;
 use crate::error::{Error, Result, VkContext};
 use crate::rays::{Hit, Ray};
 use crate::report::Summary;
-use crate::shared::{BINDING_HITS, BINDING_RAYS, BINDING_TRAVERSAL_STATS};
+use crate::shared::{BINDING_HITS, BINDING_RAYS, BINDING_RAY_COUNTER, BINDING_TRAVERSAL_STATS};
+
+/// Workgroups of a persistent-threads kernel's dispatch (one that binds `BINDING_RAY_COUNTER`,
+/// glsl/raycast_persistent.comp), fewer where the batch has fewer rays: the invocations loop
+/// over the batch's rays, taking indices from the counter. 64 workgroups of 64 invocations keep
+/// every lavapipe thread busy (it runs one workgroup per thread at a time, and LP_NUM_THREADS is
+/// at most the machine's cores: 8 or more workgroups per thread up to 8 cores) and would fill a
+/// small discrete GPU; the count is a measurement setting, not tuned.
+pub const PERSISTENT_WORKGROUPS: u32 = 64;
 
 #[derive(Clone, Debug)]
 pub struct RaycastOptions {
@@ -125,6 +133,17 @@ pub fn cast_rays(
         outputs.push((BINDING_TRAVERSAL_STATS, size as u64, output("traversal counts", size)?));
     }
 
+    // A persistent kernel's next-ray counter: one u32, zeroed before each dispatch.
+    let counter = match kernel.bindings().contains_key(&BINDING_RAY_COUNTER) {
+        true => Some(ctx.create_buffer(
+            "ray counter",
+            4,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+            gpu_allocator::MemoryLocation::GpuOnly,
+        )?),
+        false => None,
+    };
+
     let (_pool, sets) = DescriptorPool::new(ctx, kernel, nbatches as u32)?;
     for (bi, &set) in sets.iter().enumerate() {
         let first = (bi * batch) as u64;
@@ -133,6 +152,9 @@ pub fn cast_rays(
         resources.push((BINDING_RAYS, Resource::Buffer { buffer: &ray_buf, offset: first * 32, range: count * 32 }));
         for (binding, size, buf) in &outputs {
             resources.push((*binding, Resource::Buffer { buffer: buf, offset: first * size, range: count * size }));
+        }
+        if let Some(c) = &counter {
+            resources.push((BINDING_RAY_COUNTER, Resource::Buffer { buffer: c, offset: 0, range: 4 }));
         }
         write_set(ctx, kernel, set, &resources)?;
     }
@@ -157,6 +179,20 @@ pub fn cast_rays(
         unsafe {
             dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default()).during("recording a dispatch")?;
             queries.reset(dev, cmd, q);
+            if let Some(c) = &counter {
+                // The previous dispatch's atomics finish before the counter is zeroed (the
+                // barrier below makes the zero visible to this dispatch).
+                memory_barrier(
+                    dev,
+                    cmd,
+                    (
+                        vk::PipelineStageFlags::COMPUTE_SHADER,
+                        vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                    ),
+                    (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+                );
+                dev.cmd_fill_buffer(cmd, c.raw, 0, 4, 0);
+            }
             // The previous run's dispatch wrote the same output ranges (and uploads came before).
             memory_barrier(
                 dev,
@@ -170,7 +206,12 @@ pub fn cast_rays(
             let marker = ctx.mark_begin(dev, cmd, what[bi].clone());
             queries.start(dev, cmd, q);
             // `Push { uint ray_count; }` in raycast.comp (checked by tests/reflection.rs).
-            kernel.record(dev, cmd, set, &count.to_le_bytes(), count.div_ceil(local as u32));
+            // One invocation per ray, or a persistent kernel's fixed workgroups.
+            let groups = match counter {
+                Some(_) => count.div_ceil(local as u32).min(PERSISTENT_WORKGROUPS),
+                None => count.div_ceil(local as u32),
+            };
+            kernel.record(dev, cmd, set, &count.to_le_bytes(), groups);
             queries.end(dev, cmd, q);
             ctx.mark_end(dev, cmd, marker);
             dev.end_command_buffer(cmd).during("recording a dispatch")?;
