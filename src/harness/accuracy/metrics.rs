@@ -69,11 +69,47 @@ impl Tally {
     /// Compares GPU hits with reference hits. `must_hit`: every ray is proven to hit (a miss is
     /// a leak even where the f64 reference also misses).
     pub fn of(rays: &[Ray], gpu: &[Hit], reference: &[RefHit], must_hit: bool, degenerate: &[u32]) -> Tally {
+        let mut b = TallyBuilder::default();
+        b.add(rays, gpu, reference, must_hit, degenerate);
+        b.finish()
+    }
+
+    /// Leaks per 10^6 rays.
+    pub fn leaks_per_million(&self) -> f64 {
+        per_million(self.leaks, self.rays)
+    }
+
+    /// Adds another tally's counts (the distributions are merged by the caller's samples, so
+    /// here only counts add; `t_ulps`/`bary` keep the larger maxima).
+    pub fn add_counts(&mut self, o: &Tally) {
+        self.rays += o.rays;
+        self.reference_hits += o.reference_hits;
+        self.gpu_hits += o.gpu_hits;
+        self.leaks += o.leaks;
+        self.false_hits += o.false_hits;
+        self.different_triangle += o.different_triangle;
+        self.nan += o.nan;
+        self.degenerate_hits += o.degenerate_hits;
+    }
+}
+
+/// A [`Tally`] over rays given in parts, keeping per ray only the two error values (8 bytes), not
+/// the rays and hits: the accuracy sweep tallies millions of leak rays per (method, leaf size,
+/// layout).
+#[derive(Default)]
+pub struct TallyBuilder {
+    counts: Tally,
+    tu: Vec<f32>,
+    bary: Vec<f32>,
+}
+
+impl TallyBuilder {
+    /// Adds `rays` with their GPU and reference hits (as [`Tally::of`] reads them).
+    pub fn add(&mut self, rays: &[Ray], gpu: &[Hit], reference: &[RefHit], must_hit: bool, degenerate: &[u32]) {
         assert_eq!(gpu.len(), rays.len());
         assert_eq!(reference.len(), rays.len());
-        let mut t = Tally { rays: rays.len(), ..Default::default() };
-        let mut tu = Vec::new();
-        let mut bary = Vec::new();
+        let t = &mut self.counts;
+        t.rays += rays.len();
         for (h, r) in gpu.iter().zip(reference) {
             let hit = h.id != MISS_ID;
             t.reference_hits += r.is_hit() as usize;
@@ -93,33 +129,20 @@ impl Tally {
                 (true, false) if !must_hit => t.false_hits += 1,
                 (true, true) if h.id != r.id => t.different_triangle += 1,
                 (true, true) if h.t.is_finite() && h.u.is_finite() && h.v.is_finite() => {
-                    tu.push(t_error_ulps(h.t, r.t));
-                    bary.push((h.u as f64 - r.u).abs().max((h.v as f64 - r.v).abs()));
+                    // f32 keeps an error's value to 2^-24 relative: far below what the tables print.
+                    self.tu.push(t_error_ulps(h.t, r.t) as f32);
+                    self.bary.push((h.u as f64 - r.u).abs().max((h.v as f64 - r.v).abs()) as f32);
                 }
                 _ => {}
             }
         }
-        t.t_ulps = Dist::of(tu);
-        t.bary = Dist::of(bary);
+    }
+
+    pub fn finish(self) -> Tally {
+        let mut t = self.counts;
+        t.t_ulps = Dist::of(self.tu.into_iter().map(f64::from).collect());
+        t.bary = Dist::of(self.bary.into_iter().map(f64::from).collect());
         t
-    }
-
-    /// Leaks per 10^6 rays.
-    pub fn leaks_per_million(&self) -> f64 {
-        per_million(self.leaks, self.rays)
-    }
-
-    /// Adds another tally's counts (the distributions are merged by the caller's samples, so
-    /// here only counts add; `t_ulps`/`bary` keep the larger maxima).
-    pub fn add_counts(&mut self, o: &Tally) {
-        self.rays += o.rays;
-        self.reference_hits += o.reference_hits;
-        self.gpu_hits += o.gpu_hits;
-        self.leaks += o.leaks;
-        self.false_hits += o.false_hits;
-        self.different_triangle += o.different_triangle;
-        self.nan += o.nan;
-        self.degenerate_hits += o.degenerate_hits;
     }
 }
 

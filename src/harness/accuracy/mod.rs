@@ -42,7 +42,7 @@ use glam::{DVec3, Vec3};
 use serde::Serialize;
 
 use self::closed::{prove_closed, ClosedMesh, Placement};
-use self::metrics::{per_million, Tally};
+use self::metrics::{per_million, Tally, TallyBuilder};
 use self::probes::{LeakKind, Rng};
 use crate::bvh::{BuildOptions, Bvh};
 use crate::encoding::{AccessPath, Layout, Method, Raycast};
@@ -55,7 +55,6 @@ use crate::named::named_enum;
 use crate::pipeline::{HostScene, SceneRequest};
 use crate::rays::offset::{Offset, SurfacePoint};
 use crate::rays::{Camera, Hit, Ray};
-use crate::reference::RefHit;
 use crate::report::Summary;
 use crate::scene::Mesh;
 use crate::shared::MISS_ID;
@@ -277,15 +276,13 @@ struct Tracer {
 /// Methods the device cannot run, with the reason.
 type Unsupported = Vec<(Method, String)>;
 
-/// Every leak ray of one (method, leaf size, layout) with its GPU and reference hits, for the
-/// error rows.
+/// The error tally of every leak ray of one (method, leaf size, layout), for the error rows
+/// (8 bytes per ray: keeping the rays and hits themselves ran a four-layout sweep out of 24 GiB).
 struct ErrorSample {
     method: Method,
     leaf: u32,
     layout: Layout,
-    rays: Vec<Ray>,
-    hits: Vec<Hit>,
-    refs: Vec<RefHit>,
+    tally: TallyBuilder,
 }
 
 /// Kernels for `methods`; `Error::Unsupported` ones are returned separately, not as errors.
@@ -594,29 +591,18 @@ fn leaks_and_false_hits(
                 {
                     Some(p) => p,
                     None => {
-                        errors.push(ErrorSample {
-                            method: t.method,
-                            leaf,
-                            layout,
-                            rays: vec![],
-                            hits: vec![],
-                            refs: vec![],
-                        });
+                        errors.push(ErrorSample { method: t.method, leaf, layout, tally: TallyBuilder::default() });
                         errors.len() - 1
                     }
                 };
-                let e = &mut errors[pos];
-                e.rays.extend_from_slice(&rays[..leak_count]);
-                e.hits.extend_from_slice(&hits[..leak_count]);
-                e.refs.extend_from_slice(&ref_hits[..leak_count]);
+                errors[pos].tally.add(&rays[..leak_count], &hits[..leak_count], &ref_hits[..leak_count], true, &[]);
                 let on = if layout == Layout::Bvh2 { String::new() } else { format!(" on {layout}") };
                 progress(&format!("{} leaf {leaf} {}{on}: {leaks} leaks in {leak_count} rays", scene.name, t.method));
             }
         }
     }
     for e in errors {
-        let tally = Tally::of(&e.rays, &e.hits, &e.refs, true, &[]);
-        report.errors.push(ErrorRow { method: e.method, leaf_size: e.leaf, layout: e.layout, tally });
+        report.errors.push(ErrorRow { method: e.method, leaf_size: e.leaf, layout: e.layout, tally: e.tally.finish() });
     }
     Ok(())
 }
