@@ -175,6 +175,15 @@ uint pack_node(BvhNode n) {
     return (n.left_or_first << 5u) | n.count;
 }
 
+// Every stack loop's leaf step (trace() below, glsl/layout/bvh4.glsl, bvh8.glsl): the leaf
+// (first, count) of `current` through the leaf loop; with `any_hit`, trace() returns at a hit.
+#define TEST_LEAF_OR_RETURN()                                                                  \
+    COUNT_LEAF(count);                                                                         \
+    bool found = intersect_leaf(r, first, count, h, any_hit);                                  \
+    if (any_hit && found) {                                                                    \
+        return;                                                                                \
+    }
+
 // Every stack loop's pop (trace() below, glsl/layout/bvh4.glsl, bvh8.glsl): the nearest pushed
 // entry whose box entry distance (stack_t) is not beyond the closest hit so far becomes
 // `current`, the others are dropped unvisited; with none left, trace() returns.
@@ -280,12 +289,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
         uint first = current >> 5u;
         bool pop = true;
         if (count > 0u) {
-            // Leaf.
-            COUNT_LEAF(count);
-            bool found = intersect_leaf(r, first, count, h, any_hit);
-            if (any_hit && found) {
-                return;
-            }
+            TEST_LEAF_OR_RETURN();
         } else {
             COUNT_INNER();
             COUNT_BOXES(2u);

@@ -86,11 +86,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
         uint count = current & 31u;
         uint first = current >> 5u;
         if (count > 0u) {
-            COUNT_LEAF(count);
-            bool found = intersect_leaf(r, first, count, h, any_hit);
-            if (any_hit && found) {
-                return;
-            }
+            TEST_LEAF_OR_RETURN();
         } else {
             COUNT_INNER();
             uint base = 8u * first;
