@@ -18,6 +18,10 @@ pub struct Provenance {
     pub host_cpus: usize,
     pub lp_num_threads: Option<String>,
     pub timed_on_gpu: bool,
+    /// The driver settings in the environment that change what is measured
+    /// ([`SETTINGS`]), name to value.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub settings: std::collections::BTreeMap<String, String>,
     /// Where each scene named so far came from (a path as given, or a name found in
     /// `--scene-dir`, `TRILAB_SCENES`, beside the executable, built in, or the source tree).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -36,7 +40,30 @@ impl Provenance {
             host_cpus: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
             lp_num_threads: std::env::var("LP_NUM_THREADS").ok(),
             timed_on_gpu: info.timestamp_valid_bits > 0,
+            settings: SETTINGS
+                .iter()
+                .filter_map(|&k| std::env::var(k).ok().map(|v| (k.to_owned(), v)))
+                .chain([("subgroup_size".to_owned(), info.subgroup_size.to_string())])
+                .collect(),
             scenes: crate::scene::find::resolved_scenes(),
+        }
+    }
+}
+
+/// Environment variables of the drivers that change what a run measures: a row records them so
+/// that `compare` and `merge` can tell two runs of one device apart.
+pub const SETTINGS: &[&str] =
+    &["LP_NATIVE_VECTOR_WIDTH", "LP_NUM_THREADS", "LP_PERF", "GALLIVM_PERF", "MESA_SHADER_CACHE_DISABLE"];
+
+impl Provenance {
+    /// Where a result row was measured ([`crate::rows::Source`]).
+    pub fn source(&self) -> crate::rows::Source {
+        crate::rows::Source {
+            device: self.device.clone(),
+            driver: self.driver.clone(),
+            commit: self.commit.clone(),
+            date: self.date.clone(),
+            settings: self.settings.clone(),
         }
     }
 }

@@ -523,6 +523,7 @@ pub(crate) mod testing {
             host_cpus: 1,
             lp_num_threads: None,
             timed_on_gpu: true,
+            settings: Default::default(),
             scenes: vec![],
         };
         let mut rows = vec![];
