@@ -24,6 +24,7 @@ pub mod scale;
 pub mod spirv;
 pub mod steps;
 pub mod study;
+pub mod suite;
 
 use std::path::PathBuf;
 use std::process::ExitCode;

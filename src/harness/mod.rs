@@ -25,4 +25,5 @@ pub mod scale;
 pub mod spirv;
 pub mod steps;
 pub mod study;
+pub mod suite;
 pub mod validate;

@@ -1,0 +1,72 @@
+//! `trilab suite`.
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use trilab::error::{Error, Result};
+use trilab::harness::suite::{self, Part, SuiteOptions};
+use trilab::named::Named;
+
+use super::choice::choice;
+use super::{results_dir, GpuArgs, JsonArg};
+
+/// What to run once on a new device: the devices, bench (with the peers when given), the
+/// paper's study, accuracy and profile, each scaled to fit the budget, then summary.md (device
+/// and driver, the headline speed table, the claims' verdicts, the speed/accuracy frontier, links
+/// to the rest). Every part validates against the f64 reference before it reports.
+#[derive(Args)]
+pub struct SuiteArgs {
+    /// Wall-clock budget in minutes. A probe measures this device against the reference machine
+    /// and each part takes the largest size predicted to fit its share (bench 25 %, study 45 %,
+    /// accuracy 18 %, profile 12 %); a part's smallest size always runs.
+    #[arg(long, value_name = "N", default_value_t = 30.0)]
+    budget_minutes: f64,
+    /// Output folder (default: results/<device>/suite/). Each part writes into its own subfolder.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// The parts to run, comma-separated (default: all).
+    #[arg(long, value_name = "P,...", value_parser = choice::<Part>(), value_delimiter = ',')]
+    parts: Vec<Part>,
+    /// Embree peer executable for the bench (scripts/embree-peer.sh builds it).
+    #[arg(long, value_name = "FILE")]
+    embree: Option<PathBuf>,
+    /// tinybvh peer executable for the bench (scripts/tinybvh-peer.sh builds it).
+    #[arg(long, value_name = "FILE")]
+    tinybvh: Option<PathBuf>,
+    /// Skip the profile's LP_NUM_THREADS section (it re-runs trilab once per thread count).
+    #[arg(long)]
+    no_threads: bool,
+    /// Run every part at this step of its size ladder whatever the budget (0: the smoke sizes,
+    /// seconds on lavapipe; a larger step is capped at a part's largest): for a run that must
+    /// match a stored baseline cell for cell, as CI's does.
+    #[arg(long, value_name = "N")]
+    size: Option<usize>,
+    #[command(flatten)]
+    json: JsonArg,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+pub fn run(a: SuiteArgs) -> Result<()> {
+    let exe = if a.no_threads {
+        None
+    } else {
+        Some(std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e))?)
+    };
+    let mut o = SuiteOptions {
+        budget_minutes: a.budget_minutes,
+        out: a.out.clone().unwrap_or_default(),
+        parts: if a.parts.is_empty() { Part::ALL.to_vec() } else { a.parts.clone() },
+        embree: a.embree.clone(),
+        tinybvh: a.tinybvh.clone(),
+        exe,
+        force_size: a.size,
+    };
+    suite::check(&o)?;
+    let ctx = a.gpu.context()?;
+    o.out = results_dir(&ctx, a.out.clone(), "suite");
+    trilab::io::check_output("--out", trilab::io::Output::Dir(&o.out, &["summary.md", "suite.json"]), &[])?;
+    let report = suite::run(&ctx, &o, |m| eprintln!("suite: {m}"))?;
+    a.json.print(&report);
+    Ok(())
+}
