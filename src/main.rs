@@ -35,6 +35,7 @@ enum Cmd {
     Profile(cli::profile::ProfileArgs),
     Accuracy(cli::accuracy::AccuracyArgs),
     Analyze(cli::analyze::AnalyzeArgs),
+    Compare(cli::compare::CompareArgs),
     Completions(cli::completions::CompletionsArgs),
     Man(cli::man::ManArgs),
     #[command(name = "__dump-cli", hide = true)]
@@ -83,6 +84,7 @@ fn main() -> ExitCode {
         Cmd::Profile(a) => cli::profile::run(a),
         Cmd::Accuracy(a) => cli::accuracy::run(a),
         Cmd::Analyze(a) => cli::analyze::run(a),
+        Cmd::Compare(a) => cli::compare::run(a),
         Cmd::Completions(a) => cli::completions::run(a, Cli::command()),
         Cmd::Man(a) => cli::man::run(a, Cli::command()),
         Cmd::DumpCli(a) => cli::dump::run(a, Cli::command()),
