@@ -9,8 +9,8 @@ use trilab::harness::regress::{self, DEFAULT_THRESHOLD_PCT};
 use super::JsonArg;
 
 /// Two result folders (or rows files) cell by cell, as shader-db compares two driver builds:
-/// every rows.jsonl below BASE and NEW (written by bench, accuracy, spirv --out, build-bench,
-/// study, profile), matched by command and cell; prints only what changed, then the totals.
+/// every rows.jsonl below BASE and NEW (written by bench, accuracy, spirv --out, build-bench and
+/// every other command that writes results), matched by command and cell; prints only what changed, then the totals.
 /// A timing is faster or slower only when the two runs' min-max ranges do not overlap; a count
 /// (instructions, bytes) or correctness figure (agreement, leaks, NaN hits) is compared exactly.
 /// Exit status: 0 no regression; 1 a real slowdown or count increase beyond --threshold, or any
