@@ -31,10 +31,11 @@ fn rows_agree_with_the_csv(rows: &std::path::Path, csv_path: &std::path::Path) {
         (col("section"), col("case"), col("method"), col("leaf_size"), col("layout"));
     let num = |r: &csv::StringRecord, c: &str| r[col(c)].parse::<f64>().unwrap_or(0.0);
     // (part, method, leaf or kind or scheme, layout) -> figure -> value, from the csv.
-    let mut want: BTreeMap<(String, String, String, String), BTreeMap<&str, f64>> = BTreeMap::new();
+    type Key = (String, String, String, String);
+    let mut want: BTreeMap<Key, BTreeMap<&str, f64>> = BTreeMap::new();
     for r in csv.records().map(Result::unwrap) {
         let m = r[method].to_owned();
-        let (key, sums): ((String, String, String, String), Vec<(&str, &str)>) = match &r[section] {
+        let (key, sums): (Key, Vec<(&str, &str)>) = match &r[section] {
             "leaks" | "false-hits" => (
                 ("leaks".into(), m, r[leaf].to_owned(), r[layout].to_owned()),
                 vec![("leaks", "leaks"), ("false_hits", "false_hits"), ("nan_hits", "nan")],

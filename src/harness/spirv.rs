@@ -88,43 +88,6 @@ pub fn rows(report: &SpirvReport) -> Vec<crate::rows::Row> {
         .collect()
 }
 
-#[cfg(test)]
-mod tests {
-    /// The rows carry the counts of `instruction_counts.csv` (the review file, made by
-    /// `crate::spirv::review_files`), one row per line, figure for column.
-    #[test]
-    fn rows_carry_the_review_files_counts() {
-        let rows = super::rows(&super::counts());
-        let files = crate::spirv::review_files();
-        let csv = &files.iter().find(|(n, _)| n == "instruction_counts.csv").expect("counts file").1;
-        let mut lines = csv.lines();
-        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-        let figure = |column: &str| {
-            match column {
-                "module_instructions" => "spirv_instructions",
-                "function_instructions" => "function_instructions",
-                other => other,
-            }
-            .to_owned()
-        };
-        let mut n = 0;
-        for line in lines {
-            let fields: Vec<&str> = line.split(',').collect();
-            let row =
-                rows.iter().find(|r| r.cell["kernel"] == fields[0]).unwrap_or_else(|| panic!("no row for {line}"));
-            assert_eq!(row.command, "spirv");
-            for (column, value) in header.iter().zip(&fields).skip(1) {
-                let f = &row.figures[&figure(column)];
-                assert_eq!(f.median, value.parse::<f64>().unwrap(), "{} {column}", fields[0]);
-                assert_eq!(f.class, crate::rows::Class::Count);
-            }
-            n += 1;
-        }
-        assert_eq!(n, rows.len());
-        assert!(n > 10);
-    }
-}
-
 impl Report for SpirvReport {
     fn to_json(&self) -> String {
         crate::report::value_json(self)
@@ -159,5 +122,42 @@ impl Report for SpirvReport {
             ]);
         }
         t.to_text()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The rows carry the counts of `instruction_counts.csv` (the review file, made by
+    /// `crate::spirv::review_files`), one row per line, figure for column.
+    #[test]
+    fn rows_carry_the_review_files_counts() {
+        let rows = super::rows(&super::counts());
+        let files = crate::spirv::review_files();
+        let csv = &files.iter().find(|(n, _)| n == "instruction_counts.csv").expect("counts file").1;
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let figure = |column: &str| {
+            match column {
+                "module_instructions" => "spirv_instructions",
+                "function_instructions" => "function_instructions",
+                other => other,
+            }
+            .to_owned()
+        };
+        let mut n = 0;
+        for line in lines {
+            let fields: Vec<&str> = line.split(',').collect();
+            let row =
+                rows.iter().find(|r| r.cell["kernel"] == fields[0]).unwrap_or_else(|| panic!("no row for {line}"));
+            assert_eq!(row.command, "spirv");
+            for (column, value) in header.iter().zip(&fields).skip(1) {
+                let f = &row.figures[&figure(column)];
+                assert_eq!(f.median, value.parse::<f64>().unwrap(), "{} {column}", fields[0]);
+                assert_eq!(f.class, crate::rows::Class::Count);
+            }
+            n += 1;
+        }
+        assert_eq!(n, rows.len());
+        assert!(n > 10);
     }
 }
