@@ -36,6 +36,7 @@ enum Cmd {
     Accuracy(cli::accuracy::AccuracyArgs),
     Suite(cli::suite::SuiteArgs),
     Analyze(cli::analyze::AnalyzeArgs),
+    Compare(cli::compare::CompareArgs),
     Completions(cli::completions::CompletionsArgs),
     Man(cli::man::ManArgs),
     #[command(name = "__dump-cli", hide = true)]
@@ -85,6 +86,7 @@ fn main() -> ExitCode {
         Cmd::Accuracy(a) => cli::accuracy::run(a),
         Cmd::Suite(a) => cli::suite::run(a),
         Cmd::Analyze(a) => cli::analyze::run(a),
+        Cmd::Compare(a) => cli::compare::run(a),
         Cmd::Completions(a) => cli::completions::run(a, Cli::command()),
         Cmd::Man(a) => cli::man::run(a, Cli::command()),
         Cmd::DumpCli(a) => cli::dump::run(a, Cli::command()),

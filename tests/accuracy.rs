@@ -15,6 +15,106 @@ use trilab::harness::accuracy::probes::LeakKind;
 use trilab::harness::accuracy::{self, AccuracyOptions, Preset};
 use trilab::rays::offset::{Offset, RECOMMENDED};
 
+/// `rows.jsonl` (what `trilab compare` reads) carries accuracy.csv's figures: per method, leaf
+/// size and layout the leaks, false hits and NaN hits summed over the csv's leak and false-hit
+/// lines and the error quantiles of its error line; per method and extreme kind the leaks; per
+/// method and scheme the self-hits; the frontier's speed with its min-max.
+fn rows_agree_with_the_csv(rows: &std::path::Path, csv_path: &std::path::Path) {
+    use std::collections::BTreeMap;
+    use trilab::rows::Class;
+    let set = trilab::rows::read(rows).expect("rows.jsonl reads back");
+    assert!(set.rows.iter().all(|r| r.command == "accuracy"));
+    let mut csv = csv::Reader::from_path(csv_path).unwrap();
+    let h = csv.headers().unwrap().clone();
+    let col = |name: &str| h.iter().position(|c| c == name).unwrap_or_else(|| panic!("accuracy.csv has no {name}"));
+    let (section, case, method, leaf, layout) =
+        (col("section"), col("case"), col("method"), col("leaf_size"), col("layout"));
+    let num = |r: &csv::StringRecord, c: &str| r[col(c)].parse::<f64>().unwrap_or(0.0);
+    // (part, method, leaf or kind or scheme, layout) -> figure -> value, from the csv.
+    type Key = (String, String, String, String);
+    let mut want: BTreeMap<Key, BTreeMap<&str, f64>> = BTreeMap::new();
+    for r in csv.records().map(Result::unwrap) {
+        let m = r[method].to_owned();
+        let (key, sums): (Key, Vec<(&str, &str)>) = match &r[section] {
+            "leaks" | "false-hits" => (
+                ("leaks".into(), m, r[leaf].to_owned(), r[layout].to_owned()),
+                vec![("leaks", "leaks"), ("false_hits", "false_hits"), ("nan_hits", "nan")],
+            ),
+            "extremes" => (
+                ("extremes".into(), m, r[case].to_owned(), String::new()),
+                vec![("leaks", "leaks"), ("nan_hits", "nan")],
+            ),
+            "self-hits" => (
+                ("self-intersection".into(), m, r[case].to_owned(), String::new()),
+                vec![("self_hits", "self_hits"), ("escaped", "escaped")],
+            ),
+            "errors" => {
+                let e = want.entry(("leaks".into(), m, r[leaf].to_owned(), r[layout].to_owned())).or_default();
+                e.insert("t_ulps_p99", num(&r, "t_ulps_p99"));
+                e.insert("bary_error_max", num(&r, "bary_max"));
+                continue;
+            }
+            "frontier" => {
+                let e = want.entry(("frontier".into(), m, String::new(), r[layout].to_owned())).or_default();
+                for (f, c) in [
+                    ("mrays_per_s", "mrays_per_s"),
+                    ("mrays_per_s_min", "mrays_per_s_min"),
+                    ("mrays_per_s_max", "mrays_per_s_max"),
+                ] {
+                    e.insert(f, num(&r, c));
+                }
+                continue;
+            }
+            other => panic!("accuracy.csv section {other}"),
+        };
+        let e = want.entry(key).or_default();
+        for (figure, c) in sums {
+            *e.entry(figure).or_default() += num(&r, c);
+        }
+    }
+    let mut checked = 0;
+    for row in &set.rows {
+        let c = |k: &str| row.cell.get(k).cloned().unwrap_or_default();
+        let part = c("part");
+        let key = match part.as_str() {
+            "leaks" => (part.clone(), c("method"), c("leaf"), c("layout")),
+            "extremes" => (part.clone(), c("method"), c("kind"), String::new()),
+            "self-intersection" => (part.clone(), c("method"), c("scheme"), String::new()),
+            "frontier" => (part.clone(), c("method"), String::new(), c("layout")),
+            other => panic!("row part {other}"),
+        };
+        let want = want.get(&key).unwrap_or_else(|| panic!("{}: not in accuracy.csv", row.key()));
+        for (figure, value) in want {
+            // The csv's min and max columns of the frontier's speed: the timing's range.
+            let f = match figure.strip_prefix("mrays_per_s_") {
+                Some(_) => {
+                    let f = &row.figures["mrays_per_s"];
+                    assert_eq!(f.class, Class::Timing, "{}", row.key());
+                    if figure.ends_with("_min") {
+                        f.min
+                    } else {
+                        f.max
+                    }
+                }
+                None => {
+                    let f = row.figures.get(*figure).unwrap_or_else(|| panic!("{} lacks {figure}", row.key()));
+                    assert_eq!(f.class, if *figure == "mrays_per_s" { Class::Timing } else { Class::Correctness });
+                    f.median
+                }
+            };
+            // The csv prints figures with limited digits.
+            assert!((f - value).abs() <= 1e-6 * value.abs().max(1.0), "{} {figure}: row {f}, csv {value}", row.key());
+            checked += 1;
+        }
+    }
+    assert_eq!(set.rows.len(), want_len(&set.rows), "cells are unique");
+    assert!(checked > 100, "only {checked} figures checked");
+}
+
+fn want_len(rows: &[trilab::rows::Row]) -> usize {
+    rows.iter().map(|r| r.key()).collect::<std::collections::BTreeSet<_>>().len()
+}
+
 #[test]
 fn smoke_run_never_hits_degenerate_triangles_and_never_returns_nan() {
     let report = common::with_gpu(300, |ctx| {
@@ -85,7 +185,7 @@ fn smoke_run_never_hits_degenerate_triangles_and_never_returns_nan() {
 
     let dir = tempfile::tempdir().unwrap();
     let written = accuracy::write(&report, dir.path()).unwrap();
-    assert_eq!(written.len(), 7, "{written:?}");
+    assert_eq!(written.len(), 8, "{written:?}");
     // What `trilab analyze --frontier` reads back: every measured method, with its translations.
     let f = trilab::analyze::Frontier::read(&dir.path().join("frontier.csv")).unwrap();
     assert_eq!(f.points.len(), methods);
@@ -119,6 +219,7 @@ fn smoke_run_never_hits_degenerate_triangles_and_never_returns_nan() {
     let rows: Vec<csv::StringRecord> = csv.records().map(Result::unwrap).collect();
     assert!(rows.len() > 200);
     assert!(rows.iter().all(|r| r[fc].contains("RTE")), "every row carries the float controls");
+    rows_agree_with_the_csv(&dir.path().join("rows.jsonl"), &dir.path().join("accuracy.csv"));
     for p in written.iter().filter(|p| p.extension().is_some_and(|e| e == "png")) {
         image::open(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
     }

@@ -111,6 +111,50 @@ fn build_bench_writes_parsable_outputs() {
         };
         assert!(nodes(Layout::Bvh8) < nodes(Layout::Bvh4) && nodes(Layout::Bvh4) < nodes(Layout::Bvh2), "{scene}");
     }
+    // rows.jsonl (what `trilab compare` reads) carries build.csv's and layouts.csv's figures.
+    let set = trilab::rows::read(&out.join("rows.jsonl")).expect("rows.jsonl reads back");
+    assert_eq!(set.rows.len(), rows.len() + lrows.len(), "one row per csv line");
+    let close = |a: f64, b: &str, what: &str| {
+        let b: f64 = b.parse().unwrap_or_else(|_| panic!("{what} = `{b}`"));
+        assert!((a - b).abs() <= 1e-9 * b.abs().max(1e-9), "{what}: row {a}, csv {b}");
+    };
+    for r in &rows {
+        let row = set
+            .rows
+            .iter()
+            .find(|x| {
+                x.cell.get("builder").map(String::as_str) == Some(&r[col("builder")])
+                    && x.cell["threads"] == r[col("threads")]
+                    && x.cell["scene"] == r[col("scene")]
+            })
+            .unwrap_or_else(|| panic!("no row for {r:?}"));
+        assert_eq!(row.command, "build-bench");
+        assert_eq!(row.cell["leaf"], r[col("leaf_size")]);
+        let b = &row.figures["build_s"];
+        assert_eq!(b.class, trilab::rows::Class::Timing);
+        close(b.median, &r[col("median_s")], "median_s");
+        close(b.min, &r[col("min_s")], "min_s");
+        close(b.max, &r[col("max_s")], "max_s");
+        close(row.figures["sah_cost"].median, &r[col("sah_cost")], "sah_cost");
+        assert_eq!(row.figures["sah_cost"].class, trilab::rows::Class::Count);
+        close(row.figures["nodes"].median, &r[col("nodes")], "nodes");
+    }
+    for r in &lrows {
+        let row = set
+            .rows
+            .iter()
+            .find(|x| {
+                x.cell.get("layout").map(String::as_str) == Some(&r[lcol("layout")])
+                    && x.cell["scene"] == r[lcol("scene")]
+            })
+            .unwrap_or_else(|| panic!("no row for {r:?}"));
+        close(row.figures["node_bytes"].median, &r[lcol("node_bytes")], "node_bytes");
+        close(row.figures["nodes"].median, &r[lcol("nodes")], "nodes");
+        match row.figures.get("convert_s") {
+            Some(c) => close(c.median, &r[lcol("convert_median_s")], "convert_median_s"),
+            None => assert!(r[lcol("convert_median_s")].is_empty()),
+        }
+    }
     // Asked for one layout, only that one.
     let one = dir.path().join("one");
     let o = trilab(&[

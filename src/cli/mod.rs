@@ -10,6 +10,7 @@ pub mod build_bench;
 pub mod bvh;
 pub mod camera;
 pub mod choice;
+pub mod compare;
 pub mod completions;
 pub mod devices;
 pub mod dump;
@@ -28,7 +29,7 @@ pub mod suite;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use clap::Args;
@@ -168,6 +169,15 @@ impl JsonArg {
     }
 }
 
+/// The exit status of an error: 1, or 2 for a command whose status 1 is a verdict
+/// (`compare`: 1 is a regression, 2 a failure to compare, as `diff`'s 1 and 2).
+static ERROR_EXIT: AtomicU8 = AtomicU8::new(1);
+
+/// Makes an error exit with `code` (see [`ERROR_EXIT`]).
+pub fn error_exit(code: u8) {
+    ERROR_EXIT.store(code, Ordering::Relaxed);
+}
+
 /// Whether errors are printed as JSON on stdout (the command was given `--json`).
 static JSON_ERRORS: AtomicBool = AtomicBool::new(false);
 
@@ -267,7 +277,7 @@ pub fn exit(result: Result<()>) -> ExitCode {
             if json && !REPORT_PRINTED.load(Ordering::Relaxed) {
                 println!("{}", json_error(error_kind(&e), &e.to_string(), &messages));
             }
-            ExitCode::FAILURE
+            ExitCode::from(ERROR_EXIT.load(Ordering::Relaxed))
         }
         Ok(()) if !messages.is_empty() => {
             let message = format!("{} validation message(s)", messages.len());

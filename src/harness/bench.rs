@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::gpu::rayquery::{self, raycast_rq, Peer};
 use crate::gpu::{AccelStats, AccelStructure, Context, RaycastOptions};
 use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
-use crate::harness::peers::{self, PeerKind, TinybvhLayout};
+use crate::harness::peers::{self, PeerKind, PeerOutcome, TinybvhLayout};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
 use crate::harness::validate::{measure_rays, mrays_summary};
@@ -220,13 +220,18 @@ impl BenchReport {
         md
     }
 
-    /// Writes the report as JSON and the tables as Markdown where asked, each atomically.
+    /// Writes the report as JSON and the tables as Markdown where asked, each atomically, and
+    /// [`rows`] as `rows.jsonl` beside the JSON file (else beside the Markdown).
     pub fn write(&self, json: Option<&Path>, md: Option<&Path>) -> Result<()> {
         if let Some(p) = json {
             crate::io::write_atomic(p, self.to_json().as_bytes())?;
         }
         if let Some(p) = md {
             crate::io::write_atomic(p, self.markdown().as_bytes())?;
+        }
+        if let Some(file) = json.or(md) {
+            let dir = file.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            crate::rows::write(dir, None, &rows(self))?;
         }
         Ok(())
     }
@@ -292,6 +297,70 @@ impl BenchReport {
         }
         t
     }
+}
+
+/// The report as result rows (`rows.jsonl`, what `trilab compare` reads): one row per table
+/// row, cell `scene`, `set`, `rays` and either `method`, `layout`, `leaf` (our kernels) or `peer`
+/// (the driver's ray query, Embree, tinybvh); figures `mrays_per_s` (timing, with min-max over
+/// the rounds), `agreement`, `unexplained`, `invalid` (correctness) and `scene_bytes` (count).
+/// A peer program reports its best run only: its `mrays_per_s` has one run and no spread.
+pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
+    use crate::rows::{cell, Better, Figure, Row};
+    let source = report.provenance.source();
+    let mut out = vec![];
+    for r in &report.rows {
+        let mut c = cell([("scene", r.scene.clone()), ("set", r.ray_set.to_string()), ("rays", r.rays.to_string())]);
+        match r.method {
+            Tracer::Method(m) => {
+                c.insert("method".into(), m.to_string());
+                c.insert("layout".into(), r.layout.unwrap_or(Layout::Bvh2).to_string());
+                c.insert("leaf".into(), r.leaf_size.unwrap_or(report.leaf_size).to_string());
+                if let Some(g) = r.sah_group.filter(|&g| g != 1) {
+                    c.insert("sah_group".into(), g.to_string());
+                }
+            }
+            Tracer::Peer(p) => {
+                c.insert("peer".into(), p.to_string());
+            }
+        }
+        let speed = Summary { median: r.mrays_per_s, min: r.mrays_per_s_min, max: r.mrays_per_s_max, ..r.kernel_ms };
+        out.push(
+            Row::new("bench", c, &source)
+                .with("mrays_per_s", Figure::timing(speed, "Mrays/s", Better::Higher))
+                .with("agreement", Figure::correctness(r.agreement, "fraction", Better::Higher))
+                .with("unexplained", Figure::correctness(r.unexplained_disagreements as f64, "rays", Better::Lower))
+                .with("invalid", Figure::correctness(r.invalid as f64, "rays", Better::Lower))
+                .with("scene_bytes", Figure::count(r.scene_bytes as f64, "bytes")),
+        );
+    }
+    for p in &report.peers {
+        for peer in &p.peers {
+            let c = cell([
+                ("scene", p.scene.clone()),
+                ("set", p.ray_set.to_string()),
+                ("rays", p.rays.to_string()),
+                ("peer", peer.peer.to_string()),
+            ]);
+            let row = match &peer.outcome {
+                PeerOutcome::Timed { mrays_per_s, agreement, .. } => {
+                    let best = Summary { median: *mrays_per_s, min: *mrays_per_s, max: *mrays_per_s, runs: 1 };
+                    Row::new("bench", c, &source)
+                        .with("mrays_per_s", Figure::timing(best, "Mrays/s", Better::Higher))
+                        .with("agreement", Figure::correctness(*agreement, "fraction", Better::Higher))
+                }
+                PeerOutcome::WrongHits { agreement: Some(a), .. } => {
+                    Row::new("bench", c, &source).with("agreement", Figure::correctness(*a, "fraction", Better::Higher))
+                }
+                PeerOutcome::WrongHits { agreement: None, .. } | PeerOutcome::Skipped { .. } => continue,
+            };
+            out.push(row);
+        }
+    }
+    // A non-finite figure has no JSON number; such a figure is left out, not written as null.
+    for r in &mut out {
+        r.figures.retain(|_, f| f.median.is_finite() && f.min.is_finite() && f.max.is_finite());
+    }
+    out
 }
 
 /// Mrays/s with two decimals, or three significant digits below 1 (lavapipe's ray query runs at
@@ -546,6 +615,129 @@ fn accel_line(name: &str, s: &AccelStats) -> String {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
+    /// A report as `run` would make it: two kernel rows, the ray-query peer, an Embree peer.
+    fn report() -> BenchReport {
+        let provenance = Provenance {
+            device: "llvmpipe (LLVM 15.0.7, 256 bits)".into(),
+            driver: "Mesa 25.0.7".into(),
+            mesa_version: Some("25.0.7".into()),
+            commit: "abc123".into(),
+            date: "2025-01-01T00:00:00Z".into(),
+            host_cpus: 2,
+            lp_num_threads: None,
+            timed_on_gpu: true,
+            settings: [("subgroup_size".to_owned(), "8".to_owned())].into(),
+            scenes: vec![],
+        };
+        let row = |method: Tracer, layout: Option<Layout>, ms: Summary, agreement: f64| {
+            let mr = crate::harness::validate::mrays_summary(48_000, ms);
+            BenchRow {
+                scene: "bunny".into(),
+                triangles: 69_451,
+                ray_set: RaySet::Diffuse,
+                rays: 48_000,
+                method,
+                leaf_size: layout.map(|_| 4),
+                sah_group: layout.map(|_| 1),
+                scene_bytes: 3_000_000 + (ms.median * 1000.0) as usize,
+                scene_access: layout.map(|_| AccessPath::Texel),
+                layout,
+                kernel_ms: ms,
+                mrays_per_s: mr.median,
+                mrays_per_s_min: mr.min,
+                mrays_per_s_max: mr.max,
+                agreement,
+                unexplained_disagreements: 3,
+                invalid: 0,
+                embree_mrays_per_s: None,
+            }
+        };
+        let s = |median: f64, min: f64, max: f64| Summary { median, min, max, runs: 5 };
+        let rows = vec![
+            row(Tracer::Method(Method::Mt), Some(Layout::Bvh2), s(10.0, 9.0, 12.0), 0.9999),
+            row(Tracer::Method(Method::Mt), Some(Layout::Bvh4), s(7.0, 6.5, 7.5), 0.9998),
+            row(Tracer::Peer(Peer::RayQuery), None, s(900.0, 880.0, 950.0), 0.9990),
+        ];
+        let embree = crate::harness::peers::PeerResult {
+            peer: PeerKind::Embree,
+            outcome: PeerOutcome::Timed {
+                mrays_per_s: 21.5,
+                median_mrays_per_s: None,
+                build_ms: None,
+                threads: Some(2),
+                agreement: 0.99995,
+            },
+        };
+        let best = TrilabBest::fastest([("mt".to_owned(), Some(Layout::Bvh4), rows[1].mrays_per_s)]);
+        let peers = vec![PeerComparison::new("bunny", RaySet::Diffuse, 48_000, best, vec![embree])];
+        BenchReport {
+            provenance,
+            leaf_size: 4,
+            repeat: 5,
+            rows,
+            peers,
+            accel: vec![],
+            ray_query_note: None,
+            notes: vec![],
+        }
+    }
+
+    #[test]
+    fn rows_carry_every_table_row_and_peer_with_its_figures() {
+        let report = report();
+        let rows = rows(&report);
+        // The report as bench.json has it: the independent path to each figure.
+        let json = serde_json::to_value(&report).unwrap();
+        let table = json["rows"].as_array().unwrap();
+        assert_eq!(rows.len(), table.len() + 1, "every table row and the Embree peer");
+        for t in table {
+            let row = rows
+                .iter()
+                .find(|r| {
+                    let method = t["method"].as_str().unwrap();
+                    r.cell.get("method").or(r.cell.get("peer")).map(String::as_str) == Some(method)
+                        && r.cell.get("layout").map(String::as_str) == t["layout"].as_str()
+                })
+                .unwrap_or_else(|| panic!("no row for {t}"));
+            assert_eq!(row.command, "bench");
+            assert_eq!(row.cell["scene"], t["scene"].as_str().unwrap());
+            assert_eq!(row.cell["set"], t["ray_set"].as_str().unwrap());
+            assert_eq!(row.cell["rays"], t["rays"].to_string());
+            let f = &row.figures["mrays_per_s"];
+            assert_eq!(f.class, crate::rows::Class::Timing);
+            assert_eq!(
+                (f.median, f.min, f.max),
+                (
+                    t["mrays_per_s"].as_f64().unwrap(),
+                    t["mrays_per_s_min"].as_f64().unwrap(),
+                    t["mrays_per_s_max"].as_f64().unwrap()
+                )
+            );
+            assert!(f.min < f.median && f.median < f.max, "a spread from the rounds");
+            assert_eq!(f.runs as u64, t["kernel_ms"]["runs"].as_u64().unwrap());
+            assert_eq!(row.figures["agreement"].median, t["agreement"].as_f64().unwrap());
+            assert_eq!(row.figures["agreement"].class, crate::rows::Class::Correctness);
+            assert_eq!(row.figures["unexplained"].median, t["unexplained_disagreements"].as_f64().unwrap());
+            assert_eq!(row.figures["scene_bytes"].median, t["scene_bytes"].as_f64().unwrap());
+            assert_eq!(row.figures["scene_bytes"].class, crate::rows::Class::Count);
+            assert_eq!(row.source.device, json["device"].as_str().unwrap());
+            assert_eq!(row.source.settings["subgroup_size"], "8");
+        }
+        let peer = &json["peers"][0]["peers"][0];
+        let e = rows.iter().find(|r| r.cell.get("peer").map(String::as_str) == peer["peer"].as_str()).unwrap();
+        assert_eq!(e.figures["mrays_per_s"].median, peer["mrays_per_s"].as_f64().unwrap());
+        assert_eq!(e.figures["mrays_per_s"].runs, 1, "a peer's best run has no spread");
+        assert_eq!(e.figures["agreement"].median, peer["agreement"].as_f64().unwrap());
+        // The rows survive their file format, and the cells are unique.
+        let text = crate::rows::to_jsonl(None, &rows);
+        let back = crate::rows::parse(Path::new("rows.jsonl"), &text).unwrap();
+        assert_eq!(back.rows, rows);
+        let keys: std::collections::BTreeSet<String> = rows.iter().map(|r| r.key()).collect();
+        assert_eq!(keys.len(), rows.len());
+    }
+
     #[test]
     fn rates_keep_three_significant_digits_below_one() {
         assert_eq!(super::rate(3.667), "3.67");

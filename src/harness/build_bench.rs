@@ -726,7 +726,65 @@ impl BuildBenchReport {
         crate::io::write_atomic(&dir.join("layouts.csv"), self.layouts_csv()?.as_bytes())?;
         let json = serde_json::to_string_pretty(self).expect("serialisable report");
         crate::io::write_atomic(&dir.join("build.json"), json.as_bytes())?;
-        crate::io::write_atomic(&dir.join("build.md"), self.markdown().as_bytes())
+        crate::io::write_atomic(&dir.join("build.md"), self.markdown().as_bytes())?;
+        crate::rows::write(dir, None, &self.rows()).map(drop)
+    }
+
+    /// The report as result rows (`rows.jsonl`, what `trilab compare` reads): per scene,
+    /// builder and thread count `build_s` (timing, min-max over the rounds) and the tree's
+    /// `sah_cost` and `nodes` (counts); per scene and layout `convert_s` (timing) and the node
+    /// buffer's `node_bytes`, `nodes` and `sah_cost` (counts). Measured on the host CPU: the
+    /// source's device is the CPU model, its settings the logical CPUs.
+    pub fn rows(&self) -> Vec<crate::rows::Row> {
+        use crate::rows::{cell, Better, Cell, Figure, Row, Source};
+        let p = &self.provenance;
+        let source = Source {
+            device: p.cpu_model.clone(),
+            driver: "host CPU (no GPU driver)".into(),
+            commit: p.commit.clone(),
+            date: p.date.clone(),
+            settings: [("host_cpus".to_owned(), p.cores.to_string())].into(),
+        };
+        let o = &self.options;
+        let shape = |mut c: Cell| {
+            c.insert("leaf".into(), o.leaf_size.to_string());
+            if o.sah_group != 1 {
+                c.insert("sah_group".into(), o.sah_group.to_string());
+            }
+            c
+        };
+        let mut out = vec![];
+        for r in &self.rows {
+            let c = shape(cell([
+                ("scene", r.scene.clone()),
+                ("builder", r.builder.clone()),
+                ("threads", r.threads.to_string()),
+            ]));
+            let mut row =
+                Row::new("build-bench", c, &source).with("build_s", Figure::timing(r.seconds, "s", Better::Lower));
+            if let Some(sah) = r.sah_cost {
+                row = row.with("sah_cost", Figure::count(sah, "SAH"));
+            }
+            if let Some(n) = r.nodes {
+                row = row.with("nodes", Figure::count(n as f64, "nodes"));
+            }
+            out.push(row);
+        }
+        for l in &self.layouts {
+            let c = shape(cell([("scene", l.scene.clone()), ("layout", l.layout.to_string())]));
+            let mut row = Row::new("build-bench", c, &source)
+                .with("node_bytes", Figure::count(l.node_bytes as f64, "bytes"))
+                .with("nodes", Figure::count(l.nodes as f64, "nodes"))
+                .with("sah_cost", Figure::count(l.sah_cost, "SAH"));
+            if let Some(s) = l.convert_seconds {
+                row = row.with("convert_s", Figure::timing(s, "s", Better::Lower));
+            }
+            out.push(row);
+        }
+        for r in &mut out {
+            r.figures.retain(|_, f| f.median.is_finite() && f.min.is_finite() && f.max.is_finite());
+        }
+        out
     }
 }
 

@@ -21,6 +21,7 @@ pub mod profile;
 pub mod provenance;
 pub mod raycast;
 pub mod rayset;
+pub mod regress;
 pub mod scale;
 pub mod spirv;
 pub mod steps;

@@ -48,7 +48,44 @@ pub fn write(dir: &Path) -> Result<usize> {
     for (name, text) in &files {
         crate::io::write_atomic(&dir.join(name), text.as_bytes())?;
     }
-    Ok(files.len())
+    crate::rows::write(dir, None, &rows(&counts()))?;
+    Ok(files.len() + 1)
+}
+
+/// Where SPIR-V counts come from: the compiler, before any driver sees them.
+pub const SOURCE_DEVICE: &str = "SPIR-V (no device)";
+pub const SOURCE_DRIVER: &str = "shaderc (build.rs)";
+
+/// The counts as result rows (`rows.jsonl`, what `trilab compare` reads): one row per kernel
+/// variant (cell `kernel`), each category of [`InstructionCounts`] a count figure
+/// (`spirv_instructions` is the whole module), shader-db style: any change is real.
+pub fn rows(report: &SpirvReport) -> Vec<crate::rows::Row> {
+    use crate::rows::{cell, Figure, Row, Source};
+    let source = Source {
+        device: SOURCE_DEVICE.into(),
+        driver: SOURCE_DRIVER.into(),
+        commit: crate::harness::provenance::commit(),
+        date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+        settings: Default::default(),
+    };
+    report
+        .variants
+        .iter()
+        .map(|v| {
+            let c = &v.counts;
+            let n = |x: u32| Figure::count(x as f64, "instructions");
+            Row::new("spirv", cell([("kernel", v.variant)]), &source)
+                .with("spirv_instructions", n(c.module))
+                .with("function_instructions", n(c.functions))
+                .with("arithmetic", n(c.arithmetic))
+                .with("memory", n(c.memory))
+                .with("control_flow", n(c.control_flow))
+                .with("conversion", n(c.conversion))
+                .with("image", n(c.image))
+                .with("composite", n(c.composite))
+                .with("other", n(c.other))
+        })
+        .collect()
 }
 
 impl Report for SpirvReport {
@@ -85,5 +122,42 @@ impl Report for SpirvReport {
             ]);
         }
         t.to_text()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The rows carry the counts of `instruction_counts.csv` (the review file, made by
+    /// `crate::spirv::review_files`), one row per line, figure for column.
+    #[test]
+    fn rows_carry_the_review_files_counts() {
+        let rows = super::rows(&super::counts());
+        let files = crate::spirv::review_files();
+        let csv = &files.iter().find(|(n, _)| n == "instruction_counts.csv").expect("counts file").1;
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let figure = |column: &str| {
+            match column {
+                "module_instructions" => "spirv_instructions",
+                "function_instructions" => "function_instructions",
+                other => other,
+            }
+            .to_owned()
+        };
+        let mut n = 0;
+        for line in lines {
+            let fields: Vec<&str> = line.split(',').collect();
+            let row =
+                rows.iter().find(|r| r.cell["kernel"] == fields[0]).unwrap_or_else(|| panic!("no row for {line}"));
+            assert_eq!(row.command, "spirv");
+            for (column, value) in header.iter().zip(&fields).skip(1) {
+                let f = &row.figures[&figure(column)];
+                assert_eq!(f.median, value.parse::<f64>().unwrap(), "{} {column}", fields[0]);
+                assert_eq!(f.class, crate::rows::Class::Count);
+            }
+            n += 1;
+        }
+        assert_eq!(n, rows.len());
+        assert!(n > 10);
     }
 }

@@ -889,8 +889,136 @@ pub fn write(report: &AccuracyReport, dir: &Path) -> Result<Vec<PathBuf>> {
     let json = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(format!("accuracy.json: {e}")))?;
     put("accuracy.json", json.into_bytes())?;
     put("accuracy.md", table::markdown(report, &plots).into_bytes())?;
+    written.push(crate::rows::write(dir, None, &rows(report))?);
     written.extend(plots.into_iter().map(|p| p.path));
     Ok(written)
+}
+
+/// The report as result rows (`rows.jsonl`, what `trilab compare` reads), cell key `part`:
+/// - `leaks` per method, leaf size and layout (`leak_rays` per mesh and kind in the cell):
+///   `leaks`, `false_hits`, `nan_hits` and `different_triangle` summed over the meshes, kinds and
+///   offsets, and the t and barycentric error quantiles of the error rows (all correctness,
+///   lower is better);
+/// - `extremes` per method and extreme kind (summed over its parameters): `leaks`,
+///   `false_hits`, `nan_hits`, `degenerate_hits`;
+/// - `self-intersection` per method and offset scheme (summed over the scales): `self_hits`,
+///   `escaped`, `nan_hits`;
+/// - `frontier` per method and layout: `mrays_per_s` (timing, min-max over the rounds) where it
+///   was timed.
+pub fn rows(report: &AccuracyReport) -> Vec<crate::rows::Row> {
+    use crate::rows::{cell, Better, Figure, Row};
+    let source = report.provenance.source();
+    let bad = |n: usize, unit: &str| Figure::correctness(n as f64, unit, Better::Lower);
+    let mut out = vec![];
+    let mut methods: Vec<(Method, u32, Layout)> =
+        report.leaks.iter().map(|r| (r.method, r.leaf_size, r.layout)).collect();
+    methods.dedup();
+    methods.sort_by_key(|&(m, l, y)| (m.to_string(), l, y.to_string()));
+    methods.dedup();
+    for (method, leaf, layout) in methods {
+        let mine = |m: Method, l: u32, y: Layout| m == method && l == leaf && y == layout;
+        let (mut leaks, mut false_hits, mut nan, mut different) = (0, 0, 0, 0);
+        let tallies = report
+            .leaks
+            .iter()
+            .filter(|r| mine(r.method, r.leaf_size, r.layout))
+            .map(|r| &r.tally)
+            .chain(report.false_hits.iter().filter(|r| mine(r.method, r.leaf_size, r.layout)).map(|r| &r.tally));
+        for t in tallies {
+            leaks += t.leaks;
+            false_hits += t.false_hits;
+            nan += t.nan;
+            different += t.different_triangle;
+        }
+        let c = cell([
+            ("part", "leaks".to_owned()),
+            ("method", method.to_string()),
+            ("leaf", leaf.to_string()),
+            ("layout", layout.to_string()),
+            ("leak_rays", report.options.leak_rays.to_string()),
+        ]);
+        let mut row = Row::new("accuracy", c, &source)
+            .with("leaks", bad(leaks, "rays"))
+            .with("false_hits", bad(false_hits, "rays"))
+            .with("nan_hits", bad(nan, "rays"))
+            .with("different_triangle", bad(different, "rays"));
+        if let Some(e) = report.errors.iter().find(|r| mine(r.method, r.leaf_size, r.layout)) {
+            let q = |x: f64, unit: &str| Figure::correctness(x, unit, Better::Lower);
+            row = row
+                .with("t_ulps_median", q(e.tally.t_ulps.median, "ulp"))
+                .with("t_ulps_p99", q(e.tally.t_ulps.p99, "ulp"))
+                .with("t_ulps_max", q(e.tally.t_ulps.max, "ulp"))
+                .with("bary_error_p99", q(e.tally.bary.p99, "barycentric"))
+                .with("bary_error_max", q(e.tally.bary.max, "barycentric"));
+        }
+        out.push(row);
+    }
+    let mut extremes: Vec<(Method, &str)> = report.extremes.iter().map(|r| (r.method, r.kind.as_str())).collect();
+    extremes.sort_by_key(|&(m, k)| (m.to_string(), k));
+    extremes.dedup();
+    for (method, kind) in extremes {
+        let (mut leaks, mut false_hits, mut nan, mut degenerate) = (0, 0, 0, 0);
+        for r in report.extremes.iter().filter(|r| r.method == method && r.kind == kind) {
+            leaks += r.tally.leaks;
+            false_hits += r.tally.false_hits;
+            nan += r.tally.nan;
+            degenerate += r.tally.degenerate_hits;
+        }
+        let c = cell([
+            ("part", "extremes".to_owned()),
+            ("method", method.to_string()),
+            ("kind", kind.to_owned()),
+            ("rays", report.options.extreme_rays.to_string()),
+        ]);
+        out.push(
+            Row::new("accuracy", c, &source)
+                .with("leaks", bad(leaks, "rays"))
+                .with("false_hits", bad(false_hits, "rays"))
+                .with("nan_hits", bad(nan, "rays"))
+                .with("degenerate_hits", bad(degenerate, "rays")),
+        );
+    }
+    let mut schemes: Vec<(Method, Offset)> = report.self_hits.iter().map(|r| (r.method, r.scheme)).collect();
+    schemes.sort_by_key(|&(m, o)| (m.to_string(), o.name()));
+    schemes.dedup();
+    for (method, scheme) in schemes {
+        let (mut self_hits, mut escaped, mut nan) = (0, 0, 0);
+        for r in report.self_hits.iter().filter(|r| r.method == method && r.scheme == scheme) {
+            self_hits += r.self_hits;
+            escaped += r.escaped;
+            nan += r.nan;
+        }
+        let c = cell([
+            ("part", "self-intersection".to_owned()),
+            ("method", method.to_string()),
+            ("scheme", scheme.name().to_owned()),
+            ("rays", report.options.self_rays.to_string()),
+        ]);
+        out.push(
+            Row::new("accuracy", c, &source)
+                .with("self_hits", bad(self_hits, "rays"))
+                .with("escaped", bad(escaped, "rays"))
+                .with("nan_hits", bad(nan, "rays")),
+        );
+    }
+    for f in &report.frontier {
+        if let Some(speed) = f.mrays_per_s {
+            let c = cell([
+                ("part", "frontier".to_owned()),
+                ("method", f.method.to_string()),
+                ("layout", f.layout.to_string()),
+                ("rays", report.frontier_rays.to_string()),
+            ]);
+            out.push(
+                Row::new("accuracy", c, &source).with("mrays_per_s", Figure::timing(speed, "Mrays/s", Better::Higher)),
+            );
+        }
+    }
+    // A non-finite figure has no JSON number; such a figure is left out, not written as null.
+    for r in &mut out {
+        r.figures.retain(|_, f| f.median.is_finite() && f.min.is_finite() && f.max.is_finite());
+    }
+    out
 }
 impl crate::report::Report for AccuracyReport {
     /// The speed/accuracy frontier.

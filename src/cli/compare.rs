@@ -1,0 +1,46 @@
+//! `trilab compare`.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use trilab::error::Result;
+use trilab::harness::regress::{self, DEFAULT_THRESHOLD_PCT};
+
+use super::JsonArg;
+
+/// Two result folders (or rows files) cell by cell, as shader-db compares two driver builds:
+/// every rows.jsonl below BASE and NEW (written by bench, accuracy, spirv --out, build-bench and
+/// every other command that writes results), matched by command and cell; prints only what changed, then the totals.
+/// A timing is faster or slower only when the two runs' min-max ranges do not overlap; a count
+/// (instructions, bytes) or correctness figure (agreement, leaks, NaN hits) is compared exactly.
+/// Exit status: 0 no regression; 1 a real slowdown or count increase beyond --threshold, or any
+/// correctness figure worse; 2 the comparison could not be made (a missing folder, no rows, a
+/// malformed line: the file is named).
+#[derive(Args)]
+pub struct CompareArgs {
+    /// The baseline: a result folder (searched for rows.jsonl) or a rows file.
+    #[arg(value_name = "BASE")]
+    base: PathBuf,
+    /// The run judged against it.
+    #[arg(value_name = "NEW")]
+    new: PathBuf,
+    /// A real change (ranges apart; counts: any) is printed, and a slowdown or count increase
+    /// fails, beyond this percentage; a rate is judged as its time (x1.10 the time is 10 %).
+    #[arg(long, value_name = "PCT", default_value_t = DEFAULT_THRESHOLD_PCT)]
+    threshold: f64,
+    #[command(flatten)]
+    json: JsonArg,
+}
+
+pub fn run(a: CompareArgs) -> Result<()> {
+    super::error_exit(2);
+    let report = regress::run(&a.base, &a.new, a.threshold)?;
+    a.json.print(&report);
+    if report.exit_code() != 0 {
+        // As `diff`: 1 means "a regression", not a failure to compare (that is 2).
+        use std::io::Write;
+        let _ = std::io::stdout().flush();
+        std::process::exit(report.exit_code().into());
+    }
+    Ok(())
+}
