@@ -12,6 +12,7 @@ pub mod camera;
 pub mod choice;
 pub mod completions;
 pub mod devices;
+pub mod driver_stats;
 pub mod dump;
 pub mod man;
 pub mod hits;

@@ -17,7 +17,9 @@
 
 pub mod clock;
 pub mod dispatch;
+pub mod driver_stats;
 pub mod executable;
+pub mod lavapipe_asm;
 pub mod markdown;
 pub mod sweep;
 pub mod threads;
