@@ -401,8 +401,8 @@ pub fn rows(r: &DriverStatsReport) -> Vec<Row> {
         .collect()
 }
 
-/// The Markdown table of a report's kernels (lavapipe's figures).
-pub fn table(r: &DriverStatsReport) -> crate::report::Table {
+/// The table of lavapipe's figures per kernel.
+pub fn table(kernels: &[KernelStats]) -> crate::report::Table {
     let mut t = crate::report::Table::new([
         "kernel",
         "variant",
@@ -416,7 +416,7 @@ pub fn table(r: &DriverStatsReport) -> crate::report::Table {
         "calls",
         "stack bytes",
     ]);
-    for k in &r.kernels {
+    for k in kernels {
         let Some(a) = &k.lavapipe else { continue };
         let t_ = &a.total;
         let trunc = if a.truncated { " (truncated)" } else { "" };
@@ -437,6 +437,13 @@ pub fn table(r: &DriverStatsReport) -> crate::report::Table {
     t
 }
 
+/// What the table's columns count.
+pub const LEGEND: &str = "\nvector spills: xmm/ymm/zmm stores to fixed stack slots that are read back; vector reloads: \
+     loads from them (moves and folded operands); stack stores: vector stores to slots never read back at a fixed offset \
+     (local arrays' zero fill); helper calls: calls from the shader's body through a descriptor's function table \
+     (llvmpipe's texel-fetch/image/size helpers); stack bytes: the largest frame. Counts are static (code size), not \
+     executed instructions.\n";
+
 impl crate::report::Report for DriverStatsReport {
     fn to_text(&self) -> String {
         let p = &self.provenance;
@@ -452,16 +459,9 @@ impl crate::report::Report for DriverStatsReport {
             self.note
         );
         if self.kernels.iter().any(|k| k.lavapipe.is_some()) {
-            out.push_str(&table(self).to_markdown());
-            out.push_str(
-                "\nvector spills: xmm/ymm/zmm stores to fixed stack slots that are read back; vector reloads: loads \
-                 from them (moves and folded operands); stack stores: vector stores to slots never read back at a \
-                 fixed offset (local arrays' zero fill); helper calls: calls from the shader's body through a \
-                 descriptor's function table (llvmpipe's texel-fetch/image/size helpers); stack bytes: the largest \
-                 frame. Counts are static (code size), not executed instructions.\n",
-            );
-        }
-        for k in self.kernels.iter().filter(|k| !k.executable.is_empty()) {
+            out.push_str(&table(&self.kernels).to_markdown());
+            out.push_str(LEGEND);
+        }        for k in self.kernels.iter().filter(|k| !k.executable.is_empty()) {
             out.push_str(&format!("\n{}: ", k.name));
             out.push_str(&k.executable.iter().map(|(n, v)| format!("{n} {v}")).collect::<Vec<_>>().join(", "));
         }
