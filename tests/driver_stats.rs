@@ -130,6 +130,7 @@ fn profile_writes_timing_and_driver_statistics_rows() {
         return;
     }
     assert_eq!(ds.keys().collect::<Vec<_>>(), ["mt/bvh2/closest", "quad-unit/bvh2/closest"]);
-    let (mt, quad) = (figure(&ds["mt/bvh2/closest"], "instructions"), figure(&ds["quad-unit/bvh2/closest"], "instructions"));
+    let (mt, quad) =
+        (figure(&ds["mt/bvh2/closest"], "instructions"), figure(&ds["quad-unit/bvh2/closest"], "instructions"));
     assert!(mt > 100.0 && quad > 100.0 && mt != quad, "{mt} {quad}");
 }

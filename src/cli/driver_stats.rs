@@ -4,9 +4,9 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use trilab::encoding::Layout;
-use trilab::named::Named;
 use trilab::error::{Error, Result};
 use trilab::harness::profile::driver_stats::{self, CollectOptions, Selection};
+use trilab::named::Named;
 use trilab::report::Report;
 
 use super::choice::choice;

@@ -47,12 +47,12 @@ use crate::bvh::BuildOptions;
 use crate::encoding::{Layout, Method, SceneAccess, Traversal};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, PipelineOptions, RaycastOptions};
-use crate::pipeline::{HostScene, SceneRequest};
-use crate::scene::load_obj;
 use crate::harness::provenance::Provenance;
 use crate::kernels::{KernelSource, KERNELS};
 use crate::named::Named;
+use crate::pipeline::{HostScene, SceneRequest};
 use crate::rows::{cell, Figure, Row};
+use crate::scene::load_obj;
 
 /// The command name on every row of driver statistics, whether `trilab driver-stats` or
 /// `trilab profile` wrote them: the figures depend on the kernel and the driver only, so a
@@ -204,7 +204,8 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
         let dumps = lavapipe_dumps(kernels, o)?;
         let mut out = vec![];
         for (k, text) in kernels.iter().zip(dumps) {
-            let fs = lavapipe_asm::parse(&text).map_err(|e| Error::Usage(format!("{}: GALLIVM_DEBUG=asm dump: {e}", k.name)))?;
+            let fs = lavapipe_asm::parse(&text)
+                .map_err(|e| Error::Usage(format!("{}: GALLIVM_DEBUG=asm dump: {e}", k.name)))?;
             let asm = lavapipe_asm::kernel(&fs).ok_or_else(|| {
                 Error::Usage(format!(
                     "{}: lavapipe printed no compute-shader code (cs_variant) for it; was the pipeline served from a \
@@ -217,12 +218,18 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
             }
             out.push(KernelStats { lavapipe: Some(asm), ..KernelStats::of(k) });
         }
-        return Ok(DriverStatsReport { provenance, status: Status::Measured, note: LAVAPIPE_NOTE.into(), kernels: out });
+        return Ok(DriverStatsReport {
+            provenance,
+            status: Status::Measured,
+            note: LAVAPIPE_NOTE.into(),
+            kernels: out,
+        });
     }
     if ctx.enabled().pipeline_executable_properties {
         let mut out = vec![];
         for k in kernels {
-            let kernel = ctx.create_kernel_with(k, &PipelineOptions { capture_statistics: true, ..Default::default() })?;
+            let kernel =
+                ctx.create_kernel_with(k, &PipelineOptions { capture_statistics: true, ..Default::default() })?;
             let mut s = KernelStats::of(k);
             for st in super::executable::executable_statistics(ctx, &kernel)? {
                 if let Ok(v) = st.value.parse::<f64>() {
@@ -343,7 +350,10 @@ pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
     let kernels: Vec<&'static KernelSource> = names
         .iter()
         .map(|n| {
-            KERNELS.iter().find(|k| k.name == n).ok_or_else(|| Error::Usage(format!("--emit-for-parent: no kernel {n}")))
+            KERNELS
+                .iter()
+                .find(|k| k.name == n)
+                .ok_or_else(|| Error::Usage(format!("--emit-for-parent: no kernel {n}")))
         })
         .collect::<Result<_>>()?;
     let requests: Vec<SceneRequest> = kernels.iter().map(|k| raycast_request(k)).collect::<Result<_>>()?;
@@ -351,7 +361,8 @@ pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
     let host = HostScene::build(CHILD_SCENE, &mesh, &BuildOptions::new(4))?;
     let rays = crate::rays::random_rays(&mesh.bounds(), CHILD_RAYS, 1);
     let reference = host.reference().trace_all(&rays, false);
-    let marker = |line: String| writeln!(std::io::stderr().lock(), "{line}").map_err(|e| Error::io(Path::new("stderr"), e));
+    let marker =
+        |line: String| writeln!(std::io::stderr().lock(), "{line}").map_err(|e| Error::io(Path::new("stderr"), e));
     for (k, request) in kernels.iter().zip(requests) {
         let scene = host.upload(ctx, &request)?;
         let kernel = ctx.create_kernel(k)?;
@@ -376,7 +387,8 @@ pub fn rows(r: &DriverStatsReport) -> Vec<Row> {
     r.kernels
         .iter()
         .map(|k| {
-            let c = cell([("kernel", &k.kernel), ("variant", &k.variant), ("method", &k.method), ("layout", &k.layout)]);
+            let c =
+                cell([("kernel", &k.kernel), ("variant", &k.variant), ("method", &k.method), ("layout", &k.layout)]);
             let mut row = Row::new(COMMAND, c, &source);
             if let Some(a) = &k.lavapipe {
                 let t = &a.total;
@@ -461,7 +473,8 @@ impl crate::report::Report for DriverStatsReport {
         if self.kernels.iter().any(|k| k.lavapipe.is_some()) {
             out.push_str(&table(&self.kernels).to_markdown());
             out.push_str(LEGEND);
-        }        for k in self.kernels.iter().filter(|k| !k.executable.is_empty()) {
+        }
+        for k in self.kernels.iter().filter(|k| !k.executable.is_empty()) {
             out.push_str(&format!("\n{}: ", k.name));
             out.push_str(&k.executable.iter().map(|(n, v)| format!("{n} {v}")).collect::<Vec<_>>().join(", "));
         }

@@ -204,7 +204,7 @@ fn is_scalar_move(m: &str) -> bool {
 
 /// The stack slots the function reads at a fixed offset: every source operand (all but the
 /// last) of every instruction that is not an address computation (`lea`).
-fn slots_read<'a>(f: &'a FunctionDump) -> std::collections::HashSet<&'a str> {
+fn slots_read(f: &FunctionDump) -> std::collections::HashSet<&str> {
     let mut read = std::collections::HashSet::new();
     for ins in f.instructions.iter().filter(|i| !i.mnemonic.starts_with("lea")) {
         let ops = operands(&ins.operands);
@@ -358,7 +358,14 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(s("sample"), want);
-        let want = AsmStats { instructions: 97, calls: 4, table_calls: 2, host_calls: 2, stack_bytes: 72, ..Default::default() };
+        let want = AsmStats {
+            instructions: 97,
+            calls: 4,
+            table_calls: 2,
+            host_calls: 2,
+            stack_bytes: 72,
+            ..Default::default()
+        };
         assert_eq!(s("cs_variant"), want);
         let want = AsmStats {
             instructions: 2432,

@@ -58,9 +58,15 @@ fn size_table(rows: &[Row<SizeTiming>], subgroup: bool) -> Table {
 /// `profile.md`: the header, then one section per tool, each with its status and rows.
 pub fn render(r: &ProfileReport, command: &str) -> String {
     let mut out = header(r, command);
-    for section in
-        [timestamps, pipeline_statistics, shader_clock, executable_properties, size_sweeps, lp_threads, driver_statistics]
-    {
+    for section in [
+        timestamps,
+        pipeline_statistics,
+        shader_clock,
+        executable_properties,
+        size_sweeps,
+        lp_threads,
+        driver_statistics,
+    ] {
         section(&mut out, r);
     }
     out

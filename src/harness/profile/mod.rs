@@ -626,10 +626,12 @@ pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
     for t in &r.timestamps.rows {
         let d = &t.data;
         let mut row = R::new("profile", base(t.method, d.ray_set), &source)
-            .with("kernel_ms", Figure::timing(d.kernel_ms.clone(), "ms", Better::Lower))
+            .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
             .with("mrays_per_s", Figure::timing(mrays(d.rays, &d.kernel_ms), "Mrays/s", Better::Higher))
             .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher));
-        if let Some(inv) = r.pipeline_statistics.rows.iter().find(|i| i.method == t.method && i.data.ray_set == d.ray_set) {
+        if let Some(inv) =
+            r.pipeline_statistics.rows.iter().find(|i| i.method == t.method && i.data.ray_set == d.ray_set)
+        {
             row = row.with(
                 "compute_shader_invocations",
                 Figure::count(inv.data.compute_shader_invocations as f64, "invocations"),
@@ -646,7 +648,7 @@ pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
             c.insert(key.into(), size.to_string());
             out.push(
                 R::new("profile", c, &source)
-                    .with("kernel_ms", Figure::timing(d.kernel_ms.clone(), "ms", Better::Lower))
+                    .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
                     .with("mrays_per_s", Figure::timing(mrays(d.rays, &d.kernel_ms), "Mrays/s", Better::Higher))
                     .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher)),
             );
@@ -662,7 +664,7 @@ pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
         c.insert("threads".into(), d.threads.to_string());
         out.push(
             R::new("profile", c, &source)
-                .with("kernel_ms", Figure::timing(d.kernel_ms.clone(), "ms", Better::Lower))
+                .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
                 .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher)),
         );
     }
