@@ -344,7 +344,8 @@ fn raycast_request(k: &KernelSource) -> Result<SceneRequest> {
 /// kernel once on a small scene between marker lines on stderr, where gallivm prints its
 /// disassembly. lavapipe compiles a compute shader at its first dispatch, not when the pipeline
 /// is created (checked: creating the pipeline alone printed no `cs_variant`). The hits are
-/// checked against the f64 reference like any other result.
+/// checked against the f64 reference like any other result (any-hit kernels against the
+/// closest-hit kernel's, which is checked against the reference).
 pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
     use std::io::Write;
     let kernels: Vec<&'static KernelSource> = names
@@ -372,10 +373,20 @@ pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
         let opts = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
         let res = scene.cast_with(ctx, &kernel, &rays, &opts)?;
         marker(format!("{END}{}", k.name))?;
-        if !k.variant.starts_with("any") {
-            crate::harness::validate::validate_hits(&mesh, &rays, &res.hits, &reference)
-                .map_err(|e| Error::Usage(format!("{}: {e}", k.name)))?;
-        }
+        let closest = if k.variant.starts_with("any") {
+            // Any-hit: it must hit exactly where the (validated) closest-hit kernel does, and
+            // only real hits (`compare::compare_any`).
+            let closest = scene.cast(ctx, crate::encoding::Raycast::Closest, &rays, &opts)?;
+            let check = crate::compare::compare_any(&mesh, &rays, &closest.hits, &res.hits);
+            if !check.passes() {
+                return Err(Error::Usage(format!("{}: any-hit disagrees with closest-hit: {check:?}", k.name)));
+            }
+            closest.hits
+        } else {
+            res.hits
+        };
+        crate::harness::validate::validate_hits(&mesh, &rays, &closest, &reference)
+            .map_err(|e| Error::Usage(format!("{}: {e}", k.name)))?;
     }
     Ok(())
 }
