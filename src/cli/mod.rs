@@ -13,6 +13,7 @@ pub mod choice;
 pub mod compare;
 pub mod completions;
 pub mod devices;
+pub mod driver_stats;
 pub mod dump;
 pub mod man;
 pub mod hits;

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
+use trilab::harness::profile::driver_stats::CollectOptions;
 use trilab::harness::profile::{self, ProfileOptions};
 use trilab::harness::rayset::RaySet;
 
@@ -13,7 +14,8 @@ use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, MethodsArg};
 
 /// Driver-level profile of the ray-casting kernels: timestamps, pipeline statistics,
 /// shader-clock heat maps, executable statistics, subgroup/workgroup-size sweeps,
-/// LP_NUM_THREADS scaling; profile.md, profile.json and PNGs.
+/// LP_NUM_THREADS scaling, driver statistics (lavapipe's machine code); profile.md,
+/// profile.json, rows.jsonl and PNGs.
 #[derive(Args)]
 pub struct ProfileArgs {
     #[arg(long, value_name = "S", help = scene_help!())]
@@ -61,6 +63,10 @@ pub struct ProfileArgs {
     /// Leave out the LP_NUM_THREADS section.
     #[arg(long)]
     no_threads: bool,
+    /// Leave out the driver statistics (lavapipe: this executable run again with
+    /// GALLIVM_DEBUG=asm; `trilab driver-stats` gives them alone).
+    #[arg(long)]
+    no_driver_stats: bool,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -68,12 +74,19 @@ pub struct ProfileArgs {
 }
 
 pub fn run(a: ProfileArgs) -> Result<()> {
-    let exe = if a.no_threads {
+    let current_exe = || std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e));
+    let exe = if a.no_threads { None } else { Some(current_exe()?) };
+    let ctx = a.gpu.context()?;
+    let driver_stats = if a.no_driver_stats {
         None
     } else {
-        Some(std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e))?)
+        Some(CollectOptions {
+            exe: current_exe()?,
+            device_index: ctx.info().index,
+            validation: a.gpu.validation,
+            asm_dir: None,
+        })
     };
-    let ctx = a.gpu.context()?;
     let o = ProfileOptions {
         scene: a.scene.clone(),
         methods: a.methods.or_device(&ctx),
@@ -89,11 +102,12 @@ pub fn run(a: ProfileArgs) -> Result<()> {
         workgroup_sizes: a.workgroup_sizes.clone(),
         thread_counts: a.threads.clone(),
         exe,
+        driver_stats,
         command: format!("trilab {}", std::env::args().skip(1).collect::<Vec<_>>().join(" ")),
         ..Default::default()
     };
     let out = results_dir(&ctx, a.out.clone(), "profile");
-    let files = ["profile.json", "profile.md"];
+    let files = ["profile.json", "profile.md", trilab::rows::FILE];
     trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &[&a.scene])?;
     o.sizes().require_all()?;
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;

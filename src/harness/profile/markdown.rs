@@ -58,7 +58,15 @@ fn size_table(rows: &[Row<SizeTiming>], subgroup: bool) -> Table {
 /// `profile.md`: the header, then one section per tool, each with its status and rows.
 pub fn render(r: &ProfileReport, command: &str) -> String {
     let mut out = header(r, command);
-    for section in [timestamps, pipeline_statistics, shader_clock, executable_properties, size_sweeps, lp_threads] {
+    for section in [
+        timestamps,
+        pipeline_statistics,
+        shader_clock,
+        executable_properties,
+        size_sweeps,
+        lp_threads,
+        driver_statistics,
+    ] {
         section(&mut out, r);
     }
     out
@@ -287,5 +295,19 @@ fn lp_threads(out: &mut String, r: &ProfileReport) {
             ]);
         }
         *out += &t.to_markdown();
+    }
+}
+
+fn driver_statistics(out: &mut String, r: &ProfileReport) {
+    let _ = writeln!(out, "\n## 8. Driver statistics\n");
+    status(out, &r.driver_statistics);
+    let ks = &r.driver_statistics.rows;
+    if ks.iter().any(|k| k.lavapipe.is_some()) {
+        *out += &super::driver_stats::table(ks).to_markdown();
+        *out += super::driver_stats::LEGEND;
+    }
+    for k in ks.iter().filter(|k| !k.executable.is_empty()) {
+        let stats: Vec<String> = k.executable.iter().map(|(n, v)| format!("{n} {v}")).collect();
+        let _ = writeln!(out, "- {}: {}", k.name, stats.join(", "));
     }
 }

@@ -9,7 +9,12 @@
 //! 4. pipeline executable statistics (`VK_KHR_pipeline_executable_properties`, [`executable`]);
 //! 5. a subgroup-size sweep (`VK_EXT_subgroup_size_control`, [`sweep`]);
 //! 6. a workgroup-size sweep (raycast.comp's workgroup size is a specialisation constant);
-//! 7. LP_NUM_THREADS scaling on lavapipe ([`threads`]).
+//! 7. LP_NUM_THREADS scaling on lavapipe ([`threads`]);
+//! 8. driver statistics of the profiled kernels: lavapipe's machine code ([`driver_stats`]),
+//!    or "not available on this driver".
+//!
+//! [`write`] also writes `rows.jsonl` ([`rows`]): command `profile` for the timings and pipeline
+//! statistics, `driver-stats` for the driver statistics (the rows `trilab driver-stats` writes).
 //!
 //! Every result's hits are checked against the f64 reference before its time or count is
 //! reported; the variants (clock, subgroup and workgroup sizes) must also give hits bitwise
@@ -17,7 +22,9 @@
 
 pub mod clock;
 pub mod dispatch;
+pub mod driver_stats;
 pub mod executable;
+pub mod lavapipe_asm;
 pub mod markdown;
 pub mod sweep;
 pub mod threads;
@@ -71,6 +78,9 @@ pub struct ProfileOptions {
     pub exe: Option<PathBuf>,
     /// The command line that asked for the profile (recorded in profile.md).
     pub command: String,
+    /// The trilab executable the driver-statistics section runs under GALLIVM_DEBUG=asm
+    /// (`None`: the section is skipped).
+    pub driver_stats: Option<driver_stats::CollectOptions>,
 }
 
 impl Default for ProfileOptions {
@@ -92,6 +102,7 @@ impl Default for ProfileOptions {
             thread_counts: vec![],
             exe: None,
             command: "trilab profile".into(),
+            driver_stats: None,
         }
     }
 }
@@ -234,6 +245,10 @@ pub struct ProfileReport {
     pub subgroup_sizes: Section<Row<SizeTiming>>,
     pub workgroup_sizes: Section<Row<SizeTiming>>,
     pub lp_num_threads_scaling: Section<Row<ThreadMeasurement>>,
+    /// What the driver compiled each profiled kernel (raycast closest per method) to.
+    pub driver_statistics: Section<driver_stats::KernelStats>,
+    /// Where and when (the rows' source).
+    pub provenance: crate::harness::provenance::Provenance,
 }
 
 /// Checks hits against the f64 reference ([`crate::harness::validate::validate_hits`]); an error
@@ -500,6 +515,7 @@ pub fn run(
     ));
     let mut s = Sections::new(ctx, o);
     let mut primary_cycles: Vec<(Method, Vec<u32>)> = vec![];
+    let mut profiled_kernels = vec![];
     for &method in &o.methods {
         let mut m = MethodRun {
             ctx,
@@ -514,6 +530,7 @@ pub fn run(
             ropts: RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), ..Default::default() },
             progress: &mut progress,
         };
+        profiled_kernels.push(m.scene.kernel_source(Raycast::Closest)?);
         let (sweep_hits, cycles) = m.per_set(&mut s)?;
         primary_cycles.extend(cycles.map(|c| (method, c)));
         m.pipelines(&mut s, &sweep_hits)?;
@@ -532,6 +549,7 @@ pub fn run(
         }
     }
     let lp_scaling = threads_section(ctx, o, &sets, &mut progress)?;
+    let driver_statistics = driver_stats_section(ctx, o, &profiled_kernels, &mut progress)?;
     Ok(ProfileReport {
         tag: DeviceTag::of(info),
         command: o.command.clone(),
@@ -559,7 +577,105 @@ pub fn run(
         subgroup_sizes: s.subgroup_sizes,
         workgroup_sizes: s.workgroup_sizes,
         lp_num_threads_scaling: lp_scaling,
+        driver_statistics,
+        provenance: crate::harness::provenance::Provenance::of(ctx),
     })
+}
+
+/// Section 8: the driver statistics of the kernels the timings ran (each method's closest-hit
+/// kernel on the profile's layout and its scene's access path).
+fn driver_stats_section(
+    ctx: &Context,
+    o: &ProfileOptions,
+    kernels: &[&'static crate::kernels::KernelSource],
+    progress: &mut impl FnMut(&str),
+) -> Result<Section<driver_stats::KernelStats>> {
+    let Some(co) = &o.driver_stats else {
+        return Ok(Section::new(Status::Skipped, "skipped (--no-driver-stats)"));
+    };
+    progress(&format!("driver statistics of {} kernels", kernels.len()));
+    let r = driver_stats::collect(ctx, kernels, co)?;
+    Ok(Section { status: r.status, note: r.note, rows: r.kernels })
+}
+
+/// The profile's rows: timings (with the pipeline statistics' invocations as a count) per
+/// method and ray set, the subgroup/workgroup sweeps and LP_NUM_THREADS runs (command
+/// `profile`, cell scene/set/method/layout/kernel/variant and the swept size), and the driver
+/// statistics (command [`driver_stats::COMMAND`]). The shader-clock ticks are a distribution
+/// over rays of one run, not rounds, and are left out.
+pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
+    use crate::rows::{cell, Better, Figure, Row as R};
+    let source = r.provenance.source();
+    let base = |method: Method, set: RaySet| {
+        cell([
+            ("scene", r.scene.clone()),
+            ("set", set.to_string()),
+            ("method", method.to_string()),
+            ("layout", r.layout.to_string()),
+            ("kernel", "raycast".into()),
+            ("variant", "closest".into()),
+        ])
+    };
+    let mrays = |rays: usize, ms: &Summary| Summary {
+        median: mrays(rays, ms.median),
+        min: mrays(rays, ms.max),
+        max: mrays(rays, ms.min),
+        runs: ms.runs,
+    };
+    let mut out = vec![];
+    for t in &r.timestamps.rows {
+        let d = &t.data;
+        let mut row = R::new("profile", base(t.method, d.ray_set), &source)
+            .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
+            .with("mrays_per_s", Figure::timing(mrays(d.rays, &d.kernel_ms), "Mrays/s", Better::Higher))
+            .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher));
+        if let Some(inv) =
+            r.pipeline_statistics.rows.iter().find(|i| i.method == t.method && i.data.ray_set == d.ray_set)
+        {
+            row = row.with(
+                "compute_shader_invocations",
+                Figure::count(inv.data.compute_shader_invocations as f64, "invocations"),
+            );
+        }
+        out.push(row);
+    }
+    let sweeps = [("subgroup_size", &r.subgroup_sizes), ("local_size", &r.workgroup_sizes)];
+    for (key, section) in sweeps {
+        for t in &section.rows {
+            let d = &t.data;
+            let size = if key == "subgroup_size" { d.subgroup_size.unwrap_or(0) } else { d.local_size };
+            let mut c = base(t.method, d.ray_set);
+            c.insert(key.into(), size.to_string());
+            out.push(
+                R::new("profile", c, &source)
+                    .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
+                    .with("mrays_per_s", Figure::timing(mrays(d.rays, &d.kernel_ms), "Mrays/s", Better::Higher))
+                    .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher)),
+            );
+        }
+    }
+    for t in &r.lp_num_threads_scaling.rows {
+        let d = &t.data;
+        let set: RaySet = match d.ray_set.parse() {
+            Ok(s) => s,
+            Err(_) => continue,
+        };
+        let mut c = base(t.method, set);
+        c.insert("threads".into(), d.threads.to_string());
+        out.push(
+            R::new("profile", c, &source)
+                .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
+                .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher)),
+        );
+    }
+    let ds = driver_stats::DriverStatsReport {
+        provenance: r.provenance.clone(),
+        status: r.driver_statistics.status,
+        note: r.driver_statistics.note.clone(),
+        kernels: r.driver_statistics.rows.clone(),
+    };
+    out.extend(driver_stats::rows(&ds));
+    out
 }
 
 fn threads_section(
@@ -636,5 +752,6 @@ pub fn write(report: &ProfileReport, dir: &Path) -> Result<Vec<PathBuf>> {
         crate::io::write_atomic(&dir.join(name), text.as_bytes())?;
         written.push(dir.join(name));
     }
+    written.push(crate::rows::write(dir, None, &rows(report))?);
     Ok(written)
 }

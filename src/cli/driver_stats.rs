@@ -1,0 +1,92 @@
+//! `trilab driver-stats`.
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use trilab::encoding::Layout;
+use trilab::error::{Error, Result};
+use trilab::harness::profile::driver_stats::{self, CollectOptions, Selection};
+use trilab::named::Named;
+use trilab::report::Report;
+
+use super::choice::choice;
+use super::{results_dir, GpuArgs, JsonArg, MethodsArg};
+
+/// What the driver compiled each kernel to: on lavapipe, machine instructions, vector spills and
+/// reloads and calls into the texel-fetch helpers, from gallivm's disassembly (this executable
+/// runs itself again with GALLIVM_DEBUG=asm and MESA_SHADER_CACHE_DISABLE=true); on drivers with
+/// VK_KHR_pipeline_executable_properties, their statistics. driver-stats.md, driver-stats.json
+/// and rows.jsonl (for `trilab compare`).
+#[derive(Args)]
+pub struct DriverStatsArgs {
+    /// Kernel files, comma-separated: `raycast` (the only one dispatched so far; lavapipe compiles
+    /// a shader at its first dispatch).
+    #[arg(long, value_name = "K,...", value_delimiter = ',', default_values_t = ["raycast".to_string()])]
+    kernels: Vec<String>,
+    /// Variants without their layout suffix, comma-separated (`closest`, `any`, `stats`,
+    /// `closest_bda`, `closest_ww`, ...); a kernel without the variant is
+    /// left out.
+    #[arg(long, value_name = "V,...", value_delimiter = ',', default_values_t = ["closest".to_string(), "any".to_string()])]
+    variants: Vec<String>,
+    /// Methods (default: every method the device runs).
+    #[command(flatten)]
+    methods: MethodsArg,
+    /// Node layouts, comma-separated (default: all).
+    #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
+    layouts: Vec<Layout>,
+    /// Output directory for driver-stats.md, driver-stats.json and rows.jsonl; default
+    /// results/<device>/driver-stats.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Also keep each kernel's disassembly as `<DIR>/<kernel>.txt` (lavapipe).
+    #[arg(long, value_name = "DIR")]
+    asm_dir: Option<PathBuf>,
+    /// Internal: the child this command runs under GALLIVM_DEBUG=asm creates these kernels'
+    /// pipelines between marker lines on stderr.
+    #[arg(long, value_name = "NAMES", hide = true)]
+    emit_for_parent: Option<String>,
+    #[command(flatten)]
+    json: JsonArg,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+const FILES: [&str; 3] = ["driver-stats.json", "driver-stats.md", trilab::rows::FILE];
+
+pub fn run(a: DriverStatsArgs) -> Result<()> {
+    if let Some(names) = &a.emit_for_parent {
+        let ctx = a.gpu.context()?;
+        let names: Vec<String> = names.split(',').map(str::to_owned).collect();
+        return driver_stats::emit_for_parent(&ctx, &names);
+    }
+    let exe = std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e))?;
+    let ctx = a.gpu.context()?;
+    let selection = Selection {
+        kernels: a.kernels.clone(),
+        variants: a.variants.clone(),
+        methods: a.methods.or_device(&ctx),
+        layouts: if a.layouts.is_empty() { Layout::ALL.to_vec() } else { a.layouts.clone() },
+    };
+    let kernels = selection.kernels()?;
+    let out = results_dir(&ctx, a.out.clone(), "driver-stats");
+    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &FILES), &[])?;
+    if let Some(dir) = &a.asm_dir {
+        trilab::io::check_output("--asm-dir", trilab::io::Output::Dir(dir, &[]), &[])?;
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    eprintln!("  {} kernel variants", kernels.len());
+    let o = CollectOptions {
+        exe,
+        device_index: ctx.info().index,
+        validation: a.gpu.validation,
+        asm_dir: a.asm_dir.clone(),
+    };
+    let report = driver_stats::collect(&ctx, &kernels, &o)?;
+    a.json.print(&report);
+    trilab::io::write_atomic(&out.join(FILES[0]), report.to_json().as_bytes())?;
+    trilab::io::write_atomic(&out.join(FILES[1]), report.to_text().as_bytes())?;
+    trilab::rows::write(&out, None, &driver_stats::rows(&report))?;
+    eprintln!("wrote {}", out.display());
+    Ok(())
+}
