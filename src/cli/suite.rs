@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use trilab::error::{Error, Result};
+use trilab::harness::profile::driver_stats::CollectOptions;
 use trilab::harness::suite::{self, Part, SuiteOptions};
 use trilab::named::Named;
 
@@ -36,6 +37,10 @@ pub struct SuiteArgs {
     /// Skip the profile's LP_NUM_THREADS section (it re-runs trilab once per thread count).
     #[arg(long)]
     no_threads: bool,
+    /// Skip the profile's driver statistics (lavapipe: this executable run again with
+    /// GALLIVM_DEBUG=asm; other drivers: the executable properties).
+    #[arg(long)]
+    no_driver_stats: bool,
     /// Run every part at this step of its size ladder whatever the budget (0: the smoke sizes,
     /// seconds on lavapipe; a larger step is capped at a part's largest): for a run that must
     /// match a stored baseline cell for cell, as CI's does.
@@ -48,11 +53,8 @@ pub struct SuiteArgs {
 }
 
 pub fn run(a: SuiteArgs) -> Result<()> {
-    let exe = if a.no_threads {
-        None
-    } else {
-        Some(std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e))?)
-    };
+    let current_exe = || std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e));
+    let exe = if a.no_threads { None } else { Some(current_exe()?) };
     let mut o = SuiteOptions {
         budget_minutes: a.budget_minutes,
         out: a.out.clone().unwrap_or_default(),
@@ -60,10 +62,19 @@ pub fn run(a: SuiteArgs) -> Result<()> {
         embree: a.embree.clone(),
         tinybvh: a.tinybvh.clone(),
         exe,
+        driver_stats: None,
         force_size: a.size,
     };
     suite::check(&o)?;
     let ctx = a.gpu.context()?;
+    if !a.no_driver_stats {
+        o.driver_stats = Some(CollectOptions {
+            exe: current_exe()?,
+            device_index: ctx.info().index,
+            validation: a.gpu.validation,
+            asm_dir: None,
+        });
+    }
     o.out = results_dir(&ctx, a.out.clone(), "suite");
     trilab::io::check_output("--out", trilab::io::Output::Dir(&o.out, &["summary.md", "suite.json"]), &[])?;
     let report = suite::run(&ctx, &o, |m| eprintln!("suite: {m}"))?;

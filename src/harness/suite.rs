@@ -253,6 +253,8 @@ pub struct SuiteOptions {
     pub tinybvh: Option<PathBuf>,
     /// The trilab executable, for the profile's LP_NUM_THREADS section (`None`: skipped).
     pub exe: Option<PathBuf>,
+    /// How the profile collects the driver's statistics (`None`: skipped).
+    pub driver_stats: Option<profile::driver_stats::CollectOptions>,
     /// Run every part at this ladder step (0 = smoke) whatever the budget: for measuring the
     /// ladders themselves.
     pub force_size: Option<usize>,
@@ -462,6 +464,7 @@ fn run_part(
             let mut p = (**p).clone();
             p.methods = crate::analyze::available_methods(ctx.enabled());
             p.exe = o.exe.clone();
+            p.driver_stats = o.driver_stats.clone();
             p.sizes().require_all()?;
             let r = profile::run(ctx, &p, Some(dir), &mut note)?;
             let files = profile::write(&r, dir)?;
@@ -618,6 +621,7 @@ mod tests {
             embree: None,
             tinybvh: None,
             exe: None,
+            driver_stats: None,
             force_size: None,
         };
         assert!(check(&bad).unwrap_err().to_string().contains("--budget-minutes"));
