@@ -14,6 +14,7 @@ pub mod completions;
 pub mod devices;
 pub mod dump;
 pub mod man;
+pub mod merge;
 pub mod hits;
 pub mod methods;
 pub mod profile;
