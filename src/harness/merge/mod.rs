@@ -41,6 +41,8 @@ pub struct Device {
     /// [`Source::device_label`]: the column's name.
     pub label: String,
     pub device: String,
+    /// The settings in its label (those of its first row).
+    pub settings: BTreeMap<String, String>,
     /// The drivers, commits and dates its rows name (several when runners differ).
     pub drivers: Vec<String>,
     pub commits: Vec<String>,
@@ -188,9 +190,10 @@ pub fn merge(
                 f,
                 None,
                 format!(
-                    "`{}` was measured twice for device `{label}` (also in {}): merge refuses to choose between \
-                     two measurements of one cell; merge one of the runs, or run them with different settings",
-                    r.key(),
+                    "`{} {}` was measured twice for device `{label}` (also in {}): merge refuses to choose \
+                     between two measurements of one cell; merge one of the runs, or run them with different settings",
+                    r.command,
+                    cell_label(&r.cell),
                     first.display()
                 ),
             ));
@@ -231,7 +234,12 @@ pub fn merge(
                 let per_device: Vec<Option<Figure>> =
                     labels.iter().map(|l| find(l, cell).and_then(|r| r.figures.get(&figure).cloned())).collect();
                 if per_device.iter().any(Option::is_some) {
-                    speed.push(SpeedRow { command: command.clone(), cell: cell.clone(), figure: figure.clone(), per_device });
+                    speed.push(SpeedRow {
+                        command: command.clone(),
+                        cell: cell.clone(),
+                        figure: figure.clone(),
+                        per_device,
+                    });
                 }
             }
         }
@@ -271,7 +279,8 @@ pub fn merge(
                 .filter(|(p, _)| &p.command == command && &p.source.device_label() == label)
                 .flat_map(|(p, _)| &p.cells)
                 .collect();
-            for cell in cells.iter().filter(|c| plans.iter().any(|(p, _)| &p.command == command && p.cells.contains(c))) {
+            for cell in cells.iter().filter(|c| plans.iter().any(|(p, _)| &p.command == command && p.cells.contains(c)))
+            {
                 if find(label, cell).is_none() {
                     missing.push(Missing {
                         device: label.clone(),
@@ -335,6 +344,7 @@ fn device(label: &str, rows: &[(Row, PathBuf)], plans: &[(Plan, PathBuf)]) -> De
     Device {
         label: label.to_owned(),
         device: sources.first().map(|s| s.device.clone()).unwrap_or_default(),
+        settings: sources.first().map(|s| s.settings.clone()).unwrap_or_default(),
         drivers: distinct(|s| &s.driver),
         commits: distinct(|s| &s.commit),
         dates: distinct(|s| &s.date),
@@ -489,7 +499,7 @@ impl MergeReport {
         );
         s += "## Devices\n\n";
         let mut t = Table::new(["column", "plot series", "device", "driver", "commit", "date", "rows", "shards"]);
-        let series = series_names(&self.devices.iter().map(|d| d.label.clone()).collect::<Vec<_>>());
+        let series = series_names(&self.devices);
         for (d, series) in self.devices.iter().zip(series) {
             let shards = d
                 .shards
@@ -607,19 +617,32 @@ pub fn cell_label(cell: &Cell) -> String {
     keys.iter().map(|k| format!("{k}={}", cell[*k])).collect::<Vec<_>>().join(" ")
 }
 
-/// Short names for the plots' legend, one per device label: `D1`, `D2`, ... and what tells the
-/// device apart from the others (the label's comma-separated parts not shared by every label;
-/// the device's name when there is one device), cut to fit the legend strip.
-pub fn series_names(labels: &[String]) -> Vec<String> {
-    let parts: Vec<Vec<&str>> = labels.iter().map(|l| l.split(", ").collect()).collect();
-    parts
+/// Short names for the plots' legend, one per device: `D1`, `D2`, ... and what tells the device
+/// apart from the others: its name where the names differ (or there is one device), and the
+/// settings whose values differ (`LP_NATIVE_VECTOR_WIDTH` as `WIDTH`), cut to fit the legend.
+pub fn series_names(devices: &[Device]) -> Vec<String> {
+    let same_name = devices.iter().all(|d| d.device == devices[0].device);
+    let mut keys: Vec<&String> = devices.iter().flat_map(|d| d.settings.keys()).collect();
+    keys.sort();
+    keys.dedup();
+    keys.retain(|k| {
+        k.as_str() != "LP_NUM_THREADS" && devices.iter().any(|d| d.settings.get(*k) != devices[0].settings.get(*k))
+    });
+    devices
         .iter()
         .enumerate()
-        .map(|(i, p)| {
-            let own: Vec<&str> =
-                p.iter().copied().filter(|x| labels.len() == 1 || !parts.iter().all(|q| q.contains(x))).collect();
-            let text = if own.is_empty() || labels.len() == 1 { p[0].to_owned() } else { own.join(", ") };
-            let cut: String = text.chars().take(18).collect();
+        .map(|(i, d)| {
+            let mut parts = vec![];
+            if !same_name || devices.len() == 1 {
+                parts.push(d.device.clone());
+            }
+            for k in &keys {
+                let short =
+                    if k.chars().any(|c| c.is_ascii_uppercase()) { k.rsplit('_').next().unwrap_or(k) } else { k };
+                parts.push(format!("{short}={}", d.settings.get(*k).map_or("-", String::as_str)));
+            }
+            let text = parts.join(", ");
+            let cut: String = text.chars().take(20).collect();
             let cut = if cut.len() < text.len() { format!("{cut}…") } else { cut };
             format!("D{}: {cut}", i + 1)
         })
@@ -654,4 +677,179 @@ pub fn write(report: &MergeReport, dir: &Path) -> Result<Vec<PathBuf>> {
     let json = dir.join(FILES[1]);
     crate::io::write_atomic(&json, (serde_json::to_string_pretty(report).expect("serialisable") + "\n").as_bytes())?;
     Ok(plots.into_iter().map(|p| p.path).chain([md, json]).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::study::testing::synthetic;
+    use crate::harness::study::{self, StudyReport};
+
+    /// The paper's shape (leaf 4 fastest, MT 3 % faster than unit, Quad unit 12 % faster than
+    /// MT) on "gpu-a", the contrary (leaf 16 fastest, unit faster, Quad unit slower) on "gpu-b".
+    fn report(device: &str, paper: bool) -> StudyReport {
+        let t = move |_: &str, leaf: u32, m: Method, _: Layout| {
+            let f = |mt: f64, unit: f64, quad_unit: f64| match m {
+                Method::Mt => mt,
+                Method::Unit => unit,
+                Method::QuadUnit => quad_unit,
+                _ => 1.0,
+            };
+            if paper {
+                (1.0 + 0.05 * (leaf as f64 - 4.0).abs()) * f(1.0, 1.03, 1.0 / 1.12)
+            } else {
+                (20.0 - leaf as f64) * f(1.0, 0.9, 1.1)
+            }
+        };
+        let mut r = synthetic(&["bunny", "dragon"], &[Layout::Bvh2], t, 0.001);
+        r.provenance.device = device.into();
+        r
+    }
+
+    /// The plan of a synthetic report (its options name no scene files): its rows' cells.
+    fn plan(r: &StudyReport, shard: Option<Shard>) -> Plan {
+        Plan { shard, cells: study::rows(r).into_iter().map(|row| row.cell).collect(), ..study::plan(r) }
+    }
+
+    fn file(name: &str) -> PathBuf {
+        PathBuf::from(format!("runs/{name}/rows.jsonl"))
+    }
+
+    fn merged(parts: &[(&str, &StudyReport, Option<Shard>)]) -> Result<MergeReport> {
+        let mut rows = vec![];
+        let mut plans = vec![];
+        for (name, r, shard) in parts {
+            rows.extend(study::rows(r).into_iter().map(|row| (row, file(name))));
+            plans.push((plan(r, *shard), file(name)));
+        }
+        merge(vec![], parts.iter().map(|p| file(p.0)).collect(), rows, plans)
+    }
+
+    #[test]
+    fn claims_per_device_are_the_claims_of_a_study_report_of_the_same_numbers() {
+        let (a, b) = (report("gpu-a", true), report("gpu-b", false));
+        let m = merged(&[("a", &a, None), ("b", &b, None)]).unwrap();
+        assert_eq!(m.devices.iter().map(|d| d.label.as_str()).collect::<Vec<_>>(), ["gpu-a", "gpu-b"]);
+        assert_eq!(m.claims.len(), 2);
+        for (d, r) in m.claims.iter().zip([&a, &b]) {
+            let want = claims::all(r);
+            assert_eq!(serde_json::to_value(&d.claims).unwrap(), serde_json::to_value(&want).unwrap(), "{}", d.device);
+            assert_eq!((d.measured, d.planned, d.repeat), (r.rows.len(), r.rows.len(), 3));
+        }
+        // The paper's numbers hold on gpu-a, the contrary ones fail on gpu-b: one column each.
+        let table = m.claims_table().to_markdown();
+        assert!(table.contains("| (a) | holds | does not hold |"), "{table}");
+        assert!(table.contains("| (c) | holds | does not hold |"), "{table}");
+        assert!(m.missing.is_empty(), "{:?}", m.missing);
+        // The speed table has every cell once with a figure for both devices.
+        assert_eq!(m.speed.len(), a.rows.len());
+        assert!(m.speed.iter().all(|r| r.figure == "render_s" && r.per_device.iter().all(Option::is_some)));
+    }
+
+    #[test]
+    fn a_cell_no_runner_of_a_device_measured_is_listed_and_its_claims_say_partial() {
+        let a = report("gpu-a", true);
+        let mut b = report("gpu-b", true);
+        // gpu-b lost the cell (dragon, leaf 4, quad-unit).
+        let lost = b.rows.iter().position(|r| r.scene == "dragon" && r.leaf_size == 4 && r.method == Method::QuadUnit);
+        let lost = b.rows.remove(lost.unwrap());
+        let mut m = merged(&[("a", &a, None), ("b", &b, None)]).unwrap();
+        // gpu-b's own plan is taken from its rows here, so it lacks the cell: the cell is in
+        // gpu-a's plan only.
+        assert_eq!(m.missing.len(), 1, "{:?}", m.missing);
+        let miss = &m.missing[0];
+        assert_eq!((miss.device.as_str(), miss.planned_by_device), ("gpu-b", false));
+        assert_eq!(miss.cell, study::cell_of("dragon", 4, Method::QuadUnit, Layout::Bvh2));
+        // With gpu-b's full plan (its run planned the cell), the cell is missing from its own plan.
+        let full = plan(&a, Some(Shard { index: 1, count: 2 }));
+        let full = Plan { source: b.provenance.source(), ..full };
+        let mut rows: Vec<(Row, PathBuf)> = study::rows(&a).into_iter().map(|r| (r, file("a"))).collect();
+        rows.extend(study::rows(&b).into_iter().map(|r| (r, file("b"))));
+        m = merge(vec![], vec![], rows, vec![(plan(&a, None), file("a")), (full, file("b"))]).unwrap();
+        assert_eq!(m.missing.len(), 1);
+        assert!(m.missing[0].planned_by_device);
+        let md = m.markdown(&[]);
+        assert!(md.contains("| gpu-b | study scene=dragon leaf=4 method=quad-unit layout=bvh2 | own plan |"), "{md}");
+        assert!(md.contains("partial: 47 of 48 planned cells measured"), "{md}");
+        // Its plan names shard 1/2; shard 2/2 never reported.
+        let b_dev = m.devices.iter().find(|d| d.label == "gpu-b").unwrap();
+        assert_eq!(b_dev.shards[0].missing, vec![Shard { index: 2, count: 2 }]);
+        assert!(md.contains("study: 1/2 (missing 2/2)"), "{md}");
+        assert!(m.speed.iter().any(|r| r.cell == lost_cell(&lost) && r.per_device[1].is_none()));
+        assert!(md.contains("| missing |"), "{md}");
+    }
+
+    fn lost_cell(r: &study::StudyRow) -> Cell {
+        study::cell_of(&r.scene, r.leaf_size, r.method, r.layout)
+    }
+
+    #[test]
+    fn a_cell_measured_twice_for_one_device_is_refused_naming_both_files() {
+        let a = report("gpu-a", true);
+        let e = merged(&[("a1", &a, None), ("a2", &a, None)]).unwrap_err().to_string();
+        assert!(e.contains("measured twice") && e.contains("gpu-a"), "{e}");
+        assert!(e.contains("runs/a1/rows.jsonl") && e.contains("runs/a2/rows.jsonl"), "{e}");
+        assert!(e.contains("study scene=bunny leaf=1 method=mt"), "{e}");
+        // The same numbers from another device are another column, not a duplicate.
+        assert!(merged(&[("a", &a, None), ("b", &report("gpu-b", true), None)]).is_ok());
+    }
+
+    #[test]
+    fn one_device_at_two_driver_settings_is_two_columns() {
+        let mut w8 = report("llvmpipe", true);
+        w8.provenance.settings.insert("LP_NATIVE_VECTOR_WIDTH".into(), "256".into());
+        // LP_NUM_THREADS changes speed but not the device a row belongs to.
+        w8.provenance.settings.insert("LP_NUM_THREADS".into(), "2".into());
+        let mut w4 = report("llvmpipe", false);
+        w4.provenance.settings.insert("LP_NATIVE_VECTOR_WIDTH".into(), "128".into());
+        let m = merged(&[("w8", &w8, None), ("w4", &w4, None)]).unwrap();
+        let labels: Vec<&str> = m.devices.iter().map(|d| d.label.as_str()).collect();
+        assert_eq!(labels, ["llvmpipe, LP_NATIVE_VECTOR_WIDTH=256", "llvmpipe, LP_NATIVE_VECTOR_WIDTH=128"]);
+        assert_eq!(series_names(&m.devices), ["D1: WIDTH=256", "D2: WIDTH=128"]);
+    }
+
+    #[test]
+    fn reads_each_file_once_and_writes_the_report_and_plots() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (report("gpu-a", true), report("gpu-b", false));
+        for (name, r) in [("a", &a), ("b/shard1", &b)] {
+            let d = dir.path().join(name);
+            std::fs::create_dir_all(&d).unwrap();
+            rows::write(&d, Some(&plan(r, None)), &study::rows(r)).unwrap();
+        }
+        // b/ and b/shard1/ reach the same file: read once, not a duplicate.
+        let inputs = [dir.path().join("a"), dir.path().join("b"), dir.path().join("b/shard1")];
+        let m = run(&inputs).unwrap();
+        assert_eq!(m.files.len(), 2);
+        let out = dir.path().join("merged");
+        let written = write(&m, &out).unwrap();
+        for f in ["merge.md", "merge.json", "merge-time-vs-leaf-bunny.png", "merge-methods-vs-mt.png"] {
+            assert!(written.contains(&out.join(f)), "{f} not in {written:?}");
+        }
+        let img = image::open(out.join("merge-time-vs-leaf-bunny.png")).unwrap();
+        assert!(img.width() >= 4 * 640, "a panel per method");
+        let md = std::fs::read_to_string(out.join("merge.md")).unwrap();
+        assert!(md.contains("![") && md.contains("merge-methods-vs-mt.png"), "{md}");
+        let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("merge.json")).unwrap()).unwrap();
+        assert_eq!(json["devices"].as_array().unwrap().len(), 2);
+        // A folder without rows is refused by name.
+        let empty = dir.path().join("empty");
+        std::fs::create_dir_all(&empty).unwrap();
+        let e = run(&[empty.clone()]).unwrap_err().to_string();
+        assert!(e.contains("empty") && e.contains("rows.jsonl"), "{e}");
+    }
+
+    #[test]
+    fn headline_prefers_the_papers_metric() {
+        let s = Source::default();
+        let t = Figure::timing(Summary { median: 1.0, min: 1.0, max: 1.0, runs: 1 }, "s", rows::Better::Lower);
+        let r1 = Row::new("x", Cell::new(), &s).with("zeta_ms", t.clone()).with("alpha_ms", t.clone());
+        assert_eq!(headline([&r1]).as_deref(), Some("alpha_ms"));
+        let r2 = Row::new("x", Cell::new(), &s).with("render_s", t.clone());
+        assert_eq!(headline([&r1, &r2]).as_deref(), Some("render_s"));
+        assert_eq!(
+            cell_label(&rows::cell([("layout", "bvh2"), ("leaf", "4"), ("scene", "bunny"), ("x", "1")])),
+            "scene=bunny leaf=4 layout=bvh2 x=1"
+        );
+    }
 }

@@ -11,7 +11,9 @@ use plotters::prelude::*;
 
 use super::{MergeReport, SpeedRow};
 use crate::error::Result;
-use crate::harness::plots::{plot_err, render_png, LegendEntry, Marker, Plot, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA};
+use crate::harness::plots::{
+    plot_err, render_png, LegendEntry, Marker, Plot, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA,
+};
 use crate::rows::Figure;
 
 fn device_colour(i: usize) -> RGBColor {
@@ -79,8 +81,7 @@ fn file_part(s: &str) -> String {
 }
 
 fn legend(report: &MergeReport, marker: Marker) -> Vec<LegendEntry> {
-    let labels: Vec<String> = report.devices.iter().map(|d| d.label.clone()).collect();
-    super::series_names(&labels)
+    super::series_names(&report.devices)
         .into_iter()
         .enumerate()
         .map(|(i, name)| LegendEntry::new(name, device_colour(i), marker))
@@ -95,11 +96,8 @@ fn time_vs_leaf(report: &MergeReport, t: &Times, scene: &str, layout: &str, path
     let what = "merged time against leaf size";
     // (method, device) -> points (leaf index, median, min, max), normalised.
     let series = |m: &str, d: usize| -> Vec<(u32, f64, f64, f64)> {
-        let pts: Vec<(u32, &Figure)> = leaves
-            .iter()
-            .enumerate()
-            .filter_map(|(i, &l)| Some((i as u32, t.get(scene, layout, m, l, d)?)))
-            .collect();
+        let pts: Vec<(u32, &Figure)> =
+            leaves.iter().enumerate().filter_map(|(i, &l)| Some((i as u32, t.get(scene, layout, m, l, d)?))).collect();
         let best = pts.iter().map(|p| p.1.median).fold(f64::INFINITY, f64::min);
         pts.iter().map(|(i, f)| (*i, f.median / best, f.min / best, f.max / best)).collect()
     };
@@ -166,11 +164,8 @@ fn methods_vs_mt(report: &MergeReport, t: &Times, path: &Path) -> Result<()> {
         };
         let values: Vec<Vec<Option<f64>>> = methods.iter().map(|m| (0..devices).map(|d| rel(m, d)).collect()).collect();
         let ymax = values.iter().flatten().flatten().copied().fold(1.0, f64::max) * 1.15;
-        let caption = if layout == "bvh2" {
-            format!("{scene}: time / MT")
-        } else {
-            format!("{scene}, {layout}: time / MT")
-        };
+        let caption =
+            if layout == "bvh2" { format!("{scene}: time / MT") } else { format!("{scene}, {layout}: time / MT") };
         let mut chart = ChartBuilder::on(area)
             .caption(caption, ("sans-serif", 20))
             .margin(12)
@@ -232,7 +227,9 @@ pub fn all(report: &MergeReport, dir: &Path) -> Result<Vec<Plot>> {
         time_vs_leaf(report, &t, scene, layout, &path)?;
         let on = if layout == "bvh2" { String::new() } else { format!(" on {layout}") };
         out.push(Plot {
-            title: format!("{scene}{on}: render time against leaf size, per device (1 = the device's fastest leaf size)"),
+            title: format!(
+                "{scene}{on}: render time against leaf size, per device (1 = the device's fastest leaf size)"
+            ),
             path,
         });
     }
