@@ -319,6 +319,9 @@ fn github_check(doc: &Value) -> Result<Vec<Vec<String>>, String> {
     Ok(all)
 }
 
+/// A CI file's structural check: the trilab invocations, or what is wrong.
+type Check = fn(&Value) -> Result<Vec<Vec<String>>, String>;
+
 /// The compare invocations state a threshold (a number, in percent).
 fn threshold_stated(invocations: &[Vec<String>]) -> Result<(), String> {
     let compares: Vec<&Vec<String>> = invocations.iter().filter(|a| a[0] == "compare").collect();
@@ -389,7 +392,7 @@ fn drop_a_shard(doc: &mut Value, gitlab: bool) {
 #[test]
 fn the_checks_fail_on_a_dropped_shard_a_doubled_shard_a_lost_dependency_and_a_bad_option() {
     for gitlab in [true, false] {
-        let (name, check): (_, fn(&Value) -> Result<Vec<Vec<String>>, String>) =
+        let (name, check): (_, Check) =
             if gitlab { ("gitlab-ci.yml", gitlab_check) } else { ("github-actions.yml", github_check) };
         let doc = load(name);
         let mut d = doc.clone();

@@ -835,7 +835,7 @@ mod tests {
         // A folder without rows is refused by name.
         let empty = dir.path().join("empty");
         std::fs::create_dir_all(&empty).unwrap();
-        let e = run(&[empty.clone()]).unwrap_err().to_string();
+        let e = run(std::slice::from_ref(&empty)).unwrap_err().to_string();
         assert!(e.contains("empty") && e.contains("rows.jsonl"), "{e}");
     }
 

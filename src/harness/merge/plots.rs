@@ -20,9 +20,12 @@ fn device_colour(i: usize) -> RGBColor {
     SCENE_COLOURS[i % SCENE_COLOURS.len()]
 }
 
-/// The study's render-time rows: (scene, layout, method, leaf, per device).
+/// One render-time row: (scene, layout, method, leaf, per device).
+type TimeRow<'a> = (&'a str, &'a str, &'a str, u32, &'a [Option<Figure>]);
+
+/// The study's render-time rows.
 struct Times<'a> {
-    rows: Vec<(&'a str, &'a str, &'a str, u32, &'a [Option<Figure>])>,
+    rows: Vec<TimeRow<'a>>,
 }
 
 impl<'a> Times<'a> {
