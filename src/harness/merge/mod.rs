@@ -618,28 +618,60 @@ pub fn cell_label(cell: &Cell) -> String {
 }
 
 /// Short names for the plots' legend, one per device: `D1`, `D2`, ... and what tells the device
-/// apart from the others: its name where the names differ (or there is one device), and the
-/// settings whose values differ (`LP_NATIVE_VECTOR_WIDTH` as `WIDTH`), cut to fit the legend.
+/// apart from the others: the settings whose values differ (`LP_NATIVE_VECTOR_WIDTH` as
+/// `WIDTH`) and, where those do not tell every device apart, the words of its name that differ
+/// from the others' (its whole name when there is one device), cut to fit the legend.
 pub fn series_names(devices: &[Device]) -> Vec<String> {
-    let same_name = devices.iter().all(|d| d.device == devices[0].device);
     let mut keys: Vec<&String> = devices.iter().flat_map(|d| d.settings.keys()).collect();
     keys.sort();
     keys.dedup();
     keys.retain(|k| {
         k.as_str() != "LP_NUM_THREADS" && devices.iter().any(|d| d.settings.get(*k) != devices[0].settings.get(*k))
     });
+    // The fewest differing settings (in name order) that tell the devices apart, else all.
+    let with = |n: usize| -> Vec<String> {
+        devices
+            .iter()
+            .map(|d| {
+                keys.iter()
+                    .take(n)
+                    .map(|k| {
+                        let upper = k.chars().any(|c| c.is_ascii_uppercase());
+                        let short = if upper { k.rsplit('_').next().unwrap_or(k) } else { k };
+                        format!("{short}={}", d.settings.get(*k).map_or("-", String::as_str))
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            })
+            .collect()
+    };
+    let distinct = |v: &[String]| {
+        let mut d = v.to_vec();
+        d.sort();
+        d.dedup();
+        d.len() == devices.len()
+    };
+    let n = (1..=keys.len()).find(|&n| distinct(&with(n))).unwrap_or(keys.len());
+    let settings = with(n);
+    let by_settings = !keys.is_empty() && distinct(&settings);
+    // The words of each name between the words every name starts and ends with.
+    let words: Vec<Vec<&str>> = devices.iter().map(|d| d.device.split_whitespace().collect()).collect();
+    let shortest = words.iter().map(Vec::len).min().unwrap_or(0);
+    let prefix = (0..shortest).take_while(|&i| words.iter().all(|w| w[i] == words[0][i])).count();
+    let suffix = (0..shortest - prefix)
+        .take_while(|&i| words.iter().all(|w| w[w.len() - 1 - i] == words[0][words[0].len() - 1 - i]))
+        .count();
     devices
         .iter()
         .enumerate()
         .map(|(i, d)| {
             let mut parts = vec![];
-            if !same_name || devices.len() == 1 {
-                parts.push(d.device.clone());
+            if !by_settings {
+                let own = words[i][prefix..words[i].len() - suffix].join(" ");
+                parts.push(if own.is_empty() || devices.len() == 1 { d.device.clone() } else { own });
             }
-            for k in &keys {
-                let short =
-                    if k.chars().any(|c| c.is_ascii_uppercase()) { k.rsplit('_').next().unwrap_or(k) } else { k };
-                parts.push(format!("{short}={}", d.settings.get(*k).map_or("-", String::as_str)));
+            if !settings[i].is_empty() {
+                parts.push(settings[i].clone());
             }
             let text = parts.join(", ");
             let cut: String = text.chars().take(20).collect();
@@ -806,6 +838,24 @@ mod tests {
         let labels: Vec<&str> = m.devices.iter().map(|d| d.label.as_str()).collect();
         assert_eq!(labels, ["llvmpipe, LP_NATIVE_VECTOR_WIDTH=256", "llvmpipe, LP_NATIVE_VECTOR_WIDTH=128"]);
         assert_eq!(series_names(&m.devices), ["D1: WIDTH=256", "D2: WIDTH=128"]);
+        // The width alone tells them apart; the subgroup size that follows it is left out.
+        let mut both = m.devices.clone();
+        for (d, sg) in both.iter_mut().zip(["8", "4"]) {
+            d.settings.insert("subgroup_size".into(), sg.into());
+        }
+        assert_eq!(series_names(&both), ["D1: WIDTH=256", "D2: WIDTH=128"]);
+        both[1].settings.insert("LP_NATIVE_VECTOR_WIDTH".into(), "256".into());
+        // Equal widths: the subgroup size is what differs.
+        assert_eq!(series_names(&both), ["D1: subgroup_size=8", "D2: subgroup_size=4"]);
+        // Devices told apart by name only: the words that differ.
+        let mut gpus = m.devices.clone();
+        gpus[0].device = "NVIDIA GeForce RTX 4090".into();
+        gpus[1].device = "NVIDIA GeForce RTX 3060".into();
+        for d in &mut gpus {
+            d.settings.clear();
+        }
+        assert_eq!(series_names(&gpus), ["D1: 4090", "D2: 3060"]);
+        assert_eq!(series_names(&gpus[..1]), ["D1: NVIDIA GeForce RTX 4…"]);
     }
 
     #[test]
