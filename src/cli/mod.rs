@@ -16,6 +16,7 @@ pub mod devices;
 pub mod driver_stats;
 pub mod dump;
 pub mod man;
+pub mod merge;
 pub mod hits;
 pub mod methods;
 pub mod profile;

@@ -42,6 +42,12 @@ pub struct StudyArgs {
     /// Triangles the SAH prices as one test: 1 (the paper's SAH) or 4 (quad-aware).
     #[arg(long, value_name = "N", default_value_t = 1)]
     sah_group: u32,
+    /// Run only shard I of N of the matrix: every N-th (scene, leaf size) group, round-robin from
+    /// group I, so each leaf size's methods and layouts still run side by side. rows.jsonl names
+    /// the shard and plans the whole matrix; the report's claims judge this shard's cells only
+    /// and say so; `trilab merge` joins the shards' folders.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<trilab::rows::Shard>,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -66,13 +72,24 @@ pub fn run(a: StudyArgs) -> Result<()> {
         o.repeat = r;
     }
     o.sah_group = a.sah_group;
+    o.shard = a.shard;
     o.check()?;
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.clone(), "study");
     let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
-    let files = ["study.csv", "study.json", "study.md"];
+    let files = ["study.csv", "study.json", "study.md", trilab::rows::FILE];
     trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &inputs)?;
     eprintln!("study: {}", o.scaling());
+    if let Some(shard) = o.shard {
+        let groups = (0..o.scenes.len())
+            .flat_map(|s| (0..o.leaf_sizes.len()).map(move |l| (s, l)))
+            .filter(|&(s, l)| o.runs_group(s, l))
+            .count();
+        eprintln!(
+            "study: shard {shard}: {groups} of {} (scene, leaf size) groups",
+            o.scenes.len() * o.leaf_sizes.len()
+        );
+    }
     let report = study::run(&ctx, &o, |m| eprintln!("  {m}"))?;
     a.json.print(&report);
     let written = study::write(&report, &out)?;

@@ -13,6 +13,7 @@ pub mod bvh_stats;
 pub mod devices;
 pub mod hits;
 pub mod make_rays;
+pub mod merge;
 pub mod methods;
 pub mod peer_report;
 pub mod peers;

@@ -6,14 +6,80 @@
 //!
 //! Each claim is judged per node layout (`--layouts`): a verdict for the binary tree the paper
 //! measured, and one for each wide layout on the same scenes.
+//!
+//! The claims judge from a [`Grid`] of render-time summaries, which is built either from one
+//! run's [`StudyReport`] ([`Grid::of`]) or from the rows of many runners and shards of one device
+//! (`trilab merge`, `harness::merge`): both give the same verdicts on the same numbers.
 
 use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::{cell, layouts_of, names_layouts, scenes, StudyReport, StudyRow};
+use super::{layouts_of, names_layouts, scenes, StudyReport};
 use crate::encoding::{Layout, Method};
 use crate::report::Summary;
+
+/// The render times (seconds) the claims judge from: the matrix's axes in their order and one
+/// summary per measured cell (scene, leaf size, method, layout). Cells may be missing.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Grid {
+    pub scenes: Vec<String>,
+    pub leaf_sizes: Vec<u32>,
+    pub methods: Vec<Method>,
+    pub layouts: Vec<Layout>,
+    /// Timed rounds behind the times (the fewest of any cell): below 2 there is no run-to-run
+    /// spread, and the claims are not judged.
+    pub repeat: usize,
+    pub times: Vec<GridCell>,
+}
+
+/// One cell's render seconds.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GridCell {
+    pub scene: String,
+    pub leaf: u32,
+    pub method: Method,
+    pub layout: Layout,
+    pub seconds: Summary,
+}
+
+impl Grid {
+    /// The render times of a study's report, on its axes.
+    pub fn of(report: &StudyReport) -> Grid {
+        Grid {
+            scenes: scenes(report),
+            leaf_sizes: report.options.leaf_sizes.clone(),
+            methods: report.options.methods.clone(),
+            layouts: layouts_of(report),
+            repeat: report.options.repeat,
+            times: report
+                .rows
+                .iter()
+                .map(|r| GridCell {
+                    scene: r.scene.clone(),
+                    leaf: r.leaf_size,
+                    method: r.method,
+                    layout: r.layout,
+                    seconds: r.render_seconds(),
+                })
+                .collect(),
+        }
+    }
+
+    /// Render seconds of the cell (scene, leaf, method, layout).
+    pub fn time(&self, scene: &str, leaf: u32, m: Method, l: Layout) -> Option<Summary> {
+        self.times
+            .iter()
+            .find(|c| c.scene == scene && c.leaf == leaf && c.method == m && c.layout == l)
+            .map(|c| c.seconds)
+    }
+
+    /// Whether the grid can judge the claims: a difference is real only when the min-max ranges
+    /// of the timed rounds do not overlap, and a single round has no range.
+    pub fn can_judge(&self) -> bool {
+        self.repeat >= 2
+    }
+}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -59,7 +125,7 @@ pub struct Claim {
 
 /// Render seconds of the cell (scene, leaf, method, layout).
 pub fn time(report: &StudyReport, scene: &str, leaf: u32, m: Method, l: Layout) -> Option<Summary> {
-    cell(report, scene, leaf, m, l).map(StudyRow::render_seconds)
+    super::cell(report, scene, leaf, m, l).map(super::StudyRow::render_seconds)
 }
 
 /// Whether two min-max ranges overlap: then their difference is not called real.
@@ -69,9 +135,15 @@ pub fn overlap(a: Summary, b: Summary) -> bool {
 
 /// Geometric mean over scenes of `m`'s render time over `base`'s at `leaf`, both on `layout`.
 pub fn relative_time(report: &StudyReport, m: Method, base: Method, leaf: u32, layout: Layout) -> Option<f64> {
-    let ratios: Vec<f64> = scenes(report)
+    relative_time_in(&Grid::of(report), m, base, leaf, layout)
+}
+
+/// [`relative_time`] on a grid.
+pub fn relative_time_in(g: &Grid, m: Method, base: Method, leaf: u32, layout: Layout) -> Option<f64> {
+    let ratios: Vec<f64> = g
+        .scenes
         .iter()
-        .filter_map(|s| Some(time(report, s, leaf, m, layout)?.median / time(report, s, leaf, base, layout)?.median))
+        .filter_map(|s| Some(g.time(s, leaf, m, layout)?.median / g.time(s, leaf, base, layout)?.median))
         .collect();
     (!ratios.is_empty()).then(|| (ratios.iter().map(|r| r.ln()).sum::<f64>() / ratios.len() as f64).exp())
 }
@@ -79,16 +151,17 @@ pub fn relative_time(report: &StudyReport, m: Method, base: Method, leaf: u32, l
 /// (a) 4 triangles per leaf is optimal: for each scene and method, the fastest leaf size on
 /// `layout`.
 pub fn leaf_four_optimal(report: &StudyReport, layout: Layout) -> Claim {
+    leaf_four_optimal_in(&Grid::of(report), layout)
+}
+
+/// [`leaf_four_optimal`] on a grid.
+pub fn leaf_four_optimal_in(g: &Grid, layout: Layout) -> Claim {
     let mut evidence = vec![];
     let (mut best4, mut noise, mut other, mut total) = (0, 0, 0, 0);
-    for scene in scenes(report) {
-        for &m in &report.options.methods {
-            let times: Vec<(u32, Summary)> = report
-                .options
-                .leaf_sizes
-                .iter()
-                .filter_map(|&l| Some((l, time(report, &scene, l, m, layout)?)))
-                .collect();
+    for scene in &g.scenes {
+        for &m in &g.methods {
+            let times: Vec<(u32, Summary)> =
+                g.leaf_sizes.iter().filter_map(|&l| Some((l, g.time(scene, l, m, layout)?))).collect();
             let Some(&(best_leaf, best)) = times.iter().min_by(|a, b| a.1.median.total_cmp(&b.1.median)) else {
                 continue;
             };
@@ -135,12 +208,17 @@ pub fn leaf_four_optimal(report: &StudyReport, layout: Layout) -> Claim {
 /// (b) Möller-Trumbore is up to 5 % faster than the unit-triangle test (every leaf size), on
 /// `layout`.
 pub fn mt_faster_than_unit(report: &StudyReport, layout: Layout) -> Claim {
+    mt_faster_than_unit_in(&Grid::of(report), layout)
+}
+
+/// [`mt_faster_than_unit`] on a grid.
+pub fn mt_faster_than_unit_in(g: &Grid, layout: Layout) -> Claim {
     let mut evidence = vec![];
     let (mut mt_wins, mut unit_wins, mut ties, mut ratios) = (0, 0, 0, vec![]);
-    for scene in scenes(report) {
-        for &leaf in &report.options.leaf_sizes {
+    for scene in &g.scenes {
+        for &leaf in &g.leaf_sizes {
             let (Some(mt), Some(unit)) =
-                (time(report, &scene, leaf, Method::Mt, layout), time(report, &scene, leaf, Method::Unit, layout))
+                (g.time(scene, leaf, Method::Mt, layout), g.time(scene, leaf, Method::Unit, layout))
             else {
                 continue;
             };
@@ -193,12 +271,16 @@ pub fn mt_faster_than_unit(report: &StudyReport, layout: Layout) -> Claim {
 /// (c) Quad unit triangle is 5-20 % faster than Möller-Trumbore (NVIDIA), up to 2x (VLIW AMD),
 /// at the paper's 4 triangles per leaf, on `layout`.
 pub fn quad_unit_faster_than_mt(report: &StudyReport, layout: Layout) -> Claim {
+    quad_unit_faster_than_mt_in(&Grid::of(report), layout)
+}
+
+/// [`quad_unit_faster_than_mt`] on a grid.
+pub fn quad_unit_faster_than_mt_in(g: &Grid, layout: Layout) -> Claim {
     let mut evidence = vec![];
     let mut speedups = vec![];
     let mut real_5 = 0;
-    for scene in scenes(report) {
-        let (Some(mt), Some(q)) =
-            (time(report, &scene, 4, Method::Mt, layout), time(report, &scene, 4, Method::QuadUnit, layout))
+    for scene in &g.scenes {
+        let (Some(mt), Some(q)) = (g.time(scene, 4, Method::Mt, layout), g.time(scene, 4, Method::QuadUnit, layout))
         else {
             continue;
         };
@@ -254,13 +336,17 @@ pub fn can_judge(report: &StudyReport) -> bool {
 
 /// Every claim on every layout of the report, layout by layout.
 pub fn all(report: &StudyReport) -> Vec<Claim> {
-    let mut claims: Vec<Claim> = layouts_of(report)
-        .into_iter()
-        .flat_map(|l| {
-            [leaf_four_optimal(report, l), mt_faster_than_unit(report, l), quad_unit_faster_than_mt(report, l)]
-        })
+    all_in(&Grid::of(report))
+}
+
+/// [`all`] on a grid.
+pub fn all_in(g: &Grid) -> Vec<Claim> {
+    let mut claims: Vec<Claim> = g
+        .layouts
+        .iter()
+        .flat_map(|&l| [leaf_four_optimal_in(g, l), mt_faster_than_unit_in(g, l), quad_unit_faster_than_mt_in(g, l)])
         .collect();
-    if !can_judge(report) {
+    if !g.can_judge() {
         for c in &mut claims {
             if c.verdict != Verdict::NotMeasured {
                 c.verdict = Verdict::NotJudged;
@@ -273,6 +359,15 @@ pub fn all(report: &StudyReport) -> Vec<Claim> {
 pub fn markdown(report: &StudyReport) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "Measured on {} with render times (the paper's metric).\n", report.provenance.device);
+    if let Some(shard) = report.options.shard {
+        let _ = writeln!(
+            s,
+            "**Partial: shard {shard} of the matrix.** These verdicts judge only this shard's {} of the matrix's {} \
+             cells; `trilab merge` of every shard's folder judges the whole matrix.\n",
+            report.rows.len(),
+            report.options.plan_cells().len()
+        );
+    }
     if !can_judge(report) {
         let _ = writeln!(
             s,

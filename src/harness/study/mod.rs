@@ -11,7 +11,15 @@
 //! Outputs ([`write`]): `study.csv`, `study.json`, `study.md` (the paper's table format, the
 //! ray-set table, BVH quality, SPIR-V cost against time, the paper's claims checked per layout
 //! and, with more than one layout, whether the best intersector and leaf size change with it
-//! ([`layouts`])) and PNG plots ([`plots`]).
+//! ([`layouts`])), PNG plots ([`plots`]) and `rows.jsonl` ([`rows`]: one self-describing row per
+//! cell and the plan of the whole matrix, what `trilab compare` and `trilab merge` read).
+//!
+//! Shards (`--shard I/N`, [`StudyOptions::shard`]): a shard runs every N-th (scene, leaf size)
+//! group of the matrix, round-robin from group I ([`owns_group`]). A group is the unit, not a
+//! single cell, so every method and layout of a leaf size is still measured side by side,
+//! interleaved in one run (the comparisons claims (b) and (c) make), and each BVH is built by
+//! one shard only. A shard's report judges its own cells and says it is partial; `trilab merge`
+//! joins the shards.
 
 pub mod claims;
 pub mod layouts;
@@ -34,6 +42,7 @@ use crate::named::{named_enum, Named};
 use crate::pipeline::{HostScene, SceneRequest};
 use crate::render::{render, KernelChoice, RenderTarget};
 use crate::report::Summary;
+use crate::rows::{self as result_rows, Better, Figure, Plan, Row, Shard};
 use crate::scene::load_obj;
 
 pub use crate::bvh::PAPER_LEAF_SIZES;
@@ -76,6 +85,9 @@ pub struct StudyOptions {
     /// `BuildOptions::sah_group` (1: the paper's SAH; 4: quad-aware).
     pub sah_group: u32,
     pub seed: u64,
+    /// Run only this shard's (scene, leaf size) groups of the matrix ([`owns_group`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shard: Option<Shard>,
 }
 
 /// A `--scenes` entry: a scene's name (`bunny`, found from any folder by
@@ -105,6 +117,7 @@ impl StudyOptions {
             repeat: 5,
             sah_group: 1,
             seed: 7,
+            shard: None,
         };
         match preset {
             Preset::Paper => base,
@@ -154,7 +167,41 @@ impl StudyOptions {
         for scene in &self.scenes {
             crate::scene::resolve(scene)?;
         }
+        if let Some(shard) = self.shard {
+            let groups = self.scenes.len() * self.leaf_sizes.len();
+            if shard.count as usize > groups {
+                return Err(Error::Usage(format!(
+                    "--shard {shard}: a study shard takes whole (scene, leaf size) groups and this matrix has \
+                     {groups} ({} scene(s) x {} leaf size(s)); use at most {groups} shards",
+                    self.scenes.len(),
+                    self.leaf_sizes.len()
+                )));
+            }
+        }
         Ok(())
+    }
+
+    /// Whether this run measures the (scene, leaf size) group at `scene_index`, `leaf_index` of
+    /// the matrix: always without a shard, else by [`owns_group`].
+    pub fn runs_group(&self, scene_index: usize, leaf_index: usize) -> bool {
+        self.shard.is_none_or(|s| owns_group(s, self.leaf_sizes.len(), scene_index, leaf_index))
+    }
+
+    /// Every cell of the whole matrix (all shards), in the study's order: scene, leaf size,
+    /// method, layout.
+    pub fn plan_cells(&self) -> Vec<result_rows::Cell> {
+        let mut cells = vec![];
+        for scene in &self.scenes {
+            let name = crate::scene::scene_name(scene);
+            for &leaf in &self.leaf_sizes {
+                for &method in &self.methods {
+                    for &layout in &self.layouts {
+                        cells.push(cell_of(&name, leaf, method, layout));
+                    }
+                }
+            }
+        }
+        cells
     }
 
     /// How this workload relates to the paper's, in words (stated in every output).
@@ -181,6 +228,23 @@ impl StudyOptions {
 }
 
 pub use crate::harness::provenance::{commit, Provenance};
+
+/// Whether `shard` owns the (scene, leaf size) group at `scene_index`, `leaf_index` of a matrix
+/// with `leaf_sizes` leaf sizes per scene: round-robin over the groups in the study's order
+/// ([`Shard::owns`] of the group's index).
+pub fn owns_group(shard: Shard, leaf_sizes: usize, scene_index: usize, leaf_index: usize) -> bool {
+    shard.owns(scene_index * leaf_sizes + leaf_index)
+}
+
+/// The cell coordinates of a study row: `scene`, `leaf`, `method`, `layout`.
+pub fn cell_of(scene: &str, leaf: u32, method: Method, layout: Layout) -> result_rows::Cell {
+    result_rows::cell([
+        ("scene", scene.to_owned()),
+        ("leaf", leaf.to_string()),
+        ("method", method.to_string()),
+        ("layout", layout.to_string()),
+    ])
+}
 
 /// One ray set's measurement in a cell.
 #[derive(Clone, Debug, Serialize)]
@@ -294,7 +358,10 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
     let started = Instant::now();
     let provenance = Provenance::of(ctx);
     let mut rows = vec![];
-    for path in &o.scenes {
+    for (scene_index, path) in o.scenes.iter().enumerate() {
+        if !(0..o.leaf_sizes.len()).any(|l| o.runs_group(scene_index, l)) {
+            continue;
+        }
         let mesh = load_obj(path)?;
         let name = crate::scene::scene_name(path);
         progress(&format!("{name}: {} triangles; ray sets and f64 reference", mesh.triangle_count()));
@@ -308,7 +375,10 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
         let settings = bench_settings(&mesh, (o.width, o.height), o.spp, o.max_depth, None);
         let mut scene_mean: Option<f64> = None;
 
-        for &leaf in &o.leaf_sizes {
+        for (leaf_index, &leaf) in o.leaf_sizes.iter().enumerate() {
+            if !o.runs_group(scene_index, leaf_index) {
+                continue;
+            }
             let host =
                 HostScene::build(&name, &mesh, &BuildOptions { sah_group: o.sah_group, ..BuildOptions::new(leaf) })?;
             let st = host.bvh.stats_with_epo(&mesh);
@@ -471,7 +541,53 @@ pub fn write(report: &StudyReport, dir: &Path) -> Result<Vec<PathBuf>> {
     let plots = plots::all(report, dir)?;
     put("study.md", table::markdown(report, &plots).as_bytes())?;
     written.extend(plots.into_iter().map(|p| p.path));
+    written.push(result_rows::write(dir, Some(&plan(report)), &rows(report))?);
     Ok(written)
+}
+
+/// The plan of the whole matrix this report belongs to (every shard's cells), with its shard.
+pub fn plan(report: &StudyReport) -> Plan {
+    Plan {
+        command: "study".into(),
+        shard: report.options.shard,
+        cells: report.options.plan_cells(),
+        source: report.provenance.source(),
+    }
+}
+
+/// One self-describing row per measured cell (cell keys `scene`, `leaf`, `method`, `layout`):
+/// `render_s` and `msamples_per_s` (timings over the timed rounds), per ray set
+/// `<set>_mrays_per_s` and `<set>_kernel_ms` (timings), `<set>_agreement` (correctness: the
+/// fraction agreeing with the f64 reference) and `<set>_nodes_per_ray` (count: the statistics
+/// kernel's mean), and the tree's `sah_cost`, `epo`, `bvh_nodes` and the encoding's
+/// `scene_bytes` (counts).
+pub fn rows(report: &StudyReport) -> Vec<Row> {
+    let source = report.provenance.source();
+    report
+        .rows
+        .iter()
+        .map(|r| {
+            let mut row = Row::new("study", cell_of(&r.scene, r.leaf_size, r.method, r.layout), &source)
+                .with("render_s", Figure::timing(r.render_seconds(), "s", Better::Lower))
+                .with("msamples_per_s", Figure::timing(r.render.msamples_per_s, "Msamples/s", Better::Higher))
+                .with("sah_cost", Figure::count(r.bvh.sah_cost, "SAH cost"))
+                .with("bvh_nodes", Figure::count(r.bvh.nodes as f64, "nodes"))
+                .with("scene_bytes", Figure::count(r.scene_bytes as f64, "bytes"));
+            // EPO is NaN where it was not computed; a row holds only numbers.
+            if r.bvh.epo.is_finite() {
+                row = row.with("epo", Figure::count(r.bvh.epo, "EPO"));
+            }
+            for s in &r.sets {
+                let set = s.set;
+                row = row
+                    .with(&format!("{set}_mrays_per_s"), Figure::timing(s.mrays_per_s, "Mrays/s", Better::Higher))
+                    .with(&format!("{set}_kernel_ms"), Figure::timing(s.kernel_ms, "ms", Better::Lower))
+                    .with(&format!("{set}_agreement"), Figure::correctness(s.agreement, "fraction", Better::Higher))
+                    .with(&format!("{set}_nodes_per_ray"), Figure::count(s.traversal.nodes.mean, "nodes/ray"));
+            }
+            row
+        })
+        .collect()
 }
 impl crate::report::Report for StudyReport {
     /// The paper's table on this device and the paper's claims, checked.

@@ -1,0 +1,41 @@
+//! `trilab merge`.
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use trilab::error::Result;
+use trilab::harness::merge;
+
+use super::JsonArg;
+
+/// Joins the rows.jsonl of many runners, shards and devices (every one below each folder) into
+/// one report: a column per device and driver setting, the paper's claims per device, a speed
+/// table per cell, the cells no runner measured; writes merge.md, merge.json and plots with a
+/// series per device into --out. A cell measured twice for one device is refused.
+#[derive(Args)]
+pub struct MergeArgs {
+    /// Result folders (searched recursively for rows.jsonl) or rows files.
+    #[arg(value_name = "DIR", required = true)]
+    dirs: Vec<PathBuf>,
+    /// Output folder for merge.md, merge.json and the plots. Without it the report is only
+    /// printed.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
+}
+
+pub fn run(a: MergeArgs) -> Result<()> {
+    if let Some(out) = &a.out {
+        let inputs: Vec<&Path> = a.dirs.iter().map(PathBuf::as_path).collect();
+        trilab::io::check_output("--out", trilab::io::Output::Dir(out, &merge::FILES), &inputs)?;
+    }
+    let report = merge::run(&a.dirs)?;
+    a.json.print(&report);
+    if let Some(out) = &a.out {
+        for w in merge::write(&report, out)? {
+            eprintln!("  wrote {}", w.display());
+        }
+    }
+    Ok(())
+}

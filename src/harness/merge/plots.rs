@@ -1,0 +1,243 @@
+//! The merge's plots, one series per device (plotters, written as PNG atomically, like the
+//! study's): render time against leaf size per method, and each method's render time relative
+//! to Möller-Trumbore. Devices of very different speed share an axis because every series is
+//! normalised by its own device: times by the device's fastest leaf size of that method, methods
+//! by the device's Möller-Trumbore time at the same leaf size.
+
+use std::path::Path;
+
+use plotters::coord::ranged1d::SegmentValue;
+use plotters::prelude::*;
+
+use super::{MergeReport, SpeedRow};
+use crate::error::Result;
+use crate::harness::plots::{
+    plot_err, render_png, LegendEntry, Marker, Plot, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA,
+};
+use crate::rows::Figure;
+
+fn device_colour(i: usize) -> RGBColor {
+    SCENE_COLOURS[i % SCENE_COLOURS.len()]
+}
+
+/// One render-time row: (scene, layout, method, leaf, per device).
+type TimeRow<'a> = (&'a str, &'a str, &'a str, u32, &'a [Option<Figure>]);
+
+/// The study's render-time rows.
+struct Times<'a> {
+    rows: Vec<TimeRow<'a>>,
+}
+
+impl<'a> Times<'a> {
+    fn of(report: &'a MergeReport) -> Times<'a> {
+        let rows = report
+            .speed
+            .iter()
+            .filter(|r| r.command == "study" && r.figure == "render_s")
+            .filter_map(|r: &'a SpeedRow| {
+                let get = |k: &str| r.cell.get(k).map(String::as_str);
+                let leaf = get("leaf")?.parse().ok()?;
+                Some((get("scene")?, get("layout").unwrap_or("bvh2"), get("method")?, leaf, r.per_device.as_slice()))
+            })
+            .collect();
+        Times { rows }
+    }
+
+    /// (scene, layout) pairs in order of first appearance.
+    fn panels(&self) -> Vec<(&'a str, &'a str)> {
+        let mut v = vec![];
+        for r in &self.rows {
+            if !v.contains(&(r.0, r.1)) {
+                v.push((r.0, r.1));
+            }
+        }
+        v
+    }
+
+    fn methods(&self, scene: &str, layout: &str) -> Vec<&'a str> {
+        let mut v = vec![];
+        for r in self.rows.iter().filter(|r| r.0 == scene && r.1 == layout) {
+            if !v.contains(&r.2) {
+                v.push(r.2);
+            }
+        }
+        v
+    }
+
+    fn leaves(&self, scene: &str, layout: &str) -> Vec<u32> {
+        let mut v: Vec<u32> = self.rows.iter().filter(|r| r.0 == scene && r.1 == layout).map(|r| r.3).collect();
+        v.sort();
+        v.dedup();
+        v
+    }
+
+    fn get(&self, scene: &str, layout: &str, method: &str, leaf: u32, device: usize) -> Option<&'a Figure> {
+        self.rows
+            .iter()
+            .find(|r| r.0 == scene && r.1 == layout && r.2 == method && r.3 == leaf)
+            .and_then(|r| r.4.get(device)?.as_ref())
+    }
+}
+
+fn file_part(s: &str) -> String {
+    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
+}
+
+fn legend(report: &MergeReport, marker: Marker) -> Vec<LegendEntry> {
+    super::series_names(&report.devices)
+        .into_iter()
+        .enumerate()
+        .map(|(i, name)| LegendEntry::new(name, device_colour(i), marker))
+        .collect()
+}
+
+/// Render time against leaf size, one panel per method of one (scene, layout), one line per
+/// device, each divided by the device's fastest median of that method (1 = its best leaf size).
+fn time_vs_leaf(report: &MergeReport, t: &Times, scene: &str, layout: &str, path: &Path) -> Result<()> {
+    let methods = t.methods(scene, layout);
+    let leaves = t.leaves(scene, layout);
+    let what = "merged time against leaf size";
+    // (method, device) -> points (leaf index, median, min, max), normalised.
+    let series = |m: &str, d: usize| -> Vec<(u32, f64, f64, f64)> {
+        let pts: Vec<(u32, &Figure)> =
+            leaves.iter().enumerate().filter_map(|(i, &l)| Some((i as u32, t.get(scene, layout, m, l, d)?))).collect();
+        let best = pts.iter().map(|p| p.1.median).fold(f64::INFINITY, f64::min);
+        pts.iter().map(|(i, f)| (*i, f.median / best, f.min / best, f.max / best)).collect()
+    };
+    let devices = report.devices.len();
+    render_png(path, methods.len(), what, &legend(report, Marker::Line), |area, i| {
+        let m = methods[i];
+        let all: Vec<Vec<(u32, f64, f64, f64)>> = (0..devices).map(|d| series(m, d)).collect();
+        let ymax = all.iter().flatten().map(|p| p.3).fold(1.0, f64::max) * 1.05;
+        let ymin = all.iter().flatten().map(|p| p.2).fold(1.0, f64::min) * 0.95;
+        let caption = if layout == "bvh2" { format!("{scene}, {m}") } else { format!("{scene}, {layout}, {m}") };
+        let mut chart = ChartBuilder::on(area)
+            .caption(caption, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(X_LABEL_AREA)
+            .y_label_area_size(Y_LABEL_AREA)
+            .build_cartesian_2d((0u32..leaves.len().saturating_sub(1) as u32).into_segmented(), ymin..ymax)
+            .map_err(|e| plot_err(what, e))?;
+        chart
+            .configure_mesh()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
+            .x_desc("triangles per leaf")
+            .y_desc("time / device's fastest leaf (min-max)")
+            .x_label_formatter(&|v| match v {
+                SegmentValue::CenterOf(i) => leaves.get(*i as usize).map(|l| l.to_string()).unwrap_or_default(),
+                _ => String::new(),
+            })
+            .draw()
+            .map_err(|e| plot_err(what, e))?;
+        for (d, pts) in all.iter().enumerate() {
+            let c = device_colour(d);
+            chart
+                .draw_series(LineSeries::new(pts.iter().map(|p| (SegmentValue::CenterOf(p.0), p.1)), c.stroke_width(2)))
+                .map_err(|e| plot_err(what, e))?;
+            chart
+                .draw_series(
+                    pts.iter()
+                        .map(|p| ErrorBar::new_vertical(SegmentValue::CenterOf(p.0), p.2, p.1, p.3, c.filled(), 6)),
+                )
+                .map_err(|e| plot_err(what, e))?;
+        }
+        Ok(())
+    })
+}
+
+/// Each method's render time over Möller-Trumbore's at the same leaf size (geometric mean over
+/// leaf sizes), one panel per (scene, layout), one bar per device.
+fn methods_vs_mt(report: &MergeReport, t: &Times, path: &Path) -> Result<()> {
+    let panels = t.panels();
+    let what = "merged method against Möller-Trumbore";
+    let devices = report.devices.len();
+    render_png(path, panels.len(), what, &legend(report, Marker::Bar), |area, i| {
+        let (scene, layout) = panels[i];
+        let methods = t.methods(scene, layout);
+        let leaves = t.leaves(scene, layout);
+        let rel = |m: &str, d: usize| -> Option<f64> {
+            let logs: Vec<f64> = leaves
+                .iter()
+                .filter_map(|&l| {
+                    Some((t.get(scene, layout, m, l, d)?.median / t.get(scene, layout, "mt", l, d)?.median).ln())
+                })
+                .collect();
+            (!logs.is_empty()).then(|| (logs.iter().sum::<f64>() / logs.len() as f64).exp())
+        };
+        let values: Vec<Vec<Option<f64>>> = methods.iter().map(|m| (0..devices).map(|d| rel(m, d)).collect()).collect();
+        let ymax = values.iter().flatten().flatten().copied().fold(1.0, f64::max) * 1.15;
+        let caption =
+            if layout == "bvh2" { format!("{scene}: time / MT") } else { format!("{scene}, {layout}: time / MT") };
+        let mut chart = ChartBuilder::on(area)
+            .caption(caption, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(X_LABEL_AREA)
+            .y_label_area_size(Y_LABEL_AREA)
+            .build_cartesian_2d(-0.5f64..(methods.len() as f64 - 0.5), 0f64..ymax)
+            .map_err(|e| plot_err(what, e))?;
+        chart
+            .configure_mesh()
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
+            .disable_x_mesh()
+            .x_labels(methods.len().max(1))
+            .x_label_formatter(&|x| {
+                let k = x.round();
+                if (x - k).abs() < 1e-6 && k >= 0.0 {
+                    methods.get(k as usize).map(|s| s.to_string()).unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            })
+            .y_desc("render time / MT's (geo. mean over leaves)")
+            .draw()
+            .map_err(|e| plot_err(what, e))?;
+        let width = 0.8 / devices.max(1) as f64;
+        for d in 0..devices {
+            let c = device_colour(d);
+            let bars: Vec<Rectangle<(f64, f64)>> = values
+                .iter()
+                .enumerate()
+                .filter_map(|(mi, v)| {
+                    let x0 = mi as f64 - 0.4 + d as f64 * width;
+                    Some(Rectangle::new([(x0, 0.0), (x0 + width * 0.9, v[d]?)], c.filled()))
+                })
+                .collect();
+            chart.draw_series(bars).map_err(|e| plot_err(what, e))?;
+        }
+        chart
+            .draw_series(LineSeries::new([(-0.5, 1.0), (methods.len() as f64 - 0.5, 1.0)], BLACK.stroke_width(1)))
+            .map_err(|e| plot_err(what, e))?;
+        Ok(())
+    })
+}
+
+/// Writes every plot into `dir`: nothing when the merge has no study render times.
+pub fn all(report: &MergeReport, dir: &Path) -> Result<Vec<Plot>> {
+    let t = Times::of(report);
+    let mut out = vec![];
+    if t.rows.is_empty() {
+        return Ok(out);
+    }
+    for (scene, layout) in t.panels() {
+        let name = if layout == "bvh2" {
+            format!("merge-time-vs-leaf-{}.png", file_part(scene))
+        } else {
+            format!("merge-time-vs-leaf-{}-{}.png", file_part(scene), file_part(layout))
+        };
+        let path = dir.join(name);
+        time_vs_leaf(report, &t, scene, layout, &path)?;
+        let on = if layout == "bvh2" { String::new() } else { format!(" on {layout}") };
+        out.push(Plot {
+            title: format!(
+                "{scene}{on}: render time against leaf size, per device (1 = the device's fastest leaf size)"
+            ),
+            path,
+        });
+    }
+    let path = dir.join("merge-methods-vs-mt.png");
+    methods_vs_mt(report, &t, &path)?;
+    out.push(Plot { title: "Render time relative to Möller-Trumbore, per device".into(), path });
+    Ok(out)
+}
