@@ -28,13 +28,17 @@ pub struct CompareArgs {
     /// fails, beyond this percentage; a rate is judged as its time (x1.10 the time is 10 %).
     #[arg(long, value_name = "PCT", default_value_t = DEFAULT_THRESHOLD_PCT)]
     threshold: f64,
+    /// The counts' own threshold (instructions, spills, bytes: exact, so they can be held tighter
+    /// than timings on a noisy machine); default: --threshold's.
+    #[arg(long, value_name = "PCT")]
+    count_threshold: Option<f64>,
     #[command(flatten)]
     json: JsonArg,
 }
 
 pub fn run(a: CompareArgs) -> Result<()> {
     super::error_exit(2);
-    let report = regress::run(&a.base, &a.new, a.threshold)?;
+    let report = regress::run(&a.base, &a.new, a.threshold, a.count_threshold)?;
     a.json.print(&report);
     if report.exit_code() != 0 {
         // As `diff`: 1 means "a regression", not a failure to compare (that is 2).

@@ -158,6 +158,8 @@ pub struct CompareReport {
     pub base: Side,
     pub new: Side,
     pub threshold_pct: f64,
+    /// The counts' threshold (the timings' unless `--count-threshold` set it).
+    pub count_threshold_pct: f64,
     /// The printed changes (see [`FigureChange::printed`]), in cell order.
     pub changes: Vec<FigureChange>,
     pub totals: Totals,
@@ -216,11 +218,23 @@ fn source_label(s: &rows::Source) -> String {
 }
 
 /// Compares the rows files below `base` and `new`.
-pub fn run(base: &Path, new: &Path, threshold_pct: f64) -> Result<CompareReport> {
+/// `count_threshold_pct` gates the counts (instructions, spills, bytes) apart from the timings:
+/// exact figures can be held tightly where timings on a noisy machine cannot (`None`: the
+/// timings' threshold).
+pub fn run(base: &Path, new: &Path, threshold_pct: f64, count_threshold_pct: Option<f64>) -> Result<CompareReport> {
     check_threshold(threshold_pct)?;
+    if let Some(c) = count_threshold_pct {
+        check_threshold(c).map_err(|_| {
+            Error::Usage(format!("--count-threshold {c}: a percentage, 0 or more (default: --threshold's)"))
+        })?;
+    }
     let (bs, br) = load(base)?;
     let (ns, nr) = load(new)?;
-    Ok(compare(bs, &br, ns, &nr, threshold_pct))
+    let mut r = compare(bs, &br, ns, &nr, threshold_pct);
+    if let Some(c) = count_threshold_pct {
+        r = compare_with(r.base, &br, r.new, &nr, threshold_pct, c);
+    }
+    Ok(r)
 }
 
 /// A threshold is a percentage, 0 or more.
@@ -280,6 +294,18 @@ pub fn judge(base: &Figure, new: &Figure, threshold_pct: f64) -> (Verdict, Optio
 
 /// Compares two sides' rows (each cell at most once per side, as [`load`] ensures).
 pub fn compare(base: Side, base_rows: &[Row], new: Side, new_rows: &[Row], threshold_pct: f64) -> CompareReport {
+    compare_with(base, base_rows, new, new_rows, threshold_pct, threshold_pct)
+}
+
+/// [`compare`] with the counts gated at `count_threshold_pct` and the timings at `threshold_pct`.
+pub fn compare_with(
+    base: Side,
+    base_rows: &[Row],
+    new: Side,
+    new_rows: &[Row],
+    threshold_pct: f64,
+    count_threshold_pct: f64,
+) -> CompareReport {
     let key = |r: &Row| (r.command.clone(), r.cell.clone());
     let b: BTreeMap<(String, Cell), &Row> = base_rows.iter().map(|r| (key(r), r)).collect();
     let n: BTreeMap<(String, Cell), &Row> = new_rows.iter().map(|r| (key(r), r)).collect();
@@ -318,7 +344,8 @@ pub fn compare(base: Side, base_rows: &[Row], new: Side, new_rows: &[Row], thres
                 continue;
             }
             totals.figures_compared += 1;
-            let (verdict, factor, beyond, regression) = judge(bf, nf, threshold_pct);
+            let t = if bf.class == Class::Count { count_threshold_pct } else { threshold_pct };
+            let (verdict, factor, beyond, regression) = judge(bf, nf, t);
             match verdict {
                 Verdict::Faster => totals.faster += 1,
                 Verdict::Slower => totals.slower += 1,
@@ -398,6 +425,7 @@ pub fn compare(base: Side, base_rows: &[Row], new: Side, new_rows: &[Row], thres
         base,
         new,
         threshold_pct,
+        count_threshold_pct,
         changes,
         totals,
         speed,
@@ -442,6 +470,15 @@ fn pct(base: f64, new: f64) -> String {
 }
 
 impl CompareReport {
+    /// "10 %", or "10 % (timings), 1 % (counts)" when they differ.
+    pub fn thresholds(&self) -> String {
+        if self.count_threshold_pct == self.threshold_pct {
+            format!("{} %", self.threshold_pct)
+        } else {
+            format!("{} % (timings), {} % (counts)", self.threshold_pct, self.count_threshold_pct)
+        }
+    }
+
     /// The exit status the rule gives: 1 when a regression exceeds the threshold (any
     /// correctness worsening), else 0.
     pub fn exit_code(&self) -> u8 {
@@ -546,11 +583,12 @@ impl Report for CompareReport {
             s += &format!("figures in one side only: {}\n", t.figures_only_in_one_side);
         }
         s += &if self.passed {
-            format!("verdict: pass (no regression beyond {} %, no correctness worse)\n", self.threshold_pct)
+            format!("verdict: pass (no regression beyond {}, no correctness worse)\n", self.thresholds())
         } else {
             format!(
-                "verdict: FAIL: {} regression(s) (real slowdowns or count increases beyond {} %, correctness worse)\n",
-                self.regressions, self.threshold_pct
+                "verdict: FAIL: {} regression(s) (real slowdowns or count increases beyond {}, correctness worse)\n",
+                self.regressions,
+                self.thresholds()
             )
         };
         s
