@@ -368,7 +368,7 @@ fn ballot_loop_visits_each_valid_lane_once_in_order_up_to_128_lanes() {
     let mut rng = Lcg(64);
     for s in [4usize, 8, 16, 32, 64, 128] {
         for _ in 0..200 {
-            let valid: Vec<bool> = (0..s).map(|_| rng.next() % 3 != 0).collect();
+            let valid: Vec<bool> = (0..s).map(|_| !rng.next().is_multiple_of(3)).collect();
             let mut todo = [0u32; 4];
             for (k, _) in valid.iter().enumerate().filter(|(_, &v)| v) {
                 todo[k / 32] |= 1 << (k % 32);

@@ -215,7 +215,7 @@ impl Context {
             )));
         }
         let local = layout.local_size.0;
-        if width == 0 || local % width != 0 {
+        if width == 0 || !local.is_multiple_of(width) {
             return Err(Error::Unsupported(format!(
                 "kernel {kernel} needs full subgroups: its workgroup size {local} is not a multiple of the \
                  subgroup size {width} on {}",
