@@ -32,6 +32,18 @@
 // `bvh4`, `bvh8` (glsl/layout/: their node formats are read here, their trace() is unused).
 // Closest hit only (no any-hit kernel). Needs subgroup basic, vote, arithmetic, ballot and
 // shuffle operations and a subgroup of at least 4 lanes (the host checks both).
+//
+// Subgroup widths: written for any S >= 4 (Vulkan's are powers of two; lavapipe 4 or 8, GPUs 8
+// to 64). S = 4 with bvh8: two children and four texel blocks per lane. S > the node's width:
+// the lanes beyond hold unoccupied children, those beyond its texels load nothing, those beyond
+// a leaf's units test nothing; they idle in that step. Every lane still owns one ray, so a
+// subgroup of S lanes traces S rays in turn: wider subgroups take more rays, not more lanes per
+// ray. The lanes' rays are picked from a uvec4 ballot (up to 128 lanes). Every lane must be
+// active (coop_load and coop_leaf hand work to lanes by gl_SubgroupInvocationID up to
+// gl_SubgroupSize): the host creates every kernel that reads gl_SubgroupSize with full
+// subgroups (VK_PIPELINE_SHADER_STAGE_CREATE_REQUIRE_FULL_SUBGROUPS_BIT) and refuses a
+// workgroup size that is not a multiple of the subgroup size (gpu::kernel).
+// tests/subgroup_widths.rs models the lane assignment at 4 to 64 lanes.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_vote : require
@@ -101,36 +113,44 @@ CoopTexels coop_load(uint node) {
     uint s = gl_SubgroupSize;
     uint k = gl_SubgroupInvocationID;
     uint base = COOP_TEXELS * node;
+    // Only the node's own texels: with S > COOP_TEXELS lanes (16 for bvh4, 32 for bvh8) the
+    // lanes beyond load nothing (never the next node, never past the buffer's end).
     CoopTexels c;
-    c.t0 = SCENE_TEXEL(scene_nodes, base + k);
+    c.t0 = uvec4(0u);
     c.t1 = uvec4(0u);
     c.t2 = uvec4(0u);
     c.t3 = uvec4(0u);
-    if (s < COOP_TEXELS) {
+    if (k < COOP_TEXELS) {
+        c.t0 = SCENE_TEXEL(scene_nodes, base + k);
+    }
+    if (s + k < COOP_TEXELS) {
         c.t1 = SCENE_TEXEL(scene_nodes, base + s + k);
     }
-    if (2u * s < COOP_TEXELS) {
+    if (2u * s + k < COOP_TEXELS) {
         c.t2 = SCENE_TEXEL(scene_nodes, base + 2u * s + k);
+    }
+    if (3u * s + k < COOP_TEXELS) {
         c.t3 = SCENE_TEXEL(scene_nodes, base + 3u * s + k);
     }
     return c;
 }
 
-// Texel `t` of the node, from the lane that loaded it. Every lane asks for a texel in the same
-// block t / S (the layouts keep a field's texels for children c and c + S in one block).
-uvec4 coop_texel(CoopTexels c, uint t) {
-    uint s = gl_SubgroupSize;
-    uint block = t / s;
+// Texel `t` of the node, from the lane that loaded it. subgroupShuffle returns `src` as the
+// SOURCE lane computed it, so the block (which of t0..t3) must be the same in every lane: it is
+// passed in, computed from the field alone (uniform), never from a lane's child index.
+uvec4 coop_texel(CoopTexels c, uint block, uint t) {
     uvec4 src = block == 0u ? c.t0 : block == 1u ? c.t1 : block == 2u ? c.t2 : c.t3;
-    return subgroupShuffle(src, t % s);
+    return subgroupShuffle(src, t % gl_SubgroupSize);
 }
 
-// Field `f` (0..7: min x, y, z, max x, y, z, child, count) of child `ch`.
+// Field `f` (0..7: min x, y, z, max x, y, z, child, count) of child `ch` (ch >= COOP_WIDTH:
+// any in-node value, the caller marks it unoccupied). bvh8 keeps a field's texels for children
+// 0-3 and 4-7 at 2f and 2f + 1: one block, as S is even.
 uint coop_field(CoopTexels c, uint ch, uint f) {
 #ifdef LAYOUT_BVH4
-    return coop_texel(c, f)[ch & 3u];
+    return coop_texel(c, f / gl_SubgroupSize, f)[ch & 3u];
 #else
-    return coop_texel(c, 2u * f + (ch >> 2u))[ch & 3u];
+    return coop_texel(c, 2u * f / gl_SubgroupSize, 2u * f + ((ch >> 2u) & 1u))[ch & 3u];
 #endif
 }
 

@@ -14,3 +14,29 @@ fn the_readme_lists_the_registry_s_methods() {
         "README.md's method list is stale: paste `cargo run --release -- methods --markdown` between the markers"
     );
 }
+
+/// CI runs what the README tells a person to run: `.ci/run`'s last line is the README's test
+/// command, which ends with the second pass at lavapipe's other width (scripts/test-width.sh).
+#[test]
+fn ci_runs_the_readme_s_test_command() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let ci = std::fs::read_to_string(root.join(".ci/run")).unwrap();
+    let intro = "Run the tests (the same command CI runs, through `.ci/run`):\n\n";
+    let at = readme.find(intro).expect("README.md has the Test paragraph") + intro.len();
+    let command = readme[at..].lines().next().unwrap().trim();
+    assert!(command.starts_with("./scripts/install-deps.sh") && command.contains("cargo test --release"), "{command}");
+    assert!(
+        command.ends_with("./scripts/test-width.sh 128"),
+        "the second width pass is part of the command: {command}"
+    );
+    let last = ci.lines().rev().find(|l| !l.trim().is_empty()).unwrap().trim();
+    assert_eq!(last, command, ".ci/run's last line must be README.md's test command");
+    let script = std::fs::read_to_string(root.join("scripts/test-width.sh")).unwrap();
+    for t in script.split("tests=(").nth(1).unwrap().split(')').next().unwrap().split_whitespace() {
+        assert!(
+            root.join("tests").join(format!("{t}.rs")).exists(),
+            "scripts/test-width.sh names tests/{t}.rs, which is gone"
+        );
+    }
+}

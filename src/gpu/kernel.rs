@@ -9,7 +9,7 @@ use ash::vk;
 use super::context::{Context, Device};
 use crate::error::{Error, Result, VkContext};
 use crate::kernels::KernelSource;
-use crate::spirv::reflect::{reflect, KernelLayout};
+use crate::spirv::reflect::{reads_subgroup_lanes, reflect, KernelLayout};
 use crate::spirv::required_features;
 
 /// A compute pipeline with its layouts; destroyed on drop.
@@ -105,6 +105,7 @@ impl Context {
         if layout.sets.keys().any(|&s| s != 0) {
             return Err(Error::Spirv { kernel: src.name.into(), message: "only descriptor set 0 is supported".into() });
         }
+        let full_subgroups = self.check_full_subgroups(src.name, &words, &layout, options)?;
         let d = &self.device.raw;
         let what = |s: &str| format!("{s} for kernel {}", src.name);
 
@@ -160,6 +161,9 @@ impl Context {
         if options.required_subgroup_size.is_some() {
             stage = stage.push_next(&mut required);
         }
+        if full_subgroups {
+            stage = stage.flags(vk::PipelineShaderStageCreateFlags::REQUIRE_FULL_SUBGROUPS);
+        }
         let flags = if options.capture_statistics {
             vk::PipelineCreateFlags::CAPTURE_STATISTICS_KHR
         } else {
@@ -184,6 +188,43 @@ impl Context {
 }
 
 impl Context {
+    /// Whether `kernel` must be created with full subgroups, and an `Error::Unsupported` naming
+    /// the kernel and the widths where it cannot be. A kernel that reads `gl_SubgroupSize` or
+    /// `gl_SubgroupInvocationID` hands work to lanes by index (glsl/raycast_coop.comp: children,
+    /// node texels and leaf triangles), so a subgroup with inactive lanes would silently skip
+    /// work: a partial subgroup at the end of a workgroup whose size is not a multiple of the
+    /// subgroup size, or a driver that reports more lanes than it runs (Vulkan allows both
+    /// unless the stage asks for full subgroups).
+    fn check_full_subgroups(
+        &self,
+        kernel: &str,
+        words: &[u32],
+        layout: &KernelLayout,
+        options: &PipelineOptions,
+    ) -> Result<bool> {
+        if !reads_subgroup_lanes(words).map_err(|m| Error::Spirv { kernel: kernel.into(), message: m })? {
+            return Ok(false);
+        }
+        let info = self.info();
+        let width = options.required_subgroup_size.unwrap_or(info.subgroup_size);
+        if !(self.enabled().subgroup_size_control && info.compute_full_subgroups) {
+            return Err(Error::Unsupported(format!(
+                "kernel {kernel} hands work to subgroup lanes by index and needs full subgroups \
+                 (VK_EXT_subgroup_size_control's computeFullSubgroups), which {} lacks (subgroup size {width})",
+                info.name
+            )));
+        }
+        let local = layout.local_size.0;
+        if width == 0 || !local.is_multiple_of(width) {
+            return Err(Error::Unsupported(format!(
+                "kernel {kernel} needs full subgroups: its workgroup size {local} is not a multiple of the \
+                 subgroup size {width} on {}",
+                info.name
+            )));
+        }
+        Ok(true)
+    }
+
     /// Fails with `Error::Unsupported` when the module declares a capability whose device
     /// feature this context did not enable (the device lacks it, or the options left it off):
     /// creating the pipeline anyway would be invalid usage, and may crash a driver.

@@ -118,6 +118,28 @@ pub fn workgroup_size_builtin(words: &[u32]) -> std::result::Result<Option<Workg
     Ok(Some(dims))
 }
 
+/// Whether the module reads a lane's place in its subgroup: the `SubgroupSize` or
+/// `SubgroupLocalInvocationId` built-in (`gl_SubgroupSize`, `gl_SubgroupInvocationID`). Such a
+/// kernel hands work to lanes by index (glsl/raycast_coop.comp), so every lane of its subgroups
+/// must be active: `gpu::Context` creates it with full subgroups.
+pub fn reads_subgroup_lanes(words: &[u32]) -> std::result::Result<bool, String> {
+    use rspirv::spirv::BuiltIn;
+    let m = rspirv::dr::load_words(words).map_err(|e| e.to_string())?;
+    Ok(m.annotations.iter().any(|i| {
+        matches!(
+            (i.class.opcode, i.operands.as_slice()),
+            (
+                Op::Decorate,
+                [
+                    _,
+                    Operand::Decoration(Decoration::BuiltIn),
+                    Operand::BuiltIn(BuiltIn::SubgroupSize | BuiltIn::SubgroupLocalInvocationId)
+                ],
+            )
+        )
+    }))
+}
+
 /// The layout of the runtime array a storage buffer (or the push-constant block) holds, as the
 /// SPIR-V declares it.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -43,6 +43,17 @@ pub fn with_gpu_options<T: Send + 'static>(
             panic!("GPU tests need a Vulkan device and the validation layer (they fail, never skip): {e}")
         });
         assert!(ctx.validation_enabled(), "validation layer and debug messenger must be active in tests");
+        // scripts/test-width.sh: the pass at another lavapipe width must really run at it.
+        if let Ok(want) = std::env::var("TRILAB_EXPECT_SUBGROUP_SIZE") {
+            let want: u32 = want.parse().expect("TRILAB_EXPECT_SUBGROUP_SIZE is a number of lanes");
+            assert_eq!(
+                ctx.info().subgroup_size,
+                want,
+                "TRILAB_EXPECT_SUBGROUP_SIZE={want}: {} reports subgroup size {}",
+                ctx.info().name,
+                ctx.info().subgroup_size
+            );
+        }
         let log = ctx.validation_log();
         let out = f(&ctx);
         drop(ctx);
