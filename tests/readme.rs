@@ -16,7 +16,8 @@ fn the_readme_lists_the_registry_s_methods() {
 }
 
 /// CI runs what the README tells a person to run: `.ci/run`'s last line is the README's test
-/// command, which ends with the second pass at lavapipe's other width (scripts/test-width.sh).
+/// command, which ends with the second pass at lavapipe's other width (scripts/test-width.sh)
+/// and the regression gate against the committed baseline (scripts/ci-gate.sh).
 #[test]
 fn ci_runs_the_readme_s_test_command() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -27,9 +28,10 @@ fn ci_runs_the_readme_s_test_command() {
     let command = readme[at..].lines().next().unwrap().trim();
     assert!(command.starts_with("./scripts/install-deps.sh") && command.contains("cargo test --release"), "{command}");
     assert!(
-        command.ends_with("./scripts/test-width.sh 128"),
-        "the second width pass is part of the command: {command}"
+        command.ends_with("./scripts/test-width.sh 128 && ./scripts/ci-gate.sh"),
+        "the second width pass and the regression gate are part of the command: {command}"
     );
+    assert!(root.join("results/lavapipe/baseline/summary.md").is_file(), "the gate's baseline is committed");
     let last = ci.lines().rev().find(|l| !l.trim().is_empty()).unwrap().trim();
     assert_eq!(last, command, ".ci/run's last line must be README.md's test command");
     let script = std::fs::read_to_string(root.join("scripts/test-width.sh")).unwrap();
