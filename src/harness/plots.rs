@@ -92,6 +92,50 @@ impl LegendEntry {
     }
 }
 
+/// A panel whose x axis is the leaf sizes `leaves` (one segment each, labelled with the size)
+/// and whose y axis is `y`, its mesh drawn: the chart of every time-against-leaf-size plot
+/// (the study's, the merge's).
+pub fn leaf_size_chart<'a, 'b>(
+    area: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
+    caption: &str,
+    leaves: &[u32],
+    y: std::ops::Range<f64>,
+    y_desc: &str,
+    what: &str,
+) -> Result<LeafSizeChart<'a, 'b>> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(Y_LABEL_AREA)
+        // Integer ranges include their end in plotters: n points are 0..n-1.
+        .build_cartesian_2d((0u32..leaves.len().saturating_sub(1) as u32).into_segmented(), y)
+        .map_err(|e| plot_err(what, e))?;
+    chart
+        .configure_mesh()
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
+        .x_desc("triangles per leaf")
+        .y_desc(y_desc)
+        .x_label_formatter(&|v| match v {
+            SegmentValue::CenterOf(i) => leaves.get(*i as usize).map(|l| l.to_string()).unwrap_or_default(),
+            _ => String::new(),
+        })
+        .draw()
+        .map_err(|e| plot_err(what, e))?;
+    Ok(chart)
+}
+
+/// The chart [`leaf_size_chart`] returns: x a leaf size's index (segmented), y a value.
+pub type LeafSizeChart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<
+        plotters::coord::ranged1d::SegmentedCoord<plotters::coord::types::RangedCoordu32>,
+        plotters::coord::types::RangedCoordf64,
+    >,
+>;
+
 /// Draws `panels` side by side with `draw(area, panel index)` and writes the PNG atomically.
 /// The legend (shared by every panel) goes in a strip right of the panels, never over data.
 pub fn render_png(

@@ -12,7 +12,7 @@ use plotters::prelude::*;
 use super::{MergeReport, SpeedRow};
 use crate::error::Result;
 use crate::harness::plots::{
-    plot_err, render_png, LegendEntry, Marker, Plot, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA,
+    leaf_size_chart, plot_err, render_png, LegendEntry, Marker, Plot, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA,
 };
 use crate::rows::Figure;
 
@@ -111,25 +111,8 @@ fn time_vs_leaf(report: &MergeReport, t: &Times, scene: &str, layout: &str, path
         let ymax = all.iter().flatten().map(|p| p.3).fold(1.0, f64::max) * 1.05;
         let ymin = all.iter().flatten().map(|p| p.2).fold(1.0, f64::min) * 0.95;
         let caption = if layout == "bvh2" { format!("{scene}, {m}") } else { format!("{scene}, {layout}, {m}") };
-        let mut chart = ChartBuilder::on(area)
-            .caption(caption, ("sans-serif", 20))
-            .margin(12)
-            .x_label_area_size(X_LABEL_AREA)
-            .y_label_area_size(Y_LABEL_AREA)
-            .build_cartesian_2d((0u32..leaves.len().saturating_sub(1) as u32).into_segmented(), ymin..ymax)
-            .map_err(|e| plot_err(what, e))?;
-        chart
-            .configure_mesh()
-            .label_style(("sans-serif", 14))
-            .axis_desc_style(("sans-serif", 15))
-            .x_desc("triangles per leaf")
-            .y_desc("time / device's fastest leaf (min-max)")
-            .x_label_formatter(&|v| match v {
-                SegmentValue::CenterOf(i) => leaves.get(*i as usize).map(|l| l.to_string()).unwrap_or_default(),
-                _ => String::new(),
-            })
-            .draw()
-            .map_err(|e| plot_err(what, e))?;
+        let mut chart =
+            leaf_size_chart(area, &caption, &leaves, ymin..ymax, "time / device's fastest leaf (min-max)", what)?;
         for (d, pts) in all.iter().enumerate() {
             let c = device_colour(d);
             chart

@@ -14,7 +14,7 @@ use crate::encoding::{Layout, Method};
 use crate::error::Result;
 pub use crate::harness::plots::Plot;
 use crate::harness::plots::{
-    colour, plot_err, render_png, LegendEntry, Marker, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA,
+    colour, leaf_size_chart, plot_err, render_png, LegendEntry, Marker, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA,
 };
 use crate::harness::rayset::RaySet;
 
@@ -48,26 +48,14 @@ fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
     render_png(path, panels.len(), what, &legend, |area, i| {
         let (scene, layout) = (&panels[i].0, panels[i].1);
         let ymax = rows_of(report, scene).map(|r| r.render_seconds().max).fold(0.0, f64::max) * 1.1;
-        let mut chart = ChartBuilder::on(area)
-            .caption(caption(report, scene, layout, "path-trace time"), ("sans-serif", 20))
-            .margin(12)
-            .x_label_area_size(X_LABEL_AREA)
-            .y_label_area_size(Y_LABEL_AREA)
-            // Integer ranges include their end in plotters: n points are 0..n-1.
-            .build_cartesian_2d((0u32..leaves.len().saturating_sub(1) as u32).into_segmented(), 0f64..ymax.max(1e-9))
-            .map_err(|e| plot_err(what, e))?;
-        chart
-            .configure_mesh()
-            .label_style(("sans-serif", 14))
-            .axis_desc_style(("sans-serif", 15))
-            .x_desc("triangles per leaf")
-            .y_desc("seconds (median, min-max)")
-            .x_label_formatter(&|v| match v {
-                SegmentValue::CenterOf(i) => leaves.get(*i as usize).map(|l| l.to_string()).unwrap_or_default(),
-                _ => String::new(),
-            })
-            .draw()
-            .map_err(|e| plot_err(what, e))?;
+        let mut chart = leaf_size_chart(
+            area,
+            &caption(report, scene, layout, "path-trace time"),
+            &leaves,
+            0f64..ymax.max(1e-9),
+            "seconds (median, min-max)",
+            what,
+        )?;
         for &m in &report.options.methods {
             let pts: Vec<(u32, f64, f64, f64)> = leaves
                 .iter()
