@@ -230,11 +230,7 @@ pub fn run(base: &Path, new: &Path, threshold_pct: f64, count_threshold_pct: Opt
     }
     let (bs, br) = load(base)?;
     let (ns, nr) = load(new)?;
-    let mut r = compare(bs, &br, ns, &nr, threshold_pct);
-    if let Some(c) = count_threshold_pct {
-        r = compare_with(r.base, &br, r.new, &nr, threshold_pct, c);
-    }
-    Ok(r)
+    Ok(compare_with(bs, &br, ns, &nr, threshold_pct, count_threshold_pct.unwrap_or(threshold_pct)))
 }
 
 /// A threshold is a percentage, 0 or more.
@@ -678,6 +674,27 @@ mod tests {
         // Beyond 35 % it is a real slowdown, counted, but neither printed nor failing.
         let r = run(&new, 35.0);
         assert_eq!((r.exit_code(), r.totals.slower, r.changes.len()), (0, 1, 0), "{}", r.to_text());
+    }
+
+    #[test]
+    fn counts_are_gated_apart_from_timings() {
+        // A 30 % slowdown (ranges apart) and one more instruction: at 150 % for timings and 0 %
+        // for counts (the CI gate's setting) the count fails and the timing passes.
+        let mut new = planted("method=mt", "mrays_per_s", |f| *f = timing(10.0 / 1.3, 7.5, 7.9));
+        for r in new.iter_mut().filter(|r| r.key().contains("raycast.mt")) {
+            r.figures.get_mut("spirv_instructions").unwrap().median = 501.0;
+            let f = r.figures.get_mut("spirv_instructions").unwrap();
+            (f.min, f.max) = (501.0, 501.0);
+        }
+        let base = base_rows();
+        let r = compare_with(side(&base, "base"), &base, side(&new, "new"), &new, 150.0, 0.0);
+        assert_eq!((r.exit_code(), r.regressions), (1, 1), "{}", r.to_text());
+        assert!(r.changes.iter().any(|c| c.figure == "spirv_instructions" && c.regression), "{}", r.to_text());
+        assert!(r.changes.iter().all(|c| c.figure != "mrays_per_s"), "the timing is within 150 %: {}", r.to_text());
+        assert!(r.to_text().contains("150 % (timings), 0 % (counts)"), "{}", r.to_text());
+        // The same count change passes when the counts share the timings' 150 %.
+        let r = compare_with(side(&base, "base"), &base, side(&new, "new"), &new, 150.0, 150.0);
+        assert_eq!(r.exit_code(), 0, "{}", r.to_text());
     }
 
     #[test]
