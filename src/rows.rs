@@ -166,6 +166,13 @@ pub fn cell_key(command: &str, cell: &Cell) -> String {
     s
 }
 
+/// Whether a row's `cell` fills the `planned` cell: it agrees on every coordinate the plan
+/// names. A plan names a cell by what the options choose; a row may add coordinates that are
+/// measured (bench's `rays`, the size of a ray set that depends on the scene's hits).
+pub fn plan_matches(planned: &Cell, cell: &Cell) -> bool {
+    planned.iter().all(|(k, v)| cell.get(k) == Some(v))
+}
+
 /// Which share of a matrix a run took: shard `index` (1-based) of `count`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Shard {
