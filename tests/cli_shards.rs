@@ -1,4 +1,4 @@
-//! `--shard I/N` on the matrix commands besides the study (`bench`, `build-bench`) and
+//! `--shard I/N` on the matrix commands besides the study (`bench`, `accuracy`, `build-bench`) and
 //! `trilab merge` of their shards, end to end (bench under the validation layer): shards 1/2 and
 //! 2/2 of a tiny matrix measure disjoint cells whose union is exactly the unsharded run's cells,
 //! every shard plans the unsharded run's whole matrix, each shard's report says it is partial,
@@ -69,9 +69,10 @@ fn cells_of(v: &serde_json::Value) -> BTreeSet<Cell> {
 }
 
 /// Runs `args` whole and as shards 1/2 and 2/2 into `dir/{whole,shards/1,shards/2}`, checks the
-/// cells, plans, partial notes (in the file `report` of each shard's folder) and merges; returns
-/// the unsharded run's rows.
-fn check_sharded(dir: &Path, command: &str, args: &[&str], report: &str) -> Rows {
+/// cells, plans, partial notes (in the file `report` of each shard's folder) and merges; `unit`:
+/// the coordinates of the groups a shard takes whole (no such group is split over the shards).
+/// Returns the unsharded run's rows and the two shards'.
+fn check_sharded(dir: &Path, command: &str, args: &[&str], report: &str, unit: &[&str]) -> (Rows, Rows, Rows) {
     let run = |out: &Path, shard: Option<&str>| {
         std::fs::create_dir_all(out).unwrap(); // bench writes into an existing folder
         let mut a: Vec<&str> = args.to_vec();
@@ -100,9 +101,11 @@ fn check_sharded(dir: &Path, command: &str, args: &[&str], report: &str) -> Rows
     assert!(!r1.cells.is_empty() && !r2.cells.is_empty());
     assert!(r1.cells.is_disjoint(&r2.cells), "{:?} {:?}", r1.cells, r2.cells);
     assert_eq!(r1.cells.union(&r2.cells).cloned().collect::<BTreeSet<_>>(), w.cells, "the shards' union is the whole run");
-    // A shard takes whole scenes.
-    let scenes = |r: &Rows| r.cells.iter().map(|c| c["scene"].clone()).collect::<BTreeSet<_>>();
-    assert!(scenes(&r1).is_disjoint(&scenes(&r2)), "a scene split over shards");
+    // A shard takes whole groups.
+    let groups = |r: &Rows| -> BTreeSet<Vec<String>> {
+        r.cells.iter().filter_map(|c| unit.iter().map(|k| c.get(*k).cloned()).collect()).collect()
+    };
+    assert!(!groups(&r1).is_empty() && groups(&r1).is_disjoint(&groups(&r2)), "a {unit:?} group split over shards");
     for (d, r, i) in [(&s1, &r1, 1), (&s2, &r2, 2)] {
         let text = std::fs::read_to_string(d.join(report)).unwrap();
         let note = format!("partial: shard {i}/2, {} of {} cells", r.cells.len(), w.plan.len());
@@ -126,7 +129,7 @@ fn check_sharded(dir: &Path, command: &str, args: &[&str], report: &str) -> Rows
     assert_eq!(cells_of(&lone["missing"]), other);
     assert!(lone["missing"].as_array().unwrap().iter().all(|r| r["planned_by_device"] == true));
     assert_eq!(lone["devices"][0]["shards"][0]["missing"], serde_json::json!([{"index": 2, "count": 2}]));
-    w
+    (w, r1, r2)
 }
 
 /// Three tiny scenes (round-robin: shard 1 takes the first and third), two methods on two
@@ -157,7 +160,7 @@ const BENCH: [&str; 20] = [
 #[test]
 fn bench_shards_take_whole_scenes_and_merge_to_the_unsharded_run() {
     let dir = tempfile::tempdir().unwrap();
-    let w = check_sharded(dir.path(), "bench", &BENCH, "bench.md");
+    let (w, _, _) = check_sharded(dir.path(), "bench", &BENCH, "bench.md", &["scene"]);
     // 3 scenes x 3 sets x 2 methods x 2 layouts, each row naming its ray count.
     assert_eq!(w.plan.len(), 3 * 3 * 2 * 2);
     assert!(w.cells.iter().all(|c| c["rays"].parse::<usize>().is_ok_and(|n| n > 0)), "{:?}", w.cells);
@@ -185,7 +188,7 @@ fn build_bench_shards_take_whole_scenes_and_merge_to_the_unsharded_run() {
         "--sweep-max",
         "400",
     ];
-    let w = check_sharded(dir.path(), "build-bench", &args, "build.md");
+    let (w, _, _) = check_sharded(dir.path(), "build-bench", &args, "build.md", &["scene"]);
     let sweeps: BTreeSet<&str> =
         w.plan.iter().filter(|c| c.get("builder").is_some_and(|b| b == "trilab-sweep")).map(|c| c["scene"].as_str()).collect();
     assert_eq!(sweeps.len(), 2, "{sweeps:?}");
@@ -194,9 +197,42 @@ fn build_bench_shards_take_whole_scenes_and_merge_to_the_unsharded_run() {
     assert_eq!(w.plan.len(), 3 * (2 + 1 + 2) + 2);
 }
 
+/// The smoke preset at three leaf sizes on two layouts (six groups; round-robin, leaf size major:
+/// shard 1 takes bvh2 at every leaf size, shard 2 bvh4), two methods.
+const ACCURACY: [&str; 10] = [
+    "accuracy",
+    "--preset",
+    "smoke",
+    "--leaf-sizes",
+    "1,2,4",
+    "--layouts",
+    "bvh2,bvh4",
+    "--methods",
+    "mt,unit",
+    "--validation",
+];
+
+#[test]
+fn accuracy_shards_take_whole_leaf_and_layout_groups_and_merge_to_the_unsharded_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, r1, r2) = check_sharded(dir.path(), "accuracy", &ACCURACY, "accuracy.md", &["leaf", "layout"]);
+    let parts = |r: &Rows| r.cells.iter().map(|c| c["part"].clone()).collect::<BTreeSet<_>>();
+    let all = BTreeSet::from(["extremes", "frontier", "leaks", "self-intersection"].map(String::from));
+    assert_eq!(parts(&w), all);
+    // The extremes, self-intersection and frontier run once, in the shard owning leaf 4 on bvh2.
+    assert_eq!((parts(&r1), parts(&r2)), (all, BTreeSet::from(["leaks".to_owned()])));
+    let leaks = |r: &Rows| r.cells.iter().filter(|c| c["part"] == "leaks").map(|c| c["layout"].clone()).collect::<BTreeSet<String>>();
+    assert_eq!(leaks(&r1), BTreeSet::from(["bvh2".to_owned()]));
+    assert_eq!(leaks(&r2), BTreeSet::from(["bvh4".to_owned()]));
+    // Per method: 3 x 2 leak groups, 6 extreme kinds, the offset schemes, one frontier cell.
+    let schemes = w.plan.iter().filter(|c| c["part"] == "self-intersection").count() / 2;
+    assert!(schemes > 0);
+    assert_eq!(w.plan.len(), 2 * (6 + 6 + schemes + 1));
+}
+
 #[test]
 fn bad_shards_are_refused_before_any_work() {
-    for cmd in [&BENCH[..], &["build-bench", "--scenes", "synth:soup:300,synth:terrain:600"][..]] {
+    for cmd in [&BENCH[..], &ACCURACY[..], &["build-bench", "--scenes", "synth:soup:300,synth:terrain:600"][..]] {
         for bad in ["0/2", "3/2", "1/0", "x"] {
             let mut a = cmd.to_vec();
             a.extend(["--shard", bad]);
@@ -210,5 +246,7 @@ fn bad_shards_are_refused_before_any_work() {
     expect_error(&trilab(&a, 60), &["--shard 4/4", "3 scene(s)"]);
     let o = trilab(&["build-bench", "--scenes", "synth:soup:300,synth:terrain:600", "--shard", "3/3"], 60);
     expect_error(&o, &["--shard 3/3", "2 scene(s)"]);
+    let o = trilab(&["accuracy", "--preset", "smoke", "--leaf-sizes", "1,4", "--shard", "3/3"], 60);
+    expect_error(&o, &["--shard 3/3", "2 (2 leaf size(s) x 1 layout(s))"]);
     assert!(t.elapsed().as_secs() < 30, "refusals took {:?}", t.elapsed());
 }
