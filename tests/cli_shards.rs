@@ -15,9 +15,11 @@ use common::cli::{expect_error, ok, trilab};
 
 type Cell = BTreeMap<String, String>;
 
-/// A rows file: its rows' cells (each once), its plan's cells and its shard.
+/// A rows file: its rows' cells (each once), its plan's cells and its shard, and per cell the
+/// figures that are not timings (counts and correctness: exact, so the same in every run).
 struct Rows {
     cells: BTreeSet<Cell>,
+    exact: BTreeMap<Cell, BTreeMap<String, f64>>,
     plan: Vec<Cell>,
     shard: serde_json::Value,
 }
@@ -28,7 +30,7 @@ fn cell(v: &serde_json::Value) -> Cell {
 
 fn rows(dir: &Path, command: &str) -> Rows {
     let text = std::fs::read_to_string(dir.join("rows.jsonl")).unwrap();
-    let mut r = Rows { cells: BTreeSet::new(), plan: vec![], shard: serde_json::Value::Null };
+    let mut r = Rows { cells: BTreeSet::new(), exact: BTreeMap::new(), plan: vec![], shard: serde_json::Value::Null };
     let mut plans = 0;
     for line in text.lines() {
         let v: serde_json::Value = serde_json::from_str(line).unwrap();
@@ -41,6 +43,8 @@ fn rows(dir: &Path, command: &str) -> Rows {
             r.shard = v["shard"].clone();
         } else {
             assert!(r.cells.insert(cell(&v["cell"])), "a cell twice: {v}");
+            let exact = v["figures"].as_object().unwrap().iter().filter(|(_, f)| f["class"] != "timing");
+            r.exact.insert(cell(&v["cell"]), exact.map(|(n, f)| (n.clone(), f["median"].as_f64().unwrap())).collect());
         }
     }
     assert_eq!(plans, 1, "one plan line in {}", dir.display());
@@ -101,6 +105,13 @@ fn check_sharded(dir: &Path, command: &str, args: &[&str], report: &str, unit: &
     assert!(!r1.cells.is_empty() && !r2.cells.is_empty());
     assert!(r1.cells.is_disjoint(&r2.cells), "{:?} {:?}", r1.cells, r2.cells);
     assert_eq!(r1.cells.union(&r2.cells).cloned().collect::<BTreeSet<_>>(), w.cells, "the shards' union is the whole run");
+    // A shard measures its cells as the whole run does: the same counts and correctness figures
+    // (the same rays, from the same seeds, wherever the shard's share starts).
+    for r in [&r1, &r2] {
+        for (c, figures) in &r.exact {
+            assert_eq!(figures, &w.exact[c], "{c:?}");
+        }
+    }
     // A shard takes whole groups.
     let groups = |r: &Rows| -> BTreeSet<Vec<String>> {
         r.cells.iter().filter_map(|c| unit.iter().map(|k| c.get(*k).cloned()).collect()).collect()
