@@ -101,10 +101,17 @@ fn check_sharded(dir: &Path, command: &str, args: &[&str], report: &str, unit: &
 
     // The shards: the whole matrix planned, disjoint cells, together exactly the unsharded run's.
     assert_eq!((&r1.plan, &r2.plan), (&w.plan, &w.plan), "every shard plans the unsharded run's matrix");
-    assert_eq!((&r1.shard, &r2.shard), (&serde_json::json!({"index": 1, "count": 2}), &serde_json::json!({"index": 2, "count": 2})));
+    assert_eq!(
+        (&r1.shard, &r2.shard),
+        (&serde_json::json!({"index": 1, "count": 2}), &serde_json::json!({"index": 2, "count": 2}))
+    );
     assert!(!r1.cells.is_empty() && !r2.cells.is_empty());
     assert!(r1.cells.is_disjoint(&r2.cells), "{:?} {:?}", r1.cells, r2.cells);
-    assert_eq!(r1.cells.union(&r2.cells).cloned().collect::<BTreeSet<_>>(), w.cells, "the shards' union is the whole run");
+    assert_eq!(
+        r1.cells.union(&r2.cells).cloned().collect::<BTreeSet<_>>(),
+        w.cells,
+        "the shards' union is the whole run"
+    );
     // A shard measures its cells as the whole run does: the same counts and correctness figures
     // (the same rays, from the same seeds, wherever the shard's share starts).
     for r in [&r1, &r2] {
@@ -200,8 +207,12 @@ fn build_bench_shards_take_whole_scenes_and_merge_to_the_unsharded_run() {
         "400",
     ];
     let (w, _, _) = check_sharded(dir.path(), "build-bench", &args, "build.md", &["scene"]);
-    let sweeps: BTreeSet<&str> =
-        w.plan.iter().filter(|c| c.get("builder").is_some_and(|b| b == "trilab-sweep")).map(|c| c["scene"].as_str()).collect();
+    let sweeps: BTreeSet<&str> = w
+        .plan
+        .iter()
+        .filter(|c| c.get("builder").is_some_and(|b| b == "trilab-sweep"))
+        .map(|c| c["scene"].as_str())
+        .collect();
     assert_eq!(sweeps.len(), 2, "{sweeps:?}");
     assert!(sweeps.iter().all(|s| !s.contains("terrain")), "{sweeps:?}");
     // Per scene: binned at 1 and 2 threads, serial, the sweep where small, two layouts.
@@ -232,7 +243,9 @@ fn accuracy_shards_take_whole_leaf_and_layout_groups_and_merge_to_the_unsharded_
     assert_eq!(parts(&w), all);
     // The extremes, self-intersection and frontier run once, in the shard owning leaf 4 on bvh2.
     assert_eq!((parts(&r1), parts(&r2)), (all, BTreeSet::from(["leaks".to_owned()])));
-    let leaks = |r: &Rows| r.cells.iter().filter(|c| c["part"] == "leaks").map(|c| c["layout"].clone()).collect::<BTreeSet<String>>();
+    let leaks = |r: &Rows| {
+        r.cells.iter().filter(|c| c["part"] == "leaks").map(|c| c["layout"].clone()).collect::<BTreeSet<String>>()
+    };
     assert_eq!(leaks(&r1), BTreeSet::from(["bvh2".to_owned()]));
     assert_eq!(leaks(&r2), BTreeSet::from(["bvh4".to_owned()]));
     // Per method: 3 x 2 leak groups, 6 extreme kinds, the offset schemes, one frontier cell.

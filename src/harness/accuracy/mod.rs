@@ -1000,8 +1000,7 @@ pub fn plan(report: &AccuracyReport) -> crate::rows::Plan {
 pub fn partial(report: &AccuracyReport) -> Option<String> {
     let shard = report.options.shard?;
     let rows = rows(report);
-    let measured =
-        report.plan.iter().filter(|c| rows.iter().any(|r| crate::rows::plan_matches(c, &r.cell))).count();
+    let measured = report.plan.iter().filter(|c| rows.iter().any(|r| crate::rows::plan_matches(c, &r.cell))).count();
     let fixed = if report.options.runs_fixed_parts() {
         "with the extremes, self-intersection and frontier"
     } else {

@@ -233,7 +233,11 @@ pub fn merge(
         let find = |label: &str, cell: &Cell| {
             mine.iter()
                 .find(|r| {
-                    let fills = if cells[..planned].contains(cell) { rows::plan_matches(cell, &r.cell) } else { &r.cell == cell };
+                    let fills = if cells[..planned].contains(cell) {
+                        rows::plan_matches(cell, &r.cell)
+                    } else {
+                        &r.cell == cell
+                    };
                     fills && r.source.device_label() == label
                 })
                 .copied()
