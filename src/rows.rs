@@ -394,6 +394,15 @@ mod tests {
     }
 
     #[test]
+    fn a_row_fills_the_planned_cell_it_agrees_with_on_the_plan_s_coordinates() {
+        let planned = cell([("scene", "bunny"), ("set", "diffuse")]);
+        assert!(plan_matches(&planned, &cell([("scene", "bunny"), ("set", "diffuse"), ("rays", "812")])));
+        assert!(plan_matches(&planned, &planned));
+        assert!(!plan_matches(&planned, &cell([("scene", "bunny"), ("set", "primary"), ("rays", "812")])));
+        assert!(!plan_matches(&planned, &cell([("scene", "bunny")])), "a row lacking a planned coordinate");
+    }
+
+    #[test]
     fn shards_split_a_matrix_exactly_once() {
         let shards: Vec<Shard> = (1..=3).map(|i| format!("{i}/3").parse().unwrap()).collect();
         for cell in 0..10 {
