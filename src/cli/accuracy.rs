@@ -36,13 +36,13 @@ pub struct AccuracyArgs {
         (repeatable); it must be proven closed (every edge shared by exactly two consistently wound \
         triangles), else the run is refused at once with the reason"))]
     scene: Vec<PathBuf>,
-    /// Output directory for accuracy.csv/json/md and plots. Default: results/<device>/accuracy/.
     /// Run only shard I of N: every N-th (leaf size, layout) group of the leak, false-hit and
     /// error sweeps, round-robin (leaf size major); the extremes, self-intersection and frontier
     /// run in the shard owning the frontier's group (leaf 4 on bvh2). rows.jsonl names the shard
     /// and plans the whole matrix; `trilab merge` joins the shards' folders.
     #[arg(long, value_name = "I/N")]
     shard: Option<trilab::rows::Shard>,
+    /// Output directory for accuracy.csv/json/md and plots. Default: results/<device>/accuracy/.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     #[command(flatten)]
