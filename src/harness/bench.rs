@@ -793,6 +793,49 @@ mod tests {
     }
 
     #[test]
+    fn every_row_fills_one_planned_cell_peers_included() {
+        let o = BenchOptions {
+            scenes: vec![PathBuf::from("bunny")],
+            methods: vec![Method::Mt],
+            layouts: vec![Layout::Bvh2, Layout::Bvh4],
+            ..BenchOptions::default()
+        };
+        let plan = plan_cells(&o, true, &[PeerKind::Embree.to_string()]);
+        // 3 sets x (2 layouts + the ray-query row + Embree).
+        assert_eq!(plan.len(), 3 * 4);
+        let rows = rows(&report());
+        assert_eq!(rows.len(), 4);
+        let mut filled = vec![];
+        for r in &rows {
+            let fits: Vec<&crate::rows::Cell> = plan.iter().filter(|c| plan_matches(c, &r.cell)).collect();
+            assert_eq!(fits.len(), 1, "{} fills {fits:?}", r.key());
+            filled.push(fits[0].clone());
+        }
+        filled.dedup();
+        assert_eq!(filled.len(), 4, "each row its own planned cell");
+        assert!(filled.iter().all(|c| c["set"] == "diffuse"));
+        // Without the ray query and peers, and with an empty random set, they are not planned.
+        let o = BenchOptions { random_rays: 0, ..o };
+        let plan = plan_cells(&o, false, &[]);
+        assert_eq!(plan.len(), 2 * 2);
+        assert!(plan.iter().all(|c| c.contains_key("method") && c["set"] != "random"));
+    }
+
+    #[test]
+    fn a_bench_shard_takes_whole_scenes_and_no_more_shards_than_scenes() {
+        let shard = |s: &str| Some(s.parse::<Shard>().unwrap());
+        let o = BenchOptions {
+            scenes: ["a", "b", "c"].map(PathBuf::from).to_vec(),
+            shard: shard("2/2"),
+            ..Default::default()
+        };
+        assert!(o.check_shard().is_ok());
+        assert_eq!((0..3).map(|i| o.runs_scene(i)).collect::<Vec<_>>(), [false, true, false]);
+        let e = BenchOptions { shard: shard("4/4"), ..o }.check_shard().unwrap_err().to_string();
+        assert!(e.contains("--shard 4/4") && e.contains("3 scene(s)"), "{e}");
+    }
+
+    #[test]
     fn rows_carry_every_table_row_and_peer_with_its_figures() {
         let report = report();
         let rows = rows(&report);
