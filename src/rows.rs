@@ -166,6 +166,13 @@ pub fn cell_key(command: &str, cell: &Cell) -> String {
     s
 }
 
+/// Whether a row's `cell` fills the `planned` cell: it agrees on every coordinate the plan
+/// names. A plan names a cell by what the options choose; a row may add coordinates that are
+/// measured (bench's `rays`, the size of a ray set that depends on the scene's hits).
+pub fn plan_matches(planned: &Cell, cell: &Cell) -> bool {
+    planned.iter().all(|(k, v)| cell.get(k) == Some(v))
+}
+
 /// Which share of a matrix a run took: shard `index` (1-based) of `count`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Shard {
@@ -384,6 +391,15 @@ mod tests {
                    \"runs\":3,\"unit\":\"ms\",\"better\":\"lower\",\"class\":\"timing\"}}}";
         let e = parse(p, bad).unwrap_err().to_string();
         assert!(e.contains("median outside min-max"), "{e}");
+    }
+
+    #[test]
+    fn a_row_fills_the_planned_cell_it_agrees_with_on_the_plan_s_coordinates() {
+        let planned = cell([("scene", "bunny"), ("set", "diffuse")]);
+        assert!(plan_matches(&planned, &cell([("scene", "bunny"), ("set", "diffuse"), ("rays", "812")])));
+        assert!(plan_matches(&planned, &planned));
+        assert!(!plan_matches(&planned, &cell([("scene", "bunny"), ("set", "primary"), ("rays", "812")])));
+        assert!(!plan_matches(&planned, &cell([("scene", "bunny")])), "a row lacking a planned coordinate");
     }
 
     #[test]

@@ -36,6 +36,12 @@ pub struct AccuracyArgs {
         (repeatable); it must be proven closed (every edge shared by exactly two consistently wound \
         triangles), else the run is refused at once with the reason"))]
     scene: Vec<PathBuf>,
+    /// Run only shard I of N: every N-th (leaf size, layout) group of the leak, false-hit and
+    /// error sweeps, round-robin (leaf size major); the extremes, self-intersection and frontier
+    /// run in the shard owning the frontier's group (leaf 4 on bvh2). rows.jsonl names the shard
+    /// and plans the whole matrix; `trilab merge` joins the shards' folders.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<trilab::rows::Shard>,
     /// Output directory for accuracy.csv/json/md and plots. Default: results/<device>/accuracy/.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
@@ -64,9 +70,11 @@ pub fn run(a: AccuracyArgs) -> Result<()> {
     }
     // `accuracy::run` loads and proves them closed before any ray is cast (once, not here too).
     o.scenes = a.scene.clone();
+    o.shard = a.shard;
+    o.check_shard()?;
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.clone(), "accuracy");
-    let files = ["accuracy.csv", "frontier.csv", "translation.csv", "accuracy.json", "accuracy.md"];
+    let files = ["accuracy.csv", "frontier.csv", "translation.csv", "accuracy.json", "accuracy.md", trilab::rows::FILE];
     trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &[])?;
     let t = std::time::Instant::now();
     let report = accuracy::run(&ctx, &o, |m| eprintln!("  [{:5.0} s] {m}", t.elapsed().as_secs_f64()))?;

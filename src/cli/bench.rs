@@ -69,6 +69,11 @@ pub struct BenchArgs {
     /// each, side by side in one run (default: bvh2).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
+    /// Run only shard I of N: every N-th scene, round-robin from scene I (a scene is the unit, so
+    /// its methods, layouts and peers stay interleaved in one run). rows.jsonl names the shard
+    /// and plans the whole matrix; `trilab merge` joins the shards' folders.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<trilab::rows::Shard>,
     /// Directory to write bench.json (the report) and bench.md (the tables) into.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
@@ -129,6 +134,7 @@ pub fn output_files(
 pub fn run(a: BenchArgs) -> Result<()> {
     let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
     let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench", &scenes)?;
+    BenchOptions { scenes: scenes.clone(), shard: a.shard, ..Default::default() }.check_shard()?;
     let ctx = a.gpu.context()?;
     let o = BenchOptions {
         scenes,
@@ -153,8 +159,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
             RayQueryChoice::Off => false,
             RayQueryChoice::Auto => ctx.info().device_type != "CPU",
         },
+        shard: a.shard,
         ..Default::default()
     };
+    if let Some(shard) = o.shard {
+        let owned = (0..o.scenes.len()).filter(|&i| o.runs_scene(i)).count();
+        eprintln!("bench: shard {shard}: {owned} of {} scene(s)", o.scenes.len());
+    }
     let report = bench::run(&ctx, &o, |m| eprintln!("  {m}"))?;
     a.json.print(&report);
     if let Some(dir) = &a.out {

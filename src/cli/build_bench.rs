@@ -48,6 +48,10 @@ pub struct BuildBenchArgs {
     /// (`bvh2`, `bvh4`, `bvh8`, ...; default: every layout).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
+    /// Run only shard I of N: every N-th scene, round-robin from scene I. rows.jsonl names the
+    /// shard and plans the whole matrix; `trilab merge` joins the shards' folders.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<trilab::rows::Shard>,
     /// Directory for build.csv, layouts.csv, build.json and build.md (e.g. results/<host>/build).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
@@ -68,10 +72,12 @@ pub fn run(a: BuildBenchArgs) -> Result<()> {
         sweep_max_triangles: a.sweep_max,
         embree: a.embree,
         layouts: if a.layouts.is_empty() { d.layouts } else { a.layouts },
+        shard: a.shard,
     };
+    o.check()?;
     let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
     if let Some(out) = &a.out {
-        let files = ["build.csv", "layouts.csv", "build.json", "build.md"];
+        let files = ["build.csv", "layouts.csv", "build.json", "build.md", trilab::rows::FILE];
         trilab::io::check_output("--out", trilab::io::Output::Dir(out, &files), &inputs)?;
     }
     let report = build_bench::run(&o, |m| eprintln!("{m}"))?;

@@ -22,6 +22,7 @@ use crate::harness::validate::{measure_rays, mrays_summary};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::{self, Ray};
 use crate::report::{Report, Summary, Table};
+use crate::rows::{plan_matches, Shard};
 use crate::scene::{load_obj, Mesh};
 
 #[derive(Clone, Debug)]
@@ -55,6 +56,9 @@ pub struct BenchOptions {
     pub scene_access: SceneAccess,
     /// BVH node layouts, each method timed on each, side by side in one run (default: bvh2).
     pub layouts: Vec<Layout>,
+    /// Run only this shard's scenes ([`BenchOptions::runs_scene`]): a scene is the unit, so its
+    /// methods, layouts and peers stay interleaved side by side in one run.
+    pub shard: Option<Shard>,
 }
 
 /// Wall-clock target of one ray-query submit (its batch is sized to it, [`rayquery::batch_for`]).
@@ -83,6 +87,7 @@ impl Default for BenchOptions {
             ray_query: true,
             scene_access: SceneAccess::Auto,
             layouts: vec![Layout::Bvh2],
+            shard: None,
         }
     }
 }
@@ -151,6 +156,11 @@ pub struct BenchReport {
     pub ray_query_note: Option<String>,
     /// Ray sets skipped because they hold no rays (for example `--random-rays 0`).
     pub notes: Vec<String>,
+    /// The shard this run took (`--shard I/N`), if any.
+    pub shard: Option<Shard>,
+    /// Every cell of the whole matrix (all shards; [`plan_cells`]), written as the rows' plan.
+    #[serde(skip)]
+    pub plan: Vec<crate::rows::Cell>,
 }
 
 impl Report for BenchReport {
@@ -188,10 +198,35 @@ impl BenchReport {
     pub fn header(&self) -> String {
         let p = &self.provenance;
         let lp = p.lp_num_threads.as_deref().map(|n| format!(", LP_NUM_THREADS={n}")).unwrap_or_default();
-        format!(
+        let mut s = format!(
             "device: {} ({}); host CPUs: {}{lp}; leaf size {}; median of {} runs after 1 warm-up (GPU timestamps)",
             p.device, p.driver, p.host_cpus, self.leaf_size, self.repeat
-        )
+        );
+        if let Some(note) = self.partial() {
+            s += &format!("\n{note}");
+        }
+        s
+    }
+
+    /// `partial: shard I/N, X of Y cells ...` for a sharded run, `None` for a whole one.
+    pub fn partial(&self) -> Option<String> {
+        let shard = self.shard?;
+        let planned = self.plan.len();
+        let measured = self.plan.iter().filter(|c| rows(self).iter().any(|r| plan_matches(c, &r.cell))).count();
+        Some(format!(
+            "partial: shard {shard}, {measured} of {planned} cells of the matrix (whole scenes); \
+             `trilab merge` of every shard's folder joins the matrix"
+        ))
+    }
+
+    /// The plan of the whole matrix this report belongs to, with its shard.
+    pub fn plan(&self) -> crate::rows::Plan {
+        crate::rows::Plan {
+            command: "bench".into(),
+            shard: self.shard,
+            cells: self.plan.clone(),
+            source: self.provenance.source(),
+        }
     }
 
     /// The tables in Markdown, under the header.
@@ -231,7 +266,7 @@ impl BenchReport {
         }
         if let Some(file) = json.or(md) {
             let dir = file.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-            crate::rows::write(dir, None, &rows(self))?;
+            crate::rows::write(dir, Some(&self.plan()), &rows(self))?;
         }
         Ok(())
     }
@@ -411,7 +446,70 @@ fn row(
     }
 }
 
+/// Every cell of the whole bench matrix (all shards), with the coordinates [`rows`] gives them
+/// except `rays`: a set's ray count is measured, not chosen (the diffuse set's depends on the
+/// primary hits), so a plan names a cell by scene, set and method/layout/leaf or peer, and a row
+/// fills it when it agrees on those ([`plan_matches`]). A set the options leave empty
+/// (`--random-rays 0`) is not planned; `ray_query`: the run has the ray-query peer; `peers`: the
+/// peer programs that passed their probe.
+pub fn plan_cells(o: &BenchOptions, ray_query: bool, peers: &[String]) -> Vec<crate::rows::Cell> {
+    use crate::rows::cell;
+    let sizes = o.sizes();
+    let sets: Vec<RaySet> = <RaySet as crate::named::Named>::ALL
+        .iter()
+        .copied()
+        .filter(|&set| o.rays_dir.is_some() || !sizes.why_empty(set).starts_with("--"))
+        .collect();
+    let layouts = if o.layouts.is_empty() { vec![Layout::Bvh2] } else { o.layouts.clone() };
+    let mut cells = vec![];
+    for scene in &o.scenes {
+        let name = crate::scene::scene_name(scene);
+        for set in &sets {
+            for &m in &o.methods {
+                for &l in &layouts {
+                    let mut c = cell([
+                        ("scene", name.clone()),
+                        ("set", set.to_string()),
+                        ("method", m.to_string()),
+                        ("layout", l.to_string()),
+                        ("leaf", o.leaf_size.to_string()),
+                    ]);
+                    if o.sah_group != 1 {
+                        c.insert("sah_group".into(), o.sah_group.to_string());
+                    }
+                    cells.push(c);
+                }
+            }
+            let peers = ray_query.then(|| Peer::RayQuery.to_string()).into_iter().chain(peers.iter().cloned());
+            for peer in peers {
+                cells.push(cell([("scene", name.clone()), ("set", set.to_string()), ("peer", peer)]));
+            }
+        }
+    }
+    cells
+}
+
 impl BenchOptions {
+    /// Refuses a shard count above the number of scenes (a shard takes whole scenes), naming
+    /// `--shard`, before any work.
+    pub fn check_shard(&self) -> Result<()> {
+        match self.shard {
+            Some(shard) if shard.count as usize > self.scenes.len() => Err(Error::Usage(format!(
+                "--shard {shard}: a bench shard takes whole scenes (each scene's methods, layouts and peers \
+                 interleaved in one run) and this run has {} scene(s); use at most {} shard(s)",
+                self.scenes.len(),
+                self.scenes.len()
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// Whether this run measures the scene at `scene_index`: always without a shard, else
+    /// round-robin over the scenes ([`Shard::owns`]).
+    pub fn runs_scene(&self, scene_index: usize) -> bool {
+        self.shard.is_none_or(|s| s.owns(scene_index))
+    }
+
     /// The BVH every method's encoding shares.
     pub fn build_options(&self) -> BuildOptions {
         BuildOptions { leaf_policy: self.leaf_policy, sah_group: self.sah_group, ..BuildOptions::new(self.leaf_size) }
@@ -439,7 +537,10 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         accel: vec![],
         ray_query_note: None,
         notes: vec![],
+        shard: o.shard,
+        plan: vec![],
     };
+    o.check_shard()?;
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
     // The peers first: a missing program, a garbage line or no OpenCL is found before any work.
     if let Some(p) = &o.embree {
@@ -469,7 +570,12 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         report.ray_query_note = Some(note);
         None
     };
+    let peer_names: Vec<String> = programs.iter().map(|p| p.kind.to_string()).collect();
+    report.plan = plan_cells(o, rq_kernel.is_some(), &peer_names);
     for (scene_index, scene_path) in o.scenes.iter().enumerate() {
+        if !o.runs_scene(scene_index) {
+            continue;
+        }
         let name = crate::scene::scene_name(scene_path);
         let mesh = load_obj(scene_path)?;
         // The peers read the scene as we loaded it (same triangles, same ids, any scene spec).
@@ -681,7 +787,52 @@ mod tests {
             accel: vec![],
             ray_query_note: None,
             notes: vec![],
+            shard: None,
+            plan: vec![],
         }
+    }
+
+    #[test]
+    fn every_row_fills_one_planned_cell_peers_included() {
+        let o = BenchOptions {
+            scenes: vec![PathBuf::from("bunny")],
+            methods: vec![Method::Mt],
+            layouts: vec![Layout::Bvh2, Layout::Bvh4],
+            ..BenchOptions::default()
+        };
+        let plan = plan_cells(&o, true, &[PeerKind::Embree.to_string()]);
+        // 3 sets x (2 layouts + the ray-query row + Embree).
+        assert_eq!(plan.len(), 3 * 4);
+        let rows = rows(&report());
+        assert_eq!(rows.len(), 4);
+        let mut filled = vec![];
+        for r in &rows {
+            let fits: Vec<&crate::rows::Cell> = plan.iter().filter(|c| plan_matches(c, &r.cell)).collect();
+            assert_eq!(fits.len(), 1, "{} fills {fits:?}", r.key());
+            filled.push(fits[0].clone());
+        }
+        filled.dedup();
+        assert_eq!(filled.len(), 4, "each row its own planned cell");
+        assert!(filled.iter().all(|c| c["set"] == "diffuse"));
+        // Without the ray query and peers, and with an empty random set, they are not planned.
+        let o = BenchOptions { random_rays: 0, ..o };
+        let plan = plan_cells(&o, false, &[]);
+        assert_eq!(plan.len(), 2 * 2);
+        assert!(plan.iter().all(|c| c.contains_key("method") && c["set"] != "random"));
+    }
+
+    #[test]
+    fn a_bench_shard_takes_whole_scenes_and_no_more_shards_than_scenes() {
+        let shard = |s: &str| Some(s.parse::<Shard>().unwrap());
+        let o = BenchOptions {
+            scenes: ["a", "b", "c"].map(PathBuf::from).to_vec(),
+            shard: shard("2/2"),
+            ..Default::default()
+        };
+        assert!(o.check_shard().is_ok());
+        assert_eq!((0..3).map(|i| o.runs_scene(i)).collect::<Vec<_>>(), [false, true, false]);
+        let e = BenchOptions { shard: shard("4/4"), ..o }.check_shard().unwrap_err().to_string();
+        assert!(e.contains("--shard 4/4") && e.contains("3 scene(s)"), "{e}");
     }
 
     #[test]

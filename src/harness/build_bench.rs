@@ -26,6 +26,7 @@ use crate::error::{Error, Result};
 use crate::named::Named;
 use crate::report::Summary;
 use crate::report::Table;
+use crate::rows::Shard;
 use crate::scene::{load_obj, Mesh};
 
 #[derive(Clone, Debug, Serialize)]
@@ -48,6 +49,8 @@ pub struct BuildBenchOptions {
     pub embree: Option<PathBuf>,
     /// Node layouts whose node buffer is made from the binary tree and timed.
     pub layouts: Vec<Layout>,
+    /// Run only this shard's scenes (round-robin, [`Shard::owns`] of the scene's index).
+    pub shard: Option<Shard>,
 }
 
 impl Default for BuildBenchOptions {
@@ -63,6 +66,7 @@ impl Default for BuildBenchOptions {
             sweep_max_triangles: 300_000,
             embree: None,
             layouts: Layout::ALL.to_vec(),
+            shard: None,
         }
     }
 }
@@ -154,6 +158,9 @@ pub struct BuildBenchReport {
     pub rows: Vec<BuildRow>,
     /// Each layout's node buffer per scene.
     pub layouts: Vec<LayoutRow>,
+    /// Every cell of the whole matrix (all shards; [`plan_cells`]), written as the rows' plan.
+    #[serde(skip)]
+    pub plan: Vec<crate::rows::Cell>,
 }
 
 impl BuildBenchOptions {
@@ -166,10 +173,19 @@ impl BuildBenchOptions {
         }
     }
 
-    fn check(&self) -> Result<()> {
+    /// Refuses what the benchmark cannot run, naming the option, before any work.
+    pub fn check(&self) -> Result<()> {
         let bad = |m: String| Err(Error::Usage(m));
         if self.scenes.is_empty() {
             return bad("--scenes: name at least one scene".into());
+        }
+        if let Some(shard) = self.shard.filter(|s| s.count as usize > self.scenes.len()) {
+            return bad(format!(
+                "--shard {shard}: a build-bench shard takes whole scenes and this run has {} scene(s); use at most {} \
+                 shard(s)",
+                self.scenes.len(),
+                self.scenes.len()
+            ));
         }
         if !(1..=crate::bvh::MAX_LEAF_SIZE).contains(&self.leaf_size) {
             return bad(format!("--leaf-size {}: must be 1..={}", self.leaf_size, crate::bvh::MAX_LEAF_SIZE));
@@ -193,6 +209,54 @@ impl BuildBenchOptions {
         }
         Ok(())
     }
+}
+
+impl BuildBenchOptions {
+    /// Whether this run measures the scene at `scene_index`: always without a shard, else
+    /// round-robin over the scenes ([`Shard::owns`]).
+    pub fn runs_scene(&self, scene_index: usize) -> bool {
+        self.shard.is_none_or(|s| s.owns(scene_index))
+    }
+}
+
+/// Every cell of the whole matrix (all shards) with [`BuildBenchReport::rows`]'s coordinates:
+/// per scene the binned build at each thread count, the serial build, the sweep (on scenes of at
+/// most `--sweep-max` triangles; `triangles`: each scene's count), Embree's build and commit at
+/// each thread count, and each layout's conversion.
+pub fn plan_cells(o: &BuildBenchOptions, triangles: &[usize]) -> Vec<crate::rows::Cell> {
+    use crate::rows::cell;
+    let shape = |mut c: crate::rows::Cell| {
+        c.insert("leaf".into(), o.leaf_size.to_string());
+        if o.sah_group != 1 {
+            c.insert("sah_group".into(), o.sah_group.to_string());
+        }
+        c
+    };
+    let max_threads = o.threads.iter().max().copied().unwrap_or(1);
+    let mut cells = vec![];
+    for (scene, &n) in o.scenes.iter().zip(triangles) {
+        let name = crate::scene::scene_name(scene);
+        let mut builds: Vec<(&str, usize)> = o.threads.iter().map(|&t| ("trilab-binned", t)).collect();
+        if o.serial {
+            builds.push(("trilab-serial", 1));
+        }
+        if n <= o.sweep_max_triangles {
+            builds.push(("trilab-sweep", max_threads));
+        }
+        if o.embree.is_some() {
+            for &t in &o.threads {
+                builds.push(("embree-build", t));
+                builds.push(("embree-commit", t));
+            }
+        }
+        for (builder, t) in builds {
+            cells.push(shape(cell([("scene", name.clone()), ("builder", builder.into()), ("threads", t.to_string())])));
+        }
+        for l in &o.layouts {
+            cells.push(shape(cell([("scene", name.clone()), ("layout", l.to_string())])));
+        }
+    }
+    cells
 }
 
 /// A rayon pool of `threads` threads for a build (`--threads`: at least 1).
@@ -243,10 +307,16 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
     let mut layout_rows = vec![];
     let binned = o.build_options(Builder::default());
     let max_threads = *o.threads.iter().max().expect("checked non-empty");
-    for scene in &o.scenes {
+    let mut triangles = vec![];
+    for (scene_index, scene) in o.scenes.iter().enumerate() {
         let name = crate::scene::scene_name(scene);
         let mesh = load_obj(scene)?;
         let n = mesh.triangle_count();
+        // Another shard's scene is loaded only for its triangle count: whether it has a sweep row.
+        triangles.push(n);
+        if !o.runs_scene(scene_index) {
+            continue;
+        }
         progress(&format!("{name}: {n} triangles"));
         let mut first: Option<Bvh> = None;
         for &t in &o.threads {
@@ -315,7 +385,8 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
             }
         }
     }
-    Ok(BuildBenchReport { options: o.clone(), provenance, rows, layouts: layout_rows })
+    let plan = plan_cells(o, &triangles);
+    Ok(BuildBenchReport { options: o.clone(), provenance, rows, layouts: layout_rows, plan })
 }
 
 /// `layout`'s node buffer made from `bvh`: a warm-up and `repeat` timed conversions.
@@ -680,6 +751,9 @@ impl BuildBenchReport {
     pub fn markdown(&self) -> String {
         let (o, p) = (&self.options, &self.provenance);
         let mut s = String::from("# BVH build speed and quality\n\n");
+        if let Some(note) = self.partial() {
+            s += &format!("**{note}.**\n\n");
+        }
         s += &format!(
             "CPU: {} ({} logical CPUs); commit {}; {}{}.\n\n",
             p.cpu_model,
@@ -727,7 +801,42 @@ impl BuildBenchReport {
         let json = serde_json::to_string_pretty(self).expect("serialisable report");
         crate::io::write_atomic(&dir.join("build.json"), json.as_bytes())?;
         crate::io::write_atomic(&dir.join("build.md"), self.markdown().as_bytes())?;
-        crate::rows::write(dir, None, &self.rows()).map(drop)
+        crate::rows::write(dir, Some(&self.plan()), &self.rows()).map(drop)
+    }
+
+    /// The plan of the whole matrix this report belongs to, with its shard.
+    pub fn plan(&self) -> crate::rows::Plan {
+        crate::rows::Plan {
+            command: "build-bench".into(),
+            shard: self.options.shard,
+            cells: self.plan.clone(),
+            source: self.source(),
+        }
+    }
+
+    /// `partial: shard I/N, X of Y cells ...` for a sharded run, `None` for a whole one.
+    pub fn partial(&self) -> Option<String> {
+        let shard = self.options.shard?;
+        let rows = self.rows();
+        let measured = self.plan.iter().filter(|c| rows.iter().any(|r| &r.cell == *c)).count();
+        Some(format!(
+            "partial: shard {shard}, {measured} of {} cells of the matrix (whole scenes); `trilab merge` of every \
+             shard's folder joins the matrix",
+            self.plan.len()
+        ))
+    }
+
+    /// Where the rows were measured: the host CPU (its model as the device, the logical CPUs as
+    /// a setting).
+    fn source(&self) -> crate::rows::Source {
+        let p = &self.provenance;
+        crate::rows::Source {
+            device: p.cpu_model.clone(),
+            driver: "host CPU (no GPU driver)".into(),
+            commit: p.commit.clone(),
+            date: p.date.clone(),
+            settings: [("host_cpus".to_owned(), p.cores.to_string())].into(),
+        }
     }
 
     /// The report as result rows (`rows.jsonl`, what `trilab compare` reads): per scene,
@@ -736,15 +845,8 @@ impl BuildBenchReport {
     /// buffer's `node_bytes`, `nodes` and `sah_cost` (counts). Measured on the host CPU: the
     /// source's device is the CPU model, its settings the logical CPUs.
     pub fn rows(&self) -> Vec<crate::rows::Row> {
-        use crate::rows::{cell, Better, Cell, Figure, Row, Source};
-        let p = &self.provenance;
-        let source = Source {
-            device: p.cpu_model.clone(),
-            driver: "host CPU (no GPU driver)".into(),
-            commit: p.commit.clone(),
-            date: p.date.clone(),
-            settings: [("host_cpus".to_owned(), p.cores.to_string())].into(),
-        };
+        use crate::rows::{cell, Better, Cell, Figure, Row};
+        let source = self.source();
         let o = &self.options;
         let shape = |mut c: Cell| {
             c.insert("leaf".into(), o.leaf_size.to_string());
@@ -790,10 +892,11 @@ impl BuildBenchReport {
 
 impl crate::report::Report for BuildBenchReport {
     fn to_text(&self) -> String {
+        let partial = self.partial().map(|n| format!("{n}\n\n")).unwrap_or_default();
         if self.layouts.is_empty() {
-            self.table().to_text()
+            format!("{partial}{}", self.table().to_text())
         } else {
-            format!("{}\n{}", self.table().to_text(), self.layouts_table().to_text())
+            format!("{partial}{}\n{}", self.table().to_text(), self.layouts_table().to_text())
         }
     }
 }

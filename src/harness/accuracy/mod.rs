@@ -56,6 +56,7 @@ use crate::pipeline::{HostScene, SceneRequest};
 use crate::rays::offset::{Offset, SurfacePoint};
 use crate::rays::{Camera, Hit, Ray};
 use crate::report::Summary;
+use crate::rows::Shard;
 use crate::scene::Mesh;
 use crate::shared::MISS_ID;
 
@@ -104,6 +105,10 @@ pub struct AccuracyOptions {
     /// before any work), then its leaks are measured beside the generated meshes'.
     pub scenes: Vec<PathBuf>,
     pub seed: u64,
+    /// Run only this shard's (leaf size, layout) groups of the leak, false-hit and error sweeps
+    /// ([`AccuracyOptions::runs_group`]); the extremes, self-intersection and frontier run in
+    /// the one shard that owns the frontier's group ([`AccuracyOptions::runs_fixed_parts`]).
+    pub shard: Option<Shard>,
 }
 
 /// Offsets d (relative to the edge length) of the false-hit rays.
@@ -132,6 +137,7 @@ impl AccuracyOptions {
             real_scenes: vec![PathBuf::from("bunny")],
             scenes: vec![],
             seed: 7,
+            shard: None,
         };
         match preset {
             Preset::Full => full,
@@ -153,6 +159,105 @@ impl AccuracyOptions {
         }
     }
 }
+
+impl AccuracyOptions {
+    /// The layout of the frontier (and its leaf size [`FIXED_LEAF`]): `bvh2` when measured.
+    pub fn frontier_layout(&self) -> Layout {
+        if self.layouts.contains(&Layout::Bvh2) || self.layouts.is_empty() {
+            Layout::Bvh2
+        } else {
+            self.layouts[0]
+        }
+    }
+
+    /// Refuses more shards than (leaf size, layout) groups, naming `--shard`, before any work.
+    pub fn check_shard(&self) -> Result<()> {
+        let groups = self.leaf_sizes.len() * self.layouts.len();
+        match self.shard {
+            Some(shard) if shard.count as usize > groups => Err(Error::Usage(format!(
+                "--shard {shard}: an accuracy shard takes whole (leaf size, layout) groups of the leak sweep and \
+                 this run has {groups} ({} leaf size(s) x {} layout(s)); use at most {groups} shard(s)",
+                self.leaf_sizes.len(),
+                self.layouts.len()
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// Whether this run sweeps the (leaf size, layout) group at `leaf_index`, `layout_index`:
+    /// always without a shard, else round-robin over the groups, leaf size major
+    /// ([`Shard::owns`]).
+    pub fn runs_group(&self, leaf_index: usize, layout_index: usize) -> bool {
+        self.shard.is_none_or(|s| s.owns(leaf_index * self.layouts.len() + layout_index))
+    }
+
+    /// Whether this run takes the extremes, self-intersection and frontier: the shard owning
+    /// the frontier's group (leaf [`FIXED_LEAF`] on [`Self::frontier_layout`], whose leak and
+    /// error rows the frontier reads; the first leaf size when [`FIXED_LEAF`] is not swept).
+    /// Their rays come from the one random stream after the leak rays, which every shard draws
+    /// whole, so they are the unsharded run's rays.
+    pub fn runs_fixed_parts(&self) -> bool {
+        let leaf = self.leaf_sizes.iter().position(|&l| l == FIXED_LEAF).unwrap_or(0);
+        let layout = self.layouts.iter().position(|&l| l == self.frontier_layout()).unwrap_or(0);
+        self.runs_group(leaf, layout)
+    }
+}
+
+/// Every cell of the whole accuracy matrix (all shards), with [`rows`]'s coordinates for the
+/// `methods` the device runs, except the frontier's `rays` (its diffuse ray count depends on the
+/// bunny's primary hits: measured, not planned).
+pub fn plan_cells(o: &AccuracyOptions, methods: &[Method]) -> Vec<crate::rows::Cell> {
+    use crate::rows::cell;
+    let mut methods = methods.to_vec();
+    methods.sort_by_key(|m| m.to_string());
+    let mut cells = vec![];
+    for m in &methods {
+        if o.leak_rays > 0 {
+            for leaf in &o.leaf_sizes {
+                for layout in &o.layouts {
+                    cells.push(cell([
+                        ("part", "leaks".to_owned()),
+                        ("method", m.to_string()),
+                        ("leaf", leaf.to_string()),
+                        ("layout", layout.to_string()),
+                        ("leak_rays", o.leak_rays.to_string()),
+                    ]));
+                }
+            }
+        }
+        if o.extreme_rays > 0 {
+            for kind in EXTREME_KINDS {
+                cells.push(cell([
+                    ("part", "extremes".to_owned()),
+                    ("method", m.to_string()),
+                    ("kind", kind.to_owned()),
+                    ("rays", o.extreme_rays.to_string()),
+                ]));
+            }
+        }
+        if o.self_rays > 0 && !o.self_scales.is_empty() {
+            for scheme in &o.schemes {
+                cells.push(cell([
+                    ("part", "self-intersection".to_owned()),
+                    ("method", m.to_string()),
+                    ("scheme", scheme.name().to_owned()),
+                    ("rays", o.self_rays.to_string()),
+                ]));
+            }
+        }
+        if o.bench_width > 0 && o.bench_height > 0 {
+            cells.push(cell([
+                ("part", "frontier".to_owned()),
+                ("method", m.to_string()),
+                ("layout", o.frontier_layout().to_string()),
+            ]));
+        }
+    }
+    cells
+}
+
+/// The extreme kinds, in the order [`extremes`] measures them.
+pub const EXTREME_KINDS: [&str; 6] = ["scale", "translate", "grazing", "sliver", "size", "degenerate"];
 
 /// A closed mesh of the leak study.
 #[derive(Clone, Debug, Serialize)]
@@ -266,6 +371,9 @@ pub struct AccuracyReport {
     pub frontier: Vec<FrontierRow>,
     pub frontier_rays: usize,
     pub seconds: f64,
+    /// Every cell of the whole matrix (all shards; [`plan_cells`]), written as the rows' plan.
+    #[serde(skip)]
+    pub plan: Vec<crate::rows::Cell>,
 }
 
 /// A method whose kernel exists on this device.
@@ -424,6 +532,7 @@ pub fn run(ctx: &Context, o: &AccuracyOptions, mut progress: impl FnMut(&str)) -
     if o.bench_width > 0 && o.bench_height > 0 {
         crate::scene::resolve(Path::new("bunny"))?;
     }
+    o.check_shard()?;
     let (tracers, unsupported) = tracers(ctx, &o.methods)?;
     for (m, why) in &unsupported {
         progress(&format!("{m}: unsupported on this device ({why}); skipped"));
@@ -443,12 +552,14 @@ pub fn run(ctx: &Context, o: &AccuracyOptions, mut progress: impl FnMut(&str)) -
         frontier: vec![],
         frontier_rays: 0,
         seconds: 0.0,
+        plan: plan_cells(o, &tracers.iter().map(|t| t.method).collect::<Vec<_>>()),
     };
     let mut rng = Rng::new(o.seed);
     if o.leak_rays > 0 {
         leaks_and_false_hits(ctx, o, user_scenes, &tracers, &mut report, &mut rng, &mut progress)?;
     }
-    if o.self_rays > 0 {
+    let fixed = o.runs_fixed_parts();
+    if o.self_rays > 0 && fixed {
         for &k in &o.self_scales {
             let rows = self_intersection(ctx, &tracers, k, o.self_rays, &o.schemes, &mut rng)?;
             for m in tracers.iter().map(|t| t.method) {
@@ -462,10 +573,10 @@ pub fn run(ctx: &Context, o: &AccuracyOptions, mut progress: impl FnMut(&str)) -
             report.self_hits.extend(rows);
         }
     }
-    if o.extreme_rays > 0 {
+    if o.extreme_rays > 0 && fixed {
         extremes(ctx, o, &tracers, &mut report, &mut rng, &mut progress)?;
     }
-    if o.bench_width > 0 && o.bench_height > 0 {
+    if o.bench_width > 0 && o.bench_height > 0 && fixed {
         frontier(ctx, o, &tracers, &mut report, &mut progress)?;
     }
     report.seconds = start.elapsed().as_secs_f64();
@@ -555,9 +666,13 @@ fn leaks_and_false_hits(
             rays.len() - leak_count,
             t0.elapsed().as_secs_f64()
         ));
-        for &leaf in &o.leaf_sizes {
+        for (li, &leaf) in o.leaf_sizes.iter().enumerate() {
+            if !(0..o.layouts.len()).any(|yi| o.runs_group(li, yi)) {
+                continue; // another shard's leaf size
+            }
             let host = build(mesh, leaf);
-            for (t, &layout) in tracers.iter().flat_map(|t| o.layouts.iter().map(move |l| (t, l))) {
+            let groups = tracers.iter().flat_map(|t| o.layouts.iter().enumerate().map(move |(yi, l)| (t, yi, l)));
+            for (t, _, &layout) in groups.filter(|&(_, yi, _)| o.runs_group(li, yi)) {
                 let (hits, _) = cast(ctx, t, &host, layout, &rays)?;
                 let mut leaks = 0;
                 for (pi, (label, s, n)) in parts.iter().enumerate() {
@@ -871,6 +986,33 @@ fn frontier(
     Ok(())
 }
 
+/// The plan of the whole matrix this report belongs to (every shard's cells), with its shard.
+pub fn plan(report: &AccuracyReport) -> crate::rows::Plan {
+    crate::rows::Plan {
+        command: "accuracy".into(),
+        shard: report.options.shard,
+        cells: report.plan.clone(),
+        source: report.provenance.source(),
+    }
+}
+
+/// `partial: shard I/N, X of Y cells ...` for a sharded run, `None` for a whole one.
+pub fn partial(report: &AccuracyReport) -> Option<String> {
+    let shard = report.options.shard?;
+    let rows = rows(report);
+    let measured = report.plan.iter().filter(|c| rows.iter().any(|r| crate::rows::plan_matches(c, &r.cell))).count();
+    let fixed = if report.options.runs_fixed_parts() {
+        "with the extremes, self-intersection and frontier"
+    } else {
+        "without the extremes, self-intersection and frontier (another shard's)"
+    };
+    Some(format!(
+        "partial: shard {shard}, {measured} of {} cells of the matrix (whole leaf size and layout groups, {fixed}); \
+         `trilab merge` of every shard's folder joins the matrix",
+        report.plan.len()
+    ))
+}
+
 /// Writes accuracy.csv, accuracy.json, accuracy.md and the plots into `dir`; returns the paths.
 pub fn write(report: &AccuracyReport, dir: &Path) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -889,7 +1031,7 @@ pub fn write(report: &AccuracyReport, dir: &Path) -> Result<Vec<PathBuf>> {
     let json = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(format!("accuracy.json: {e}")))?;
     put("accuracy.json", json.into_bytes())?;
     put("accuracy.md", table::markdown(report, &plots).into_bytes())?;
-    written.push(crate::rows::write(dir, None, &rows(report))?);
+    written.push(crate::rows::write(dir, Some(&plan(report)), &rows(report))?);
     written.extend(plots.into_iter().map(|p| p.path));
     Ok(written)
 }
@@ -1023,6 +1165,7 @@ pub fn rows(report: &AccuracyReport) -> Vec<crate::rows::Row> {
 impl crate::report::Report for AccuracyReport {
     /// The speed/accuracy frontier.
     fn to_text(&self) -> String {
-        table::frontier_table(self).to_text()
+        let partial = partial(self).map(|n| format!("{n}\n\n")).unwrap_or_default();
+        format!("{partial}{}", table::frontier_table(self).to_text())
     }
 }

@@ -574,6 +574,9 @@ pub fn markdown(report: &AccuracyReport, plots: &[Plot]) -> String {
     let o = &report.options;
     let mut s = String::new();
     let _ = writeln!(s, "# Intersection accuracy on {}\n", p.device);
+    if let Some(note) = super::partial(report) {
+        let _ = writeln!(s, "**{note}.**\n");
+    }
     let _ = writeln!(
         s,
         "Driver {}; commit {}; {}; {} host CPUs; LP_NUM_THREADS {}; preset {:?}; {:.0} s.\n",

@@ -122,9 +122,10 @@ pub struct MergeReport {
 }
 
 /// The headline timing of a command's rows: `render_s` (the study's, the paper's metric), else
-/// `mrays_per_s`, `kernel_ms`, else the first timing figure by name.
+/// `mrays_per_s` (bench's rays per second, accuracy's frontier timing), `kernel_ms`, `build_s`
+/// (build-bench's build time), else the first timing figure by name.
 pub fn headline<'a>(rows: impl IntoIterator<Item = &'a Row> + Clone) -> Option<String> {
-    for name in ["render_s", "mrays_per_s", "kernel_ms"] {
+    for name in ["render_s", "mrays_per_s", "kernel_ms", "build_s"] {
         if rows.clone().into_iter().any(|r| r.figures.contains_key(name)) {
             return Some(name.into());
         }
@@ -221,13 +222,25 @@ pub fn merge(
                 cells.push(c.clone());
             }
         }
+        let planned = cells.len();
         for r in &mine {
-            if !cells.contains(&r.cell) {
+            if !cells[..planned].iter().any(|c| rows::plan_matches(c, &r.cell)) && !cells.contains(&r.cell) {
                 cells.push(r.cell.clone());
             }
         }
+        // A row fills a planned cell when it agrees on every coordinate the plan names (a row
+        // may add measured ones, such as bench's `rays`); an unplanned cell only by equality.
         let find = |label: &str, cell: &Cell| {
-            mine.iter().find(|r| &r.cell == cell && r.source.device_label() == label).copied()
+            mine.iter()
+                .find(|r| {
+                    let fills = if cells[..planned].contains(cell) {
+                        rows::plan_matches(cell, &r.cell)
+                    } else {
+                        &r.cell == cell
+                    };
+                    fills && r.source.device_label() == label
+                })
+                .copied()
         };
         if let Some(figure) = headline(mine.iter().copied()) {
             for cell in &cells {
