@@ -1,27 +1,49 @@
 #!/usr/bin/env bash
 # The lavapipe regression gate, the last step of README's test command (and so of CI): the suite
-# at its smoke sizes (`--size 0`: pinned, so every cell matches the baseline's), then
-# `trilab compare` against the committed baseline, results/lavapipe/baseline/ (made the same way
-# on this machine; refresh it with `scripts/ci-gate.sh --refresh` when a change is meant to move
-# the numbers, and commit it).
+# at its smoke sizes (`--size 0`: pinned, so every cell matches the baseline's) and the SPIR-V
+# counts of every kernel variant, then `trilab compare` against the committed baseline,
+# results/lavapipe/baseline/ (refresh it with `scripts/ci-gate.sh --refresh` when a change is
+# meant to move the numbers, and commit it).
 #
-# Thresholds, stated: timings fail only when a cell's min-max ranges are apart AND it is slower
-# by more than 150 % (x2.5): on this shared 2-core machine three runs of one binary differed per
-# cell by up to x2.0 with their ranges apart (6 pairwise compares, load average 2-5), so a
-# tighter timing gate would fail on noise. Counts (lavapipe's machine instructions, spills and
-# helper calls per kernel, SPIR-V and scene bytes, SAH cost) are exact: any increase fails
-# (`--count-threshold 0`). Correctness (agreement with the f64 reference, leaks, NaN hits) fails
-# on any worsening, whatever the threshold.
+# The baseline was measured on one host; CI runs on whatever host it gets, idle or busy. So the
+# gate judges the code and the driver, not the host (`--timings calibrated`, README "Comparing
+# two runs"; the measurement behind the thresholds: results/lavapipe/gate-noise/README.md):
+# - a command's timings as a whole (bench, study, accuracy, profile) fail when, over the host
+#   calibration measured around them in the same run (a fixed CPU workload that does not go
+#   through the driver), they are slower by more than GATE_COMMAND_PCT: a slower or busier host
+#   slows the calibration alike and cancels; a slower driver (GALLIVM_PERF=nopt) does not;
+# - a kernel's cells (those sharing method, layout, traversal, variant) fail when, against the
+#   mean change of their command, they are slower by more than GATE_KERNEL_PCT with the 95 %
+#   Student-t interval over the cells above 1: one kernel that slowed alone (a single cell is
+#   printed but never fails alone: on a busy 2-core host one sub-millisecond cell moves by x7);
+# - counts are exact (`--count-threshold 0`): SPIR-V instructions, scene bytes, SAH cost; and
+#   lavapipe's machine instructions, spills and helper calls per kernel where the baseline's
+#   host compiled for the same CPU (`jit_cpu`; on another CPU LLVM's code differs by the CPU
+#   alone, and compare says it did not judge them);
+# - correctness (agreement with the f64 reference, leaks, NaN hits) fails on any worsening.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 baseline=results/lavapipe/baseline
 out="${CARGO_TARGET_DIR:-target}/ci-gate"
+GATE_KERNEL_PCT=${GATE_KERNEL_PCT:-40}
+GATE_COMMAND_PCT=${GATE_COMMAND_PCT:-40}
+
+# The suite's smoke sizes and the SPIR-V counts (only the rows: the disassembly stays behind).
+measure() {
+  local dest=$1
+  cargo run --release -q -- suite --size 0 --no-threads --out "$dest" > "$out/suite.txt"
+  cargo run --release -q -- spirv --out "$out/spirv" > /dev/null
+  mkdir -p "$dest/spirv"
+  cp "$out/spirv/rows.jsonl" "$dest/spirv/rows.jsonl"
+}
+
 rm -rf "$out"
 mkdir -p "$out"
 if [ "${1:-}" = "--refresh" ]; then
-    rm -rf "$baseline"
-    cargo run --release -q -- suite --size 0 --no-threads --out "$baseline"
-    exit 0
+  rm -rf "$baseline"
+  measure "$baseline"
+  exit 0
 fi
-cargo run --release -q -- suite --size 0 --no-threads --out "$out/suite" > "$out/suite.txt"
-cargo run --release -q -- compare "$baseline" "$out/suite" --threshold 150 --count-threshold 0
+measure "$out/suite"
+cargo run --release -q -- compare "$baseline" "$out/suite" --timings calibrated \
+  --threshold "$GATE_KERNEL_PCT" --command-threshold "$GATE_COMMAND_PCT" --count-threshold 0

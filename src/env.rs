@@ -24,6 +24,11 @@ pub const ENV_VARS: &[EnvVar] = &[
         name: "TRILAB_INJECT_FAULT",
         help: "device-lost@N or oom@N: fake a fault at the N-th marked submit (tests of fault reports)",
     },
+    EnvVar {
+        name: "TRILAB_INJECT_SLOWDOWN",
+        help:
+            "NAME:N: record every ray-casting dispatch of kernels named *NAME* N times (tests of the regression gate)",
+    },
     EnvVar { name: "TRILAB_TEST_LIMITS", help: "lower device limits for tests, e.g. max_texel_buffer_elements=4096" },
     EnvVar { name: "LP_NUM_THREADS", help: "lavapipe: rasterizer/compute threads (0: run on the calling thread)" },
     EnvVar { name: "LP_NATIVE_VECTOR_WIDTH", help: "lavapipe: SIMD width in bits (128 or 256)" },

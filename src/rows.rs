@@ -94,6 +94,12 @@ impl Figure {
     }
 }
 
+/// The setting naming the CPU a driver's JIT compiled the row's kernels for ([`crate::host::Host::cpu_id`]):
+/// lavapipe's machine code is LLVM's for the host CPU, so the driver statistics of two runs are
+/// the same code's only when their `jit_cpu` agree; `trilab compare` does not judge counts whose
+/// rows name different ones.
+pub const JIT_CPU: &str = "jit_cpu";
+
 /// Where a row was measured: enough to tell runners, devices and driver settings apart.
 #[derive(Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 pub struct Source {
@@ -105,6 +111,11 @@ pub struct Source {
     /// `LP_NUM_THREADS`, the subgroup size, ...), name to value.
     #[serde(default)]
     pub settings: BTreeMap<String, String>,
+    /// The host CPU the run ran on (model, logical CPUs, load average): on lavapipe it is the
+    /// device. `None` in rows of figures no host changes (SPIR-V counts) and in rows written
+    /// before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host: Option<crate::host::Host>,
 }
 
 impl Source {

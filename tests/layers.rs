@@ -17,6 +17,7 @@ const LAYERS: &[&str] = &[
     "error",
     "io",
     "report",
+    "host",
     "rows",
     "named",
     "shared",

@@ -152,7 +152,9 @@ pub fn epo(mesh: &Mesh, bvh: &Bvh) -> f64 {
     }
     let boxes: Vec<Box64> = bvh.nodes.iter().map(Box64::of_node).collect();
     let o = &bvh.options;
-    let weighted: f64 = (1..bvh.nodes.len())
+    // Per node in parallel, summed in node order: a count compared exactly between runs
+    // (`trilab compare`), the same whatever the thread count (a parallel sum's order is not).
+    let per_node: Vec<f64> = (1..bvh.nodes.len())
         .into_par_iter()
         .map(|n| {
             let node = &bvh.nodes[n];
@@ -163,7 +165,8 @@ pub fn epo(mesh: &Mesh, bvh: &Bvh) -> f64 {
             };
             cost * foreign_area_in_box(bvh, &boxes, &tris, n)
         })
-        .sum();
+        .collect();
+    let weighted: f64 = per_node.iter().sum();
     weighted / total_area
 }
 
@@ -327,6 +330,13 @@ mod tests {
             let fast = epo(&mesh, &bvh);
             assert!(brute > 0.1, "the soup overlaps");
             assert!((fast - brute).abs() <= 1e-12 * brute, "leaf {leaf}: {fast} vs {brute}");
+            // Exactly the same on one thread and on four: a count `trilab compare` holds exact.
+            let on = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                pool.install(|| epo(&mesh, &bvh))
+            };
+            assert_eq!(on(1).to_bits(), on(4).to_bits(), "leaf {leaf}");
+            assert_eq!(on(1).to_bits(), fast.to_bits(), "leaf {leaf}");
         }
     }
 }

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::error::Result;
-use trilab::harness::regress::{self, DEFAULT_THRESHOLD_PCT};
+use trilab::harness::regress::{self, TimingRule, DEFAULT_COMMAND_THRESHOLD_PCT, DEFAULT_THRESHOLD_PCT};
 
 use super::JsonArg;
 
@@ -32,13 +32,29 @@ pub struct CompareArgs {
     /// than timings on a noisy machine); default: --threshold's.
     #[arg(long, value_name = "PCT")]
     count_threshold: Option<f64>,
+    /// How the two sides' timings are set against each other. `calibrated` (what `auto` picks
+    /// when both sides carry the host calibration `trilab suite` writes) takes the host's speed
+    /// and load out: a command's timings as a whole are judged over the calibration's speed,
+    /// each timing against its command's mean change.
+    #[arg(long, value_name = "RULE", default_value_t = TimingRule::Auto, value_parser = super::choice::choice::<TimingRule>())]
+    timings: TimingRule,
+    /// Under the calibrated rule: a command's timings as a whole, over the host calibration,
+    /// fail when slower by more than this percentage.
+    #[arg(long, value_name = "PCT", default_value_t = DEFAULT_COMMAND_THRESHOLD_PCT)]
+    command_threshold: f64,
     #[command(flatten)]
     json: JsonArg,
 }
 
 pub fn run(a: CompareArgs) -> Result<()> {
     super::error_exit(2);
-    let report = regress::run(&a.base, &a.new, a.threshold, a.count_threshold)?;
+    let options = regress::CompareOptions {
+        threshold_pct: a.threshold,
+        count_threshold_pct: a.count_threshold,
+        command_threshold_pct: a.command_threshold,
+        timings: a.timings,
+    };
+    let report = regress::run(&a.base, &a.new, &options)?;
     a.json.print(&report);
     if report.exit_code() != 0 {
         // As `diff`: 1 means "a regression", not a failure to compare (that is 2).

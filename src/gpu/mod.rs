@@ -10,6 +10,8 @@
 //! - [`markers`]: crash markers (GPU breadcrumbs + dispatch log), device-loss and out-of-memory
 //!   errors that name the dispatch, fault injection for testing them.
 //! - [`raycast`]: batched ray casting with timestamp queries.
+//! - [`slowdown`]: a planted slowdown of one kernel (`TRILAB_INJECT_SLOWDOWN`), for tests of the
+//!   regression gate.
 //! - [`traversal_stats`]: per-ray traversal work from the kernels' `stats` variant.
 //! - [`rayquery`]: the same ray casting through the driver's ray query, a peer of our kernels.
 //! - `timestamps`: timestamp query pairs read back as milliseconds.
@@ -25,6 +27,7 @@ pub mod limits;
 pub mod markers;
 pub mod raycast;
 pub mod rayquery;
+pub mod slowdown;
 pub(crate) mod timestamps;
 pub mod traversal_stats;
 

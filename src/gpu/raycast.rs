@@ -9,6 +9,7 @@ use super::commands::memory_barrier;
 use super::context::Context;
 use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;
+use super::slowdown::Slowdown;
 use super::timestamps::Timestamps;
 use super::traversal_stats::TraversalCounts;
 use crate::error::{Error, Result, VkContext};
@@ -158,6 +159,8 @@ pub fn cast_rays(
         }
         write_set(ctx, kernel, set, &resources)?;
     }
+    // A planted slowdown (tests of the regression gate): this kernel's dispatch recorded N times.
+    let repeats = Slowdown::repeats_for(Slowdown::from_env()?.as_ref(), kernel.name);
     let timestamps = Timestamps::supported(ctx);
     let queries = Timestamps::new(ctx, nbatches as u32)?;
     let mut dispatch = Dispatch { ctx, cmds: vec![] };
@@ -212,6 +215,32 @@ pub fn cast_rays(
                 None => count.div_ceil(local as u32),
             };
             kernel.record(dev, cmd, set, &count.to_le_bytes(), groups);
+            for _ in 1..repeats {
+                // The same dispatch again over the same outputs (and, for a persistent kernel, a
+                // counter zeroed again): the previous one's writes and atomics finish first.
+                let shader = (
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                );
+                if let Some(c) = &counter {
+                    memory_barrier(
+                        dev,
+                        cmd,
+                        shader,
+                        (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+                    );
+                    dev.cmd_fill_buffer(cmd, c.raw, 0, 4, 0);
+                    memory_barrier(
+                        dev,
+                        cmd,
+                        (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+                        shader,
+                    );
+                } else {
+                    memory_barrier(dev, cmd, shader, shader);
+                }
+                kernel.record(dev, cmd, set, &count.to_le_bytes(), groups);
+            }
             queries.end(dev, cmd, q);
             ctx.mark_end(dev, cmd, marker);
             dev.end_command_buffer(cmd).during("recording a dispatch")?;

@@ -9,7 +9,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::bvh::{BuildOptions, LeafPolicy};
-use crate::compare::compare_closest;
+use crate::compare::{compare_closest, Agreement};
 use crate::encoding::{AccessPath, Layout, Method, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::rayquery::{self, raycast_rq, Peer};
@@ -21,6 +21,7 @@ use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
 use crate::harness::validate::{measure_rays, mrays_summary};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::{self, Ray};
+use crate::reference::RefHit;
 use crate::report::{Report, Summary, Table};
 use crate::rows::{plan_matches, Shard};
 use crate::scene::{load_obj, Mesh};
@@ -199,8 +200,12 @@ impl BenchReport {
         let p = &self.provenance;
         let lp = p.lp_num_threads.as_deref().map(|n| format!(", LP_NUM_THREADS={n}")).unwrap_or_default();
         let mut s = format!(
-            "device: {} ({}); host CPUs: {}{lp}; leaf size {}; median of {} runs after 1 warm-up (GPU timestamps)",
-            p.device, p.driver, p.host_cpus, self.leaf_size, self.repeat
+            "device: {} ({}); host: {}{lp}; leaf size {}; median of {} rounds after 1 warm-up, the kernels interleaved in every round (GPU timestamps)",
+            p.device,
+            p.driver,
+            p.host.label(),
+            self.leaf_size,
+            self.repeat
         );
         if let Some(note) = self.partial() {
             s += &format!("\n{note}");
@@ -527,6 +532,41 @@ impl BenchOptions {
     }
 }
 
+/// Times every kernel of `scenes` on `rays` with their rounds interleaved: `o.warmup` untimed
+/// rounds of every kernel, then `o.repeat` timed rounds, each casting with every kernel once, the
+/// kernel that starts a round rotating, so that a burst of other work on the host lands on all
+/// kernels alike rather than on the few timed while it lasted. Every round's hits are validated
+/// against the f64 reference before its time counts. Per kernel: its kernel times and the last
+/// round's agreement; an error names the kernel (its index in `scenes`).
+fn interleaved(
+    ctx: &Context,
+    scenes: &[DeviceScene],
+    mesh: &Mesh,
+    rays: &[Ray],
+    ref_hits: &[RefHit],
+    o: &BenchOptions,
+) -> std::result::Result<Vec<(Summary, Agreement)>, (usize, Error)> {
+    let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays: o.batch_rays };
+    let mut times: Vec<Vec<f64>> = vec![vec![]; scenes.len()];
+    let mut agreements: Vec<Option<Agreement>> = vec![None; scenes.len()];
+    let rounds = o.warmup + o.repeat.max(1);
+    for round in 0..rounds {
+        for k in 0..scenes.len() {
+            let i = (k + round) % scenes.len();
+            let m = measure_rays(ctx, &scenes[i], mesh, rays, ref_hits, &once).map_err(|e| (i, e))?;
+            if round >= o.warmup {
+                times[i].push(m.kernel_ms.median);
+                agreements[i] = Some(m.agreement);
+            }
+        }
+    }
+    Ok(times
+        .iter()
+        .zip(agreements)
+        .map(|(t, a)| (Summary::of(t).expect("at least one timed round"), a.expect("at least one timed round")))
+        .collect())
+}
+
 pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
     let mut report = BenchReport {
         provenance: Provenance::of(ctx),
@@ -616,29 +656,32 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             }
             None => None,
         };
-        for (set, rays) in &sets {
+        // Every set's reference before any timing: the f64 traversal fills every core (and
+        // rayon's threads linger), which would slow whichever kernel ran next.
+        let ref_hits: Vec<Vec<RefHit>> = sets.iter().map(|(_, rays)| reference.trace_all(rays, false)).collect();
+        for ((set, rays), ref_hits) in sets.iter().zip(&ref_hits) {
             let set = *set;
-            let ref_hits = reference.trace_all(rays, false);
             let mut best: f64 = 0.0;
-            for scene in &scenes {
-                let method = scene.method;
-                let label = if scene.layout == Layout::Bvh2 {
-                    method.to_string()
+            let label = |scene: &DeviceScene| {
+                if scene.layout == Layout::Bvh2 {
+                    scene.method.to_string()
                 } else {
-                    format!("{method} {}", scene.layout)
-                };
-                let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: o.batch_rays };
-                let m = measure_rays(ctx, scene, &mesh, rays, &ref_hits, &opts)
-                    .map_err(|e| Error::Usage(format!("{name} {set} {label}: {e}")))?;
-                let (ms, mr, agreement) = (m.kernel_ms, m.mrays_per_s, m.agreement);
+                    format!("{} {}", scene.method, scene.layout)
+                }
+            };
+            let measured = interleaved(ctx, &scenes, &mesh, rays, ref_hits, o)
+                .map_err(|(i, e)| Error::Usage(format!("{name} {set} {}: {e}", label(&scenes[i]))))?;
+            for (scene, (ms, agreement)) in scenes.iter().zip(measured) {
+                let mr = mrays_summary(rays.len(), ms);
                 progress(&format!(
-                    "{name} {set} {label}: {:.2} Mrays/s ({:.1} ms), {}",
+                    "{name} {set} {}: {:.2} Mrays/s ({:.1} ms), {}",
+                    label(scene),
                     mr.median,
                     ms.median,
                     agreement.summary()
                 ));
                 best = best.max(mr.median);
-                let tracer = Tracer::Method(method);
+                let tracer = Tracer::Method(scene.method);
                 let bytes = (scene.bytes, Some(scene.access));
                 let mut r = row(&name, &mesh, set, rays, tracer, Some(o), bytes, ms, &agreement);
                 r.layout = Some(scene.layout);
@@ -650,7 +693,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 let batch = rayquery::batch_for(ctx, kernel, accel, rays, PEER_SUBMIT_MS, o.batch_rays)?;
                 let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: batch };
                 let res = raycast_rq(ctx, kernel, accel, rays, &opts)?;
-                let agreement = compare_closest(&mesh, rays, &res.hits, &ref_hits);
+                let agreement = compare_closest(&mesh, rays, &res.hits, ref_hits);
                 let ms = res.time_ms()?;
                 progress(&format!(
                     "{name} {set} ray-query: {} Mrays/s ({:.1} ms, {} rays per submit), {}",
@@ -684,7 +727,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                         &hits_file,
                         &mesh,
                         rays,
-                        &ref_hits,
+                        ref_hits,
                         o.repeat.max(3),
                     )?;
                     progress(&format!("{name} {set} {}", r.progress(best)));
@@ -731,7 +774,7 @@ mod tests {
             mesa_version: Some("25.0.7".into()),
             commit: "abc123".into(),
             date: "2025-01-01T00:00:00Z".into(),
-            host_cpus: 2,
+            host: crate::host::Host { cpu_model: "test CPU".into(), cpus: 2, ..Default::default() },
             lp_num_threads: None,
             timed_on_gpu: true,
             settings: [("subgroup_size".to_owned(), "8".to_owned())].into(),

@@ -105,25 +105,13 @@ pub struct Provenance {
 impl Provenance {
     pub fn here(embree: bool) -> Provenance {
         Provenance {
-            cpu_model: cpu_model(),
-            cores: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+            cpu_model: crate::host::cpu_model(),
+            cores: crate::host::cpus(),
             commit: crate::harness::study::commit(),
             date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
             embree_version: embree.then(embree_version).flatten(),
         }
     }
-}
-
-fn cpu_model() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split_once(':'))
-                .map(|(_, v)| v.trim().to_owned())
-        })
-        .unwrap_or_else(|| "unknown".into())
 }
 
 fn embree_version() -> Option<String> {
@@ -836,6 +824,7 @@ impl BuildBenchReport {
             commit: p.commit.clone(),
             date: p.date.clone(),
             settings: [("host_cpus".to_owned(), p.cores.to_string())].into(),
+            host: Some(crate::host::Host::current()),
         }
     }
 

@@ -1,7 +1,7 @@
 //! Everything that measures and reports, each a library call returning a typed report that the
 //! CLI prints (text, or the struct as JSON) and writes: the ray-casting benchmark, the paper's
 //! study, accuracy, the driver-level profile, large scenes, the BVH build benchmark, traversal
-//! steps, the render benchmark. What they share lives here too: provenance, the ray sets,
+//! steps, the render benchmark. What they share lives here too: provenance, the host calibration, the ray sets,
 //! validation against the f64 reference before any time is reported, and plots.
 
 pub mod accuracy;
@@ -10,6 +10,7 @@ pub mod bench;
 pub mod bench_render;
 pub mod build_bench;
 pub mod bvh_stats;
+pub mod calibration;
 pub mod devices;
 pub mod hits;
 pub mod make_rays;

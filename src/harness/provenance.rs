@@ -15,7 +15,8 @@ pub struct Provenance {
     pub mesa_version: Option<String>,
     pub commit: String,
     pub date: String,
-    pub host_cpus: usize,
+    /// The host CPU: model, logical CPUs, load average when the report was made.
+    pub host: crate::host::Host,
     pub lp_num_threads: Option<String>,
     pub timed_on_gpu: bool,
     /// The driver settings in the environment that change what is measured
@@ -37,7 +38,7 @@ impl Provenance {
             mesa_version: info.mesa_version.clone(),
             commit: commit(),
             date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
-            host_cpus: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+            host: crate::host::Host::current(),
             lp_num_threads: std::env::var("LP_NUM_THREADS").ok(),
             timed_on_gpu: info.timestamp_valid_bits > 0,
             settings: SETTINGS
@@ -64,6 +65,7 @@ impl Provenance {
             commit: self.commit.clone(),
             date: self.date.clone(),
             settings: self.settings.clone(),
+            host: Some(self.host.clone()),
         }
     }
 }

@@ -67,6 +67,7 @@ pub fn rows(report: &SpirvReport) -> Vec<crate::rows::Row> {
         commit: crate::harness::provenance::commit(),
         date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
         settings: Default::default(),
+        host: None,
     };
     report
         .variants

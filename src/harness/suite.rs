@@ -22,7 +22,7 @@ use crate::encoding::{Layout, Method};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::harness::provenance::Provenance;
-use crate::harness::{accuracy, bench, devices, profile, study};
+use crate::harness::{accuracy, bench, calibration, devices, profile, study};
 use crate::named::{named_enum, Named};
 use crate::report::{Report, Table};
 
@@ -274,6 +274,9 @@ pub struct PartRun {
     /// Whether the size's reference time was measured (else extrapolated by its work).
     pub reference_measured: bool,
     pub took_s: f64,
+    /// The host calibration around it (`harness::calibration`): ms per pass of the fixed CPU
+    /// workload, median of the passes just before and just after it.
+    pub calibration_ms: f64,
     /// The files it wrote, relative to the suite's folder.
     pub files: Vec<String>,
 }
@@ -316,7 +319,7 @@ impl Report for SuiteReport {
 }
 
 fn scaling_table(r: &SuiteReport) -> Table {
-    let mut t = Table::new(["part", "size", "what", "share s", "predicted s", "took s"]);
+    let mut t = Table::new(["part", "size", "what", "share s", "predicted s", "took s", "host calibration ms"]);
     for p in &r.parts {
         t.row([
             p.part.to_string(),
@@ -325,6 +328,7 @@ fn scaling_table(r: &SuiteReport) -> Table {
             format!("{:.0}", p.share_s),
             format!("{:.0}{}", p.predicted_s, if p.reference_measured { "" } else { " (extrapolated)" }),
             format!("{:.0}", p.took_s),
+            format!("{:.1}", p.calibration_ms),
         ]);
     }
     t
@@ -365,6 +369,13 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
     crate::io::write_atomic(&o.out.join("devices.txt"), devices.to_text().as_bytes())?;
     crate::io::write_atomic(&o.out.join("devices.json"), devices.to_json().as_bytes())?;
 
+    // The host's speed without the driver, measured before the probe and after every part: a
+    // part's timings are calibrated by the points on either side of it (`trilab compare`).
+    progress("calibration: a fixed CPU workload, the host's speed without the driver");
+    let workload = calibration::Workload::new();
+    let mut point = workload.measure();
+    let mut calibration_rows = vec![];
+
     progress("probe: a small bench to scale the parts to the budget");
     let t = Instant::now();
     bench::run(ctx, &probe_options(), |_| {})?;
@@ -386,8 +397,21 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
         let t = Instant::now();
         let dir = o.out.join(part.to_string());
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        let (files, section) = run_part(ctx, o, &ladder[size].options, &dir, &mut progress)?;
+        let (_, section) = run_part(ctx, o, &ladder[size].options, &dir, &mut progress)?;
+        // Every file the part left in its folder (the profile's heat maps and every rows.jsonl
+        // included), not only those its writer returned.
+        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .map_err(|e| Error::io(&dir, e))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_file())
+            .collect();
+        files.sort();
         let took_s = t.elapsed().as_secs_f64();
+        let after = workload.measure();
+        let calibration = calibration::row(&part.to_string(), &point, &after, &Provenance::of(ctx).source());
+        let calibration_ms = calibration.figures["cpu_ms"].median;
+        calibration_rows.push(calibration);
+        point = after;
         // Correct the factor by how far this prediction missed (halfway, so one noisy part
         // does not swing the rest).
         if predicted_s > 0.0 {
@@ -402,10 +426,14 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
             predicted_s,
             reference_measured: ladder[size].measured,
             took_s,
+            calibration_ms,
             files: files.iter().map(|f| f.strip_prefix(&o.out).unwrap_or(f).display().to_string()).collect(),
         });
         sections.push((section.0, section.1));
     }
+    let dir = o.out.join(calibration::COMMAND);
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    crate::rows::write(&dir, None, &calibration_rows)?;
     let report = SuiteReport {
         provenance: Provenance::of(ctx),
         budget_minutes: o.budget_minutes,
@@ -543,14 +571,14 @@ fn accuracy_section(r: &accuracy::AccuracyReport) -> String {
 pub fn summary(r: &SuiteReport) -> String {
     let p = &r.provenance;
     let mut md = format!(
-        "# trilab suite: {}\n\nDevice **{}**, driver {}, commit {}, {}; host CPUs {}{}.\n\nBudget {:.1} minutes; \
+        "# trilab suite: {}\n\nDevice **{}**, driver {}, commit {}, {}; host {}{}.\n\nBudget {:.1} minutes; \
          the suite took {:.1} minutes.\n\n",
         p.device,
         p.device,
         p.driver,
         p.commit,
         p.date,
-        p.host_cpus,
+        p.host.label(),
         p.settings.iter().map(|(k, v)| format!(", {k}={v}")).collect::<String>(),
         r.budget_minutes,
         r.seconds / 60.0
@@ -560,7 +588,9 @@ pub fn summary(r: &SuiteReport) -> String {
          validated) took {:.1} s here against {:.1} s on the reference machine ({}): {:.2} s here per reference \
          second. Each part took the largest size whose reference time times that factor fits its share of the \
          budget left (bench 25 %, study 45 %, accuracy 18 %, profile 12 %), the factor corrected after each part \
-         by how far its prediction missed.\n\n{}\n",
+         by how far its prediction missed. The host calibration (a fixed CPU workload that does not go \
+         through the driver, [calibration/rows.jsonl](calibration/rows.jsonl)) was measured before the probe and \
+         after every part: it is how `trilab compare` takes the host's speed and load out of two runs' timings.\n\n{}\n",
         r.probe.seconds,
         r.probe.reference_s,
         r.reference,

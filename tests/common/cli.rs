@@ -3,7 +3,8 @@
 //! on (`TRILAB_VALIDATION=1`; any message fails the command, so the test), stdin closed, and both
 //! pipes drained while the process runs, so a command that prints more than a pipe holds never
 //! stalls until the limit. Variables that change what trilab does (`TRILAB_SCENES`,
-//! `TRILAB_TEST_LIMITS`, `TRILAB_INJECT_FAULT`) are cleared unless the test sets them.
+//! `TRILAB_TEST_LIMITS`, `TRILAB_INJECT_FAULT`, `TRILAB_INJECT_SLOWDOWN`, and lavapipe's
+//! `GALLIVM_PERF`) are cleared unless the test sets them.
 
 use std::io::Read;
 use std::path::Path;
@@ -25,6 +26,8 @@ pub fn run(args: &[&str], cwd: Option<&Path>, env: &[(&str, &str)], timeout_s: u
         .env_remove("TRILAB_SCENES")
         .env_remove("TRILAB_TEST_LIMITS")
         .env_remove("TRILAB_INJECT_FAULT")
+        .env_remove("TRILAB_INJECT_SLOWDOWN")
+        .env_remove("GALLIVM_PERF")
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());

@@ -579,11 +579,11 @@ pub fn markdown(report: &AccuracyReport, plots: &[Plot]) -> String {
     }
     let _ = writeln!(
         s,
-        "Driver {}; commit {}; {}; {} host CPUs; LP_NUM_THREADS {}; preset {:?}; {:.0} s.\n",
+        "Driver {}; commit {}; {}; host {}; LP_NUM_THREADS {}; preset {:?}; {:.0} s.\n",
         p.driver,
         p.commit,
         p.date,
-        p.host_cpus,
+        p.host.label(),
         p.lp_num_threads.as_deref().unwrap_or("unset"),
         o.preset,
         report.seconds

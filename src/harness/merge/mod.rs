@@ -632,7 +632,7 @@ pub fn cell_label(cell: &Cell) -> String {
 
 /// Short names for the plots' legend, one per device: `D1`, `D2`, ... and what tells the device
 /// apart from the others: the settings whose values differ (`LP_NATIVE_VECTOR_WIDTH` as
-/// `WIDTH`) and, where those do not tell every device apart, the words of its name that differ
+/// `WIDTH`; `unset` where a device ran without it, its driver's default) and, where those do not tell every device apart, the words of its name that differ
 /// from the others' (its whole name when there is one device), cut to fit the legend.
 pub fn series_names(devices: &[Device]) -> Vec<String> {
     let mut keys: Vec<&String> = devices.iter().flat_map(|d| d.settings.keys()).collect();
@@ -651,7 +651,7 @@ pub fn series_names(devices: &[Device]) -> Vec<String> {
                     .map(|k| {
                         let upper = k.chars().any(|c| c.is_ascii_uppercase());
                         let short = if upper { k.rsplit('_').next().unwrap_or(k) } else { k };
-                        format!("{short}={}", d.settings.get(*k).map_or("-", String::as_str))
+                        format!("{short}={}", d.settings.get(*k).map_or("unset", String::as_str))
                     })
                     .collect::<Vec<_>>()
                     .join(", ")

@@ -394,7 +394,11 @@ pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
 /// One row per kernel (command [`COMMAND`]; cell kernel, variant, method, layout; every figure
 /// a count).
 pub fn rows(r: &DriverStatsReport) -> Vec<Row> {
-    let source = r.provenance.source();
+    let mut source = r.provenance.source();
+    if r.kernels.iter().any(|k| k.lavapipe.is_some()) {
+        // lavapipe's machine code is LLVM's for this host's CPU: another CPU compiles other code.
+        source.settings.insert(crate::rows::JIT_CPU.into(), r.provenance.host.cpu_id.clone());
+    }
     r.kernels
         .iter()
         .map(|k| {

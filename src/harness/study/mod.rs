@@ -636,7 +636,7 @@ pub(crate) mod testing {
             mesa_version: None,
             commit: "x".into(),
             date: "d".into(),
-            host_cpus: 1,
+            host: crate::host::Host { cpu_model: "test CPU".into(), cpus: 1, ..Default::default() },
             lp_num_threads: None,
             timed_on_gpu: true,
             settings: Default::default(),

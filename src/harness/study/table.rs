@@ -365,7 +365,7 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
         let _ = writeln!(s, "- Mesa {m}");
     }
     let lp = p.lp_num_threads.as_deref().map(|n| format!(", LP_NUM_THREADS={n}")).unwrap_or_default();
-    let _ = writeln!(s, "- host CPUs: {}{lp}", p.host_cpus);
+    let _ = writeln!(s, "- host: {}{lp}", p.host.label());
     let _ = writeln!(s, "- commit {}, {}", p.commit, p.date);
     let _ = writeln!(s, "- workload: {}", report.scaling);
     let _ = writeln!(
