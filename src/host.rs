@@ -63,9 +63,13 @@ impl Host {
         Host { load_1m: None, ..self.clone() }
     }
 
-    /// `Intel Xeon ... , 2 CPUs, load 0.42`.
+    /// `Intel Xeon ... (GenuineIntel 6/85 flags:1a2b3c4d), 2 CPUs, load 0.42`.
     pub fn label(&self) -> String {
-        let mut s = format!("{}, {} CPU{}", self.cpu_model, self.cpus, if self.cpus == 1 { "" } else { "s" });
+        let mut s = self.cpu_model.clone();
+        if !self.cpu_id.is_empty() {
+            s.push_str(&format!(" ({})", self.cpu_id));
+        }
+        s.push_str(&format!(", {} CPU{}", self.cpus, if self.cpus == 1 { "" } else { "s" }));
         if let Some(l) = self.load_1m {
             s.push_str(&format!(", load {:.2}", l.0));
         }
@@ -152,6 +156,6 @@ mod tests {
         assert!(!a.same_machine(&Host { cpu_id: "V 1/3 flags:00".into(), ..a.clone() }));
         assert!(a.same_machine(&Host { cpu_id: String::new(), ..a.clone() }), "an id not recorded is not a difference");
         assert_eq!(b.machine(), Host { load_1m: None, ..a.clone() });
-        assert_eq!(a.label(), "X, 2 CPUs, load 0.10");
+        assert_eq!(a.label(), "X (V 1/2 flags:00), 2 CPUs, load 0.10");
     }
 }

@@ -322,7 +322,7 @@ fn github_check(doc: &Value) -> Result<Vec<Vec<String>>, String> {
 /// A CI file's structural check: the trilab invocations, or what is wrong.
 type Check = fn(&Value) -> Result<Vec<Vec<String>>, String>;
 
-/// The compare invocations state a threshold (a number, in percent).
+/// The compare invocations state a threshold (a number, in percent) and judge calibrated timings.
 fn threshold_stated(invocations: &[Vec<String>]) -> Result<(), String> {
     let compares: Vec<&Vec<String>> = invocations.iter().filter(|a| a[0] == "compare").collect();
     if compares.is_empty() {
@@ -333,6 +333,11 @@ fn threshold_stated(invocations: &[Vec<String>]) -> Result<(), String> {
             a.iter().position(|w| w == "--threshold").and_then(|i| a.get(i + 1)).and_then(|t| t.parse::<f64>().ok());
         if !t.is_some_and(|t| t > 0.0) {
             return Err(format!("`trilab {}` states no threshold", a.join(" ")));
+        }
+        // The baseline ran on another host than the runner: its timings meet the runner's only
+        // through the host calibration (issue 22).
+        if !a.windows(2).any(|w| w[0] == "--timings" && w[1] == "calibrated") {
+            return Err(format!("`trilab {}` compares a committed baseline without --timings calibrated", a.join(" ")));
         }
     }
     Ok(())
@@ -419,6 +424,9 @@ fn the_checks_fail_on_a_dropped_shard_a_doubled_shard_a_lost_dependency_and_a_ba
     assert!(parses(&["study".into(), "--no-such-option".into()]).is_err());
     assert!(parses(&["merge".into(), "x".into(), "--out".into(), "y".into()]).is_ok());
     assert!(threshold_stated(&[vec!["compare".into(), "a".into(), "b".into()]]).is_err());
+    let words = |w: &str| w.split(' ').map(String::from).collect::<Vec<String>>();
+    assert!(threshold_stated(&[words("compare a b --threshold 40")]).is_err(), "raw timings against a baseline");
+    assert!(threshold_stated(&[words("compare a b --timings calibrated --threshold 40")]).is_ok());
     let v: Vars = [("SHARD".to_owned(), "2/4".to_owned())].into();
     assert_eq!(
         invocations("chmod +x x/trilab && x/trilab study --shard ${SHARD} > log; echo", &v),

@@ -720,16 +720,8 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 let hits_file = tmp.path().join("peer.hits");
                 let mut results = vec![];
                 for p in &programs {
-                    let r = peers::run_peer(
-                        p,
-                        &scene_obj,
-                        &rays_file,
-                        &hits_file,
-                        &mesh,
-                        rays,
-                        ref_hits,
-                        o.repeat.max(3),
-                    )?;
+                    let r =
+                        peers::run_peer(p, &scene_obj, &rays_file, &hits_file, &mesh, rays, ref_hits, o.repeat.max(3))?;
                     progress(&format!("{name} {set} {}", r.progress(best)));
                     results.push(r);
                 }

@@ -432,10 +432,11 @@ pub fn load(path: &Path) -> Result<(Side, Vec<Row>)> {
     Ok((Side::of(path, set.files, &out), out))
 }
 
-/// `device (driver), commit C, K=V ...` (the host's model and CPUs, not its load).
+/// `device (driver), commit C, K=V ...` (the host is named apart, with what its JIT compiles
+/// for: [`rows::JIT_CPU`] is the host's, not a setting of the run).
 fn source_label(s: &rows::Source) -> String {
     let mut label = format!("{} ({}), commit {}", s.device, s.driver, s.commit);
-    for (k, v) in &s.settings {
+    for (k, v) in s.settings.iter().filter(|(k, _)| k.as_str() != rows::JIT_CPU) {
         label.push_str(&format!(", {k}={v}"));
     }
     label
@@ -602,9 +603,19 @@ pub fn compare_with(
             new.commands.join(", ")
         ));
     }
-    for (side, name) in [(&base, "BASE"), (&new, "NEW")] {
-        if side.sources.len() > 1 {
-            warnings.push(format!("{name} mixes {} devices, drivers, commits or settings", side.sources.len()));
+    for (side, name, rows) in [(&base, "BASE", &base_rows), (&new, "NEW", &new_rows)] {
+        // One command's rows from several devices, drivers, commits or settings (a side may
+        // hold commands of different sources, such as the SPIR-V counts beside a device's run).
+        let mut by_command: BTreeMap<&str, BTreeSet<String>> = BTreeMap::new();
+        for r in rows.iter() {
+            by_command.entry(r.command.as_str()).or_default().insert(source_label(&r.source));
+        }
+        for (command, sources) in by_command.iter().filter(|(_, s)| s.len() > 1) {
+            warnings.push(format!(
+                "{name}'s {command} rows mix {} devices, drivers, commits or settings ({})",
+                sources.len(),
+                side.path.display()
+            ));
         }
     }
 
@@ -1462,5 +1473,22 @@ mod tests {
         let new = row("AuthenticAMD 25/17 flags:00000000", 2540.0);
         let r = compare(side(&base, "base"), &base, side(&new, "new"), &new, 0.0);
         assert_eq!((r.passed, r.totals.counts_other_cpu, r.regressions), (false, 0, 1), "{}", r.to_text());
+    }
+
+    #[test]
+    fn one_commands_rows_from_two_sources_are_warned_and_two_commands_sources_are_not() {
+        // base_rows: bench and spirv rows of one source; the SPIR-V counts of another are normal.
+        let mut base = base_rows();
+        for r in base.iter_mut().filter(|r| r.command == "spirv") {
+            r.source.device = "SPIR-V (no device)".into();
+        }
+        let r = run(&base, 10.0);
+        assert!(r.warnings.iter().all(|w| !w.contains("rows mix")), "{:?}", r.warnings);
+        // One bench row of another commit: NEW's bench mixes two.
+        let mut new = base.clone();
+        new[1].source.commit = "bbb".into();
+        let r = compare(side(&base, "base"), &base, side(&new, "new"), &new, 10.0);
+        assert!(r.warnings.iter().any(|w| w.starts_with("NEW's bench rows mix 2")), "{:?}", r.warnings);
+        assert!(!r.warnings.iter().any(|w| w.starts_with("BASE's")), "{:?}", r.warnings);
     }
 }
