@@ -119,6 +119,14 @@ fn planted_regressions_exit_1_and_only_changed_cells_print() {
     let o = trilab(&["compare", &s(&build), &s(&within_dir)], 60);
     assert_eq!(code(&o), 0, "a slower median inside the range is no change: {}", out(&o));
     assert!(out(&o).contains("no changes to print"), "{}", out(&o));
+
+    // build-bench writes no host calibration: the calibrated rule cannot judge its timings
+    // (exit 2, naming what is missing), and `auto` compares them raw, saying so.
+    let o = trilab(&["compare", &s(&build), &s(&slower_dir), "--timings", "calibrated"], 60);
+    assert_eq!(code(&o), 2, "{}", out(&o));
+    common::cli::expect_error(&o, &["--timings calibrated", "no host calibration of `build-bench`"]);
+    let text = out(&trilab(&["compare", &s(&build), &s(&slower_dir)], 60));
+    assert!(text.contains("rule: timings raw") && text.contains("timings compared raw"), "{text}");
 }
 
 #[test]
