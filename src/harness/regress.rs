@@ -912,6 +912,32 @@ impl CompareReport {
         s
     }
 
+    /// What failed, by kind: `2 commands' timings as a whole, 1 kernel, 47 counts`.
+    pub fn failed(&self) -> String {
+        let figures = |class: Class| self.changes.iter().filter(|c| c.regression && c.class == class).count();
+        let kinds = [
+            (
+                self.speed.iter().filter(|c| c.regression).count(),
+                "command's timings as a whole",
+                "commands' timings as a whole",
+            ),
+            (
+                self.kernels.iter().filter(|k| k.regression).count(),
+                "kernel against its command",
+                "kernels against their command",
+            ),
+            (figures(Class::Timing), "timing", "timings"),
+            (figures(Class::Count), "count", "counts"),
+            (figures(Class::Correctness), "correctness figure worse", "correctness figures worse"),
+        ];
+        kinds
+            .iter()
+            .filter(|(n, _, _)| *n > 0)
+            .map(|(n, one, many)| format!("{n} {}", if *n == 1 { one } else { many }))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
     /// The exit status the rule gives: 1 when a regression exceeds the threshold (any
     /// correctness worsening), else 0.
     pub fn exit_code(&self) -> u8 {
@@ -1111,8 +1137,9 @@ impl Report for CompareReport {
             format!("verdict: pass (no regression beyond {}, no correctness worse)\n", self.thresholds())
         } else {
             format!(
-                "verdict: FAIL: {} regression(s) (real slowdowns or count increases beyond {}, correctness worse)\n",
+                "verdict: FAIL: {} regression(s): {} (thresholds {})\n",
                 self.regressions,
+                self.failed(),
                 self.thresholds()
             )
         };
@@ -1268,6 +1295,7 @@ mod tests {
         let r = run(&new, 1000.0);
         assert_eq!(r.exit_code(), 1, "{}", r.to_text());
         assert_eq!((r.totals.correctness_changed, r.totals.correctness_worse), (1, 1));
+        assert!(r.to_text().contains("FAIL: 1 regression(s): 1 correctness figure worse ("), "{}", r.to_text());
         assert!(r.changes[0].regression);
     }
 
@@ -1399,6 +1427,11 @@ mod tests {
         assert_eq!((bench.verdict, bench.regression), (Some(Verdict::Slower), true));
         assert!(r.changes.is_empty(), "no kernel slowed against the others: {}", r.to_text());
         assert!(r.to_text().contains("REGRESSION"), "{}", r.to_text());
+        assert!(
+            r.to_text().contains("FAIL: 1 regression(s): 1 command's timings as a whole (thresholds"),
+            "{}",
+            r.to_text()
+        );
         // The same on a host 2x slower (calibration 2x): still 1.8x after the host is taken out.
         let r = gate(&base, &timed_side(3.6, 100.0, "CPU", 3.0), TimingRule::Calibrated).unwrap();
         assert_eq!((r.regressions, r.speed[0].regression), (1, true), "{}", r.to_text());
@@ -1421,6 +1454,7 @@ mod tests {
         assert!(r.changes.iter().all(|c| c.cell.contains("method=unit") && !c.regression), "{}", r.to_text());
         assert!(!r.speed[0].regression, "{}", r.to_text());
         assert!(r.to_text().contains("method=unit") && r.to_text().contains("REGRESSION"), "{}", r.to_text());
+        assert!(r.to_text().contains("FAIL: 1 regression(s): 1 kernel against its command ("), "{}", r.to_text());
     }
 
     #[test]
