@@ -12,10 +12,11 @@
 #   calibration measured around them in the same run (a fixed CPU workload that does not go
 #   through the driver), they are slower by more than GATE_COMMAND_PCT: a slower or busier host
 #   slows the calibration alike and cancels; a slower driver (GALLIVM_PERF=nopt) does not;
-# - a kernel's cells (those sharing method, layout, traversal, variant) fail when, against the
-#   mean change of their command, they are slower by more than GATE_KERNEL_PCT with the 95 %
-#   Student-t interval over the cells above 1: one kernel that slowed alone (a single cell is
-#   printed but never fails alone: on a busy 2-core host one sub-millisecond cell moves by x7);
+# - a kernel's cells (those sharing method, layout, traversal, variant, workgroup and subgroup
+#   size) fail when, against the mean change of their command, they are slower by more than
+#   GATE_KERNEL_PCT with the 95 % Student-t interval over the cells above 1: one kernel that
+#   slowed alone (a single cell is printed but never fails alone: on a busy 2-core host one
+#   sub-millisecond cell moves by x10 by itself);
 # - counts are exact (`--count-threshold 0`): SPIR-V instructions, scene bytes, SAH cost; and
 #   lavapipe's machine instructions, spills and helper calls per kernel where the baseline's
 #   host compiled for the same CPU (`jit_cpu`; on another CPU LLVM's code differs by the CPU

@@ -5,6 +5,9 @@
 #
 #   scripts/gate-noise.sh OUT [ROUNDS] [CONDITIONS...]
 #
+# ROUNDS 0 measures nothing and judges the runs already in OUT again (the first condition's
+# round 1 stays the base).
+#
 # Conditions (default: idle load1 load2 cpu1 nopt slow):
 #   idle   nothing else started by this script
 #   load1  one busy-looping process beside the run (half of a 2-core host)
@@ -36,6 +39,14 @@ suite() { "$exe" suite --size 0 --no-threads --out "$1" > "$1.txt" 2>&1; }
 
 # The first idle run is every comparison's BASE, as the committed baseline is the gate's.
 runs=()
+if [ "$rounds" = 0 ]; then
+  # Judge the runs already in OUT again (after a change to compare's rule), measuring nothing.
+  for d in "$out"/*/; do
+    d=$(basename "$d")
+    [ "$d" = compare ] || runs+=("$d")
+  done
+  mapfile -t runs < <(printf '%s\n' "${runs[@]}" | sort -t- -k2,2n -s)
+fi
 for r in $(seq "$rounds"); do
   for c in "${conditions[@]}"; do
     d="$out/$c-$r"
@@ -95,8 +106,8 @@ def regressions(r):
 lines = [f"# Gate noise: every run against `{base}`\n",
          f"The gate: `compare --timings calibrated --threshold {kpct} --command-threshold {cpct} --count-threshold 0` "
          "(scripts/ci-gate.sh). Columns: the host's speed NEW/BASE by the calibration (bench's); each command's speed "
-         "NEW/BASE raw and over the calibration; the slowest kernel group against its command whose 95 % interval lies "
-         "above 1; the slowest single timing against its command (ranges apart; printed, never failing alone); the "
+         "NEW/BASE raw and over the calibration; the slowest kernel group against its command judged slower (95 % interval "
+         "above 1, most of its cells slower in every round); the slowest single timing against its command (ranges apart; printed, never failing alone); the "
          "slowest single timing raw (ranges apart); what the gate failed on; what the gate before issue 22 (raw, x2.5, "
          "ranges apart) failed on.\n",
          "| run | host speed | raw speed per command | calibrated speed per command | worst kernel group | worst single timing, calibrated | worst single timing, raw | gate | old gate |",

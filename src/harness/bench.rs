@@ -9,8 +9,8 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::bvh::{BuildOptions, LeafPolicy};
-use crate::compare::{compare_closest, Agreement};
-use crate::encoding::{AccessPath, Layout, Method, SceneAccess};
+use crate::compare::compare_closest;
+use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::rayquery::{self, raycast_rq, Peer};
 use crate::gpu::{AccelStats, AccelStructure, Context, RaycastOptions};
@@ -18,7 +18,7 @@ use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
 use crate::harness::peers::{self, PeerKind, PeerOutcome, TinybvhLayout};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
-use crate::harness::validate::{measure_rays, mrays_summary};
+use crate::harness::validate::{interleaved, mrays_summary, Job};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::{self, Ray};
 use crate::reference::RefHit;
@@ -532,41 +532,6 @@ impl BenchOptions {
     }
 }
 
-/// Times every kernel of `scenes` on `rays` with their rounds interleaved: `o.warmup` untimed
-/// rounds of every kernel, then `o.repeat` timed rounds, each casting with every kernel once, the
-/// kernel that starts a round rotating, so that a burst of other work on the host lands on all
-/// kernels alike rather than on the few timed while it lasted. Every round's hits are validated
-/// against the f64 reference before its time counts. Per kernel: its kernel times and the last
-/// round's agreement; an error names the kernel (its index in `scenes`).
-fn interleaved(
-    ctx: &Context,
-    scenes: &[DeviceScene],
-    mesh: &Mesh,
-    rays: &[Ray],
-    ref_hits: &[RefHit],
-    o: &BenchOptions,
-) -> std::result::Result<Vec<(Summary, Agreement)>, (usize, Error)> {
-    let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays: o.batch_rays };
-    let mut times: Vec<Vec<f64>> = vec![vec![]; scenes.len()];
-    let mut agreements: Vec<Option<Agreement>> = vec![None; scenes.len()];
-    let rounds = o.warmup + o.repeat.max(1);
-    for round in 0..rounds {
-        for k in 0..scenes.len() {
-            let i = (k + round) % scenes.len();
-            let m = measure_rays(ctx, &scenes[i], mesh, rays, ref_hits, &once).map_err(|e| (i, e))?;
-            if round >= o.warmup {
-                times[i].push(m.kernel_ms.median);
-                agreements[i] = Some(m.agreement);
-            }
-        }
-    }
-    Ok(times
-        .iter()
-        .zip(agreements)
-        .map(|(t, a)| (Summary::of(t).expect("at least one timed round"), a.expect("at least one timed round")))
-        .collect())
-}
-
 pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
     let mut report = BenchReport {
         provenance: Provenance::of(ctx),
@@ -656,6 +621,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             }
             None => None,
         };
+        let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
         // Every set's reference before any timing: the f64 traversal fills every core (and
         // rayon's threads linger), which would slow whichever kernel ran next.
         let ref_hits: Vec<Vec<RefHit>> = sets.iter().map(|(_, rays)| reference.trace_all(rays, false)).collect();
@@ -669,9 +635,12 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                     format!("{} {}", scene.method, scene.layout)
                 }
             };
-            let measured = interleaved(ctx, &scenes, &mesh, rays, ref_hits, o)
+            let jobs: Vec<Job> =
+                scenes.iter().zip(&kernels).map(|(scene, kernel)| Job { scene, kernel, rays, ref_hits }).collect();
+            let measured = interleaved(ctx, &mesh, &jobs, o.warmup, o.repeat, o.batch_rays)
                 .map_err(|(i, e)| Error::Usage(format!("{name} {set} {}: {e}", label(&scenes[i]))))?;
-            for (scene, (ms, agreement)) in scenes.iter().zip(measured) {
+            for (scene, m) in scenes.iter().zip(measured) {
+                let (ms, agreement) = (m.kernel_ms, m.agreement);
                 let mr = mrays_summary(rays.len(), ms);
                 progress(&format!(
                     "{name} {set} {}: {:.2} Mrays/s ({:.1} ms), {}",

@@ -131,10 +131,10 @@ pub fn ladder(part: Part) -> Vec<Size> {
     match part {
         Part::Bench => vec![
             Size {
-                name: "smoke: bunny, 160x120 camera, 20k random rays, 3 rounds",
-                reference_s: 0.6,
+                name: "smoke: bunny, 160x120 camera, 20k random rays, 5 rounds",
+                reference_s: 1.0,
                 measured: true,
-                options: PartOptions::Bench(Box::new(bench_size(&["bunny"], 160, 120, 1, 20_000, 3))),
+                options: PartOptions::Bench(Box::new(bench_size(&["bunny"], 160, 120, 1, 20_000, 5))),
             },
             Size {
                 name: "bunny, 400x300 camera, 2 diffuse per hit, 200k random rays, 3 rounds",
@@ -216,15 +216,15 @@ pub fn ladder(part: Part) -> Vec<Size> {
         ],
         Part::Profile => vec![
             Size {
-                name: "smoke: bunny, every method, 160x120 camera, 20k random rays, workgroup 64, 3 rounds",
-                reference_s: 2.0,
+                name: "smoke: bunny, every method, 160x120 camera, 20k random rays, workgroup 64, 5 rounds",
+                reference_s: 3.0,
                 measured: true,
                 options: PartOptions::Profile(Box::new(profile::ProfileOptions {
                     width: 160,
                     height: 120,
                     diffuse_per_hit: 1,
                     random_rays: 20_000,
-                    repeat: 3,
+                    repeat: 5,
                     workgroup_sizes: vec![64],
                     command: "trilab suite (profile, smoke size)".into(),
                     ..Default::default()

@@ -4,7 +4,7 @@
 use crate::compare::{compare_closest, Agreement};
 use crate::encoding::Raycast;
 use crate::error::{Error, Result};
-use crate::gpu::{Context, RaycastOptions};
+use crate::gpu::{Context, Kernel, RaycastOptions};
 use crate::pipeline::DeviceScene;
 use crate::rays::{Hit, Ray};
 use crate::reference::RefHit;
@@ -63,4 +63,63 @@ pub fn measure_rays(
     let ms = res.time_ms()?;
     let mrays_per_s = mrays_summary(rays.len(), ms);
     Ok(RayMeasure { kernel_ms: ms, mrays_per_s, agreement, hits: res.hits })
+}
+
+/// One kernel on one ray set, for [`interleaved`].
+pub struct Job<'a> {
+    pub scene: &'a DeviceScene,
+    pub kernel: &'a Kernel,
+    pub rays: &'a [Ray],
+    pub ref_hits: &'a [RefHit],
+}
+
+/// One job's validated timings from [`interleaved`].
+#[derive(Clone, Debug)]
+pub struct Interleaved {
+    /// Kernel time per timed round (GPU timestamps, or host wall time without them), ms.
+    pub kernel_ms: Summary,
+    /// The last timed round's agreement with the reference and hits.
+    pub agreement: Agreement,
+    pub hits: Vec<Hit>,
+    /// Dispatches per round.
+    pub batches: usize,
+}
+
+/// Times every job with their rounds interleaved: `warmup` untimed rounds of every job, then
+/// `repeat` timed rounds, each running every job once, the job that opens a round rotating, so
+/// that a burst of other work on the host lands on all jobs alike rather than on the few timed
+/// while it lasted (on a busy 2-core lavapipe host, back-to-back rounds let one kernel's cells
+/// read 1.4-1.7x slow together). Every round's hits are validated against the f64 reference
+/// before its time counts. An error names the job (its index).
+pub fn interleaved(
+    ctx: &Context,
+    mesh: &Mesh,
+    jobs: &[Job],
+    warmup: usize,
+    repeat: usize,
+    batch_rays: usize,
+) -> std::result::Result<Vec<Interleaved>, (usize, Error)> {
+    let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
+    let mut times: Vec<Vec<f64>> = vec![vec![]; jobs.len()];
+    let mut last: Vec<Option<(Agreement, Vec<Hit>, usize)>> = vec![None; jobs.len()];
+    for round in 0..warmup + repeat.max(1) {
+        for k in 0..jobs.len() {
+            let i = (k + round) % jobs.len();
+            let j = &jobs[i];
+            let res = j.scene.cast_with(ctx, j.kernel, j.rays, &once).map_err(|e| (i, e))?;
+            let agreement = validate_hits(mesh, j.rays, &res.hits, j.ref_hits).map_err(|e| (i, e))?;
+            if round >= warmup {
+                times[i].push(res.time_ms().map_err(|e| (i, e))?.median);
+                last[i] = Some((agreement, res.hits, res.batches));
+            }
+        }
+    }
+    Ok(times
+        .iter()
+        .zip(last)
+        .map(|(t, l)| {
+            let (agreement, hits, batches) = l.expect("at least one timed round");
+            Interleaved { kernel_ms: Summary::of(t).expect("at least one timed round"), agreement, hits, batches }
+        })
+        .collect())
 }

@@ -38,6 +38,7 @@ use crate::encoding::{AccessPath, Layout, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, EnabledFeatures, Kernel, PipelineOptions, RaycastOptions};
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
+use crate::harness::validate::{interleaved, Interleaved, Job};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::{Hit, Ray};
 use crate::reference::RefHit;
@@ -355,6 +356,9 @@ struct MethodRun<'a, P: FnMut(&str)> {
     refs: &'a [Vec<RefHit>],
     sweep_idx: usize,
     ropts: RaycastOptions,
+    /// Section 1's timings of this method on every set, measured beforehand with every method's
+    /// rounds interleaved (`validate::interleaved`).
+    timed: Vec<Interleaved>,
     progress: &'a mut P,
 }
 
@@ -372,9 +376,8 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
         for (si, (set, rays)) in self.sets.iter().enumerate() {
             let (set, refs) = (*set, &self.refs[si]);
             let what = format!("{} {set} {method}", self.name);
-            let res = self.scene.cast_with(self.ctx, &closest, rays, &self.ropts)?;
-            let agreement = validated(self.mesh, rays, &res.hits, refs, &what)?;
-            let ms = res.time_ms()?;
+            let res = &self.timed[si];
+            let (agreement, ms) = (res.agreement.fraction(), res.kernel_ms);
             (self.progress)(&format!("{what}: {:.2} ms ({:.2} Mrays/s)", ms.median, mrays(rays.len(), ms.median)));
             let timing = Timing {
                 ray_set: set,
@@ -400,14 +403,15 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
                 s.pipeline_statistics.rows.push(Row::new(info, method, inv));
             }
             if let Some(k) = &clock_kernel {
-                let (cycles, row) = self.clocked(k, set, rays, refs, &res.hits, &what)?;
+                let closest_hits = self.timed[si].hits.clone();
+                let (cycles, row) = self.clocked(k, set, rays, refs, &closest_hits, &what)?;
                 s.shader_clock.rows.push(Row::new(info, method, row));
                 if set == RaySet::Primary {
                     primary_cycles = Some(cycles);
                 }
             }
             if si == self.sweep_idx {
-                sweep_hits = res.hits;
+                sweep_hits = self.timed[si].hits.clone();
             }
         }
         Ok((sweep_hits, primary_cycles))
@@ -516,20 +520,42 @@ pub fn run(
     let mut s = Sections::new(ctx, o);
     let mut primary_cycles: Vec<(Method, Vec<u32>)> = vec![];
     let mut profiled_kernels = vec![];
-    for &method in &o.methods {
+    // Section 1 first, every method's rounds on every set interleaved, so that a burst of other
+    // work on the host lands on all of them alike; the other sections per method after it.
+    let scenes: Vec<DeviceScene> =
+        o.methods.iter().map(|&m| host.upload(ctx, &SceneRequest::new(m).layout(o.layout))).collect::<Result<_>>()?;
+    let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
+    let jobs: Vec<Job> = scenes
+        .iter()
+        .zip(&kernels)
+        .flat_map(|(scene, kernel)| {
+            sets.iter().zip(&refs).map(move |((_, rays), ref_hits)| Job { scene, kernel, rays, ref_hits })
+        })
+        .collect();
+    let ropts = RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), ..Default::default() };
+    let mut section1 = interleaved(ctx, &mesh, &jobs, ropts.warmup, ropts.repeat, ropts.batch_rays)
+        .map_err(|(i, e)| {
+            let (method, (set, _)) = (o.methods[i / sets.len()], &sets[i % sets.len()]);
+            Error::Usage(format!("{name} {set} {method}: {e}"))
+        })?
+        .into_iter();
+    drop(jobs);
+    for (&method, scene) in o.methods.iter().zip(scenes) {
         let mut m = MethodRun {
             ctx,
             info,
             en: *ctx.enabled(),
             name: &name,
             mesh: &mesh,
-            scene: host.upload(ctx, &SceneRequest::new(method).layout(o.layout))?,
+            scene,
             sets: &sets,
             refs: &refs,
             sweep_idx,
-            ropts: RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), ..Default::default() },
+            ropts: ropts.clone(),
+            timed: section1.by_ref().take(sets.len()).collect(),
             progress: &mut progress,
         };
+        debug_assert_eq!(m.method(), method);
         profiled_kernels.push(m.scene.kernel_source(Raycast::Closest)?);
         let (sweep_hits, cycles) = m.per_set(&mut s)?;
         primary_cycles.extend(cycles.map(|c| (method, c)));
