@@ -1132,7 +1132,7 @@ impl Report for CompareReport {
             s += &format!("commands' timings as a whole (> 1: NEW faster):\n\n{}\n", self.speed_table().to_text());
             let shown = self.kernels.iter().filter(|k| k.beyond_threshold).count();
             s += &format!(
-                "kernels against their command: {} groups, {} slower and {} faster with their intervals apart from 1, {shown} beyond {} %{}\n",
+                "kernels against their command: {} groups, {} slower and {} faster (interval and rounds agreeing), {shown} beyond {} %{}\n",
                 self.kernels.len(),
                 self.kernels.iter().filter(|k| k.verdict == Verdict::Slower).count(),
                 self.kernels.iter().filter(|k| k.verdict == Verdict::Faster).count(),
