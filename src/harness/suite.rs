@@ -397,7 +397,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
         let t = Instant::now();
         let dir = o.out.join(part.to_string());
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        let (_, section) = run_part(ctx, o, &ladder[size].options, &dir, &mut progress)?;
+        let section = run_part(ctx, o, &ladder[size].options, &dir, &mut progress)?;
         // Every file the part left in its folder (the profile's heat maps and every rows.jsonl
         // included), not only those its writer returned.
         let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
@@ -449,14 +449,14 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
     Ok(report)
 }
 
-/// Runs one part into `dir`: the files written and its summary section (title, Markdown).
+/// Runs one part into `dir`: its summary section (title, Markdown).
 fn run_part(
     ctx: &Context,
     o: &SuiteOptions,
     options: &PartOptions,
     dir: &Path,
     progress: &mut impl FnMut(&str),
-) -> Result<(Vec<PathBuf>, (String, String))> {
+) -> Result<(String, String)> {
     let mut note = |m: &str| progress(&format!("  {m}"));
     match options {
         PartOptions::Bench(b) => {
@@ -471,12 +471,12 @@ fn run_part(
             let r = bench::run(ctx, &b, &mut note)?;
             let (json, md) = (dir.join("bench.json"), dir.join("bench.md"));
             r.write(Some(&json), Some(&md))?;
-            Ok((vec![md, json], ("Speed (bench)".into(), bench_section(&r, "bench/bench.md"))))
+            Ok(("Speed (bench)".into(), bench_section(&r, "bench/bench.md")))
         }
         PartOptions::Study(s) => {
             let r = study::run(ctx, s, &mut note)?;
-            let files = study::write(&r, dir)?;
-            Ok((files, ("The paper's claims (study)".into(), study_section(&r))))
+            study::write(&r, dir)?;
+            Ok(("The paper's claims (study)".into(), study_section(&r)))
         }
         PartOptions::Accuracy(a) => {
             let mut a = (**a).clone();
@@ -485,8 +485,8 @@ fn run_part(
                 .filter(|m| a.methods.contains(m))
                 .collect();
             let r = accuracy::run(ctx, &a, &mut note)?;
-            let files = accuracy::write(&r, dir)?;
-            Ok((files, ("Speed and accuracy (accuracy)".into(), accuracy_section(&r))))
+            accuracy::write(&r, dir)?;
+            Ok(("Speed and accuracy (accuracy)".into(), accuracy_section(&r)))
         }
         PartOptions::Profile(p) => {
             let mut p = (**p).clone();
@@ -495,15 +495,12 @@ fn run_part(
             p.driver_stats = o.driver_stats.clone();
             p.sizes().require_all()?;
             let r = profile::run(ctx, &p, Some(dir), &mut note)?;
-            let files = profile::write(&r, dir)?;
+            profile::write(&r, dir)?;
             Ok((
-                files,
-                (
-                    "Kernels (profile)".into(),
-                    "Timestamps, pipeline statistics, shader clocks, executable and driver \
-                statistics, subgroup and workgroup sizes per kernel: [profile/profile.md](profile/profile.md).\n"
-                        .to_owned(),
-                ),
+                "Kernels (profile)".into(),
+                "Timestamps, pipeline statistics, shader clocks, executable and driver statistics, subgroup and \
+                 workgroup sizes per kernel: [profile/profile.md](profile/profile.md).\n"
+                    .to_owned(),
             ))
         }
     }

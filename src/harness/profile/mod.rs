@@ -357,7 +357,7 @@ struct MethodRun<'a, P: FnMut(&str)> {
     sweep_idx: usize,
     ropts: RaycastOptions,
     /// Section 1's timings of this method on every set, measured beforehand with every method's
-    /// rounds interleaved (`validate::interleaved`).
+    /// rounds interleaved (`validate::interleaved`); `per_set` takes them.
     timed: Vec<Interleaved>,
     progress: &'a mut P,
 }
@@ -373,10 +373,10 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
         let closest = self.scene.kernel(self.ctx, Raycast::Closest)?;
         let clock_kernel = if self.en.shader_clock { Some(self.scene.kernel(self.ctx, Raycast::Clock)?) } else { None };
         let (mut sweep_hits, mut primary_cycles) = (vec![], None);
-        for (si, (set, rays)) in self.sets.iter().enumerate() {
+        let timed = std::mem::take(&mut self.timed);
+        for (si, ((set, rays), res)) in self.sets.iter().zip(timed).enumerate() {
             let (set, refs) = (*set, &self.refs[si]);
             let what = format!("{} {set} {method}", self.name);
-            let res = &self.timed[si];
             let (agreement, ms) = (res.agreement.fraction(), res.kernel_ms);
             (self.progress)(&format!("{what}: {:.2} ms ({:.2} Mrays/s)", ms.median, mrays(rays.len(), ms.median)));
             let timing = Timing {
@@ -403,15 +403,14 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
                 s.pipeline_statistics.rows.push(Row::new(info, method, inv));
             }
             if let Some(k) = &clock_kernel {
-                let closest_hits = self.timed[si].hits.clone();
-                let (cycles, row) = self.clocked(k, set, rays, refs, &closest_hits, &what)?;
+                let (cycles, row) = self.clocked(k, set, rays, refs, &res.hits, &what)?;
                 s.shader_clock.rows.push(Row::new(info, method, row));
                 if set == RaySet::Primary {
                     primary_cycles = Some(cycles);
                 }
             }
             if si == self.sweep_idx {
-                sweep_hits = self.timed[si].hits.clone();
+                sweep_hits = res.hits;
             }
         }
         Ok((sweep_hits, primary_cycles))
