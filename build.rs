@@ -26,8 +26,9 @@
 //! intersector's file stem with `-` for `_` (`raycast.quad-mt.closest` from `quad_mt.glsl`; a
 //! test in `src/encoding` holds every method's name to it).
 //!
-//! Outputs in `$OUT_DIR`: one `<kernel>.<method>.<variant>.spv` per variant, `kernels.rs` (the
-//! registry that embeds them, and the intersectors' facts) and `shared_consts.rs`.
+//! Outputs in `$OUT_DIR`: one `<kernel>.<method>.<variant>.spv` per variant and its raw-deflate
+//! twin `.spv.deflate`, `kernels.rs` (the registry that embeds the deflated modules, and the
+//! intersectors' facts) and `shared_consts.rs`.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -153,12 +154,16 @@ fn main() {
         let name = &j.name;
         match r.into_inner().unwrap().expect("every job ran") {
             Ok(words) => {
-                let file = out_dir.join(format!("{name}.spv"));
-                fs::write(&file, bytemuck_bytes(&words)).unwrap();
+                let bytes = bytemuck_bytes(&words);
+                fs::write(out_dir.join(format!("{name}.spv")), &bytes).unwrap();
+                // Embedded deflated (a third of the size): 445 modules are most of the binary,
+                // and the binary travels to lent GPUs under a size limit (issue 23).
+                let file = out_dir.join(format!("{name}.spv.deflate"));
+                fs::write(&file, deflate(&bytes)).unwrap();
                 writeln!(
                     registry,
                     "    KernelSource {{ name: {name:?}, kernel: {:?}, method: {:?}, variant: {:?}, layout: {:?}, \
-                     spirv: include_bytes!({:?}) }},",
+                     spirv_deflate: include_bytes!({:?}) }},",
                     j.kernel,
                     j.method,
                     j.variant.name,
@@ -404,6 +409,14 @@ fn shared_constants(path: &Path) -> String {
         writeln!(out, "/// `glsl/shared.glsl` line {line}.\npub const {name}: u32 = {value:#x};").unwrap();
     }
     out
+}
+
+/// `bytes` compressed with raw deflate at the best level ([`KernelSource::words`] inflates).
+fn deflate(bytes: &[u8]) -> Vec<u8> {
+    use std::io::Write as _;
+    let mut e = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::best());
+    e.write_all(bytes).unwrap();
+    e.finish().unwrap()
 }
 
 fn bytemuck_bytes(words: &[u32]) -> Vec<u8> {

@@ -23,8 +23,9 @@ pub struct KernelSource {
     pub variant: &'static str,
     /// The node layout it reads: `glsl/layout/<layout>.glsl`, or `bvh2` (the binary nodes).
     pub layout: &'static str,
-    /// SPIR-V words, little-endian bytes.
-    pub spirv: &'static [u8],
+    /// The module's little-endian bytes, raw-deflated by build.rs (a third of the size; the
+    /// binary travels to lent GPUs under a size limit). [`KernelSource::spirv`] inflates it.
+    pub spirv_deflate: &'static [u8],
 }
 
 /// What an intersector's GLSL (`glsl/intersect/<glsl>.glsl` with its includes) states about
@@ -45,9 +46,19 @@ include!(concat!(env!("OUT_DIR"), "/kernels.rs"));
 pub const NO_INTERSECTOR: &str = "none";
 
 impl KernelSource {
-    /// The module as words (`include_bytes!` gives no alignment guarantee).
+    /// The module's little-endian bytes, inflated from [`KernelSource::spirv_deflate`].
+    pub fn spirv(&self) -> Vec<u8> {
+        use std::io::Read as _;
+        let mut bytes = Vec::with_capacity(self.spirv_deflate.len() * 4);
+        flate2::read::DeflateDecoder::new(self.spirv_deflate)
+            .read_to_end(&mut bytes)
+            .unwrap_or_else(|e| panic!("embedded kernel {} does not inflate: {e}", self.name));
+        bytes
+    }
+
+    /// The module as words.
     pub fn words(&self) -> Vec<u32> {
-        self.spirv.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+        self.spirv().chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
     }
 }
 
@@ -74,7 +85,7 @@ mod tests {
     #[test]
     fn every_module_is_spirv_and_every_kernel_with_an_intersector_has_each_one() {
         for k in KERNELS {
-            assert_eq!(k.spirv.len() % 4, 0, "{}", k.name);
+            assert_eq!(k.spirv().len() % 4, 0, "{}", k.name);
             assert_eq!(k.words()[0], 0x0723_0203, "{}: SPIR-V magic", k.name);
             assert_eq!(k.name, format!("{}.{}.{}", k.kernel, k.method.replace('_', "-"), k.variant));
             if k.method != NO_INTERSECTOR {

@@ -4,17 +4,25 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::error::Result;
+use trilab::spirv::Disassembly;
 
 use super::JsonArg;
 
 /// SPIR-V instruction counts of every kernel variant (`<kernel>.<method>.<variant>`); `--out
-/// DIR` writes the review files instead (`trilab spirv --out spirv` refreshes spirv/).
+/// DIR` writes the review files instead: every variant's disassembly and
+/// instruction_counts.csv (`trilab spirv --out spirv --studied` refreshes spirv/, which keeps
+/// the studied kernels' disassembly only).
 #[derive(Args)]
 pub struct SpirvArgs {
     /// Directory to write every variant's disassembly and instruction_counts.csv into (stale
     /// disassembly there is removed; was `--write`).
     #[arg(long, value_name = "DIR", alias = "write")]
     out: Option<PathBuf>,
+    /// With --out: only the disassembly of the kernels a reader studies (what spirv/ keeps:
+    /// raycast closest and any on the binary nodes, closest on each wide layout, every
+    /// intersector; the ray-query peer); other disassembly in DIR is removed.
+    #[arg(long, requires = "out")]
+    studied: bool,
     #[command(flatten)]
     json: JsonArg,
 }
@@ -23,7 +31,8 @@ pub fn run(a: SpirvArgs) -> Result<()> {
     match &a.out {
         Some(dir) => {
             trilab::io::check_output("--write", trilab::io::Output::Dir(dir, &[]), &[])?;
-            let n = trilab::harness::spirv::write(dir)?;
+            let which = if a.studied { Disassembly::Studied } else { Disassembly::All };
+            let n = trilab::harness::spirv::write(dir, which)?;
             println!("wrote {n} files to {}", dir.display());
         }
         None => a.json.print(&trilab::harness::spirv::counts()),

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::report::{Report, Table};
-use crate::spirv::InstructionCounts;
+use crate::spirv::{Disassembly, InstructionCounts};
 
 /// One variant's counts.
 #[derive(Clone, Debug, Serialize)]
@@ -33,11 +33,12 @@ pub fn counts() -> SpirvReport {
     }
 }
 
-/// Writes every review file into `dir` (created if needed), each atomically, removing stale
-/// disassembly of variants that no longer exist. Returns how many files were written.
-pub fn write(dir: &Path) -> Result<usize> {
+/// Writes the review files of `which` kernels into `dir` (created if needed), each atomically,
+/// removing disassembly there of variants that no longer exist or are not among `which`.
+/// Returns how many files were written.
+pub fn write(dir: &Path, which: Disassembly) -> Result<usize> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let files = crate::spirv::review_files();
+    let files = crate::spirv::review_files(which);
     let keep: Vec<&String> = files.iter().map(|(n, _)| n).collect();
     for e in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
@@ -133,7 +134,7 @@ mod tests {
     #[test]
     fn rows_carry_the_review_files_counts() {
         let rows = super::rows(&super::counts());
-        let files = crate::spirv::review_files();
+        let files = crate::spirv::review_files(crate::spirv::Disassembly::Studied);
         let csv = &files.iter().find(|(n, _)| n == "instruction_counts.csv").expect("counts file").1;
         let mut lines = csv.lines();
         let header: Vec<&str> = lines.next().unwrap().split(',').collect();
