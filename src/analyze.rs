@@ -205,14 +205,14 @@ impl Frontier {
         f
     }
 
-    /// Reads `frontier.csv`, and `translation.csv` from the same directory when it is there.
+    /// Reads `frontier.csv`, and `translation.csv` from the same directory when it is there;
+    /// either may be gzip-compressed (`frontier.csv.gz`), as committed results may keep them.
     pub fn read(path: &Path) -> Result<Frontier> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let mut f = Frontier::parse(path, &text)?;
-        let tpath = path.with_file_name("translation.csv");
+        let path = crate::io::existing_form(path);
+        let mut f = Frontier::parse(&path, &crate::io::read_text(&path)?)?;
+        let tpath = crate::io::existing_form(&path.with_file_name("translation.csv"));
         if tpath.is_file() {
-            let t = std::fs::read_to_string(&tpath).map_err(|e| Error::io(&tpath, e))?;
-            f.translation = parse_translation(&tpath, &t)?;
+            f.translation = parse_translation(&tpath, &crate::io::read_text(&tpath)?)?;
         }
         Ok(f)
     }
@@ -702,5 +702,27 @@ mod tests {
     #[test]
     fn the_builtin_frontier_parses() {
         assert!(!Frontier::builtin().points.is_empty());
+    }
+
+    /// A frontier and its translation table stored gzip-compressed read as the plain files,
+    /// found by the plain name too.
+    #[test]
+    fn a_compressed_frontier_reads_as_the_plain_one() {
+        use std::io::Write as _;
+        let dir = tempfile::tempdir().unwrap();
+        let gz = |name: &str, text: &str| {
+            let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+            e.write_all(text.as_bytes()).unwrap();
+            std::fs::write(dir.path().join(name), e.finish().unwrap()).unwrap();
+        };
+        gz("frontier.csv.gz", BUILTIN_FRONTIER);
+        gz("translation.csv.gz", BUILTIN_TRANSLATION);
+        let builtin = Frontier::builtin();
+        for path in ["frontier.csv", "frontier.csv.gz"] {
+            let f = Frontier::read(&dir.path().join(path)).unwrap();
+            assert_eq!(f.points.len(), builtin.points.len(), "{path}");
+            assert_eq!(f.translation.len(), builtin.translation.len(), "{path}");
+            assert!(!f.translation.is_empty());
+        }
     }
 }

@@ -1,5 +1,6 @@
 //! File output that never corrupts or overwrites inputs: outputs go to a temporary file in the
-//! destination directory and are renamed into place.
+//! destination directory and are renamed into place. And text input that may be stored
+//! gzip-compressed ([`read_text`]): bulky committed results are (`results/README.md`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -28,6 +29,39 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     tmp.as_file().sync_all().map_err(err)?;
     tmp.persist(path).map_err(|e| err(e.error))?;
     Ok(())
+}
+
+/// The suffix of a gzip-compressed file (`rows.jsonl.gz`, `accuracy.csv.gz`).
+pub const GZ: &str = ".gz";
+
+/// `path`, or `path` + [`GZ`] where only the compressed file exists: the file a reader of
+/// results opens for a name it knows (`frontier.csv`, say).
+pub fn existing_form(path: &Path) -> PathBuf {
+    let mut gz = path.as_os_str().to_owned();
+    gz.push(GZ);
+    let gz = PathBuf::from(gz);
+    if !path.exists() && gz.is_file() {
+        gz
+    } else {
+        path.to_owned()
+    }
+}
+
+/// The text of `path`, inflated when its name ends in [`GZ`]. Errors name `path` (a truncated or
+/// corrupt archive, text that is not UTF-8).
+pub fn read_text(path: &Path) -> Result<String> {
+    use std::io::Read as _;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = if path.to_string_lossy().ends_with(GZ) {
+        let mut out = Vec::with_capacity(bytes.len() * 8);
+        flate2::read::MultiGzDecoder::new(&bytes[..])
+            .read_to_end(&mut out)
+            .map_err(|e| Error::bad_input(path, None, format!("not a readable gzip file: {e}")))?;
+        out
+    } else {
+        bytes
+    };
+    String::from_utf8(bytes).map_err(|e| Error::bad_input(path, None, format!("not UTF-8 text: {e}")))
 }
 
 /// The directory a file `path` lands in (`.` for a bare name).
@@ -164,6 +198,30 @@ fn resolve(p: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn gzip(bytes: &[u8]) -> Vec<u8> {
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        e.write_all(bytes).unwrap();
+        e.finish().unwrap()
+    }
+
+    #[test]
+    fn compressed_text_reads_as_the_plain_text_and_a_broken_one_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("a.csv");
+        std::fs::write(&plain, "x,y\n1,2\n").unwrap();
+        let gz = dir.path().join("b.csv.gz");
+        std::fs::write(&gz, gzip(b"x,y\n1,2\n")).unwrap();
+        assert_eq!(read_text(&gz).unwrap(), read_text(&plain).unwrap());
+        // The name a reader knows finds the compressed file, and the plain one where both are.
+        assert_eq!(existing_form(&dir.path().join("b.csv")), gz);
+        assert_eq!(existing_form(&plain), plain);
+        let broken = dir.path().join("c.csv.gz");
+        let whole = gzip(&[b'x'; 4096]);
+        std::fs::write(&broken, &whole[..whole.len() / 2]).unwrap();
+        let e = read_text(&broken).unwrap_err().to_string();
+        assert!(e.contains("c.csv.gz") && e.contains("gzip"), "{e}");
+    }
 
     #[test]
     fn atomic_write_replaces_whole_file() {

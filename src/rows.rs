@@ -321,14 +321,19 @@ pub fn parse(path: &Path, text: &str) -> Result<RowSet> {
     Ok(set)
 }
 
-/// Reads one rows file.
+/// Reads one rows file (`rows.jsonl`, or `rows.jsonl.gz` as committed results keep it).
 pub fn read_file(path: &Path) -> Result<RowSet> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    parse(path, &text)
+    parse(path, &crate::io::read_text(path)?)
 }
 
-/// Every `rows.jsonl` under `path` (a folder, searched recursively in name order), or `path`
-/// itself when it is a file. A folder without any rows file is an error that says so.
+/// Whether `name` is a rows file's: [`FILE`], or [`FILE`] gzip-compressed.
+fn is_rows_file(name: &std::ffi::OsStr) -> bool {
+    name == FILE || name.to_str().and_then(|n| n.strip_suffix(crate::io::GZ)) == Some(FILE)
+}
+
+/// Every `rows.jsonl` (or `rows.jsonl.gz`) under `path` (a folder, searched recursively in name
+/// order), or `path` itself when it is a file. A folder without any rows file is an error that
+/// says so, and so is one folder holding both forms (one run, or two that would count twice?).
 pub fn read(path: &Path) -> Result<RowSet> {
     if !path.exists() {
         return Err(Error::bad_input(path, None, "no such file or folder"));
@@ -356,13 +361,22 @@ fn collect(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
     let mut entries: Vec<PathBuf> =
         std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.filter_map(|e| e.ok().map(|e| e.path())).collect();
     entries.sort();
+    let mut here = vec![];
     for p in entries {
         if p.is_dir() {
             collect(&p, out)?;
-        } else if p.file_name().is_some_and(|n| n == FILE) {
-            out.push(p);
+        } else if p.file_name().is_some_and(is_rows_file) {
+            here.push(p);
         }
     }
+    if let [plain, gz] = &here[..] {
+        return Err(Error::bad_input(
+            gz,
+            None,
+            format!("{} is beside it: a folder holds one rows file, plain or compressed", plain.display()),
+        ));
+    }
+    out.extend(here);
     Ok(())
 }
 
@@ -438,5 +452,27 @@ mod tests {
         let empty = tempfile::tempdir().unwrap();
         let e = read(empty.path()).unwrap_err().to_string();
         assert!(e.contains("no rows.jsonl"), "{e}");
+    }
+
+    /// Committed results keep bulky rows gzip-compressed: a reader finds and reads them as the
+    /// plain file, and refuses a folder that holds both forms.
+    #[test]
+    fn compressed_rows_read_as_the_plain_ones() {
+        use std::io::Write as _;
+        let dir = tempfile::tempdir().unwrap();
+        let s = source();
+        let rows = [Row::new("bench", cell([("set", "primary")]), &s), Row::new("study", Cell::new(), &s)];
+        let plain = write(dir.path(), None, &rows).unwrap();
+        let text = std::fs::read(&plain).unwrap();
+        let sub = dir.path().join("sub");
+        std::fs::create_dir(&sub).unwrap();
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        e.write_all(&text).unwrap();
+        std::fs::write(sub.join("rows.jsonl.gz"), e.finish().unwrap()).unwrap();
+        assert_eq!(read(&sub).unwrap().rows, read(&plain).unwrap().rows);
+        assert_eq!(read(&sub.join("rows.jsonl.gz")).unwrap().rows.len(), 2);
+        std::fs::copy(&plain, sub.join("rows.jsonl")).unwrap();
+        let e = read(&sub).unwrap_err().to_string();
+        assert!(e.contains("rows.jsonl.gz") && e.contains("one rows file"), "{e}");
     }
 }

@@ -170,12 +170,17 @@ pub(crate) fn write_png(path: &Path, w: u32, h: u32, buf: Vec<u8>, what: &str) -
     crate::io::write_atomic(path, &encode_png(w, h, buf, what)?)
 }
 
-/// An RGB buffer as PNG bytes.
+/// An RGB buffer as PNG bytes, at the best compression with adaptive filters: a plot's flat
+/// colours compress some 6x better than at the encoder's fast default, and plots are committed
+/// to a tree that travels to lent GPUs under a size limit.
 pub(crate) fn encode_png(w: u32, h: u32, buf: Vec<u8>, what: &str) -> Result<Vec<u8>> {
-    let img = image::RgbImage::from_raw(w, h, buf).expect("buffer sized for the image");
-    let mut png = std::io::Cursor::new(vec![]);
-    img.write_to(&mut png, image::ImageFormat::Png).map_err(|e| plot_err(what, e))?;
-    Ok(png.into_inner())
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    assert_eq!(buf.len(), w as usize * h as usize * 3, "buffer sized for the image");
+    let mut png = vec![];
+    let encoder = PngEncoder::new_with_quality(&mut png, CompressionType::Best, FilterType::Adaptive);
+    image::ImageEncoder::write_image(encoder, &buf, w, h, image::ExtendedColorType::Rgb8)
+        .map_err(|e| plot_err(what, e))?;
+    Ok(png)
 }
 
 /// The legend: one row per entry, from the top of `area` (the strip beside the panels).
