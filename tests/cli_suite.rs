@@ -67,3 +67,30 @@ fn bad_options_are_refused_before_any_work() {
     expect_error(&o, &["nope"]);
     assert!(!dir.path().join("o").exists(), "nothing is written for a refused command");
 }
+
+/// A part that cannot run on the device (here the bench, whose tinybvh peer is broken: a
+/// peer built for another CPU fails so on a lent GPU) is reported in its summary section while
+/// the other parts complete and are summarised; the exit status says not all did.
+#[test]
+fn a_failing_part_is_summarised_and_the_others_complete() {
+    let dir = tempfile::tempdir().unwrap();
+    let peer = dir.path().join("broken_peer.sh");
+    std::fs::write(&peer, "#!/bin/sh\necho 'illegal instruction' >&2\nexit 132\n").unwrap();
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&peer, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+    let out = dir.path().join("suite");
+    let args = ["suite", "--size", "0", "--no-threads", "--no-driver-stats", "--parts", "bench,study"];
+    let o = trilab(&[&args[..], &["--tinybvh", &s(&peer), "--out", &s(&out)]].concat(), 600);
+    let err = expect_error(&o, &["1 of 2 parts did not complete", "bench", "illegal instruction"]);
+    let md = std::fs::read_to_string(out.join("summary.md")).unwrap_or_else(|e| panic!("no summary.md: {e}\n{err}"));
+    let failed = md.split("## Speed (bench) (did not complete)").nth(1).unwrap_or_else(|| panic!("{md}"));
+    assert!(failed.lines().nth(2).unwrap().contains("illegal instruction"), "the section says why:\n{md}");
+    assert!(md.contains("## The paper's claims (study)\n") && md.contains("| (a) |"), "the study completed:\n{md}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("suite.json")).unwrap()).unwrap();
+    let parts = report["parts"].as_array().unwrap();
+    assert!(parts[0]["failed"].as_str().unwrap().contains("exit status: 132"), "{}", parts[0]);
+    assert!(parts[1]["failed"].is_null(), "{}", parts[1]);
+}

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
 use trilab::harness::profile::driver_stats::CollectOptions;
 use trilab::harness::suite::{self, Part, SuiteOptions};
@@ -46,6 +47,10 @@ pub struct SuiteArgs {
     /// match a stored baseline cell for cell, as CI's does.
     #[arg(long, value_name = "N")]
     size: Option<usize>,
+    /// BVH node layouts for the bench and the study, comma-separated (`bvh2,bvh4,cwbvh`): every
+    /// method runs on each, and the sizes are scaled to fit with all of them (default: bvh2).
+    #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
+    layouts: Vec<Layout>,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -64,6 +69,7 @@ pub fn run(a: SuiteArgs) -> Result<()> {
         exe,
         driver_stats: None,
         force_size: a.size,
+        layouts: a.layouts.clone(),
     };
     suite::check(&o)?;
     let ctx = a.gpu.context()?;
@@ -79,5 +85,17 @@ pub fn run(a: SuiteArgs) -> Result<()> {
     trilab::io::check_output("--out", trilab::io::Output::Dir(&o.out, &["summary.md", "suite.json"]), &[])?;
     let report = suite::run(&ctx, &o, |m| eprintln!("suite: {m}"))?;
     a.json.print(&report);
+    let failed: Vec<String> =
+        report.parts.iter().filter_map(|p| p.failed.as_ref().map(|why| format!("{}: {why}", p.part))).collect();
+    if !failed.is_empty() {
+        // The others completed and are summarised; the exit status still says not all did.
+        return Err(Error::Unsupported(format!(
+            "suite: {} of {} parts did not complete (the others did; {} says why): {}",
+            failed.len(),
+            report.parts.len(),
+            report.out.join("summary.md").display(),
+            failed.join("; ")
+        )));
+    }
     Ok(())
 }

@@ -52,6 +52,16 @@ impl Part {
             Part::Profile => 0.12,
         }
     }
+
+    /// Its section's title in the summary.
+    pub fn title(self) -> &'static str {
+        match self {
+            Part::Bench => "Speed (bench)",
+            Part::Study => "The paper's claims (study)",
+            Part::Accuracy => "Speed and accuracy (accuracy)",
+            Part::Profile => "Kernels (profile)",
+        }
+    }
 }
 
 /// One size of a part.
@@ -258,6 +268,26 @@ pub struct SuiteOptions {
     /// Run every part at this ladder step (0 = smoke) whatever the budget: for measuring the
     /// ladders themselves.
     pub force_size: Option<usize>,
+    /// Node layouts for the bench and the study (empty: each part's own, `bvh2`): every method
+    /// runs on each, and a size's predicted time grows by their number.
+    pub layouts: Vec<Layout>,
+}
+
+/// `ladder` with the bench's and the study's sizes set to run on `layouts` (none: as they are),
+/// their reference times scaled by how many there are.
+pub fn with_layouts(mut ladder: Vec<Size>, layouts: &[Layout]) -> Vec<Size> {
+    if layouts.is_empty() {
+        return ladder;
+    }
+    for size in &mut ladder {
+        let before = match &mut size.options {
+            PartOptions::Bench(b) => std::mem::replace(&mut b.layouts, layouts.to_vec()).len(),
+            PartOptions::Study(s) => std::mem::replace(&mut s.layouts, layouts.to_vec()).len(),
+            PartOptions::Accuracy(_) | PartOptions::Profile(_) => continue,
+        };
+        size.reference_s *= layouts.len() as f64 / before.max(1) as f64;
+    }
+    ladder
 }
 
 /// How one part was scaled and what it took.
@@ -279,6 +309,10 @@ pub struct PartRun {
     pub calibration_ms: f64,
     /// The files it wrote, relative to the suite's folder.
     pub files: Vec<String>,
+    /// Why it stopped, where it could not run on this device (a driver without a feature it
+    /// needs, a result that failed validation): the other parts still ran, and the summary says
+    /// this in the part's section.
+    pub failed: Option<String>,
 }
 
 /// The probe that calibrates the predictions.
@@ -327,7 +361,7 @@ fn scaling_table(r: &SuiteReport) -> Table {
             p.description.clone(),
             format!("{:.0}", p.share_s),
             format!("{:.0}{}", p.predicted_s, if p.reference_measured { "" } else { " (extrapolated)" }),
-            format!("{:.0}", p.took_s),
+            format!("{:.0}{}", p.took_s, if p.failed.is_some() { " (did not complete)" } else { "" }),
             format!("{:.1}", p.calibration_ms),
         ]);
     }
@@ -390,14 +424,27 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
         let left_s = (budget_s - start.elapsed().as_secs_f64()).max(0.0);
         let weights: f64 = todo[i..].iter().map(|p| p.weight()).sum();
         let share_s = left_s * part.weight() / weights;
-        let ladder = ladder(part);
+        let ladder = with_layouts(ladder(part), &o.layouts);
         let size = o.force_size.map(|s| s.min(ladder.len() - 1)).unwrap_or_else(|| choose(&ladder, share_s, factor));
         let predicted_s = ladder[size].reference_s * factor;
         progress(&format!("{part}: {} (predicted {predicted_s:.0} s of a {share_s:.0} s share)", ladder[size].name));
         let t = Instant::now();
         let dir = o.out.join(part.to_string());
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        let section = run_part(ctx, o, &ladder[size].options, &dir, &mut progress)?;
+        // A part that cannot run here (seen: the driver statistics on Mesa 22.3.6) is reported
+        // in its section; the rest of the suite still runs and is summarised.
+        let (section, failed) = match run_part(ctx, o, &ladder[size].options, &dir, &mut progress) {
+            Ok(section) => (section, None),
+            Err(e) => {
+                progress(&format!("{part} failed: {e}"));
+                let why = e.to_string();
+                let section = (
+                    format!("{} (did not complete)", part.title()),
+                    format!("`trilab {part}` stopped on this device after {:.0} s: {why}\n", t.elapsed().as_secs_f64()),
+                );
+                (section, Some(why))
+            }
+        };
         // Every file the part left in its folder (the profile's heat maps and every rows.jsonl
         // included), not only those its writer returned.
         let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
@@ -421,13 +468,21 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
             part,
             size,
             sizes: ladder.len(),
-            description: ladder[size].name.to_owned(),
+            description: match (&ladder[size].options, o.layouts.is_empty()) {
+                (PartOptions::Bench(_) | PartOptions::Study(_), false) => format!(
+                    "{}; on the layouts {} (--layouts)",
+                    ladder[size].name,
+                    o.layouts.iter().map(|l| l.to_string()).collect::<Vec<_>>().join(", ")
+                ),
+                _ => ladder[size].name.to_owned(),
+            },
             share_s,
             predicted_s,
             reference_measured: ladder[size].measured,
             took_s,
             calibration_ms,
             files: files.iter().map(|f| f.strip_prefix(&o.out).unwrap_or(f).display().to_string()).collect(),
+            failed,
         });
         sections.push((section.0, section.1));
     }
@@ -471,12 +526,12 @@ fn run_part(
             let r = bench::run(ctx, &b, &mut note)?;
             let (json, md) = (dir.join("bench.json"), dir.join("bench.md"));
             r.write(Some(&json), Some(&md))?;
-            Ok(("Speed (bench)".into(), bench_section(&r, "bench/bench.md")))
+            Ok((Part::Bench.title().into(), bench_section(&r, "bench/bench.md")))
         }
         PartOptions::Study(s) => {
             let r = study::run(ctx, s, &mut note)?;
             study::write(&r, dir)?;
-            Ok(("The paper's claims (study)".into(), study_section(&r)))
+            Ok((Part::Study.title().into(), study_section(&r)))
         }
         PartOptions::Accuracy(a) => {
             let mut a = (**a).clone();
@@ -486,7 +541,7 @@ fn run_part(
                 .collect();
             let r = accuracy::run(ctx, &a, &mut note)?;
             accuracy::write(&r, dir)?;
-            Ok(("Speed and accuracy (accuracy)".into(), accuracy_section(&r)))
+            Ok((Part::Accuracy.title().into(), accuracy_section(&r)))
         }
         PartOptions::Profile(p) => {
             let mut p = (**p).clone();
@@ -497,7 +552,7 @@ fn run_part(
             let r = profile::run(ctx, &p, Some(dir), &mut note)?;
             profile::write(&r, dir)?;
             Ok((
-                "Kernels (profile)".into(),
+                Part::Profile.title().into(),
                 "Timestamps, pipeline statistics, shader clocks, executable and driver statistics, subgroup and \
                  workgroup sizes per kernel: [profile/profile.md](profile/profile.md).\n"
                     .to_owned(),
@@ -650,9 +705,41 @@ mod tests {
             exe: None,
             driver_stats: None,
             force_size: None,
+            layouts: vec![],
         };
         assert!(check(&bad).unwrap_err().to_string().contains("--budget-minutes"));
         let missing = SuiteOptions { budget_minutes: 1.0, embree: Some("/nonexistent/embree".into()), ..bad };
         assert!(check(&missing).unwrap_err().to_string().contains("/nonexistent/embree"));
+    }
+
+    /// `--layouts` sets the bench's and the study's layouts at every size and scales their
+    /// reference times by how many there are; accuracy and profile are left as they are.
+    #[test]
+    fn layouts_scale_the_bench_and_the_study() {
+        let three = [Layout::Bvh2, Layout::Bvh4, Layout::Cwbvh];
+        for &part in Part::ALL {
+            let plain = ladder(part);
+            let wide = with_layouts(ladder(part), &three);
+            assert_eq!(plain.len(), wide.len());
+            for (p, w) in plain.iter().zip(&wide) {
+                // The size's own layouts (none given: the binary tree alone).
+                let before = match &p.options {
+                    PartOptions::Bench(b) => b.layouts.len().max(1) as f64,
+                    PartOptions::Study(s) => s.layouts.len().max(1) as f64,
+                    _ => 1.0,
+                };
+                let scaled = p.reference_s * 3.0 / before;
+                match &w.options {
+                    PartOptions::Bench(b) => assert_eq!(b.layouts, three),
+                    PartOptions::Study(s) => assert_eq!(s.layouts, three),
+                    _ => {
+                        assert_eq!(w.reference_s, p.reference_s, "{}", w.name);
+                        continue;
+                    }
+                }
+                assert!((w.reference_s - scaled).abs() < 1e-9 * scaled, "{}: {} vs {scaled}", w.name, w.reference_s);
+            }
+        }
+        assert_eq!(with_layouts(ladder(Part::Study), &[]).len(), ladder(Part::Study).len());
     }
 }
