@@ -11,7 +11,11 @@ set -euo pipefail
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
-base_pkgs=(libvulkan1 libvulkan-dev vulkan-validationlayers vulkan-tools spirv-tools cmake python3 g++ pkg-config procps)
+# pocl-opencl-icd and the OpenCL headers: the device run's rehearsal (tests/device_run.rs) builds
+# tinybvh's peer with OpenCL and runs its kernels on PoCL beside lavapipe, as a lent GPU runs
+# them on its own OpenCL beside its Vulkan driver.
+base_pkgs=(libvulkan1 libvulkan-dev vulkan-validationlayers vulkan-tools spirv-tools cmake python3 g++ pkg-config procps
+  pocl-opencl-icd ocl-icd-opencl-dev opencl-headers)
 missing=()
 for p in "${base_pkgs[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
