@@ -231,7 +231,8 @@ fn stats_and_occlusion_follow_the_algorithm() {
 
 /// `raycast --traversal` from the command line: every traversal's hit file is byte-identical to
 /// while-if's and passes the f64 check; the cooperative kernel does so at subgroup size 8 and,
-/// with lavapipe's 128-bit vectors, 4 (the report says which); what has no kernel is refused.
+/// with lavapipe's 128-bit and 512-bit vectors, 4 and 16 (the report says which); what has no
+/// kernel is refused.
 #[test]
 fn raycast_takes_the_traversal_from_the_command_line() {
     let dir = tempfile::tempdir().unwrap();
@@ -277,6 +278,8 @@ fn raycast_takes_the_traversal_from_the_command_line() {
     let mut runs = vec![("bvh2", "while-while", vec![]), ("bvh2", "coop", vec![])];
     for layout in ["bvh2", "bvh4", "bvh8"] {
         runs.push((layout, "coop", vec![("LP_NATIVE_VECTOR_WIDTH", "128")]));
+        // 16 lanes, the widest lavapipe offers (512-bit vectors), toward a GPU's 32.
+        runs.push((layout, "coop", vec![("LP_NATIVE_VECTOR_WIDTH", "512")]));
     }
     runs.push(("bvh8", "coop", vec![]));
     runs.push(("bvh2", "persistent", vec![]));
@@ -284,8 +287,12 @@ fn raycast_takes_the_traversal_from_the_command_line() {
     for (layout, traversal, env) in runs {
         let name = format!("{layout}-{traversal}-{}.hits", env.len());
         let v = cast(layout, traversal, &env, &name);
-        if !env.is_empty() {
-            assert_eq!(v["subgroup_size"], 4, "LP_NATIVE_VECTOR_WIDTH=128 should give lavapipe 4 lanes: {v}");
+        if let [(_, bits)] = env[..] {
+            let lanes = bits.parse::<u64>().unwrap() / 32;
+            assert_eq!(
+                v["subgroup_size"], lanes,
+                "LP_NATIVE_VECTOR_WIDTH={bits} should give lavapipe {lanes} lanes: {v}"
+            );
         }
         let hits = std::fs::read(p(&name)).unwrap();
         assert!(hits == base, "{layout} {traversal} {env:?}: the hit file differs from while-if's");

@@ -31,7 +31,11 @@ pub struct Provenance {
 
 impl Provenance {
     pub fn of(ctx: &Context) -> Provenance {
-        let info = ctx.info();
+        Provenance::of_device(ctx.info())
+    }
+
+    /// Where a measurement on the device `info` describes runs, now, on this host.
+    pub fn of_device(info: &crate::gpu::DeviceInfo) -> Provenance {
         Provenance {
             device: info.name.clone(),
             driver: info.driver_label(),

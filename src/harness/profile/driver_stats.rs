@@ -230,13 +230,8 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
         for k in kernels {
             let kernel =
                 ctx.create_kernel_with(k, &PipelineOptions { capture_statistics: true, ..Default::default() })?;
-            let mut s = KernelStats::of(k);
-            for st in super::executable::executable_statistics(ctx, &kernel)? {
-                if let Ok(v) = st.value.parse::<f64>() {
-                    s.executable.insert(format!("{}_{}", st.executable, snake(&st.name)), v);
-                }
-            }
-            out.push(s);
+            let stats = super::executable::executable_statistics(ctx, &kernel)?;
+            out.push(KernelStats { executable: executable_figures(&stats), ..KernelStats::of(k) });
         }
         let note = "VK_KHR_pipeline_executable_properties: the driver's own statistics per executable (untested here: \
                     lavapipe lacks the extension)";
@@ -252,6 +247,16 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
         ),
         kernels: vec![],
     })
+}
+
+/// The numeric statistics of a pipeline's executables as figures named
+/// `<executable index>_<statistic in snake case>` ("0_register_count"); booleans and text are
+/// left out (a row's figures are numbers).
+pub fn executable_figures(stats: &[super::ExecutableStatistic]) -> BTreeMap<String, f64> {
+    stats
+        .iter()
+        .filter_map(|st| st.value.parse::<f64>().ok().map(|v| (format!("{}_{}", st.executable, snake(&st.name)), v)))
+        .collect()
 }
 
 /// `Instruction Count` -> `instruction_count`.
@@ -500,6 +505,35 @@ impl crate::report::Report for DriverStatsReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// What a driver with `VK_KHR_pipeline_executable_properties` reports (lavapipe does not:
+    /// these are the statistics an NVIDIA driver names), as figures: numbers kept per
+    /// executable, booleans left out, names in snake case.
+    #[test]
+    fn executable_statistics_become_figures_per_executable() {
+        let st = |executable: u32, name: &str, value: &str| super::super::ExecutableStatistic {
+            executable,
+            executable_name: "Compute Shader".into(),
+            executable_description: String::new(),
+            subgroup_size: 32,
+            name: name.into(),
+            description: String::new(),
+            value: value.into(),
+        };
+        let f = executable_figures(&[
+            st(0, "Register Count", "96"),
+            st(0, "Spill Count", "0"),
+            st(0, "Uses Shared Memory", "true"),
+            st(1, "Register Count", "40"),
+            st(1, "Occupancy", "0.75"),
+        ]);
+        let want: BTreeMap<String, f64> =
+            [("0_register_count", 96.0), ("0_spill_count", 0.0), ("1_occupancy", 0.75), ("1_register_count", 40.0)]
+                .into_iter()
+                .map(|(k, v)| (k.to_owned(), v))
+                .collect();
+        assert_eq!(f, want);
+    }
 
     #[test]
     fn the_dump_splits_at_the_markers() {

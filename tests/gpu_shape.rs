@@ -1,0 +1,71 @@
+//! What a lent GPU changes that lavapipe does not show by itself (issue 23), shown on lavapipe's
+//! own device description with the GPU's values put in: a discrete device is chosen over a CPU
+//! device, an unusable one is passed over, and a driver that is not Mesa is named by its own name
+//! and version (no Mesa version invented), its results folder by the device's name. (32 lanes:
+//! `tests/subgroup_widths.rs` models the cooperative kernel at 4-64 lanes and
+//! `tests/traversals_gpu.rs` runs it at lavapipe's 4, 8 and 16; executable statistics:
+//! `driver_stats`'s unit test; the driver's ray tracing without ray query: the ray-tracing-pipeline peer's tests.)
+
+use trilab::gpu::context::choose_device;
+use trilab::gpu::{Context, DeviceInfo};
+use trilab::harness::provenance::Provenance;
+
+fn lavapipe() -> DeviceInfo {
+    let devices = Context::list_devices().expect("a Vulkan device (lavapipe in CI)");
+    let d = devices.into_iter().find(|d| d.driver_id.contains("LLVMPIPE")).expect("lavapipe is installed");
+    assert_eq!(d.device_type, "CPU");
+    d
+}
+
+/// lavapipe's description with an H100's identity and driver (values as NVIDIA's driver
+/// reports them: `driverName` "NVIDIA", `driverInfo` the driver's version, `driverVersion`
+/// packed 10.8.8.6 bits).
+fn h100(index: usize) -> DeviceInfo {
+    let mut d = lavapipe();
+    d.index = index;
+    d.name = "NVIDIA H100 80GB HBM3".into();
+    d.device_type = "DISCRETE_GPU".into();
+    d.vendor_id = 0x10de;
+    d.driver_id = "NVIDIA_PROPRIETARY".into();
+    d.driver_name = "NVIDIA".into();
+    d.driver_info = "550.54.15".into();
+    d.driver_version = (550 << 22) | (54 << 14) | (15 << 6);
+    d.mesa_version = None;
+    d.subgroup_size = 32;
+    d.subgroup_size_control = Some((32, 32));
+    d
+}
+
+#[test]
+fn a_discrete_gpu_is_chosen_over_the_cpu_device_whatever_the_order() {
+    let mut cpu = lavapipe();
+    cpu.index = 0;
+    assert_eq!(choose_device(&[cpu.clone(), h100(1)], None).unwrap(), 1);
+    cpu.index = 1;
+    assert_eq!(choose_device(&[h100(0), cpu.clone()], None).unwrap(), 0);
+    // An unusable GPU is passed over, not chosen and then refused.
+    let mut broken = h100(0);
+    broken.usable = false;
+    broken.unusable_reason = Some("no compute queue".into());
+    assert_eq!(choose_device(&[broken, cpu.clone()], None).unwrap(), 1);
+    // --device still picks the CPU device by name or index.
+    assert_eq!(choose_device(&[h100(0), cpu.clone()], Some("llvmpipe")).unwrap(), 1);
+    assert_eq!(choose_device(&[h100(0), cpu], Some("1")).unwrap(), 1);
+}
+
+#[test]
+fn a_driver_that_is_not_mesa_is_named_by_its_own_name_and_version() {
+    let gpu = h100(0);
+    assert_eq!(gpu.driver_label(), "NVIDIA 550.54.15");
+    assert_eq!(gpu.results_dir(), "nvidia-h100-80gb-hbm3");
+    let p = Provenance::of_device(&gpu);
+    assert_eq!(p.device, "NVIDIA H100 80GB HBM3");
+    assert_eq!(p.driver, "NVIDIA 550.54.15");
+    assert_eq!(p.mesa_version, None, "no Mesa version for a driver that is not Mesa");
+    assert_eq!(p.settings["subgroup_size"], "32");
+    // lavapipe's own, for contrast: the Mesa version is read from its driverInfo.
+    let lp = Provenance::of_device(&lavapipe());
+    assert!(lp.driver.starts_with("llvmpipe Mesa "), "{}", lp.driver);
+    assert!(lp.mesa_version.as_deref().is_some_and(|v| v.split('.').count() == 3), "{:?}", lp.mesa_version);
+    assert_eq!(lavapipe().results_dir(), "lavapipe");
+}
