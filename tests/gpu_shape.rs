@@ -1,10 +1,12 @@
 //! What a lent GPU changes that lavapipe does not show by itself (issue 23), shown on lavapipe's
 //! own device description with the GPU's values put in: a discrete device is chosen over a CPU
 //! device, an unusable one is passed over, and a driver that is not Mesa is named by its own name
-//! and version (no Mesa version invented), its results folder by the device's name. (32 lanes:
-//! `tests/subgroup_widths.rs` models the cooperative kernel at 4-64 lanes and
-//! `tests/traversals_gpu.rs` runs it at lavapipe's 4, 8 and 16; executable statistics:
-//! `driver_stats`'s unit test; the driver's ray tracing without ray query: the ray-tracing-pipeline peer's tests.)
+//! and version (no Mesa version invented), its results folder by the device's name.
+//!
+//! Elsewhere: 32 lanes in `tests/subgroup_widths.rs` (a model of the cooperative kernel at 4-64
+//! lanes) and `tests/traversals_gpu.rs` (the kernel at lavapipe's 4 and 8 lanes; 16 is a known
+//! failure there); executable statistics in `driver_stats`'s unit test; the driver's ray tracing
+//! without ray query in the ray-tracing-pipeline peer's tests.
 
 use trilab::gpu::context::choose_device;
 use trilab::gpu::{Context, DeviceInfo};
