@@ -236,41 +236,7 @@ fn stats_and_occlusion_follow_the_algorithm() {
 fn raycast_takes_the_traversal_from_the_command_line() {
     let dir = tempfile::tempdir().unwrap();
     let p = |f: &str| dir.path().join(f).to_string_lossy().into_owned();
-    let made = common::cli::trilab(
-        &["rays", "random", "--scene", "bunny", "--random-rays", "8000", "--out", &p("r.rays")],
-        120,
-    );
-    assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
-    let cast = |layout: &str, traversal: &str, env: &[(&str, &str)], out: &str| {
-        let rays = p("r.rays");
-        let out = p(out);
-        let args = [
-            "raycast",
-            "--scene",
-            "bunny",
-            "--rays",
-            &rays,
-            "--out",
-            &out,
-            "--method",
-            "watertight",
-            "--layout",
-            layout,
-            "--traversal",
-            traversal,
-            "--reference",
-            "--repeat",
-            "1",
-            "--json",
-        ];
-        let (o, _) = common::cli::run(&args, None, env, 300);
-        assert!(o.status.success(), "{layout} {traversal}: {}", String::from_utf8_lossy(&o.stderr));
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        assert_eq!(v["layout"], layout);
-        assert_eq!(v["traversal"], traversal);
-        assert_eq!(v["validation"]["passes"], true, "{v}");
-        v
-    };
+    let cast = random_rays_caster(dir.path());
     cast("bvh2", "while-if", &[], "base.hits");
     let base = std::fs::read(p("base.hits")).unwrap();
     assert_eq!(base.len(), 8000 * 16);
@@ -425,14 +391,31 @@ fn traversal_speed_on_the_bunny() {
 #[ignore = "known failure: coop at 16 lanes: bvh2 wrong hits, bvh8 no result in 2 minutes, bvh4 not byte-identical"]
 fn coop_at_16_lanes() {
     let dir = tempfile::tempdir().unwrap();
-    let p = |f: &str| dir.path().join(f).to_string_lossy().into_owned();
+    let cast = random_rays_caster(dir.path());
+    cast("bvh2", "while-if", &[], "base.hits");
+    let base = std::fs::read(dir.path().join("base.hits")).unwrap();
+    for layout in ["bvh2", "bvh4", "bvh8"] {
+        let out = format!("{layout}.hits");
+        let v = cast(layout, "coop", &[("LP_NATIVE_VECTOR_WIDTH", "512")], &out);
+        assert_eq!(v["subgroup_size"], 16, "{v}");
+        let hits = std::fs::read(dir.path().join(&out)).unwrap();
+        assert!(hits == base, "{layout} coop at 16 lanes: the hit file differs from while-if's");
+    }
+}
+
+/// 8,000 random bunny rays written into `dir`, and a caster of them from the command line:
+/// `cast(layout, traversal, env, out)` runs `raycast` (watertight, `--reference`) into
+/// `dir/out`, asserts it ran and passed the f64 check, and returns its JSON report.
+fn random_rays_caster(dir: &std::path::Path) -> impl Fn(&str, &str, &[(&str, &str)], &str) -> serde_json::Value + '_ {
+    let p = move |f: &str| dir.join(f).to_string_lossy().into_owned();
     let made = common::cli::trilab(
         &["rays", "random", "--scene", "bunny", "--random-rays", "8000", "--out", &p("r.rays")],
         120,
     );
     assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
-    let cast = |layout: &str, traversal: &str, env: &[(&str, &str)]| {
-        let (rays, out) = (p("r.rays"), p(&format!("{layout}-{traversal}.hits")));
+    move |layout: &str, traversal: &str, env: &[(&str, &str)], out: &str| {
+        let rays = p("r.rays");
+        let out = p(out);
         let args = [
             "raycast",
             "--scene",
@@ -452,16 +435,12 @@ fn coop_at_16_lanes() {
             "1",
             "--json",
         ];
-        let (o, _) = common::cli::run(&args, None, env, 150);
+        let (o, _) = common::cli::run(&args, None, env, 300);
         assert!(o.status.success(), "{layout} {traversal} {env:?}: {}", String::from_utf8_lossy(&o.stderr));
         let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(v["layout"], layout);
+        assert_eq!(v["traversal"], traversal);
         assert_eq!(v["validation"]["passes"], true, "{v}");
-        (v, std::fs::read(&out).unwrap())
-    };
-    let (_, base) = cast("bvh2", "while-if", &[]);
-    for layout in ["bvh2", "bvh4", "bvh8"] {
-        let (v, hits) = cast(layout, "coop", &[("LP_NATIVE_VECTOR_WIDTH", "512")]);
-        assert_eq!(v["subgroup_size"], 16, "{v}");
-        assert!(hits == base, "{layout} coop at 16 lanes: the hit file differs from while-if's");
+        v
     }
 }
