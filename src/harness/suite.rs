@@ -91,6 +91,7 @@ pub fn probe_options() -> bench::BenchOptions {
         diffuse_per_hit: 1,
         random_rays: 20_000,
         ray_query: false,
+        ray_tracing_pipeline: false,
         ..Default::default()
     }
 }
@@ -465,7 +466,9 @@ fn run_part(
                 .into_iter()
                 .filter(|m| b.methods.contains(m))
                 .collect();
+            // The driver peers as `trilab bench`'s `auto`: on wherever the device is not a CPU.
             b.ray_query = ctx.info().device_type != "CPU";
+            b.ray_tracing_pipeline = b.ray_query;
             b.embree = o.embree.clone();
             b.tinybvh = o.tinybvh.clone();
             let r = bench::run(ctx, &b, &mut note)?;
