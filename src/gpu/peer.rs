@@ -65,7 +65,7 @@ impl Peer {
 /// A peer ready to trace on one context: its kernel or pipeline, closest or any hit.
 pub enum PeerTracer {
     RayQuery(Kernel),
-    RayTracingPipeline(RtPipeline),
+    RayTracingPipeline(Box<RtPipeline>),
 }
 
 impl PeerTracer {
@@ -74,7 +74,7 @@ impl PeerTracer {
     pub fn new(ctx: &Context, peer: Peer, any_hit: bool) -> Result<PeerTracer> {
         Ok(match peer {
             Peer::RayQuery => PeerTracer::RayQuery(rayquery::kernel(ctx, any_hit)?),
-            Peer::RayTracingPipeline => PeerTracer::RayTracingPipeline(rtpipeline::pipeline(ctx, any_hit)?),
+            Peer::RayTracingPipeline => PeerTracer::RayTracingPipeline(Box::new(rtpipeline::pipeline(ctx, any_hit)?)),
         })
     }
 

@@ -49,7 +49,8 @@ pub type DescriptorSets = BTreeMap<u32, BTreeMap<u32, DescriptorBinding>>;
 
 pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
     let err = |m: String| Error::Spirv { kernel: kernel.into(), message: m };
-    let (r, sets, push_constants) = reflect_resources(kernel, words)?;
+    let r = load(kernel, words)?;
+    let (sets, push_constants) = resources(kernel, &r)?;
     let mut local_size = r.get_compute_group_size().ok_or_else(|| err("no LocalSize execution mode".into()))?;
     let mut local_size_spec_ids = [None; 3];
     // A `WorkgroupSize` built-in overrides `LocalSize` (SPIR-V spec, 3.21 BuiltIn); with
@@ -65,16 +66,17 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
 /// [`reflect`] adds a compute kernel's workgroup size; the ray-tracing stages
 /// (`gpu::rtpipeline`) have none.
 pub fn reflect_stage(stage: &str, words: &[u32]) -> Result<(DescriptorSets, Option<(u32, u32)>)> {
-    reflect_resources(stage, words).map(|(_, sets, push)| (sets, push))
+    resources(stage, &load(stage, words)?)
 }
 
-fn reflect_resources(
-    kernel: &str,
-    words: &[u32],
-) -> Result<(rspirv_reflect::Reflection, DescriptorSets, Option<(u32, u32)>)> {
-    let err = |m: String| Error::Spirv { kernel: kernel.into(), message: m };
+fn load(kernel: &str, words: &[u32]) -> Result<rspirv_reflect::Reflection> {
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    let r = rspirv_reflect::Reflection::new_from_spirv(&bytes).map_err(|e| err(format!("{e:?}")))?;
+    rspirv_reflect::Reflection::new_from_spirv(&bytes)
+        .map_err(|e| Error::Spirv { kernel: kernel.into(), message: format!("{e:?}") })
+}
+
+fn resources(kernel: &str, r: &rspirv_reflect::Reflection) -> Result<(DescriptorSets, Option<(u32, u32)>)> {
+    let err = |m: String| Error::Spirv { kernel: kernel.into(), message: m };
     let sets = r
         .get_descriptor_sets()
         .map_err(|e| err(format!("{e:?}")))?
@@ -90,7 +92,7 @@ fn reflect_resources(
         })
         .collect();
     let push_constants = r.get_push_constant_range().map_err(|e| err(format!("{e:?}")))?.map(|p| (p.offset, p.size));
-    Ok((r, sets, push_constants))
+    Ok((sets, push_constants))
 }
 
 /// Per workgroup dimension: the default value and the `SpecId` when it is a specialisation
