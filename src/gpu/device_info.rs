@@ -356,7 +356,7 @@ impl DeviceInfo {
             self.ray_tracing_pipeline.map_or_else(
                 || "no".into(),
                 |p| format!(
-                    "yes (handle {} B, alignment {}, base alignment {}, recursion <= {}, <= {} rays per launch)",
+                    "yes (handle {} B, alignment {}, base {}, recursion <= {}, <= {} rays per launch)",
                     p.shader_group_handle_size,
                     p.shader_group_handle_alignment,
                     p.shader_group_base_alignment,

@@ -346,3 +346,26 @@ pub fn cast_rays_with(
         .map(|b| b.chunks_exact(std::mem::size_of::<TraversalCounts>()).map(bytemuck::pod_read_unaligned).collect());
     Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches, traversal })
 }
+
+/// Most rays per submit such that one submit takes about `target_ms`: times one untimed run
+/// (`trace`) of up to 4096 rays spread over the set and scales, within [256, `max`]. The driver's
+/// traversal speed is unknown in advance (lavapipe's is some 300x slower than our kernels), and a
+/// submit must stay far from the submit timeout and any watchdog.
+pub fn batch_for_with(
+    rays: &[Ray],
+    target_ms: f64,
+    max: usize,
+    trace: impl FnOnce(&[Ray], &RaycastOptions) -> Result<RaycastResult>,
+) -> Result<usize> {
+    if rays.is_empty() {
+        return Ok(max.max(256));
+    }
+    // Every k-th ray: a ray set's order is not random (primary rays go row by row, and the top
+    // rows of an image may all miss).
+    let stride = rays.len().div_ceil(4096);
+    let probe: Vec<Ray> = rays.iter().step_by(stride).copied().collect();
+    let t = Instant::now();
+    trace(&probe, &RaycastOptions { warmup: 0, repeat: 1, batch_rays: probe.len() })?;
+    let per_ray_ms = t.elapsed().as_secs_f64() * 1e3 / probe.len() as f64;
+    Ok(((target_ms / per_ray_ms) as usize).clamp(256, max.max(256)))
+}

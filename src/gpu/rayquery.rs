@@ -6,16 +6,15 @@
 //! It is not one of our [`Method`](crate::encoding::Method)s: a method is an encoding of *our*
 //! BVH with one of *our* intersectors, and every method-shaped option (leaf size, leaf policy,
 //! SAH grouping, scene bytes) means nothing for the driver's black-box structure. So it is a
-//! [`Peer`] (`gpu::peer`, beside the ray tracing pipeline, [`super::rtpipeline`]), selected with
-//! `trilab raycast --peer ray-query` and reported as its own row by `trilab bench`.
+//! [`Peer`](super::peer::Peer) (`gpu::peer`, beside the ray tracing pipeline,
+//! [`super::rtpipeline`]), selected with `trilab raycast --peer ray-query` and reported as its
+//! own row by `trilab bench`.
 
 use super::accel::{unsupported, AccelStructure};
 use super::context::Context;
 use super::descriptors::Resource;
 use super::kernel::Kernel;
-use super::peer::batch_for_with;
-pub use super::peer::Peer;
-use super::raycast::{cast_rays, RaycastOptions, RaycastResult};
+use super::raycast::{batch_for_with, cast_rays, RaycastOptions, RaycastResult};
 use crate::error::Result;
 use crate::rays::Ray;
 use crate::shared::{BINDING_SLOT_IDS, BINDING_TLAS};
