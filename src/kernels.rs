@@ -42,6 +42,42 @@ pub struct IntersectorFacts {
 
 include!(concat!(env!("OUT_DIR"), "/kernels.rs"));
 
+/// One compiled stage of the ray-tracing-pipeline peer (`glsl/raytrace/<shader>.<stage>`,
+/// `gpu::rtpipeline`). Not a kernel: kept out of [`KERNELS`] (and so out of `spirv/` and the
+/// kernels' reflection tests, which are about compute kernels).
+#[derive(Debug)]
+pub struct RtShaderSource {
+    /// `<shader>.<variant>.<stage>`.
+    pub name: &'static str,
+    /// The file's stem.
+    pub shader: &'static str,
+    /// The file's extension: `rgen`, `rchit` or `rmiss`.
+    pub stage: &'static str,
+    /// The variant from its `// trilab:variants` line (`main` without one).
+    pub variant: &'static str,
+    /// SPIR-V words, little-endian bytes.
+    pub spirv: &'static [u8],
+}
+
+include!(concat!(env!("OUT_DIR"), "/rt_shaders.rs"));
+
+impl RtShaderSource {
+    /// The module as words.
+    pub fn words(&self) -> Vec<u32> {
+        words(self.spirv)
+    }
+}
+
+/// The variant `variant` of the ray-tracing stage `glsl/raytrace/<shader>.<stage>`.
+pub fn find_rt(shader: &str, stage: &str, variant: &str) -> Option<&'static RtShaderSource> {
+    RT_SHADERS.iter().find(|s| s.shader == shader && s.stage == stage && s.variant == variant)
+}
+
+/// Little-endian bytes as words (`include_bytes!` gives no alignment guarantee).
+fn words(spirv: &[u8]) -> Vec<u32> {
+    spirv.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+}
+
 /// The intersector of kernels that trace no rays.
 pub const NO_INTERSECTOR: &str = "none";
 
@@ -58,7 +94,7 @@ impl KernelSource {
 
     /// The module as words.
     pub fn words(&self) -> Vec<u32> {
-        self.spirv().chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+        words(&self.spirv())
     }
 }
 
@@ -96,6 +132,23 @@ mod tests {
         }
         assert!(find("raycast", "mt", "closest").is_some());
         assert!(find("raycast", "mt", "no-such-variant").is_none());
+    }
+
+    #[test]
+    fn the_ray_tracing_stages_are_spirv_and_not_kernels() {
+        for s in RT_SHADERS {
+            assert_eq!(s.words()[0], 0x0723_0203, "{}: SPIR-V magic", s.name);
+            assert_eq!(s.name, format!("{}.{}.{}", s.shader, s.variant, s.stage));
+            assert!(KERNELS.iter().all(|k| k.kernel != s.shader), "{}", s.name);
+        }
+        for (shader, stage, variant) in [
+            ("raygen", "rgen", "closest"),
+            ("raygen", "rgen", "any"),
+            ("closest", "rchit", "main"),
+            ("miss", "rmiss", "main"),
+        ] {
+            assert!(find_rt(shader, stage, variant).is_some(), "{shader}.{variant}.{stage}");
+        }
     }
 
     #[test]

@@ -1,12 +1,13 @@
 //! What a lent GPU changes that lavapipe does not show by itself (issue 23), shown on lavapipe's
 //! own device description with the GPU's values put in: a discrete device is chosen over a CPU
 //! device, an unusable one is passed over, and a driver that is not Mesa is named by its own name
-//! and version (no Mesa version invented), its results folder by the device's name.
+//! and version (no Mesa version invented), its results folder by the device's name; and with ray
+//! query switched off, as on an H100, the bench still completes with the ray-tracing-pipeline peer.
 //!
 //! Elsewhere: 32 lanes in `tests/subgroup_widths.rs` (a model of the cooperative kernel at 4-64
 //! lanes) and `tests/traversals_gpu.rs` (the kernel at lavapipe's 4 and 8 lanes; 16 is a known
-//! failure there); executable statistics in `driver_stats`'s unit test; the driver's ray tracing
-//! without ray query in the ray-tracing-pipeline peer's tests.
+//! failure there); executable statistics in `driver_stats`'s unit test; the ray-tracing-pipeline
+//! peer itself in `tests/rtpipeline.rs`.
 
 use trilab::gpu::context::choose_device;
 use trilab::gpu::{Context, DeviceInfo};
@@ -70,4 +71,50 @@ fn a_driver_that_is_not_mesa_is_named_by_its_own_name_and_version() {
     assert!(lp.driver.starts_with("llvmpipe Mesa "), "{}", lp.driver);
     assert!(lp.mesa_version.as_deref().is_some_and(|v| v.split('.').count() == 3), "{:?}", lp.mesa_version);
     assert_eq!(lavapipe().results_dir(), "lavapipe");
+}
+
+/// An H100 or H200 has `VK_KHR_ray_tracing_pipeline` but no ray query. Shown on lavapipe with
+/// ray query switched off on the context: a bench that asks for both driver peers (as the suite
+/// does on a GPU) still completes, with validated ray-tracing-pipeline rows and a note that ray
+/// query is unsupported, instead of failing the bench part.
+#[test]
+fn without_ray_query_the_bench_runs_the_ray_tracing_pipeline_and_notes_the_rest() {
+    use trilab::gpu::{ContextOptions, Peer, Validation};
+    use trilab::harness::bench::{self, BenchOptions, Tracer};
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let ctx =
+            Context::new(&ContextOptions { validation: Validation::Required, ray_query: false, ..Default::default() })
+                .expect("a Vulkan device and the validation layer");
+        assert!(!ctx.enabled().ray_query && ctx.enabled().ray_tracing_pipeline, "{:?}", ctx.enabled());
+        let o = BenchOptions {
+            scenes: vec!["bunny".into()],
+            methods: vec![trilab::encoding::Method::Mt],
+            width: 24,
+            height: 18,
+            diffuse_per_hit: 1,
+            random_rays: 500,
+            repeat: 1,
+            ray_query: true,
+            ray_tracing_pipeline: true,
+            ..Default::default()
+        };
+        let report = bench::run(&ctx, &o, |_| {});
+        let messages = ctx.validation_log().messages();
+        let _ = tx.send((report.map_err(|e| e.to_string()), messages));
+    });
+    let (report, messages) = rx.recv_timeout(std::time::Duration::from_secs(300)).expect("bench within 300 s");
+    assert!(messages.is_empty(), "validation: {messages:?}");
+    let report = report.expect("the bench completes without ray query");
+    let rtp: Vec<_> = report.rows.iter().filter(|r| r.method == Tracer::Peer(Peer::RayTracingPipeline)).collect();
+    assert_eq!(rtp.len(), 3, "one row per ray set");
+    for r in rtp {
+        assert!(r.agreement >= 0.999 && r.invalid == 0 && r.unexplained_disagreements == 0, "{r:?}");
+    }
+    assert!(report.rows.iter().all(|r| r.method != Tracer::Peer(Peer::RayQuery)));
+    assert!(
+        report.driver_notes.iter().any(|n| n.starts_with("ray query: unsupported on ")),
+        "{:?}",
+        report.driver_notes
+    );
 }

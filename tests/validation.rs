@@ -125,6 +125,14 @@ fn every_kernel_family_runs_clean_under_synchronization_validation() {
                 assert_eq!(r.hits.len(), 64);
             }
         }
+        if ctx.enabled().ray_tracing_pipeline {
+            let accel = trilab::gpu::AccelStructure::build(ctx, &mesh).unwrap();
+            for any in [false, true] {
+                let p = trilab::gpu::rtpipeline::pipeline(ctx, any).unwrap();
+                let r = trilab::gpu::raycast_rtp(ctx, &p, &accel, &rays[..64], &RaycastOptions::default()).unwrap();
+                assert_eq!(r.hits.len(), 64);
+            }
+        }
     });
 }
 
@@ -145,7 +153,12 @@ fn every_gpu_command_runs_clean_under_validation() {
         assert!(o.status.success() && !err.contains("validation:"), "trilab {args:?}: {err}");
     };
     run(&["rays", "random", "--scene", &scene, "--out", &p("r.rays"), "--count", "2000"]);
-    for extra in [&["--method", "quad-unit"][..], &["--any-hit"], &["--peer", "ray-query", "--batch-rays", "256"]] {
+    for extra in [
+        &["--method", "quad-unit"][..],
+        &["--any-hit"],
+        &["--peer", "ray-query", "--batch-rays", "256"],
+        &["--peer", "ray-tracing-pipeline", "--batch-rays", "256"],
+    ] {
         let base = ["raycast", "--scene", &scene, "--rays", &p("r.rays"), "--out", &p("h.hits"), "--repeat", "1"];
         run(&[&base[..], extra].concat());
     }

@@ -59,8 +59,14 @@ pub struct BenchArgs {
     /// The driver's ray-query peer row: `auto` runs it wherever the device has ray query except
     /// on CPU devices (on lavapipe it traces 12-1,266x slower than our kernels, hours at the
     /// default sizes); `on` runs it there too; `off` leaves it out.
-    #[arg(long, value_enum, default_value_t = RayQueryChoice::Auto)]
-    ray_query: RayQueryChoice,
+    #[arg(long, value_enum, default_value_t = PeerChoice::Auto)]
+    ray_query: PeerChoice,
+    /// The driver's ray-tracing-pipeline peer row (ray generation, closest-hit and miss stages
+    /// through the same acceleration structure; NVIDIA's H100 and H200 have it but no ray
+    /// query): `auto` runs it wherever the device has it except on CPU devices; `on` runs it
+    /// there too; `off` leaves it out.
+    #[arg(long, value_enum, default_value_t = PeerChoice::Auto)]
+    ray_tracing_pipeline: PeerChoice,
     /// How the kernels read the scenes: `auto` uses texel buffers when every buffer fits one
     /// binding, else buffer device addresses (`trilab scale` reports which).
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
@@ -89,14 +95,27 @@ pub struct BenchArgs {
     gpu: GpuArgs,
 }
 
+/// Whether a driver peer row runs (`--ray-query`, `--ray-tracing-pipeline`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum RayQueryChoice {
+enum PeerChoice {
     /// The peer except on CPU devices.
     Auto,
-    /// The peer wherever the device has ray query.
+    /// The peer wherever the device has it.
     On,
     /// No peer row.
     Off,
+}
+
+impl PeerChoice {
+    /// Whether the row runs on `ctx`'s device (`auto`: unless it is a CPU device, where the
+    /// driver's ray tracing is far too slow for the default sizes).
+    fn runs(self, ctx: &trilab::gpu::Context) -> bool {
+        match self {
+            PeerChoice::On => true,
+            PeerChoice::Off => false,
+            PeerChoice::Auto => ctx.info().device_type != "CPU",
+        }
+    }
 }
 
 /// `--out DIR` as the two report files (`<stem>.json`, `<stem>.md`), or the old
@@ -154,11 +173,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
         tinybvh_layouts: a.tinybvh_layouts,
         scene_access: a.scene_access,
         layouts: if a.layouts.is_empty() { vec![Layout::Bvh2] } else { a.layouts },
-        ray_query: match a.ray_query {
-            RayQueryChoice::On => true,
-            RayQueryChoice::Off => false,
-            RayQueryChoice::Auto => ctx.info().device_type != "CPU",
-        },
+        ray_query: a.ray_query.runs(&ctx),
+        ray_tracing_pipeline: a.ray_tracing_pipeline.runs(&ctx),
         shard: a.shard,
         ..Default::default()
     };

@@ -31,8 +31,10 @@ pub struct RaycastArgs {
     /// arithmetic; `trilab analyze` says when this helps).
     #[arg(long)]
     recentre: bool,
-    /// Trace with a peer instead of our kernels: `ray-query` is the driver's own ray tracing
-    /// (VK_KHR_ray_query through its acceleration structure, built from the same triangles).
+    /// Trace with a peer instead of our kernels, the driver's own ray tracing through its
+    /// acceleration structure (built from the same triangles): `ray-query` (VK_KHR_ray_query from
+    /// a compute kernel) or `ray-tracing-pipeline` (VK_KHR_ray_tracing_pipeline: ray generation,
+    /// closest-hit and miss stages).
     /// Not a method: it uses none of our BVH, so the BVH options only shape the f64 reference.
     #[arg(long, value_parser = choice::<Peer>(), conflicts_with = "method")]
     peer: Option<Peer>,

@@ -1,6 +1,7 @@
 //! The driver's own ray tracing structures (`VK_KHR_acceleration_structure`), built from the same
-//! triangles as our BVH so that ray query (`glsl/rayquery.comp`, [`super::rayquery`]) can run as a
-//! peer of the hand-written kernels: one bottom-level structure (BLAS) over the mesh's triangles
+//! triangles as our BVH so that the driver's ray tracing can run as a peer of the hand-written
+//! kernels, through ray query (`glsl/rayquery.comp`, [`super::rayquery`]) or the ray tracing
+//! pipeline (`glsl/raytrace/`, [`super::rtpipeline`]): one bottom-level structure (BLAS) over the mesh's triangles
 //! (opaque, `PREFER_FAST_TRACE`, f32 vertices, u32 indices) and a top-level one (TLAS) holding one
 //! identity instance of it.
 //!
@@ -104,11 +105,16 @@ pub struct AccelStructure {
 
 /// The error every ray-query entry point returns where the context has no ray query.
 pub fn unsupported(ctx: &Context) -> Error {
-    let info = ctx.info();
-    Error::Unsupported(format!("ray query: unsupported on {} ({})", info.name, info.driver_label()))
+    unsupported_feature(ctx, "ray query")
 }
 
-fn device_address(ctx: &Context, buffer: &Buffer) -> vk::DeviceAddress {
+/// "`what`: unsupported on <device> (<driver>)", as [`Error::Unsupported`].
+pub(crate) fn unsupported_feature(ctx: &Context, what: &str) -> Error {
+    let info = ctx.info();
+    Error::Unsupported(format!("{what}: unsupported on {} ({})", info.name, info.driver_label()))
+}
+
+pub(crate) fn device_address(ctx: &Context, buffer: &Buffer) -> vk::DeviceAddress {
     // SAFETY: the buffer was created with SHADER_DEVICE_ADDRESS usage and is bound to memory
     // allocated with the device-address flag (gpu-allocator does so when the context enables
     // bufferDeviceAddress, which it does with ray query).
@@ -201,7 +207,8 @@ type LevelRecord<'a> =
     (&'a vk::AccelerationStructureBuildGeometryInfoKHR<'a>, &'a [vk::AccelerationStructureBuildRangeInfoKHR; 1]);
 
 /// Records the builds of `levels` in order (the BLAS, then the TLAS that reads it), each timed
-/// into its own query when `timestamps`, with the barriers before, between and after them.
+/// into its own query when `timestamps`, with the barriers before, between and after them; after
+/// them the structures are visible to the shader stages `readers`.
 ///
 /// # Safety
 /// `cmd` is recording; every buffer and structure the infos name outlives the submit's wait.
@@ -212,6 +219,7 @@ unsafe fn record_builds(
     queries: &Timestamps,
     timestamps: bool,
     levels: [LevelRecord; 2],
+    readers: vk::PipelineStageFlags,
 ) {
     let build = vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR | vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR;
     let build_stage = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR;
@@ -237,21 +245,31 @@ unsafe fn record_builds(
             queries.end(dev, cmd, i as u32);
         }
     }
-    // Ray queries in later compute dispatches read the structures.
+    // Ray queries in later compute dispatches, and traces of the ray tracing pipeline, read the
+    // structures (`readers`: the stages the context can run).
     memory_barrier(
         dev,
         cmd,
         (build_stage, vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR),
-        (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR),
+        (readers, vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR),
     );
 }
 
 impl AccelStructure {
     /// Builds the BLAS and TLAS of `mesh`, or returns [`Error::Unsupported`] where the context
-    /// has no ray query.
+    /// has neither ray query nor the ray tracing pipeline.
     pub fn build(ctx: &Context, mesh: &Mesh) -> Result<AccelStructure> {
-        if !ctx.enabled().ray_query {
-            return Err(unsupported(ctx));
+        let enabled = ctx.enabled();
+        if !enabled.acceleration_structure() {
+            return Err(unsupported_feature(ctx, "ray query and ray tracing pipeline"));
+        }
+        // Only stages of enabled features may appear in a barrier.
+        let mut readers = vk::PipelineStageFlags::empty();
+        if enabled.ray_query {
+            readers |= vk::PipelineStageFlags::COMPUTE_SHADER;
+        }
+        if enabled.ray_tracing_pipeline {
+            readers |= vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR;
         }
         let t0 = Instant::now();
         let d = &ctx.device;
@@ -266,9 +284,9 @@ impl AccelStructure {
         let ids: Vec<u32> = (0..mesh.triangle_count()).filter(|&i| !mesh.is_degenerate(i)).map(|i| i as u32).collect();
         let indices: Vec<[u32; 3]> = ids.iter().map(|&i| mesh.triangles[i as usize]).collect();
         let prim_ids =
-            ctx.upload_texels("ray query: BLAS primitive -> OBJ id", bytemuck::cast_slice(&ids), Texel::R32Uint)?;
-        let vertices = ctx.upload("ray query: BLAS vertices", bytemuck::cast_slice(&mesh.positions), INPUT_USAGE)?;
-        let index_buffer = ctx.upload("ray query: BLAS indices", bytemuck::cast_slice(&indices), INPUT_USAGE)?;
+            ctx.upload_texels("driver AS: BLAS primitive -> OBJ id", bytemuck::cast_slice(&ids), Texel::R32Uint)?;
+        let vertices = ctx.upload("driver AS: BLAS vertices", bytemuck::cast_slice(&mesh.positions), INPUT_USAGE)?;
+        let index_buffer = ctx.upload("driver AS: BLAS indices", bytemuck::cast_slice(&indices), INPUT_USAGE)?;
 
         // Bottom level: the triangles.
         let triangles = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
@@ -288,11 +306,11 @@ impl AccelStructure {
             .flags(vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_TRACE)
             .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
             .geometries(&blas_geometry);
-        let blas = prepare_level(ctx, &loader, "ray query: BLAS", &mut blas_info, blas_count, scratch_align)?;
+        let blas = prepare_level(ctx, &loader, "driver AS: BLAS", &mut blas_info, blas_count, scratch_align)?;
 
         // Top level: one identity instance of the BLAS.
         let instances = ctx.upload(
-            "ray query: TLAS instances",
+            "driver AS: TLAS instances",
             bytemuck::bytes_of(&AsInstance::identity(blas.handle.address)),
             INPUT_USAGE,
         )?;
@@ -307,13 +325,13 @@ impl AccelStructure {
             .flags(vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_TRACE)
             .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
             .geometries(&tlas_geometry);
-        let tlas = prepare_level(ctx, &loader, "ray query: TLAS", &mut tlas_info, 1, scratch_align)?;
+        let tlas = prepare_level(ctx, &loader, "driver AS: TLAS", &mut tlas_info, 1, scratch_align)?;
 
         let timestamps = Timestamps::supported(ctx);
         let queries = Timestamps::new(ctx, 2)?;
         let blas_range = [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(blas_count)];
         let tlas_range = [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)];
-        ctx.one_shot("building the ray-query acceleration structures", |dev, cmd| {
+        ctx.one_shot("building the driver's acceleration structures", |dev, cmd| {
             // SAFETY: every buffer and structure named in the build infos is alive until
             // one_shot has waited for the submit; the scratch ranges do not overlap.
             unsafe {
@@ -324,6 +342,7 @@ impl AccelStructure {
                     &queries,
                     timestamps,
                     [(&blas_info, &blas_range), (&tlas_info, &tlas_range)],
+                    readers,
                 )
             }
         })?;

@@ -39,7 +39,7 @@ impl Buffer {
         self.allocation.as_ref().and_then(|a| a.mapped_slice()).map(|s| &s[..self.size as usize])
     }
 
-    fn mapped_mut(&mut self) -> Option<&mut [u8]> {
+    pub(crate) fn mapped_mut(&mut self) -> Option<&mut [u8]> {
         let size = self.size as usize;
         self.allocation.as_mut().and_then(|a| a.mapped_slice_mut()).map(|s| &mut s[..size])
     }

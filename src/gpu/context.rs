@@ -40,6 +40,9 @@ pub struct ContextOptions {
     /// Enable ray query where the device has it (default); `false` leaves it off, as on a
     /// device without it (tests of the "unsupported" path).
     pub ray_query: bool,
+    /// Enable the ray tracing pipeline where the device has it (default); `false` leaves it
+    /// off, as on a device without it (tests of the "unsupported" path).
+    pub ray_tracing_pipeline: bool,
     /// Enable `shaderFloat64` where the device has it (default); `false` leaves it off, as on a
     /// device without it (tests of the f64 kernel's "unsupported" path).
     pub shader_float64: bool,
@@ -59,6 +62,7 @@ impl Default for ContextOptions {
             validation: if cfg!(debug_assertions) { Validation::IfAvailable } else { Validation::Off },
             submit_timeout: Duration::from_secs(120),
             ray_query: true,
+            ray_tracing_pipeline: true,
             shader_float64: true,
             inject_fault: None,
             test_limits: None,
@@ -119,6 +123,10 @@ pub struct EnabledFeatures {
     /// `VK_KHR_ray_query` + `VK_KHR_acceleration_structure` (+ deferred host operations and
     /// `bufferDeviceAddress`, which acceleration structures need).
     pub ray_query: bool,
+    /// `VK_KHR_ray_tracing_pipeline` with `rayTracingPipeline` + `VK_KHR_acceleration_structure`
+    /// (+ deferred host operations and `bufferDeviceAddress`), independent of ray query: NVIDIA's
+    /// datacenter GPUs (H100, H200) have the pipeline but no ray query.
+    pub ray_tracing_pipeline: bool,
     pub shader_float64: bool,
     pub shader_int64: bool,
     /// Vulkan 1.2 `bufferDeviceAddress`: enabled wherever the device has it (ray query and the
@@ -134,8 +142,15 @@ impl EnabledFeatures {
             Feature::ShaderInt64 => self.shader_int64,
             Feature::ShaderSubgroupClock => self.shader_clock,
             Feature::RayQuery => self.ray_query,
+            Feature::RayTracingPipeline => self.ray_tracing_pipeline,
             Feature::BufferDeviceAddress => self.buffer_device_address,
         }
+    }
+
+    /// Whether `VK_KHR_acceleration_structure` is on: the driver's BLAS/TLAS
+    /// (`gpu::AccelStructure`), which both ray query and the ray tracing pipeline trace.
+    pub fn acceleration_structure(&self) -> bool {
+        self.ray_query || self.ray_tracing_pipeline
     }
 
     pub fn for_device(info: &DeviceInfo) -> EnabledFeatures {
@@ -145,6 +160,7 @@ impl EnabledFeatures {
             subgroup_size_control: info.subgroup_size_control.is_some(),
             pipeline_executable_properties: info.pipeline_executable_properties,
             ray_query: info.ray_query && info.buffer_device_address,
+            ray_tracing_pipeline: info.ray_tracing_pipeline.is_some() && info.buffer_device_address,
             shader_float64: info.shader_float64,
             shader_int64: info.shader_int64,
             buffer_device_address: info.buffer_device_address,
@@ -499,7 +515,7 @@ impl Drop for InstanceGuard {
 }
 
 /// Creates the logical device on `physical` with one queue of its compute family and the
-/// optional features the profiling, ray-query and f64 kernels use, wherever the device has them
+/// optional features the profiling, ray-query, ray-tracing-pipeline and f64 kernels use, wherever the device has them
 /// (`info` says which) and `options` allow; returns the device and what is on.
 fn create_device(
     instance: &ash::Instance,
@@ -513,6 +529,7 @@ fn create_device(
         [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
     let mut enabled = EnabledFeatures::for_device(info);
     enabled.ray_query &= options.ray_query;
+    enabled.ray_tracing_pipeline &= options.ray_tracing_pipeline;
     enabled.shader_float64 &= options.shader_float64;
     let mut ext_names: Vec<*const std::ffi::c_char> = Vec::new();
     let core = vk::PhysicalDeviceFeatures::default()
@@ -527,6 +544,7 @@ fn create_device(
     let mut pep = vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default().pipeline_executable_info(true);
     let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
     let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
+    let mut rtp = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default().ray_tracing_pipeline(true);
     let mut features2 = vk::PhysicalDeviceFeatures2::default().features(core).push_next(&mut f12);
     if enabled.shader_clock {
         ext_names.push(ash::khr::shader_clock::NAME.as_ptr());
@@ -541,11 +559,20 @@ fn create_device(
         ext_names.push(ash::khr::pipeline_executable_properties::NAME.as_ptr());
         features2 = features2.push_next(&mut pep);
     }
-    if enabled.ray_query {
+    // Either way of tracing needs the acceleration structures (and they need deferred host
+    // operations); each adds its own extension and feature.
+    if enabled.acceleration_structure() {
         ext_names.push(ash::khr::acceleration_structure::NAME.as_ptr());
-        ext_names.push(ash::khr::ray_query::NAME.as_ptr());
         ext_names.push(ash::khr::deferred_host_operations::NAME.as_ptr());
-        features2 = features2.push_next(&mut accel).push_next(&mut rq);
+        features2 = features2.push_next(&mut accel);
+    }
+    if enabled.ray_query {
+        ext_names.push(ash::khr::ray_query::NAME.as_ptr());
+        features2 = features2.push_next(&mut rq);
+    }
+    if enabled.ray_tracing_pipeline {
+        ext_names.push(ash::khr::ray_tracing_pipeline::NAME.as_ptr());
+        features2 = features2.push_next(&mut rtp);
     }
     let device_create = vk::DeviceCreateInfo::default()
         .queue_create_infos(&queue_info)

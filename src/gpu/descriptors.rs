@@ -1,5 +1,7 @@
 //! Descriptor sets from a kernel's reflected bindings, and one-off dispatches.
 
+use std::collections::BTreeMap;
+
 use ash::vk;
 
 use super::accel::AccelStructure;
@@ -7,6 +9,31 @@ use super::buffer::{Buffer, TexelBuffer};
 use super::context::Context;
 use super::kernel::Kernel;
 use crate::error::{Error, Result, VkContext};
+
+/// A pipeline's descriptor set 0, as descriptor sets are allocated and written for it: a compute
+/// [`Kernel`], or the ray-tracing pipeline (`gpu::rtpipeline`).
+pub trait DescriptorLayout {
+    /// Names it in errors.
+    fn name(&self) -> &'static str;
+    /// Descriptor types of set 0 by binding.
+    fn bindings(&self) -> BTreeMap<u32, vk::DescriptorType>;
+    /// The layout of set 0.
+    fn set_layout(&self) -> vk::DescriptorSetLayout;
+}
+
+impl DescriptorLayout for Kernel {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+
+    fn bindings(&self) -> BTreeMap<u32, vk::DescriptorType> {
+        Kernel::bindings(self)
+    }
+
+    fn set_layout(&self) -> vk::DescriptorSetLayout {
+        self.set_layout
+    }
+}
 
 /// What is bound at one binding.
 #[derive(Clone, Copy)]
@@ -30,14 +57,14 @@ impl<'a> Resource<'a> {
 /// provides all its buffers; a kernel may read a subset) are skipped.
 pub(crate) fn write_set(
     ctx: &Context,
-    kernel: &Kernel,
+    kernel: &(impl DescriptorLayout + ?Sized),
     set: vk::DescriptorSet,
     resources: &[(u32, Resource)],
 ) -> Result<()> {
     let bindings = kernel.bindings();
     let missing: Vec<u32> = bindings.keys().copied().filter(|b| !resources.iter().any(|(r, _)| r == b)).collect();
     if !missing.is_empty() {
-        return Err(Error::Usage(format!("kernel {}: nothing bound at binding(s) {missing:?}", kernel.name)));
+        return Err(Error::Usage(format!("kernel {}: nothing bound at binding(s) {missing:?}", kernel.name())));
     }
     let mut buffer_infos = Vec::new();
     let mut views = Vec::new();
@@ -61,7 +88,7 @@ pub(crate) fn write_set(
             _ => {
                 return Err(Error::Usage(format!(
                     "kernel {}: binding {binding} is a {ty:?}, given a different kind of resource",
-                    kernel.name
+                    kernel.name()
                 )))
             }
         }
@@ -117,7 +144,7 @@ impl Drop for DescriptorPool<'_> {
 impl<'a> DescriptorPool<'a> {
     pub(crate) fn new(
         ctx: &'a Context,
-        kernel: &Kernel,
+        kernel: &(impl DescriptorLayout + ?Sized),
         sets: u32,
     ) -> Result<(DescriptorPool<'a>, Vec<vk::DescriptorSet>)> {
         let mut counts: std::collections::BTreeMap<i32, u32> = Default::default();
@@ -133,7 +160,7 @@ impl<'a> DescriptorPool<'a> {
         let pool =
             unsafe { ctx.device.raw.create_descriptor_pool(&info, None) }.during("creating a descriptor pool")?;
         let pool = DescriptorPool { ctx, pool };
-        let layouts = vec![kernel.set_layout; sets as usize];
+        let layouts = vec![kernel.set_layout(); sets as usize];
         let alloc = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool.pool).set_layouts(&layouts);
         // SAFETY: the pool was sized for exactly these sets.
         let sets = unsafe { ctx.device.raw.allocate_descriptor_sets(&alloc) }.during("allocating descriptor sets")?;
@@ -180,8 +207,8 @@ impl Context {
             if kernel.layout.push_constants.map(|(_, n)| n as usize).unwrap_or(0) != push.len() {
                 return Err(Error::Usage(format!("kernel {}: wrong push-constant size {}", kernel.name, push.len())));
             }
-            let (pool, s) = DescriptorPool::new(self, kernel, 1)?;
-            write_set(self, kernel, s[0], resources)?;
+            let (pool, s) = DescriptorPool::new(self, *kernel, 1)?;
+            write_set(self, *kernel, s[0], resources)?;
             pools.push(pool);
             sets.push(s[0]);
         }

@@ -18,6 +18,19 @@ pub struct FloatControls {
     pub rounding_mode_rtz_f32: bool,
 }
 
+/// `VkPhysicalDeviceRayTracingPipelinePropertiesKHR`: what the shader binding table and
+/// `vkCmdTraceRaysKHR` of the ray-tracing-pipeline peer (`gpu::rtpipeline`) must respect.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct RayTracingPipelineProperties {
+    pub shader_group_handle_size: u32,
+    pub shader_group_handle_alignment: u32,
+    pub shader_group_base_alignment: u32,
+    pub max_shader_group_stride: u32,
+    pub max_ray_recursion_depth: u32,
+    /// Most invocations (width x height x depth) one `vkCmdTraceRaysKHR` may launch.
+    pub max_ray_dispatch_invocation_count: u32,
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct DeviceInfo {
     /// Index in `vkEnumeratePhysicalDevices` order (what `--device N` selects).
@@ -54,6 +67,9 @@ pub struct DeviceInfo {
     pub pipeline_statistics_query: bool,
     /// `VK_KHR_ray_query` with `rayQuery` (and `VK_KHR_acceleration_structure`).
     pub ray_query: bool,
+    /// `VK_KHR_ray_tracing_pipeline` with `rayTracingPipeline` (and
+    /// `VK_KHR_acceleration_structure`): its properties; `None` without it.
+    pub ray_tracing_pipeline: Option<RayTracingPipelineProperties>,
     /// `VK_KHR_pipeline_executable_properties` with `pipelineExecutableInfo`.
     pub pipeline_executable_properties: bool,
     pub shader_float64: bool,
@@ -119,6 +135,10 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
     let mut ssc = vk::PhysicalDeviceSubgroupSizeControlProperties::default();
     let mut m4 = vk::PhysicalDeviceMaintenance4Properties::default();
     let has_m4 = has(ash::khr::maintenance4::NAME);
+    let mut rtp_props = vk::PhysicalDeviceRayTracingPipelinePropertiesKHR::default();
+    let has_rtp = has(ash::khr::ray_tracing_pipeline::NAME)
+        && has(ash::khr::acceleration_structure::NAME)
+        && api >= vk::API_VERSION_1_2;
     // trilab's instances ask for Vulkan 1.2, so a device's effective version is at most 1.2 and
     // subgroup size control needs the extension even where the device has Vulkan 1.3.
     let has_ssc = has(ash::ext::subgroup_size_control::NAME);
@@ -131,11 +151,15 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         if has_m4 {
             props2 = props2.push_next(&mut m4);
         }
+        if has_rtp {
+            props2 = props2.push_next(&mut rtp_props);
+        }
         instance.get_physical_device_properties2(pd, &mut props2);
     }
 
     let mut clock = vk::PhysicalDeviceShaderClockFeaturesKHR::default();
     let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
+    let mut rtp = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default();
     let mut pep = vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default();
     let mut sscf = vk::PhysicalDeviceSubgroupSizeControlFeatures::default();
     let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
@@ -151,6 +175,9 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
     }
     if has_rq {
         f2 = f2.push_next(&mut rq);
+    }
+    if has_rtp {
+        f2 = f2.push_next(&mut rtp);
     }
     if has_pep {
         f2 = f2.push_next(&mut pep);
@@ -218,6 +245,16 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         timestamp_period_ns: limits.timestamp_period,
         pipeline_statistics_query: features.pipeline_statistics_query == vk::TRUE,
         ray_query: has_rq && rq.ray_query == vk::TRUE,
+        ray_tracing_pipeline: (has_rtp && rtp.ray_tracing_pipeline == vk::TRUE).then_some(
+            RayTracingPipelineProperties {
+                shader_group_handle_size: rtp_props.shader_group_handle_size,
+                shader_group_handle_alignment: rtp_props.shader_group_handle_alignment,
+                shader_group_base_alignment: rtp_props.shader_group_base_alignment,
+                max_shader_group_stride: rtp_props.max_shader_group_stride,
+                max_ray_recursion_depth: rtp_props.max_ray_recursion_depth,
+                max_ray_dispatch_invocation_count: rtp_props.max_ray_dispatch_invocation_count,
+            },
+        ),
         pipeline_executable_properties: has_pep && pep.pipeline_executable_info == vk::TRUE,
         shader_float64: features.shader_float64 == vk::TRUE,
         shader_int64: features.shader_int64 == vk::TRUE,
@@ -313,6 +350,21 @@ impl DeviceInfo {
         );
         let _ = writeln!(s, "    pipeline statistics:      {}", yn(self.pipeline_statistics_query));
         let _ = writeln!(s, "    ray query:                {}", yn(self.ray_query));
+        let _ = writeln!(
+            s,
+            "    ray tracing pipeline:     {}",
+            self.ray_tracing_pipeline.map_or_else(
+                || "no".into(),
+                |p| format!(
+                    "yes (handle {} B, alignment {}, base {}, recursion <= {}, <= {} rays per launch)",
+                    p.shader_group_handle_size,
+                    p.shader_group_handle_alignment,
+                    p.shader_group_base_alignment,
+                    p.max_ray_recursion_depth,
+                    p.max_ray_dispatch_invocation_count
+                )
+            )
+        );
         let _ = writeln!(s, "    pipeline executable info: {}", yn(self.pipeline_executable_properties));
         let _ = writeln!(s, "    shaderFloat64/Int64:      {}/{}", yn(self.shader_float64), yn(self.shader_int64));
         let fc = &self.float_controls;

@@ -228,7 +228,7 @@ impl Context {
     /// Fails with `Error::Unsupported` when the module declares a capability whose device
     /// feature this context did not enable (the device lacks it, or the options left it off):
     /// creating the pipeline anyway would be invalid usage, and may crash a driver.
-    fn check_capabilities(&self, kernel: &str, words: &[u32]) -> Result<()> {
+    pub(crate) fn check_capabilities(&self, kernel: &str, words: &[u32]) -> Result<()> {
         let e = self.enabled();
         for need in required_features(words).map_err(|m| Error::Spirv { kernel: kernel.into(), message: m })? {
             if !e.has(need.feature) {

@@ -1,6 +1,7 @@
 //! Vulkan: device selection, buffers, kernels (pipelines), dispatch and GPU timing.
 //!
-//! - [`accel`]: the driver's acceleration structures (BLAS + TLAS) for ray query.
+//! - [`accel`]: the driver's acceleration structures (BLAS + TLAS) for ray query and the ray
+//!   tracing pipeline.
 //! - [`context`]: instance, device, queue, allocator, validation log, teardown.
 //! - [`device_info`]: what a device and its driver offer (`trilab devices`).
 //! - [`buffer`]: named buffers and texel buffers, uploads, downloads, one-shot submits.
@@ -13,7 +14,10 @@
 //! - [`slowdown`]: a planted slowdown of one kernel (`TRILAB_INJECT_SLOWDOWN`), for tests of the
 //!   regression gate.
 //! - [`traversal_stats`]: per-ray traversal work from the kernels' `stats` variant.
+//! - [`peer`]: the driver's own ray tracing as peers of our kernels ([`Peer`], [`PeerTracer`]).
 //! - [`rayquery`]: the same ray casting through the driver's ray query, a peer of our kernels.
+//! - [`rtpipeline`]: the same through the driver's ray tracing pipeline (ray generation,
+//!   closest-hit and miss stages, shader binding table), the other peer.
 //! - `timestamps`: timestamp query pairs read back as milliseconds.
 
 pub mod accel;
@@ -25,8 +29,10 @@ pub mod device_info;
 pub mod kernel;
 pub mod limits;
 pub mod markers;
+pub mod peer;
 pub mod raycast;
 pub mod rayquery;
+pub mod rtpipeline;
 pub mod slowdown;
 pub(crate) mod timestamps;
 pub mod traversal_stats;
@@ -35,9 +41,11 @@ pub use accel::{AccelStats, AccelStructure};
 pub use buffer::{Buffer, TexelBuffer};
 pub use context::{Context, ContextOptions, EnabledFeatures, Validation, ValidationLog};
 pub use descriptors::Resource;
-pub use device_info::DeviceInfo;
+pub use device_info::{DeviceInfo, RayTracingPipelineProperties};
 pub use kernel::{Kernel, PipelineOptions};
 pub use markers::{Fault, FaultKind};
-pub use raycast::{cast_rays, RaycastOptions, RaycastResult, PERSISTENT_WORKGROUPS};
-pub use rayquery::{raycast_rq, Peer};
+pub use peer::{Peer, PeerTracer};
+pub use raycast::{cast_rays, cast_rays_with, RayDispatch, RaycastOptions, RaycastResult, PERSISTENT_WORKGROUPS};
+pub use rayquery::raycast_rq;
+pub use rtpipeline::{raycast_rtp, RtPipeline};
 pub use traversal_stats::{MeanMax, TraversalCounts, TraversalSummary};

@@ -7,7 +7,8 @@ use ash::vk;
 
 use super::commands::memory_barrier;
 use super::context::Context;
-use super::descriptors::{write_set, DescriptorPool, Resource};
+use super::descriptors::{write_set, DescriptorLayout, DescriptorPool, Resource};
+use super::device_info::DeviceInfo;
 use super::kernel::Kernel;
 use super::slowdown::Slowdown;
 use super::timestamps::Timestamps;
@@ -74,6 +75,49 @@ impl RaycastResult {
     }
 }
 
+/// What [`cast_rays_with`] runs: a pipeline that reads `Ray`s at `BINDING_RAYS` and writes `Hit`s
+/// at `BINDING_HITS` for the batch's sub-ranges, with `Push { uint ray_count; }`. The batching,
+/// descriptor sets, barriers, timestamps, markers, submits and downloads are the caller's; this
+/// is only "bind and dispatch this batch": a compute [`Kernel`] (one invocation per ray, or a
+/// persistent kernel's fixed workgroups), or the ray-tracing pipeline (`gpu::rtpipeline`, one
+/// launch per ray).
+pub trait RayDispatch: DescriptorLayout {
+    /// The pipeline stage its shaders run in (the barriers around each dispatch name it).
+    fn stage(&self) -> vk::PipelineStageFlags;
+
+    /// Most rays one dispatch may hold on `info`'s device (its dispatch limits).
+    fn max_rays(&self, info: &DeviceInfo) -> usize;
+
+    /// Records binding the pipeline with `set` and the push constant `count`, and the dispatch
+    /// of `count` rays.
+    ///
+    /// # Safety
+    /// `cmd` is recording on the pipeline's device; `set` was written for its layout; the
+    /// pipeline, the set and what it binds outlive the command buffer's execution.
+    unsafe fn record_rays(&self, dev: &ash::Device, cmd: vk::CommandBuffer, set: vk::DescriptorSet, count: u32);
+}
+
+impl RayDispatch for Kernel {
+    fn stage(&self) -> vk::PipelineStageFlags {
+        vk::PipelineStageFlags::COMPUTE_SHADER
+    }
+
+    fn max_rays(&self, info: &DeviceInfo) -> usize {
+        info.max_compute_workgroup_count[0] as usize * self.layout.local_size.0 as usize
+    }
+
+    unsafe fn record_rays(&self, dev: &ash::Device, cmd: vk::CommandBuffer, set: vk::DescriptorSet, count: u32) {
+        let local = self.layout.local_size.0;
+        // `Push { uint ray_count; }` in raycast.comp (checked by tests/reflection.rs).
+        // One invocation per ray, or a persistent kernel's fixed workgroups.
+        let groups = match self.bindings().contains_key(&BINDING_RAY_COUNTER) {
+            true => count.div_ceil(local).min(PERSISTENT_WORKGROUPS),
+            false => count.div_ceil(local),
+        };
+        self.record(dev, cmd, set, &count.to_le_bytes(), groups);
+    }
+}
+
 /// Command buffers of one batched run; freed on drop (after all its submits finished).
 struct Dispatch<'a> {
     ctx: &'a Context,
@@ -100,6 +144,18 @@ pub fn cast_rays(
     rays: &[Ray],
     opts: &RaycastOptions,
 ) -> Result<RaycastResult> {
+    cast_rays_with(ctx, kernel, scene, rays, opts)
+}
+
+/// [`cast_rays`] with any [`RayDispatch`]: the same batches, bindings, barriers, timestamps and
+/// results, `kernel` only binding and dispatching each batch (the ray-tracing-pipeline peer).
+pub fn cast_rays_with(
+    ctx: &Context,
+    kernel: &(impl RayDispatch + ?Sized),
+    scene: &[(u32, Resource)],
+    rays: &[Ray],
+    opts: &RaycastOptions,
+) -> Result<RaycastResult> {
     if opts.batch_rays == 0 {
         return Err(Error::Usage("--batch-rays 0: a batch holds at least one ray".into()));
     }
@@ -109,13 +165,13 @@ pub fn cast_rays(
     }
     let info = ctx.info();
     let dev = &ctx.device.raw;
-    let local = kernel.layout.local_size.0 as usize;
+    let stage = kernel.stage();
     // Batch: within the watchdog budget, the storage-buffer range, the dispatch limit, and a
     // multiple of 256 rays so every sub-range offset is aligned (256 * 16 B >= any
     // minStorageBufferOffsetAlignment, which the spec caps at 256).
     let by_range = info.max_storage_buffer_range as usize / std::mem::size_of::<Ray>();
-    let by_groups = info.max_compute_workgroup_count[0] as usize * local;
-    let batch = (opts.batch_rays.min(by_range).min(by_groups) / 256 * 256).max(256);
+    let by_dispatch = kernel.max_rays(info);
+    let batch = (opts.batch_rays.min(by_range).min(by_dispatch) / 256 * 256).max(256);
     let nbatches = rays.len().div_ceil(batch);
 
     let ray_buf = ctx.upload("rays", bytemuck::cast_slice(rays), vk::BufferUsageFlags::STORAGE_BUFFER)?;
@@ -160,7 +216,7 @@ pub fn cast_rays(
         write_set(ctx, kernel, set, &resources)?;
     }
     // A planted slowdown (tests of the regression gate): this kernel's dispatch recorded N times.
-    let repeats = Slowdown::repeats_for(Slowdown::from_env()?.as_ref(), kernel.name);
+    let repeats = Slowdown::repeats_for(Slowdown::from_env()?.as_ref(), kernel.name());
     let timestamps = Timestamps::supported(ctx);
     let queries = Timestamps::new(ctx, nbatches as u32)?;
     let mut dispatch = Dispatch { ctx, cmds: vec![] };
@@ -171,7 +227,7 @@ pub fn cast_rays(
         .map(|bi| {
             let first = bi * batch;
             let end = (first + batch).min(rays.len());
-            format!("{} batch {}/{nbatches} (rays {first}..{end})", kernel.name, bi + 1)
+            format!("{} batch {}/{nbatches} (rays {first}..{end})", kernel.name(), bi + 1)
         })
         .collect();
     for (bi, (&cmd, &set)) in dispatch.cmds.iter().zip(&sets).enumerate() {
@@ -201,27 +257,28 @@ pub fn cast_rays(
                 dev,
                 cmd,
                 (
-                    vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+                    vk::PipelineStageFlags::COMPUTE_SHADER | stage | vk::PipelineStageFlags::TRANSFER,
                     vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE,
                 ),
-                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
+                (stage, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
             );
             let marker = ctx.mark_begin(dev, cmd, what[bi].clone());
+            let compute = stage == vk::PipelineStageFlags::COMPUTE_SHADER;
+            if !compute {
+                // The markers order "begun" before the compute stage: this stage comes after.
+                memory_barrier(
+                    dev,
+                    cmd,
+                    (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::empty()),
+                    (stage, vk::AccessFlags::empty()),
+                );
+            }
             queries.start(dev, cmd, q);
-            // `Push { uint ray_count; }` in raycast.comp (checked by tests/reflection.rs).
-            // One invocation per ray, or a persistent kernel's fixed workgroups.
-            let groups = match counter {
-                Some(_) => count.div_ceil(local as u32).min(PERSISTENT_WORKGROUPS),
-                None => count.div_ceil(local as u32),
-            };
-            kernel.record(dev, cmd, set, &count.to_le_bytes(), groups);
+            kernel.record_rays(dev, cmd, set, count);
             for _ in 1..repeats {
                 // The same dispatch again over the same outputs (and, for a persistent kernel, a
                 // counter zeroed again): the previous one's writes and atomics finish first.
-                let shader = (
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
-                );
+                let shader = (stage, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
                 if let Some(c) = &counter {
                     memory_barrier(
                         dev,
@@ -239,7 +296,20 @@ pub fn cast_rays(
                 } else {
                     memory_barrier(dev, cmd, shader, shader);
                 }
-                kernel.record(dev, cmd, set, &count.to_le_bytes(), groups);
+                kernel.record_rays(dev, cmd, set, count);
+            }
+            if !compute {
+                // Hands the outputs to the compute stage, where the markers and the downloads
+                // (`buffer::read_back`) expect the last shader writes.
+                memory_barrier(
+                    dev,
+                    cmd,
+                    (stage, vk::AccessFlags::SHADER_WRITE),
+                    (
+                        vk::PipelineStageFlags::COMPUTE_SHADER,
+                        vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                    ),
+                );
             }
             queries.end(dev, cmd, q);
             ctx.mark_end(dev, cmd, marker);
@@ -275,4 +345,27 @@ pub fn cast_rays(
         .get(1)
         .map(|b| b.chunks_exact(std::mem::size_of::<TraversalCounts>()).map(bytemuck::pod_read_unaligned).collect());
     Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches, traversal })
+}
+
+/// Most rays per submit such that one submit takes about `target_ms`: times one untimed run
+/// (`trace`) of up to 4096 rays spread over the set and scales, within [256, `max`]. The driver's
+/// traversal speed is unknown in advance (lavapipe's is some 300x slower than our kernels), and a
+/// submit must stay far from the submit timeout and any watchdog.
+pub fn batch_for_with(
+    rays: &[Ray],
+    target_ms: f64,
+    max: usize,
+    trace: impl FnOnce(&[Ray], &RaycastOptions) -> Result<RaycastResult>,
+) -> Result<usize> {
+    if rays.is_empty() {
+        return Ok(max.max(256));
+    }
+    // Every k-th ray: a ray set's order is not random (primary rays go row by row, and the top
+    // rows of an image may all miss).
+    let stride = rays.len().div_ceil(4096);
+    let probe: Vec<Ray> = rays.iter().step_by(stride).copied().collect();
+    let t = Instant::now();
+    trace(&probe, &RaycastOptions { warmup: 0, repeat: 1, batch_rays: probe.len() })?;
+    let per_ray_ms = t.elapsed().as_secs_f64() * 1e3 / probe.len() as f64;
+    Ok(((target_ms / per_ray_ms) as usize).clamp(256, max.max(256)))
 }

@@ -6,31 +6,18 @@
 //! It is not one of our [`Method`](crate::encoding::Method)s: a method is an encoding of *our*
 //! BVH with one of *our* intersectors, and every method-shaped option (leaf size, leaf policy,
 //! SAH grouping, scene bytes) means nothing for the driver's black-box structure. So it is a
-//! [`Peer`], beside Embree, selected with `trilab raycast --peer ray-query` and reported as its own
-//! row by `trilab bench`.
-
-use serde::Serialize;
+//! [`Peer`](super::peer::Peer) (`gpu::peer`, beside the ray tracing pipeline,
+//! [`super::rtpipeline`]), selected with `trilab raycast --peer ray-query` and reported as its
+//! own row by `trilab bench`.
 
 use super::accel::{unsupported, AccelStructure};
 use super::context::Context;
 use super::descriptors::Resource;
 use super::kernel::Kernel;
-use super::raycast::{cast_rays, RaycastOptions, RaycastResult};
+use super::raycast::{batch_for_with, cast_rays, RaycastOptions, RaycastResult};
 use crate::error::Result;
-use crate::named::named_enum;
 use crate::rays::Ray;
 use crate::shared::{BINDING_SLOT_IDS, BINDING_TLAS};
-use std::time::Instant;
-
-named_enum! {
-    /// A tracer that is not an encoding of our BVH: the driver's own ray tracing.
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-    #[serde(rename_all = "kebab-case")]
-    pub enum Peer: "peer" {
-        /// `VK_KHR_ray_query` from a compute kernel through the driver's BLAS/TLAS.
-        RayQuery = "ray-query",
-    }
-}
 
 /// The ray-query kernel (`rayquery.none.closest`, or `.any` for occlusion), or
 /// [`Error::Unsupported`](crate::error::Error::Unsupported) where the context has no ray query.
@@ -60,10 +47,8 @@ pub fn raycast_rq(
     cast_rays(ctx, kernel, &resources, rays, opts)
 }
 
-/// Most rays per submit such that one submit takes about `target_ms`: times one untimed run of
-/// up to 4096 rays spread over the set and scales, within [256, `max`]. The driver's traversal
-/// speed is unknown in advance (lavapipe's is some 300x slower than our kernels), and a submit
-/// must stay far from the submit timeout and any watchdog.
+/// Most rays per submit such that one submit takes about `target_ms`, within [256, `max`]
+/// ([`batch_for_with`]: one untimed run of up to 4096 rays spread over the set, scaled).
 pub fn batch_for(
     ctx: &Context,
     kernel: &Kernel,
@@ -72,16 +57,5 @@ pub fn batch_for(
     target_ms: f64,
     max: usize,
 ) -> Result<usize> {
-    if rays.is_empty() {
-        return Ok(max.max(256));
-    }
-    // Every k-th ray: a ray set's order is not random (primary rays go row by row, and the top
-    // rows of an image may all miss).
-    let stride = rays.len().div_ceil(4096);
-    let probe: Vec<Ray> = rays.iter().step_by(stride).copied().collect();
-    let probe = &probe[..];
-    let t = Instant::now();
-    raycast_rq(ctx, kernel, accel, probe, &RaycastOptions { warmup: 0, repeat: 1, batch_rays: probe.len() })?;
-    let per_ray_ms = t.elapsed().as_secs_f64() * 1e3 / probe.len() as f64;
-    Ok(((target_ms / per_ray_ms) as usize).clamp(256, max.max(256)))
+    batch_for_with(rays, target_ms, max, |probe, opts| raycast_rq(ctx, kernel, accel, probe, opts))
 }

@@ -12,8 +12,7 @@ use crate::bvh::{BuildOptions, LeafPolicy};
 use crate::compare::compare_closest;
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
-use crate::gpu::rayquery::{self, raycast_rq, Peer};
-use crate::gpu::{AccelStats, AccelStructure, Context, RaycastOptions};
+use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions};
 use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
 use crate::harness::peers::{self, PeerKind, PeerOutcome, TinybvhLayout};
 use crate::harness::provenance::Provenance;
@@ -53,6 +52,8 @@ pub struct BenchOptions {
     pub batch_rays: usize,
     /// Add the driver's ray query as a peer row where the device has it.
     pub ray_query: bool,
+    /// Add the driver's ray tracing pipeline as a peer row where the device has it.
+    pub ray_tracing_pipeline: bool,
     /// How the kernels read each scene (`encoding::plan`; `auto`: texel buffers when they fit).
     pub scene_access: SceneAccess,
     /// BVH node layouts, each method timed on each, side by side in one run (default: bvh2).
@@ -62,7 +63,8 @@ pub struct BenchOptions {
     pub shard: Option<Shard>,
 }
 
-/// Wall-clock target of one ray-query submit (its batch is sized to it, [`rayquery::batch_for`]).
+/// Wall-clock target of one submit of a driver peer (its batch is sized to it,
+/// [`PeerTracer::batch_for`]).
 const PEER_SUBMIT_MS: f64 = 500.0;
 
 impl Default for BenchOptions {
@@ -86,6 +88,7 @@ impl Default for BenchOptions {
             tinybvh_layouts: vec![],
             batch_rays: 1 << 20,
             ray_query: true,
+            ray_tracing_pipeline: true,
             scene_access: SceneAccess::Auto,
             layouts: vec![Layout::Bvh2],
             shard: None,
@@ -94,7 +97,7 @@ impl Default for BenchOptions {
 }
 
 /// What traced a row's rays: one of our kernels over our BVH, or a peer (the driver's ray
-/// query) over its own structure. Serialises as the method's or the peer's name.
+/// query or ray tracing pipeline) over its own structure. Serialises as the method's or the peer's name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(untagged)]
 pub enum Tracer {
@@ -122,7 +125,7 @@ pub struct BenchRow {
     pub leaf_size: Option<u32>,
     /// Triangles the BVH's SAH priced as one test (4: quad-aware); `None` for a peer.
     pub sah_group: Option<u32>,
-    /// Our encoded scene, or for the ray-query peer the driver's BLAS + TLAS.
+    /// Our encoded scene, or for a driver peer the driver's BLAS + TLAS.
     pub scene_bytes: usize,
     /// How our kernels read the scene (`None` for a peer).
     pub scene_access: Option<AccessPath>,
@@ -151,10 +154,11 @@ pub struct BenchReport {
     pub rows: Vec<BenchRow>,
     /// Per scene and ray set with peers: trilab's best row beside each peer, and the speed target.
     pub peers: Vec<PeerComparison>,
-    /// The driver's acceleration structure per scene, for the ray-query peer rows.
+    /// The driver's acceleration structure per scene, for the driver peers' rows.
     pub accel: Vec<(String, AccelStats)>,
-    /// "ray query: unsupported on <device>" where the device (or the options) left it out.
-    pub ray_query_note: Option<String>,
+    /// One line per driver peer left out: "ray query: unsupported on <device> (<driver>)" where
+    /// the device lacks it, "ray tracing pipeline: not run (...)" where the options left it out.
+    pub driver_notes: Vec<String>,
     /// Ray sets skipped because they hold no rays (for example `--random-rays 0`).
     pub notes: Vec<String>,
     /// The shard this run took (`--shard I/N`), if any.
@@ -180,11 +184,11 @@ impl Report for BenchReport {
         }
         if !self.accel.is_empty() {
             s += &format!(
-                "\nthe driver's acceleration structures (ray-query rows):\n\n{}",
+                "\nthe driver's acceleration structures (ray-query and ray-tracing-pipeline rows):\n\n{}",
                 self.accel_table().to_text()
             );
         }
-        if let Some(note) = &self.ray_query_note {
+        for note in &self.driver_notes {
             s += &format!("\n{note}\n");
         }
         for note in &self.notes {
@@ -251,7 +255,7 @@ impl BenchReport {
         if !self.accel.is_empty() {
             md += &format!("\n{}", self.accel_table().to_markdown());
         }
-        if let Some(note) = &self.ray_query_note {
+        for note in &self.driver_notes {
             md += &format!("\n{note}\n");
         }
         for note in &self.notes {
@@ -455,9 +459,9 @@ fn row(
 /// except `rays`: a set's ray count is measured, not chosen (the diffuse set's depends on the
 /// primary hits), so a plan names a cell by scene, set and method/layout/leaf or peer, and a row
 /// fills it when it agrees on those ([`plan_matches`]). A set the options leave empty
-/// (`--random-rays 0`) is not planned; `ray_query`: the run has the ray-query peer; `peers`: the
-/// peer programs that passed their probe.
-pub fn plan_cells(o: &BenchOptions, ray_query: bool, peers: &[String]) -> Vec<crate::rows::Cell> {
+/// (`--random-rays 0`) is not planned; `driver`: the driver peers the run has (ray query, the ray
+/// tracing pipeline); `peers`: the peer programs that passed their probe.
+pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<crate::rows::Cell> {
     use crate::rows::cell;
     let sizes = o.sizes();
     let sets: Vec<RaySet> = <RaySet as crate::named::Named>::ALL
@@ -485,7 +489,7 @@ pub fn plan_cells(o: &BenchOptions, ray_query: bool, peers: &[String]) -> Vec<cr
                     cells.push(c);
                 }
             }
-            let peers = ray_query.then(|| Peer::RayQuery.to_string()).into_iter().chain(peers.iter().cloned());
+            let peers = driver.iter().map(Peer::to_string).chain(peers.iter().cloned());
             for peer in peers {
                 cells.push(cell([("scene", name.clone()), ("set", set.to_string()), ("peer", peer)]));
             }
@@ -515,6 +519,15 @@ impl BenchOptions {
         self.shard.is_none_or(|s| s.owns(scene_index))
     }
 
+    /// Whether the options ask for the driver peer `peer` (`--ray-query`,
+    /// `--ray-tracing-pipeline`).
+    pub fn wants(&self, peer: Peer) -> bool {
+        match peer {
+            Peer::RayQuery => self.ray_query,
+            Peer::RayTracingPipeline => self.ray_tracing_pipeline,
+        }
+    }
+
     /// The BVH every method's encoding shares.
     pub fn build_options(&self) -> BuildOptions {
         BuildOptions { leaf_policy: self.leaf_policy, sah_group: self.sah_group, ..BuildOptions::new(self.leaf_size) }
@@ -540,7 +553,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         rows: vec![],
         peers: vec![],
         accel: vec![],
-        ray_query_note: None,
+        driver_notes: vec![],
         notes: vec![],
         shard: o.shard,
         plan: vec![],
@@ -564,19 +577,24 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         progress(&note);
         report.notes.push(note);
     }
-    let rq_kernel = if !o.ray_query {
-        report.ray_query_note = Some("ray query: not run (--ray-query off, or auto on a CPU device)".into());
-        None
-    } else if ctx.enabled().ray_query {
-        Some(rayquery::kernel(ctx, false)?)
-    } else {
-        let note = crate::gpu::accel::unsupported(ctx).to_string();
-        progress(&note);
-        report.ray_query_note = Some(note);
-        None
-    };
+    // The driver's peers: each traced where asked for and the device has it, else a note.
+    let mut driver: Vec<PeerTracer> = vec![];
+    for &peer in <Peer as crate::named::Named>::ALL {
+        let note = if !o.wants(peer) {
+            format!("{}: not run (--{peer} off, or auto on a CPU device)", peer.feature())
+        } else if peer.enabled(ctx) {
+            driver.push(PeerTracer::new(ctx, peer, false)?);
+            continue;
+        } else {
+            let note = peer.unsupported(ctx).to_string();
+            progress(&note);
+            note
+        };
+        report.driver_notes.push(note);
+    }
     let peer_names: Vec<String> = programs.iter().map(|p| p.kind.to_string()).collect();
-    report.plan = plan_cells(o, rq_kernel.is_some(), &peer_names);
+    let driver_peers: Vec<Peer> = driver.iter().map(PeerTracer::peer).collect();
+    report.plan = plan_cells(o, &driver_peers, &peer_names);
     for (scene_index, scene_path) in o.scenes.iter().enumerate() {
         if !o.runs_scene(scene_index) {
             continue;
@@ -612,14 +630,14 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             .flat_map(|&m| layouts.iter().map(move |&l| SceneRequest::new(m).access(o.scene_access).layout(l)))
             .map(|req| host.upload(ctx, &req))
             .collect::<Result<_>>()?;
-        let accel = match &rq_kernel {
-            Some(_) => {
+        let accel = match driver.is_empty() {
+            false => {
                 let a = AccelStructure::build(ctx, &mesh)?;
                 progress(&accel_line(&name, &a.stats));
                 report.accel.push((name.clone(), a.stats));
                 Some(a)
             }
-            None => None,
+            true => None,
         };
         let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
         // Every set's reference before any timing: the f64 traversal fills every core (and
@@ -656,16 +674,18 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 r.layout = Some(scene.layout);
                 report.rows.push(r);
             }
-            if let (Some(kernel), Some(accel)) = (&rq_kernel, &accel) {
+            // Every driver peer over the scene's one structure (built whenever there is a peer).
+            for (tracer, accel) in driver.iter().filter_map(|t| Some((t, accel.as_ref()?))) {
                 // The driver's answer may differ on edge rays: report the agreement, refuse only
                 // impossible values (NaN, ids out of range, t outside the interval).
-                let batch = rayquery::batch_for(ctx, kernel, accel, rays, PEER_SUBMIT_MS, o.batch_rays)?;
+                let peer = tracer.peer();
+                let batch = tracer.batch_for(ctx, accel, rays, PEER_SUBMIT_MS, o.batch_rays)?;
                 let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat, batch_rays: batch };
-                let res = raycast_rq(ctx, kernel, accel, rays, &opts)?;
+                let res = tracer.cast(ctx, accel, rays, &opts)?;
                 let agreement = compare_closest(&mesh, rays, &res.hits, ref_hits);
                 let ms = res.time_ms()?;
                 progress(&format!(
-                    "{name} {set} ray-query: {} Mrays/s ({:.1} ms, {} rays per submit), {}",
+                    "{name} {set} {peer}: {} Mrays/s ({:.1} ms, {} rays per submit), {}",
                     rate(rays.len() as f64 / (ms.median * 1e-3) / 1e6),
                     ms.median,
                     batch,
@@ -673,15 +693,14 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 ));
                 if !agreement.invalid.is_empty() {
                     return Err(Error::Usage(format!(
-                        "{name} {set} ray-query: {} invalid results, e.g. ray {}: {}; not reporting a speed",
+                        "{name} {set} {peer}: {} invalid results, e.g. ray {}: {}; not reporting a speed",
                         agreement.invalid.len(),
                         agreement.invalid[0].0,
                         agreement.invalid[0].1
                     )));
                 }
                 let bytes = (accel.stats.blas_bytes + accel.stats.tlas_bytes) as usize;
-                let tracer = Tracer::Peer(Peer::RayQuery);
-                report.rows.push(row(&name, &mesh, set, rays, tracer, None, (bytes, None), ms, &agreement));
+                report.rows.push(row(&name, &mesh, set, rays, Tracer::Peer(peer), None, (bytes, None), ms, &agreement));
             }
             if !programs.is_empty() {
                 let rays_file = tmp.path().join(format!("scene{scene_index}.{set}.rays"));
@@ -702,7 +721,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 let mine = report.rows.iter().filter(|r| r.scene == name && r.ray_set == set);
                 let best = TrilabBest::fastest(mine.filter_map(|r| match r.method {
                     Tracer::Method(m) => Some((m.to_string(), r.layout, r.mrays_per_s)),
-                    Tracer::Peer(_) => None, // the driver's ray query is not ours
+                    Tracer::Peer(_) => None, // the driver's ray tracing is not ours
                 }));
                 report.peers.push(PeerComparison::new(&name, set, rays.len(), best, results));
             }
@@ -727,7 +746,7 @@ fn accel_line(name: &str, s: &AccelStats) -> String {
 mod tests {
     use super::*;
 
-    /// A report as `run` would make it: two kernel rows, the ray-query peer, an Embree peer.
+    /// A report as `run` would make it: two kernel rows, the two driver peers, an Embree peer.
     fn report() -> BenchReport {
         let provenance = Provenance {
             device: "llvmpipe (LLVM 15.0.7, 256 bits)".into(),
@@ -769,6 +788,7 @@ mod tests {
             row(Tracer::Method(Method::Mt), Some(Layout::Bvh2), s(10.0, 9.0, 12.0), 0.9999),
             row(Tracer::Method(Method::Mt), Some(Layout::Bvh4), s(7.0, 6.5, 7.5), 0.9998),
             row(Tracer::Peer(Peer::RayQuery), None, s(900.0, 880.0, 950.0), 0.9990),
+            row(Tracer::Peer(Peer::RayTracingPipeline), None, s(800.0, 790.0, 850.0), 0.9990),
         ];
         let embree = crate::harness::peers::PeerResult {
             peer: PeerKind::Embree,
@@ -789,7 +809,7 @@ mod tests {
             rows,
             peers,
             accel: vec![],
-            ray_query_note: None,
+            driver_notes: vec![],
             notes: vec![],
             shard: None,
             plan: vec![],
@@ -804,11 +824,11 @@ mod tests {
             layouts: vec![Layout::Bvh2, Layout::Bvh4],
             ..BenchOptions::default()
         };
-        let plan = plan_cells(&o, true, &[PeerKind::Embree.to_string()]);
-        // 3 sets x (2 layouts + the ray-query row + Embree).
-        assert_eq!(plan.len(), 3 * 4);
+        let plan = plan_cells(&o, &[Peer::RayQuery, Peer::RayTracingPipeline], &[PeerKind::Embree.to_string()]);
+        // 3 sets x (2 layouts + the two driver rows + Embree).
+        assert_eq!(plan.len(), 3 * 5);
         let rows = rows(&report());
-        assert_eq!(rows.len(), 4);
+        assert_eq!(rows.len(), 5);
         let mut filled = vec![];
         for r in &rows {
             let fits: Vec<&crate::rows::Cell> = plan.iter().filter(|c| plan_matches(c, &r.cell)).collect();
@@ -816,11 +836,11 @@ mod tests {
             filled.push(fits[0].clone());
         }
         filled.dedup();
-        assert_eq!(filled.len(), 4, "each row its own planned cell");
+        assert_eq!(filled.len(), 5, "each row its own planned cell");
         assert!(filled.iter().all(|c| c["set"] == "diffuse"));
         // Without the ray query and peers, and with an empty random set, they are not planned.
         let o = BenchOptions { random_rays: 0, ..o };
-        let plan = plan_cells(&o, false, &[]);
+        let plan = plan_cells(&o, &[], &[]);
         assert_eq!(plan.len(), 2 * 2);
         assert!(plan.iter().all(|c| c.contains_key("method") && c["set"] != "random"));
     }

@@ -1,5 +1,5 @@
 //! `trilab raycast`: casts a ray file through a scene, with one of our methods (through the
-//! scene pipeline) or a peer (the driver's ray query), writes the hits, times the kernel and,
+//! scene pipeline) or a peer (the driver's ray query or ray tracing pipeline), writes the hits, times the kernel and,
 //! when asked, checks every hit against the f64 reference.
 
 use std::path::PathBuf;
@@ -11,7 +11,7 @@ use crate::bvh::BuildOptions;
 use crate::compare::{compare_any, compare_closest};
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
-use crate::gpu::{rayquery, AccelStats, AccelStructure, Context, Peer, RaycastOptions, RaycastResult};
+use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions, RaycastResult};
 use crate::pipeline::{HostScene, SceneRequest};
 use crate::rays::{self, Ray};
 use crate::report::Report;
@@ -216,7 +216,7 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
     let host = HostScene::build(crate::scene::scene_name(&req.scene), &mesh, &req.build)?;
     let opts = RaycastOptions { warmup: 1, repeat: req.repeat.max(1), batch_rays: req.batch_rays };
     let traced = match req.peer {
-        Some(Peer::RayQuery) => trace_peer(ctx, &host, &rays, req, &opts)?,
+        Some(peer) => trace_peer(ctx, peer, &host, &rays, req, &opts)?,
         None => trace_ours(ctx, &host, &rays, req, &opts, &mut note)?,
     };
     rays::write_hits(&req.out, &traced.result.hits)?;
@@ -312,23 +312,29 @@ fn trace_ours(
     })
 }
 
-/// The driver's own ray tracing through its acceleration structure over the same triangles.
+/// The driver's own ray tracing (`peer`: ray query or the ray tracing pipeline) through its
+/// acceleration structure over the same triangles.
 fn trace_peer(
     ctx: &Context,
+    peer: Peer,
     host: &HostScene,
     rays: &[Ray],
     req: &RaycastRequest,
     opts: &RaycastOptions,
 ) -> Result<Traced> {
+    // The peer's own "unsupported" before building a structure it cannot trace.
+    if !peer.enabled(ctx) {
+        return Err(peer.unsupported(ctx));
+    }
     let accel = AccelStructure::build(ctx, host.mesh)?;
-    let kernel = rayquery::kernel(ctx, req.any_hit)?;
+    let tracer = PeerTracer::new(ctx, peer, req.any_hit)?;
     // Submits of about a second, whatever the driver's speed (--batch-rays caps them).
-    let batch = rayquery::batch_for(ctx, &kernel, &accel, rays, 1000.0, req.batch_rays)?;
-    let result = rayquery::raycast_rq(ctx, &kernel, &accel, rays, &RaycastOptions { batch_rays: batch, ..*opts })?;
+    let batch = tracer.batch_for(ctx, &accel, rays, 1000.0, req.batch_rays)?;
+    let result = tracer.cast(ctx, &accel, rays, &RaycastOptions { batch_rays: batch, ..*opts })?;
     let s = accel.stats;
     Ok(Traced {
         result,
-        tracer: Peer::RayQuery.to_string(),
+        tracer: peer.to_string(),
         bytes: (s.blas_bytes + s.tlas_bytes) as usize,
         method: None,
         accel: Some(s),

@@ -101,6 +101,7 @@ pub fn probe_options() -> bench::BenchOptions {
         diffuse_per_hit: 1,
         random_rays: 20_000,
         ray_query: false,
+        ray_tracing_pipeline: false,
         ..Default::default()
     }
 }
@@ -520,7 +521,9 @@ fn run_part(
                 .into_iter()
                 .filter(|m| b.methods.contains(m))
                 .collect();
+            // The driver peers as `trilab bench`'s `auto`: on wherever the device is not a CPU.
             b.ray_query = ctx.info().device_type != "CPU";
+            b.ray_tracing_pipeline = b.ray_query;
             b.embree = o.embree.clone();
             b.tinybvh = o.tinybvh.clone();
             let r = bench::run(ctx, &b, &mut note)?;

@@ -9,6 +9,7 @@ pub enum Feature {
     ShaderInt64,
     ShaderSubgroupClock,
     RayQuery,
+    RayTracingPipeline,
     BufferDeviceAddress,
 }
 
@@ -20,6 +21,7 @@ impl Feature {
             Feature::ShaderInt64 => "shaderInt64",
             Feature::ShaderSubgroupClock => "shaderSubgroupClock",
             Feature::RayQuery => "rayQuery",
+            Feature::RayTracingPipeline => "rayTracingPipeline",
             Feature::BufferDeviceAddress => "bufferDeviceAddress",
         }
     }
@@ -41,11 +43,12 @@ pub fn required_features(words: &[u32]) -> std::result::Result<Vec<Requirement>,
     const MAGIC: u32 = 0x0723_0203;
     const OP_CAPABILITY: u32 = 17;
     // SPIR-V 1.5 spec, "Capability": Float64 = 10, Int64 = 11, RayQueryKHR = 4472,
-    // ShaderClockKHR = 5055, PhysicalStorageBufferAddresses = 5347.
-    const TABLE: [(u32, &str, Feature); 5] = [
+    // RayTracingKHR = 4479, ShaderClockKHR = 5055, PhysicalStorageBufferAddresses = 5347.
+    const TABLE: [(u32, &str, Feature); 6] = [
         (10, "Float64", Feature::ShaderFloat64),
         (11, "Int64", Feature::ShaderInt64),
         (4472, "RayQueryKHR", Feature::RayQuery),
+        (4479, "RayTracingKHR", Feature::RayTracingPipeline),
         (5055, "ShaderClockKHR", Feature::ShaderSubgroupClock),
         (5347, "PhysicalStorageBufferAddresses", Feature::BufferDeviceAddress),
     ];

@@ -44,10 +44,39 @@ impl KernelLayout {
     }
 }
 
+/// Descriptor sets (set -> binding -> descriptor) of a module.
+pub type DescriptorSets = BTreeMap<u32, BTreeMap<u32, DescriptorBinding>>;
+
 pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
     let err = |m: String| Error::Spirv { kernel: kernel.into(), message: m };
+    let r = load(kernel, words)?;
+    let (sets, push_constants) = resources(kernel, &r)?;
+    let mut local_size = r.get_compute_group_size().ok_or_else(|| err("no LocalSize execution mode".into()))?;
+    let mut local_size_spec_ids = [None; 3];
+    // A `WorkgroupSize` built-in overrides `LocalSize` (SPIR-V spec, 3.21 BuiltIn); with
+    // `local_size_x_id` its components are specialisation constants.
+    if let Some(dims) = workgroup_size_builtin(words).map_err(err)? {
+        local_size = (dims[0].0, dims[1].0, dims[2].0);
+        local_size_spec_ids = [dims[0].1, dims[1].1, dims[2].1];
+    }
+    Ok(KernelLayout { sets, push_constants, local_size, local_size_spec_ids })
+}
+
+/// What any shader stage binds: its descriptor sets and push-constant range (offset, size).
+/// [`reflect`] adds a compute kernel's workgroup size; the ray-tracing stages
+/// (`gpu::rtpipeline`) have none.
+pub fn reflect_stage(stage: &str, words: &[u32]) -> Result<(DescriptorSets, Option<(u32, u32)>)> {
+    resources(stage, &load(stage, words)?)
+}
+
+fn load(kernel: &str, words: &[u32]) -> Result<rspirv_reflect::Reflection> {
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    let r = rspirv_reflect::Reflection::new_from_spirv(&bytes).map_err(|e| err(format!("{e:?}")))?;
+    rspirv_reflect::Reflection::new_from_spirv(&bytes)
+        .map_err(|e| Error::Spirv { kernel: kernel.into(), message: format!("{e:?}") })
+}
+
+fn resources(kernel: &str, r: &rspirv_reflect::Reflection) -> Result<(DescriptorSets, Option<(u32, u32)>)> {
+    let err = |m: String| Error::Spirv { kernel: kernel.into(), message: m };
     let sets = r
         .get_descriptor_sets()
         .map_err(|e| err(format!("{e:?}")))?
@@ -63,15 +92,7 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
         })
         .collect();
     let push_constants = r.get_push_constant_range().map_err(|e| err(format!("{e:?}")))?.map(|p| (p.offset, p.size));
-    let mut local_size = r.get_compute_group_size().ok_or_else(|| err("no LocalSize execution mode".into()))?;
-    let mut local_size_spec_ids = [None; 3];
-    // A `WorkgroupSize` built-in overrides `LocalSize` (SPIR-V spec, 3.21 BuiltIn); with
-    // `local_size_x_id` its components are specialisation constants.
-    if let Some(dims) = workgroup_size_builtin(words).map_err(err)? {
-        local_size = (dims[0].0, dims[1].0, dims[2].0);
-        local_size_spec_ids = [dims[0].1, dims[1].1, dims[2].1];
-    }
-    Ok(KernelLayout { sets, push_constants, local_size, local_size_spec_ids })
+    Ok((sets, push_constants))
 }
 
 /// Per workgroup dimension: the default value and the `SpecId` when it is a specialisation
