@@ -105,27 +105,10 @@ fn any_hit_ray_query_agrees_with_the_reference_occlusion() {
     }
 }
 
-/// Four triangles: 0 and 2 zero-area (left out of the BLAS, so primitive index != OBJ id),
-/// 1 at z = 1, 3 at z = 2 behind it, offset so that a ray can reach 3 alone.
-fn tiny_mesh() -> Mesh {
-    Mesh::from_triangles(
-        vec![
-            [0.0, 0.0, 1.0],
-            [1.0, 0.0, 1.0],
-            [0.0, 1.0, 1.0],
-            [2.0, 0.0, 2.0],
-            [3.5, 0.25, 2.0],
-            [2.25, 1.75, 2.0],
-            [5.0, 5.0, 5.0],
-        ],
-        vec![[0, 0, 1], [0, 1, 2], [6, 6, 6], [3, 4, 5]],
-    )
-}
-
 #[test]
 fn a_ray_at_a_known_triangle_returns_its_obj_id_and_barycentrics() {
     let hits = common::with_gpu(120, |ctx| {
-        let mesh = tiny_mesh();
+        let mesh = common::tiny_accel_mesh();
         let accel = AccelStructure::build(ctx, &mesh).unwrap();
         assert_eq!(accel.stats.triangles, 2);
         let kernel = rayquery::kernel(ctx, false).unwrap();

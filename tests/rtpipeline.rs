@@ -118,27 +118,10 @@ fn any_hit_ray_tracing_pipeline_agrees_with_the_reference_occlusion() {
     }
 }
 
-/// Four triangles: 0 and 2 zero-area (left out of the BLAS, so primitive index != OBJ id),
-/// 1 at z = 1, 3 at z = 2 behind it, offset so that a ray can reach 3 alone.
-fn tiny_mesh() -> Mesh {
-    Mesh::from_triangles(
-        vec![
-            [0.0, 0.0, 1.0],
-            [1.0, 0.0, 1.0],
-            [0.0, 1.0, 1.0],
-            [2.0, 0.0, 2.0],
-            [3.5, 0.25, 2.0],
-            [2.25, 1.75, 2.0],
-            [5.0, 5.0, 5.0],
-        ],
-        vec![[0, 0, 1], [0, 1, 2], [6, 6, 6], [3, 4, 5]],
-    )
-}
-
 #[test]
 fn a_ray_at_a_known_triangle_returns_its_obj_id_and_barycentrics() {
     let (mesh, rays, res) = common::with_gpu(120, |ctx| {
-        let mesh = tiny_mesh();
+        let mesh = common::tiny_accel_mesh();
         let accel = AccelStructure::build(ctx, &mesh).unwrap();
         assert_eq!(accel.stats.triangles, 2);
         let pipeline = rtpipeline::pipeline(ctx, false).unwrap();
@@ -238,12 +221,12 @@ fn without_the_ray_tracing_pipeline_every_entry_point_is_an_unsupported_error() 
         let pipeline = rtpipeline::pipeline(&ctx, false).err();
         let tracer = PeerTracer::new(&ctx, Peer::RayTracingPipeline, true).err();
         // Ray query still traces the same structure.
-        let accel = AccelStructure::build(&ctx, &tiny_mesh()).unwrap();
+        let accel = AccelStructure::build(&ctx, &common::tiny_accel_mesh()).unwrap();
         let rq = PeerTracer::new(&ctx, Peer::RayQuery, false).unwrap();
         let hits = rq.cast(&ctx, &accel, &[Ray::new([0.1, 0.1, 0.0], [0.0, 0.0, 1.0])], &OPTS).unwrap().hits;
         drop((rq, accel, ctx));
         let ctx = Context::new(&options(false)).expect("a Vulkan device and the validation layer");
-        let neither = AccelStructure::build(&ctx, &tiny_mesh()).err();
+        let neither = AccelStructure::build(&ctx, &common::tiny_accel_mesh()).err();
         let log2 = ctx.validation_log();
         drop(ctx);
         let messages = [log.messages(), log2.messages()].concat();

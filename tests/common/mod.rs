@@ -179,3 +179,20 @@ pub fn grid_rays() -> Vec<Ray> {
     }
     rays
 }
+
+/// Four triangles: 0 and 2 zero-area (left out of the BLAS, so primitive index != OBJ id),
+/// 1 at z = 1, 3 at z = 2 behind it, offset so that a ray can reach 3 alone.
+pub fn tiny_accel_mesh() -> Mesh {
+    Mesh::from_triangles(
+        vec![
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [2.0, 0.0, 2.0],
+            [3.5, 0.25, 2.0],
+            [2.25, 1.75, 2.0],
+            [5.0, 5.0, 5.0],
+        ],
+        vec![[0, 0, 1], [0, 1, 2], [6, 6, 6], [3, 4, 5]],
+    )
+}
