@@ -10,7 +10,8 @@
 #   scripts/device-run.sh unpack ARCHIVE [ROOT]
 #                                          here: the archive into ROOT/results/<device>/ (ROOT: this
 #                                          checkout), stored as results/ keeps results, then
-#                                          `trilab merge` of lavapipe and that device
+#                                          `trilab merge` of lavapipe and that device, whose
+#                                          verdicts fill ROOT/results/README.md's GPU column
 #
 # What travels (.travel/, one `carry` path; the tracked tree travels by itself):
 #   trilab            the release binary, stripped (symbols and line tables stay in target/)
@@ -204,6 +205,51 @@ run() {
 }
 
 # --- unpack -----------------------------------------------------------------------------------
+# results/README.md's claims table gets the device's verdicts in its last ("real GPU") column:
+# header = the device's label, each claim's cell = "**verdict.** summary" from the merge of
+# lavapipe and that device. Written to a temporary file and renamed (never half a README).
+fill_gpu_column() {
+  local readme=$1 merged=$2 suite=$3
+  if [ ! -f "$readme" ]; then
+    echo "no $readme: the GPU column is $merged's claims (fill it by hand)"
+    return 0
+  fi
+  python3 - "$readme" "$merged" "$suite" <<'PY'
+import json, os, sys
+readme, merged, suite = sys.argv[1:]
+m = json.load(open(merged))
+suite = os.path.realpath(suite)
+ours = {d["label"] for d in m["devices"]
+        if any(os.path.realpath(f).startswith(suite + os.sep) for f in d["files"])}
+found = [c for c in m["claims"] if c["device"] in ours]
+if not found:
+    sys.exit(f"device-run.sh unpack: {merged} has no study claims from {suite} (the study part did not complete?); results/README.md left as it was")
+dev = found[0]
+verdict = {c["id"]: f"**{c['verdict'].replace('-', ' ')}.** {c['summary']}".replace("|", "/") for c in dev["claims"]}
+lines = open(readme).read().split("\n")
+head = next((i for i, l in enumerate(lines) if l.startswith("| claim |") and l.rstrip().endswith("|")), None)
+if head is None:
+    sys.exit(f"device-run.sh unpack: {readme} has no claims table ('| claim | ...')")
+def set_last(line, text):
+    cells = line.rstrip().rstrip("|").split("|")
+    cells[-1] = f" {text} "
+    return "|".join(cells) + "|"
+lines[head] = set_last(lines[head], f"{dev['device']} ({dev['measured']} of {dev['planned']} cells, {dev['repeat']} rounds)")
+filled = 0
+for i in range(head + 2, len(lines)):
+    if not lines[i].startswith("| ("):
+        break
+    cid = lines[i][3]
+    if cid in verdict:
+        lines[i] = set_last(lines[i], verdict[cid])
+        filled += 1
+tmp = readme + ".tmp"
+open(tmp, "w").write("\n".join(lines))
+os.replace(tmp, readme)
+print(f"filled {readme}'s GPU column: {filled} claims from {dev['device']}")
+PY
+}
+
 unpack() {
   local archive=${1:?usage: device-run.sh unpack ARCHIVE [ROOT]} dest=${2:-$root}
   [ -f "$archive" ] || { echo "device-run.sh unpack: $archive: no such file" >&2; exit 2; }
@@ -226,7 +272,8 @@ unpack() {
     [ -x "$exe" ] || exe=${CARGO_TARGET_DIR:-$root/target}/release/trilab
     if [ -d "$dest/results/$name/suite" ]; then
       "$exe" merge "$root/results/lavapipe/merge-widths" "$dest/results/$name/suite" --out "$dest/results/merged-$name"
-      echo "merged lavapipe and $name: $dest/results/merged-$name/merge.md (its claims table is results/README.md's GPU column)"
+      echo "merged lavapipe and $name: $dest/results/merged-$name/merge.md"
+      fill_gpu_column "$dest/results/README.md" "$dest/results/merged-$name/merge.json" "$dest/results/$name/suite"
     fi
   done
   rm -rf "$tmp"

@@ -152,6 +152,9 @@ fn the_rehearsal_runs_end_to_end_and_unpacks() {
     }
 
     let checkout = dir.path().join("checkout");
+    std::fs::create_dir_all(checkout.join("results")).unwrap();
+    let readme = std::fs::read_to_string(root().join("results/README.md")).unwrap();
+    std::fs::write(checkout.join("results/README.md"), &readme).unwrap();
     let o = script(&["unpack", archive.to_str().unwrap(), checkout.to_str().unwrap()], &[], Duration::from_secs(120));
     let said = text(&o);
     assert!(o.status.success(), "unpack failed:\n{said}");
@@ -179,6 +182,27 @@ fn the_rehearsal_runs_end_to_end_and_unpacks() {
     assert!(log.contains("TRILAB_COMMIT=") && !log.contains("TRILAB_COMMIT=unknown"), "{log}");
     let merged = std::fs::read_to_string(checkout.join("results/merged-lavapipe/merge.md")).unwrap();
     assert!(merged.contains("## The paper's claims per device"), "{merged}");
+    // The device's verdicts fill the claims table's last column; the lavapipe column stays.
+    let filled = std::fs::read_to_string(checkout.join("results/README.md")).unwrap();
+    let table = |t: &str| -> Vec<Vec<String>> {
+        t.lines()
+            .skip_while(|l| !l.starts_with("| claim |"))
+            .take_while(|l| l.starts_with('|'))
+            .map(|l| l.split('|').map(|c| c.trim().to_string()).collect())
+            .collect()
+    };
+    let (before, after) = (table(&readme), table(&filled));
+    assert_eq!(after.len(), 5, "header, rule and claims (a)-(c):\n{filled}");
+    assert_eq!(before.len(), after.len());
+    for (b, a) in before.iter().zip(&after) {
+        assert_eq!(b[..b.len() - 2], a[..a.len() - 2], "only the last column changes");
+    }
+    assert!(after[0][3].starts_with("llvmpipe") && after[0][3] != before[0][3], "{:?}", after[0]);
+    for row in &after[2..] {
+        let cell = &row[3];
+        assert!(cell.starts_with("**") && cell != "not measured", "{row:?}");
+    }
+    assert_eq!(filled.len() - filled.trim_end().len(), readme.len() - readme.trim_end().len());
     // Unpacking again never overwrites what is there.
     let o = script(&["unpack", archive.to_str().unwrap(), checkout.to_str().unwrap()], &[], Duration::from_secs(60));
     assert!(!o.status.success() && text(&o).contains("exists"), "{}", text(&o));
