@@ -26,7 +26,11 @@
 
 // |dir| components below this are replaced by it (with the component's sign) before 1/dir,
 // so axis-parallel rays give large finite slopes instead of inf * 0 = NaN in the slab test.
-const float TINY_DIR = 1.0e-30;
+// It is the smallest normal f32 (2^-126), whose reciprocal 2^126 ~ 8.5e37 is still finite: a
+// zero component's slab then ends at |b - o| * 2^126 (inf past |b - o| = 4), not at
+// |b - o| * 1e30, which lost the hits of an axis-parallel ray beyond t ~ 1e30 on a small box
+// (issue 24: a triangle at x = 2^100). Rust's twins: traversal.rs, bvh/wide.rs.
+const float TINY_DIR = 1.17549435e-38;
 // pbrt-v3/v4's conservative slab test: scale the far distance up by 1 + 2*gamma(3) so that
 // rounding never culls a box the ray grazes (Pharr, Jakob & Humphreys, PBR 3rd ed., 3.9.2).
 const float SLAB_FAR_SCALE = 1.0000003576;

@@ -121,8 +121,14 @@ fn line_segment_distance(o: DVec3, d: DVec3, p: DVec3, q: DVec3) -> f64 {
     (w - v * s).length()
 }
 
-/// How close the ray passes to an edge of triangle `id`, in f32 ULPs of the largest
-/// coordinate magnitude among the triangle's vertices and the ray origin.
+/// How close the ray passes to an edge of triangle `id`, in f32 ULPs of the coordinates the
+/// intersector rounds, counted across the ray: on each axis, the ULP of the largest magnitude
+/// among the triangle's vertices and the ray origin on that axis, times how much of that axis
+/// lies across the ray (sqrt(1 - d_k^2) for the unit direction d); the largest of the three.
+/// A rounding error along the ray moves the hit point, not the side of an edge it falls on, so
+/// a triangle far out along the ray's own axis (x = 2^100, hit by a ray along x) does not make
+/// a miss near its centre look like rounding; the old measure, one ULP of the largest
+/// coordinate on any axis, called that miss 0.0 ULPs from an edge (issue 24).
 pub fn edge_ulps(mesh: &Mesh, ray: &Ray, id: u32) -> f64 {
     let r = Ray64::from(ray);
     let [a, b, c] = mesh.vertices_f64(id as usize);
@@ -130,8 +136,14 @@ pub fn edge_ulps(mesh: &Mesh, ray: &Ray, id: u32) -> f64 {
         .iter()
         .map(|&(p, q)| line_segment_distance(r.origin, r.dir, p, q))
         .fold(f64::INFINITY, f64::min);
-    let scale = [r.origin, a, b, c].iter().map(|v| v.abs().max_element()).fold(0.0, f64::max);
-    dist / ulp_f32(scale)
+    dist / across_ulp(&r, &[r.origin, a, b, c])
+}
+
+/// The rounding of `points`' coordinates, across ray `r`: see [`edge_ulps`].
+fn across_ulp(r: &Ray64, points: &[DVec3]) -> f64 {
+    let d = r.dir.normalize();
+    let largest = points.iter().fold(DVec3::ZERO, |m, p| m.max(p.abs()));
+    (0..3).map(|k| ulp_f32(largest[k]) * (1.0 - d[k] * d[k]).max(0.0).sqrt()).fold(0.0, f64::max).max(ulp_f32(0.0))
 }
 
 /// For two different triangles hit: if the GPU's triangle really is hit (f64), the distance

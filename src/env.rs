@@ -19,6 +19,10 @@ pub const ENV_VARS: &[EnvVar] = &[
         help: "folder searched for bundled scene names (bunny, dragon, buddha, cornell, bsdfs)",
     },
     EnvVar { name: "TRILAB_MAX_SCENE_BYTES", help: "most bytes of OBJ text read after decompression (default 2 GiB)" },
+    EnvVar {
+        name: "TRILAB_MAX_MEMORY",
+        help: "bytes a command may plan to allocate (default: MemAvailable); larger sizes are refused",
+    },
     EnvVar { name: "TRILAB_COMMIT", help: "the commit recorded in reports when the source tree has no .git" },
     EnvVar {
         name: "TRILAB_INJECT_FAULT",

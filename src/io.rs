@@ -17,6 +17,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     if path.is_dir() {
         return Err(Error::Usage(format!("output {}: is a directory, not a file", path.display())));
     }
+    if let Some(kind) = special_file(path) {
+        return Err(Error::Usage(format!("output {}: {}", path.display(), refusal(kind))));
+    }
     let mut tmp = tempfile::Builder::new().prefix(".trilab-").suffix(".tmp").tempfile_in(&dir).map_err(err)?;
     tmp.write_all(bytes).map_err(err)?;
     // tempfile creates 0600; an output is an ordinary file (0644, as `File::create` under the
@@ -64,6 +67,39 @@ pub fn read_text(path: &Path) -> Result<String> {
     String::from_utf8(bytes).map_err(|e| Error::bad_input(path, None, format!("not UTF-8 text: {e}")))
 }
 
+/// What `path` is when it exists and is not a regular file or a directory: a symbolic link, a
+/// device, a FIFO or a socket. Outputs are written by renaming a new file over the path, which
+/// would replace such a thing (a device node, `/dev/full`, a link to another file) with a
+/// regular file; they are refused instead ([`write_atomic`], [`check_output`]).
+fn special_file(path: &Path) -> Option<&'static str> {
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    let t = meta.file_type();
+    if t.is_file() || t.is_dir() {
+        return None;
+    }
+    if t.is_symlink() {
+        return Some("a symbolic link");
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_char_device() || t.is_block_device() {
+            return Some("a device");
+        }
+        if t.is_fifo() {
+            return Some("a FIFO");
+        }
+        if t.is_socket() {
+            return Some("a socket");
+        }
+    }
+    Some("not a regular file")
+}
+
+fn refusal(kind: &str) -> String {
+    format!("is {kind}, not a regular file; outputs replace a file by renaming a new one over it, so give a new path or a regular file")
+}
+
 /// The directory a file `path` lands in (`.` for a bare name).
 fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
@@ -105,6 +141,9 @@ fn check_output_file(option: &str, path: &Path, inputs: &[&Path]) -> Result<()> 
     let bad = |why: String| Error::Usage(format!("{option} {}: {why}", path.display()));
     if path.as_os_str().is_empty() {
         return Err(bad("empty path".into()));
+    }
+    if let Some(kind) = special_file(path) {
+        return Err(bad(refusal(kind)));
     }
     if path.is_dir() {
         return Err(bad("is an existing directory; give a file name".into()));
@@ -167,9 +206,16 @@ pub fn ensure_not_input(output: &Path, inputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
-/// [`ensure_not_input`] for each of `files` in the output directory `dir`.
+/// [`ensure_not_input`] for each of `files` in the output directory `dir`, and none of them
+/// a link, device, FIFO or socket.
 pub fn check_outputs(dir: &Path, files: &[&str], inputs: &[&Path]) -> Result<()> {
-    files.iter().try_for_each(|f| ensure_not_input(&dir.join(f), inputs))
+    files.iter().try_for_each(|f| {
+        let path = dir.join(f);
+        if let Some(kind) = special_file(&path) {
+            return Err(Error::Usage(format!("output {}: {}", path.display(), refusal(kind))));
+        }
+        ensure_not_input(&path, inputs)
+    })
 }
 
 /// [`check_output`] for the `--out` file of a command that read `scene`, the MTL files
@@ -259,6 +305,35 @@ mod tests {
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
         // Not an input.
         assert!(check_output_file("--out", &file, &[&file]).is_err());
+    }
+
+    /// A link, a FIFO or a device named as an output is refused before work and at the write,
+    /// and stays what it was (renaming over it replaced `/dev/full` with a regular file).
+    #[cfg(unix)]
+    #[test]
+    fn special_files_are_never_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("target.txt");
+        std::fs::write(&target, "keep").unwrap();
+        let link = dir.path().join("link.exr");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        let fifo = dir.path().join("fifo.hits");
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: `c` is a NUL-terminated path that outlives the call.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+        for (p, kind) in [(&link, "symbolic link"), (&fifo, "FIFO"), (&PathBuf::from("/dev/null"), "device")] {
+            let e = check_output_file("--out", p, &[]).unwrap_err().to_string();
+            assert!(e.contains(&p.display().to_string()) && e.contains(kind), "{e}");
+            let e = write_atomic(p, b"x").unwrap_err().to_string();
+            assert!(e.contains(kind), "{e}");
+        }
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep");
+        use std::os::unix::fs::FileTypeExt;
+        assert!(std::fs::symlink_metadata("/dev/null").unwrap().file_type().is_char_device());
+        // In an output folder too.
+        let e = check_outputs(dir.path(), &["fifo.hits"], &[]).unwrap_err().to_string();
+        assert!(e.contains("FIFO"), "{e}");
     }
 
     #[test]

@@ -22,6 +22,7 @@
 pub mod env;
 pub mod error;
 pub mod io;
+pub mod memory;
 pub mod report;
 pub mod host;
 pub mod rows;

@@ -83,7 +83,8 @@ impl<'a> Walk<'a> {
     fn new(mesh: &'a Mesh, bvh: &'a Bvh, ray: &Ray, conservative: bool) -> Walk<'a> {
         // Same guard against zero direction components as make_trace_ray().
         let d = Vec3::from_array(ray.dir);
-        let safe = Vec3::select(d.cmplt(Vec3::ZERO), -Vec3::ONE, Vec3::ONE) * d.abs().max(Vec3::splat(1e-30));
+        let safe =
+            Vec3::select(d.cmplt(Vec3::ZERO), -Vec3::ONE, Vec3::ONE) * d.abs().max(Vec3::splat(f32::MIN_POSITIVE));
         let mut w = Walk {
             mesh,
             bvh,

@@ -319,7 +319,10 @@ fn cli_raycast_with_the_ray_tracing_pipeline_peer_agrees_with_the_reference() {
         common::cli::ok(&o);
         let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         assert_eq!(report["peer"], "ray-tracing-pipeline", "{report}");
-        assert_eq!(report["batches"], 3, "3000 rays in batches of 1024: {report}");
+        // At most 1024 rays a batch; fewer where one probe run says a batch of 1024 would take
+        // too long (`gpu::raycast::batch_for_with`: at least 256; a loaded host gets more).
+        let batches = report["batches"].as_u64().unwrap();
+        assert!((3..=12).contains(&batches), "3000 rays in batches of 256..=1024: {report}");
         let hits = trilab::rays::read_hits(std::path::Path::new(&hits_file)).unwrap();
         assert_eq!(hits.len(), rays.len());
         if any {

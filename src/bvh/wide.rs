@@ -256,7 +256,7 @@ pub fn slab_f64(origin: [f64; 3], dir: [f64; 3], b: &Aabb, tmin: f64, tmax: f64)
 }
 
 /// The f32 slab test a wide kernel should use, mirrored: `inv_dir` as `make_trace_ray()`
-/// computes it (zero components replaced by ±1e-30 before the division), near and far planes
+/// computes it (zero components replaced by ±2^-126, f32::MIN_POSITIVE, before the division), near and far planes
 /// chosen by the sign of `inv_dir`. With it an empty slot's [`EMPTY_BOX`] is never hit, so the
 /// kernel needs no per-slot flag test (tested).
 pub fn slab_ordered(origin: Vec3, inv_dir: Vec3, b: &Aabb, tmin: f32, tmax: f32) -> Option<f32> {
@@ -873,8 +873,8 @@ mod tests {
                         continue;
                     }
                     // make_trace_ray()'s guard against zero components.
-                    let safe =
-                        Vec3::select(dir.cmplt(Vec3::ZERO), -Vec3::ONE, Vec3::ONE) * dir.abs().max(Vec3::splat(1e-30));
+                    let safe = Vec3::select(dir.cmplt(Vec3::ZERO), -Vec3::ONE, Vec3::ONE)
+                        * dir.abs().max(Vec3::splat(f32::MIN_POSITIVE));
                     for origin in [Vec3::ZERO, Vec3::splat(1e30), Vec3::new(-3.0, 5.0, 1e-20)] {
                         let inv = Vec3::ONE / safe;
                         assert_eq!(slab_ordered(origin, inv, &EMPTY_BOX, 0.0, f32::INFINITY), None, "{dir} {origin}");

@@ -67,6 +67,9 @@ pub fn run(a: AccuracyArgs) -> Result<()> {
             return Err(trilab::error::Error::Usage("--leak-rays 0: the leak probes need at least one ray".into()));
         }
         o.leak_rays = n;
+        // Each probe ray and its hit record, held for a mesh and kind at a time.
+        let each = trilab::memory::RAY_BYTES + trilab::memory::HIT_BYTES;
+        trilab::memory::check(&[trilab::memory::Need::new(format!("--leak-rays {n}"), "rays", Some(n as u64), each)])?;
     }
     // `accuracy::run` loads and proves them closed before any ray is cast (once, not here too).
     o.scenes = a.scene.clone();

@@ -546,6 +546,7 @@ impl BenchOptions {
 }
 
 pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
+    o.sizes().check_memory()?;
     let mut report = BenchReport {
         provenance: Provenance::of(ctx),
         leaf_size: o.leaf_size,

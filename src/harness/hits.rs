@@ -131,6 +131,7 @@ pub fn check(scene: &Path, rays_file: &Path, file: &Path, any_hit: bool, build: 
         ));
     }
     let mesh = load_obj(scene)?;
+    rays::check_reach(rays_file, &rays, &mesh.bounds())?;
     let host = HostScene::build(crate::scene::scene_name(scene), &mesh, build)?;
     let reference = host.reference().trace_all(&rays, false);
     const EXAMPLES: usize = 10;

@@ -10,6 +10,7 @@ use serde_json::json;
 use crate::bvh::BuildOptions;
 use crate::error::{Error, Result};
 use crate::harness::rayset::RaySet;
+use crate::memory::{Need, HIT_BYTES, RAY_BYTES};
 use crate::pipeline::HostScene;
 use crate::rays::{self, CameraSpec, RaySidecar};
 use crate::report::Report;
@@ -24,6 +25,42 @@ pub enum RaysKind {
     Diffuse { camera: CameraSpec, width: u32, height: u32, per_hit: u32, seed: u64 },
     /// `count` rays from a sphere around the scene towards random points in its box.
     Random { count: usize, seed: u64 },
+}
+
+impl RaysKind {
+    /// What making the rays takes at least: each ray; a diffuse set also each primary ray and
+    /// its hit, and its own rays twice (gathered per hit, then into one list) with every primary
+    /// ray hitting.
+    fn needs(&self) -> Vec<Need> {
+        let pixels = |w: u32, h: u32| u64::from(w) * u64::from(h);
+        match *self {
+            RaysKind::Primary { width, height, .. } => {
+                vec![Need::new(
+                    format!("--width {width} --height {height}"),
+                    "rays",
+                    Some(pixels(width, height)),
+                    RAY_BYTES,
+                )]
+            }
+            RaysKind::Diffuse { width, height, per_hit, .. } => vec![
+                Need::new(
+                    format!("--width {width} --height {height}"),
+                    "primary rays",
+                    Some(pixels(width, height)),
+                    RAY_BYTES + HIT_BYTES,
+                ),
+                Need::new(
+                    format!("--width {width} --height {height} --diffuse-per-hit {per_hit}"),
+                    "diffuse rays at most",
+                    pixels(width, height).checked_mul(u64::from(per_hit)),
+                    2 * RAY_BYTES,
+                ),
+            ],
+            RaysKind::Random { count, .. } => {
+                vec![Need::new(format!("--random-rays {count}"), "rays", Some(count as u64), RAY_BYTES)]
+            }
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -70,6 +107,7 @@ impl RaysKind {
 /// Makes the rays for the scene at `scene` and writes them to `out` (never over the scene or
 /// an MTL it reads).
 pub fn run(scene: &Path, out: &Path, kind: RaysKind) -> Result<RaysReport> {
+    crate::memory::check(&kind.needs())?;
     let mesh = load_obj(scene)?;
     let sidecar_path = rays::sidecar::sidecar_path(out);
     for o in [out, sidecar_path.as_path()] {

@@ -204,6 +204,7 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
     let mut mesh = load_obj(&req.scene)?;
     crate::io::ensure_not_inputs(&req.out, &req.scene, &mesh.mtl_files, &[&req.rays])?;
     let mut rays = rays::read_rays(&req.rays)?;
+    rays::check_reach(&req.rays, &rays, &mesh.bounds())?;
     if let Some(w) = rays::check_sidecar(&req.rays, rays.len(), &crate::scene::scene_name(&req.scene), &mesh) {
         note(&w);
     }

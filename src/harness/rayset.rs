@@ -8,6 +8,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::memory::{self, Need};
 use crate::named::{named_enum, Named};
 use crate::rays::{self, Camera, Hit, Ray};
 use crate::reference::Reference;
@@ -63,6 +64,34 @@ impl RaySetSizes {
         } else {
             why.join(", ")
         }
+    }
+
+    /// What the three sets take at least: each ray and its hit record, with the diffuse set at
+    /// its largest (every primary ray hits, `--diffuse-per-hit` bounces each).
+    pub fn needs(&self) -> Vec<Need> {
+        let pixels = u64::from(self.width) * u64::from(self.height);
+        let each = memory::RAY_BYTES + memory::HIT_BYTES;
+        vec![
+            Need::new(format!("--width {} --height {}", self.width, self.height), "primary rays", Some(pixels), each),
+            Need::new(
+                format!("--width {} --height {} --diffuse-per-hit {}", self.width, self.height, self.diffuse_per_hit),
+                "diffuse rays at most",
+                pixels.checked_mul(u64::from(self.diffuse_per_hit)),
+                each,
+            ),
+            Need::new(
+                format!("--random-rays {}", self.random_rays),
+                "random rays",
+                Some(self.random_rays as u64),
+                each,
+            ),
+        ]
+    }
+
+    /// Refuses sizes whose rays cannot fit in the memory available ([`memory::check`]), before
+    /// the scene is read.
+    pub fn check_memory(&self) -> Result<()> {
+        memory::check(&self.needs())
     }
 
     /// Refuses sizes that leave any set empty, naming the option (for harnesses that need all

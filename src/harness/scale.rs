@@ -155,6 +155,12 @@ fn make_rays(host: &HostScene, o: &ScaleOptions) -> Vec<Ray> {
 
 /// Runs the sweep; `progress` gets one line per step.
 pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<ScaleReport> {
+    // The ray set and its hits, on the host before they go to the device (a plan casts none).
+    let each = crate::memory::RAY_BYTES + crate::memory::HIT_BYTES;
+    let rays = crate::memory::Need::new(format!("--ray-count {}", o.rays), "rays", Some(o.rays as u64), each);
+    if !o.plan_only {
+        crate::memory::check(&[rays])?;
+    }
     let limits = ctx.limits()?;
     let info = ctx.info();
     let mut rows = vec![];

@@ -86,6 +86,7 @@ pub fn run(ctx: Option<&Context>, req: &StepsRequest) -> Result<StepsReport> {
     }
     let mesh = load_obj(&req.scene)?;
     let rays = rays::read_rays(&req.rays)?;
+    rays::check_reach(&req.rays, &rays, &mesh.bounds())?;
     let warnings =
         rays::check_sidecar(&req.rays, rays.len(), &crate::scene::scene_name(&req.scene), &mesh).into_iter().collect();
     let host = HostScene::build(crate::scene::scene_name(&req.scene), &mesh, &req.build)?;

@@ -59,7 +59,11 @@ impl Ray {
     }
 
     /// Why this ray cannot be traced, if it cannot: NaN anywhere, an infinite origin or
-    /// direction component, an infinite tmin, tmax = -inf, or a zero direction.
+    /// direction component, an infinite tmin, tmax = -inf, a negative tmin (the kernels' box
+    /// test is conservative for t >= 0 only: a hit behind the origin would be missed silently),
+    /// or a direction that is zero or whose components are all subnormal (below 2^-126: a GPU
+    /// may flush them to zero, and crossing a distance of 1 would take t > 2^126, beyond what
+    /// the kernels' f32 distances hold).
     pub fn problem(&self) -> Option<String> {
         let names = ["origin.x", "origin.y", "origin.z", "tmin", "direction.x", "direction.y", "direction.z", "tmax"];
         let vals: &[f32; 8] = bytemuck::cast_ref(self);
@@ -73,6 +77,19 @@ impl Ray {
         }
         if self.dir == [0.0; 3] {
             return Some("direction is zero".into());
+        }
+        if self.tmin < 0.0 {
+            return Some(format!(
+                "tmin is {} < 0; the kernels trace t >= 0 only (move the origin back instead)",
+                self.tmin
+            ));
+        }
+        if self.dir.iter().all(|c| c.abs() < f32::MIN_POSITIVE) {
+            return Some(format!(
+                "direction {:?} is subnormal (every component below 2^-126): a GPU may flush it to zero, and \
+                 t would exceed f32 before the ray moved 1 unit; scale the direction up (normalise it)",
+                self.dir
+            ));
         }
         None
     }
@@ -111,6 +128,32 @@ pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
         return Err(Error::bad_input(path, None, format!("ray {i} (byte offset {}): {why}", i * 32)));
     }
     Ok(bytes.chunks_exact(32).map(bytemuck::pod_read_unaligned).collect())
+}
+
+/// Refuses the first ray of `path` whose direction is too short for the scene: reaching the
+/// far corner of `bounds` (the scene's box) would take a distance t beyond f32's largest
+/// value, which the kernels' hit distances cannot hold (a direction of 1e-40 asks for t = 1e40).
+/// Names the ray and its byte offset, as [`read_rays`] does.
+pub fn check_reach(path: &Path, rays: &[Ray], bounds: &crate::scene::Aabb) -> Result<()> {
+    let (lo, hi) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+    let far = |r: &Ray| {
+        let o = glam::DVec3::from_array(r.origin.map(f64::from));
+        let d = glam::DVec3::from_array(r.dir.map(f64::from));
+        ((o - lo).abs().max((o - hi).abs()).length() / d.length(), d.length())
+    };
+    match rays.iter().map(far).enumerate().find(|(_, (t, _))| t.is_nan() || *t > f64::from(f32::MAX)) {
+        None => Ok(()),
+        Some((i, (t, len))) => Err(Error::bad_input(
+            path,
+            None,
+            format!(
+                "ray {i} (byte offset {}): direction length {len:e} is too short for this scene: crossing its box \
+                 takes t up to {t:e}, beyond f32 ({:e}); scale the direction up (normalise it)",
+                i * 32,
+                f32::MAX
+            ),
+        )),
+    }
 }
 
 pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
@@ -156,6 +199,20 @@ mod tests {
         assert_eq!(&b[4..8], &[0xff; 4]);
     }
 
+    /// A direction of normal but tiny length asks for distances f32 cannot hold in a scene far
+    /// enough away; the same ray is fine in a small scene near its origin.
+    #[test]
+    fn a_direction_too_short_for_the_scene_is_refused() {
+        use crate::scene::Aabb;
+        let b = |lo: f32, hi: f32| Aabb { min: glam::Vec3::splat(lo), max: glam::Vec3::splat(hi) };
+        let p = Path::new("r.rays");
+        let short = Ray::new([0.0; 3], [1e-35, 0.0, 0.0]);
+        let ok = Ray::new([0.0; 3], [1.0, 0.0, 0.0]);
+        check_reach(p, &[ok, short], &b(-1.0, 1.0)).unwrap();
+        let e = check_reach(p, &[ok, short], &b(-1e4, 1e4)).unwrap_err().to_string();
+        assert!(e.contains("r.rays") && e.contains("ray 1 (byte offset 32)") && e.contains("too short"), "{e}");
+    }
+
     #[test]
     fn bad_ray_files_are_rejected_with_the_reason() {
         let dir = tempfile::tempdir().unwrap();
@@ -180,6 +237,15 @@ mod tests {
         }
         write_rays(&p, &[Ray::new([0.0; 3], [0.0; 3])]).unwrap();
         assert!(read_rays(&p).unwrap_err().to_string().contains("direction is zero"));
+        // A negative tmin (the box test covers t >= 0 only) and a subnormal direction; -0 is 0.
+        let behind = Ray { tmin: -0.5, ..Ray::new([0.0; 3], [0.0, 0.0, 1.0]) };
+        write_rays(&p, &[Ray::new([0.0; 3], [1.0, 0.0, 0.0]), behind]).unwrap();
+        let e = read_rays(&p).unwrap_err().to_string();
+        assert!(e.contains("ray 1 (byte offset 32)") && e.contains("tmin is -0.5"), "{e}");
+        write_rays(&p, &[Ray::new([0.0; 3], [1e-40, 0.0, -1e-39])]).unwrap();
+        assert!(read_rays(&p).unwrap_err().to_string().contains("subnormal"));
+        write_rays(&p, &[Ray { tmin: -0.0, ..Ray::new([0.0; 3], [1e-40, 1.0, 0.0]) }]).unwrap();
+        assert_eq!(read_rays(&p).unwrap().len(), 1);
         // tmax = +inf is the normal case.
         write_rays(&p, &[Ray::new([0.0; 3], [0.0, 1.0, 0.0])]).unwrap();
         assert_eq!(read_rays(&p).unwrap().len(), 1);

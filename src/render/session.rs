@@ -248,6 +248,10 @@ pub fn run(
     if !(req.checkpoint_secs >= 0.0 && req.checkpoint_secs.is_finite()) {
         return Err(Error::Usage(format!("--checkpoint-secs {}: must be a finite number >= 0", req.checkpoint_secs)));
     }
+    // The image read back (RGBA f32) and written (RGB f32): 28 bytes a pixel at least.
+    let pixels = u64::from(req.width) * u64::from(req.height);
+    let option = format!("--width {} --height {}", req.width, req.height);
+    crate::memory::check(&[crate::memory::Need::new(option, "pixels", Some(pixels), 28)])?;
     let (png, json) = output::sidecar_paths(&req.out);
     let mesh = load_obj(&req.scene)?;
     for out in [&req.out, &png, &json] {

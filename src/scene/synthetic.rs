@@ -91,6 +91,14 @@ fn parse_count(s: &str) -> Option<u64> {
 /// Generates the scene a `synth:` spec names.
 pub fn load(path: &Path) -> Result<Mesh> {
     let spec = Spec::parse(path)?;
+    // Each triangle's indices and material id (16 bytes), and its share of the vertices: three
+    // of its own in a soup, about half of one in a grid or a sphere.
+    let each = match spec.kind {
+        Kind::Soup => 16 + 3 * 12,
+        Kind::Terrain | Kind::Spheres => 16 + 6,
+    };
+    let need = crate::memory::Need::new(path.display().to_string(), "triangles", Some(spec.triangles), each);
+    crate::memory::check(&[need])?;
     let n = spec.triangles as usize;
     let (positions, mut triangles) = match spec.kind {
         Kind::Terrain => terrain(n, spec.seed),

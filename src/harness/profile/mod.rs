@@ -502,6 +502,7 @@ pub fn run(
     mut progress: impl FnMut(&str),
 ) -> Result<ProfileReport> {
     o.sizes().require_all()?;
+    o.sizes().check_memory()?;
     let info = ctx.info();
     let host_load_before = load_average();
     let name = crate::scene::scene_name(&o.scene);
