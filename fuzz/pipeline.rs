@@ -44,6 +44,11 @@ pub fn obj_pipeline(data: &[u8]) {
     assert_eq!(mesh.material_ids.len(), mesh.triangles.len());
     assert!(mesh.material_ids.iter().all(|&m| (m as usize) < mesh.materials.len()), "material id out of range");
     assert!(mesh.positions.iter().flatten().all(|c| c.is_finite()), "non-finite vertex accepted");
+    for m in &mesh.materials {
+        let g = m.gpu;
+        let numbers = [&g.diffuse[..], &g.specular, &g.emission, &[g.exponent, g.exponent_v, g.ior, g.sigma]].concat();
+        assert!(numbers.iter().all(|x| x.is_finite() && *x >= 0.0), "material value the kernels cannot honour: {g:?}");
+    }
     for leaf_policy in [LeafPolicy::Fill, LeafPolicy::Sah] {
         let options = BuildOptions { leaf_policy, builder, ..BuildOptions::new(leaf) };
         let bvh = Bvh::build(&mesh, &options);

@@ -58,8 +58,8 @@ pub struct RenderArgs {
     /// the left of the default front view).
     #[arg(long, allow_hyphen_values = true)]
     sun_dir: Option<String>,
-    /// PNG exposure in stops (the EXR is not scaled).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    /// PNG exposure in stops, -100 to 100 (the EXR is not scaled).
+    #[arg(long, value_name = "EV", default_value_t = 0.0, allow_hyphen_values = true, value_parser = exposure)]
     exposure: f32,
     /// `specialised`: only the BSDFs the scene uses; `general`: the all-BSDF kernel.
     #[arg(long, value_parser = choice::<KernelChoice>(), default_value_t = KernelChoice::Specialised)]
@@ -81,6 +81,14 @@ pub struct RenderArgs {
     json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
+}
+
+/// `--exposure`: a finite number of stops that 2^EV scales by in f32 (refused here, before
+/// any work: `nan` gave a black PNG).
+fn exposure(s: &str) -> std::result::Result<f32, String> {
+    let ev: f32 = s.trim().parse().map_err(|e| format!("`{s}`: {e}"))?;
+    session::check_exposure(ev)?;
+    Ok(ev)
 }
 
 /// `--sun-dir`: comma-separated finite numbers, as many as one of `n`.

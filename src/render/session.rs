@@ -228,6 +228,17 @@ fn settings(
     Ok((s, env))
 }
 
+/// The PNG exposures accepted, in stops: 2^EV is a finite, normal f32 scale throughout.
+pub const EXPOSURE_RANGE: std::ops::RangeInclusive<f32> = -100.0..=100.0;
+
+/// Refuses an exposure outside [`EXPOSURE_RANGE`] (NaN included), saying why.
+pub fn check_exposure(ev: f32) -> std::result::Result<(), String> {
+    if EXPOSURE_RANGE.contains(&ev) {
+        return Ok(());
+    }
+    Err(format!("{ev}: must be a finite number of stops from {} to {}", EXPOSURE_RANGE.start(), EXPOSURE_RANGE.end()))
+}
+
 /// Renders `req`: writes the outputs and returns the sidecar. `interrupted` stops the render
 /// after the pass in flight (what has accumulated is written, `interrupted: true`); `on_pass`
 /// sees every pass (a progress bar); `note` gets warnings. A failure part-way writes the last
@@ -242,6 +253,7 @@ pub fn run(
     if req.out.extension().and_then(|e| e.to_str()) != Some("exr") {
         return Err(Error::Usage(format!("--out {}: the output must be an .exr file", req.out.display())));
     }
+    check_exposure(req.exposure).map_err(|e| Error::Usage(format!("--exposure {e}")))?;
     if !(req.submit_ms > 0.0 && req.submit_ms.is_finite()) {
         return Err(Error::Usage(format!("--submit-ms {}: must be a positive number of milliseconds", req.submit_ms)));
     }

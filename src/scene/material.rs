@@ -19,13 +19,28 @@
 //! Blinn-Phong; Ashikhmin-Shirley nu), `nu=`, `nv=` (Ashikhmin-Shirley), `sigma=` (Oren-Nayar,
 //! radians), `ior=` (glass). Example: `trilab_bsdf ashikhmin-shirley nu=200 nv=20`.
 //!
-//! Anything else that changes appearance gets a warning naming the MTL file, the material and
-//! the key, and is ignored: textures (`map_*`, `bump`), partial transparency (`d` or `Tr` below
-//! 1 on an opaque BSDF), `illum 10`, unknown keys and unknown `trilab_bsdf` parameters.
+//! Anything else that changes appearance gets a warning naming the MTL file, the line, the
+//! material and the key, and is ignored: textures (`map_*`, `bump`), partial transparency (`d`
+//! or `Tr` below 1 on an opaque BSDF), `illum 10`, unknown keys and unknown `trilab_bsdf`
+//! parameters.
+//!
+//! ## Values
+//!
+//! The rule table is docs/formats.md's "MTL values": every number must be finite; a negative
+//! `Kd`, `Ks`, `Tf` or `Ke`, a negative `Ns`, `Ke` above [`MAX_EMISSION`], `d` or `Tr` outside
+//! 0 to 1 and a glass's `Ni` outside [`IOR_RANGE`] are refused (file, line, material, key);
+//! an albedo above 1 and an exponent above [`MAX_EXPONENT`] that the BSDF reads are clamped with
+//! a warning.
 
+use std::collections::HashMap;
 use std::path::Path;
 
+use crate::error::{Error, Result};
 use crate::shared;
+
+/// The line of each key in one `newmtl` block of an MTL file (the last one, whose value tobj
+/// keeps), for messages.
+pub type MtlLines = HashMap<String, usize>;
 
 /// The seven BSDFs, one GLSL file each in `glsl/bsdf/`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
@@ -137,21 +152,31 @@ impl Material {
         self.gpu.emission.iter().any(|&e| e > 0.0)
     }
 
-    /// Maps one tobj material (read from `mtl`) onto a BSDF, pushing a warning for everything
-    /// that is ignored or unsupported (see the module documentation).
-    pub fn from_mtl(m: &tobj::Material, mtl: &Path, warnings: &mut Vec<String>) -> Material {
+    /// Maps one tobj material (read from `mtl`; `lines` gives the line of each of its keys)
+    /// onto a BSDF, pushing a warning for everything that is ignored, unsupported or clamped,
+    /// and refusing values that cannot be meant, by the rules of the module documentation.
+    pub fn from_mtl(m: &tobj::Material, mtl: &Path, lines: &MtlLines, warnings: &mut Vec<String>) -> Result<Material> {
+        let name = super::text::shown(&m.name).into_owned();
+        let place = |key: &str| match lines.get(key) {
+            Some(line) => format!("{}:{line}", mtl.display()),
+            None => mtl.display().to_string(),
+        };
         let mut warn = |key: &str, problem: String| {
-            warnings.push(format!("{}: material `{}`: `{key}` {problem}", mtl.display(), m.name));
+            warnings.push(format!("{}: material `{name}`: `{key}` {problem}", place(key)));
+        };
+        let refuse = |key: &str, problem: String| {
+            Error::bad_input(mtl, lines.get(key).copied(), format!("material `{}`: `{key}` {problem}", name))
         };
         let black = |c: Option<[f32; 3]>| c.is_none_or(|c| c.iter().all(|&x| x == 0.0));
-        let mut tf = [1.0f32; 3];
+        let mut tf: Option<[f32; 3]> = None;
+        let mut tr: Option<f32> = None;
         let mut explicit: Option<(BsdfKind, String)> = None;
         let mut keys: Vec<(&String, &String)> = m.unknown_param.iter().collect();
         keys.sort();
         for (k, v) in keys {
             match k.as_str() {
                 "Tf" => match parse_rgb(v) {
-                    Some(c) => tf = c,
+                    Some(c) => tf = Some(c),
                     None => warn("Tf", format!("`{v}` is not a colour (one or three numbers); ignored")),
                 },
                 "trilab_bsdf" => {
@@ -162,14 +187,55 @@ impl Material {
                         None => warn("trilab_bsdf", "names no BSDF; using illum instead".into()),
                     }
                 }
-                "Tr" => {
-                    if v.trim().parse::<f32>() != Ok(0.0) {
-                        warn("Tr", format!("{v}: partial transparency is not supported; rendered opaque"));
-                    }
-                }
+                "Tr" => match v.trim().parse::<f32>() {
+                    Ok(t) => tr = Some(t),
+                    Err(_) => warn("Tr", format!("`{v}` is not a number; ignored")),
+                },
                 other => warn(other, "is not supported; ignored".into()),
             }
         }
+
+        // Values that cannot be meant, whichever BSDF reads them (docs/formats.md).
+        for (key, colour) in [("Ka", m.ambient), ("Kd", m.diffuse), ("Ks", m.specular), ("Ke", m.emissive), ("Tf", tf)]
+        {
+            let Some(c) = colour else { continue };
+            let shown = c.map(num).join(" ");
+            if c.iter().any(|x| !x.is_finite()) {
+                return Err(refuse(key, format!("{shown}: every MTL number must be finite")));
+            }
+            if key != "Ka" && c.iter().any(|&x| x < 0.0) {
+                let what = if key == "Ke" { "radiance" } else { "reflectance" };
+                return Err(refuse(key, format!("{shown}: a {what} cannot be negative")));
+            }
+            if key == "Ke" && c.iter().any(|&x| x > MAX_EMISSION) {
+                return Err(refuse(
+                    key,
+                    format!("{shown}: above {MAX_EMISSION:e}, the most emitted radiance the image's f32 sums hold"),
+                ));
+            }
+        }
+        for (key, value) in [("Ns", m.shininess), ("Ni", m.optical_density), ("d", m.dissolve), ("Tr", tr)] {
+            let Some(v) = value else { continue };
+            if !v.is_finite() {
+                return Err(refuse(key, format!("{}: every MTL number must be finite", num(v))));
+            }
+            match key {
+                "Ns" if v < 0.0 => {
+                    return Err(refuse(key, format!("{}: a specular exponent cannot be negative", num(v))))
+                }
+                "d" | "Tr" if !(0.0..=1.0).contains(&v) => {
+                    return Err(refuse(
+                        key,
+                        format!("{}: a fraction (0 to 1) of opacity or transparency is needed", num(v)),
+                    ))
+                }
+                _ => {}
+            }
+        }
+        if let Some(t) = tr.filter(|&t| t != 0.0) {
+            warn("Tr", format!("{t}: partial transparency is not supported; rendered opaque"));
+        }
+
         for (key, tex) in [
             ("map_Ka", &m.ambient_texture),
             ("map_Kd", &m.diffuse_texture),
@@ -179,10 +245,9 @@ impl Material {
             ("map_d", &m.dissolve_texture),
         ] {
             if let Some(t) = tex {
-                warn(key, format!("{t}: textures are not supported; ignored"));
+                warn(key, format!("{}: textures are not supported; ignored", super::text::shown(t)));
             }
         }
-        let kd = m.diffuse.unwrap_or([0.8; 3]);
         let ks = m.specular;
         let kind = match (&explicit, m.illumination_model) {
             (Some((k, _)), _) => *k,
@@ -199,56 +264,137 @@ impl Material {
         if !kind.is_delta() && m.dissolve.is_some_and(|d| d < 1.0) {
             warn("d", format!("{}: partial transparency is not supported; rendered opaque", m.dissolve.unwrap()));
         }
-        let mut gpu = GpuMaterial::new(kind);
-        gpu.emission = m.emissive.unwrap_or([0.0; 3]);
-        let ns = m.shininess.unwrap_or(1.0).max(0.0);
-        match kind {
-            BsdfKind::Lambert | BsdfKind::OrenNayar => {
-                gpu.diffuse = kd;
-                gpu.specular = [0.0; 3];
-            }
-            BsdfKind::Phong | BsdfKind::BlinnPhong | BsdfKind::AshikhminShirley => {
-                gpu.diffuse = kd;
-                gpu.specular = ks.unwrap_or([0.0; 3]);
-                gpu.exponent = ns;
-                gpu.exponent_v = ns;
-                if kind != BsdfKind::AshikhminShirley && (0..3).any(|c| gpu.diffuse[c] + gpu.specular[c] > 1.0) {
-                    warn("Ks", "Kd + Ks exceeds 1 in some channel: the BSDF reflects more than it receives".into());
-                }
-            }
-            BsdfKind::Glass => {
-                gpu.diffuse = tf;
-                gpu.specular = ks.filter(|c| c.iter().any(|&x| x > 0.0)).unwrap_or([1.0; 3]);
-                gpu.ior = m.optical_density.unwrap_or(1.5);
-            }
-            BsdfKind::Mirror => {
-                gpu.diffuse = [0.0; 3];
-                gpu.specular = ks.filter(|c| c.iter().any(|&x| x > 0.0)).unwrap_or([1.0; 3]);
-            }
-        }
+        // `trilab_bsdf` parameters: name=number; numbers as every MTL number.
+        let (mut exponent_u, mut exponent_v, mut sigma, mut ior) = (None, None, None, None);
         if let Some((_, params)) = &explicit {
             for p in params.split_whitespace() {
                 let parsed = p.split_once('=').and_then(|(k, v)| Some((k, v.parse::<f32>().ok()?)));
-                let Some((name, value)) = parsed.filter(|(_, v)| v.is_finite()) else {
+                let Some((param, value)) = parsed else {
                     warn("trilab_bsdf", format!("parameter `{p}` is not name=number; ignored"));
                     continue;
                 };
-                match (kind, name) {
-                    (BsdfKind::Phong | BsdfKind::BlinnPhong, "exponent") => gpu.exponent = value.max(0.0),
-                    (BsdfKind::AshikhminShirley, "exponent" | "nu") => gpu.exponent = value.max(0.0),
-                    (BsdfKind::AshikhminShirley, "nv") => gpu.exponent_v = value.max(0.0),
-                    (BsdfKind::OrenNayar, "sigma") => gpu.sigma = value.max(0.0),
-                    (BsdfKind::Glass, "ior") if value > 0.0 => gpu.ior = value,
-                    _ => warn("trilab_bsdf", format!("parameter `{p}` does not apply to {kind}; ignored")),
+                if !value.is_finite() {
+                    return Err(refuse("trilab_bsdf", format!("parameter `{p}`: every MTL number must be finite")));
                 }
+                let slot = match (kind, param) {
+                    (BsdfKind::Phong | BsdfKind::BlinnPhong, "exponent")
+                    | (BsdfKind::AshikhminShirley, "exponent" | "nu") => &mut exponent_u,
+                    (BsdfKind::AshikhminShirley, "nv") => &mut exponent_v,
+                    (BsdfKind::OrenNayar, "sigma") => &mut sigma,
+                    (BsdfKind::Glass, "ior") => &mut ior,
+                    _ => {
+                        warn("trilab_bsdf", format!("parameter `{p}` does not apply to {kind}; ignored"));
+                        continue;
+                    }
+                };
+                if value < 0.0 {
+                    return Err(refuse("trilab_bsdf", format!("parameter `{p}` cannot be negative")));
+                }
+                if param == "ior" && !IOR_RANGE.contains(&value) {
+                    return Err(refuse("trilab_bsdf", format!("parameter `{p}`: {}", ior_problem(value))));
+                }
+                *slot = Some((p, value));
             }
         }
-        if gpu.emission.iter().any(|&e| e < 0.0) {
-            warn("Ke", "has a negative component; clamped to 0".into());
-            gpu.emission = gpu.emission.map(|e| e.max(0.0));
+
+        // What the BSDF reads, clamped to what it can render (each clamp warned about).
+        let mut gpu = GpuMaterial::new(kind);
+        gpu.emission = m.emissive.unwrap_or([0.0; 3]);
+        match kind {
+            BsdfKind::Lambert | BsdfKind::OrenNayar => {
+                gpu.diffuse = albedo(&mut warn, "Kd", m.diffuse.unwrap_or([0.8; 3]));
+                gpu.specular = [0.0; 3];
+                gpu.sigma = sigma.map_or(0.0, |s| s.1);
+            }
+            BsdfKind::Phong | BsdfKind::BlinnPhong | BsdfKind::AshikhminShirley => {
+                gpu.diffuse = albedo(&mut warn, "Kd", m.diffuse.unwrap_or([0.8; 3]));
+                gpu.specular = albedo(&mut warn, "Ks", ks.unwrap_or([0.0; 3]));
+                // Ns gives what no parameter does (nv of Ashikhmin-Shirley defaults to Ns, not nu).
+                let ns = m.shininess.unwrap_or(1.0);
+                let ns_read = exponent_u.is_none() || (kind == BsdfKind::AshikhminShirley && exponent_v.is_none());
+                let ns = if ns_read { clamp_exponent(&mut warn, "Ns", &num(ns), ns) } else { ns.min(MAX_EXPONENT) };
+                let mut given = |e: Option<(&str, f32)>| {
+                    e.map_or(ns, |(p, v)| clamp_exponent(&mut warn, "trilab_bsdf", &format!("parameter `{p}`"), v))
+                };
+                gpu.exponent = given(exponent_u);
+                gpu.exponent_v = given(exponent_v);
+            }
+            BsdfKind::Glass => {
+                gpu.diffuse = albedo(&mut warn, "Tf", tf.unwrap_or([1.0; 3]));
+                gpu.specular = albedo(&mut warn, "Ks", ks.filter(|c| c.iter().any(|&x| x > 0.0)).unwrap_or([1.0; 3]));
+                gpu.ior = match ior {
+                    Some((_, v)) => v,
+                    None => {
+                        let ni = m.optical_density.unwrap_or(1.5);
+                        if !IOR_RANGE.contains(&ni) {
+                            return Err(refuse("Ni", ior_problem(ni)));
+                        }
+                        ni
+                    }
+                };
+            }
+            BsdfKind::Mirror => {
+                gpu.diffuse = [0.0; 3];
+                gpu.specular = albedo(&mut warn, "Ks", ks.filter(|c| c.iter().any(|&x| x > 0.0)).unwrap_or([1.0; 3]));
+            }
         }
-        Material { name: m.name.clone(), kind, gpu }
+        if matches!(kind, BsdfKind::Phong | BsdfKind::BlinnPhong)
+            && (0..3).any(|c| gpu.diffuse[c] + gpu.specular[c] > 1.0)
+        {
+            warn("Ks", "Kd + Ks exceeds 1 in some channel: the BSDF reflects more than it receives".into());
+        }
+        Ok(Material { name, kind, gpu })
     }
+}
+
+/// The most emitted radiance (`Ke`, per channel): at any sample count the image's f32 sums of
+/// such radiance stay finite.
+pub const MAX_EMISSION: f32 = 1e20;
+
+/// The largest specular exponent (`Ns`, `exponent=`, `nu=`, `nv=`): the lobe of cos^1e6 is
+/// about 0.08 degrees wide, a few f32 steps of a direction near the normal; a larger exponent
+/// is clamped to it (it already renders as a mirror).
+pub const MAX_EXPONENT: f32 = 1e6;
+
+/// Indices of refraction a glass accepts (`Ni`, `ior=`): every real material's, inside
+/// relative to outside (germanium's 4 and its inverse), with margin; outside it the f32
+/// Fresnel and Snell arithmetic breaks down (0 or less: the glass vanished).
+pub const IOR_RANGE: std::ops::RangeInclusive<f32> = 0.1..=10.0;
+
+fn ior_problem(v: f32) -> String {
+    format!("{}: a glass needs an index of refraction from {} to {}", num(v), IOR_RANGE.start(), IOR_RANGE.end())
+}
+
+/// A number as messages show it: as written for everyday sizes, in exponent form otherwise
+/// (`1e30`, not thirty-one digits).
+fn num(x: f32) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e7).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        x.to_string()
+    }
+}
+
+/// An albedo the BSDF reads, each channel clamped to 1 (warned about).
+fn albedo(warn: &mut impl FnMut(&str, String), key: &str, c: [f32; 3]) -> [f32; 3] {
+    if c.iter().any(|&x| x > 1.0) {
+        warn(
+            key,
+            format!(
+                "{}: above 1 in some channel, a surface that reflects more light than it receives; clamped to 1",
+                c.map(num).join(" ")
+            ),
+        );
+    }
+    c.map(|x| x.min(1.0))
+}
+
+/// A specular exponent the BSDF reads, clamped to [`MAX_EXPONENT`] (warned about).
+fn clamp_exponent(warn: &mut impl FnMut(&str, String), key: &str, shown: &str, v: f32) -> f32 {
+    if v > MAX_EXPONENT {
+        warn(key, format!("{shown}: above {MAX_EXPONENT:e}, which f32 directions cannot resolve; clamped to it"));
+    }
+    v.min(MAX_EXPONENT)
 }
 
 /// `r g b` or a single grey value.
@@ -307,11 +453,23 @@ impl GpuMaterial {
 mod tests {
     use super::*;
 
-    fn mtl(text: &str) -> (Vec<Material>, Vec<String>) {
+    /// The materials of an MTL text read as the loader reads it, or the first error.
+    fn load(text: &str) -> Result<(Vec<Material>, Vec<String>)> {
+        let path = Path::new("x.mtl");
+        let lines = super::super::obj::check_mtl(path, text)?;
         let (mats, _) = tobj::load_mtl_buf(&mut text.as_bytes()).unwrap();
+        assert_eq!(lines.len(), mats.len());
         let mut warnings = vec![];
-        let m = mats.iter().map(|m| Material::from_mtl(m, Path::new("x.mtl"), &mut warnings)).collect();
-        (m, warnings)
+        let m = mats
+            .iter()
+            .zip(&lines)
+            .map(|(m, l)| Material::from_mtl(m, path, l, &mut warnings))
+            .collect::<Result<_>>()?;
+        Ok((m, warnings))
+    }
+
+    fn mtl(text: &str) -> (Vec<Material>, Vec<String>) {
+        load(text).unwrap()
     }
 
     #[test]
@@ -348,13 +506,78 @@ mod tests {
         let (m, w) = mtl("newmtl skin\nKd 1 0 0\nmap_Kd skin.png\nd 0.5\nsheen 0.3\nillum 10\n\
              newmtl x\ntrilab_bsdf velvet\nnewmtl y\ntrilab_bsdf glass roughness=0.1\n");
         assert_eq!(m[0].kind, BsdfKind::Lambert);
-        let has = |needle: &str| w.iter().any(|l| l.starts_with("x.mtl: material `") && l.contains(needle));
-        assert!(has("`skin`: `map_Kd` skin.png: textures are not supported"), "{w:?}");
-        assert!(has("`skin`: `d` 0.5: partial transparency"), "{w:?}");
-        assert!(has("`skin`: `sheen` is not supported"), "{w:?}");
-        assert!(has("`skin`: `illum` 10 is not supported"), "{w:?}");
-        assert!(has("`x`: `trilab_bsdf` unknown BSDF `velvet`"), "{w:?}");
-        assert!(has("`y`: `trilab_bsdf` parameter `roughness=0.1` does not apply to glass"), "{w:?}");
+        let has = |needle: &str| w.iter().any(|l| l.starts_with("x.mtl:") && l.contains(needle));
+        assert!(has(":3: material `skin`: `map_Kd` skin.png: textures are not supported"), "{w:?}");
+        assert!(has(":4: material `skin`: `d` 0.5: partial transparency"), "{w:?}");
+        assert!(has(":5: material `skin`: `sheen` is not supported"), "{w:?}");
+        assert!(has(":6: material `skin`: `illum` 10 is not supported"), "{w:?}");
+        assert!(has(":8: material `x`: `trilab_bsdf` unknown BSDF `velvet`"), "{w:?}");
+        assert!(has(":10: material `y`: `trilab_bsdf` parameter `roughness=0.1` does not apply to glass"), "{w:?}");
         assert_eq!(w.len(), 6, "{w:?}");
+    }
+
+    /// Values no exporter can mean are refused naming the file, the line, the material and the
+    /// key; values a BSDF cannot render are clamped with a warning naming the same.
+    #[test]
+    fn out_of_range_values_are_refused_or_clamped_by_rule() {
+        for (text, line, needle) in [
+            ("newmtl a\nKe inf 1 1\n", 2, "material `a`: `Ke` inf 1 1: every MTL number must be finite"),
+            ("newmtl a\nKd NaN 0 0\n", 2, "`Kd` NaN 0 0: every MTL number must be finite"),
+            ("newmtl a\nKa 0 0 nan\n", 2, "`Ka`"),
+            ("newmtl a\n\nKs 0.5 0.5 0.5\nNs inf\n", 4, "`Ns` inf"),
+            ("newmtl a\nNi nan\n", 2, "`Ni` NaN"),
+            ("newmtl a\nillum 7\nNi 0\n", 3, "`Ni` 0: a glass needs an index of refraction from 0.1 to 10"),
+            ("newmtl a\nNi -1.5\nillum 4\n", 2, "`Ni` -1.5"),
+            ("newmtl a\ntrilab_bsdf glass\nNi 1000\n", 3, "`Ni` 1000"),
+            ("newmtl a\nKd -1 -1 -1\n", 2, "`Kd` -1 -1 -1: a reflectance cannot be negative"),
+            ("newmtl a\nillum 7\nTf 1 -0.5 1\n", 3, "`Tf`"),
+            ("newmtl a\nKe 1 0 -1\n", 2, "`Ke` 1 0 -1: a radiance cannot be negative"),
+            ("newmtl a\nKe 1e30 1e30 1e30\n", 2, "`Ke` 1e30 1e30 1e30: above 1e20"),
+            ("newmtl a\nNs -3\n", 2, "`Ns` -3"),
+            ("newmtl a\nd 1.5\n", 2, "`d` 1.5"),
+            ("newmtl a\nTr -0.1\n", 2, "`Tr` -0.1"),
+            ("newmtl a\nTf inf\n", 2, "`Tf` inf inf inf"),
+            ("newmtl a\ntrilab_bsdf glass ior=0\n", 2, "parameter `ior=0`: 0: a glass needs"),
+            ("newmtl a\ntrilab_bsdf oren-nayar sigma=-1\n", 2, "parameter `sigma=-1` cannot be negative"),
+            ("newmtl a\ntrilab_bsdf phong exponent=inf\n", 2, "parameter `exponent=inf`: every MTL number"),
+            ("newmtl ok\nKd 1 1 1\nnewmtl b\nKd 0 0 0\nKd 0 nan 0\n", 5, "material `b`"),
+        ] {
+            let e = load(text).err().unwrap_or_else(|| panic!("{text:?} was accepted")).to_string();
+            assert!(e.starts_with(&format!("x.mtl:{line}: ")) && e.contains(needle), "{text:?}: {e}");
+        }
+
+        // Ni is read by glass only: exporters write `Ni 0` on opaque materials.
+        let (m, w) = mtl("newmtl a\nKd 0.5 0.5 0.5\nNi 0\n");
+        assert!(w.is_empty() && m[0].kind == BsdfKind::Lambert, "{w:?}");
+        // ... and `ior=` replaces it.
+        let (m, _) = mtl("newmtl a\ntrilab_bsdf glass ior=1.2\nNi 0\n");
+        assert_eq!(m[0].gpu.ior, 1.2);
+
+        let (m, w) = mtl("newmtl a\nKd 2 0.5 1\nnewmtl b\nillum 3\nKs 1.5 1 1\nnewmtl c\nKs 0.1 0.1 0.1\nNs 1e9\n");
+        assert_eq!(m[0].gpu.diffuse, [1.0, 0.5, 1.0]);
+        assert_eq!(m[1].gpu.specular, [1.0; 3]);
+        assert_eq!((m[2].gpu.exponent, m[2].gpu.exponent_v), (MAX_EXPONENT, MAX_EXPONENT));
+        assert!(w[0].starts_with("x.mtl:2: material `a`: `Kd` 2 0.5 1: above 1"), "{w:?}");
+        assert!(w[1].starts_with("x.mtl:5: material `b`: `Ks` 1.5 1 1: above 1"), "{w:?}");
+        assert!(w[2].starts_with("x.mtl:8: material `c`: `Ns` 1e9: above 1e6"), "{w:?}");
+        assert_eq!(w.len(), 3, "{w:?}");
+        // Unread values are not clamped aloud: Kd of a mirror.
+        let (_, w) = mtl("newmtl a\nillum 3\nKd 5 5 5\n");
+        assert!(w.is_empty(), "{w:?}");
+        // Every accepted material holds finite, non-negative numbers.
+        for m in &m {
+            let g = m.gpu;
+            let all = [g.diffuse, g.specular, g.emission].concat();
+            let all = [&all[..], &[g.exponent, g.exponent_v, g.ior, g.sigma]].concat();
+            assert!(all.iter().all(|x| x.is_finite() && *x >= 0.0), "{g:?}");
+        }
+    }
+
+    /// Ashikhmin-Shirley nv falls back to Ns, not to nu (as before the value rules).
+    #[test]
+    fn anisotropic_exponents_keep_their_sources() {
+        let (m, w) = mtl("newmtl a\nNs 30\ntrilab_bsdf ashikhmin-shirley nu=200\n");
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!((m[0].gpu.exponent, m[0].gpu.exponent_v), (200.0, 30.0));
     }
 }

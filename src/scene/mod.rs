@@ -7,10 +7,11 @@ mod aabb;
 pub mod find;
 mod material;
 mod obj;
+mod text;
 pub mod synthetic;
 
 pub use find::{resolve, set_scene_dir, SceneSource};
-pub use material::{BsdfKind, GpuMaterial, Material};
+pub use material::{BsdfKind, GpuMaterial, Material, MtlLines};
 pub use obj::{load_obj, parse_obj_bytes};
 
 use std::path::{Path, PathBuf};

@@ -8,6 +8,8 @@ use std::fs::File;
 use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
+use super::material::MtlLines;
+use super::text::{self, Decoded, Format};
 use super::{Material, Mesh};
 use crate::error::{Error, Result};
 
@@ -90,20 +92,20 @@ fn read_bytes(path: &Path, limit: u64) -> Result<Vec<u8>> {
 /// that resolved path, or `None` when it cannot be opened. This is [`load_obj`] without the
 /// file system, and what the fuzz targets (`fuzz/`) drive.
 pub fn parse_obj_bytes(path: &Path, obj: &[u8], mtl: impl Fn(&Path) -> Option<Vec<u8>>) -> Result<Mesh> {
-    let text = std::str::from_utf8(obj).map_err(|e| {
-        let line = 1 + obj[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
-        Error::bad_input(path, Some(line), "not UTF-8 text (is this an OBJ file?)")
-    })?;
-    check_face_indices(path, text)?;
-    parse_obj(path, text, &mtl)
+    let decoded = text::decode(path, obj, Format::Obj)?;
+    check_face_indices(path, &decoded.text)?;
+    parse_obj(path, &decoded, &mtl)
 }
 
-fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u8>>) -> Result<Mesh> {
+fn parse_obj(path: &Path, decoded: &Decoded<'_>, mtl_source: &dyn Fn(&Path) -> Option<Vec<u8>>) -> Result<Mesh> {
+    let text: &str = &decoded.text;
     let dir = path.parent().map(Path::to_owned).unwrap_or_default();
     // The first MTL problem, already as the error to report.
     let mtl_failure: RefCell<Option<Error>> = RefCell::new(None);
     // Each MTL file read, with how many materials it gave (tobj appends them in this order).
     let mtl_files: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
+    // The line of each key of each material, in the order tobj appends the materials.
+    let mtl_lines: RefCell<Vec<MtlLines>> = RefCell::new(Vec::new());
     // Material libraries that could not be opened, as warnings.
     let missing_mtl: RefCell<Vec<String>> = RefCell::new(Vec::new());
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
@@ -113,7 +115,7 @@ fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u
     // Any panic left is contained and reported as bad input rather than crashing the tool.
     let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         tobj::load_obj_buf(&mut reader, &options, |mtl| {
-            let full = dir.join(mtl);
+            let full = dir.join(mtl.to_str().map_or_else(|| mtl.to_owned(), text::file_name));
             let fail = |e: Error, kind: tobj::LoadError| {
                 mtl_failure.borrow_mut().get_or_insert(e);
                 Err(kind)
@@ -129,12 +131,22 @@ fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u
                 ));
                 return Ok((Vec::new(), Default::default()));
             };
-            if let Err(e) = check_mtl(&full, &bytes) {
-                return fail(e, tobj::LoadError::MaterialParseError);
-            }
-            let result = tobj::load_mtl_buf(&mut bytes.as_slice());
+            let mtl_text = match text::decode(&full, &bytes, Format::Mtl) {
+                Ok(d) => d.text,
+                Err(e) => return fail(e, tobj::LoadError::ReadError),
+            };
+            let mut lines = match check_mtl(&full, &mtl_text) {
+                Ok(lines) => lines,
+                Err(e) => return fail(e, tobj::LoadError::MaterialParseError),
+            };
+            let result = tobj::load_mtl_buf(&mut mtl_text.as_bytes());
             match &result {
-                Ok((mats, _)) => mtl_files.borrow_mut().push((full, mats.len())),
+                Ok((mats, _)) => {
+                    // One block per `newmtl`, as tobj makes one material per `newmtl`.
+                    lines.resize_with(mats.len(), MtlLines::new);
+                    mtl_lines.borrow_mut().extend(lines);
+                    mtl_files.borrow_mut().push((full, mats.len()));
+                }
                 Err(e) => {
                     let e = Error::bad_input(
                         &full,
@@ -153,15 +165,23 @@ fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u
         Err(_) => return Err(locate(path, text, None)),
     };
 
-    let materials = match materials {
-        Ok(m) => m,
-        Err(e) => {
-            return Err(mtl_failure
-                .into_inner()
-                .unwrap_or_else(|| Error::bad_input(path, None, format!("material library (mtllib): {e}"))))
-        }
-    };
+    // tobj keeps going past a library it could not read when another gave materials.
+    if let Some(e) = mtl_failure.into_inner() {
+        return Err(e);
+    }
+    let materials = materials.map_err(|e| Error::bad_input(path, None, format!("material library (mtllib): {e}")))?;
     let mut warnings = missing_mtl.into_inner();
+    if let Some(&first) = decoded.unnamed_usemtl.first() {
+        let more = match decoded.unnamed_usemtl.len() - 1 {
+            0 => String::new(),
+            n => format!(" ({n} more such lines)"),
+        };
+        warnings.push(format!(
+            "{}:{first}: usemtl without a material name: the faces that follow take the default material \
+             (grey Lambert){more}",
+            path.display()
+        ));
+    }
     undefined_materials(path, text, &materials, &mut warnings);
     let files = mtl_files.into_inner();
     let file_of = |i: usize| {
@@ -174,8 +194,13 @@ fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u
         }
         PathBuf::from("<mtllib>")
     };
-    let mut materials: Vec<Material> =
-        materials.iter().enumerate().map(|(i, m)| Material::from_mtl(m, &file_of(i), &mut warnings)).collect();
+    let lines = mtl_lines.into_inner();
+    let no_lines = MtlLines::new();
+    let mut materials: Vec<Material> = materials
+        .iter()
+        .enumerate()
+        .map(|(i, m)| Material::from_mtl(m, &file_of(i), lines.get(i).unwrap_or(&no_lines), &mut warnings))
+        .collect::<Result<_>>()?;
     let default_material = materials.len() as u32;
     let mut need_default = false;
 
@@ -225,7 +250,17 @@ fn parse_obj(path: &Path, text: &str, mtl_source: &dyn Fn(&Path) -> Option<Vec<u
         return Err(locate_non_finite(path, text));
     }
     if mesh.triangles.is_empty() {
-        return Err(Error::bad_input(path, None, "contains no triangles (no `f` lines with 3 or more vertices)"));
+        // UTF-16 without a byte-order mark reads as text with a NUL after every ASCII character.
+        let hint = if text.contains('\0') {
+            " (the text holds NUL bytes: UTF-16 without a byte-order mark? Save it as UTF-8, or as UTF-16 with one)"
+        } else {
+            ""
+        };
+        return Err(Error::bad_input(
+            path,
+            None,
+            format!("contains no triangles (no `f` lines with 3 or more vertices){hint}"),
+        ));
     }
     Ok(mesh)
 }
@@ -319,15 +354,18 @@ fn undefined_materials(path: &Path, text: &str, materials: &[tobj::Material], wa
         if line.split_whitespace().next() != Some("usemtl") {
             continue;
         }
+        // tobj's own rule (a name follows a space; [`text::decode`] turned tabs into one).
         let name = line.split_once(' ').map_or("", |x| x.1).trim();
-        if name.is_empty() || named.contains(&name) || materials.iter().any(|m| m.name == name) {
+        if name.is_empty() || name == text::NO_NAME || named.contains(&name) || materials.iter().any(|m| m.name == name)
+        {
             continue;
         }
         named.push(name);
         warnings.push(format!(
-            "{}:{}: usemtl `{name}`: no material library defines it; using the default material (grey Lambert)",
+            "{}:{}: usemtl `{}`: no material library defines it; using the default material (grey Lambert)",
             path.display(),
-            n + 1
+            n + 1,
+            text::shown(name)
         ));
     }
 }
@@ -336,10 +374,11 @@ fn undefined_materials(path: &Path, text: &str, materials: &[tobj::Material], wa
 /// key (tobj says only "material parse error"), and rejects colour lines with fewer than three
 /// values, which tobj 4's `parse_float3` unwraps (a panic on `Kd 1 2`). The rules are tobj's:
 /// colours take three numbers, `Ns`, `Ni` and `d` one, `illum` an integer 0-255, texture maps
-/// and `newmtl` a name.
-fn check_mtl(path: &Path, bytes: &[u8]) -> Result<()> {
-    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
-        let Ok(line) = std::str::from_utf8(line) else { continue };
+/// and `newmtl` a name. Returns, per `newmtl` block, the line of each key (the last, whose
+/// value tobj keeps), for the value rules of [`Material::from_mtl`].
+pub(super) fn check_mtl(path: &Path, text: &str) -> Result<Vec<MtlLines>> {
+    let mut blocks: Vec<MtlLines> = Vec::new();
+    for (n, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
         let Some(key) = words.next() else { continue };
         let args: Vec<&str> = words.collect();
@@ -361,10 +400,23 @@ fn check_mtl(path: &Path, bytes: &[u8]) -> Result<()> {
             _ => None,
         };
         if let Some(what) = problem {
-            return Err(Error::bad_input(path, Some(n + 1), format!("`{key}` {what}: `{}`", line.trim())));
+            let shown = text::shown(line.trim());
+            return Err(Error::bad_input(path, Some(n + 1), format!("`{key}` {what}: `{shown}`")));
+        }
+        if key == "newmtl" {
+            blocks.push(MtlLines::new());
+        }
+        // tobj files `map_bump`, `bump` and the `map_ns` spellings under one name each.
+        let key = match key {
+            "map_bump" | "bump" => "map_Bump",
+            "map_ns" | "map_NS" => "map_Ns",
+            k => k,
+        };
+        if let Some(block) = blocks.last_mut() {
+            block.insert(key.to_owned(), n + 1);
         }
     }
-    Ok(())
+    Ok(blocks)
 }
 
 /// Finds the first line that breaks tobj's rules, to turn its error into "file:line: problem".
@@ -424,9 +476,6 @@ fn locate(path: &Path, text: &str, err: Option<tobj::LoadError>) -> Error {
                         }
                     }
                 }
-            }
-            Some("usemtl") if line.split_once(' ').map_or("", |x| x.1).trim().is_empty() => {
-                return Error::bad_input(path, Some(lineno), "usemtl without a material name");
             }
             _ => {}
         }
@@ -667,5 +716,100 @@ mod tests {
         assert!(std::fs::metadata(&bomb).unwrap().len() < 1 << 20);
         let e = read_bytes(&bomb, 1 << 20).unwrap_err().to_string();
         assert!(e.contains("bomb.obj.gz") && e.contains("decompresses to more than 1048576 bytes"), "{e}");
+    }
+
+    const OBJ: &[u8] = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\nusemtl b\nf 1 2 3\n";
+
+    fn with_mtl(obj: &[u8], mtl: &[u8]) -> Result<Mesh> {
+        parse_obj_bytes(Path::new("d/a.obj"), obj, |p| (p == Path::new("d/m.mtl")).then(|| mtl.to_vec()))
+    }
+
+    /// Names that are not UTF-8 match by their bytes, in OBJ and MTL alike, and show as U+FFFD.
+    #[test]
+    fn latin1_names_match_by_their_bytes() {
+        let obj = b"# \xA9 caf\xE9\nmtllib m.mtl\ng Bo\xEEte\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl M\xE9tal\nf 1 2 3\n\
+                    usemtl M\xE8tal\nf 1 2 3\nusemtl Bl\xE9\nf 1 2 3\n";
+        let mtl = b"# mat\xE9riaux\nnewmtl M\xE9tal\nillum 3\nnewmtl M\xE8tal\nillum 7\nmap_Kd bois_\xE9.png\n";
+        let m = with_mtl(obj, mtl).unwrap();
+        let kinds: Vec<_> = m.material_ids.iter().map(|&i| m.materials[i as usize].kind).collect();
+        assert_eq!(
+            kinds,
+            [super::super::BsdfKind::Mirror, super::super::BsdfKind::Glass, super::super::BsdfKind::Lambert]
+        );
+        assert_eq!(m.materials[0].name, "M\u{FFFD}tal");
+        assert!(m.warnings.iter().any(|w| w == "d/a.obj:11: usemtl `Bl\u{FFFD}`: no material library defines it; using the default material (grey Lambert)"), "{:?}", m.warnings);
+        assert!(
+            m.warnings.iter().any(|w| w.starts_with("d/m.mtl:6: material `M\u{FFFD}tal`: `map_Kd` bois_\u{FFFD}.png")),
+            "{:?}",
+            m.warnings
+        );
+    }
+
+    #[test]
+    fn usemtl_without_a_name_takes_the_default_material() {
+        let obj = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\nusemtl\nf 1 2 3\nusemtl \t\nf 1 2 3\n";
+        let m = with_mtl(obj, b"newmtl a\nKd 1 0 0\n").unwrap();
+        assert_eq!(m.materials[m.material_ids[0] as usize].name, "a");
+        assert_eq!(m.materials[m.material_ids[1] as usize], Material::default());
+        assert_eq!(m.material_ids[1], m.material_ids[2]);
+        assert_eq!(
+            m.warnings,
+            ["d/a.obj:7: usemtl without a material name: the faces that follow take the default material \
+              (grey Lambert) (1 more such lines)"]
+        );
+    }
+
+    /// A byte that is not UTF-8 in a line trilab parses is an error naming file, line and byte,
+    /// in the OBJ and in the MTL; number spellings Rust's f32 parser reads are accepted.
+    #[test]
+    fn strict_lines_stay_strict_and_numbers_are_read_as_tobj_reads_them() {
+        let e = with_mtl(b"v 0 0 0\nv 1 0\xB70\nv 0 1 0\nf 1 2 3\n", b"").unwrap_err().to_string();
+        assert!(e.starts_with("d/a.obj:2: `v` line holds byte 0xB7"), "{e}");
+        let e = with_mtl(OBJ, b"newmtl a\nKd 0\xB75 0 0\n").unwrap_err().to_string();
+        assert!(e.starts_with("d/m.mtl:2: `Kd` line holds byte 0xB7"), "{e}");
+        let m = parse("v 0 0 0\nv 1e+2 0 0\nv 0 2.e+1 0\nv .5 -.5e-3 +1\nf 1 2 3\nf 1 2 4\n").unwrap();
+        assert_eq!(m.positions, [[0.0, 0.0, 0.0], [100.0, 0.0, 0.0], [0.0, 20.0, 0.0], [0.5, -0.0005, 1.0]]);
+        for (line, what) in [
+            ("v 1.2.3 0 0", "cannot parse vertex position"),
+            ("v 0 nan 0", "NaN or infinite"),
+            ("v 1e39 0 0", "NaN or infinite"),
+        ] {
+            let e = err(&format!("v 0 0 0\nv 1 0 0\n{line}\nf 1 2 3\n"));
+            assert!(e.starts_with("test.obj:3:") && e.contains(what), "{line}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_bad_second_library_is_not_skipped() {
+        let obj = b"mtllib m.mtl\nmtllib n.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let e = parse_obj_bytes(Path::new("d/a.obj"), obj, |p| {
+            Some(if p == Path::new("d/m.mtl") { b"newmtl a\n".to_vec() } else { b"newmtl b\nKd 1 x 1\n".to_vec() })
+        });
+        let e = e.unwrap_err().to_string();
+        assert!(e.starts_with("d/n.mtl:2:") && e.contains("`Kd`"), "{e}");
+    }
+
+    #[test]
+    fn utf16_without_a_bom_gets_a_hint() {
+        let le: Vec<u8> = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".encode_utf16().flat_map(u16::to_le_bytes).collect();
+        let e = parse_obj_bytes(Path::new("a.obj"), &le, |_| None).unwrap_err().to_string();
+        assert!(e.contains("no triangles") && e.contains("UTF-16 without a byte-order mark"), "{e}");
+    }
+
+    #[test]
+    fn an_mtllib_name_that_is_not_utf8_opens_the_file_of_its_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        #[cfg(unix)]
+        {
+            use std::os::unix::ffi::OsStrExt;
+            let mtl = dir.path().join(std::ffi::OsStr::from_bytes(b"mat\xE9riaux.mtl"));
+            std::fs::write(&mtl, "newmtl a\nillum 3\n").unwrap();
+            let obj = dir.path().join("a.obj");
+            std::fs::write(&obj, b"mtllib mat\xE9riaux.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n").unwrap();
+            let m = load_obj(&obj).unwrap();
+            assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+            assert_eq!(m.materials[0].kind, super::super::BsdfKind::Mirror);
+            assert_eq!(m.mtl_files, [mtl]);
+        }
     }
 }
