@@ -44,6 +44,9 @@ enum Cmd {
     #[command(name = "__dump-cli", hide = true)]
     DumpCli(cli::dump::DumpArgs),
     Hits(cli::hits::HitsArgs),
+    Ab(cli::ab::AbArgs),
+    #[command(name = "__ab-worker", hide = true)]
+    AbWorker(cli::ab::AbWorkerArgs),
 }
 
 /// A closed pipe on stdout (`trilab completions bash | head`) ends the process quietly, as it
@@ -51,8 +54,8 @@ enum Cmd {
 #[cfg(unix)]
 fn default_sigpipe() {
     // SAFETY: runs first in `main`, before any thread is started; `signal` with SIG_DFL only
-    // restores the default disposition of SIGPIPE and touches no handler state of ours. trilab
-    // writes to no child's stdin, so no write of its own depends on seeing EPIPE.
+    // restores the default disposition of SIGPIPE and touches no handler state of ours. Only
+    // `trilab ab` writes to a child's stdin, and it ignores SIGPIPE while it does (cli/ab.rs).
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
@@ -95,6 +98,8 @@ fn main() -> ExitCode {
         Cmd::Man(a) => cli::man::run(a, Cli::command()),
         Cmd::DumpCli(a) => cli::dump::run(a, Cli::command()),
         Cmd::Hits(a) => cli::hits::run(a),
+        Cmd::Ab(a) => cli::ab::run(a),
+        Cmd::AbWorker(a) => cli::ab::run_worker(a),
     });
     cli::exit(result)
 }

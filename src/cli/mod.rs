@@ -2,6 +2,7 @@
 //! and printing the typed report it returns (as text, or as JSON with `--json`). Option groups
 //! several commands share are defined here once and flattened into each.
 
+pub mod ab;
 pub mod accuracy;
 pub mod analyze;
 pub mod bench;

@@ -4,6 +4,7 @@
 //! steps, the render benchmark. What they share lives here too: provenance, the host calibration, the ray sets,
 //! validation against the f64 reference before any time is reported, and plots.
 
+pub mod ab;
 pub mod accuracy;
 pub mod advise;
 pub mod bench;

@@ -813,3 +813,141 @@ mod tests {
         }
     }
 }
+
+/// The material rules of `material.rs`, read through this loader's MTL check (here, not beside
+/// them: `material` cannot import `obj`, which imports it).
+#[cfg(test)]
+mod material_tests {
+    use std::path::Path;
+
+    use crate::error::Result;
+    use crate::scene::material::*;
+
+    /// The materials of an MTL text read as the loader reads it, or the first error.
+    fn load(text: &str) -> Result<(Vec<Material>, Vec<String>)> {
+        let path = Path::new("x.mtl");
+        let lines = super::check_mtl(path, text)?;
+        let (mats, _) = tobj::load_mtl_buf(&mut text.as_bytes()).unwrap();
+        assert_eq!(lines.len(), mats.len());
+        let mut warnings = vec![];
+        let m = mats
+            .iter()
+            .zip(&lines)
+            .map(|(m, l)| Material::from_mtl(m, path, l, &mut warnings))
+            .collect::<Result<_>>()?;
+        Ok((m, warnings))
+    }
+
+    fn mtl(text: &str) -> (Vec<Material>, Vec<String>) {
+        load(text).unwrap()
+    }
+
+    #[test]
+    fn illum_models_map_to_bsdfs() {
+        let (m, w) = mtl(
+            "newmtl a\nKd 0.5 0.5 0.5\nillum 2\nKs 0 0 0\nnewmtl b\nKd 0.5 0.4 0.3\nKs 0.2 0.2 0.2\nNs 40\nillum 2\n\
+             newmtl c\nillum 3\nnewmtl d\nillum 7\nNi 1.33\nTf 0.9 1 1\nnewmtl e\nKd 1 1 1\nKe 4 4 4\n",
+        );
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!(
+            m.iter().map(|m| m.kind).collect::<Vec<_>>(),
+            vec![BsdfKind::Lambert, BsdfKind::BlinnPhong, BsdfKind::Mirror, BsdfKind::Glass, BsdfKind::Lambert]
+        );
+        assert_eq!(m[1].gpu.exponent, 40.0);
+        assert_eq!(m[1].gpu.specular, [0.2; 3]);
+        assert_eq!(m[2].gpu.specular, [1.0; 3]);
+        assert_eq!((m[3].gpu.ior, m[3].gpu.diffuse), (1.33, [0.9, 1.0, 1.0]));
+        assert!(m[4].is_emissive() && m[4].gpu.emission == [4.0; 3]);
+    }
+
+    #[test]
+    fn explicit_bsdf_key_and_parameters() {
+        let (m, w) = mtl("newmtl a\nKd 0.3 0.3 0.3\nKs 0.5 0.5 0.5\ntrilab_bsdf ashikhmin-shirley nu=200 nv=20\n\
+             newmtl b\ntrilab_bsdf oren-nayar sigma=0.35\nillum 3\n");
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!(m[0].kind, BsdfKind::AshikhminShirley);
+        assert_eq!((m[0].gpu.exponent, m[0].gpu.exponent_v), (200.0, 20.0));
+        assert_eq!(m[1].kind, BsdfKind::OrenNayar);
+        assert_eq!(m[1].gpu.sigma, 0.35);
+    }
+
+    #[test]
+    fn unsupported_requests_warn_with_file_material_and_key() {
+        let (m, w) = mtl("newmtl skin\nKd 1 0 0\nmap_Kd skin.png\nd 0.5\nsheen 0.3\nillum 10\n\
+             newmtl x\ntrilab_bsdf velvet\nnewmtl y\ntrilab_bsdf glass roughness=0.1\n");
+        assert_eq!(m[0].kind, BsdfKind::Lambert);
+        let has = |needle: &str| w.iter().any(|l| l.starts_with("x.mtl:") && l.contains(needle));
+        assert!(has(":3: material `skin`: `map_Kd` skin.png: textures are not supported"), "{w:?}");
+        assert!(has(":4: material `skin`: `d` 0.5: partial transparency"), "{w:?}");
+        assert!(has(":5: material `skin`: `sheen` is not supported"), "{w:?}");
+        assert!(has(":6: material `skin`: `illum` 10 is not supported"), "{w:?}");
+        assert!(has(":8: material `x`: `trilab_bsdf` unknown BSDF `velvet`"), "{w:?}");
+        assert!(has(":10: material `y`: `trilab_bsdf` parameter `roughness=0.1` does not apply to glass"), "{w:?}");
+        assert_eq!(w.len(), 6, "{w:?}");
+    }
+
+    /// Values no exporter can mean are refused naming the file, the line, the material and the
+    /// key; values a BSDF cannot render are clamped with a warning naming the same.
+    #[test]
+    fn out_of_range_values_are_refused_or_clamped_by_rule() {
+        for (text, line, needle) in [
+            ("newmtl a\nKe inf 1 1\n", 2, "material `a`: `Ke` inf 1 1: every MTL number must be finite"),
+            ("newmtl a\nKd NaN 0 0\n", 2, "`Kd` NaN 0 0: every MTL number must be finite"),
+            ("newmtl a\nKa 0 0 nan\n", 2, "`Ka`"),
+            ("newmtl a\n\nKs 0.5 0.5 0.5\nNs inf\n", 4, "`Ns` inf"),
+            ("newmtl a\nNi nan\n", 2, "`Ni` NaN"),
+            ("newmtl a\nillum 7\nNi 0\n", 3, "`Ni` 0: a glass needs an index of refraction from 0.1 to 10"),
+            ("newmtl a\nNi -1.5\nillum 4\n", 2, "`Ni` -1.5"),
+            ("newmtl a\ntrilab_bsdf glass\nNi 1000\n", 3, "`Ni` 1000"),
+            ("newmtl a\nKd -1 -1 -1\n", 2, "`Kd` -1 -1 -1: a reflectance cannot be negative"),
+            ("newmtl a\nillum 7\nTf 1 -0.5 1\n", 3, "`Tf`"),
+            ("newmtl a\nKe 1 0 -1\n", 2, "`Ke` 1 0 -1: a radiance cannot be negative"),
+            ("newmtl a\nKe 1e30 1e30 1e30\n", 2, "`Ke` 1e30 1e30 1e30: above 1e20"),
+            ("newmtl a\nNs -3\n", 2, "`Ns` -3"),
+            ("newmtl a\nd 1.5\n", 2, "`d` 1.5"),
+            ("newmtl a\nTr -0.1\n", 2, "`Tr` -0.1"),
+            ("newmtl a\nTf inf\n", 2, "`Tf` inf inf inf"),
+            ("newmtl a\ntrilab_bsdf glass ior=0\n", 2, "parameter `ior=0`: 0: a glass needs"),
+            ("newmtl a\ntrilab_bsdf oren-nayar sigma=-1\n", 2, "parameter `sigma=-1` cannot be negative"),
+            ("newmtl a\ntrilab_bsdf phong exponent=inf\n", 2, "parameter `exponent=inf`: every MTL number"),
+            ("newmtl ok\nKd 1 1 1\nnewmtl b\nKd 0 0 0\nKd 0 nan 0\n", 5, "material `b`"),
+        ] {
+            let e = load(text).err().unwrap_or_else(|| panic!("{text:?} was accepted")).to_string();
+            assert!(e.starts_with(&format!("x.mtl:{line}: ")) && e.contains(needle), "{text:?}: {e}");
+        }
+
+        // Ni is read by glass only: exporters write `Ni 0` on opaque materials.
+        let (m, w) = mtl("newmtl a\nKd 0.5 0.5 0.5\nNi 0\n");
+        assert!(w.is_empty() && m[0].kind == BsdfKind::Lambert, "{w:?}");
+        // ... and `ior=` replaces it.
+        let (m, _) = mtl("newmtl a\ntrilab_bsdf glass ior=1.2\nNi 0\n");
+        assert_eq!(m[0].gpu.ior, 1.2);
+
+        let (m, w) = mtl("newmtl a\nKd 2 0.5 1\nnewmtl b\nillum 3\nKs 1.5 1 1\nnewmtl c\nKs 0.1 0.1 0.1\nNs 1e9\n");
+        assert_eq!(m[0].gpu.diffuse, [1.0, 0.5, 1.0]);
+        assert_eq!(m[1].gpu.specular, [1.0; 3]);
+        assert_eq!((m[2].gpu.exponent, m[2].gpu.exponent_v), (MAX_EXPONENT, MAX_EXPONENT));
+        assert!(w[0].starts_with("x.mtl:2: material `a`: `Kd` 2 0.5 1: above 1"), "{w:?}");
+        assert!(w[1].starts_with("x.mtl:5: material `b`: `Ks` 1.5 1 1: above 1"), "{w:?}");
+        assert!(w[2].starts_with("x.mtl:8: material `c`: `Ns` 1e9: above 1e6"), "{w:?}");
+        assert_eq!(w.len(), 3, "{w:?}");
+        // Unread values are not clamped aloud: Kd of a mirror.
+        let (_, w) = mtl("newmtl a\nillum 3\nKd 5 5 5\n");
+        assert!(w.is_empty(), "{w:?}");
+        // Every accepted material holds finite, non-negative numbers.
+        for m in &m {
+            let g = m.gpu;
+            let all = [g.diffuse, g.specular, g.emission].concat();
+            let all = [&all[..], &[g.exponent, g.exponent_v, g.ior, g.sigma]].concat();
+            assert!(all.iter().all(|x| x.is_finite() && *x >= 0.0), "{g:?}");
+        }
+    }
+
+    /// Ashikhmin-Shirley nv falls back to Ns, not to nu (as before the value rules).
+    #[test]
+    fn anisotropic_exponents_keep_their_sources() {
+        let (m, w) = mtl("newmtl a\nNs 30\ntrilab_bsdf ashikhmin-shirley nu=200\n");
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!((m[0].gpu.exponent, m[0].gpu.exponent_v), (200.0, 30.0));
+    }
+}

@@ -1,0 +1,203 @@
+//! `trilab ab`, and the worker each of its sides runs (`trilab __ab-worker`, hidden).
+
+use std::path::PathBuf;
+
+use clap::Args;
+use trilab::encoding::{Layout, Method, SceneAccess};
+use trilab::error::{Error, Result};
+use trilab::harness::ab::{self, worker::Workload, AbOptions, Side};
+use trilab::harness::rayset::{RaySet, RaySetSizes};
+use trilab::named::Named;
+
+use super::choice::choice;
+use super::{scenes_help, GpuArgs, JsonArg};
+
+/// The workload both sides run, in the bench vocabulary (smaller defaults: many rounds).
+#[derive(Args, Clone)]
+pub struct WorkloadArgs {
+    #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(scenes_help!(), "; default: bunny"))]
+    scenes: Vec<PathBuf>,
+    /// Intersection methods, comma-separated (default: all of them).
+    #[arg(long, value_name = "M,...", value_parser = choice::<Method>(), value_delimiter = ',')]
+    methods: Vec<Method>,
+    /// Node layouts, comma-separated (default: bvh2).
+    #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
+    layouts: Vec<Layout>,
+    /// Ray sets, comma-separated (default: primary, diffuse, random).
+    #[arg(long, value_name = "S,...", value_parser = choice::<RaySet>(), value_delimiter = ',')]
+    sets: Vec<RaySet>,
+    /// Primary rays: image width.
+    #[arg(long, value_name = "W", default_value_t = 160)]
+    width: u32,
+    /// Primary rays: image height.
+    #[arg(long, value_name = "H", default_value_t = 120)]
+    height: u32,
+    /// Diffuse rays per primary hit.
+    #[arg(long, value_name = "N", default_value_t = 2)]
+    diffuse_per_hit: u32,
+    /// Random rays.
+    #[arg(long, value_name = "N", default_value_t = 20_000)]
+    random_rays: usize,
+    /// Seed of the ray sets (both sides trace the same rays).
+    #[arg(long, value_name = "N", default_value_t = 7)]
+    seed: u64,
+    /// Max triangles per BVH leaf.
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    leaf_size: u32,
+    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
+    scene_access: SceneAccess,
+    /// Most rays per dispatch.
+    #[arg(long, value_name = "N", default_value_t = 1 << 20)]
+    batch_rays: usize,
+}
+
+impl WorkloadArgs {
+    fn workload(&self) -> Workload {
+        Workload {
+            scenes: if self.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { self.scenes.clone() },
+            methods: if self.methods.is_empty() { Method::ALL.to_vec() } else { self.methods.clone() },
+            layouts: if self.layouts.is_empty() { vec![Layout::Bvh2] } else { self.layouts.clone() },
+            sets: if self.sets.is_empty() { RaySet::ALL.to_vec() } else { self.sets.clone() },
+            sizes: RaySetSizes {
+                width: self.width,
+                height: self.height,
+                diffuse_per_hit: self.diffuse_per_hit,
+                random_rays: self.random_rays,
+                seed: self.seed,
+            },
+            leaf_size: self.leaf_size,
+            scene_access: self.scene_access,
+            batch_rays: self.batch_rays,
+        }
+    }
+}
+
+/// `K=V`.
+fn env_pair(s: &str) -> std::result::Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((k, v)) if !k.is_empty() && !k.contains(char::is_whitespace) => Ok((k.into(), v.into())),
+        _ => Err(format!("`{s}`: an environment setting is NAME=VALUE")),
+    }
+}
+
+#[derive(Args)]
+pub struct AbArgs {
+    #[command(flatten)]
+    workload: WorkloadArgs,
+    /// Side A's driver: the ICD JSON the Vulkan loader is given (`VK_DRIVER_FILES`); default:
+    /// the loader's own choice.
+    #[arg(long, value_name = "FILE")]
+    a_icd: Option<PathBuf>,
+    /// Side B's driver, as --a-icd.
+    #[arg(long, value_name = "FILE")]
+    b_icd: Option<PathBuf>,
+    /// A variable set for side A only (repeatable): `--a-env LP_NATIVE_VECTOR_WIDTH=128`.
+    #[arg(long, value_name = "K=V", value_parser = env_pair)]
+    a_env: Vec<(String, String)>,
+    /// A variable set for side B only (repeatable).
+    #[arg(long, value_name = "K=V", value_parser = env_pair)]
+    b_env: Vec<(String, String)>,
+    /// Rounds per side at least (2 or more).
+    #[arg(long, value_name = "N", default_value_t = 6)]
+    rounds: usize,
+    /// Rounds per side at most: rounds are added (A B B A) until every cell's interval is
+    /// narrower than --target.
+    #[arg(long, value_name = "N", default_value_t = 20)]
+    max_rounds: usize,
+    /// Stop adding rounds when every cell's 95 % interval is within +-PCT percent.
+    #[arg(long, value_name = "PCT", default_value_t = 2.0)]
+    target: f64,
+    /// Stop adding rounds after this many seconds.
+    #[arg(long, value_name = "S", default_value_t = 300.0)]
+    time_cap: f64,
+    /// Exit 1 when a cell's whole interval is slower than this many percent.
+    #[arg(long, value_name = "PCT", default_value_t = 5.0)]
+    threshold: f64,
+    /// Folder for ab.json, ab.md and rows.jsonl (`merge` and `compare` read them).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+pub fn run(a: AbArgs) -> Result<()> {
+    // 1 is a verdict (hurt, or a correctness figure worse); 2 means the sides could not be
+    // compared, as `compare` and `diff` say.
+    super::error_exit(2);
+    for (name, v) in [("--target", a.target), ("--threshold", a.threshold), ("--time-cap", a.time_cap)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(Error::Usage(format!("{name} {v}: must be a positive number")));
+        }
+    }
+    if let Some(dir) = &a.out {
+        let files = ["ab.json", "ab.md", trilab::rows::FILE];
+        trilab::io::check_output("--out", trilab::io::Output::Dir(dir, &files), &[])?;
+    }
+    let exe = std::env::current_exe().map_err(|e| Error::io(std::path::Path::new("the trilab executable"), e))?;
+    let validation = a.gpu.validation || std::env::var("TRILAB_VALIDATION").is_ok_and(|v| v.trim() == "1");
+    let o = AbOptions {
+        workload: a.workload.workload(),
+        a: Side { icd: a.a_icd, env: a.a_env },
+        b: Side { icd: a.b_icd, env: a.b_env },
+        exe,
+        rounds: a.rounds,
+        max_rounds: a.max_rounds,
+        target: a.target / 100.0,
+        time_cap_s: a.time_cap,
+        threshold: a.threshold / 100.0,
+        validation,
+    };
+    sigpipe(true);
+    let report = ab::run(&o, |m| eprintln!("  {m}"));
+    sigpipe(false);
+    let report = report?;
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        ab::write(&report, dir)?;
+        eprintln!("wrote {}", dir.display());
+    }
+    a.json.print(&report);
+    let code = report.exit_code();
+    if code != 0 {
+        use std::io::Write;
+        let _ = std::io::stdout().flush();
+        std::process::exit(code.into());
+    }
+    Ok(())
+}
+
+/// Sets SIGPIPE's disposition: `ignore` while `ab` writes commands to its workers' stdin (a
+/// worker that died then gives an error naming its side, not a silent exit 141), the default
+/// again before the report is printed (a closed stdout ends the process quietly, as `main`
+/// arranges for every command).
+#[cfg(unix)]
+fn sigpipe(ignore: bool) {
+    // SAFETY: `signal` with SIG_IGN or SIG_DFL installs no handler of ours, only a disposition;
+    // the worker threads of this process write only to pipes this function is meant to cover.
+    unsafe {
+        libc::signal(libc::SIGPIPE, if ignore { libc::SIG_IGN } else { libc::SIG_DFL });
+    }
+}
+
+#[cfg(not(unix))]
+fn sigpipe(_ignore: bool) {}
+
+/// One side of `trilab ab` (run by it, not by hand).
+#[derive(Args)]
+pub struct AbWorkerArgs {
+    #[command(flatten)]
+    workload: WorkloadArgs,
+    /// Where each cell's first-round hits go.
+    #[arg(long, value_name = "DIR")]
+    hits_dir: PathBuf,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+pub fn run_worker(a: AbWorkerArgs) -> Result<()> {
+    let ctx = a.gpu.context()?;
+    let stdin = std::io::stdin();
+    ab::worker::serve(&ctx, &a.workload.workload(), &a.hits_dir, stdin.lock(), std::io::stdout().lock())
+}

@@ -1,0 +1,253 @@
+//! One side of `trilab ab`: a child process with that side's driver environment, which loads
+//! the workload once (scenes, BVHs, ray sets, the f64 reference's hits, kernels; one untimed
+//! warm-up of every cell) and then times one round of every cell each time the parent asks.
+//! A driver is loaded once per process, so each side needs its own.
+//!
+//! The protocol is JSON lines: the worker prints [`Message::Ready`] (its provenance and cells),
+//! then reads one command a line on stdin (`round`, `quit`) and answers each `round` with
+//! [`Message::Round`]; any failure is [`Message::Failed`] and the end of the process. Each
+//! cell's first timed round writes its hits to `<hits_dir>/<cell index>.hits`, so the parent
+//! can compare the sides ray by ray.
+
+use std::io::{BufRead, Write};
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::bvh::BuildOptions;
+use crate::compare::compare_closest;
+use crate::encoding::{Layout, Method, Raycast, SceneAccess};
+use crate::error::{Error, Result};
+use crate::gpu::{Context, Kernel, RaycastOptions};
+use crate::harness::provenance::Provenance;
+use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
+use crate::harness::validate::MIN_AGREEMENT;
+use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
+use crate::rays::{self, Ray};
+use crate::reference::RefHit;
+use crate::scene::{load_obj, Mesh};
+
+/// What both sides run: bench cells (scenes x ray sets x methods x layouts). The parent gives
+/// it to each worker as command-line options ([`Workload::args`]), in the bench vocabulary.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Workload {
+    pub scenes: Vec<PathBuf>,
+    pub methods: Vec<Method>,
+    pub layouts: Vec<Layout>,
+    pub sets: Vec<RaySet>,
+    pub sizes: RaySetSizes,
+    pub leaf_size: u32,
+    pub scene_access: SceneAccess,
+    pub batch_rays: usize,
+}
+
+/// One cell, as the worker names it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CellInfo {
+    pub scene: String,
+    pub set: String,
+    pub method: String,
+    pub layout: String,
+    pub rays: usize,
+    /// The kernel that ran (`raycast.mt.closest`), for the driver statistics.
+    pub kernel: String,
+}
+
+impl CellInfo {
+    /// `bunny primary mt bvh2`.
+    pub fn label(&self) -> String {
+        format!("{} {} {} {}", self.scene, self.set, self.method, self.layout)
+    }
+}
+
+/// A round's result for one cell.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellRound {
+    /// Kernel time, ms; `None` when the round did not validate (then it does not count).
+    pub ms: Option<f64>,
+    pub agree: usize,
+    pub unexplained: usize,
+    pub invalid: usize,
+}
+
+/// What a worker prints, one JSON object a line.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(tag = "message", rename_all = "kebab-case")]
+pub enum Message {
+    /// `provenance` is the worker's [`Provenance`], as JSON.
+    Ready {
+        provenance: serde_json::Value,
+        cells: Vec<CellInfo>,
+        pipeline_ms: f64,
+    },
+    Round {
+        cells: Vec<CellRound>,
+    },
+    Failed {
+        error: String,
+    },
+}
+
+/// A ray set, its rays and the reference's hits.
+type SetRays = (RaySet, Vec<Ray>, Vec<RefHit>);
+
+/// Runs of a cell in one round; the round's time is their median.
+pub const RUNS_PER_ROUND: usize = 3;
+
+/// A cell as the worker holds it.
+struct Cell<'a> {
+    info: CellInfo,
+    scene: &'a DeviceScene,
+    kernel: std::sync::Arc<Kernel>,
+    mesh: &'a Mesh,
+    rays: &'a [Ray],
+    ref_hits: &'a [RefHit],
+}
+
+impl Workload {
+    /// The options that give this workload to `trilab __ab-worker` (and name it in reports).
+    pub fn args(&self) -> Vec<String> {
+        let join = |v: Vec<String>| v.join(",");
+        let mut a = vec![
+            "--scenes".into(),
+            join(self.scenes.iter().map(|s| s.display().to_string()).collect()),
+            "--methods".into(),
+            join(self.methods.iter().map(|m| m.to_string()).collect()),
+            "--layouts".into(),
+            join(self.layouts.iter().map(|l| l.to_string()).collect()),
+            "--sets".into(),
+            join(self.sets.iter().map(|s| s.to_string()).collect()),
+        ];
+        for (k, v) in [
+            ("--width", self.sizes.width.to_string()),
+            ("--height", self.sizes.height.to_string()),
+            ("--diffuse-per-hit", self.sizes.diffuse_per_hit.to_string()),
+            ("--random-rays", self.sizes.random_rays.to_string()),
+            ("--seed", self.sizes.seed.to_string()),
+            ("--leaf-size", self.leaf_size.to_string()),
+            ("--scene-access", self.scene_access.to_string()),
+            ("--batch-rays", self.batch_rays.to_string()),
+        ] {
+            a.push(k.into());
+            a.push(v);
+        }
+        a
+    }
+}
+
+/// Runs the worker: loads `w`, prints `Ready`, then serves `input`'s commands on `output`.
+pub fn serve(ctx: &Context, w: &Workload, hits_dir: &Path, input: impl BufRead, mut output: impl Write) -> Result<()> {
+    let say = |out: &mut dyn Write, m: &Message| -> Result<()> {
+        let line = serde_json::to_string(m).expect("messages serialise");
+        writeln!(out, "{line}").and_then(|_| out.flush()).map_err(|e| Error::io(Path::new("stdout"), e))
+    };
+    match load_and_serve(ctx, w, hits_dir, input, &mut output, &say) {
+        Ok(()) => Ok(()),
+        Err(e) => {
+            say(&mut output, &Message::Failed { error: e.to_string() })?;
+            Err(e)
+        }
+    }
+}
+
+type Say<'s> = dyn Fn(&mut dyn Write, &Message) -> Result<()> + 's;
+
+fn load_and_serve(
+    ctx: &Context,
+    w: &Workload,
+    hits_dir: &Path,
+    input: impl BufRead,
+    output: &mut dyn Write,
+    say: &Say,
+) -> Result<()> {
+    let meshes: Vec<Mesh> = w.scenes.iter().map(|s| load_obj(s)).collect::<Result<_>>()?;
+    let build = BuildOptions::new(w.leaf_size);
+    let hosts: Vec<HostScene> = meshes
+        .iter()
+        .zip(&w.scenes)
+        .map(|(m, s)| HostScene::build(crate::scene::scene_name(s), m, &build))
+        .collect::<Result<_>>()?;
+    // Ray sets and the reference's hits, per scene (the same seeds on both sides: the same rays).
+    let mut sets: Vec<Vec<SetRays>> = vec![];
+    for (host, mesh) in hosts.iter().zip(&meshes) {
+        let reference = host.reference();
+        let all = ray_sets(mesh, &host.name, &reference, &w.sizes, None)?;
+        sets.push(
+            all.into_iter()
+                .filter(|(set, rays)| w.sets.contains(set) && !rays.is_empty())
+                .map(|(set, rays)| {
+                    let r = reference.trace_all(&rays, false);
+                    (set, rays, r)
+                })
+                .collect(),
+        );
+    }
+    let t = std::time::Instant::now();
+    let mut scenes: Vec<(usize, DeviceScene)> = vec![];
+    for (i, host) in hosts.iter().enumerate() {
+        for &m in &w.methods {
+            for &l in &w.layouts {
+                scenes.push((i, host.upload(ctx, &SceneRequest::new(m).access(w.scene_access).layout(l))?));
+            }
+        }
+    }
+    let mut cells = vec![];
+    for (i, scene) in &scenes {
+        let kernel = scene.kernel(ctx, Raycast::Closest)?;
+        for (set, rays, ref_hits) in &sets[*i] {
+            let info = CellInfo {
+                scene: hosts[*i].name.clone(),
+                set: set.to_string(),
+                method: scene.method.to_string(),
+                layout: scene.layout.to_string(),
+                rays: rays.len(),
+                kernel: kernel.name.to_string(),
+            };
+            cells.push(Cell { info, scene, kernel: kernel.clone(), mesh: &meshes[*i], rays, ref_hits });
+        }
+    }
+    if cells.is_empty() {
+        return Err(Error::Usage("the workload has no cells (every ray set empty?)".into()));
+    }
+    // One untimed run of every cell: pipelines compiled, caches warm.
+    let warm = RaycastOptions { warmup: 0, repeat: 1, batch_rays: w.batch_rays };
+    for c in &cells {
+        c.scene.cast_with(ctx, &c.kernel, c.rays, &warm)?;
+    }
+    // A round's time for a cell is the median of [`RUNS_PER_ROUND`] runs: on a shared host the
+    // driver's threads are now and then descheduled, and a single run's time is bimodal.
+    let opts = RaycastOptions { warmup: 0, repeat: RUNS_PER_ROUND, batch_rays: w.batch_rays };
+    let pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
+    let infos = cells.iter().map(|c| c.info.clone()).collect();
+    let provenance = serde_json::to_value(Provenance::of(ctx)).expect("provenance serialises");
+    say(output, &Message::Ready { provenance, cells: infos, pipeline_ms })?;
+    let mut round = 0usize;
+    for line in input.lines() {
+        let line = line.map_err(|e| Error::io(Path::new("stdin"), e))?;
+        match line.trim() {
+            "round" => {
+                let mut results = vec![None; cells.len()];
+                // The cell that opens a round rotates, as in every interleaved harness.
+                for k in 0..cells.len() {
+                    let i = (k + round) % cells.len();
+                    let c = &cells[i];
+                    let res = c.scene.cast_with(ctx, &c.kernel, c.rays, &opts)?;
+                    let a = compare_closest(c.mesh, c.rays, &res.hits, c.ref_hits);
+                    if round == 0 {
+                        rays::write_hits(&hits_dir.join(format!("{i}.hits")), &res.hits)?;
+                    }
+                    let valid = a.passes(MIN_AGREEMENT);
+                    let ms = if valid { Some(res.time_ms()?.median) } else { None };
+                    results[i] =
+                        Some(CellRound { ms, agree: a.agree, unexplained: a.unexplained, invalid: a.invalid.len() });
+                }
+                round += 1;
+                let cells = results.into_iter().map(|r| r.expect("every cell ran")).collect();
+                say(output, &Message::Round { cells })?;
+            }
+            "quit" | "" => return Ok(()),
+            other => return Err(Error::Usage(format!("ab worker: unknown command `{other}`"))),
+        }
+    }
+    Ok(())
+}

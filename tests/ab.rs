@@ -1,0 +1,89 @@
+//! `trilab ab` (issue 25): the same environment on both sides passes and calls no cell hurt
+//! beyond the threshold (the CI check: smoke cells, under a minute); a planted slowdown of one
+//! method's kernel on side B (`TRILAB_INJECT_SLOWDOWN`, every dispatch recorded 3 times) is
+//! found in that method's cells only and fails the run; a side that cannot start is exit 2,
+//! naming it. Every run has a wall-clock limit and the validation layer on.
+
+mod common;
+
+use common::cli::s;
+use serde_json::Value;
+
+/// The smoke cells: the bunny, two methods, three small ray sets.
+const SMOKE: &[&str] = &["ab", "--methods", "mt,unit", "--width", "96", "--height", "72", "--random-rays", "8000"];
+
+fn ab(extra: &[&str], timeout_s: u64) -> (std::process::Output, Value) {
+    let args: Vec<&str> = [SMOKE, extra, &["--json"]].concat();
+    let (o, _) = common::cli::run(&args, None, &[], timeout_s);
+    let v = serde_json::from_slice(&o.stdout).unwrap_or(Value::Null);
+    (o, v)
+}
+
+fn verdicts(report: &Value) -> Vec<(String, String)> {
+    report["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| (c["cell"]["method"].as_str().unwrap().to_owned(), c["verdict"].as_str().unwrap_or("none").to_owned()))
+        .collect()
+}
+
+#[test]
+fn a_against_a_passes_and_nothing_is_hurt_beyond_the_threshold() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ab");
+    let start = std::time::Instant::now();
+    let (o, r) = ab(&["--rounds", "4", "--max-rounds", "8", "--out", &s(&out)], 120);
+    let took = start.elapsed();
+    let e = common::cli::stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{e}\n{r}");
+    assert!(took.as_secs() < 60, "A against A took {took:?}");
+    let cells = r["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 6, "2 methods x 3 ray sets: {r}");
+    for c in cells {
+        assert_ne!(c["verdict"], "hurt-beyond-threshold", "{c}");
+        // The same driver traces the same rays to the same hits, all validated.
+        assert_eq!(c["rays_differing"], 0, "{c}");
+        assert_eq!(c["correctness_worse"], false, "{c}");
+        assert!(c["a"]["ms"].as_array().unwrap().len() >= 4, "{c}");
+        assert_eq!(c["a"]["unexplained"], 0, "{c}");
+    }
+    assert_eq!(r["a"]["provenance"]["driver"], r["b"]["provenance"]["driver"]);
+    // The files `merge` and `compare` read: both sides' bench rows and the ratios.
+    let rows = std::fs::read_to_string(out.join("rows.jsonl")).unwrap();
+    assert_eq!(rows.lines().filter(|l| l.contains("\"command\":\"bench\"")).count(), 12, "{rows}");
+    assert_eq!(rows.lines().filter(|l| l.contains("\"command\":\"ab\"")).count(), 6, "{rows}");
+    assert!(std::fs::read_to_string(out.join("ab.md")).unwrap().contains("totals:"));
+}
+
+#[test]
+fn a_planted_slowdown_is_found_in_its_cells_and_fails_the_run() {
+    let (o, r) = ab(&["--rounds", "4", "--max-rounds", "4", "--b-env", "TRILAB_INJECT_SLOWDOWN=.mt.:3"], 120);
+    let e = common::cli::stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}\n{r}");
+    for (method, verdict) in verdicts(&r) {
+        if method == "mt" {
+            assert_eq!(verdict, "hurt-beyond-threshold", "{r}");
+        } else {
+            assert_ne!(verdict, "hurt-beyond-threshold", "{r}");
+        }
+    }
+    for c in r["cells"].as_array().unwrap().iter().filter(|c| c["cell"]["method"] == "mt") {
+        let ratio = c["ratio"]["ratio"].as_f64().unwrap();
+        assert!((2.0..4.5).contains(&ratio), "every dispatch recorded 3 times: B/A {ratio}: {c}");
+    }
+}
+
+#[test]
+fn sides_that_cannot_be_compared_are_exit_2_naming_why() {
+    let (o, _) = ab(&["--b-icd", "/nonexistent/icd.json"], 60);
+    assert_eq!(o.status.code(), Some(2));
+    common::cli::expect_error(&o, &["--b-icd", "/nonexistent/icd.json"]);
+    // A driver file that names no driver: the loader finds no device for side B.
+    let dir = tempfile::tempdir().unwrap();
+    let icd = dir.path().join("none.json");
+    std::fs::write(&icd, r#"{"file_format_version": "1.0.0", "ICD": {"library_path": "/nonexistent/libvulkan_none.so", "api_version": "1.3.0"}}"#).unwrap();
+    let (o, _) = ab(&["--b-icd", &s(&icd)], 60);
+    assert_eq!(o.status.code(), Some(2), "{}", common::cli::stderr(&o));
+    common::cli::expect_error(&o, &["side B"]);
+}
