@@ -1,11 +1,18 @@
 #!/usr/bin/env bash
 # Installs the system packages trilab needs on Debian 12 (bookworm), only where missing:
-#   - lavapipe (Mesa's CPU Vulkan driver) from bookworm-backports: Mesa 25.0.x runs trilab's
-#     kernels 7-9x faster than bookworm's 22.3.6 and adds VK_KHR_ray_query;
+#   - lavapipe (Mesa's CPU Vulkan driver) from bookworm-backports: Mesa 25.0.7 runs trilab's
+#     kernels about 1.3x faster than bookworm's 22.3.6 (bunny, 160x120 camera, 20k random rays,
+#     8 methods; median per cell 1.36x, 1.02-2.09x, over 36 interleaved runs on a shared 2-core
+#     AMD EPYC: README.md, "On Debian 12's own Mesa"), adds VK_KHR_ray_query, and prints its
+#     machine code under GALLIVM_DEBUG=asm (trilab driver-stats; 22.3.6's release build does not);
 #   - the Vulkan loader and headers, the Khronos validation layers, vulkaninfo, spirv-tools;
 #   - cmake, python3 and g++ to build shaderc from source (crate feature build-from-source);
-#   - procps, for the `kill` the Ctrl-C test sends SIGINT with.
-# Safe to run repeatedly; needs root (or sudo).
+#   - procps, for the `kill` the Ctrl-C test sends SIGINT with;
+#   - Debian 12's own lavapipe (Mesa 22.3.6) unpacked, not installed, under
+#     ~/.cache/trilab/stock-mesa by scripts/stock-mesa.sh (an 8 MB download, once), so
+#     tests/stock_mesa.rs can check trilab on the driver a user without backports has.
+# Safe to run repeatedly; needs root (or sudo) for apt; the stock driver is unpacked as the
+# calling user.
 set -euo pipefail
 
 SUDO=""
@@ -26,8 +33,18 @@ mesa_ver=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true
 need_mesa=1
 case "$mesa_ver" in 2[5-9].*|3*) need_mesa=0 ;; esac
 
+# Debian 12's own lavapipe beside the installed one (never installed over it); apt's lists are
+# refreshed once if they do not know the bookworm package yet.
+stock_mesa() {
+  local script
+  script="$(dirname "$0")/stock-mesa.sh"
+  "$script" --quiet >/dev/null 2>&1 || { $SUDO apt-get update -qq && "$script" --quiet >/dev/null; }
+  echo "install-deps: stock lavapipe for tests/stock_mesa.rs: $("$script" --quiet)"
+}
+
 if [ ${#missing[@]} -eq 0 ] && [ $need_mesa -eq 0 ]; then
   echo "install-deps: all system packages present (mesa-vulkan-drivers $mesa_ver)"
+  stock_mesa
   exit 0
 fi
 
@@ -47,3 +64,4 @@ if [ $need_mesa -eq 1 ]; then
   $SUDO apt-get install -y -qq --no-install-recommends -t bookworm-backports mesa-vulkan-drivers >/dev/null
 fi
 echo "install-deps: mesa-vulkan-drivers $(dpkg-query -W -f='${Version}' mesa-vulkan-drivers)"
+stock_mesa

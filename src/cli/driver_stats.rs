@@ -6,6 +6,7 @@ use clap::Args;
 use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
 use trilab::harness::profile::driver_stats::{self, CollectOptions, Selection};
+use trilab::harness::profile::Status;
 use trilab::named::Named;
 use trilab::report::Report;
 
@@ -15,8 +16,10 @@ use super::{results_dir, GpuArgs, JsonArg, MethodsArg};
 /// What the driver compiled each kernel to: on lavapipe, machine instructions, vector spills and
 /// reloads and calls into the texel-fetch helpers, from gallivm's disassembly (this executable
 /// runs itself again with GALLIVM_DEBUG=asm and MESA_SHADER_CACHE_DISABLE=true); on drivers with
-/// VK_KHR_pipeline_executable_properties, their statistics. driver-stats.md, driver-stats.json
-/// and rows.jsonl (for `trilab compare`).
+/// VK_KHR_pipeline_executable_properties, their statistics; on other drivers (among them Debian
+/// 12's own lavapipe, Mesa 22.3.6, whose release build reads no GALLIVM_DEBUG) it refuses, naming
+/// why, after probing one kernel. driver-stats.md, driver-stats.json and rows.jsonl (for
+/// `trilab compare`).
 #[derive(Args)]
 pub struct DriverStatsArgs {
     /// Kernel files, comma-separated: `raycast` (the only one dispatched so far; lavapipe compiles
@@ -74,7 +77,6 @@ pub fn run(a: DriverStatsArgs) -> Result<()> {
         trilab::io::check_output("--asm-dir", trilab::io::Output::Dir(dir, &[]), &[])?;
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     eprintln!("  {} kernel variants", kernels.len());
     let o = CollectOptions {
         exe,
@@ -83,6 +85,12 @@ pub fn run(a: DriverStatsArgs) -> Result<()> {
         asm_dir: a.asm_dir.clone(),
     };
     let report = driver_stats::collect(&ctx, &kernels, &o)?;
+    // A driver without statistics is told after one kernel's probe, before the others are
+    // compiled and before any file is written: an empty report would read as "no kernels".
+    if report.status != Status::Measured {
+        return Err(Error::Unsupported(format!("driver-stats: {}", report.note)));
+    }
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     a.json.print(&report);
     trilab::io::write_atomic(&out.join(FILES[0]), report.to_json().as_bytes())?;
     trilab::io::write_atomic(&out.join(FILES[1]), report.to_text().as_bytes())?;

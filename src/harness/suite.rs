@@ -554,14 +554,26 @@ fn run_part(
             p.sizes().require_all()?;
             let r = profile::run(ctx, &p, Some(dir), &mut note)?;
             profile::write(&r, dir)?;
-            Ok((
-                Part::Profile.title().into(),
-                "Timestamps, pipeline statistics, shader clocks, executable and driver statistics, subgroup and \
-                 workgroup sizes per kernel: [profile/profile.md](profile/profile.md).\n"
-                    .to_owned(),
-            ))
+            Ok((Part::Profile.title().into(), profile_section(&r)))
         }
     }
+}
+
+/// The profile's link, then the sections this driver could not measure and why (Debian 12's own
+/// lavapipe, Mesa 22.3.6, has no driver statistics; no lavapipe has executable properties).
+fn profile_section(r: &profile::ProfileReport) -> String {
+    let mut out = "Timestamps, pipeline statistics, shader clocks, executable and driver statistics, subgroup and \
+                   workgroup sizes per kernel: [profile/profile.md](profile/profile.md).\n"
+        .to_owned();
+    let missing = r.not_measured();
+    if !missing.is_empty() {
+        out.push_str("\nNot measured on this driver:\n\n");
+        for (title, status, note) in missing {
+            let word = if status == profile::Status::Unsupported { "unsupported" } else { "not applicable" };
+            out.push_str(&format!("- {title} ({word}): {note}\n"));
+        }
+    }
+    out
 }
 
 /// The headline speed table: per scene and ray set, the fastest validated method (and layout),

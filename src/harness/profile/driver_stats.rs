@@ -200,8 +200,21 @@ pub const LAVAPIPE_NOTE: &str = "lavapipe's own machine code: this executable ru
 pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOptions) -> Result<DriverStatsReport> {
     let provenance = Provenance::of(ctx);
     let info = ctx.info();
-    if is_lavapipe(ctx) {
-        let dumps = lavapipe_dumps(kernels, o)?;
+    if is_lavapipe(ctx) && !kernels.is_empty() {
+        // The first kernel alone first: a lavapipe that prints nothing for it reads no
+        // GALLIVM_DEBUG, and is told before the other kernels are compiled.
+        let mut dumps = lavapipe_dumps(&kernels[..1], o)?;
+        if !printed_code(&dumps[0]) {
+            return Ok(DriverStatsReport {
+                provenance,
+                status: Status::Unsupported,
+                note: no_asm_note(&info.name, info.mesa_version.as_deref()),
+                kernels: vec![],
+            });
+        }
+        if kernels.len() > 1 {
+            dumps.extend(lavapipe_dumps(&kernels[1..], o)?);
+        }
         let mut out = vec![];
         for (k, text) in kernels.iter().zip(dumps) {
             let fs = lavapipe_asm::parse(&text)
@@ -247,6 +260,31 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
         ),
         kernels: vec![],
     })
+}
+
+/// Whether a kernel's part of the child's stderr holds any machine code: with GALLIVM_DEBUG read,
+/// gallivm prints at least the per-descriptor helpers it compiles, even for a variant served
+/// from a shader cache; a build that reads no GALLIVM_DEBUG (Debian 12's Mesa 22.3.6) prints
+/// nothing between the markers. A dump that does not parse counts as code (its error is
+/// reported where it is read).
+pub fn printed_code(dump: &str) -> bool {
+    !lavapipe_asm::parse(dump).is_ok_and(|fs| fs.is_empty())
+}
+
+/// Why a lavapipe that printed no machine code under `GALLIVM_DEBUG=asm` (not even the texel-fetch
+/// helpers every kernel uses) has no driver statistics. Older gallivm read GALLIVM_DEBUG only in
+/// debug builds (`#ifdef DEBUG`; `gallivm_debug` was the constant 0 otherwise), and Debian 12's
+/// own release build (22.3.6) prints nothing: `strings` on its `libvulkan_lvp.so` finds no
+/// `GALLIVM_DEBUG`, while 25.0.7's (bookworm-backports) has it. It offers no
+/// VK_KHR_pipeline_executable_properties either. (Its disk cache does hold each variant's
+/// object code, an ELF file `objdump -d` reads, but reading it needs the cache's private format.)
+pub fn no_asm_note(device: &str, mesa_version: Option<&str>) -> String {
+    let mesa = mesa_version.map(|v| format!("Mesa {v}")).unwrap_or_else(|| "this Mesa".into());
+    format!(
+        "not available on this driver: {device}, {mesa}, printed no machine code under GALLIVM_DEBUG=asm, not even its \
+         texel-fetch helpers (this release build reads no GALLIVM_DEBUG; older gallivm read it in debug builds only, \
+         Mesa 25.0.7 from bookworm-backports reads it), and offers no VK_KHR_pipeline_executable_properties"
+    )
 }
 
 /// The numeric statistics of a pipeline's executables as figures named
@@ -544,6 +582,23 @@ mod tests {
         assert_eq!(parts, ["sample:\n  0:\tretq\n", "cs_variant:\n  0:\tretq\n"]);
         assert!(split_dump(&text, &["a", "b", "c"]).is_err());
         assert!(split_dump(&format!("{END}a\n"), &["a"]).is_err());
+    }
+
+    /// What Debian 12's own lavapipe (Mesa 22.3.6) printed for two kernels under GALLIVM_DEBUG=asm
+    /// (tests/data/lavapipe-asm/README.md): the markers and nothing else, so the statistics are
+    /// refused as unavailable, where 25.0.7's dump of the same kernel counts.
+    #[test]
+    fn mesa_22_3_6_prints_no_code_and_is_told_apart() {
+        let text = include_str!("../../../tests/data/lavapipe-asm/mesa-22.3.6.stderr.txt");
+        let names = ["raycast.mt.closest", "raycast.quad-unit.any_cwbvh"];
+        let parts = split_dump(text, &names).unwrap();
+        assert!(parts.iter().all(|p| !printed_code(p)), "{parts:?}");
+        let mesa_25 = include_str!("../../../tests/data/lavapipe-asm/raycast.mt.closest.txt");
+        assert!(printed_code(mesa_25));
+        // Only the helpers (a variant served from a cache) still shows GALLIVM_DEBUG is read.
+        assert!(printed_code("sample:\n  0:\tretq\n"));
+        let note = no_asm_note("llvmpipe (LLVM 15.0.6, 256 bits)", Some("22.3.6"));
+        assert!(note.contains("Mesa 22.3.6") && note.contains("GALLIVM_DEBUG"), "{note}");
     }
 
     #[test]

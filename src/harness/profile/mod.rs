@@ -252,6 +252,25 @@ pub struct ProfileReport {
     pub provenance: crate::harness::provenance::Provenance,
 }
 
+impl ProfileReport {
+    /// The sections the driver could not measure (unsupported or not applicable), each with its
+    /// title and the note saying why, in the report's order; skipped sections (asked away by an
+    /// option) are not among them.
+    pub fn not_measured(&self) -> Vec<(&'static str, Status, &str)> {
+        let all = [
+            ("Per-dispatch kernel time", self.timestamps.status, self.timestamps.note.as_str()),
+            ("Pipeline statistics", self.pipeline_statistics.status, &self.pipeline_statistics.note),
+            ("Shader clock", self.shader_clock.status, &self.shader_clock.note),
+            ("Pipeline executable properties", self.executable_properties.status, &self.executable_properties.note),
+            ("Subgroup-size sweep", self.subgroup_sizes.status, &self.subgroup_sizes.note),
+            ("Workgroup-size sweep", self.workgroup_sizes.status, &self.workgroup_sizes.note),
+            ("LP_NUM_THREADS scaling", self.lp_num_threads_scaling.status, &self.lp_num_threads_scaling.note),
+            ("Driver statistics", self.driver_statistics.status, &self.driver_statistics.note),
+        ];
+        all.into_iter().filter(|(_, st, _)| matches!(st, Status::Unsupported | Status::NotApplicable)).collect()
+    }
+}
+
 /// Checks hits against the f64 reference ([`crate::harness::validate::validate_hits`]); an error
 /// (so nothing gets reported) if they disagree. Returns the fraction agreeing.
 fn validated(mesh: &Mesh, rays: &[Ray], hits: &[Hit], reference: &[RefHit], what: &str) -> Result<f64> {
