@@ -1,14 +1,15 @@
-//! Issue 24, defect 3, through the binary: `trilab bvh` on copies of one triangle (every triangle
-//! overlaps every other) finishes in seconds with the EPO its tree has by hand; `--threads` is
-//! bounded in every command that takes it, refused before any work naming the option. Every run
-//! has a wall-clock limit (tests/common/cli.rs).
+//! Issue 24, defect 3 and part of 7, through the binary: `trilab bvh` on copies of one triangle
+//! (every triangle overlaps every other) finishes in seconds with the EPO its tree has by hand;
+//! `--threads` is bounded in every command that takes it, refused before any work naming the
+//! option; `rays random` on a scene whose every vertex is one point says so instead of blaming
+//! f32's range. Every run has a wall-clock limit (tests/common/cli.rs).
 
 mod common;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use common::cli::{expect_error, ok, s};
+use common::cli::{expect_error, ok, s, trilab};
 
 /// An OBJ of `n` copies of the triangle (0,0,0), (1,0,0), (0,1,0), of area 1/2.
 fn copies(dir: &Path, n: usize) -> PathBuf {
@@ -90,4 +91,18 @@ fn thread_counts_are_bounded_in_every_command_that_takes_them() {
     );
     ok(&o);
     assert!(took < Duration::from_secs(30), "took {took:?}");
+}
+
+/// Before: 3,000 triangles with every vertex at one point were refused as "too large for rays
+/// around it (f32 ends at 3.4e38)". The box is a point: nothing to aim random rays into.
+#[test]
+fn random_rays_for_a_scene_at_one_point_name_the_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("point.obj");
+    std::fs::write(&scene, format!("v 1 2 3\n{}", "f 1 1 1\n".repeat(3000))).unwrap();
+    let out = dir.path().join("r.rays");
+    let o = trilab(&["rays", "random", "--scene", &s(&scene), "--out", &s(&out)], 60);
+    let e = expect_error(&o, &["point.obj", "3000 triangles", "single point [1.0, 2.0, 3.0]", "no direction"]);
+    assert!(!e.contains("f32"), "not a matter of f32's range: {e}");
+    assert!(!out.exists());
 }
