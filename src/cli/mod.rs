@@ -172,7 +172,8 @@ impl JsonArg {
 }
 
 /// The exit status of an error: 1, or 2 for a command whose status 1 is a verdict
-/// (`compare`: 1 is a regression, 2 a failure to compare, as `diff`'s 1 and 2).
+/// (`compare`: 1 is a regression, 2 a failure to compare, as `diff`'s 1 and 2) and for `merge`,
+/// which compares many runs and gives the same 2 when it cannot.
 static ERROR_EXIT: AtomicU8 = AtomicU8::new(1);
 
 /// Makes an error exit with `code` (see [`ERROR_EXIT`]).
