@@ -127,3 +127,43 @@ fn bad_shards_and_merge_inputs_are_refused_before_any_work() {
     std::fs::write(bad.join("rows.jsonl"), "{\"schema\":\"trilab-rows/1\",\"type\":\"row\"}\n").unwrap();
     expect_error(&trilab(&["merge", bad.to_str().unwrap()], 60), &["rows.jsonl", "1"]);
 }
+
+/// Issue 24, defect 7: merge exited 1 on a malformed row where compare exits 2 (it could not
+/// compare), and 0 with an empty report on an empty rows file. Whatever keeps merge from merging
+/// exits 2 and names the file, with `--json` too.
+#[test]
+fn merge_exits_2_naming_the_file_when_it_cannot_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = |name: &str, text: &str| {
+        let d = dir.path().join(name);
+        std::fs::create_dir_all(&d).unwrap();
+        std::fs::write(d.join("rows.jsonl"), text).unwrap();
+        d.to_str().unwrap().to_owned()
+    };
+    let malformed = folder("malformed", "{\"schema\":\"trilab-rows/1\",\"type\":\"row\"}\nnot json\n");
+    let empty = folder("empty", "");
+    let cases: [(Vec<&str>, Vec<String>); 4] = [
+        (vec!["merge", &malformed], vec!["malformed/rows.jsonl:1".into()]),
+        (vec!["merge", &empty], vec!["empty/rows.jsonl".into(), "no measured row".into()]),
+        (vec!["merge", &empty, "--json"], vec!["empty/rows.jsonl".into()]),
+        (vec!["merge", "no/such/folder"], vec!["no/such/folder".into()]),
+    ];
+    for (args, needles) in &cases {
+        let o = trilab(args, 60);
+        let needles: Vec<&str> = needles.iter().map(String::as_str).collect();
+        expect_error(&o, &needles);
+        assert_eq!(o.status.code(), Some(2), "trilab {args:?}");
+        if args.contains(&"--json") {
+            let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+            assert_eq!(j["error"]["kind"], "bad-input", "{j}");
+        }
+    }
+    // The same malformed file stops compare with the same status.
+    let o = trilab(&["compare", &malformed, &malformed], 60);
+    expect_error(&o, &["malformed/rows.jsonl:1"]);
+    assert_eq!(o.status.code(), Some(2));
+    let out = dir.path().join("out");
+    let o = trilab(&["merge", &empty, "--out", out.to_str().unwrap()], 60);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!out.join("merge.md").exists(), "no report of nothing");
+}

@@ -15,7 +15,20 @@
 //! taking the polygon's area. Boxes are closed: a triangle lying in a box face counts as inside.
 //! The candidates for node n come from the BVH itself: a depth-first query for the leaves whose
 //! boxes overlap box(n), skipping n's own subtree (every triangle lies in exactly one leaf, so
-//! that is exactly Q \ Q(n)). Nodes are processed in parallel.
+//! that is exactly Q \ Q(n)). Two shortcuts keep piles of triangles from costing a clip per
+//! pair: a subtree whose box lies inside box(n) adds its precomputed area without a visit below
+//! it, and a subtree whose triangles are all copies of one triangle (the same vertices) adds that
+//! triangle's clipped area times their number. So copies of one triangle, where every box holds
+//! every other triangle, cost O(1) per node rather than O(triangles), however many piles of
+//! copies cross one another. Nodes are processed in parallel.
+//!
+//! What no exact method avoids: where each small box holds a large share of all other triangles
+//! *in part* (copies of one triangle, each moved a little), every such pair must be clipped, and
+//! the work grows as the square of the triangle count. [`epo_within`] stops past a work limit
+//! ([`default_work_limit`], proportional to the tree's size) and reports no value; `trilab bvh`
+//! and the study then print `-` for the EPO and say why.
+
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -133,28 +146,132 @@ struct Tri {
     area: f64,
 }
 
-/// EPO of `bvh` over `mesh`, with the node costs of `bvh.options` (see the module docs).
-/// 0 for a tree whose triangles have no area.
-pub fn epo(mesh: &Mesh, bvh: &Bvh) -> f64 {
-    let tris: Vec<Option<Tri>> = bvh
-        .prim_ids
-        .par_iter()
-        .map(|&id| {
-            (id != PAD_SLOT).then(|| {
-                let v = mesh.vertices_f64(id as usize);
-                Tri { v, bounds: Box64::of_triangle(&v), area: triangle_area(&v) }
+/// The hierarchy as the queries read it: each node's box in f64, the total triangle area of its
+/// subtree, and its place in a depth-first (preorder) walk, so that whether one node lies in
+/// another's subtree is two comparisons.
+struct Tree<'a> {
+    bvh: &'a Bvh,
+    tris: Vec<Option<Tri>>,
+    boxes: Vec<Box64>,
+    /// Area of the triangles under each node.
+    subtree_area: Vec<f64>,
+    /// Preorder number of each node, and the number of nodes in its subtree (itself included).
+    pre: Vec<usize>,
+    size: Vec<usize>,
+    /// Triangles under each node (padding slots left out).
+    count: Vec<f64>,
+    /// The slot of a triangle of which every triangle under the node is a copy (the same
+    /// vertices in the same order), if they all are.
+    copies_of: Vec<Option<usize>>,
+}
+
+impl Tree<'_> {
+    fn new<'a>(mesh: &Mesh, bvh: &'a Bvh) -> Tree<'a> {
+        let tris: Vec<Option<Tri>> = bvh
+            .prim_ids
+            .par_iter()
+            .map(|&id| {
+                (id != PAD_SLOT).then(|| {
+                    let v = mesh.vertices_f64(id as usize);
+                    Tri { v, bounds: Box64::of_triangle(&v), area: triangle_area(&v) }
+                })
             })
-        })
-        .collect();
-    let total_area: f64 = tris.iter().flatten().map(|t| t.area).sum();
-    if total_area <= 0.0 {
-        return 0.0;
+            .collect();
+        let mut order = Vec::with_capacity(bvh.nodes.len());
+        bvh.visit(|i, _| order.push(i));
+        let n = bvh.nodes.len();
+        let (mut pre, mut size, mut subtree_area) = (vec![0; n], vec![1; n], vec![0.0; n]);
+        let (mut count, mut copies_of) = (vec![0.0; n], vec![None; n]);
+        for (k, &i) in order.iter().enumerate() {
+            pre[i] = k;
+        }
+        let same = |a: Option<usize>, b: Option<usize>| match (a, b) {
+            (Some(a), Some(b)) => tris[a].as_ref().map(|t| t.v) == tris[b].as_ref().map(|t| t.v),
+            _ => false,
+        };
+        // Children come after their parent in preorder: backwards, they are done first.
+        for &i in order.iter().rev() {
+            let node = &bvh.nodes[i];
+            let first = node.left_or_first as usize;
+            if node.is_leaf() {
+                let slots = first..first + node.count as usize;
+                subtree_area[i] = tris[slots.clone()].iter().flatten().map(|t| t.area).sum();
+                count[i] = tris[slots.clone()].iter().flatten().count() as f64;
+                let mut real = slots.filter(|&s| tris[s].is_some());
+                copies_of[i] = real.next().filter(|&r| real.all(|s| same(Some(r), Some(s))));
+            } else {
+                size[i] = 1 + size[first] + size[first + 1];
+                subtree_area[i] = subtree_area[first] + subtree_area[first + 1];
+                count[i] = count[first] + count[first + 1];
+                copies_of[i] = copies_of[first].filter(|_| same(copies_of[first], copies_of[first + 1]));
+            }
+        }
+        let boxes = bvh.nodes.iter().map(Box64::of_node).collect();
+        Tree { bvh, tris, boxes, subtree_area, pre, size, count, copies_of }
     }
-    let boxes: Vec<Box64> = bvh.nodes.iter().map(Box64::of_node).collect();
+
+    /// Whether `n` is `m` or lies in `m`'s subtree.
+    fn holds(&self, m: usize, n: usize) -> bool {
+        (self.pre[m]..self.pre[m] + self.size[m]).contains(&self.pre[n])
+    }
+}
+
+/// Work units (nodes visited plus triangles tested) of a query, counted before they are added to
+/// the shared total, so a query over the limit stops within this many units of it.
+const WORK_CHUNK: u64 = 1 << 12;
+
+/// Work units a tree's EPO may take by default ([`Bvh::stats_with_epo`]), per node and triangle.
+/// The bundled scenes take at most 80 (bunny, dragon, Buddha at leaf size 1, either builder; 25 to
+/// 50 at larger leaves), and piles of copies of one triangle a few; copies each moved by 1 % of
+/// their size take 870 at 16,000 triangles (leaf size 1), and more the more there are.
+pub const WORK_PER_ELEMENT: u64 = 256;
+
+/// The work [`epo_within`] may spend on a tree by default: [`WORK_PER_ELEMENT`] units (a node
+/// visited or a triangle tested, about 60 ns each on one core) per node and triangle, and at least
+/// 2^24 (about a second), so a small tree is always priced. A tree over it is one whose leaves'
+/// boxes each hold a large share of all the other triangles in part, which no exact method prices
+/// in less than their product.
+pub fn default_work_limit(bvh: &Bvh) -> u64 {
+    ((bvh.nodes.len() + bvh.prim_ids.len()) as u64).saturating_mul(WORK_PER_ELEMENT).max(1 << 24)
+}
+
+/// Why [`Bvh::stats_with_epo`] left a tree's EPO out, for a report's notes.
+pub fn not_computed(bvh: &Bvh) -> String {
+    format!(
+        "EPO not computed: it would take more than {} units of work (nodes visited and triangles tested; the limit is \
+         {WORK_PER_ELEMENT} per node and triangle): the scene's triangles overlap one another in part so much that \
+         the exact metric grows as the square of their number",
+        default_work_limit(bvh)
+    )
+}
+
+/// EPO of `bvh` over `mesh`, with the node costs of `bvh.options` (see the module docs).
+/// 0 for a tree whose triangles have no area. No bound on the work: quadratic in the triangle
+/// count where many triangles overlap one another in part ([`epo_within`] bounds it).
+pub fn epo(mesh: &Mesh, bvh: &Bvh) -> f64 {
+    epo_within(mesh, bvh, u64::MAX).expect("no work limit")
+}
+
+/// [`epo`], or `None` when it would take more than `max_work` units of work (a node visited or a
+/// triangle tested; [`default_work_limit`]). Whether it gives up depends only on the tree, never
+/// on the thread count: the total work of the queries is fixed, and the queries stop only once
+/// their shared count is past the limit.
+pub fn epo_within(mesh: &Mesh, bvh: &Bvh, max_work: u64) -> Option<f64> {
+    epo_counted(mesh, bvh, max_work).0
+}
+
+/// [`epo_within`] and the work it spent (all of it where it gave a value).
+fn epo_counted(mesh: &Mesh, bvh: &Bvh, max_work: u64) -> (Option<f64>, u64) {
+    let tree = Tree::new(mesh, bvh);
+    let total_area: f64 = tree.tris.iter().flatten().map(|t| t.area).sum();
+    if total_area <= 0.0 {
+        return (Some(0.0), 0);
+    }
     let o = &bvh.options;
+    let spent = AtomicU64::new(0);
     // Per node in parallel, summed in node order: a count compared exactly between runs
     // (`trilab compare`), the same whatever the thread count (a parallel sum's order is not).
-    let per_node: Vec<f64> = (1..bvh.nodes.len())
+    let per_node: Option<Vec<f64>> = (1..bvh.nodes.len())
         .into_par_iter()
         .map(|n| {
             let node = &bvh.nodes[n];
@@ -163,27 +280,45 @@ pub fn epo(mesh: &Mesh, bvh: &Bvh) -> f64 {
             } else {
                 o.cost_traversal as f64
             };
-            cost * foreign_area_in_box(bvh, &boxes, &tris, n)
+            foreign_area_in_box(&tree, n, &spent, max_work).map(|a| cost * a)
         })
         .collect();
-    let weighted: f64 = per_node.iter().sum();
-    weighted / total_area
+    (per_node.map(|w| w.iter().sum::<f64>() / total_area), spent.into_inner())
 }
 
-/// A(Q \ Q(n) ∩ box(n)): the area inside node `n`'s box of the triangles outside its subtree.
-fn foreign_area_in_box(bvh: &Bvh, boxes: &[Box64], tris: &[Option<Tri>], n: usize) -> f64 {
-    let b = boxes[n];
+/// A(Q \ Q(n) ∩ box(n)): the area inside node `n`'s box of the triangles outside its subtree, or
+/// `None` once the work of all queries together (`spent`) is past `max_work`.
+///
+/// A depth-first query from the root, skipping `n`'s subtree. A subtree whose box lies inside
+/// box(n) and that does not hold `n` adds its whole area at once, and one of copies of a single
+/// triangle adds that triangle's clipped area times the copies outside `n`'s subtree; neither
+/// is visited below.
+fn foreign_area_in_box(tree: &Tree, n: usize, spent: &AtomicU64, max_work: u64) -> Option<f64> {
+    let b = tree.boxes[n];
     let mut area = 0.0;
+    let mut work = 0u64;
     let mut stack = Vec::with_capacity(64);
     stack.push(0usize);
     while let Some(m) = stack.pop() {
-        if m == n || !boxes[m].overlaps(&b) {
+        work += 1;
+        if m == n || !tree.boxes[m].overlaps(&b) {
             continue;
         }
-        let node = &bvh.nodes[m];
+        if b.contains(&tree.boxes[m]) && !tree.holds(m, n) {
+            area += tree.subtree_area[m];
+            continue;
+        }
+        if let Some(Some(t)) = tree.copies_of[m].map(|s| tree.tris[s].as_ref()) {
+            // Copies of one triangle: one clip for all of them (those under `n` left out).
+            let foreign = tree.count[m] - if tree.holds(m, n) { tree.count[n] } else { 0.0 };
+            area += foreign * clipped_area(&t.v, &b);
+            continue;
+        }
+        let node = &tree.bvh.nodes[m];
         let first = node.left_or_first as usize;
         if node.is_leaf() {
-            for t in tris[first..first + node.count as usize].iter().flatten() {
+            for t in tree.tris[first..first + node.count as usize].iter().flatten() {
+                work += 1;
                 if t.bounds.overlaps(&b) {
                     area += clipped_area(&t.v, &b);
                 }
@@ -192,8 +327,14 @@ fn foreign_area_in_box(bvh: &Bvh, boxes: &[Box64], tris: &[Option<Tri>], n: usiz
             stack.push(first);
             stack.push(first + 1);
         }
+        if work >= WORK_CHUNK {
+            if spent.fetch_add(work, Ordering::Relaxed).saturating_add(work) > max_work {
+                return None;
+            }
+            work = 0;
+        }
     }
-    area
+    (spent.fetch_add(work, Ordering::Relaxed).saturating_add(work) <= max_work).then_some(area)
 }
 
 #[cfg(test)]
@@ -287,6 +428,40 @@ mod tests {
         assert_eq!(epo(&mesh, &built), 0.0);
     }
 
+    /// EPO by its definition: every node against every triangle outside its subtree, clipped.
+    fn brute(mesh: &Mesh, bvh: &Bvh) -> f64 {
+        // Triangles under each node, from the leaves up (children follow their parent).
+        let mut under: Vec<Vec<u32>> = vec![vec![]; bvh.nodes.len()];
+        for i in (0..bvh.nodes.len()).rev() {
+            let n = &bvh.nodes[i];
+            let f = n.left_or_first as usize;
+            under[i] = if n.is_leaf() {
+                bvh.prim_ids[f..f + n.count as usize].to_vec()
+            } else {
+                [under[f].clone(), under[f + 1].clone()].concat()
+            };
+        }
+        let total: f64 = (0..mesh.triangle_count()).map(|i| triangle_area(&mesh.vertices_f64(i))).sum();
+        let mut sum = 0.0;
+        for (i, n) in bvh.nodes.iter().enumerate() {
+            // Build costs 1 and 1: a leaf costs its triangle count.
+            let c = if n.is_leaf() { n.count as f64 } else { 1.0 };
+            let bx = Box64::of_node(n);
+            let mut outside = vec![true; mesh.triangle_count()];
+            for &t in &under[i] {
+                outside[t as usize] = false;
+            }
+            for t in (0..mesh.triangle_count()).filter(|&t| outside[t]) {
+                sum += c * clipped_area(&mesh.vertices_f64(t), &bx);
+            }
+        }
+        sum / total
+    }
+
+    fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(f)
+    }
+
     /// The BVH-pruned search finds what a brute-force pass over every (node, triangle) pair does.
     #[test]
     fn matches_brute_force_on_a_random_soup() {
@@ -304,39 +479,112 @@ mod tests {
         let mesh = Mesh::from_triangles(pos, tris);
         for (leaf, builder) in [(1, Builder::default()), (4, Builder::Sweep), (8, Builder::default())] {
             let bvh = Bvh::build(&mesh, &BuildOptions { builder, ..BuildOptions::new(leaf) });
-            // Triangles under each node, from the leaves up (children follow their parent).
-            let mut under: Vec<Vec<u32>> = vec![vec![]; bvh.nodes.len()];
-            for i in (0..bvh.nodes.len()).rev() {
-                let n = &bvh.nodes[i];
-                let f = n.left_or_first as usize;
-                under[i] = if n.is_leaf() {
-                    bvh.prim_ids[f..f + n.count as usize].to_vec()
-                } else {
-                    [under[f].clone(), under[f + 1].clone()].concat()
-                };
-            }
-            let total: f64 = (0..mesh.triangle_count()).map(|i| triangle_area(&mesh.vertices_f64(i))).sum();
-            let mut sum = 0.0;
-            for (i, n) in bvh.nodes.iter().enumerate() {
-                let c = if n.is_leaf() { n.count as f64 } else { 1.0 };
-                let bx = Box64::of_node(n);
-                for t in 0..mesh.triangle_count() as u32 {
-                    if !under[i].contains(&t) {
-                        sum += c * clipped_area(&mesh.vertices_f64(t as usize), &bx);
-                    }
-                }
-            }
-            let brute = sum / total;
+            let brute = brute(&mesh, &bvh);
             let fast = epo(&mesh, &bvh);
             assert!(brute > 0.1, "the soup overlaps");
             assert!((fast - brute).abs() <= 1e-12 * brute, "leaf {leaf}: {fast} vs {brute}");
             // Exactly the same on one thread and on four: a count `trilab compare` holds exact.
-            let on = |threads: usize| {
-                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-                pool.install(|| epo(&mesh, &bvh))
-            };
+            let on = |threads: usize| on_threads(threads, || epo(&mesh, &bvh));
             assert_eq!(on(1).to_bits(), on(4).to_bits(), "leaf {leaf}");
             assert_eq!(on(1).to_bits(), fast.to_bits(), "leaf {leaf}");
+        }
+    }
+
+    /// Issue 24: copies of one triangle put every triangle in every node's box, and the query
+    /// clipped each of them at each node (quadratic: 32,000 copies took 20 s per tree). Subtrees
+    /// inside a node's box, and subtrees of copies, now add their area at once. Exact against the
+    /// brute force with two piles that cross each other and a few triangles around them, and
+    /// near-linear in work: far under the (nodes x copies) triangle tests of a per-leaf query.
+    #[test]
+    fn piles_of_copies_match_brute_force_in_near_linear_work() {
+        let mut pos = vec![];
+        let mut tris = vec![];
+        let mut add = |p: [[f32; 3]; 3]| {
+            let i = pos.len() as u32;
+            pos.extend(p);
+            tris.push([i, i + 1, i + 2]);
+        };
+        // 1,500 copies of one triangle, 1,000 of a second across it, 40 small ones here and there.
+        for _ in 0..1500 {
+            add([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        }
+        for _ in 0..1000 {
+            add([[0.5, -0.5, -0.5], [0.5, 1.5, -0.5], [0.5, 0.5, 1.5]]);
+        }
+        for k in 0..40 {
+            let x = k as f32 * 0.05 - 0.5;
+            add([[x, x, 0.1], [x + 0.2, x, 0.1], [x, x + 0.2, 0.3]]);
+        }
+        let mesh = Mesh::from_triangles(pos, tris);
+        for (leaf, builder) in
+            [(1, Builder::default()), (4, Builder::default()), (4, Builder::Sweep), (16, Builder::Sweep)]
+        {
+            let bvh = Bvh::build(&mesh, &BuildOptions { builder, ..BuildOptions::new(leaf) });
+            let (fast, work) = epo_counted(&mesh, &bvh, u64::MAX);
+            let fast = fast.unwrap();
+            let brute = brute(&mesh, &bvh);
+            assert!(brute > 100.0, "every node's box holds a pile: {brute}");
+            assert!((fast - brute).abs() <= 1e-12 * brute, "leaf {leaf} {builder}: {fast} vs {brute}");
+            let nodes = bvh.nodes.len() as u64;
+            let pairwise = nodes * 1000;
+            let elements = nodes + bvh.prim_ids.len() as u64;
+            let depth = u64::from(bvh.stats().depth);
+            assert!(
+                work * 20 < pairwise && work <= 4 * (depth + 1) * elements,
+                "leaf {leaf} {builder}: work {work}, depth {depth}, {elements} nodes and triangles"
+            );
+            assert!(work <= WORK_PER_ELEMENT * elements, "within the default limit: {work}");
+            assert_eq!(on_threads(1, || epo(&mesh, &bvh)).to_bits(), on_threads(3, || epo(&mesh, &bvh)).to_bits());
+        }
+    }
+
+    /// Copies each moved a little: every leaf's box holds nearly every other copy in part, and
+    /// each such pair must be clipped. `epo_within` gives the exact value at a limit of the work
+    /// it needs and none one unit below, on any thread count.
+    #[test]
+    fn the_work_limit_is_exact_and_independent_of_the_thread_count() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let mut pos = vec![];
+        let mut tris = vec![];
+        for i in 0..600u32 {
+            let d = [0; 3].map(|_| rng.random::<f32>() * 0.02 - 0.01);
+            for v in [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+                pos.push([v[0] + d[0], v[1] + d[1], v[2] + d[2]]);
+            }
+            tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        let mesh = Mesh::from_triangles(pos, tris);
+        let bvh = Bvh::build(&mesh, &BuildOptions::new(2));
+        let (value, work) = epo_counted(&mesh, &bvh, u64::MAX);
+        let value = value.unwrap();
+        let brute = brute(&mesh, &bvh);
+        assert!((value - brute).abs() <= 1e-12 * brute, "{value} vs {brute}");
+        let leaves = bvh.stats().leaves as u64;
+        assert!(work > leaves * 100, "hundreds of the other copies are clipped at each leaf: {work}");
+        for threads in [1, 2, 5] {
+            on_threads(threads, || {
+                assert_eq!(epo_within(&mesh, &bvh, work).map(f64::to_bits), Some(value.to_bits()), "{threads}");
+                assert_eq!(epo_within(&mesh, &bvh, work - 1), None, "{threads} threads");
+                assert_eq!(epo_within(&mesh, &bvh, work / 3), None, "{threads} threads");
+            });
+        }
+        // A small tree is always priced by default (the limit's floor); `stats_with_epo` says so.
+        assert!(default_work_limit(&bvh) > work);
+        assert_eq!(bvh.stats_with_epo(&mesh).epo.map(f64::to_bits), Some(value.to_bits()));
+    }
+
+    /// The bundled bunny is far inside the default limit at every leaf size: the limit only
+    /// stops scenes whose triangles overlap one another far more than real models do.
+    #[test]
+    fn the_bunny_is_far_inside_the_default_work_limit() {
+        let mesh =
+            crate::scene::load_obj(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bunny.obj")).unwrap();
+        for leaf in [1, 4, 16] {
+            let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
+            let (value, work) = epo_counted(&mesh, &bvh, u64::MAX);
+            assert!(value.unwrap() > 1.0);
+            assert!(work * 3 < default_work_limit(&bvh), "leaf {leaf}: {work} of {}", default_work_limit(&bvh));
         }
     }
 }

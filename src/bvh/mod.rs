@@ -72,7 +72,7 @@ pub struct BvhStats {
     pub mtris_per_s: f64,
     pub node_bytes: usize,
     /// End-point overlap (Aila, Karras & Laine, HPG 2013; [`epo`]) with the build's node costs;
-    /// `None` unless computed ([`Bvh::stats_with_epo`]).
+    /// `None` unless computed ([`Bvh::stats_with_epo`]; not past its work limit).
     pub epo: Option<f64>,
     /// Time computing `epo`, milliseconds.
     pub epo_ms: Option<f64>,
@@ -178,11 +178,13 @@ impl Bvh {
         s
     }
 
-    /// [`Bvh::stats`] plus the end-point overlap, which needs the triangles.
+    /// [`Bvh::stats`] plus the end-point overlap, which needs the triangles; `epo` is `None` where
+    /// it would take more than [`epo::default_work_limit`] ([`epo::not_computed`] says why), and
+    /// `epo_ms` is then the time spent before giving up.
     pub fn stats_with_epo(&self, mesh: &Mesh) -> BvhStats {
         let t0 = std::time::Instant::now();
-        let epo = epo::epo(mesh, self);
-        BvhStats { epo: Some(epo), epo_ms: Some(t0.elapsed().as_secs_f64() * 1e3), ..self.stats() }
+        let epo = epo::epo_within(mesh, self, epo::default_work_limit(self));
+        BvhStats { epo, epo_ms: Some(t0.elapsed().as_secs_f64() * 1e3), ..self.stats() }
     }
 
     /// Checks the structural invariants every consumer relies on; returns the first violation.

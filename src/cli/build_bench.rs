@@ -29,7 +29,8 @@ pub struct BuildBenchArgs {
     /// Triangles the SAH prices as one test (1: classic; Embree's SAH block size).
     #[arg(long, value_name = "N", default_value_t = 1)]
     sah_group: u32,
-    /// Thread counts, comma-separated, each run in turn (default: one per logical CPU).
+    /// Thread counts, comma-separated, each run in turn (default: one per logical CPU; at most 4
+    /// per logical CPU, or 64 where that is fewer).
     #[arg(long, value_name = "N,...", value_delimiter = ',')]
     threads: Vec<usize>,
     /// Timed runs after one warm-up (at least 1).

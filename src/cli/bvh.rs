@@ -20,8 +20,9 @@ pub struct BvhArgs {
     leaf_sizes: Vec<u32>,
     #[command(flatten)]
     shape: TreeShapeArgs,
-    /// Build threads, comma-separated, each run in turn (default: one per logical CPU). The
-    /// tree does not depend on them; the build time does.
+    /// Build threads, comma-separated, each run in turn (default: one per logical CPU; at most 4
+    /// per logical CPU, or 64 where that is fewer). The tree does not depend on them; the build
+    /// time does.
     #[arg(long, value_name = "N,...", value_delimiter = ',')]
     threads: Vec<usize>,
     #[command(flatten)]
@@ -29,6 +30,8 @@ pub struct BvhArgs {
 }
 
 pub fn run(a: BvhArgs) -> Result<()> {
+    // Every count before the first build, not when its turn comes.
+    build_bench::check_threads(&a.threads)?;
     let build = || bvh_stats::run(&a.scene, &a.leaf_sizes, a.shape.leaf_policy, a.shape.sah_group);
     let report = if a.threads.is_empty() {
         build()?

@@ -25,6 +25,7 @@ pub mod raycast;
 pub mod rays;
 pub mod render;
 pub mod scale;
+pub mod signals;
 pub mod spirv;
 pub mod steps;
 pub mod study;
@@ -173,7 +174,8 @@ impl JsonArg {
 }
 
 /// The exit status of an error: 1, or 2 for a command whose status 1 is a verdict
-/// (`compare`: 1 is a regression, 2 a failure to compare, as `diff`'s 1 and 2).
+/// (`compare`: 1 is a regression, 2 a failure to compare, as `diff`'s 1 and 2) and for `merge`,
+/// which compares many runs and gives the same 2 when it cannot.
 static ERROR_EXIT: AtomicU8 = AtomicU8::new(1);
 
 /// Makes an error exit with `code` (see [`ERROR_EXIT`]).
@@ -245,13 +247,11 @@ pub fn note(line: &str) {
     eprintln!("trilab: {line}");
 }
 
-/// Exit status of a command stopped by Ctrl-C after saving what it had (128 + SIGINT), as a
-/// shell reports a process the signal ended.
-pub const EXIT_INTERRUPTED: i32 = 130;
-
-/// Ends the process after an interrupt whose partial output was saved: reports any validation
-/// message as [`exit`] does, then exits [`EXIT_INTERRUPTED`] (1 if the layer reported anything).
-pub fn exit_interrupted() -> ! {
+/// Ends the process after a stop signal (SIGINT, SIGTERM, SIGHUP: [`signals`]) whose partial
+/// output was saved: reports any validation message as [`exit`] does, then exits 128 + the
+/// signal's number (130, 143, 129), as a shell reports a process the signal ended; 1 if the
+/// layer reported anything.
+pub fn exit_interrupted(signal: i32) -> ! {
     let messages = VALIDATION_LOG.get().map(|l| l.messages()).unwrap_or_default();
     for m in &messages {
         eprintln!("trilab: validation: {m}");
@@ -259,8 +259,8 @@ pub fn exit_interrupted() -> ! {
     use std::io::Write;
     let _ = std::io::stdout().flush();
     if messages.is_empty() {
-        eprintln!("trilab: interrupted; the partial output was saved");
-        std::process::exit(EXIT_INTERRUPTED)
+        eprintln!("trilab: stopped by {}; the partial output was saved", signals::name(signal));
+        std::process::exit(signals::exit_status(signal))
     }
     eprintln!("trilab: error: {} validation message(s)", messages.len());
     std::process::exit(1)

@@ -57,7 +57,8 @@ pub struct ProfileArgs {
     /// Workgroup sizes the workgroup-size sweep times, comma-separated.
     #[arg(long, value_name = "N,...", value_delimiter = ',', default_values_t = [32u32, 64, 128, 256])]
     workgroup_sizes: Vec<u32>,
-    /// LP_NUM_THREADS values to run, comma-separated (lavapipe only); default 1..=host cores.
+    /// LP_NUM_THREADS values to run, comma-separated (lavapipe only); default 1..=host cores; at
+    /// most 4 per logical CPU, or 64 where that is fewer.
     #[arg(long, value_name = "N,...", value_delimiter = ',')]
     threads: Vec<usize>,
     /// Leave out the LP_NUM_THREADS section.
@@ -74,6 +75,7 @@ pub struct ProfileArgs {
 }
 
 pub fn run(a: ProfileArgs) -> Result<()> {
+    trilab::harness::build_bench::check_threads(&a.threads)?;
     let current_exe = || std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e));
     let exe = if a.no_threads { None } else { Some(current_exe()?) };
     let ctx = a.gpu.context()?;

@@ -1,7 +1,7 @@
 //! `trilab render`.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::Arc;
 
 use clap::Args;
@@ -14,7 +14,7 @@ use trilab::render::{EnvSpec, KernelChoice};
 use super::camera::CameraArg;
 
 use super::choice::{choice, method_choice, method_help};
-use super::{note, scene_help, BuildArgs, GpuArgs, JsonArg};
+use super::{note, scene_help, signals, BuildArgs, GpuArgs, JsonArg};
 
 /// Path-trace a scene: linear RGBA EXR, a tone-mapped sRGB PNG and a JSON sidecar.
 #[derive(Args)]
@@ -133,11 +133,26 @@ pub fn run(a: RenderArgs) -> Result<()> {
         checkpoint_secs: a.checkpoint_secs,
     };
     let ctx = a.gpu.context()?;
-    // Ctrl-C: the render finishes the pass in flight, then writes what has accumulated.
+    // Ctrl-C, SIGTERM (`timeout`, CI runners, containers) or SIGHUP: the render finishes the
+    // pass in flight, then writes what has accumulated. A second signal ends it at once (the
+    // last checkpoint stays).
     let interrupted = Arc::new(AtomicBool::new(false));
-    let flag = interrupted.clone();
-    if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)) {
-        note(&format!("warning: cannot catch Ctrl-C ({e}); interrupting will not save the partial image"));
+    let stop_signal = Arc::new(AtomicI32::new(0));
+    let (flag, first) = (interrupted.clone(), stop_signal.clone());
+    let handler = signals::on_stop(move |signal| {
+        if flag.swap(true, Ordering::SeqCst) {
+            note(&format!(
+                "{} again: stopping without saving the passes since the last checkpoint",
+                signals::name(signal)
+            ));
+            signals::exit_now(signal);
+        }
+        first.store(signal, Ordering::SeqCst);
+    });
+    if let Err(e) = handler {
+        note(&format!(
+            "warning: cannot catch Ctrl-C or SIGTERM ({e}); stopping the render will not save the partial image"
+        ));
     }
     let bar = if a.quiet { indicatif::ProgressBar::hidden() } else { indicatif::ProgressBar::new(u64::from(req.spp)) };
     bar.set_style(
@@ -160,9 +175,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let report = report?;
     a.json.print(&report);
     if report.interrupted {
-        // Saved; now exit as an interrupted process does (128 + SIGINT), like `study`.
+        // Saved; now exit as a process the signal ended does (128 + its number: 130, 143, 129).
         drop(ctx);
-        super::exit_interrupted();
+        super::exit_interrupted(stop_signal.load(Ordering::SeqCst));
     }
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! `trilab suite`.
 
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 use clap::Args;
 use trilab::encoding::Layout;
@@ -10,7 +11,7 @@ use trilab::harness::suite::{self, Part, SuiteOptions};
 use trilab::named::Named;
 
 use super::choice::choice;
-use super::{results_dir, GpuArgs, JsonArg};
+use super::{results_dir, signals, GpuArgs, JsonArg};
 
 /// What to run once on a new device: the devices, bench (with the peers when given), the
 /// paper's study, accuracy and profile, each scaled to fit the budget, then summary.md (device
@@ -58,6 +59,18 @@ pub struct SuiteArgs {
 }
 
 pub fn run(a: SuiteArgs) -> Result<()> {
+    // Ctrl-C, SIGTERM or SIGHUP: say what the run leaves in its folder, then exit 128 + the
+    // signal's number at once (the part under way cannot stop half-way and be kept).
+    let kept = Arc::new(Mutex::new(suite::Kept::default()));
+    let k = kept.clone();
+    let handler = signals::on_stop(move |signal| {
+        let k = k.lock().unwrap_or_else(|e| e.into_inner());
+        eprintln!("suite: stopped by {}; {}", signals::name(signal), k.describe());
+        signals::exit_now(signal);
+    });
+    if let Err(e) = handler {
+        super::note(&format!("warning: cannot catch Ctrl-C or SIGTERM ({e}); a stopped run will not say what it kept"));
+    }
     let current_exe = || std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e));
     let exe = if a.no_threads { None } else { Some(current_exe()?) };
     let mut o = SuiteOptions {
@@ -83,7 +96,7 @@ pub fn run(a: SuiteArgs) -> Result<()> {
     }
     o.out = results_dir(&ctx, a.out.clone(), "suite");
     trilab::io::check_output("--out", trilab::io::Output::Dir(&o.out, &["summary.md", "suite.json"]), &[])?;
-    let report = suite::run(&ctx, &o, |m| eprintln!("suite: {m}"))?;
+    let report = suite::run(&ctx, &o, &kept, |m| eprintln!("suite: {m}"))?;
     a.json.print(&report);
     let failed: Vec<String> =
         report.parts.iter().filter_map(|p| p.failed.as_ref().map(|why| format!("{}: {why}", p.part))).collect();

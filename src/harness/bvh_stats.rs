@@ -39,7 +39,8 @@ pub struct BvhReport {
     pub sah_group: u32,
     pub leaf_policy: LeafPolicy,
     pub rows: Vec<BvhRow>,
-    /// What loading the scene warned about (a missing MTL, ignored normals): the CLI prints them.
+    /// What loading the scene warned about (a missing MTL, ignored normals) and the builds whose
+    /// EPO was not computed (past its work limit): the CLI prints them.
     pub warnings: Vec<String>,
 }
 
@@ -54,6 +55,7 @@ pub fn run(scene: &Path, leaf_sizes: &[u32], leaf_policy: LeafPolicy, sah_group:
     let mesh = load_obj(scene)?;
     let leaf_sizes = if leaf_sizes.is_empty() { &PAPER_LEAF_SIZES[..] } else { leaf_sizes };
     let mut rows = vec![];
+    let mut warnings = mesh.warnings.clone();
     for &leaf in leaf_sizes {
         for builder in [Builder::default(), Builder::Sweep] {
             let options = BuildOptions { builder, leaf_policy, sah_group, ..BuildOptions::new(leaf) };
@@ -61,7 +63,11 @@ pub fn run(scene: &Path, leaf_sizes: &[u32], leaf_policy: LeafPolicy, sah_group:
             let counts = host.counts();
             let gpu_scene_bytes =
                 Method::ALL.iter().map(|&m| (m.name().to_owned(), MemoryPlan::of(m, &counts).bytes())).collect();
-            rows.push(BvhRow { stats: host.bvh.stats_with_epo(&mesh), gpu_scene_bytes });
+            let stats = host.bvh.stats_with_epo(&mesh);
+            if stats.epo.is_none() {
+                warnings.push(format!("leaf {leaf}, {}: {}", stats.builder, crate::bvh::epo::not_computed(&host.bvh)));
+            }
+            rows.push(BvhRow { stats, gpu_scene_bytes });
         }
     }
     Ok(BvhReport {
@@ -71,7 +77,7 @@ pub fn run(scene: &Path, leaf_sizes: &[u32], leaf_policy: LeafPolicy, sah_group:
         sah_group,
         leaf_policy,
         rows,
-        warnings: mesh.warnings.clone(),
+        warnings,
     })
 }
 

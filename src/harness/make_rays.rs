@@ -113,6 +113,9 @@ pub fn run(scene: &Path, out: &Path, kind: RaysKind) -> Result<RaysReport> {
     for o in [out, sidecar_path.as_path()] {
         crate::io::ensure_not_inputs(o, &mesh.source, &mesh.mtl_files, &[])?;
     }
+    if let (RaysKind::Random { .. }, Some(why)) = (kind, rays::random_rays_problem(&mesh.bounds())) {
+        return Err(Error::bad_input(&mesh.source, None, format!("{} triangles: {why}", mesh.triangle_count())));
+    }
     let rays = match kind {
         RaysKind::Primary { camera, width, height } => {
             rays::primary_rays(&camera.camera(&mesh.bounds())?, width, height)

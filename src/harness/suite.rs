@@ -14,6 +14,7 @@
 //! part validates its hits against the f64 reference before it reports, as the commands do.
 
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::time::Instant;
 
 use serde::Serialize;
@@ -316,6 +317,60 @@ pub struct PartRun {
     pub failed: Option<String>,
 }
 
+/// What a suite run has written so far, kept up to date by [`run`] so that a run stopped part-way
+/// (`trilab suite` on Ctrl-C or SIGTERM) can say what it leaves behind.
+#[derive(Clone, Debug, Default)]
+pub struct Kept {
+    /// The suite's folder; empty until the run starts writing.
+    pub out: PathBuf,
+    /// Whether devices.txt and devices.json are written.
+    pub devices: bool,
+    /// The parts finished, in order, each with whether it completed (else it failed, and would
+    /// have had a section saying why).
+    pub done: Vec<(Part, bool)>,
+    /// The part under way.
+    pub running: Option<Part>,
+    /// Whether summary.md and suite.json are written (the run is over).
+    pub summary: bool,
+}
+
+impl Kept {
+    /// One paragraph: what is in the folder, what is not, and what to run for the rest.
+    pub fn describe(&self) -> String {
+        if self.out.as_os_str().is_empty() {
+            return "nothing was written yet".into();
+        }
+        let dir = self.out.display();
+        if self.summary {
+            return format!("every part ran; {dir}/summary.md and suite.json are written");
+        }
+        let mut s = format!("kept in {dir}:");
+        if self.devices {
+            s += " devices.txt and devices.json;";
+        }
+        let list = |ok: bool| -> Vec<String> {
+            self.done.iter().filter(|(_, c)| *c == ok).map(|(p, _)| format!("{p} ({dir}/{p})")).collect()
+        };
+        let (completed, failed) = (list(true), list(false));
+        s += &match completed.is_empty() {
+            true => " no part completed".into(),
+            false => format!(" completed parts: {}", completed.join(", ")),
+        };
+        if !failed.is_empty() {
+            s += &format!("; parts that failed: {}", failed.join(", "));
+        }
+        match self.running {
+            Some(p) => s += &format!("; stopped during {p}: {dir}/{p} holds only what it wrote so far"),
+            None if self.done.is_empty() => {
+                s += "; stopped before the first part (during the calibration or the probe)"
+            }
+            None => {}
+        }
+        s + ". summary.md and suite.json are written only when every part has run: not written. The parts' own \
+             reports are in their folders; `trilab <part>` runs a missing one alone."
+    }
+}
+
 /// The probe that calibrates the predictions.
 #[derive(Clone, Debug, Serialize)]
 pub struct Probe {
@@ -394,15 +449,19 @@ pub fn choose(ladder: &[Size], share_s: f64, factor: f64) -> usize {
     ladder.iter().rposition(|s| s.reference_s * factor <= share_s).unwrap_or(0)
 }
 
-/// Runs the suite into `o.out`: devices, the probe, every part, then summary.md.
-pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> Result<SuiteReport> {
+/// Runs the suite into `o.out`: devices, the probe, every part, then summary.md. `kept` follows
+/// what is written ([`Kept`]), for whoever stops the run part-way.
+pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: impl FnMut(&str)) -> Result<SuiteReport> {
     check(o)?;
+    let keep = |f: &dyn Fn(&mut Kept)| f(&mut kept.lock().unwrap_or_else(|e| e.into_inner()));
     let start = Instant::now();
     let budget_s = o.budget_minutes * 60.0;
     std::fs::create_dir_all(&o.out).map_err(|e| Error::io(&o.out, e))?;
+    keep(&|k| k.out = o.out.clone());
     let devices = devices::run()?;
     crate::io::write_atomic(&o.out.join("devices.txt"), devices.to_text().as_bytes())?;
     crate::io::write_atomic(&o.out.join("devices.json"), devices.to_json().as_bytes())?;
+    keep(&|k| k.devices = true);
 
     // The host's speed without the driver, measured before the probe and after every part: a
     // part's timings are calibrated by the points on either side of it (`trilab compare`).
@@ -428,6 +487,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
         let ladder = with_layouts(ladder(part), &o.layouts);
         let size = o.force_size.map(|s| s.min(ladder.len() - 1)).unwrap_or_else(|| choose(&ladder, share_s, factor));
         let predicted_s = ladder[size].reference_s * factor;
+        keep(&|k| k.running = Some(part));
         progress(&format!("{part}: {} (predicted {predicted_s:.0} s of a {share_s:.0} s share)", ladder[size].name));
         let t = Instant::now();
         let dir = o.out.join(part.to_string());
@@ -446,6 +506,10 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
                 (section, Some(why))
             }
         };
+        keep(&|k| {
+            k.running = None;
+            k.done.push((part, failed.is_none()));
+        });
         // Every file the part left in its folder (the profile's heat maps and every rows.jsonl
         // included), not only those its writer returned.
         let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
@@ -502,6 +566,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, mut progress: impl FnMut(&str)) -> R
     };
     crate::io::write_atomic(&o.out.join("summary.md"), summary(&report).as_bytes())?;
     crate::io::write_atomic(&o.out.join("suite.json"), report.to_json().as_bytes())?;
+    keep(&|k| k.summary = true);
     Ok(report)
 }
 
@@ -681,6 +746,27 @@ pub fn summary(r: &SuiteReport) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// What a stopped suite says it kept (issue 24: it said nothing).
+    #[test]
+    fn a_stopped_suite_names_what_it_kept() {
+        assert_eq!(Kept::default().describe(), "nothing was written yet");
+        let mut k = Kept { out: PathBuf::from("/r/suite"), devices: true, ..Kept::default() };
+        let d = k.describe();
+        assert!(
+            d.contains("/r/suite") && d.contains("no part completed") && d.contains("before the first part"),
+            "{d}"
+        );
+        k.done = vec![(Part::Bench, true), (Part::Study, false)];
+        k.running = Some(Part::Accuracy);
+        let d = k.describe();
+        assert!(d.contains("completed parts: bench (/r/suite/bench)"), "{d}");
+        assert!(d.contains("failed: study (/r/suite/study)"), "{d}");
+        assert!(d.contains("stopped during accuracy: /r/suite/accuracy holds only"), "{d}");
+        assert!(d.contains("summary.md") && d.contains("not written"), "{d}");
+        k.summary = true;
+        assert!(k.describe().starts_with("every part ran"));
+    }
 
     #[test]
     fn ladders_grow_and_the_chosen_size_fits_its_share() {

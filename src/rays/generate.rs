@@ -18,12 +18,30 @@ fn finite(r: &Ray) -> bool {
     r.origin.iter().chain(&r.dir).all(|c| c.is_finite())
 }
 
+/// Why [`random_rays`] cannot aim at a scene with `bounds`, if it cannot: its rays leave a
+/// sphere around the box for points inside it, and a box that is a single point (every vertex in
+/// one place) leaves them no direction.
+pub fn random_rays_problem(bounds: &Aabb) -> Option<String> {
+    (!bounds.is_empty() && bounds.min == bounds.max).then(|| {
+        format!(
+            "the scene's bounding box is the single point {:?} (every vertex is there, so no triangle has area): \
+             random rays aim from a sphere around the box at points inside it, and a point gives them no direction",
+            bounds.min.to_array()
+        )
+    })
+}
+
 /// `rays` (a `set` made for a scene with `bounds`), or an error naming the scene's bounds when
 /// an origin or a direction is not finite in f32 or a direction is zero: a set that cannot be
 /// represented is refused where it is made, not by whatever reads it later.
 pub fn check_rays(set: &str, bounds: &Aabb, rays: Vec<Ray>) -> Result<Vec<Ray>> {
     match rays.iter().enumerate().find(|(_, r)| !finite(r) || r.dir == [0.0; 3]) {
         None => Ok(rays),
+        // Not a matter of f32's range: there is no box to aim into.
+        Some(_) if set == "random" && random_rays_problem(bounds).is_some() => Err(Error::Usage(format!(
+            "random rays cannot be made for this scene: {}",
+            random_rays_problem(bounds).unwrap_or_default()
+        ))),
         Some((i, r)) => Err(Error::Usage(format!(
             "{set} rays cannot be represented in f32 for this scene: ray {i} has origin {:?}, direction {:?}; \
              the scene's bounds are {:?} .. {:?}, too large for rays around it (f32 ends at {:e}); \
@@ -198,6 +216,20 @@ mod tests {
         let b = Aabb { min: Vec3::splat(-3e38), max: Vec3::splat(3e38) };
         let e = check_rays("random", &b, random_rays(&b, 10, 7)).unwrap_err().to_string();
         assert!(e.contains("random rays cannot be represented") && e.contains("-3e38"), "{e}");
+    }
+
+    /// Issue 24: a box that is one point gave NaN directions, refused as "too large for f32".
+    /// The reason is the point: nothing to aim into. A flat or thin box is fine.
+    #[test]
+    fn a_box_that_is_a_point_is_refused_as_a_point() {
+        let p = Aabb { min: Vec3::new(1.0, 2.0, 3.0), max: Vec3::new(1.0, 2.0, 3.0) };
+        let e = check_rays("random", &p, random_rays(&p, 10, 7)).unwrap_err().to_string();
+        assert!(e.contains("single point [1.0, 2.0, 3.0]") && !e.contains("f32"), "{e}");
+        assert!(random_rays_problem(&p).is_some());
+        let line = Aabb { min: Vec3::new(0.0, 0.0, 0.0), max: Vec3::new(2.0, 0.0, 0.0) };
+        assert!(random_rays_problem(&line).is_none());
+        assert_eq!(check_rays("random", &line, random_rays(&line, 10, 7)).unwrap().len(), 10);
+        assert!(random_rays_problem(&Aabb::EMPTY).is_none());
     }
 
     #[test]

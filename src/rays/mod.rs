@@ -10,7 +10,7 @@ pub mod offset;
 pub mod sidecar;
 
 pub use camera::{primary_rays, Camera, CameraSpec};
-pub use generate::{check_rays, diffuse_rays, random_rays};
+pub use generate::{check_rays, diffuse_rays, random_rays, random_rays_problem};
 pub use sidecar::{check_sidecar, RaySidecar};
 
 use std::path::Path;

@@ -164,6 +164,17 @@ pub fn run(inputs: &[PathBuf]) -> Result<MergeReport> {
         read.extend(set.rows.into_iter().map(|row| Read { row, file: f.clone() }));
         plans.extend(set.plans.into_iter().map(|p| (p, f.clone())));
     }
+    if read.is_empty() {
+        // Nothing was measured: a report of only missing cells (or none) would read as a merge.
+        let why = "holds no measured row (it is empty or holds only plans): nothing to merge";
+        return Err(match &files[..] {
+            [one] => Error::bad_input(one, None, why),
+            _ => Error::Usage(format!(
+                "none of {} holds a measured row (each is empty or holds only plans): nothing to merge",
+                files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", ")
+            )),
+        });
+    }
     merge(inputs.to_vec(), files, read.into_iter().map(|r| (r.row, r.file)).collect(), plans)
 }
 
@@ -900,6 +911,19 @@ mod tests {
         std::fs::create_dir_all(&empty).unwrap();
         let e = run(std::slice::from_ref(&empty)).unwrap_err().to_string();
         assert!(e.contains("empty") && e.contains("rows.jsonl"), "{e}");
+        // Rows files without a measured row (empty, or a plan only) are nothing to merge (issue
+        // 24: an empty report and exit 0), refused naming the file, or each file.
+        let (blank, planned) = (dir.path().join("blank"), dir.path().join("planned"));
+        std::fs::create_dir_all(&blank).unwrap();
+        std::fs::write(blank.join("rows.jsonl"), "").unwrap();
+        std::fs::create_dir_all(&planned).unwrap();
+        rows::write(&planned, Some(&plan(&a, None)), &[]).unwrap();
+        let e = run(std::slice::from_ref(&blank)).unwrap_err().to_string();
+        assert!(e.contains("blank/rows.jsonl") && e.contains("no measured row"), "{e}");
+        let e = run(&[blank.clone(), planned.clone()]).unwrap_err().to_string();
+        assert!(e.contains("blank/rows.jsonl") && e.contains("planned/rows.jsonl") && e.contains("nothing"), "{e}");
+        // Beside a folder with rows they are merely empty.
+        assert!(run(&[dir.path().join("a"), blank]).is_ok());
     }
 
     #[test]

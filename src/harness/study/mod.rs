@@ -266,7 +266,8 @@ pub struct BvhQuality {
     pub leaves: usize,
     pub depth: u32,
     pub sah_cost: f64,
-    /// End-point overlap (Aila, Karras & Laine 2013), see [`crate::bvh::epo`].
+    /// End-point overlap (Aila, Karras & Laine 2013), see [`crate::bvh::epo`]; NaN where it was
+    /// not computed (past its work limit; the tables print `-`, the rows leave it out).
     pub epo: f64,
     pub quad_padding: usize,
     pub build_ms: f64,
@@ -382,6 +383,9 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
             let host =
                 HostScene::build(&name, &mesh, &BuildOptions { sah_group: o.sah_group, ..BuildOptions::new(leaf) })?;
             let st = host.bvh.stats_with_epo(&mesh);
+            if st.epo.is_none() {
+                progress(&format!("{name} leaf {leaf}: {}", crate::bvh::epo::not_computed(&host.bvh)));
+            }
             let quality = BvhQuality {
                 nodes: st.nodes,
                 leaves: st.leaves,

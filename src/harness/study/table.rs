@@ -75,7 +75,7 @@ pub fn csv(report: &StudyReport) -> Result<String> {
             format!("{:.3}", r.scene_bytes as f64 / 1e6),
             r.bvh.nodes.to_string(),
             format!("{:.3}", r.bvh.sah_cost),
-            format!("{:.4}", r.bvh.epo),
+            if r.bvh.epo.is_finite() { format!("{:.4}", r.bvh.epo) } else { "-".into() },
             r.bvh.quad_padding.to_string(),
             format!("{:.5}", s.median),
             format!("{:.5}", s.min),
@@ -253,7 +253,7 @@ pub fn bvh_table(report: &StudyReport) -> Table {
                 b.leaves.to_string(),
                 b.depth.to_string(),
                 format!("{:.2}", b.sah_cost),
-                format!("{:.3}", b.epo),
+                if b.epo.is_finite() { format!("{:.3}", b.epo) } else { "-".into() },
                 b.quad_padding.to_string(),
                 format!("{:.0}", b.build_ms),
             ]);
