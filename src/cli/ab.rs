@@ -44,6 +44,8 @@ pub struct WorkloadArgs {
     /// Max triangles per BVH leaf.
     #[arg(long, value_name = "N", default_value_t = 4)]
     leaf_size: u32,
+    /// How the kernels read the scene: `auto` uses texel buffers when every buffer fits one
+    /// binding, else buffer device addresses.
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
     scene_access: SceneAccess,
     /// Most rays per dispatch.
