@@ -15,7 +15,7 @@ new=$(ls /usr/share/vulkan/icd.d/lvp_icd*.json | head -1)
 for d in mesa-22.3.6-vs-25.0.7 width-128-vs-256; do
   if [ -e "$out/$d" ]; then echo "ab-examples: $out/$d exists; move it away first" >&2; exit 1; fi
 done
-common=(--time-cap 240 --max-rounds 20)
+common=(--time-cap 180 --max-rounds 20)
 # Exit 1 is a verdict (B hurt), not a failure of the script.
 "$exe" ab --a-icd "$new" --b-icd "$stock" "${common[@]}" --out "$out/mesa-22.3.6-vs-25.0.7" || [ $? -eq 1 ]
 "$exe" ab --a-env LP_NATIVE_VECTOR_WIDTH=256 --b-env LP_NATIVE_VECTOR_WIDTH=128 "${common[@]}" \

@@ -56,8 +56,15 @@ fn a_against_a_passes_and_nothing_is_hurt_beyond_the_threshold() {
     assert_eq!(r["a"]["provenance"]["driver"], r["b"]["provenance"]["driver"]);
     // The files `merge` and `compare` read: both sides' bench rows and the ratios.
     let rows = std::fs::read_to_string(out.join("rows.jsonl")).unwrap();
-    assert_eq!(rows.lines().filter(|l| l.contains("\"command\":\"bench\"")).count(), 12, "{rows}");
     assert_eq!(rows.lines().filter(|l| l.contains("\"command\":\"ab\"")).count(), 6, "{rows}");
+    for side in ["a", "b"] {
+        let rows = std::fs::read_to_string(out.join(side).join("rows.jsonl")).unwrap();
+        assert_eq!(rows.lines().filter(|l| l.contains("\"command\":\"bench\"")).count(), 6, "{rows}");
+    }
+    // `compare` reads the two sides as two runs of one binary on one host.
+    let (o, _) = common::cli::run(&["compare", &s(&out.join("a")), &s(&out.join("b"))], None, &[], 60);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(matches!(o.status.code(), Some(0 | 1)) && text.contains("bench"), "{text}{}", common::cli::stderr(&o));
     assert!(std::fs::read_to_string(out.join("ab.md")).unwrap().contains("totals:"));
 }
 

@@ -115,7 +115,8 @@ pub struct AbArgs {
     /// Exit 1 when a cell's whole interval is slower than this many percent.
     #[arg(long, value_name = "PCT", default_value_t = 5.0)]
     threshold: f64,
-    /// Folder for ab.json, ab.md and rows.jsonl (`merge` and `compare` read them).
+    /// Folder for ab.json, ab.md, rows.jsonl and each side's rows in a/ and b/ (`compare DIR/a
+    /// DIR/b` and `merge` read them).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     #[command(flatten)]

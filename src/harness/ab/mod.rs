@@ -246,11 +246,13 @@ impl Report for AbReport {
     }
 }
 
-/// The result rows: each side's bench rows (kernel time per cell, its agreement), with that
-/// side's provenance as their source, and one `ab` row per cell holding the ratio and interval.
-pub fn rows(r: &AbReport) -> Vec<Row> {
+/// The result rows of side `pick` (0: A, 1: B): its bench rows (speed per cell, agreement),
+/// with that side's provenance as their source, so `compare DIR/a DIR/b` reads the two sides
+/// as two runs.
+pub fn side_rows(r: &AbReport, pick: usize) -> Vec<Row> {
     let mut out = vec![];
-    for (side, pick) in [(&r.a, 0), (&r.b, 1)] {
+    {
+        let side = if pick == 0 { &r.a } else { &r.b };
         let source = source_of(side);
         for c in &r.cells {
             let sc = if pick == 0 { &c.a } else { &c.b };
@@ -275,6 +277,12 @@ pub fn rows(r: &AbReport) -> Vec<Row> {
             out.push(row);
         }
     }
+    out
+}
+
+/// One `ab` row per cell: the ratio B/A with its interval, and the rays whose hits differ.
+pub fn rows(r: &AbReport) -> Vec<Row> {
+    let mut out = vec![];
     let source = source_of(&r.b);
     for c in &r.cells {
         let Some(ratio) = c.ratio else { continue };
@@ -578,9 +586,16 @@ fn tail(stderr: &str) -> String {
     }
 }
 
-/// Writes `ab.json`, `ab.md` (the text report) and `rows.jsonl` into `dir`.
+/// Writes `ab.json`, `ab.md` (the text report) and `rows.jsonl` (the `ab` rows) into `dir`,
+/// and each side's bench rows into `dir/a/rows.jsonl` and `dir/b/rows.jsonl`.
 pub fn write(r: &AbReport, dir: &Path) -> Result<()> {
     crate::io::write_atomic(&dir.join("ab.json"), r.to_json().as_bytes())?;
     crate::io::write_atomic(&dir.join("ab.md"), format!("```\n{}```\n", r.to_text()).as_bytes())?;
-    crate::rows::write(dir, None, &rows(r)).map(drop)
+    crate::rows::write(dir, None, &rows(r))?;
+    for (pick, sub) in [(0, "a"), (1, "b")] {
+        let d = dir.join(sub);
+        std::fs::create_dir_all(&d).map_err(|e| Error::io(&d, e))?;
+        crate::rows::write(&d, None, &side_rows(r, pick))?;
+    }
+    Ok(())
 }
