@@ -250,11 +250,10 @@ impl Report for AbReport {
 /// with that side's provenance as their source, so `compare DIR/a DIR/b` reads the two sides
 /// as two runs.
 pub fn side_rows(r: &AbReport, pick: usize) -> Vec<Row> {
-    let mut out = vec![];
-    {
-        let side = if pick == 0 { &r.a } else { &r.b };
-        let source = source_of(side);
-        for c in &r.cells {
+    let source = source_of(if pick == 0 { &r.a } else { &r.b });
+    r.cells
+        .iter()
+        .map(|c| {
             let sc = if pick == 0 { &c.a } else { &c.b };
             let coords = cell([
                 ("scene", c.cell.scene.clone()),
@@ -263,21 +262,22 @@ pub fn side_rows(r: &AbReport, pick: usize) -> Vec<Row> {
                 ("method", c.cell.method.clone()),
                 ("layout", c.cell.layout.clone()),
             ]);
-            let mut row = Row::new("bench", coords, &source)
+            let row = Row::new("bench", coords, &source)
                 .with(
                     "agreement",
                     Figure::correctness(sc.agree as f64 / c.cell.rays as f64, "fraction", Better::Higher),
                 )
                 .with("unexplained", Figure::correctness(sc.unexplained as f64, "rays", Better::Lower))
                 .with("invalid", Figure::correctness(sc.invalid as f64, "rays", Better::Lower));
-            if let Some(ms) = crate::report::Summary::of(&sc.ms) {
-                let mr = crate::harness::validate::mrays_summary(c.cell.rays, ms);
-                row = row.with("mrays_per_s", Figure::timing(mr, "Mrays/s", Better::Higher));
+            match crate::report::Summary::of(&sc.ms) {
+                Some(ms) => {
+                    let mr = crate::harness::validate::mrays_summary(c.cell.rays, ms);
+                    row.with("mrays_per_s", Figure::timing(mr, "Mrays/s", Better::Higher))
+                }
+                None => row,
             }
-            out.push(row);
-        }
-    }
-    out
+        })
+        .collect()
 }
 
 /// One `ab` row per cell: the ratio B/A with its interval, and the rays whose hits differ.
