@@ -30,8 +30,9 @@ pub const ENV_VARS: &[EnvVar] = &[
     },
     EnvVar {
         name: "TRILAB_INJECT_SLOWDOWN",
-        help:
-            "NAME:N: record every ray-casting dispatch of kernels named *NAME* N times (tests of the regression gate)",
+        help: "NAME:F: every ray-casting dispatch of kernels named *NAME* does F times its work (the whole dispatch \
+               floor(F) times, then the first frac(F) of its rays again; tests of the regression gate and `ab`'s \
+               sensitivity)",
     },
     EnvVar { name: "TRILAB_TEST_LIMITS", help: "lower device limits for tests, e.g. max_texel_buffer_elements=4096" },
     EnvVar { name: "LP_NUM_THREADS", help: "lavapipe: rasterizer/compute threads (0: run on the calling thread)" },

@@ -2,7 +2,10 @@
 //! beyond the threshold (the CI check: smoke cells, under a minute); a planted slowdown of one
 //! method's kernel on side B (`TRILAB_INJECT_SLOWDOWN`, every dispatch recorded 8 times) is
 //! found in that method's cells only and fails the run; a side that cannot start is exit 2,
-//! naming it. Every run has a wall-clock limit and the validation layer on.
+//! naming it. The optional parts: driver statistics equal on A against A and different where B
+//! compiles for 128-bit vectors, compute-shader invocations counted on both sides, path-trace
+//! cells with identical pixels, and `merge` reading the output. Every run has a wall-clock
+//! limit and the validation layer on.
 
 mod common;
 
@@ -99,4 +102,61 @@ fn sides_that_cannot_be_compared_are_exit_2_naming_why() {
     let (o, _) = ab(&["--b-icd", &s(&icd)], 60);
     assert_eq!(o.status.code(), Some(2), "{}", common::cli::stderr(&o));
     common::cli::expect_error(&o, &["side B"]);
+}
+
+#[test]
+fn driver_statistics_invocations_and_a_path_trace_on_request() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ab");
+    let optional = ["--rounds", "2", "--max-rounds", "2", "--pathtrace", "--pipeline-stats", "--driver-stats"];
+    let (o, r) = ab(&[&optional[..], &["--out", &s(&out)]].concat(), 180);
+    assert_eq!(o.status.code(), Some(0), "{}\n{r}", common::cli::stderr(&o));
+    let cells = r["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 8, "2 methods x (3 ray sets + a path trace): {r}");
+    for c in cells {
+        let rays = c["cell"]["rays"].as_u64().unwrap();
+        match c["cell"]["kind"].as_str().unwrap() {
+            "raycast" => {
+                // The same driver compiles the same code: every statistic equal, none missing.
+                assert_eq!(c["compiled"], serde_json::json!([]), "{c}");
+                let [a, b] = [&c["invocations"][0], &c["invocations"][1]].map(|v| v.as_u64().unwrap());
+                assert_eq!(a, b, "{c}");
+                // One invocation a ray, rounded up to whole workgroups (at most 1024 lanes).
+                assert!(a >= rays && a < rays + 1024, "{rays} rays, {a} invocations: {c}");
+            }
+            "pathtrace" => {
+                assert_eq!(c["cell"]["set"], "pathtrace");
+                assert_eq!(c["rays_differing"], 0, "the same driver renders the same pixels: {c}");
+                assert_eq!((c["a"]["invalid"].as_u64(), c["a"]["agree"].as_u64()), (Some(0), Some(rays)), "{c}");
+                assert!(c["a"]["ms"].as_array().unwrap().len() == 2, "{c}");
+            }
+            other => panic!("cell kind {other}: {c}"),
+        }
+    }
+    // Each side's rows hold its bench, bench-render and driver-stats rows, and `merge` reads
+    // the folder (the two sides' rows are apart by their `ab_side` setting).
+    let rows = std::fs::read_to_string(out.join("b").join("rows.jsonl")).unwrap();
+    for (command, n) in [("bench", 6), ("bench-render", 2), ("driver-stats", 2)] {
+        let count = rows.lines().filter(|l| l.contains(&format!("\"command\":\"{command}\""))).count();
+        assert_eq!(count, n, "{command} rows in b/rows.jsonl:\n{rows}");
+    }
+    let merged = dir.path().join("merged");
+    let (o, _) = common::cli::run(&["merge", &s(&out), "--out", &s(&merged)], None, &[], 60);
+    assert_eq!(o.status.code(), Some(0), "{}", common::cli::stderr(&o));
+    let md = std::fs::read_to_string(merged.join("merge.md")).unwrap();
+    assert!(md.contains("ab_side=A") && md.contains("ab_side=B") && md.contains("bench-render"), "{md}");
+
+    // B compiles for 128-bit vectors: the same kernels, other machine code, named per kernel.
+    let out = dir.path().join("width");
+    let (o, r) = ab(&[&optional[..], &["--b-env", "LP_NATIVE_VECTOR_WIDTH=128", "--out", &s(&out)]].concat(), 180);
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{}\n{r}", common::cli::stderr(&o));
+    let changed: Vec<&Value> = r["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["compiled"].as_array().is_some_and(|v| v.iter().any(|f| f["figure"] == "instructions")))
+        .collect();
+    assert_eq!(changed.len(), 6, "every ray-casting cell's kernel compiles to other code: {r}");
+    let text = std::fs::read_to_string(out.join("ab.md")).unwrap();
+    assert!(text.contains("raycast.mt.closest: ") && text.contains("2 kernels compared, 2 changed"), "{text}");
 }

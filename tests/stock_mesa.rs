@@ -146,3 +146,50 @@ fn the_smoke_suite_completes_and_says_what_this_driver_cannot_measure() {
     let profile = std::fs::read_to_string(out.join("profile/profile.md")).unwrap();
     assert!(profile.contains("## 8. Driver statistics\n\nStatus: **unsupported**"), "{profile}");
 }
+
+#[test]
+fn ab_of_the_stock_driver_against_the_installed_one_names_what_the_stock_one_lacks() {
+    let vars = stock_env();
+    let icd = vars.iter().find(|(k, _)| k == "VK_DRIVER_FILES").map(|(_, v)| v.clone()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ab");
+    let args = [
+        "ab",
+        "--methods",
+        "mt",
+        "--sets",
+        "primary",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--rounds",
+        "2",
+        "--max-rounds",
+        "2",
+        "--pathtrace",
+        "--driver-stats",
+        "--a-icd",
+        &icd,
+        "--out",
+        &s(&out),
+        "--json",
+    ];
+    // Side A is the stock driver; the test's own environment is the installed one (B).
+    let (o, _) = run(&args, None, &[], 120);
+    let err = common::cli::stderr(&o);
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{err}");
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["a"]["provenance"]["mesa_version"], "22.3.6", "{r}");
+    assert_ne!(r["b"]["provenance"]["mesa_version"], "22.3.6", "{r}");
+    // The stock driver has no statistics: named, and no cell compared on them.
+    let note = r["driver_stats"][0].as_str().unwrap();
+    assert!(note.contains("GALLIVM_DEBUG") && note.contains("22.3.6"), "{note}");
+    assert!(r["cells"].as_array().unwrap().iter().all(|c| c.get("compiled").is_none()), "{r}");
+    let md = std::fs::read_to_string(out.join("ab.md")).unwrap();
+    assert!(md.contains("side A has none"), "{md}");
+    // Both drivers' hits and pixels were validated before their times counted.
+    for c in r["cells"].as_array().unwrap() {
+        assert_eq!((c["a"]["failed_rounds"].as_u64(), c["b"]["failed_rounds"].as_u64()), (Some(0), Some(0)), "{c}");
+    }
+}

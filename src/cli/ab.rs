@@ -51,6 +51,16 @@ pub struct WorkloadArgs {
     /// Most rays per dispatch.
     #[arg(long, value_name = "N", default_value_t = 1 << 20)]
     batch_rays: usize,
+    /// Add a path-trace cell per scene, method and layout: the path tracer's kernel rendering the
+    /// scene at --width x --height, 1 sample a pixel, paths of at most 4 bounces; validated as
+    /// bench-render does (no NaN/Inf sample, image mean within 2 % of the scene's first cell),
+    /// its pixels compared bit for bit between the sides.
+    #[arg(long)]
+    pathtrace: bool,
+    /// Count each ray-casting cell's compute-shader invocations once per side (a
+    /// pipeline-statistics query), and say where they differ.
+    #[arg(long)]
+    pipeline_stats: bool,
 }
 
 impl WorkloadArgs {
@@ -70,6 +80,8 @@ impl WorkloadArgs {
             leaf_size: self.leaf_size,
             scene_access: self.scene_access,
             batch_rays: self.batch_rays,
+            pathtrace: self.pathtrace,
+            pipeline_stats: self.pipeline_stats,
         }
     }
 }
@@ -115,6 +127,11 @@ pub struct AbArgs {
     /// Exit 1 when a cell's whole interval is slower than this many percent.
     #[arg(long, value_name = "PCT", default_value_t = 5.0)]
     threshold: f64,
+    /// After the rounds, each side's driver statistics of the ray-casting kernels (`trilab
+    /// driver-stats` in that side's environment: lavapipe's machine code, or the executable
+    /// statistics), printed where they differ; a driver without them is named, not a failure.
+    #[arg(long)]
+    driver_stats: bool,
     /// Folder for ab.json, ab.md, rows.jsonl and each side's rows in a/ and b/ (`compare DIR/a
     /// DIR/b` and `merge` read them).
     #[arg(long, value_name = "DIR")]
@@ -151,6 +168,7 @@ pub fn run(a: AbArgs) -> Result<()> {
         time_cap_s: a.time_cap,
         threshold: a.threshold / 100.0,
         validation,
+        driver_stats: a.driver_stats,
     };
     sigpipe(true);
     let report = ab::run(&o, |m| eprintln!("  {m}"));

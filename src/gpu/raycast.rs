@@ -215,8 +215,9 @@ pub fn cast_rays_with(
         }
         write_set(ctx, kernel, set, &resources)?;
     }
-    // A planted slowdown (tests of the regression gate): this kernel's dispatch recorded N times.
-    let repeats = Slowdown::repeats_for(Slowdown::from_env()?.as_ref(), kernel.name());
+    // A planted slowdown (tests of the regression gate and of `ab`): this kernel's dispatch
+    // recorded about F times.
+    let slowdown = Slowdown::from_env()?;
     let timestamps = Timestamps::supported(ctx);
     let queries = Timestamps::new(ctx, nbatches as u32)?;
     let mut dispatch = Dispatch { ctx, cmds: vec![] };
@@ -275,9 +276,12 @@ pub fn cast_rays_with(
             }
             queries.start(dev, cmd, q);
             kernel.record_rays(dev, cmd, set, count);
-            for _ in 1..repeats {
-                // The same dispatch again over the same outputs (and, for a persistent kernel, a
-                // counter zeroed again): the previous one's writes and atomics finish first.
+            let repeats = Slowdown::repeats_for(slowdown.as_ref(), kernel.name(), count);
+            let again = (1..repeats.whole).map(|_| count).chain((repeats.partial > 0).then_some(repeats.partial));
+            for rays in again {
+                // The same dispatch again over the same outputs, or over its first `rays` (and,
+                // for a persistent kernel, a counter zeroed again): the previous one's writes
+                // and atomics finish first.
                 let shader = (stage, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
                 if let Some(c) = &counter {
                     memory_barrier(
@@ -296,7 +300,7 @@ pub fn cast_rays_with(
                 } else {
                     memory_barrier(dev, cmd, shader, shader);
                 }
-                kernel.record_rays(dev, cmd, set, count);
+                kernel.record_rays(dev, cmd, set, rays);
             }
             if !compute {
                 // Hands the outputs to the compute stage, where the markers and the downloads

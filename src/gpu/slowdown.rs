@@ -1,22 +1,35 @@
-//! A planted slowdown of one kernel, for tests of the regression gate: with
-//! `TRILAB_INJECT_SLOWDOWN=NAME:N`, every ray-casting dispatch of a kernel whose name contains
-//! `NAME` is recorded `N` times between its timestamps (the same rays, the same hits, so every
-//! count and correctness figure is unchanged and only its time grows, about `N` times). This is
-//! what a kernel that slowed alone looks like to `trilab compare`, made without editing a shader.
+//! A planted slowdown of one kernel, for tests of the regression gate and of `trilab ab`: with
+//! `TRILAB_INJECT_SLOWDOWN=NAME:F`, every ray-casting dispatch of a kernel whose name contains
+//! `NAME` does about `F` times its work between its timestamps: the whole dispatch `floor(F)`
+//! times, then the first `frac(F)` of its rays once more (`:1.1` traces a tenth of the rays
+//! again). The same rays give the same hits, so every count and correctness figure is unchanged
+//! and only the time grows. This is what a kernel that slowed alone looks like to `trilab
+//! compare` and `trilab ab`, made without editing a shader. A fractional factor's true size
+//! depends on how costly the first rays are against the rest; `ab` measures it.
 
 use crate::error::{Error, Result};
 
 /// The environment variable `gpu::cast_rays` reads.
 pub const INJECT_SLOWDOWN_ENV: &str = "TRILAB_INJECT_SLOWDOWN";
 
-/// Most repeats: a planted slowdown is a test's, not a way to run for hours.
-const MAX_REPEATS: u32 = 64;
+/// Largest factor: a planted slowdown is a test's, not a way to run for hours.
+const MAX_FACTOR: f64 = 64.0;
+/// Smallest: below one percent of a dispatch the extra work is lost in a batch's rounding.
+const MIN_FACTOR: f64 = 1.01;
 
-/// `NAME:N`: dispatches of kernels whose name contains `NAME` run `N` times.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// `NAME:F`: dispatches of kernels whose name contains `NAME` do `F` times their work.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Slowdown {
     pub kernel: String,
-    pub repeats: u32,
+    pub factor: f64,
+}
+
+/// What a dispatch of `count` rays records: the whole dispatch `whole` times, then the first
+/// `partial` rays once more (0: none).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Repeats {
+    pub whole: u32,
+    pub partial: u32,
 }
 
 impl std::str::FromStr for Slowdown {
@@ -25,16 +38,17 @@ impl std::str::FromStr for Slowdown {
     fn from_str(s: &str) -> Result<Slowdown> {
         let bad = || {
             Error::Usage(format!(
-                "{INJECT_SLOWDOWN_ENV}=`{s}`: expected NAME:N, a kernel name (or part of one, such as \
-                 raycast.unit.closest) and 2 <= N <= {MAX_REPEATS} repeats of its dispatches"
+                "{INJECT_SLOWDOWN_ENV}=`{s}`: expected NAME:F, a kernel name (or part of one, such as \
+                 raycast.unit.closest) and a factor {MIN_FACTOR} <= F <= {MAX_FACTOR} (its work done F times: \
+                 2 doubles it, 1.1 adds a tenth)"
             ))
         };
-        let (kernel, n) = s.trim().rsplit_once(':').ok_or_else(bad)?;
-        let repeats: u32 = n.trim().parse().map_err(|_| bad())?;
-        if kernel.trim().is_empty() || !(2..=MAX_REPEATS).contains(&repeats) {
+        let (kernel, f) = s.trim().rsplit_once(':').ok_or_else(bad)?;
+        let factor: f64 = f.trim().parse().map_err(|_| bad())?;
+        if kernel.trim().is_empty() || !(MIN_FACTOR..=MAX_FACTOR).contains(&factor) {
             return Err(bad());
         }
-        Ok(Slowdown { kernel: kernel.trim().to_owned(), repeats })
+        Ok(Slowdown { kernel: kernel.trim().to_owned(), factor })
     }
 }
 
@@ -47,9 +61,14 @@ impl Slowdown {
         }
     }
 
-    /// How many times a dispatch of `kernel` is recorded: 1 unless it is the one slowed.
-    pub fn repeats_for(this: Option<&Slowdown>, kernel: &str) -> u32 {
-        this.filter(|s| kernel.contains(&s.kernel)).map_or(1, |s| s.repeats)
+    /// What a dispatch of `count` rays of `kernel` records: once, unless it is the one slowed.
+    pub fn repeats_for(this: Option<&Slowdown>, kernel: &str, count: u32) -> Repeats {
+        match this.filter(|s| kernel.contains(&s.kernel)) {
+            None => Repeats { whole: 1, partial: 0 },
+            Some(s) => {
+                Repeats { whole: s.factor.floor() as u32, partial: (s.factor.fract() * count as f64).round() as u32 }
+            }
+        }
     }
 }
 
@@ -58,15 +77,21 @@ mod tests {
     use super::*;
 
     #[test]
-    fn parses_name_and_repeats_and_refuses_the_rest() {
+    fn parses_name_and_factor_and_refuses_the_rest() {
         let s: Slowdown = "raycast.unit.closest:3".parse().unwrap();
-        assert_eq!(s, Slowdown { kernel: "raycast.unit.closest".into(), repeats: 3 });
-        assert_eq!(Slowdown::repeats_for(Some(&s), "raycast.unit.closest_bvh4"), 3);
-        assert_eq!(Slowdown::repeats_for(Some(&s), "raycast.mt.closest"), 1);
-        assert_eq!(Slowdown::repeats_for(None, "raycast.unit.closest"), 1);
-        for bad in ["raycast.unit", ":3", "x:1", "x:0", "x:65", "x:two"] {
+        assert_eq!(s, Slowdown { kernel: "raycast.unit.closest".into(), factor: 3.0 });
+        let r = |s: Option<&Slowdown>, k: &str| Slowdown::repeats_for(s, k, 1000);
+        assert_eq!(r(Some(&s), "raycast.unit.closest_bvh4"), Repeats { whole: 3, partial: 0 });
+        assert_eq!(r(Some(&s), "raycast.mt.closest"), Repeats { whole: 1, partial: 0 });
+        assert_eq!(r(None, "raycast.unit.closest"), Repeats { whole: 1, partial: 0 });
+        let tenth: Slowdown = ".mt.:1.1".parse().unwrap();
+        assert_eq!(r(Some(&tenth), "raycast.mt.closest"), Repeats { whole: 1, partial: 100 });
+        assert_eq!(Slowdown::repeats_for(Some(&tenth), "raycast.mt.closest", 7), Repeats { whole: 1, partial: 1 });
+        let twice_and_a_half: Slowdown = "x:2.5".parse().unwrap();
+        assert_eq!(r(Some(&twice_and_a_half), "x"), Repeats { whole: 2, partial: 500 });
+        for bad in ["raycast.unit", ":3", "x:1", "x:1.001", "x:0", "x:65", "x:two", "x:NaN", "x:inf"] {
             let e = bad.parse::<Slowdown>().unwrap_err().to_string();
-            assert!(e.contains(INJECT_SLOWDOWN_ENV) && e.contains("NAME:N"), "{bad}: {e}");
+            assert!(e.contains(INJECT_SLOWDOWN_ENV) && e.contains("NAME:F"), "{bad}: {e}");
         }
     }
 }

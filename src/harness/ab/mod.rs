@@ -12,6 +12,7 @@
 //! time with its 95 % interval and a verdict, the hits of A and B compared ray by ray, and each
 //! side's agreement with the reference.
 
+pub mod compiled;
 pub mod interval;
 pub mod worker;
 
@@ -25,8 +26,9 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::report::{Report, Table};
 use crate::rows::{cell, Better, Class, Figure, Row, Source};
+use compiled::StatChange;
 use interval::{Ratio, Verdict};
-use worker::{CellInfo, CellRound, Message, Workload};
+use worker::{CellInfo, CellKind, CellRound, Message, Workload};
 
 /// One side: the driver the loader is given and the environment it runs in.
 #[derive(Clone, Debug, Default, Serialize)]
@@ -46,6 +48,16 @@ impl Side {
             "trilab's own environment".into()
         } else {
             parts.join(" ")
+        }
+    }
+
+    /// Gives `cmd` this side's driver and environment.
+    pub fn apply(&self, cmd: &mut Command) {
+        if let Some(icd) = &self.icd {
+            cmd.env("VK_DRIVER_FILES", icd).env("VK_ICD_FILENAMES", icd);
+        }
+        for (k, v) in &self.env {
+            cmd.env(k, v);
         }
     }
 }
@@ -70,7 +82,13 @@ pub struct AbOptions {
     pub threshold: f64,
     /// Load the validation layer in the workers (any message fails the side).
     pub validation: bool,
+    /// After the rounds, each side's driver statistics of the ray-casting kernels, diffed.
+    pub driver_stats: bool,
 }
+
+/// The setting a side's rows carry (`A` or `B`): two sides' measurements of one cell on one
+/// device are two cells to `merge`.
+pub const SIDE_SETTING: &str = "ab_side";
 
 /// The interval's level.
 pub const LEVEL: f64 = 0.95;
@@ -116,11 +134,25 @@ pub struct AbCell {
     pub rays_differing: usize,
     /// B's agreement, unexplained or invalid count worse than A's.
     pub correctness_worse: bool,
+    /// With `--driver-stats`: the kernel's driver statistics that differ (empty: none); `None`
+    /// when a side has none for it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compiled: Option<Vec<StatChange>>,
+    /// With `--pipeline-stats`: compute-shader invocations of one dispatch, A and B.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub invocations: Option<[Option<u64>; 2]>,
 }
 
 impl AbCell {
     fn changed(&self) -> bool {
-        self.verdict.is_some_and(|v| v != Verdict::Same) || self.rays_differing > 0 || self.correctness_worse
+        self.verdict.is_some_and(|v| v != Verdict::Same)
+            || self.rays_differing > 0
+            || self.correctness_worse
+            || self.invocations_differ()
+    }
+
+    fn invocations_differ(&self) -> bool {
+        self.invocations.is_some_and(|[a, b]| a.is_some() && b.is_some() && a != b)
     }
 }
 
@@ -136,6 +168,15 @@ pub struct AbReport {
     pub stopped_by: String,
     pub seconds: f64,
     pub cells: Vec<AbCell>,
+    /// With `--driver-stats`: how each side's statistics were obtained, or why it has none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub driver_stats: Option<[String; 2]>,
+    /// With `--pipeline-stats`: why a side counted no invocations, if it did not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pipeline_stats: Option<[Option<String>; 2]>,
+    /// Each side's driver-stats rows (written to `a/` and `b/` beside the bench rows).
+    #[serde(skip)]
+    pub driver_stats_rows: [Vec<Row>; 2],
 }
 
 impl AbReport {
@@ -164,6 +205,63 @@ impl AbReport {
     pub fn geomean(&self) -> Option<f64> {
         let r: Vec<f64> = self.cells.iter().filter_map(|c| c.ratio.map(|r| r.ratio.ln())).collect();
         (!r.is_empty()).then(|| (r.iter().sum::<f64>() / r.len() as f64).exp())
+    }
+}
+
+impl AbReport {
+    /// Kernels whose driver statistics changed (each once, however many cells ran it), then
+    /// totals per figure: kernels helped (fewer) and hurt (more).
+    fn compiled_text(&self) -> String {
+        let Some(notes) = &self.driver_stats else { return String::new() };
+        let mut s = String::from("\ncompiled code (driver statistics; kernels that changed):\n");
+        for (name, note) in ["A", "B"].iter().zip(notes) {
+            if self.driver_stats_rows[usize::from(*name == "B")].is_empty() {
+                s += &format!("  side {name} has none: {note}\n");
+            }
+        }
+        let mut seen = std::collections::BTreeMap::new();
+        for c in &self.cells {
+            if let Some(changes) = &c.compiled {
+                seen.entry(c.cell.kernel.clone()).or_insert(changes);
+            }
+        }
+        let changed: Vec<_> = seen.iter().filter(|(_, ch)| !ch.is_empty()).collect();
+        for (kernel, changes) in &changed {
+            s += &format!("  {kernel}: {}\n", compiled::describe(changes));
+        }
+        let mut per_figure: std::collections::BTreeMap<&str, (usize, usize)> = Default::default();
+        for ch in changed.iter().flat_map(|(_, ch)| ch.iter()) {
+            let e = per_figure.entry(&ch.figure).or_default();
+            if ch.b < ch.a {
+                e.0 += 1;
+            } else if ch.b > ch.a {
+                e.1 += 1;
+            }
+        }
+        s += &format!("  {} kernels compared, {} changed", seen.len(), changed.len());
+        for (figure, (helped, hurt)) in per_figure {
+            s += &format!("; {figure}: {helped} helped, {hurt} hurt");
+        }
+        s + "\n"
+    }
+
+    /// Cells whose compute-shader invocations differ, and why a side counted none.
+    fn invocations_text(&self) -> String {
+        let Some(notes) = &self.pipeline_stats else { return String::new() };
+        let mut s = String::from("\npipeline statistics (compute-shader invocations of one dispatch):\n");
+        for (name, note) in ["A", "B"].iter().zip(notes) {
+            if let Some(n) = note {
+                s += &format!("  side {name} has none: {n}\n");
+            }
+        }
+        let differ: Vec<&AbCell> = self.cells.iter().filter(|c| c.invocations_differ()).collect();
+        for c in &differ {
+            if let Some([Some(a), Some(b)]) = c.invocations {
+                s += &format!("  {}: {a} -> {b}\n", c.cell.label());
+            }
+        }
+        let counted = self.cells.iter().filter(|c| c.invocations.is_some_and(|[a, b]| a.is_some() && b.is_some()));
+        s + &format!("  {} cells counted on both sides, {} differ\n", counted.count(), differ.len())
     }
 }
 
@@ -230,6 +328,8 @@ impl Report for AbReport {
             }
             s += &t.to_text();
         }
+        s += &self.compiled_text();
+        s += &self.invocations_text();
         let (helped, hurt, same, none) = self.totals();
         s += &format!(
             "\ntotals: {helped} helped, {hurt} hurt, {same} no change{}; geometric mean B/A {}\n",
@@ -255,6 +355,9 @@ pub fn side_rows(r: &AbReport, pick: usize) -> Vec<Row> {
         .iter()
         .map(|c| {
             let sc = if pick == 0 { &c.a } else { &c.b };
+            if c.cell.kind == CellKind::Pathtrace {
+                return pathtrace_row(c, sc, &source);
+            }
             let coords = cell([
                 ("scene", c.cell.scene.clone()),
                 ("set", c.cell.set.clone()),
@@ -278,6 +381,35 @@ pub fn side_rows(r: &AbReport, pick: usize) -> Vec<Row> {
             }
         })
         .collect()
+}
+
+/// A path-trace cell's row for one side: `bench-render`'s speed and the invalid samples.
+fn pathtrace_row(c: &AbCell, sc: &SideCell, source: &Source) -> Row {
+    let coords = cell([
+        ("scene", c.cell.scene.clone()),
+        ("method", c.cell.method.clone()),
+        ("layout", c.cell.layout.clone()),
+        ("samples", c.cell.rays.to_string()),
+    ]);
+    let row = Row::new("bench-render", coords, source)
+        .with("invalid", Figure::correctness(sc.invalid as f64, "samples", Better::Lower));
+    match crate::report::Summary::of(&sc.ms) {
+        // Samples per ms is thousands a second: /1e3 gives millions.
+        Some(ms) => {
+            let rate = |t: f64| c.cell.rays as f64 / t / 1e3;
+            let f = Figure {
+                median: rate(ms.median),
+                min: rate(ms.max),
+                max: rate(ms.min),
+                runs: ms.runs,
+                unit: "Msamples/s".into(),
+                better: Better::Higher,
+                class: Class::Timing,
+            };
+            row.with("msamples_per_s", f)
+        }
+        None => row,
+    }
 }
 
 /// One `ab` row per cell: the ratio B/A with its interval, and the rays whose hits differ.
@@ -315,7 +447,7 @@ fn source_of(side: &SideReport) -> Source {
     let s = |k: &str| p.get(k).and_then(|v| v.as_str()).unwrap_or_default().to_owned();
     let mut settings: std::collections::BTreeMap<String, String> =
         p.get("settings").and_then(|v| serde_json::from_value(v.clone()).ok()).unwrap_or_default();
-    settings.insert("ab_side".into(), side.name.into());
+    settings.insert(SIDE_SETTING.into(), side.name.into());
     Source {
         device: s("device"),
         driver: s("driver"),
@@ -365,12 +497,7 @@ impl Worker {
         if o.validation {
             cmd.arg("--validation");
         }
-        if let Some(icd) = &side.icd {
-            cmd.env("VK_DRIVER_FILES", icd).env("VK_ICD_FILENAMES", icd);
-        }
-        for (k, v) in &side.env {
-            cmd.env(k, v);
-        }
+        side.apply(&mut cmd);
         let mut child = cmd
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
@@ -454,6 +581,7 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     let start = Instant::now();
     let mut sides = vec![];
     let mut reports = vec![];
+    let mut counted = vec![];
     for (name, side) in [("A", &o.a), ("B", &o.b)] {
         let cache = shader_cache(&side.env);
         progress(&format!("side {name}: starting ({}; shader cache {cache})", side.describe()));
@@ -465,7 +593,7 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
                 return Err(Error::Usage(format!("{e}{}", tail(&err))));
             }
         };
-        let Message::Ready { provenance, cells, pipeline_ms } = ready else {
+        let Message::Ready { provenance, cells, pipeline_ms, invocations, invocations_note } = ready else {
             return Err(Error::Usage(format!("side {name}: the worker did not say it was ready")));
         };
         let report =
@@ -478,6 +606,7 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         ));
         sides.push((w, cells));
         reports.push(report);
+        counted.push((invocations, invocations_note));
     }
     let (mut wb, cells_b) = sides.pop().expect("two sides");
     let (mut wa, cells) = sides.pop().expect("two sides");
@@ -538,6 +667,13 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     let (dir_a, dir_b) = (wa.hits_dir.clone(), wb.hits_dir.clone());
     wa.finish();
     wb.finish();
+    // The compilers' output, after the rounds: its compiles would time them otherwise.
+    let stats = o.driver_stats.then(|| {
+        [("A", &o.a), ("B", &o.b)].map(|(name, side)| {
+            progress(&format!("side {name}: driver statistics"));
+            compiled::collect(o, name, side, &cells, &tmp.path().join(format!("driver-stats-{name}")))
+        })
+    });
     let mut out = vec![];
     for (i, c) in cells.into_iter().enumerate() {
         let [ta, tb] = [&times[0][i], &times[1][i]];
@@ -546,8 +682,18 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         let mut b = worst[1][i].clone();
         a.ms = ta.clone();
         b.ms = tb.clone();
-        let read = |d: &Path| crate::rays::read_hits(&d.join(format!("{i}.hits")));
-        let rays_differing = crate::rays::differing_hits(&read(&dir_a)?, &read(&dir_b)?);
+        let rays_differing = match c.kind {
+            CellKind::Raycast => {
+                let read = |d: &Path| crate::rays::read_hits(&d.join(format!("{i}.hits")));
+                crate::rays::differing_hits(&read(&dir_a)?, &read(&dir_b)?)
+            }
+            CellKind::Pathtrace => {
+                let image = |d: &Path| d.join(format!("{i}.image"));
+                worker::differing_pixels(&image(&dir_a), &image(&dir_b))?
+            }
+        };
+        let compiled = stats.as_ref().and_then(|[sa, sb]| compiled::diff(sa, sb, &c));
+        let invocations = o.workload.pipeline_stats.then(|| [counted[0].0[i], counted[1].0[i]]);
         let correctness_worse = b.agree < a.agree || b.unexplained > a.unexplained || b.invalid > a.invalid;
         out.push(AbCell {
             cell: c,
@@ -557,6 +703,8 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
             ratio,
             rays_differing,
             correctness_worse,
+            compiled,
+            invocations,
         });
     }
     reports[0].rounds = rounds[0];
@@ -573,6 +721,9 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         stopped_by: stopped_by.into(),
         seconds: start.elapsed().as_secs_f64(),
         cells: out,
+        driver_stats: stats.as_ref().map(|s| s.clone().map(|x| x.note)),
+        pipeline_stats: o.workload.pipeline_stats.then(|| [counted[0].1.clone(), counted[1].1.clone()]),
+        driver_stats_rows: stats.map(|s| s.map(|x| x.rows)).unwrap_or_default(),
     })
 }
 
@@ -595,7 +746,9 @@ pub fn write(r: &AbReport, dir: &Path) -> Result<()> {
     for (pick, sub) in [(0, "a"), (1, "b")] {
         let d = dir.join(sub);
         std::fs::create_dir_all(&d).map_err(|e| Error::io(&d, e))?;
-        crate::rows::write(&d, None, &side_rows(r, pick))?;
+        let mut rows = side_rows(r, pick);
+        rows.extend(r.driver_stats_rows[pick].iter().cloned());
+        crate::rows::write(&d, None, &rows)?;
     }
     Ok(())
 }

@@ -19,12 +19,15 @@ use crate::compare::compare_closest;
 use crate::encoding::{Layout, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, Kernel, RaycastOptions};
+use crate::harness::bench_render::{bench_settings, check_image_mean, summarise_renders};
+use crate::harness::profile::dispatch::dispatch_once;
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
 use crate::harness::validate::MIN_AGREEMENT;
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::{self, Ray};
 use crate::reference::RefHit;
+use crate::render::{render, KernelChoice, RenderResult, RenderSettings, RenderTarget};
 use crate::scene::{load_obj, Mesh};
 
 /// What both sides run: bench cells (scenes x ray sets x methods x layouts). The parent gives
@@ -39,15 +42,39 @@ pub struct Workload {
     pub leaf_size: u32,
     pub scene_access: SceneAccess,
     pub batch_rays: usize,
+    /// Add a path-trace cell per scene, method and layout ([`PATHTRACE_SPP`] sample a pixel at
+    /// the primary rays' size, paths of at most [`PATHTRACE_DEPTH`] bounces).
+    pub pathtrace: bool,
+    /// Count each ray-casting cell's compute-shader invocations once, with a pipeline-statistics
+    /// query (where the device has `pipelineStatisticsQuery`).
+    pub pipeline_stats: bool,
+}
+
+/// A path-trace cell's samples per pixel.
+pub const PATHTRACE_SPP: u32 = 1;
+/// A path-trace cell's longest path.
+pub const PATHTRACE_DEPTH: u32 = 4;
+
+/// What a cell runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CellKind {
+    /// The closest-hit ray-casting kernel over a ray set.
+    Raycast,
+    /// The path tracer's kernel rendering the scene's image.
+    Pathtrace,
 }
 
 /// One cell, as the worker names it.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct CellInfo {
+    pub kind: CellKind,
     pub scene: String,
+    /// The ray set; `pathtrace` for a path-trace cell.
     pub set: String,
     pub method: String,
     pub layout: String,
+    /// Rays cast; a path-trace cell's samples (pixels x samples per pixel).
     pub rays: usize,
     /// The kernel that ran (`raycast.mt.closest`), for the driver statistics.
     pub kernel: String,
@@ -79,6 +106,10 @@ pub enum Message {
         provenance: serde_json::Value,
         cells: Vec<CellInfo>,
         pipeline_ms: f64,
+        /// Per cell, its compute-shader invocations when asked for and measured.
+        invocations: Vec<Option<u64>>,
+        /// Why there are no invocations counts, when they were asked for and are none.
+        invocations_note: Option<String>,
     },
     Round {
         cells: Vec<CellRound>,
@@ -97,11 +128,24 @@ pub const RUNS_PER_ROUND: usize = 3;
 /// A cell as the worker holds it.
 struct Cell<'a> {
     info: CellInfo,
-    scene: &'a DeviceScene,
-    kernel: std::sync::Arc<Kernel>,
-    mesh: &'a Mesh,
-    rays: &'a [Ray],
-    ref_hits: &'a [RefHit],
+    job: Job<'a>,
+}
+
+enum Job<'a> {
+    Raycast {
+        scene: &'a DeviceScene,
+        kernel: std::sync::Arc<Kernel>,
+        mesh: &'a Mesh,
+        rays: &'a [Ray],
+        ref_hits: &'a [RefHit],
+    },
+    Pathtrace {
+        target: Box<RenderTarget>,
+        settings: RenderSettings,
+        /// The image mean this side's first path-trace cell of the scene rendered (each
+        /// method traces the same paths: bench-render's check).
+        scene_mean: f64,
+    },
 }
 
 impl Workload {
@@ -130,6 +174,11 @@ impl Workload {
         ] {
             a.push(k.into());
             a.push(v);
+        }
+        for (flag, on) in [("--pathtrace", self.pathtrace), ("--pipeline-stats", self.pipeline_stats)] {
+            if on {
+                a.push(flag.into());
+            }
         }
         a
     }
@@ -196,6 +245,7 @@ fn load_and_serve(
         let kernel = scene.kernel(ctx, Raycast::Closest)?;
         for (set, rays, ref_hits) in &sets[*i] {
             let info = CellInfo {
+                kind: CellKind::Raycast,
                 scene: hosts[*i].name.clone(),
                 set: set.to_string(),
                 method: scene.method.to_string(),
@@ -203,24 +253,74 @@ fn load_and_serve(
                 rays: rays.len(),
                 kernel: kernel.name.to_string(),
             };
-            cells.push(Cell { info, scene, kernel: kernel.clone(), mesh: &meshes[*i], rays, ref_hits });
+            let job = Job::Raycast { scene, kernel: kernel.clone(), mesh: &meshes[*i], rays, ref_hits };
+            cells.push(Cell { info, job });
+        }
+    }
+    if w.pathtrace {
+        let size = (w.sizes.width, w.sizes.height);
+        for ((host, mesh), _) in hosts.iter().zip(&meshes).zip(&w.scenes) {
+            let settings = bench_settings(mesh, size, PATHTRACE_SPP, PATHTRACE_DEPTH, None);
+            let mut scene_mean = None;
+            for &m in &w.methods {
+                for &l in &w.layouts {
+                    let request = SceneRequest::new(m).access(w.scene_access).layout(l);
+                    let target =
+                        RenderTarget::new(ctx, host, request, KernelChoice::Specialised, settings.pixels(), false)?;
+                    // The warm-up render: pipelines compiled, and the scene's image mean.
+                    let first = render(ctx, &target, &settings, &mut |_| true)?;
+                    let mean = summarise_renders(std::slice::from_ref(&first))
+                        .map_err(|e| Error::Usage(format!("{} {m} {l} path trace: {e}", host.name)))?
+                        .image_mean;
+                    let info = CellInfo {
+                        kind: CellKind::Pathtrace,
+                        scene: host.name.clone(),
+                        set: "pathtrace".into(),
+                        method: m.to_string(),
+                        layout: l.to_string(),
+                        rays: first.samples() as usize,
+                        kernel: target.kernel.source.name.to_string(),
+                    };
+                    let scene_mean = *scene_mean.get_or_insert(mean);
+                    let job = Job::Pathtrace { target: Box::new(target), settings: settings.clone(), scene_mean };
+                    cells.push(Cell { info, job });
+                }
+            }
         }
     }
     if cells.is_empty() {
         return Err(Error::Usage("the workload has no cells (every ray set empty?)".into()));
     }
-    // One untimed run of every cell: pipelines compiled, caches warm.
+    // One untimed run of every ray-casting cell: pipelines compiled, caches warm.
     let warm = RaycastOptions { warmup: 0, repeat: 1, batch_rays: w.batch_rays };
     for c in &cells {
-        c.scene.cast_with(ctx, &c.kernel, c.rays, &warm)?;
+        if let Job::Raycast { scene, kernel, rays, .. } = &c.job {
+            scene.cast_with(ctx, kernel, rays, &warm)?;
+        }
     }
+    let (invocations, invocations_note) = match (w.pipeline_stats, ctx.enabled().pipeline_statistics_query) {
+        (false, _) => (vec![None; cells.len()], None),
+        (true, false) => (vec![None; cells.len()], Some("the device has no pipelineStatisticsQuery".to_owned())),
+        (true, true) => {
+            let mut v = vec![];
+            for c in &cells {
+                v.push(match &c.job {
+                    Job::Raycast { scene, kernel, rays, .. } => {
+                        dispatch_once(ctx, kernel, scene, rays, true)?.compute_shader_invocations
+                    }
+                    Job::Pathtrace { .. } => None,
+                });
+            }
+            (v, None)
+        }
+    };
     // A round's time for a cell is the median of [`RUNS_PER_ROUND`] runs: on a shared host the
     // driver's threads are now and then descheduled, and a single run's time is bimodal.
     let opts = RaycastOptions { warmup: 0, repeat: RUNS_PER_ROUND, batch_rays: w.batch_rays };
     let pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
     let infos = cells.iter().map(|c| c.info.clone()).collect();
     let provenance = serde_json::to_value(Provenance::of(ctx)).expect("provenance serialises");
-    say(output, &Message::Ready { provenance, cells: infos, pipeline_ms })?;
+    say(output, &Message::Ready { provenance, cells: infos, pipeline_ms, invocations, invocations_note })?;
     let mut round = 0usize;
     for line in input.lines() {
         let line = line.map_err(|e| Error::io(Path::new("stdin"), e))?;
@@ -230,16 +330,39 @@ fn load_and_serve(
                 // The cell that opens a round rotates, as in every interleaved harness.
                 for k in 0..cells.len() {
                     let i = (k + round) % cells.len();
-                    let c = &cells[i];
-                    let res = c.scene.cast_with(ctx, &c.kernel, c.rays, &opts)?;
-                    let a = compare_closest(c.mesh, c.rays, &res.hits, c.ref_hits);
-                    if round == 0 {
-                        rays::write_hits(&hits_dir.join(format!("{i}.hits")), &res.hits)?;
-                    }
-                    let valid = a.passes(MIN_AGREEMENT);
-                    let ms = if valid { Some(res.time_ms()?.median) } else { None };
-                    results[i] =
-                        Some(CellRound { ms, agree: a.agree, unexplained: a.unexplained, invalid: a.invalid.len() });
+                    let record = |what: &str| hits_dir.join(format!("{i}.{what}"));
+                    results[i] = Some(match &cells[i].job {
+                        Job::Raycast { scene, kernel, mesh, rays, ref_hits } => {
+                            let res = scene.cast_with(ctx, kernel, rays, &opts)?;
+                            let a = compare_closest(mesh, rays, &res.hits, ref_hits);
+                            if round == 0 {
+                                rays::write_hits(&record("hits"), &res.hits)?;
+                            }
+                            let valid = a.passes(MIN_AGREEMENT);
+                            let ms = if valid { Some(res.time_ms()?.median) } else { None };
+                            CellRound { ms, agree: a.agree, unexplained: a.unexplained, invalid: a.invalid.len() }
+                        }
+                        Job::Pathtrace { target, settings, scene_mean } => {
+                            let mut runs = vec![];
+                            for _ in 0..RUNS_PER_ROUND {
+                                runs.push(render(ctx, target, settings, &mut |_| true)?);
+                            }
+                            if round == 0 {
+                                write_image(&record("image"), &runs[0])?;
+                            }
+                            let dropped = runs.iter().map(|r| r.dropped_samples).sum::<u64>() as usize;
+                            let checked = summarise_renders(&runs)
+                                .ok()
+                                .filter(|m| check_image_mean(m.image_mean, &mut Some(*scene_mean)).is_ok());
+                            let samples = runs[0].samples() as usize;
+                            match checked {
+                                Some(m) => {
+                                    CellRound { ms: Some(m.ms.median), agree: samples, unexplained: 0, invalid: 0 }
+                                }
+                                None => CellRound { ms: None, agree: 0, unexplained: 0, invalid: dropped },
+                            }
+                        }
+                    });
                 }
                 round += 1;
                 let cells = results.into_iter().map(|r| r.expect("every cell ran")).collect();
@@ -250,4 +373,21 @@ fn load_and_serve(
         }
     }
     Ok(())
+}
+
+/// A path-trace cell's image, its pixels' RGBA as little-endian f32, for the parent to compare
+/// bit for bit.
+fn write_image(path: &Path, r: &RenderResult) -> Result<()> {
+    let bytes: Vec<u8> = r.image().iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    crate::io::write_atomic(path, &bytes)
+}
+
+/// Pixels whose RGBA differs bit for bit between two images [`write_image`] wrote.
+pub fn differing_pixels(a: &Path, b: &Path) -> Result<usize> {
+    let read = |p: &Path| std::fs::read(p).map_err(|e| Error::io(p, e));
+    let (a, b) = (read(a)?, read(b)?);
+    if a.len() != b.len() {
+        return Err(Error::Usage(format!("the sides rendered images of {} and {} bytes", a.len(), b.len())));
+    }
+    Ok(a.chunks(16).zip(b.chunks(16)).filter(|(x, y)| x != y).count())
 }
