@@ -166,7 +166,7 @@ fn main() {
                 fs::write(&file, deflate(&bytes)).unwrap();
                 writeln!(
                     registry,
-                    "    KernelSource {{ name: {name:?}, kernel: {:?}, method: {:?}, variant: {:?}, layout: {:?}, \
+                    "    KernelSource {{ name: {name:?}, kernel: {:?}, intersector: {:?}, variant: {:?}, layout: {:?}, \
                      spirv_deflate: include_bytes!({:?}) }},",
                     j.kernel,
                     j.method,
@@ -472,6 +472,10 @@ fn shared_constants(path: &Path) -> String {
         let (Some(name), Some(value)) = (words.next(), words.next()) else {
             continue;
         };
+        if name.contains('(') {
+            // A function-like macro over the constants: its Rust twin is written by hand.
+            continue;
+        }
         let v = value.trim_end_matches(['u', 'U']);
         let parsed = match v.strip_prefix("0x").or_else(|| v.strip_prefix("0X")) {
             Some(hex) => u32::from_str_radix(hex, 16),

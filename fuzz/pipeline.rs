@@ -5,8 +5,8 @@
 
 use std::path::Path;
 
-use trilab::analyze::Conditioning;
 use trilab::bvh::{BuildOptions, Builder, Bvh, LeafPolicy};
+use trilab::conditioning::Conditioning;
 use trilab::encoding::Method;
 use trilab::rays::{parse_hits, parse_rays};
 use trilab::scene::parse_obj_bytes;

@@ -78,19 +78,7 @@ void main() {
     uint hi = clock_end.y - clock_start.y - borrow;
     cycles[i] = hi == 0u ? clock_end.x - clock_start.x : 0xFFFFFFFFu;
 #endif
-    Hit o;
-    if (h.slot == MISS_ID) {
-        o.t = uintBitsToFloat(0x7f800000u); // +inf
-        o.id = MISS_ID;
-        o.u = 0.0;
-        o.v = 0.0;
-    } else {
-        o.t = h.t;
-        o.id = load_slot_id(h.slot);
-        o.u = h.u;
-        o.v = h.v;
-    }
-    hits[i] = o;
+    hits[i] = hit_record(h);
 #ifdef TRAVERSAL_STATS
     counts[i] = trav_counts;
 #endif

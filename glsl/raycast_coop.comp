@@ -99,7 +99,7 @@ float coop_take_f(bool mine, float x) {
 struct CoopChild {
     vec3 bmin;
     vec3 bmax;
-    uint entry; // packed (first << 5) | count
+    uint entry; // LEAF_ENTRY(first, count) (shared.glsl)
     bool occupied;
 };
 
@@ -161,7 +161,7 @@ CoopChild coop_child(CoopTexels c, uint ch) {
     uint kid = coop_field(c, ch, 6u);
     uint cnt = coop_field(c, ch, 7u);
     o.occupied = ch < COOP_WIDTH && kid != EMPTY_CHILD;
-    o.entry = (kid << 5u) | cnt;
+    o.entry = LEAF_ENTRY(kid, cnt);
     return o;
 }
 #else
@@ -293,8 +293,8 @@ void coop_trace(TraceRay r, inout HitState h) {
     float stack_t[COOP_STACK];
     uint sp = 0u;
     while (true) {
-        uint count = current & 31u;
-        uint first = current >> 5u;
+        uint count = LEAF_ENTRY_COUNT(current);
+        uint first = LEAF_ENTRY_FIRST(current);
         if (count > 0u) {
             COUNT_LEAF(count);
             coop_leaf(r, first, count, h);
@@ -418,19 +418,7 @@ void main() {
     if (!valid) {
         return;
     }
-    Hit o;
-    if (my_hit.slot == MISS_ID) {
-        o.t = COOP_INF;
-        o.id = MISS_ID;
-        o.u = 0.0;
-        o.v = 0.0;
-    } else {
-        o.t = my_hit.t;
-        o.id = load_slot_id(my_hit.slot);
-        o.u = my_hit.u;
-        o.v = my_hit.v;
-    }
-    hits[i] = o;
+    hits[i] = hit_record(my_hit);
 #ifdef TRAVERSAL_STATS
     counts[i] = my_counts;
 #endif

@@ -39,19 +39,7 @@ layout(push_constant) uniform Push {
 layout(local_size_x_id = SPEC_ID_WORKGROUP_SIZE, local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
 
 void write_hit(uint i, HitState h) {
-    Hit o;
-    if (h.slot == MISS_ID) {
-        o.t = uintBitsToFloat(0x7f800000u); // +inf
-        o.id = MISS_ID;
-        o.u = 0.0;
-        o.v = 0.0;
-    } else {
-        o.t = h.t;
-        o.id = load_slot_id(h.slot);
-        o.u = h.u;
-        o.v = h.v;
-    }
-    hits[i] = o;
+    hits[i] = hit_record(h);
 }
 
 #ifndef WIDE_LAYOUT
@@ -98,8 +86,8 @@ void main() {
             sp = 0u;
             fetch = false;
         }
-        uint count = current & 31u;
-        uint first = current >> 5u;
+        uint count = LEAF_ENTRY_COUNT(current);
+        uint first = LEAF_ENTRY_FIRST(current);
         bool pop = true;
         if (count > 0u) {
             intersect_leaf(r, first, count, h, false);
@@ -179,8 +167,8 @@ void main() {
     uint sp = 0u;
     uint current = 0u; // node 0, an inner node
     while (true) {
-        uint count = current & 31u;
-        uint first = current >> 5u;
+        uint count = LEAF_ENTRY_COUNT(current);
+        uint first = LEAF_ENTRY_FIRST(current);
         bool pop = true;
         if (count > 0u) {
             intersect_leaf(r, first, count, h, false);

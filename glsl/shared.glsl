@@ -1,7 +1,8 @@
 // Constants shared by the host and the kernels (the nvpro "one header" idea).
 // build.rs turns every `#define NAME <unsigned integer>` below into `pub const NAME: u32`
-// in Rust (trilab::gpu::shared), so bindings and sizes cannot drift apart.
-// Only unsigned integer literals belong here.
+// in Rust (trilab::shared), so bindings and sizes cannot drift apart.
+// Only unsigned integer literals belong here, and function-like macros over them (build.rs
+// skips those; their Rust twins are written in src/shared.rs beside the constants).
 #ifndef TRILAB_SHARED
 #define TRILAB_SHARED
 
@@ -17,6 +18,16 @@
 #define BVH8_STACK_SIZE 96
 // Node groups of the cwbvh traversal's stack (glsl/layout/cwbvh.glsl; CwBvh::stack_bound).
 #define CWBVH_STACK_SIZE 32
+
+// The packed entry every traversal keeps of a node once its box was tested (its stacks hold
+// these), and the cwbvh leaf table's entries: (first << LEAF_ENTRY_COUNT_BITS) | count, where
+// count is a leaf's triangles (0: an inner node; MAX_LEAF_SIZE <= 16 fits) and first its first
+// slot or first child (the host checks it fits the rest: MAX_NODE_INDEX). Rust twin:
+// trilab::shared::{leaf_entry, leaf_entry_first, leaf_entry_count}.
+#define LEAF_ENTRY_COUNT_BITS 5u
+#define LEAF_ENTRY(first, count) (((first) << LEAF_ENTRY_COUNT_BITS) | (count))
+#define LEAF_ENTRY_FIRST(e) ((e) >> LEAF_ENTRY_COUNT_BITS)
+#define LEAF_ENTRY_COUNT(e) ((e) & ((1u << LEAF_ENTRY_COUNT_BITS) - 1u))
 
 // Descriptor set 0. Rays and hits: storage buffers holding one dispatch's sub-range.
 #define BINDING_RAYS 0

@@ -18,7 +18,7 @@
 //   compares each lane with the closest hit so far, in lane order;
 // - optionally INTERSECTOR_RAY_SETUP(r, h): run once per ray at the start of trace(), before any
 //   leaf (watertight.glsl: its shear; f64.glsl: its bound in double), and
-//   CONSERVATIVE_TRAVERSAL: the conservative box test below (watertight.glsl).
+//   CONSERVATIVE_TRAVERSAL: the conservative box test below (watertight.glsl, pluecker.glsl).
 #ifndef TRILAB_TRAVERSE
 #define TRILAB_TRAVERSE
 
@@ -99,8 +99,8 @@ bool hit_box(TraceRay r, vec3 bmin, vec3 bmax, float tfar, out float tnear) {
 
 #ifdef CONSERVATIVE_TRAVERSAL
 // Conservative traversal for an intersector that accepts triangles the exact ray misses by a
-// rounding error (watertight.glsl defines CONSERVATIVE_TRAVERSAL; every other kernel compiles
-// the plain slab test above, unchanged). After Woop, Benthin & Wald, "Watertight Ray/Triangle
+// rounding error (watertight.glsl and pluecker.glsl define CONSERVATIVE_TRAVERSAL; every other
+// kernel compiles the plain slab test above, unchanged). After Woop, Benthin & Wald, "Watertight Ray/Triangle
 // Intersection", JCGT 2(1), 2013, sec. 5, with the rounding of the slab test itself as in Ize,
 // "Robust BVH Ray Traversal", JCGT 2(2), 2013.
 //
@@ -171,12 +171,12 @@ bool hit_box_conservative(ConservativeRay c, vec3 bmin, vec3 bmax, float tfar, o
 #define HIT_BOX(bmin, bmax, tfar, tnear) hit_box(r, bmin, bmax, tfar, tnear)
 #endif
 
-// What traversal keeps of a node once its box has been tested: (left_or_first << 5) | count.
+// What traversal keeps of a node once its box has been tested: LEAF_ENTRY(left_or_first, count).
 // The stack holds these, so popping a node costs no memory access (the paper's stack holds node
 // indices and re-reads the node). count <= 16 (MAX_LEAF_SIZE) fits in 5 bits; the host checks
 // that every left_or_first fits in 27 (EncodedScene::check_limits).
 uint pack_node(BvhNode n) {
-    return (n.left_or_first << 5u) | n.count;
+    return LEAF_ENTRY(n.left_or_first, n.count);
 }
 
 // Every stack loop's leaf step (trace() below, glsl/layout/bvh4.glsl, bvh8.glsl): the leaf
@@ -289,8 +289,8 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
     float stack_t[STACK_SIZE];
     uint sp = 0u;
     while (true) {
-        uint count = current & 31u;
-        uint first = current >> 5u;
+        uint count = LEAF_ENTRY_COUNT(current);
+        uint first = LEAF_ENTRY_FIRST(current);
         bool pop = true;
         if (count > 0u) {
             TEST_LEAF_OR_RETURN();

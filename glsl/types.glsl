@@ -102,4 +102,22 @@ struct HitState {
     float v;
 };
 
+// The hit record of a ray's closest hit so far: the one hit writer of raycast.comp,
+// raycast_coop.comp and raycast_persistent.comp (a miss: t = +inf, id MISS_ID, u = v = 0).
+Hit hit_record(HitState h) {
+    Hit o;
+    if (h.slot == MISS_ID) {
+        o.t = uintBitsToFloat(0x7f800000u); // +inf
+        o.id = MISS_ID;
+        o.u = 0.0;
+        o.v = 0.0;
+    } else {
+        o.t = h.t;
+        o.id = load_slot_id(h.slot);
+        o.u = h.u;
+        o.v = h.v;
+    }
+    return o;
+}
+
 #endif

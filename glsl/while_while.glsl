@@ -2,7 +2,7 @@
 // raycast.comp, WHILE_WHILE): Aila & Laine, "Understanding the Efficiency of Ray Traversal on
 // GPUs", HPG 2009, sec. 3 (while-while, postponed leaves), as in their 2012 kernels' structure.
 // Included by traverse.glsl in place of its while-if trace() (binary nodes only); the box test,
-// the packed entries ((first << 5) | count) and the leaf loop are traverse.glsl's.
+// the packed entries (LEAF_ENTRY, shared.glsl) and the leaf loop are traverse.glsl's.
 //
 // One ray per invocation. The inner loop runs over inner nodes only: when it reaches a leaf and
 // has none postponed, it keeps that leaf for later and goes on with the next entry of the stack;
@@ -22,7 +22,7 @@
 const uint WW_DONE = 0xFFFFFFFFu;
 
 bool ww_is_leaf(uint e) {
-    return e != WW_DONE && (e & 31u) != 0u;
+    return e != WW_DONE && LEAF_ENTRY_COUNT(e) != 0u;
 }
 
 // Traces `r` through the BVH, updating `h` (h.t must start at the ray's tmax).
@@ -50,10 +50,10 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
     }
     while (true) {
         // Inner nodes, until a second leaf or the end (or every lane holds a leaf).
-        while ((current & 31u) == 0u) {
+        while (LEAF_ENTRY_COUNT(current) == 0u) {
             COUNT_INNER();
             COUNT_BOXES(2u);
-            uint first = current >> 5u;
+            uint first = LEAF_ENTRY_FIRST(current);
             BvhNode l = load_node(first);
             BvhNode rr = load_node(first + 1u);
             float tl, tr;
@@ -79,9 +79,9 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
         }
         // The postponed leaf, then the current entry while it is a leaf.
         while (leaf != WW_DONE) {
-            uint count = leaf & 31u;
+            uint count = LEAF_ENTRY_COUNT(leaf);
             COUNT_LEAF(count);
-            bool found = intersect_leaf(r, leaf >> 5u, count, h, any_hit);
+            bool found = intersect_leaf(r, LEAF_ENTRY_FIRST(leaf), count, h, any_hit);
             if (any_hit && found) {
                 return;
             }

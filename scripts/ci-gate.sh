@@ -22,6 +22,7 @@
 #   host compiled for the same CPU (`jit_cpu`; on another CPU LLVM's code differs by the CPU
 #   alone, and compare says it did not judge them);
 # - correctness (agreement with the f64 reference, leaks, NaN hits) fails on any worsening.
+# A failure must repeat in a second measurement before the gate fails (see the end).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 baseline=results/lavapipe/baseline
@@ -62,4 +63,15 @@ if [ "${1:-}" = "--refresh" ]; then
   exit 0
 fi
 measure "$out/suite"
-gate "$baseline" "$out/suite"
+if gate "$baseline" "$out/suite" > "$out/gate.txt"; then
+  cat "$out/gate.txt"
+  exit 0
+fi
+# A failure must repeat: a second measurement, judged alone, fails too. Counts and correctness
+# are exact, so their failures always repeat; a timing failure that does not was the host (on
+# 2026-11-27 a busy neighbour slowed the study's sub-millisecond cells x1.47 over the host
+# calibration in one CI run, and the gate passed at once when run again).
+cat "$out/gate.txt"
+echo "ci-gate: the gate failed; measuring again to see whether the failure repeats" >&2
+measure "$out/again"
+gate "$baseline" "$out/again"

@@ -4,8 +4,9 @@
 //! and what each intersector's GLSL states about itself.
 //!
 //! This is the ground floor: it knows kernels by the names the GLSL gives them. The typed ways to
-//! pick one live with what they are for: a method's ray-casting kernels in `pipeline`, the path
-//! tracer's in `render`, the ray-query peer's in `gpu::rayquery`.
+//! pick one live with what they are for: a method's ray-casting kernels in `encoding::variants`
+//! (`Method::raycast_kernel`, by kind, access path, layout and traversal), the path tracer's in
+//! `render`, the ray-query peer's in `gpu::rayquery`.
 
 /// One compiled kernel variant.
 #[derive(Debug)]
@@ -15,9 +16,10 @@ pub struct KernelSource {
     pub name: &'static str,
     /// The `glsl/<kernel>.comp` it came from.
     pub kernel: &'static str,
-    /// The intersector, `glsl/intersect/<intersector>.glsl`, or `none` for kernels that trace no
-    /// rays (`// trilab:intersector none`).
-    pub method: &'static str,
+    /// The intersector's file stem, `glsl/intersect/<intersector>.glsl` (`quad_mt`; the method's
+    /// command-line name has `-` for `_`), or `none` for kernels that trace no rays (`//
+    /// trilab:intersector none`).
+    pub intersector: &'static str,
     /// The variant from the kernel's `// trilab:variants` line (with `_<layout>` for a variant
     /// compiled per layout: the kernel's `// trilab:layouts` line).
     pub variant: &'static str,
@@ -101,7 +103,7 @@ impl KernelSource {
 /// The variant `variant` of `glsl/<kernel>.comp` compiled with intersector `intersector`
 /// ([`NO_INTERSECTOR`] for kernels without one).
 pub fn find(kernel: &str, intersector: &str, variant: &str) -> Option<&'static KernelSource> {
-    KERNELS.iter().find(|k| k.kernel == kernel && k.method == intersector && k.variant == variant)
+    KERNELS.iter().find(|k| k.kernel == kernel && k.intersector == intersector && k.variant == variant)
 }
 
 /// What `glsl/intersect/<glsl>.glsl` states about itself; `None` if there is no such file.
@@ -123,8 +125,8 @@ mod tests {
         for k in KERNELS {
             assert_eq!(k.spirv().len() % 4, 0, "{}", k.name);
             assert_eq!(k.words()[0], 0x0723_0203, "{}: SPIR-V magic", k.name);
-            assert_eq!(k.name, format!("{}.{}.{}", k.kernel, k.method.replace('_', "-"), k.variant));
-            if k.method != NO_INTERSECTOR {
+            assert_eq!(k.name, format!("{}.{}.{}", k.kernel, k.intersector.replace('_', "-"), k.variant));
+            if k.intersector != NO_INTERSECTOR {
                 for glsl in intersectors() {
                     assert!(find(k.kernel, glsl, k.variant).is_some(), "{} has no {glsl} build", k.name);
                 }

@@ -8,12 +8,12 @@
 //!   ([`kernels`]) and SPIR-V counts, reflection and capabilities ([`spirv`]).
 //! - [`scene`]: OBJ/MTL and synthetic meshes; [`rays`]: ray and hit files, cameras, ray sets,
 //!   spawn offsets; [`bvh`]: the SAH build, 32-byte nodes.
-//! - The CPU's truth: the f64 [`reference`], [`compare`] (agreement with it), [`traversal`] (the
+//! - The CPU's truth: the f64 [`reference`], [`agreement`] with it, [`traversal`] (the
 //!   kernels' loop mirrored on the CPU).
 //! - [`encoding`]: the intersectors, one unit each (layout, encoder, memory plan), their
 //!   registry and [`encoding::Method`].
 //! - [`gpu`]: device, buffers, pipelines, dispatch, timestamps, faults, the driver's ray query.
-//! - [`analyze`]: a scene's conditioning and the method it needs (`--method auto`).
+//! - [`conditioning`]: a scene's conditioning and the method it needs (`--method auto`).
 //! - [`pipeline`]: the one scene pipeline, mesh to scene on the device with its kernels.
 //! - [`render`]: the path tracer.
 //! - [`harness`]: everything that measures and reports (bench, study, accuracy, profile, scale,
@@ -34,11 +34,11 @@ pub mod scene;
 pub mod rays;
 pub mod bvh;
 pub mod reference;
-pub mod compare;
+pub mod agreement;
 pub mod traversal;
 pub mod encoding;
 pub mod gpu;
-pub mod analyze;
+pub mod conditioning;
 pub mod pipeline;
 pub mod render;
 pub mod harness;

@@ -110,10 +110,13 @@ fn driver_statistics_invocations_and_a_path_trace_on_request() {
     let out = dir.path().join("ab");
     let optional = ["--rounds", "2", "--max-rounds", "2", "--pathtrace", "--pipeline-stats", "--driver-stats"];
     let (o, r) = ab(&[&optional[..], &["--out", &s(&out)]].concat(), 180);
-    assert_eq!(o.status.code(), Some(0), "{}\n{r}", common::cli::stderr(&o));
+    // Two rounds a side say little about time (a false "hurt" is possible, and exit 1 with it):
+    // what this test holds is everything else.
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{}\n{r}", common::cli::stderr(&o));
     let cells = r["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 8, "2 methods x (3 ray sets + a path trace): {r}");
     for c in cells {
+        assert_eq!(c["correctness_worse"], false, "{c}");
         let rays = c["cell"]["rays"].as_u64().unwrap();
         match c["cell"]["kind"].as_str().unwrap() {
             "raycast" => {

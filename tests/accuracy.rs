@@ -187,7 +187,7 @@ fn smoke_run_never_hits_degenerate_triangles_and_never_returns_nan() {
     let written = accuracy::write(&report, dir.path()).unwrap();
     assert_eq!(written.len(), 8, "{written:?}");
     // What `trilab analyze --frontier` reads back: every measured method, with its translations.
-    let f = trilab::analyze::Frontier::read(&dir.path().join("frontier.csv")).unwrap();
+    let f = trilab::conditioning::Frontier::read(&dir.path().join("frontier.csv")).unwrap();
     assert_eq!(f.points.len(), methods);
     for p in &f.points {
         let row = report.frontier.iter().find(|r| r.method == p.method).unwrap();

@@ -5,8 +5,8 @@
 
 mod common;
 
+use trilab::agreement::{compare_any, compare_closest};
 use trilab::bvh::{BuildOptions, Bvh};
-use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::{BwTriangle, Method, BW_NEVER_HIT};
 use trilab::harness::rayset::{ray_sets, RaySetSizes};
 use trilab::harness::validate::validate_hits;

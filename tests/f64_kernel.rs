@@ -9,8 +9,8 @@ mod common;
 use std::sync::mpsc;
 use std::time::Duration;
 
+use trilab::agreement::{compare_any, compare_closest};
 use trilab::bvh::{BuildOptions, Bvh};
-use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::{Method, Raycast};
 use trilab::error::Error;
 use trilab::gpu::{Context, ContextOptions, Validation};

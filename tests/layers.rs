@@ -1,6 +1,6 @@
 //! The layering rule of ARCHITECTURE.md, checked on the source tree: the library's top-level
 //! modules form an order (ground floor, scene, rays, bvh, the CPU reference, encoding, gpu,
-//! analyze, pipeline, path tracer, harnesses), and every module imports only modules before its
+//! conditioning, pipeline, path tracer, harnesses), and every module imports only modules before its
 //! own. Inside a top-level module, no two modules that are not parent and child import each
 //! other, directly or around a longer cycle. The library does not use clap (the command line,
 //! `src/main.rs` and `src/cli/`, is the binary's). Comments are not imports.
@@ -30,12 +30,12 @@ const LAYERS: &[&str] = &[
     "bvh",
     // The CPU's truth.
     "reference",
-    "compare",
+    "agreement",
     "traversal",
     // Intersectors and their layouts.
     "encoding",
     "gpu",
-    "analyze",
+    "conditioning",
     "pipeline",
     // The path tracer.
     "render",

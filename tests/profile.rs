@@ -4,8 +4,8 @@
 
 mod common;
 
+use trilab::agreement::compare_closest;
 use trilab::bvh::{BuildOptions, Bvh};
-use trilab::compare::compare_closest;
 use trilab::encoding::{Method, Raycast};
 use trilab::gpu::{Context, PipelineOptions, RaycastOptions};
 use trilab::harness::profile::{self, differing_hits, dispatch_once, sweep, ProfileOptions, Status};

@@ -5,8 +5,8 @@
 
 mod common;
 
+use trilab::agreement::{compare_any, compare_closest};
 use trilab::bvh::BuildOptions;
-use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::{Method, Raycast};
 use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::rays::random_rays;
@@ -42,7 +42,7 @@ fn every_method_and_leaf_size_matches_the_f64_reference_on_the_bunny() {
                     let worst: Vec<_> = agreement
                         .disagreements
                         .iter()
-                        .filter(|d| d.ambiguity_ulps > trilab::compare::AMBIGUITY_ULPS)
+                        .filter(|d| d.ambiguity_ulps > trilab::agreement::AMBIGUITY_ULPS)
                         .take(5)
                         .collect();
                     failures.push(format!(

@@ -6,8 +6,8 @@ mod common;
 
 use std::time::Duration;
 
+use trilab::agreement::{compare_any, compare_closest, edge_ulps, AMBIGUITY_ULPS};
 use trilab::bvh::{BuildOptions, Bvh};
-use trilab::compare::{compare_any, compare_closest, edge_ulps, AMBIGUITY_ULPS};
 use trilab::error::Error;
 use trilab::gpu::rayquery::{self, raycast_rq};
 use trilab::gpu::{AccelStructure, Context, ContextOptions, RaycastOptions, Validation};

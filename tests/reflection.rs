@@ -162,7 +162,7 @@ fn rust_structs_match_spirv_offsets_and_strides() {
                 assert_eq!(spirv.member_offsets, host_push(k.kernel), "{}: push constants", k.name);
                 continue;
             }
-            let host = host_layout(k.method, binding);
+            let host = host_layout(k.intersector, binding);
             assert_eq!(spirv, &host, "{}: binding {binding}: SPIR-V declares {spirv:?}, host uses {host:?}", k.name);
             checked_structs += !host.member_offsets.is_empty() as usize;
         }
@@ -194,7 +194,7 @@ fn kernels_bind_what_the_host_provides() {
         assert_eq!(l.push_constants, Some((0, push_bytes)), "{}: push constants", k.name);
         assert_eq!(l.sets.keys().copied().collect::<Vec<_>>(), vec![0], "{}", k.name);
         let set = &l.sets[&0];
-        let method = method_of(k.method);
+        let method = method_of(k.intersector);
         // The scene bindings of the method's encoding (watertight and f64 read MT's buffers).
         let scene = method.map(scene_bindings).unwrap_or_default();
         let texels = match (k.kernel, method) {
@@ -280,7 +280,7 @@ fn clock_variant_adds_only_the_cycles_buffer() {
             assert_eq!(layouts[&BINDING_CYCLES], array_of(size_of::<u32>(), &[]), "{}", k.name);
             // Its twin without the clock: closest, on the same access path.
             let twin = k.variant.replace("clock", "closest");
-            let closest = trilab::kernels::find("raycast", k.method, &twin).unwrap();
+            let closest = trilab::kernels::find("raycast", k.intersector, &twin).unwrap();
             let closest_set = reflect(closest.name, &closest.words()).unwrap().sets[&0].clone();
             let mut without: Vec<u32> = set.keys().copied().filter(|&b| b != BINDING_CYCLES).collect();
             without.sort();

@@ -9,8 +9,8 @@ mod common;
 use std::time::Duration;
 
 use ash::vk;
+use trilab::agreement::{compare_any, compare_closest, edge_ulps, AMBIGUITY_ULPS};
 use trilab::bvh::{BuildOptions, Bvh};
-use trilab::compare::{compare_any, compare_closest, edge_ulps, AMBIGUITY_ULPS};
 use trilab::error::Error;
 use trilab::gpu::rtpipeline::{self, raycast_rtp};
 use trilab::gpu::{AccelStructure, Context, ContextOptions, Peer, PeerTracer, RaycastOptions, Validation};

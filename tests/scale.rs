@@ -5,8 +5,8 @@
 
 mod common;
 
+use trilab::agreement::{compare_any, compare_closest};
 use trilab::bvh::{BuildOptions, Bvh};
-use trilab::compare::{compare_any, compare_closest};
 use trilab::encoding::{AccessPath, DeviceLimits, MemoryPlan, Method, Raycast, SceneAccess};
 use trilab::error::Error;
 use trilab::gpu::{ContextOptions, RaycastOptions};

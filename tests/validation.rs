@@ -77,7 +77,7 @@ fn every_kernel_family_runs_clean_under_synchronization_validation() {
         let rays = trilab::rays::random_rays(&mesh.bounds(), 600, 2);
         // Two batches, so consecutive submits share the output buffers.
         let opts = RaycastOptions { warmup: 1, repeat: 1, batch_rays: 512 };
-        for m in trilab::analyze::available_methods(ctx.enabled()) {
+        for m in trilab::conditioning::available_methods(ctx.enabled()) {
             // Every ray-casting variant, through texel buffers and (scenes beyond one binding's
             // range) buffer device addresses.
             let mut paths = vec![SceneAccess::Texel];

@@ -1,7 +1,7 @@
 // The bvh4 layout's traversal (the `*_bvh4` variants: `// trilab:layouts` in raycast.comp and
 // pathtrace.comp). Included by traverse.glsl in place of the binary trace(); the leaf loop
-// (intersect_leaf), the box test (HIT_BOX, conservative for watertight) and the packed stack
-// entries ((first << 5) | count) are traverse.glsl's. Host side: src/encoding/layout/bvh4.rs.
+// (intersect_leaf), the box test (HIT_BOX, conservative for watertight and Plücker) and the packed stack
+// entries (LEAF_ENTRY, shared.glsl) are traverse.glsl's. Host side: src/encoding/layout/bvh4.rs.
 //
 // Nodes are src/bvh/wide.rs's `Bvh4Node` (128 bytes, structure of arrays), bound at
 // BINDING_NODES in place of the binary nodes: 8 texels per node, one per field, so node i is
@@ -53,7 +53,7 @@ const float NO_HIT = -3.40282347e38;
         float tn;                                                                              \
         if (HIT_BOX(vec3(mnx.k, mny.k, mnz.k), vec3(mxx.k, mxy.k, mxz.k), h.t, tn)) {          \
             t##i = tn;                                                                         \
-            e##i = (kid.k << 5u) | cnt.k;                                                  \
+            e##i = LEAF_ENTRY(kid.k, cnt.k);                                                   \
             hits += 1u;                                                                        \
         }                                                                                      \
     }
@@ -83,8 +83,8 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
     uint sp = 0u;
     uint current = 0u; // node 0, an inner node
     while (true) {
-        uint count = current & 31u;
-        uint first = current >> 5u;
+        uint count = LEAF_ENTRY_COUNT(current);
+        uint first = LEAF_ENTRY_FIRST(current);
         if (count > 0u) {
             TEST_LEAF_OR_RETURN();
         } else {

@@ -3,7 +3,7 @@
 // Compressed Wide BVHs" (HPG 2017), sec. 4: octant-ordered node groups with hit masks over
 // 8-wide 80-byte nodes whose child boxes are quantized to 8 bits per plane. Included by
 // traverse.glsl in place of the binary trace(); the leaf loop (intersect_leaf), the box test
-// (HIT_BOX, conservative for watertight) and the packed leaf entries ((first << 5) | count) are
+// (HIT_BOX, conservative for watertight) and the packed leaf entries (LEAF_ENTRY, shared.glsl) are
 // traverse.glsl's. Host side: src/encoding/layout/cwbvh.rs; the format, the quantization and
 // the CPU model of this loop: src/bvh/cwbvh.rs (CwNode, CwBvh::trace).
 //
@@ -124,9 +124,9 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
             leaf_bits &= leaf_bits - 1u;
             uint w = n1.y + rank;
             uint entry = SCENE_TEXEL(scene_nodes, w >> 2u)[w & 3u];
-            uint count = entry & 31u;
+            uint count = LEAF_ENTRY_COUNT(entry);
             COUNT_LEAF(count);
-            bool found = intersect_leaf(r, entry >> 5u, count, h, any_hit);
+            bool found = intersect_leaf(r, LEAF_ENTRY_FIRST(entry), count, h, any_hit);
             if (any_hit && found) {
                 return;
             }

@@ -13,6 +13,8 @@
 #   *.csv                  volatile columns dropped by header name (normalize.py CSV_VOLATILE)
 #   *.md                   volatile table columns dropped by header name, timing numbers/dates
 #                          masked in prose, the timing-derived "claims" section dropped
+#   rows.jsonl             each row without its timing figures and its source's date, commit
+#                          and host load (normalize.py norm_rows)
 #   other files (spirv/*.spvasm, ...)  exact, after <OUT> substitution
 #   log/*.stdout|stderr    text with timing numbers masked: INFORMATIONAL (does not fail the
 #                          comparison) unless --strict-text
@@ -58,7 +60,7 @@ trap 'rm -rf "$TMP"' EXIT
 # them, memory use, dates, commit ids, host load, shader-clock ticks (and the heat-map scale
 # derived from them), and the render's submit count (its pass size is sized to --submit-ms of
 # wall-clock time; the image does not depend on it).
-VOLATILE_JSON='^(kernel_ms|kernel_ms_min|kernel_ms_max|mrays_per_s|mrays_per_s_min|mrays_per_s_max|embree_mrays_per_s|mrays_per_second|samples_per_second|msamples_per_s|ms|seconds|gpu_ms|wall_ms|build_ms|epo_ms|blas_build_ms|tlas_build_ms|mtris_per_s|bvh_mtris_per_s|load_s|bvh_s|upload_s|peak_rss_bytes|budget_bytes|date|commit|host_load_before|host_load_after|ticks|heat_scale|submits|mrays_median|mrays_min|mrays_max|median_s|min_s|max_s)$'
+VOLATILE_JSON='^(kernel_ms|kernel_ms_min|kernel_ms_max|mrays_per_s|mrays_per_s_min|mrays_per_s_max|embree_mrays_per_s|mrays_per_second|samples_per_second|msamples_per_s|ms|seconds|gpu_ms|wall_ms|build_ms|epo_ms|blas_build_ms|tlas_build_ms|mtris_per_s|bvh_mtris_per_s|load_s|bvh_s|upload_s|peak_rss_bytes|budget_bytes|date|commit|host_load_before|host_load_after|load_1m|build_seconds|convert_seconds|ticks|heat_scale|submits|mrays_median|mrays_min|mrays_max|median_s|min_s|max_s)$'
 # PNGs that plot timings (study plots, accuracy frontier plots) or shader-clock ticks (profile
 # heat maps): their pixels differ from run to run.
 EXCLUDED_PNG='^(study/.*/study-[^/]*\.png|accuracy/.*/frontier_[^/]*\.png|profile/.*/heatmap-[^/]*\.png)$'
@@ -141,7 +143,7 @@ comm -12 "$TMP/files.a" "$TMP/files.b" > "$TMP/both"
 while read -r f; do report missing "$f" "only in A"; done < "$TMP/only.a"
 while read -r f; do report missing "$f" "only in B"; done < "$TMP/only.b"
 
-: > "$TMP/l.sha"; : > "$TMP/l.json"; : > "$TMP/l.csv"; : > "$TMP/l.md"; : > "$TMP/l.text"; : > "$TMP/l.exact"; : > "$TMP/l.excluded"
+: > "$TMP/l.sha"; : > "$TMP/l.json"; : > "$TMP/l.csv"; : > "$TMP/l.md"; : > "$TMP/l.rows"; : > "$TMP/l.text"; : > "$TMP/l.exact"; : > "$TMP/l.excluded"
 while read -r f; do
     case "$f" in
         log/*.stdout|log/*.stderr) echo "$f" >> "$TMP/l.text" ;;
@@ -150,6 +152,7 @@ while read -r f; do
         *.json) echo "$f" >> "$TMP/l.json" ;;
         *.csv) echo "$f" >> "$TMP/l.csv" ;;
         *.md) echo "$f" >> "$TMP/l.md" ;;
+        rows.jsonl|*/rows.jsonl) echo "$f" >> "$TMP/l.rows" ;;
         *) echo "$f" >> "$TMP/l.exact" ;;
     esac
 done < "$TMP/both"
@@ -287,6 +290,7 @@ compare_normalized() { # compare_normalized KIND LIST INFORMATIONAL
 }
 norm_batch csv "$TMP/l.csv";  compare_normalized csv "$TMP/l.csv" 0
 norm_batch md "$TMP/l.md";    compare_normalized md "$TMP/l.md" 0
+norm_batch rows "$TMP/l.rows"; compare_normalized rows "$TMP/l.rows" 0
 norm_batch text "$TMP/l.text"
 if [ $STRICT_TEXT = 1 ]; then compare_normalized text "$TMP/l.text" 0; else compare_normalized text "$TMP/l.text" 1; fi
 
@@ -306,7 +310,7 @@ done < "$TMP/l.exact"
 # ---------------------------------------------------------------------------------------------
 TOTAL=0
 line=""
-for k in command hits rays exr png json csv md other text png-excluded; do
+for k in command hits rays exr png json csv md rows other text png-excluded; do
     c=${COUNT[$k]:-0}
     [ "$k" != png-excluded ] && [ "$k" != command ] && TOTAL=$((TOTAL + c))
     d=${COUNTDIFF[$k]:-0}

@@ -17,6 +17,7 @@ Rules (keep in sync with the list in compare.sh's header):
 """
 import csv
 import io
+import json
 import re
 import sys
 
@@ -41,6 +42,8 @@ PROSE_SUBS = [
     (re.compile(r"\bcommit\s+[0-9a-zA-Z._-]+"), "commit <COMMIT>"),
     # load averages: "before 1.12 0.94 0.86, after ..."
     (re.compile(r"\d+\.\d\d \d+\.\d\d \d+\.\d\d"), "<LOADAVG>"),
+    # the host's 1-minute load in provenance lines: "2 CPUs, load 1.28"
+    (re.compile(r"\bload \d+\.\d\d\b"), "load <LOAD>"),
     # heat-map clip range in ticks; tick statistics
     (re.compile(r"\[\d+, \d+\] ticks"), "[<T>, <T>] ticks"),
     (re.compile(r"ticks per ray mean " + NUM + r", median " + NUM + r", p99 " + NUM),
@@ -205,6 +208,27 @@ def norm_csv(text):
     return buf.getvalue()
 
 
+def norm_rows(text):
+    """rows.jsonl: every line as JSON with the timing figures (class `timing`) and the source's
+    date, commit and host load left out; the count and correctness figures and the cells stay."""
+    out = []
+    for line in text.splitlines():
+        if not line.strip():
+            continue
+        row = json.loads(line)
+        figures = row.get("figures")
+        if isinstance(figures, dict):
+            row["figures"] = {k: v for k, v in figures.items() if v.get("class") != "timing"}
+        src = row.get("source")
+        if isinstance(src, dict):
+            for k in ("date", "commit"):
+                src.pop(k, None)
+            if isinstance(src.get("host"), dict):
+                src["host"].pop("load_1m", None)
+        out.append(json.dumps(row, sort_keys=True))
+    return "\n".join(out) + "\n"
+
+
 def main():
     mode = sys.argv[1]
     outdirs = [p for p in sys.argv[2].split(":") if p]
@@ -220,6 +244,8 @@ def main():
             text = norm_md(text)
         elif mode == "text":
             text = norm_text(text)
+        elif mode == "rows":
+            text = norm_rows(text)
         else:
             raise SystemExit("unknown mode " + mode)
         with open(dst, "w", encoding="utf-8", errors="surrogateescape") as f:

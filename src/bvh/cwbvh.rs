@@ -32,7 +32,7 @@
 //! 16 triangles in an encoding's units (1 or 4 triangles per unit; up to 16 units), which that
 //! byte cannot describe, and their units sit where the binary tree put them. So a leaf child
 //! stands for exactly one "triangle" of the paper's format: an entry of a per-node *leaf table*,
-//! `(first_unit << 5) | count` (traverse.glsl's packed stack entry), at word `leaf_base + rank`.
+//! `leaf_entry(first_unit, count)` (`crate::shared`; the traversals' packed stack entry), at word `leaf_base + rank`.
 //! The node stays 80 bytes, every intersector's leaf format (1- and 4-triangle units) fits
 //! unchanged, the paper's hit-mask traversal is unchanged (its triangle group becomes a group of
 //! leaf-table entries), and a leaf costs one extra 4-byte load. The leaf table follows the nodes
@@ -91,6 +91,7 @@ use super::wide::{slab_f64, WideHit, WideNode, WideSteps};
 use super::{Aabb, BuildOptions, Bvh, BvhNode, Collapse, WideBvh, PAD_SLOT};
 use crate::rays::Ray;
 use crate::scene::Mesh;
+use crate::shared::{self, leaf_entry_count, leaf_entry_first, LEAF_ENTRY_FIRST_LIMIT, LEAF_ENTRY_MAX_COUNT};
 
 /// Children per node.
 pub const CW_WIDTH: usize = 8;
@@ -311,7 +312,7 @@ fn assign_slots(how: SlotOrder, cost: &[[f64; CW_WIDTH]]) -> Vec<usize> {
 pub struct CwBvh {
     /// Root at 0.
     pub nodes: Vec<CwNode>,
-    /// Leaf table: `(first_unit << 5) | count` per leaf child; node `i`'s leaves are entries
+    /// Leaf table: `leaf_entry(first_unit, count)` per leaf child; node `i`'s leaves are entries
     /// `nodes[i].leaf_base - 20 * nodes.len()` onwards, in slot order.
     pub leaves: Vec<u32>,
     /// The binary root's box.
@@ -345,13 +346,13 @@ pub struct CwStats {
     pub build_ms: f64,
 }
 
-/// Where a leaf-table entry cannot hold a leaf: more than 2^27 units, or 32 and more in one
-/// leaf (the binary tree's limit is 16).
+/// A leaf-table entry (`crate::shared::leaf_entry`), or why it cannot hold the leaf: more than
+/// 2^27 units, or 32 and more in one leaf (the binary tree's limit is 16).
 fn leaf_entry(first: u32, count: u32) -> Result<u32, String> {
-    if first >= 1 << 27 || count == 0 || count > 31 {
+    if u64::from(first) >= LEAF_ENTRY_FIRST_LIMIT || count == 0 || count > LEAF_ENTRY_MAX_COUNT {
         return Err(format!("a leaf of {count} units from unit {first} does not fit a leaf-table entry"));
     }
-    Ok(first << 5 | count)
+    Ok(shared::leaf_entry(first, count))
 }
 
 impl CwNode {
@@ -616,8 +617,8 @@ impl CwBvh {
                     area[n.inner_child(s) as usize] = n.child_box(s).area();
                 } else if n.is_present(s) {
                     let entry = self.leaf(n, (n.meta[s] & 31) as u32);
-                    cost +=
-                        o.cost_intersect as f64 * o.tests((entry & 31) as usize) * n.child_box(s).area() / root_area;
+                    cost += o.cost_intersect as f64 * o.tests(leaf_entry_count(entry) as usize) * n.child_box(s).area()
+                        / root_area;
                 }
             }
         });
@@ -704,7 +705,7 @@ impl CwBvh {
                 let rank = leaf_bits.trailing_zeros();
                 leaf_bits &= leaf_bits - 1;
                 let entry = self.leaf(n, rank);
-                let (first, count) = (entry >> 5, entry & 31);
+                let (first, count) = (leaf_entry_first(entry), leaf_entry_count(entry));
                 steps.leaves += 1;
                 for &id in &self.prim_ids[first as usize..(first + count) as usize] {
                     if id == PAD_SLOT {
@@ -802,7 +803,7 @@ impl CwBvh {
                     }
                     rank += 1;
                     let e = self.leaf(n, m as u32 & 31);
-                    let (first, count) = (e >> 5, e & 31);
+                    let (first, count) = (leaf_entry_first(e), leaf_entry_count(e));
                     if count == 0 || count > self.max_leaf_size {
                         return Err(format!("node {i} slot {s}: leaf of {count} triangles"));
                     }
@@ -834,7 +835,7 @@ impl CwBvh {
                     under[n.inner_child(s) as usize]
                 } else {
                     let e = self.leaf(n, (n.meta[s] & 31) as u32);
-                    tri_box(e >> 5, e & 31)?
+                    tri_box(leaf_entry_first(e), leaf_entry_count(e))?
                 };
                 if !truth.is_empty() {
                     check_contains(n, s, &truth).map_err(|e| format!("node {i} slot {s}: {e}"))?;

@@ -20,7 +20,7 @@ pub use crate::scene::Aabb;
 pub use builder::{BuildOptions, Builder, LeafPolicy, MAX_DEPTH, MAX_LEAF_SIZE, PAPER_LEAF_SIZES};
 pub use cwbvh::{CwBvh, CwNode, CwStats, SlotOrder};
 pub use node::BvhNode;
-pub use wide::{Bvh2Node, Bvh4, Bvh4Node, Bvh8, Bvh8Node, Collapse, WideBvh, WideHit, WideNode, WideStats, WideSteps};
+pub use wide::{Bvh4, Bvh4Node, Bvh8, Bvh8Node, Collapse, Wide2Node, WideBvh, WideHit, WideNode, WideStats, WideSteps};
 
 use crate::scene::Mesh;
 

@@ -96,14 +96,15 @@ unsafe impl<const N: usize> Zeroable for WideNode<N> {}
 unsafe impl<const N: usize> Pod for WideNode<N> {}
 
 /// The binary tree in the wide layout: 64 bytes, both children's boxes in the parent, like
-/// Aila & Laine's node (whose fields are ordered per child, not per plane).
-pub type Bvh2Node = WideNode<2>;
+/// Aila & Laine's node (whose fields are ordered per child, not per plane). Not the bvh2
+/// layout's node: that is [`crate::bvh::BvhNode`], 32 bytes, one box per node.
+pub type Wide2Node = WideNode<2>;
 /// 4 children, 128 bytes.
 pub type Bvh4Node = WideNode<4>;
 /// 8 children, 256 bytes.
 pub type Bvh8Node = WideNode<8>;
 
-const _: () = assert!(std::mem::size_of::<Bvh2Node>() == 64);
+const _: () = assert!(std::mem::size_of::<Wide2Node>() == 64);
 const _: () = assert!(std::mem::size_of::<Bvh4Node>() == 128);
 const _: () = assert!(std::mem::size_of::<Bvh8Node>() == 256);
 const _: () = assert!(std::mem::align_of::<Bvh4Node>() == 4 && std::mem::align_of::<Bvh8Node>() == 4);

@@ -94,6 +94,13 @@ fn env_pair(s: &str) -> std::result::Result<(String, String), String> {
     }
 }
 
+/// Two drivers or driver settings in one run, as gpu-trace-perf and Mesa's shader-db compare
+/// builds: the same workload (bench cells; on request a path-trace cell, driver statistics,
+/// pipeline statistics) under side A and side B, each its own process, rounds interleaved A B B
+/// A and validated against the f64 reference; per cell B/A kernel time with a 95 % interval
+/// (Welch's t on log times) and a verdict, the hits compared ray by ray; prints only what
+/// changed, then the totals. Exit status: 0 pass; 1 a cell hurt with its whole interval past
+/// --threshold, or any correctness figure of B worse; 2 the sides could not be compared (named).
 #[derive(Args)]
 pub struct AbArgs {
     #[command(flatten)]

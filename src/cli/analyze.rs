@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use trilab::analyze::Target;
+use trilab::conditioning::Target;
 use trilab::error::Result;
 
 use super::{scene_help, GpuArgs, JsonArg};
@@ -33,7 +33,7 @@ pub struct AnalyzeArgs {
 
 pub fn run(a: AnalyzeArgs) -> Result<()> {
     let target = Target { max_leaks_per_million: a.max_leaks_per_million, max_t_ulps: a.max_t_ulps };
-    let report = trilab::harness::advise::run(&a.scene, target, a.frontier.as_deref(), a.gpu.device.as_deref())?;
+    let report = trilab::harness::analyze::run(&a.scene, target, a.frontier.as_deref(), a.gpu.device.as_deref())?;
     report.warnings.iter().for_each(|w| super::note(w));
     a.json.print(&report);
     Ok(())

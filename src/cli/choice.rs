@@ -2,7 +2,7 @@
 //! value's help), parsed back through [`Named`] (the library does not depend on clap).
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-use trilab::analyze::MethodChoice;
+use trilab::conditioning::MethodChoice;
 use trilab::encoding::Method;
 use trilab::named::Named;
 

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::error::Result;
-use trilab::harness::regress::{self, TimingRule, DEFAULT_COMMAND_THRESHOLD_PCT, DEFAULT_THRESHOLD_PCT};
+use trilab::harness::compare::{self, TimingRule, DEFAULT_COMMAND_THRESHOLD_PCT, DEFAULT_THRESHOLD_PCT};
 
 use super::JsonArg;
 
@@ -48,13 +48,13 @@ pub struct CompareArgs {
 
 pub fn run(a: CompareArgs) -> Result<()> {
     super::error_exit(2);
-    let options = regress::CompareOptions {
+    let options = compare::CompareOptions {
         threshold_pct: a.threshold,
         count_threshold_pct: a.count_threshold,
         command_threshold_pct: a.command_threshold,
         timings: a.timings,
     };
-    let report = regress::run(&a.base, &a.new, &options)?;
+    let report = compare::run(&a.base, &a.new, &options)?;
     a.json.print(&report);
     if report.exit_code() != 0 {
         // As `diff`: 1 means "a regression", not a failure to compare (that is 2).

@@ -145,7 +145,7 @@ impl MethodsArg {
     /// The methods given, or every method `ctx`'s device can run.
     pub fn or_device(&self, ctx: &Context) -> Vec<Method> {
         if self.methods.is_empty() {
-            trilab::analyze::available_methods(ctx.enabled())
+            trilab::conditioning::available_methods(ctx.enabled())
         } else {
             self.methods.clone()
         }

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use trilab::analyze::MethodChoice;
+use trilab::conditioning::MethodChoice;
 use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::Result;
 use trilab::gpu::Peer;
@@ -51,9 +51,10 @@ pub struct RaycastArgs {
     /// them); every kernel exists for every layout.
     #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
     layout: Layout,
-    /// How the kernel walks the tree: `while-if` (one ray per invocation, every layout and
-    /// kind), `while-while` (leaf postponing; bvh2), `coop` (the subgroup shares one ray's wide
-    /// node and leaf; bvh2, bvh4, bvh8, closest hit).
+    /// How the kernel walks the tree: `while-if` (one ray per invocation; every layout, kind and
+    /// access path), `while-while` (leaf postponing; bvh2, texel path, closest, any and stats),
+    /// `coop` (the subgroup shares one ray's wide node and leaf; bvh2, bvh4, bvh8, texel path,
+    /// closest and stats), `persistent` (dynamic ray fetch; bvh2 and bvh4, texel path, closest).
     #[arg(long, value_parser = choice::<Traversal>(), default_value_t = Traversal::WhileIf)]
     traversal: Traversal,
     /// Timed runs after one warm-up (at least 1); the median is reported.

@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::Arc;
 
 use clap::Args;
-use trilab::analyze::MethodChoice;
+use trilab::conditioning::MethodChoice;
 use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
 use trilab::render::session::{self, RenderRequest};

@@ -18,13 +18,13 @@
 //! `INTERSECTOR`, and one line in `registry!` below; then `trilab spirv --out spirv` and
 //! `trilab methods --markdown` refresh the generated files.
 
-pub mod kernels;
+pub mod variants;
 pub mod layout;
 pub mod plan;
 
-pub use kernels::{Raycast, Traversal, COOP_SUBGROUP_OPERATIONS};
 pub use layout::{Layout, LayoutNodes, LayoutSpec};
 pub use plan::{AccessPath, BufferPlan, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
+pub use variants::{Raycast, Traversal, COOP_SUBGROUP_OPERATIONS};
 
 use crate::bvh::{Bvh, BvhNode, PAD_SLOT};
 use crate::named::Named;
@@ -227,8 +227,8 @@ pub struct Encoding {
 }
 
 /// Most nodes and most triangle slots the kernels address: traversal packs a node's
-/// `left_or_first` into 27 bits (`pack_node` in `glsl/traverse.glsl`).
-pub const MAX_NODE_INDEX: usize = 1 << 27;
+/// `left_or_first` into a packed entry's first (`crate::shared::leaf_entry`, 27 bits).
+pub const MAX_NODE_INDEX: usize = crate::shared::LEAF_ENTRY_FIRST_LIMIT as usize;
 
 /// A scene in one method's GPU layout.
 #[derive(Clone, Debug)]
@@ -290,7 +290,7 @@ impl EncodedScene {
     }
 
     /// Checks what the kernels assume about the data: traversal packs a node's `left_or_first`
-    /// into 27 bits and its `count` into 5 (`pack_node` in `glsl/traverse.glsl`).
+    /// and `count` into one entry (`crate::shared::leaf_entry`: 27 and 5 bits).
     pub fn check_limits(&self) -> Result<(), String> {
         if self.nodes.len() > MAX_NODE_INDEX || self.slot_ids.len() > MAX_NODE_INDEX {
             return Err(format!(
@@ -299,8 +299,9 @@ impl EncodedScene {
                 self.slot_ids.len()
             ));
         }
-        if let Some(n) = self.nodes.iter().find(|n| n.count >= 32) {
-            return Err(format!("a leaf holds {} triangles; the kernels allow at most 31", n.count));
+        let most = crate::shared::LEAF_ENTRY_MAX_COUNT;
+        if let Some(n) = self.nodes.iter().find(|n| n.count > most) {
+            return Err(format!("a leaf holds {} triangles; the kernels allow at most {most}", n.count));
         }
         Ok(())
     }

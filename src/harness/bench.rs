@@ -8,8 +8,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::agreement::compare_closest;
 use crate::bvh::{BuildOptions, LeafPolicy};
-use crate::compare::compare_closest;
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions};
@@ -430,7 +430,7 @@ fn row(
     o: Option<&BenchOptions>,
     footprint: (usize, Option<AccessPath>),
     ms: Summary,
-    agreement: &crate::compare::Agreement,
+    agreement: &crate::agreement::Agreement,
 ) -> BenchRow {
     let mr = mrays_summary(rays.len(), ms);
     BenchRow {

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
+use crate::agreement::{compare_any, compare_closest, Disagreement, DisagreementKind};
 use crate::bvh::BuildOptions;
-use crate::compare::{compare_any, compare_closest, Disagreement, DisagreementKind};
 use crate::error::{Error, Result};
 use crate::pipeline::HostScene;
 use crate::rays::{self, Hit};
@@ -214,7 +214,7 @@ impl Report for CheckReport {
             }
             s += &format!(
                 "\ndisagreements (largest distance from an edge or tie first; explained at <= {} ULPs):\n{}",
-                crate::compare::AMBIGUITY_ULPS,
+                crate::agreement::AMBIGUITY_ULPS,
                 t.to_text()
             );
         }

@@ -6,7 +6,7 @@
 
 pub mod ab;
 pub mod accuracy;
-pub mod advise;
+pub mod analyze;
 pub mod bench;
 pub mod bench_render;
 pub mod build_bench;
@@ -24,7 +24,7 @@ pub mod profile;
 pub mod provenance;
 pub mod raycast;
 pub mod rayset;
-pub mod regress;
+pub mod compare;
 pub mod scale;
 pub mod spirv;
 pub mod steps;

@@ -389,7 +389,7 @@ pub fn run_peer(
                 agreement: a.fraction(),
             },
             Err(e) => {
-                let a = crate::compare::compare_closest(mesh, rays, &hits, ref_hits);
+                let a = crate::agreement::compare_closest(mesh, rays, &hits, ref_hits);
                 PeerOutcome::WrongHits { agreement: Some(a.fraction()), reason: e.to_string() }
             }
         },

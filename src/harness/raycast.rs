@@ -6,9 +6,9 @@ use std::path::PathBuf;
 
 use serde::Serialize;
 
-use crate::analyze::{MethodChoice, Recommendation};
+use crate::agreement::{compare_any, compare_closest};
 use crate::bvh::BuildOptions;
-use crate::compare::{compare_any, compare_closest};
+use crate::conditioning::{MethodChoice, Recommendation};
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
 use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions, RaycastResult};
@@ -32,7 +32,8 @@ pub struct RaycastRequest {
     pub build: BuildOptions,
     pub any_hit: bool,
     pub access: SceneAccess,
-    /// How the BVH's nodes are laid out for the kernel (bvh4: closest hits on the texel path).
+    /// How the BVH's nodes are laid out for the kernel (every kind and access path has every
+    /// layout with the while-if traversal).
     pub layout: Layout,
     /// How the kernel walks the tree (`while-if` unless asked).
     pub traversal: Traversal,
@@ -209,8 +210,8 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
         note(&w);
     }
     if req.recentre {
-        let (m, shift) = crate::analyze::recentre(&mesh);
-        crate::analyze::recentre_rays(&mut rays, shift);
+        let (m, shift) = crate::conditioning::recentre(&mesh);
+        crate::conditioning::recentre_rays(&mut rays, shift);
         note(&format!("recentred: scene and ray origins translated by -({}, {}, {})", shift.x, shift.y, shift.z));
         mesh = m;
     }

@@ -12,8 +12,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
-use crate::compare::compare_closest;
 use crate::encoding::plan::check_rays;
 use crate::encoding::{DeviceLimits, Layout, MemoryPlan, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};

@@ -120,7 +120,8 @@ fn gpu_steps(
             .collect()
     };
     let (cpu, cpu_conservative) = (mirror(false), mirror(true));
-    let methods = if methods.is_empty() { crate::analyze::available_methods(ctx.enabled()) } else { methods.to_vec() };
+    let methods =
+        if methods.is_empty() { crate::conditioning::available_methods(ctx.enabled()) } else { methods.to_vec() };
     let mut rows = vec![];
     for m in methods {
         let scene = host.upload(ctx, &SceneRequest::new(m))?;

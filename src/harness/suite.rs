@@ -582,7 +582,7 @@ fn run_part(
     match options {
         PartOptions::Bench(b) => {
             let mut b = (**b).clone();
-            b.methods = crate::analyze::available_methods(ctx.enabled())
+            b.methods = crate::conditioning::available_methods(ctx.enabled())
                 .into_iter()
                 .filter(|m| b.methods.contains(m))
                 .collect();
@@ -603,7 +603,7 @@ fn run_part(
         }
         PartOptions::Accuracy(a) => {
             let mut a = (**a).clone();
-            a.methods = crate::analyze::available_methods(ctx.enabled())
+            a.methods = crate::conditioning::available_methods(ctx.enabled())
                 .into_iter()
                 .filter(|m| a.methods.contains(m))
                 .collect();
@@ -613,7 +613,7 @@ fn run_part(
         }
         PartOptions::Profile(p) => {
             let mut p = (**p).clone();
-            p.methods = crate::analyze::available_methods(ctx.enabled());
+            p.methods = crate::conditioning::available_methods(ctx.enabled());
             p.exe = o.exe.clone();
             p.driver_stats = o.driver_stats.clone();
             p.sizes().require_all()?;

@@ -1,7 +1,7 @@
 //! No speed without a correct answer: every harness checks a cast's hits against the CPU f64
 //! reference before its time counts (as tinybvh's speed test validates before it reports).
 
-use crate::compare::{compare_closest, Agreement};
+use crate::agreement::{compare_closest, Agreement};
 use crate::encoding::Raycast;
 use crate::error::{Error, Result};
 use crate::gpu::{Context, Kernel, RaycastOptions};

@@ -2,7 +2,7 @@
 //! device with its kernels:
 //!
 //! mesh → BVH ([`HostScene::build`], once per mesh and build options, shared by every method) →
-//! method, or `auto` ([`analyze::resolve`]) → memory plan, checked against the device's limits,
+//! method, or `auto` ([`conditioning::resolve`]) → memory plan, checked against the device's limits,
 //! and the access path, chosen once ([`HostScene::plan`] → [`ScenePlan`]) → encoding → upload
 //! ([`ScenePlan::upload`] → [`DeviceScene`]) → kernels ([`DeviceScene::kernel`]), which always
 //! read the scene through the path it was uploaded for.
@@ -18,8 +18,8 @@ mod upload;
 
 use std::sync::Arc;
 
-use crate::analyze::{self, MethodChoice, Recommendation};
 use crate::bvh::{BuildOptions, Bvh};
+use crate::conditioning::{self, MethodChoice, Recommendation};
 use crate::encoding::plan::check_extras;
 use crate::encoding::{
     AccessPath, BufferPlan, DeviceLimits, EncodedScene, Layout, LayoutNodes, MemoryPlan, Method, Raycast, SceneAccess,
@@ -127,7 +127,7 @@ impl<'m> HostScene<'m> {
     /// Resolves the method, plans every buffer of its encoding and chooses the access path,
     /// against `ctx`'s limits; nothing is encoded or allocated.
     pub fn plan(&self, ctx: &Context, request: &SceneRequest) -> Result<ScenePlan<'_, 'm>> {
-        let (method, auto) = analyze::resolve(request.method, self.mesh, ctx.enabled(), None)?;
+        let (method, auto) = conditioning::resolve(request.method, self.mesh, ctx.enabled(), None)?;
         self.plan_for(method, auto, request, &ctx.limits()?)
     }
 

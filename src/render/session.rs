@@ -12,8 +12,8 @@ use serde::Serialize;
 use super::{
     output, render, EnvSpec, KernelChoice, PartialRender, Progress, RenderFailure, RenderSettings, RenderTarget, Sky,
 };
-use crate::analyze::{MethodChoice, Recommendation};
 use crate::bvh::BuildOptions;
+use crate::conditioning::{MethodChoice, Recommendation};
 use crate::encoding::{Layout, Method};
 use crate::error::{Error, Result};
 use crate::gpu::Context;

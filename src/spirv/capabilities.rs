@@ -103,7 +103,7 @@ mod tests {
             let needs = required_features(&k.words()).unwrap();
             let f64 = needs.iter().any(|r| r.feature == Feature::ShaderFloat64);
             // The f64 probe only copies integers and floats; every kernel that traces needs it.
-            let want = k.method == "f64" && k.kernel != "probe";
+            let want = k.intersector == "f64" && k.kernel != "probe";
             assert_eq!(f64, want, "{}: {needs:?}", k.name);
             let clock = needs.iter().any(|r| r.feature == Feature::ShaderSubgroupClock);
             assert_eq!(clock, k.variant.starts_with("clock"), "{}: {needs:?}", k.name);

@@ -41,7 +41,7 @@ pub struct SideStats {
 /// coordinates of its `driver-stats` row.
 fn coordinates(c: &CellInfo) -> Option<[String; 4]> {
     let k = KERNELS.iter().find(|k| k.name == c.kernel)?;
-    Some([k.kernel.into(), base_variant(k).into(), k.method.replace('_', "-"), k.layout.into()])
+    Some([k.kernel.into(), base_variant(k).into(), k.intersector.replace('_', "-"), k.layout.into()])
 }
 
 /// Runs `trilab driver-stats` in `side`'s environment for the ray-casting cells' kernels,
@@ -167,7 +167,8 @@ mod tests {
 
     #[test]
     fn only_changed_figures_and_figures_one_side_lacks() {
-        let k = KERNELS.iter().find(|k| k.kernel == "raycast" && k.method == "mt" && k.variant == "closest").unwrap();
+        let k =
+            KERNELS.iter().find(|k| k.kernel == "raycast" && k.intersector == "mt" && k.variant == "closest").unwrap();
         let c = info(k.name);
         let side = |rows| SideStats { rows, note: String::new() };
         let same = diff(&side(vec![row(100.0, Some(2.0))]), &side(vec![row(100.0, Some(2.0))]), &c).unwrap();

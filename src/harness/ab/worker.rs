@@ -14,8 +14,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
-use crate::compare::compare_closest;
 use crate::encoding::{Layout, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, Kernel, RaycastOptions};

@@ -377,7 +377,7 @@ pub struct AccuracyReport {
 }
 
 /// A method whose kernel exists on this device.
-struct Tracer {
+struct RunnableMethod {
     method: Method,
 }
 
@@ -394,13 +394,13 @@ struct ErrorSample {
 }
 
 /// Kernels for `methods`; `Error::Unsupported` ones are returned separately, not as errors.
-fn tracers(ctx: &Context, methods: &[Method]) -> Result<(Vec<Tracer>, Unsupported)> {
+fn tracers(ctx: &Context, methods: &[Method]) -> Result<(Vec<RunnableMethod>, Unsupported)> {
     let mut ok = Vec::new();
     let mut unsupported = Vec::new();
     for &method in methods {
         // Creating the kernel (kept by the context for the casts) finds what the device lacks.
         match ctx.kernel(method.raycast_kernel(Raycast::Closest, AccessPath::Texel)) {
-            Ok(_) => ok.push(Tracer { method }),
+            Ok(_) => ok.push(RunnableMethod { method }),
             Err(Error::Unsupported(why)) => unsupported.push((method, why)),
             Err(e) => return Err(e),
         }
@@ -410,7 +410,13 @@ fn tracers(ctx: &Context, methods: &[Method]) -> Result<(Vec<Tracer>, Unsupporte
 
 /// Closest hits of `rays` with `t`'s method over `host`'s nodes in `layout`; also the number
 /// of triangles the encoding could not represent.
-fn cast(ctx: &Context, t: &Tracer, host: &HostScene, layout: Layout, rays: &[Ray]) -> Result<(Vec<Hit>, usize)> {
+fn cast(
+    ctx: &Context,
+    t: &RunnableMethod,
+    host: &HostScene,
+    layout: Layout,
+    rays: &[Ray],
+) -> Result<(Vec<Hit>, usize)> {
     let scene = host.upload(ctx, &SceneRequest::new(t.method).layout(layout))?;
     let res = scene.cast(ctx, Raycast::Closest, rays, &RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 })?;
     Ok((res.hits, scene.unrepresentable.len()))
@@ -588,7 +594,7 @@ fn leaks_and_false_hits(
     ctx: &Context,
     o: &AccuracyOptions,
     user_scenes: Vec<(String, Mesh)>,
-    tracers: &[Tracer],
+    tracers: &[RunnableMethod],
     report: &mut AccuracyReport,
     rng: &mut Rng,
     progress: &mut impl FnMut(&str),
@@ -736,7 +742,7 @@ fn cosine_direction(n: Vec3, rng: &mut Rng) -> Vec3 {
 /// (hitting the inner surface) and from outside; for each method and scheme, `n` secondary rays.
 fn self_intersection(
     ctx: &Context,
-    tracers: &[Tracer],
+    tracers: &[RunnableMethod],
     k: i32,
     n: usize,
     schemes: &[Offset],
@@ -817,7 +823,7 @@ fn self_intersection(
 #[allow(clippy::too_many_arguments)]
 fn extreme_case(
     ctx: &Context,
-    tracers: &[Tracer],
+    tracers: &[RunnableMethod],
     report: &mut AccuracyReport,
     kind: &str,
     param: String,
@@ -828,7 +834,7 @@ fn extreme_case(
 ) -> Result<()> {
     let host = build(mesh, FIXED_LEAF);
     let ref_hits = host.reference().trace_all(rays, false);
-    let cond = crate::analyze::Conditioning::of(mesh);
+    let cond = crate::conditioning::Conditioning::of(mesh);
     for t in tracers {
         let (hits, unrepresentable) = cast(ctx, t, &host, Layout::Bvh2, rays)?;
         report.extremes.push(ExtremeRow {
@@ -849,7 +855,7 @@ fn extreme_case(
 fn extremes(
     ctx: &Context,
     o: &AccuracyOptions,
-    tracers: &[Tracer],
+    tracers: &[RunnableMethod],
     report: &mut AccuracyReport,
     rng: &mut Rng,
     progress: &mut impl FnMut(&str),
@@ -920,7 +926,7 @@ fn extremes(
 fn frontier(
     ctx: &Context,
     o: &AccuracyOptions,
-    tracers: &[Tracer],
+    tracers: &[RunnableMethod],
     report: &mut AccuracyReport,
     progress: &mut impl FnMut(&str),
 ) -> Result<()> {

@@ -110,7 +110,7 @@ impl Selection {
             .iter()
             .filter(|s| self.kernels.iter().any(|k| k == s.kernel))
             .filter(|s| self.variants.iter().any(|v| v == base_variant(s)))
-            .filter(|s| methods.iter().any(|m| *m == s.method.replace('_', "-")))
+            .filter(|s| methods.iter().any(|m| *m == s.intersector.replace('_', "-")))
             .filter(|s| layouts.iter().any(|l| l == s.layout))
             .collect();
         if picked.is_empty() {
@@ -148,7 +148,7 @@ impl KernelStats {
             name: k.name.into(),
             kernel: k.kernel.into(),
             variant: base_variant(k).into(),
-            method: k.method.replace('_', "-"),
+            method: k.intersector.replace('_', "-"),
             layout: k.layout.into(),
             lavapipe: None,
             executable: BTreeMap::new(),
@@ -376,7 +376,7 @@ fn raycast_request(k: &KernelSource) -> Result<SceneRequest> {
             k.name
         )));
     }
-    let method: Method = k.method.replace('_', "-").parse().map_err(Error::Usage)?;
+    let method: Method = k.intersector.replace('_', "-").parse().map_err(Error::Usage)?;
     let layout: Layout = k.layout.parse().map_err(Error::Usage)?;
     let access = if base_variant(k).contains("_bda") { SceneAccess::Address } else { SceneAccess::Texel };
     let traversal = if base_variant(k).ends_with("_ww") { Traversal::WhileWhile } else { Traversal::WhileIf };
@@ -420,7 +420,7 @@ pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
             // Any-hit: it must hit exactly where the (validated) closest-hit kernel does, and
             // only real hits (`compare::compare_any`).
             let closest = scene.cast(ctx, crate::encoding::Raycast::Closest, &rays, &opts)?;
-            let check = crate::compare::compare_any(&mesh, &rays, &closest.hits, &res.hits);
+            let check = crate::agreement::compare_any(&mesh, &rays, &closest.hits, &res.hits);
             if !check.passes() {
                 return Err(Error::Usage(format!("{}: any-hit disagrees with closest-hit: {check:?}", k.name)));
             }

@@ -1,12 +1,12 @@
 //! `trilab analyze`: a scene's numerical conditioning and the cheapest method, offset scheme and
-//! placement that meet an accuracy target on it (the reasoning is `analyze`'s; this is the
+//! placement that meet an accuracy target on it (the reasoning is `conditioning`'s; this is the
 //! command's report).
 
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::analyze::{self, Conditioning, Frontier, Recommendation, Target};
+use crate::conditioning::{self, Conditioning, Frontier, Recommendation, Target};
 use crate::encoding::Method;
 use crate::error::{Error, Result};
 use crate::gpu::context::choose_device;
@@ -49,12 +49,13 @@ pub fn run(scene: &Path, target: Target, frontier: Option<&Path>, device: Option
         match Context::list_devices().ok().and_then(|l| choose_device(&l, device).ok().map(|i| l[i].clone())) {
             Some(info) => {
                 let f = EnabledFeatures::for_device(&info);
-                (analyze::available_methods(&f), format!("methods this device ({}) can run", info.name))
+                (conditioning::available_methods(&f), format!("methods this device ({}) can run", info.name))
             }
             None => (Method::ALL.to_vec(), "no Vulkan device found: every method assumed available".to_owned()),
         };
     let conditioning = Conditioning::of(&mesh);
-    let recommendation = analyze::recommend(&conditioning, &target, &frontier, &available, analyze::OFFSET_SCHEME);
+    let recommendation =
+        conditioning::recommend(&conditioning, &target, &frontier, &available, conditioning::OFFSET_SCHEME);
     Ok(AnalyzeReport {
         scene: PathBuf::from(scene).display().to_string(),
         conditioning,

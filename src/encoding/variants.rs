@@ -155,7 +155,7 @@ mod tests {
             for &kind in Raycast::ALL {
                 for access in [AccessPath::Texel, AccessPath::Address] {
                     let k = m.raycast_kernel(kind, access);
-                    assert_eq!((k.kernel, k.method), ("raycast", m.glsl_name()));
+                    assert_eq!((k.kernel, k.intersector), ("raycast", m.glsl_name()));
                     reached.push(k.name);
                 }
             }
