@@ -348,25 +348,65 @@ impl BenchReport {
 /// (the driver's ray query, Embree, tinybvh); figures `mrays_per_s` (timing, with min-max over
 /// the rounds), `agreement`, `unexplained`, `invalid` (correctness) and `scene_bytes` (count).
 /// A peer program reports its best run only: its `mrays_per_s` has one run and no spread.
-pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
-    use crate::rows::{cell, Better, Figure, Row};
-    let source = report.provenance.source();
-    let mut out = vec![];
-    for r in &report.rows {
-        let mut c = cell([("scene", r.scene.clone()), ("set", r.ray_set.to_string()), ("rays", r.rays.to_string())]);
-        match r.method {
-            Tracer::Method(m) => {
-                c.insert("method".into(), m.to_string());
-                c.insert("layout".into(), r.layout.unwrap_or(Layout::Bvh2).to_string());
-                c.insert("leaf".into(), r.leaf_size.unwrap_or(report.leaf_size).to_string());
-                if let Some(g) = r.sah_group.filter(|&g| g != 1) {
+/// One bench cell: what its plan entry and its row are both made from, so the two cannot
+/// spell a coordinate differently. `rays` is measured (a diffuse set's size depends on the
+/// scene's hits): the plan leaves it out, a row carries it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchCell {
+    pub scene: String,
+    pub set: RaySet,
+    pub rays: Option<usize>,
+    pub tracer: CellTracer,
+}
+
+/// Who traced a bench cell's rays.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CellTracer {
+    /// One of trilab's kernels; `sah_group` only when it is not 1.
+    Method { method: Method, layout: Layout, leaf: u32, sah_group: Option<u32> },
+    /// A peer, by its name (the driver's ray query, Embree, tinybvh's kernels).
+    Peer(String),
+}
+
+impl BenchCell {
+    /// The cell's coordinates, as `rows.jsonl` names them.
+    pub fn coordinates(&self) -> crate::rows::Cell {
+        let mut c = crate::rows::cell([("scene", self.scene.clone()), ("set", self.set.to_string())]);
+        if let Some(rays) = self.rays {
+            c.insert("rays".into(), rays.to_string());
+        }
+        match &self.tracer {
+            CellTracer::Method { method, layout, leaf, sah_group } => {
+                c.insert("method".into(), method.to_string());
+                c.insert("layout".into(), layout.to_string());
+                c.insert("leaf".into(), leaf.to_string());
+                if let Some(g) = sah_group.filter(|&g| g != 1) {
                     c.insert("sah_group".into(), g.to_string());
                 }
             }
-            Tracer::Peer(p) => {
-                c.insert("peer".into(), p.to_string());
+            CellTracer::Peer(p) => {
+                c.insert("peer".into(), p.clone());
             }
         }
+        c
+    }
+}
+
+pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
+    use crate::rows::{Better, Figure, Row};
+    let source = report.provenance.source();
+    let mut out = vec![];
+    for r in &report.rows {
+        let tracer = match r.method {
+            Tracer::Method(m) => CellTracer::Method {
+                method: m,
+                layout: r.layout.unwrap_or(Layout::Bvh2),
+                leaf: r.leaf_size.unwrap_or(report.leaf_size),
+                sah_group: r.sah_group,
+            },
+            Tracer::Peer(p) => CellTracer::Peer(p.to_string()),
+        };
+        let c = BenchCell { scene: r.scene.clone(), set: r.ray_set, rays: Some(r.rays), tracer }.coordinates();
         let speed = Summary { median: r.mrays_per_s, min: r.mrays_per_s_min, max: r.mrays_per_s_max, ..r.kernel_ms };
         out.push(
             Row::new("bench", c, &source)
@@ -379,12 +419,8 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
     }
     for p in &report.peers {
         for peer in &p.peers {
-            let c = cell([
-                ("scene", p.scene.clone()),
-                ("set", p.ray_set.to_string()),
-                ("rays", p.rays.to_string()),
-                ("peer", peer.peer.to_string()),
-            ]);
+            let tracer = CellTracer::Peer(peer.peer.to_string());
+            let c = BenchCell { scene: p.scene.clone(), set: p.ray_set, rays: Some(p.rays), tracer }.coordinates();
             let row = match &peer.outcome {
                 PeerOutcome::Timed { mrays_per_s, agreement, .. } => {
                     let best = Summary { median: *mrays_per_s, min: *mrays_per_s, max: *mrays_per_s, runs: 1 };
@@ -462,7 +498,6 @@ fn row(
 /// (`--random-rays 0`) is not planned; `driver`: the driver peers the run has (ray query, the ray
 /// tracing pipeline); `peers`: the peer programs that passed their probe.
 pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<crate::rows::Cell> {
-    use crate::rows::cell;
     let sizes = o.sizes();
     let sets: Vec<RaySet> = <RaySet as crate::named::Named>::ALL
         .iter()
@@ -476,22 +511,15 @@ pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<cr
         for set in &sets {
             for &m in &o.methods {
                 for &l in &layouts {
-                    let mut c = cell([
-                        ("scene", name.clone()),
-                        ("set", set.to_string()),
-                        ("method", m.to_string()),
-                        ("layout", l.to_string()),
-                        ("leaf", o.leaf_size.to_string()),
-                    ]);
-                    if o.sah_group != 1 {
-                        c.insert("sah_group".into(), o.sah_group.to_string());
-                    }
-                    cells.push(c);
+                    let tracer =
+                        CellTracer::Method { method: m, layout: l, leaf: o.leaf_size, sah_group: Some(o.sah_group) };
+                    cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
                 }
             }
             let peers = driver.iter().map(Peer::to_string).chain(peers.iter().cloned());
             for peer in peers {
-                cells.push(cell([("scene", name.clone()), ("set", set.to_string()), ("peer", peer)]));
+                let tracer = CellTracer::Peer(peer);
+                cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
             }
         }
     }
@@ -687,7 +715,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 let ms = res.time_ms()?;
                 progress(&format!(
                     "{name} {set} {peer}: {} Mrays/s ({:.1} ms, {} rays per submit), {}",
-                    rate(rays.len() as f64 / (ms.median * 1e-3) / 1e6),
+                    rate(crate::harness::validate::mrays_per_s(rays.len(), ms.median)),
                     ms.median,
                     batch,
                     agreement.summary()
@@ -746,6 +774,28 @@ fn accel_line(name: &str, s: &AccelStats) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_bench_cell_plans_and_rows_with_the_same_coordinates() {
+        let tracer = CellTracer::Method { method: Method::Mt, layout: Layout::Bvh4, leaf: 4, sah_group: Some(1) };
+        let planned = BenchCell { scene: "bunny".into(), set: RaySet::Diffuse, rays: None, tracer };
+        let measured = BenchCell { rays: Some(9794), ..planned.clone() };
+        let want = [("layout", "bvh4"), ("leaf", "4"), ("method", "mt"), ("scene", "bunny"), ("set", "diffuse")];
+        let plan = planned.coordinates();
+        assert_eq!(plan.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect::<Vec<_>>(), want);
+        // The row adds only what is measured, so the plan finds it.
+        let row = measured.coordinates();
+        assert_eq!(row.get("rays").map(String::as_str), Some("9794"));
+        assert!(crate::rows::plan_matches(&plan, &row));
+        // A SAH group of 1 is the default and unnamed; another is a coordinate of both.
+        let grouped = CellTracer::Method { method: Method::Mt, layout: Layout::Bvh4, leaf: 4, sah_group: Some(4) };
+        let g = BenchCell { tracer: grouped, ..planned.clone() }.coordinates();
+        assert_eq!(g.get("sah_group").map(String::as_str), Some("4"));
+        assert!(!crate::rows::plan_matches(&g, &row));
+        let peer = BenchCell { tracer: CellTracer::Peer("embree".into()), ..planned }.coordinates();
+        assert_eq!(peer.get("peer").map(String::as_str), Some("embree"));
+        assert!(!peer.contains_key("method") && !peer.contains_key("leaf"));
+    }
 
     /// A report as `run` would make it: two kernel rows, the two driver peers, an Embree peer.
     fn report() -> BenchReport {

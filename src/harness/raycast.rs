@@ -85,6 +85,35 @@ impl Validation {
 }
 
 /// What `trilab raycast` reports (`--json` prints it).
+/// What a report's kernel times were measured with (serialised as `gpu timestamps` or `host
+/// wall clock`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum TimedWith {
+    #[serde(rename = "gpu timestamps")]
+    GpuTimestamps,
+    #[serde(rename = "host wall clock")]
+    HostWallClock,
+}
+
+impl TimedWith {
+    /// GPU timestamps where the queue has them, else the host's wall clock.
+    pub fn of(timed_on_gpu: bool) -> TimedWith {
+        if timed_on_gpu {
+            TimedWith::GpuTimestamps
+        } else {
+            TimedWith::HostWallClock
+        }
+    }
+
+    /// How the text report says it.
+    pub fn label(self) -> &'static str {
+        match self {
+            TimedWith::GpuTimestamps => "GPU timestamps",
+            TimedWith::HostWallClock => "host wall clock",
+        }
+    }
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct RaycastReport {
     /// The method that traced the rays (`None` for a peer).
@@ -107,7 +136,7 @@ pub struct RaycastReport {
     pub kernel_ms_min: f64,
     pub kernel_ms_max: f64,
     pub runs: usize,
-    pub timed_with: &'static str,
+    pub timed_with: TimedWith,
     pub mrays_per_s: f64,
     pub batches: usize,
     pub scene_bytes: usize,
@@ -177,7 +206,7 @@ impl Report for RaycastReport {
             self.runs,
             self.kernel_ms_min,
             self.kernel_ms_max,
-            if self.timed_with == "gpu timestamps" { "GPU timestamps" } else { "host wall clock" },
+            self.timed_with.label(),
             self.mrays_per_s
         );
         if let Some(v) = &self.validation {
@@ -224,7 +253,7 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
     rays::write_hits(&req.out, &traced.result.hits)?;
     let validation = req.validate.then(|| validate(&host, &rays, &traced.result, req.any_hit));
     let t = traced.result.time_ms()?;
-    let mrays = |ms: f64| rays.len() as f64 / (ms * 1e-3) / 1e6;
+    let mrays = |ms: f64| crate::harness::validate::mrays_per_s(rays.len(), ms);
     let info = ctx.info();
     let (method, access, auto) = match traced.method {
         Some((m, a, r)) => (Some(m), Some(a), r),
@@ -247,7 +276,7 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
         kernel_ms_min: t.min,
         kernel_ms_max: t.max,
         runs: t.runs,
-        timed_with: if traced.result.timed_on_gpu() { "gpu timestamps" } else { "host wall clock" },
+        timed_with: TimedWith::of(traced.result.timed_on_gpu()),
         mrays_per_s: mrays(t.median),
         batches: traced.result.batches,
         scene_bytes: traced.bytes,

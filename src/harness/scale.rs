@@ -273,7 +273,7 @@ fn cast(
     let res = scene.cast(ctx, Raycast::Closest, rays, &opts)?;
     let mrays: Vec<f64> = if res.timed_on_gpu() { &res.kernel_ms } else { &res.wall_ms }
         .iter()
-        .map(|ms| rays.len() as f64 / (ms * 1e-3) / 1e6)
+        .map(|&ms| crate::harness::validate::mrays_per_s(rays.len(), ms))
         .collect();
     row.mrays_per_s = Summary::of(&mrays);
     row.timed_on_gpu = res.timed_on_gpu();

@@ -31,8 +31,14 @@ pub fn validate_hits(mesh: &Mesh, rays: &[Ray], hits: &[Hit], ref_hits: &[RefHit
 /// Mrays/s from a kernel-time summary: the median run's rate, and min/max from the slowest and
 /// fastest runs.
 pub fn mrays_summary(rays: usize, ms: Summary) -> Summary {
-    let mr = |ms: f64| rays as f64 / (ms * 1e-3) / 1e6;
+    let mr = |ms: f64| mrays_per_s(rays, ms);
     Summary { median: mr(ms.median), min: mr(ms.max), max: mr(ms.min), runs: ms.runs }
+}
+
+/// Millions of rays a second: `rays` cast in `ms` milliseconds (the one formula every report
+/// uses).
+pub fn mrays_per_s(rays: usize, ms: f64) -> f64 {
+    rays as f64 / (ms * 1e-3) / 1e6
 }
 
 /// One validated ray-casting measurement.

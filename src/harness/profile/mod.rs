@@ -38,7 +38,7 @@ use crate::encoding::{AccessPath, Layout, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, EnabledFeatures, Kernel, PipelineOptions, RaycastOptions};
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
-use crate::harness::validate::{interleaved, Interleaved, Job};
+use crate::harness::validate::{interleaved, mrays_per_s as mrays, mrays_summary, Interleaved, Job};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::{Hit, Ray};
 use crate::reference::RefHit;
@@ -283,10 +283,6 @@ fn validated(mesh: &Mesh, rays: &[Ray], hits: &[Hit], reference: &[RefHit], what
 fn load_average() -> Option<String> {
     let text = std::fs::read_to_string("/proc/loadavg").ok()?;
     Some(text.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-}
-
-fn mrays(rays: usize, ms: f64) -> f64 {
-    rays as f64 / (ms * 1e-3) / 1e6
 }
 
 impl ProfileOptions {
@@ -661,12 +657,7 @@ pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
             ("variant", "closest".into()),
         ])
     };
-    let mrays = |rays: usize, ms: &Summary| Summary {
-        median: mrays(rays, ms.median),
-        min: mrays(rays, ms.max),
-        max: mrays(rays, ms.min),
-        runs: ms.runs,
-    };
+    let mrays = |rays: usize, ms: &Summary| mrays_summary(rays, *ms);
     let mut out = vec![];
     for t in &r.timestamps.rows {
         let d = &t.data;
