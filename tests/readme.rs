@@ -42,3 +42,17 @@ fn ci_runs_the_readme_s_test_command() {
         );
     }
 }
+
+#[test]
+fn architecture_holds_the_traversal_support_matrix() {
+    let text =
+        std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("ARCHITECTURE.md")).unwrap();
+    let (begin, end) = ("<!-- traversals: begin -->\n", "<!-- traversals: end -->");
+    let start = text.find(begin).expect("ARCHITECTURE.md has the traversal table's begin marker") + begin.len();
+    let stop = text[start..].find(end).expect("... and its end marker") + start;
+    assert_eq!(
+        &text[start..stop],
+        trilab::encoding::variants::support_table(),
+        "ARCHITECTURE.md's traversal table is stale: paste trilab::encoding::variants::support_table()"
+    );
+}

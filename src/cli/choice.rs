@@ -3,13 +3,23 @@
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use trilab::conditioning::MethodChoice;
-use trilab::encoding::Method;
+use trilab::encoding::{Method, Traversal};
 use trilab::named::Named;
 
 /// A value parser for the library enum `T`: `#[arg(long, value_parser = choice::<T>())]`.
 pub fn choice<T: Named + Clone + Send + Sync>() -> impl TypedValueParser<Value = T> {
     PossibleValuesParser::new(T::ALL.iter().map(|v| PossibleValue::new(v.name()).help(v.help().trim_end_matches('.'))))
         .map(|s| T::from_name(&s).expect("clap accepted one of the possible values"))
+}
+
+/// `--traversal`: each traversal's possible value with its help and what it has kernels for
+/// (layouts, access paths, kinds), read from the compiled variants' support matrix.
+pub fn traversal_choice() -> impl TypedValueParser<Value = Traversal> {
+    PossibleValuesParser::new(Traversal::ALL.iter().map(|t| {
+        let help = format!("{} Kernels: {}", t.help(), trilab::encoding::traversal_support(*t));
+        PossibleValue::new(t.name()).help(help)
+    }))
+    .map(|s| Traversal::from_name(&s).expect("clap accepted one of the possible values"))
 }
 
 /// `--method`: a method's name or `auto` (clap's list of them is hidden: [`method_help`] lists

@@ -9,7 +9,7 @@ use trilab::error::Result;
 use trilab::gpu::Peer;
 use trilab::harness::raycast::{self, RaycastRequest};
 
-use super::choice::{choice, method_choice, method_help};
+use super::choice::{choice, method_choice, method_help, traversal_choice};
 use super::{note, repeat, scene_help, BuildArgs, GpuArgs, JsonArg};
 
 /// Cast rays from a ray file; write hits and report kernel time.
@@ -51,11 +51,9 @@ pub struct RaycastArgs {
     /// them); every kernel exists for every layout.
     #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
     layout: Layout,
-    /// How the kernel walks the tree: `while-if` (one ray per invocation; every layout, kind and
-    /// access path), `while-while` (leaf postponing; bvh2, texel path, closest, any and stats),
-    /// `coop` (the subgroup shares one ray's wide node and leaf; bvh2, bvh4, bvh8, texel path,
-    /// closest and stats), `persistent` (dynamic ray fetch; bvh2 and bvh4, texel path, closest).
-    #[arg(long, value_parser = choice::<Traversal>(), default_value_t = Traversal::WhileIf)]
+    /// How the kernel walks the tree; each value lists the layouts, access paths and kinds it has
+    /// kernels for (from the compiled variants).
+    #[arg(long, value_parser = traversal_choice(), default_value_t = Traversal::WhileIf)]
     traversal: Traversal,
     /// Timed runs after one warm-up (at least 1); the median is reported.
     #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]

@@ -24,7 +24,7 @@ pub mod plan;
 
 pub use layout::{Layout, LayoutNodes, LayoutSpec};
 pub use plan::{AccessPath, BufferPlan, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
-pub use variants::{Raycast, Traversal, COOP_SUBGROUP_OPERATIONS};
+pub use variants::{support as traversal_support, Raycast, RaycastKey, Traversal, COOP_SUBGROUP_OPERATIONS};
 
 use crate::bvh::{Bvh, BvhNode, PAD_SLOT};
 use crate::named::Named;

@@ -120,7 +120,7 @@ named_enum! {
 }
 
 /// The path a scene is read through, once chosen.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AccessPath {
     Texel,

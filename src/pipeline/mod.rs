@@ -22,8 +22,8 @@ use crate::bvh::{BuildOptions, Bvh};
 use crate::conditioning::{self, MethodChoice, Recommendation};
 use crate::encoding::plan::check_extras;
 use crate::encoding::{
-    AccessPath, BufferPlan, DeviceLimits, EncodedScene, Layout, LayoutNodes, MemoryPlan, Method, Raycast, SceneAccess,
-    SceneCounts, Traversal,
+    AccessPath, BufferPlan, DeviceLimits, EncodedScene, Layout, LayoutNodes, MemoryPlan, Method, Raycast, RaycastKey,
+    SceneAccess, SceneCounts, Traversal,
 };
 use crate::error::{Error, Result};
 use crate::gpu::raycast::cast_rays;
@@ -336,8 +336,10 @@ impl DeviceScene {
 
     /// Fails unless `kernel` is one of this scene's ray-casting kernels (its method, its path).
     pub fn check_kernel(&self, kernel: &Kernel) -> Result<()> {
-        use crate::named::Named;
-        if Raycast::ALL.iter().any(|&k| self.kernel_source(k).is_ok_and(|s| s.name == kernel.name)) {
+        let key = crate::kernels::KERNELS.iter().find(|k| k.name == kernel.name).and_then(RaycastKey::of);
+        if key.is_some_and(|k| {
+            (k.method, k.access, k.layout, k.traversal) == (self.method, self.access, self.layout, self.traversal)
+        }) {
             return Ok(());
         }
         Err(Error::Usage(format!(

@@ -44,7 +44,7 @@ use serde::Serialize;
 use super::lavapipe_asm::{self, KernelAsm};
 use super::Status;
 use crate::bvh::BuildOptions;
-use crate::encoding::{Layout, Method, SceneAccess, Traversal};
+use crate::encoding::{AccessPath, Layout, Method, RaycastKey, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, PipelineOptions, RaycastOptions};
 use crate::harness::provenance::Provenance;
@@ -368,19 +368,19 @@ const CHILD_SCENE: &str = "cornell";
 /// Rays per dispatch in the child.
 const CHILD_RAYS: usize = 256;
 
-/// The method, layout and access path of a `raycast` kernel variant.
+/// The method, layout, access path and traversal of a `raycast` kernel variant (its key).
 fn raycast_request(k: &KernelSource) -> Result<SceneRequest> {
-    if k.kernel != "raycast" {
-        return Err(Error::Usage(format!(
+    let key = RaycastKey::of(k).filter(|_| k.kernel == "raycast").ok_or_else(|| {
+        Error::Usage(format!(
             "{}: driver-stats dispatches `raycast` kernels only (lavapipe compiles a shader at its first dispatch)",
             k.name
-        )));
-    }
-    let method: Method = k.intersector.replace('_', "-").parse().map_err(Error::Usage)?;
-    let layout: Layout = k.layout.parse().map_err(Error::Usage)?;
-    let access = if base_variant(k).contains("_bda") { SceneAccess::Address } else { SceneAccess::Texel };
-    let traversal = if base_variant(k).ends_with("_ww") { Traversal::WhileWhile } else { Traversal::WhileIf };
-    Ok(SceneRequest::new(method).layout(layout).access(access).traversal(traversal))
+        ))
+    })?;
+    let access = match key.access {
+        AccessPath::Texel => SceneAccess::Texel,
+        AccessPath::Address => SceneAccess::Address,
+    };
+    Ok(SceneRequest::new(key.method).layout(key.layout).access(access).traversal(key.traversal))
 }
 
 /// The child's side (`--emit-for-parent`, under GALLIVM_DEBUG=asm): dispatches each named
@@ -543,6 +543,7 @@ impl crate::report::Report for DriverStatsReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::encoding::Traversal;
 
     /// What a driver with `VK_KHR_pipeline_executable_properties` reports (lavapipe does not:
     /// these are the statistics an NVIDIA driver names), as figures: numbers kept per
