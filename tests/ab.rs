@@ -69,6 +69,40 @@ fn a_against_a_passes_and_nothing_is_hurt_beyond_the_threshold() {
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(matches!(o.status.code(), Some(0 | 1)) && text.contains("bench"), "{text}{}", common::cli::stderr(&o));
     assert!(std::fs::read_to_string(out.join("ab.md")).unwrap().contains("totals:"));
+    // A side's cells are bench's: `compare` matches a `trilab bench` run of the same workload
+    // with side A cell for cell.
+    let bench = dir.path().join("bench");
+    std::fs::create_dir(&bench).unwrap();
+    let args = [
+        "bench",
+        "--scenes",
+        "bunny",
+        "--methods",
+        "mt,unit",
+        "--width",
+        "96",
+        "--height",
+        "72",
+        "--random-rays",
+        "8000",
+        "--diffuse-per-hit",
+        "2",
+        "--seed",
+        "7",
+        "--leaf-size",
+        "4",
+        "--repeat",
+        "1",
+        "--out",
+        &s(&bench),
+    ];
+    let (o, _) = common::cli::run(&args, None, &[], 120);
+    assert_eq!(o.status.code(), Some(0), "{}", common::cli::stderr(&o));
+    let (o, _) = common::cli::run(&["compare", &s(&bench), &s(&out.join("a")), "--json"], None, &[], 60);
+    let c: Value = serde_json::from_slice(&o.stdout).unwrap_or(Value::Null);
+    let t = &c["totals"];
+    assert_eq!((t["cells_compared"].as_u64(), t["only_in_base"].as_array().map(Vec::len)), (Some(6), Some(0)), "{c}");
+    assert_eq!(t["only_in_new"].as_array().map(Vec::len), Some(0), "{c}");
 }
 
 #[test]
