@@ -148,23 +148,18 @@ impl RaycastKey {
 /// What `traversal` has kernels for, as one line: `bvh2, bvh4; texel path; closest, any` (the
 /// same for every method, which the tests hold).
 pub fn support(traversal: Traversal) -> String {
+    use std::collections::BTreeSet;
     let keys: Vec<RaycastKey> =
         RaycastKey::all().into_iter().filter(|k| k.traversal == traversal && k.method == Method::ALL[0]).collect();
-    let mut layouts: Vec<Layout> = keys.iter().map(|k| k.layout).collect();
-    let mut access: Vec<AccessPath> = keys.iter().map(|k| k.access).collect();
-    let mut kinds: Vec<Raycast> = keys.iter().map(|k| k.kind).collect();
-    layouts.sort();
-    layouts.dedup();
-    access.sort();
-    access.dedup();
-    kinds.sort();
-    kinds.dedup();
-    let join = |v: Vec<&str>| v.join(", ");
+    let layouts: BTreeSet<Layout> = keys.iter().map(|k| k.layout).collect();
+    let access: BTreeSet<AccessPath> = keys.iter().map(|k| k.access).collect();
+    let kinds: BTreeSet<Raycast> = keys.iter().map(|k| k.kind).collect();
+    let join = |v: Vec<&str>, sep: &str| v.join(sep);
     format!(
         "{}; {} path; {}",
-        join(layouts.iter().map(|l| l.name()).collect()),
-        join(access.iter().map(|a| a.name()).collect()).replace(", ", " and "),
-        join(kinds.iter().map(|k| k.name()).collect())
+        join(layouts.iter().map(|l| l.name()).collect(), ", "),
+        join(access.iter().map(|a| a.name()).collect(), " and "),
+        join(kinds.iter().map(|k| k.name()).collect(), ", ")
     )
 }
 

@@ -153,6 +153,7 @@ mod tests {
             layout: "bvh2".into(),
             rays: 10,
             kernel: kernel.into(),
+            coordinates: Default::default(),
         }
     }
 

@@ -24,7 +24,6 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::harness::bench::{BenchCell, CellTracer};
 use crate::report::{Report, Table};
 use crate::rows::{cell, Better, Class, Figure, Row, Source};
 use compiled::StatChange;
@@ -162,8 +161,6 @@ pub struct AbReport {
     pub a: SideReport,
     pub b: SideReport,
     pub workload: Vec<String>,
-    /// The BVH's leaf size both sides built (a coordinate of each side's bench cells).
-    pub leaf_size: u32,
     pub level: f64,
     pub threshold: f64,
     pub target: f64,
@@ -362,7 +359,7 @@ pub fn side_rows(r: &AbReport, pick: usize) -> Vec<Row> {
                 return pathtrace_row(c, sc, &source);
             }
             // The cell as `trilab bench` names it, so `compare` matches a side with a bench run.
-            let coords = bench_cell(c, r.leaf_size);
+            let coords = c.cell.coordinates.clone();
             let row = Row::new("bench", coords, &source)
                 .with(
                     "agreement",
@@ -381,41 +378,9 @@ pub fn side_rows(r: &AbReport, pick: usize) -> Vec<Row> {
         .collect()
 }
 
-/// A ray-casting cell's coordinates, as bench's [`BenchCell`] makes them (a worker names
-/// methods, layouts and sets by their registry names; one of another build that names
-/// something this build does not know keeps its words).
-fn bench_cell(c: &AbCell, leaf: u32) -> crate::rows::Cell {
-    use crate::named::Named;
-    let parsed = (
-        crate::encoding::Method::from_name(&c.cell.method),
-        crate::encoding::Layout::from_name(&c.cell.layout),
-        crate::harness::rayset::RaySet::from_name(&c.cell.set),
-    );
-    match parsed {
-        (Some(method), Some(layout), Some(set)) => {
-            let tracer = CellTracer::Method { method, layout, leaf, sah_group: None };
-            BenchCell { scene: c.cell.scene.clone(), set, rays: Some(c.cell.rays), tracer }.coordinates()
-        }
-        _ => cell([
-            ("scene", c.cell.scene.clone()),
-            ("set", c.cell.set.clone()),
-            ("rays", c.cell.rays.to_string()),
-            ("method", c.cell.method.clone()),
-            ("layout", c.cell.layout.clone()),
-            ("leaf", leaf.to_string()),
-        ]),
-    }
-}
-
 /// A path-trace cell's row for one side: `bench-render`'s speed and the invalid samples.
 fn pathtrace_row(c: &AbCell, sc: &SideCell, source: &Source) -> Row {
-    let coords = cell([
-        ("scene", c.cell.scene.clone()),
-        ("method", c.cell.method.clone()),
-        ("layout", c.cell.layout.clone()),
-        ("samples", c.cell.rays.to_string()),
-    ]);
-    let row = Row::new("bench-render", coords, source)
+    let row = Row::new("bench-render", c.cell.coordinates.clone(), source)
         .with("invalid", Figure::correctness(sc.invalid as f64, "samples", Better::Lower));
     match crate::report::Summary::of(&sc.ms) {
         // Samples per ms is thousands a second: /1e3 gives millions.
@@ -739,7 +704,6 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         a,
         b,
         workload: o.workload.args(),
-        leaf_size: o.workload.leaf_size,
         level: LEVEL,
         threshold: o.threshold,
         target: o.target,

@@ -19,6 +19,7 @@ use crate::bvh::BuildOptions;
 use crate::encoding::{Layout, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, Kernel, RaycastOptions};
+use crate::harness::bench::{BenchCell, CellTracer};
 use crate::harness::bench_render::{bench_settings, check_image_mean, summarise_renders};
 use crate::harness::profile::dispatch::dispatch_once;
 use crate::harness::provenance::Provenance;
@@ -78,6 +79,9 @@ pub struct CellInfo {
     pub rays: usize,
     /// The kernel that ran (`raycast.mt.closest`), for the driver statistics.
     pub kernel: String,
+    /// Its cell in each side's rows, made here where the values are typed: bench's
+    /// ([`BenchCell`]), or for a path-trace cell bench-render's.
+    pub coordinates: crate::rows::Cell,
 }
 
 impl CellInfo {
@@ -244,6 +248,9 @@ fn load_and_serve(
     for (i, scene) in &scenes {
         let kernel = scene.kernel(ctx, Raycast::Closest)?;
         for (set, rays, ref_hits) in &sets[*i] {
+            let tracer =
+                CellTracer::Method { method: scene.method, layout: scene.layout, leaf: w.leaf_size, sah_group: None };
+            let bench = BenchCell { scene: hosts[*i].name.clone(), set: *set, rays: Some(rays.len()), tracer };
             let info = CellInfo {
                 kind: CellKind::Raycast,
                 scene: hosts[*i].name.clone(),
@@ -252,6 +259,7 @@ fn load_and_serve(
                 layout: scene.layout.to_string(),
                 rays: rays.len(),
                 kernel: kernel.name.to_string(),
+                coordinates: bench.coordinates(),
             };
             let job = Job::Raycast { scene, kernel: kernel.clone(), mesh: &meshes[*i], rays, ref_hits };
             cells.push(Cell { info, job });
@@ -259,7 +267,7 @@ fn load_and_serve(
     }
     if w.pathtrace {
         let size = (w.sizes.width, w.sizes.height);
-        for ((host, mesh), _) in hosts.iter().zip(&meshes).zip(&w.scenes) {
+        for (host, mesh) in hosts.iter().zip(&meshes) {
             let settings = bench_settings(mesh, size, PATHTRACE_SPP, PATHTRACE_DEPTH, None);
             let mut scene_mean = None;
             for &m in &w.methods {
@@ -280,6 +288,12 @@ fn load_and_serve(
                         layout: l.to_string(),
                         rays: first.samples() as usize,
                         kernel: target.kernel.source.name.to_string(),
+                        coordinates: crate::rows::cell([
+                            ("scene", host.name.clone()),
+                            ("method", m.to_string()),
+                            ("layout", l.to_string()),
+                            ("samples", first.samples().to_string()),
+                        ]),
                     };
                     let scene_mean = *scene_mean.get_or_insert(mean);
                     let job = Job::Pathtrace { target: Box::new(target), settings: settings.clone(), scene_mean };
