@@ -6,12 +6,14 @@
 //! - `intersect/<method>.glsl` are the intersectors. Every kernel is compiled once per
 //!   intersector × variant; inside a kernel `#include "intersector.glsl"` resolves to the
 //!   intersector of that variant, and `METHOD_<METHOD>` is defined.
-//! - `layout/<name>.glsl` are node layouts (their `trace()`). A kernel's line
+//! - `layout/<name>.glsl` are node layouts (their node format and step,
+//!   `glsl/layout_interface.glsl`). `layout/bvh2.glsl`, the binary nodes, is the default: every
+//!   variant compiles with it, `#include "layout.glsl"` resolving to it. A kernel's line
 //!   `// trilab:layouts closest any ...` (or `// trilab:layouts(bvh4,bvh8) ...`: those layouts
-//!   only) names variants compiled once more per layout, as
-//!   `<variant>_<name>` with `WIDE_LAYOUT` and `LAYOUT_<NAME>` defined; `#include "layout.glsl"`
-//!   resolves to the layout's file. The registry records each module's layout (`bvh2` for the
-//!   binary nodes). Modules compile on every core, each thread with its own compiler.
+//!   only; `(stepped)`: the layouts that give a step, all but cwbvh) names variants compiled once more per other layout, as `<variant>_<name>` with
+//!   `WIDE_LAYOUT` and `LAYOUT_<NAME>` defined and `layout.glsl` resolving to the layout's file.
+//!   The registry records each module's layout. Modules compile on every core, each thread with
+//!   its own compiler.
 //! - A kernel whose first lines say `// trilab:intersector none` uses no intersector (the BSDF
 //!   probe, say): it is compiled once per variant, with method `none`.
 //! - `shared.glsl` holds the constants shared with Rust: every `#define NAME <integer>` becomes
@@ -43,7 +45,8 @@ use std::path::{Component, Path, PathBuf};
 /// instruction counts are comparable between kernels and across commits.
 const OPT_LEVEL: shaderc::OptimizationLevel = shaderc::OptimizationLevel::Performance;
 
-/// The layout of kernels that read the binary nodes (`traverse.glsl`'s own `trace`).
+/// The default layout, `glsl/layout/bvh2.glsl` (the binary nodes): the variants without a layout
+/// suffix compile with it.
 const BINARY_LAYOUT: &str = "bvh2";
 
 #[derive(Clone)]
@@ -105,17 +108,28 @@ fn main() {
             .filter(|p| p.parent() == Some(glsl_dir.join("layout").as_path()))
             .filter(|p| p.extension().is_some_and(|e| e == "glsl"))
             .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+            .filter(|l| l != BINARY_LAYOUT)
             .collect();
         l.sort();
         l
     };
+    // The layouts that give the traversals a step (glsl/layout_interface.glsl): all but those whose
+    // traversal is their own (a `#define LAYOUT_TRACE` line: cwbvh).
+    let stepped: Vec<String> = layouts
+        .iter()
+        .filter(|l| {
+            let text = fs::read_to_string(glsl_dir.join("layout").join(format!("{l}.glsl"))).unwrap_or_default();
+            !text.lines().any(|line| line.trim() == "#define LAYOUT_TRACE")
+        })
+        .cloned()
+        .collect();
 
     // Every (kernel, method, variant) to compile, in registry order.
     let mut jobs: Vec<Job> = Vec::new();
     for kernel_path in &kernels {
         let kernel = kernel_path.file_stem().unwrap().to_string_lossy().into_owned();
         let source = fs::read_to_string(kernel_path).unwrap();
-        let variants = with_layouts(kernel_path, &source, parse_variants(kernel_path, &source), &layouts);
+        let variants = with_layouts(kernel_path, &source, parse_variants(kernel_path, &source), &layouts, &stepped);
         let no_intersector = source.lines().any(|l| l.trim() == "// trilab:intersector none");
         let none = [String::from("none")];
         let kernel_methods: &[String] = if no_intersector { &none } else { &methods };
@@ -319,20 +333,30 @@ fn parse_variants(path: &Path, source: &str) -> Vec<Variant> {
 }
 
 /// `// trilab:layouts closest any ...`: those variants are compiled once more per layout in
-/// `glsl/layout/` as `<variant>_<layout>`, with `WIDE_LAYOUT` and `LAYOUT_<LAYOUT>` defined and
+/// `glsl/layout/` but the default (bvh2) as `<variant>_<layout>`, with `WIDE_LAYOUT` and `LAYOUT_<LAYOUT>` defined and
 /// `#include "layout.glsl"` resolving to `layout/<layout>.glsl`.
-fn with_layouts(path: &Path, source: &str, mut variants: Vec<Variant>, layouts: &[String]) -> Vec<Variant> {
+fn with_layouts(
+    path: &Path,
+    source: &str,
+    mut variants: Vec<Variant>,
+    layouts: &[String],
+    stepped: &[String],
+) -> Vec<Variant> {
     let Some(line) = source.lines().find_map(|l| l.trim().strip_prefix("// trilab:layouts")) else {
         return variants;
     };
-    // `// trilab:layouts(bvh4,bvh8) closest ...`: only those layouts (a kernel that reads their
-    // node formats itself, like raycast_coop.comp).
+    // `// trilab:layouts(bvh4,bvh8) closest ...`: only those layouts; `(stepped)`: every layout
+    // that gives a step (a kernel that drives layout_visit itself, like raycast_coop.comp).
     let (only, line) = match line.strip_prefix('(') {
         Some(rest) => {
             let Some((list, line)) = rest.split_once(')') else {
                 fail(&format!("{}: `// trilab:layouts(` without `)`", path.display()))
             };
-            let only: Vec<String> = list.split(',').map(|l| l.trim().to_owned()).collect();
+            let only: Vec<String> = if list.trim() == "stepped" {
+                stepped.to_vec()
+            } else {
+                list.split(',').map(|l| l.trim().to_owned()).collect()
+            };
             for l in &only {
                 if !layouts.contains(l) {
                     fail(&format!(
@@ -424,14 +448,14 @@ fn intersector_facts(compiler: &shaderc::Compiler, glsl_dir: &Path, method: &str
         .ok_or("no PRIM_TRIANGLES line after preprocessing")?;
     let prim: u32 = prim.parse().map_err(|_| format!("PRIM_TRIANGLES must be an integer literal, got `{prim}`"))?;
     if !matches!(prim, 1 | 4) {
-        return Err(format!("PRIM_TRIANGLES is {prim}; the leaf loop in traverse.glsl handles 1 or 4"));
+        return Err(format!("PRIM_TRIANGLES is {prim}; the leaf loop in leaf.glsl handles 1 or 4"));
     }
     let conservative = text.lines().any(|l| l.trim() == "trilab_fact_conservative_traversal");
     Ok((prim, conservative))
 }
 
 /// Includes resolve inside `glsl/` only; `intersector.glsl` is the variant's intersector and
-/// `layout.glsl` its layout's traversal.
+/// `layout.glsl` its layout (the default, bvh2, for a variant without one).
 fn resolve_include(
     glsl_dir: &Path,
     method: &str,
@@ -446,7 +470,7 @@ fn resolve_include(
     } else if requested == "layout.glsl" {
         match layout {
             Some(l) => PathBuf::from("layout").join(format!("{l}.glsl")),
-            None => return Err(format!("{requesting}: layout.glsl is included only by variants compiled per layout")),
+            None => PathBuf::from("layout").join(format!("{BINARY_LAYOUT}.glsl")),
         }
     } else {
         PathBuf::from(requested)

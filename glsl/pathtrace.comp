@@ -110,11 +110,7 @@ HitState trace_closest(vec3 o, vec3 d) {
     ray.tmin = 0.0;
     ray.dir = d;
     ray.tmax = uintBitsToFloat(0x7f800000u);
-    HitState h;
-    h.t = ray.tmax;
-    h.slot = MISS_ID;
-    h.u = 0.0;
-    h.v = 0.0;
+    HitState h = hit_start(ray.tmax);
     trace(make_trace_ray(ray), h, false);
     return h;
 }
@@ -125,11 +121,7 @@ bool occluded(vec3 o, vec3 d, float tmax) {
     ray.tmin = 0.0;
     ray.dir = d;
     ray.tmax = tmax;
-    HitState h;
-    h.t = tmax;
-    h.slot = MISS_ID;
-    h.u = 0.0;
-    h.v = 0.0;
+    HitState h = hit_start(tmax);
     trace(make_trace_ray(ray), h, true);
     return h.slot != MISS_ID;
 }

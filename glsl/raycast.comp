@@ -3,7 +3,7 @@
 // trilab:layouts closest any stats clock closest_bda any_bda stats_bda clock_bda
 // Ray casting: one ray per invocation, closest hit (t, u, v, OBJ triangle id) or, with ANY_HIT,
 // any hit in [tmin, tmax] (occlusion). The intersector is chosen per variant by build.rs.
-// With TRAVERSAL_STATS (closest hit) it also writes each ray's traversal work (traverse.glsl).
+// With TRAVERSAL_STATS (closest hit) it also writes each ray's traversal work (counts.glsl).
 // SHADER_CLOCK (profiling, `trilab profile`): closest hit, plus the subgroup clock's ticks
 // around the trace written per ray to BINDING_CYCLES (needs VK_KHR_shader_clock's
 // shaderSubgroupClock). Lanes in lock-step read the same clock, so on SIMD hardware a ray's
@@ -15,7 +15,7 @@
 // that layout's traversal (WIDE_LAYOUT), whose nodes the pipeline binds at BINDING_NODES in
 // place of the binary ones.
 // WHILE_WHILE (`closest_ww`, `any_ww`, `stats_ww`; binary nodes): Aila & Laine's while-while
-// traversal with leaf postponing (glsl/while_while.glsl) in place of while-if.
+// traversal with leaf postponing (glsl/traversal/while_while.glsl) in place of while-if.
 #extension GL_GOOGLE_include_directive : require
 #ifdef SHADER_CLOCK
 #extension GL_ARB_shader_clock : require
@@ -63,11 +63,7 @@ void main() {
         return;
     }
     Ray ray = rays[i];
-    HitState h;
-    h.t = ray.tmax;
-    h.slot = MISS_ID;
-    h.u = 0.0;
-    h.v = 0.0;
+    HitState h = hit_start(ray.tmax);
 #ifdef SHADER_CLOCK
     uvec2 clock_start = clock2x32ARB();
 #endif

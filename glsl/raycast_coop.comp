@@ -1,6 +1,6 @@
 #version 460
 // trilab:variants closest stats=TRAVERSAL_STATS
-// trilab:layouts(bvh4,bvh8) closest stats
+// trilab:layouts(stepped) closest stats
 // Subgroup-cooperative ray casting (`--traversal coop`): the lanes of a subgroup trace ONE ray at
 // a time together, after Lier, Stamminger & Selgrad, "CPU-style SIMD Ray Traversal on GPUs",
 // HPG 2018: lane k tests child k of the ray's current wide node (children k, k + S, ... where
@@ -13,7 +13,7 @@
 // keeps ray k's hit (and counters) and writes them at the end. Every lane runs every step, so
 // all traversal state (the current entry, the stack, the closest hit) is the same in every lane.
 //
-// Per inner node: the lanes that hold a child slab-test it (traverse.glsl's HIT_BOX); the hit
+// Per inner node: the lanes that hold a child slab-test it (box.glsl's hit_box); the hit
 // children are taken farthest first by subgroup reductions (subgroupMax of the entry distance,
 // ties to the higher slot) and pushed with their entry distance, and the nearest is visited next
 // (ties to the lower slot); a popped entry beyond the closest hit is skipped, as the wide
@@ -24,12 +24,14 @@
 //
 // Per leaf: each lane runs the intersector's chain over its units (the sequential leaf loop's
 // rule, a hit at t <= the lane's best so far is kept); then the smallest t over the lanes wins,
-// ties to the higher slot (f64: compared in double). That is exactly what traverse.glsl's leaf
+// ties to the higher slot (f64: compared in double). That is exactly what leaf.glsl's leaf
 // loop keeps (the last slot among those at the smallest t), so the hits equal the per-ray
 // kernels' where the visiting order of leaves is the same.
 //
-// Layouts: the binary nodes (`closest`, `stats`: two children, the root box tested first) and
-// `bvh4`, `bvh8` (glsl/layout/: their node formats are read here, their trace() is unused).
+// Layouts: every layout that gives its children to a lane (layout_interface.glsl): the binary
+// nodes (`closest`, `stats`: layout_child, the root box tested first) and the structure-of-arrays
+// `bvh4`, `bvh8` (their texels loaded spread over the lanes, each field where layout_field_texel
+// says); not cwbvh, whose traversal is its own.
 // Closest hit only (no any-hit kernel). Needs subgroup basic, vote, arithmetic, ballot and
 // shuffle operations and a subgroup of at least 4 lanes (the host checks both).
 //
@@ -61,7 +63,7 @@ layout(push_constant) uniform Push {
 } pc;
 
 #include "intersector.glsl"
-#include "traverse.glsl"
+#include "bvh.glsl"
 
 #ifdef TRAVERSAL_STATS
 layout(std430, set = 0, binding = BINDING_TRAVERSAL_STATS) writeonly buffer Counts { TraversalCounts counts[]; };
@@ -80,30 +82,11 @@ float coop_take_f(bool mine, float x) {
     return uintBitsToFloat(subgroupOr(mine ? floatBitsToUint(x) : 0u));
 }
 
-#if !defined(WIDE_LAYOUT)
-#define COOP_WIDTH 2u
-#define COOP_STACK STACK_SIZE
-#elif defined(LAYOUT_BVH4)
-#define COOP_WIDTH 4u
-#define COOP_STACK BVH4_STACK_SIZE
-#define COOP_TEXELS 8u
-#elif defined(LAYOUT_BVH8)
-#define COOP_WIDTH 8u
-#define COOP_STACK BVH8_STACK_SIZE
-#define COOP_TEXELS 16u
-#else
-#error "raycast_coop.comp reads the binary, bvh4 and bvh8 nodes only (its `// trilab:layouts(...)` line)"
+#ifdef LAYOUT_TRACE
+#error "raycast_coop.comp drives a layout's step; cwbvh's traversal is its own (`// trilab:layouts(stepped)` leaves it out)"
 #endif
 
-// One child slot as its lane sees it.
-struct CoopChild {
-    vec3 bmin;
-    vec3 bmax;
-    uint entry; // LEAF_ENTRY(first, count) (shared.glsl)
-    bool occupied;
-};
-
-#ifdef WIDE_LAYOUT
+#ifdef LAYOUT_NODE_TEXELS
 // The node's texels spread over the lanes: lane k holds texels k, k + S, k + 2S, k + 3S.
 struct CoopTexels {
     uvec4 t0, t1, t2, t3;
@@ -112,24 +95,24 @@ struct CoopTexels {
 CoopTexels coop_load(uint node) {
     uint s = gl_SubgroupSize;
     uint k = gl_SubgroupInvocationID;
-    uint base = COOP_TEXELS * node;
-    // Only the node's own texels: with S > COOP_TEXELS lanes (16 for bvh4, 32 for bvh8) the
+    uint base = LAYOUT_NODE_TEXELS * node;
+    // Only the node's own texels: with S > LAYOUT_NODE_TEXELS lanes (16 for bvh4, 32 for bvh8) the
     // lanes beyond load nothing (never the next node, never past the buffer's end).
     CoopTexels c;
     c.t0 = uvec4(0u);
     c.t1 = uvec4(0u);
     c.t2 = uvec4(0u);
     c.t3 = uvec4(0u);
-    if (k < COOP_TEXELS) {
+    if (k < LAYOUT_NODE_TEXELS) {
         c.t0 = SCENE_TEXEL(scene_nodes, base + k);
     }
-    if (s + k < COOP_TEXELS) {
+    if (s + k < LAYOUT_NODE_TEXELS) {
         c.t1 = SCENE_TEXEL(scene_nodes, base + s + k);
     }
-    if (2u * s + k < COOP_TEXELS) {
+    if (2u * s + k < LAYOUT_NODE_TEXELS) {
         c.t2 = SCENE_TEXEL(scene_nodes, base + 2u * s + k);
     }
-    if (3u * s + k < COOP_TEXELS) {
+    if (3u * s + k < LAYOUT_NODE_TEXELS) {
         c.t3 = SCENE_TEXEL(scene_nodes, base + 3u * s + k);
     }
     return c;
@@ -143,48 +126,30 @@ uvec4 coop_texel(CoopTexels c, uint block, uint t) {
     return subgroupShuffle(src, t % gl_SubgroupSize);
 }
 
-// Field `f` (0..7: min x, y, z, max x, y, z, child, count) of child `ch` (ch >= COOP_WIDTH:
-// any in-node value, the caller marks it unoccupied). bvh8 keeps a field's texels for children
-// 0-3 and 4-7 at 2f and 2f + 1: one block, as S is even.
+// Field `f` (0..7: min x, y, z, max x, y, z, child, count) of child `ch` (ch >= LAYOUT_WIDTH:
+// any in-node value, the caller marks it unoccupied), where the layout keeps it
+// (layout_field_texel). A field's texels for all children lie in one block (bvh8's at 2f and
+// 2f + 1, as S is even), so the block is taken from child 0's.
 uint coop_field(CoopTexels c, uint ch, uint f) {
-#ifdef LAYOUT_BVH4
-    return coop_texel(c, f / gl_SubgroupSize, f)[ch & 3u];
-#else
-    return coop_texel(c, 2u * f / gl_SubgroupSize, 2u * f + ((ch >> 2u) & 1u))[ch & 3u];
-#endif
+    return coop_texel(c, layout_field_texel(f, 0u) / gl_SubgroupSize, layout_field_texel(f, ch))[ch & 3u];
 }
 
-CoopChild coop_child(CoopTexels c, uint ch) {
-    CoopChild o;
+NodeChild coop_child(CoopTexels c, uint ch) {
+    NodeChild o;
     o.bmin = uintBitsToFloat(uvec3(coop_field(c, ch, 0u), coop_field(c, ch, 1u), coop_field(c, ch, 2u)));
     o.bmax = uintBitsToFloat(uvec3(coop_field(c, ch, 3u), coop_field(c, ch, 4u), coop_field(c, ch, 5u)));
     uint kid = coop_field(c, ch, 6u);
     uint cnt = coop_field(c, ch, 7u);
-    o.occupied = ch < COOP_WIDTH && kid != EMPTY_CHILD;
+    o.occupied = ch < LAYOUT_WIDTH && kid != EMPTY_CHILD;
     o.entry = LEAF_ENTRY(kid, cnt);
-    return o;
-}
-#else
-// Binary nodes: child `ch` (0 or 1) of the inner node whose children start at `first`.
-CoopChild coop_child_binary(uint first, uint ch) {
-    BvhNode n = load_node(first + min(ch, 1u));
-    CoopChild o;
-    o.bmin = n.bmin;
-    o.bmax = n.bmax;
-    o.entry = pack_node(n);
-    o.occupied = ch < 2u;
     return o;
 }
 #endif
 
 // Slab test of a child: its entry distance, or -inf where it is missed or not there.
-float coop_test(TraceRay r,
-#ifdef CONSERVATIVE_TRAVERSAL
-                ConservativeRay cons,
-#endif
-                CoopChild c, float tfar) {
+float coop_test(BoxRay b, NodeChild c, float tfar) {
     float tn;
-    if (c.occupied && HIT_BOX(c.bmin, c.bmax, tfar, tn)) {
+    if (c.occupied && hit_box(b, c.bmin, c.bmax, tfar, tn)) {
         return tn;
     }
     return -COOP_INF;
@@ -258,40 +223,13 @@ void coop_leaf(TraceRay r, uint first, uint count, inout HitState h) {
 void coop_trace(TraceRay r, inout HitState h) {
     uint s = gl_SubgroupSize;
     uint k = gl_SubgroupInvocationID;
-#ifdef INTERSECTOR_RAY_SETUP
-    INTERSECTOR_RAY_SETUP(r, h);
-#endif
-#ifdef WIDE_LAYOUT
-    // Node 0 is the root (an inner node); its box is the union of its children's.
-#ifdef CONSERVATIVE_TRAVERSAL
-    CoopTexels rt = coop_load(0u);
-    vec3 rmin = vec3(COOP_INF);
-    vec3 rmax = vec3(-COOP_INF);
-    for (uint ci = 0u; ci < COOP_WIDTH; ci += s) {
-        CoopChild c = coop_child(rt, ci + k);
-        if (c.occupied) {
-            rmin = min(rmin, c.bmin);
-            rmax = max(rmax, c.bmax);
-        }
-    }
-    ConservativeRay cons = make_conservative_ray(r, subgroupMin(rmin), subgroupMax(rmax));
-#endif
-    uint current = 0u;
-#else
-    BvhNode root = load_node(0u);
-#ifdef CONSERVATIVE_TRAVERSAL
-    ConservativeRay cons = make_conservative_ray(r, root.bmin, root.bmax);
-#endif
-    COUNT_BOXES(1u);
-    float troot;
-    if (!HIT_BOX(root.bmin, root.bmax, h.t, troot)) {
+    LayoutRoot root = layout_root();
+    BoxRay b;
+    if (!ray_enter(r, h, root, b)) {
         return;
     }
-    uint current = pack_node(root);
-#endif
-    uint stack[COOP_STACK];
-    float stack_t[COOP_STACK];
-    uint sp = 0u;
+    uint current = root.entry;
+    stack_size = 0u;
     while (true) {
         uint count = LEAF_ENTRY_COUNT(current);
         uint first = LEAF_ENTRY_FIRST(current);
@@ -306,27 +244,19 @@ void coop_trace(TraceRay r, inout HitState h) {
             uint e0 = 0u;
             uint e1 = 0u;
             uint occupied = 0u;
-#ifdef WIDE_LAYOUT
+#ifdef LAYOUT_NODE_TEXELS
             CoopTexels tex = coop_load(first);
-            CoopChild c0 = coop_child(tex, k);
+            NodeChild c0 = coop_child(tex, k);
 #else
-            CoopChild c0 = coop_child_binary(first, k);
+            NodeChild c0 = layout_child(first, k);
 #endif
-#ifdef CONSERVATIVE_TRAVERSAL
-            t0 = coop_test(r, cons, c0, h.t);
-#else
-            t0 = coop_test(r, c0, h.t);
-#endif
+            t0 = coop_test(b, c0, h.t);
             e0 = c0.entry;
             occupied += c0.occupied ? 1u : 0u;
-#ifdef WIDE_LAYOUT
-            if (s < COOP_WIDTH) {
-                CoopChild c1 = coop_child(tex, k + s);
-#ifdef CONSERVATIVE_TRAVERSAL
-                t1 = coop_test(r, cons, c1, h.t);
-#else
-                t1 = coop_test(r, c1, h.t);
-#endif
+#ifdef LAYOUT_NODE_TEXELS
+            if (s < LAYOUT_WIDTH) {
+                NodeChild c1 = coop_child(tex, k + s);
+                t1 = coop_test(b, c1, h.t);
                 e1 = c1.entry;
                 occupied += c1.occupied ? 1u : 0u;
             }
@@ -342,9 +272,7 @@ void coop_trace(TraceRay r, inout HitState h) {
                     uint slot = subgroupMax(t1 == far_t ? k + s + 1u : t0 == far_t ? k + 1u : 0u) - 1u;
                     bool m0 = slot == k;
                     bool m1 = slot == k + s;
-                    stack[sp] = coop_take(m0, e0) | coop_take(m1, e1);
-                    stack_t[sp] = far_t;
-                    sp += 1u;
+                    stack_push(coop_take(m0, e0) | coop_take(m1, e1), far_t);
                     t0 = m0 ? -COOP_INF : t0;
                     t1 = m1 ? -COOP_INF : t1;
                 }
@@ -355,15 +283,8 @@ void coop_trace(TraceRay r, inout HitState h) {
             }
         }
         // Pop the nearest entry that may still hold a closer hit.
-        while (true) {
-            if (sp == 0u) {
-                return;
-            }
-            sp -= 1u;
-            if (stack_t[sp] <= h.t) {
-                current = stack[sp];
-                break;
-            }
+        if (!stack_pop_nearest(h.t, current)) {
+            return;
         }
     }
 }
@@ -378,11 +299,7 @@ void main() {
     } else {
         mine = Ray(vec3(0.0), 0.0, vec3(0.0, 0.0, 1.0), 0.0);
     }
-    HitState my_hit;
-    my_hit.t = mine.tmax;
-    my_hit.slot = MISS_ID;
-    my_hit.u = 0.0;
-    my_hit.v = 0.0;
+    HitState my_hit = hit_start(mine.tmax);
 #ifdef TRAVERSAL_STATS
     TraversalCounts my_counts = TraversalCounts(0u, 0u, 0u, 0u, 0u);
 #endif
@@ -399,11 +316,7 @@ void main() {
         ray.tmin = coop_take_f(owner, mine.tmin);
         ray.dir = vec3(coop_take_f(owner, mine.dir.x), coop_take_f(owner, mine.dir.y), coop_take_f(owner, mine.dir.z));
         ray.tmax = coop_take_f(owner, mine.tmax);
-        HitState h;
-        h.t = ray.tmax;
-        h.slot = MISS_ID;
-        h.u = 0.0;
-        h.v = 0.0;
+        HitState h = hit_start(ray.tmax);
 #ifdef TRAVERSAL_STATS
         trav_counts = TraversalCounts(0u, 0u, 0u, 0u, 0u);
 #endif

@@ -55,7 +55,7 @@
 #define BINDING_BSDF_PROBE_OUT 16
 // rng_probe.comp's output.
 #define BINDING_RNG_PROBE_OUT 17
-// raycast.comp's `stats` variant: per-ray traversal counters (TraversalCounts, traverse.glsl).
+// raycast.comp's `stats` variant: per-ray traversal counters (TraversalCounts, counts.glsl).
 #define BINDING_TRAVERSAL_STATS 18
 // raycast.comp's `clock` variant: shader-clock ticks per ray (uint), for `trilab profile`.
 #define BINDING_CYCLES 19

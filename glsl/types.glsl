@@ -102,6 +102,11 @@ struct HitState {
     float v;
 };
 
+// Nothing hit yet: the search interval ends at the ray's tmax.
+HitState hit_start(float tmax) {
+    return HitState(tmax, MISS_ID, 0.0, 0.0);
+}
+
 // The hit record of a ray's closest hit so far: the one hit writer of raycast.comp,
 // raycast_coop.comp and raycast_persistent.comp (a miss: t = +inf, id MISS_ID, u = v = 0).
 Hit hit_record(HitState h) {

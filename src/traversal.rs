@@ -1,4 +1,4 @@
-//! A CPU mirror of `glsl/traverse.glsl` that counts work: the same while-if loop, visit order
+//! A CPU mirror of `glsl/traversal/while_if.glsl` on the binary nodes (`glsl/layout/bvh2.glsl`) that counts work: the same while-if loop, visit order
 //! (nearer child first, ties to the left) and f32 slab test, one ray at a time, plus a model of
 //! SIMD lock-step: a group of `width` consecutive rays runs as many loop iterations as its
 //! slowest ray, and an iteration pays for the leaf code when any lane is at a leaf (as many
@@ -107,7 +107,7 @@ impl<'a> Walk<'a> {
         w
     }
 
-    /// hit_box() of traverse.glsl, against the closest hit so far.
+    /// hit_box() of glsl/box.glsl, against the closest hit so far.
     fn hit_box(&self, bmin: [f32; 3], bmax: [f32; 3]) -> Option<f32> {
         if let Some(c) = &self.conservative {
             return c.hit_box(bmin, bmax, self.tmin, self.ray.tmax as f32);
@@ -169,7 +169,7 @@ impl<'a> Walk<'a> {
     }
 }
 
-/// `hit_box_conservative()` of traverse.glsl (`CONSERVATIVE_TRAVERSAL`), step for step in f32:
+/// The conservative `hit_box()` of glsl/box.glsl (`CONSERVATIVE_TRAVERSAL`), step for step in f32:
 /// the kernel computes these `precise` (no FMA), so the bits are the same.
 struct Conservative {
     org_lo: Vec3,

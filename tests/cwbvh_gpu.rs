@@ -56,7 +56,7 @@ fn cwbvh_hits_equal_bvh2_for_every_intersector() {
                         .unwrap_or_else(|e| panic!("leaf {leaf} {method} {set} cwbvh: {e}"));
                     // Equal ray for ray, except ties: two triangles at exactly the same t (a
                     // shared edge or vertex), of which the leaf loop keeps the later one visited
-                    // (traverse.glsl), and cwbvh visits in octant order, not near to far.
+                    // (leaf.glsl), and cwbvh visits in octant order, not near to far.
                     let differ: Vec<usize> = (0..rays.len()).filter(|&i| h2[i] != hc[i]).collect();
                     let (ties, other): (Vec<usize>, Vec<usize>) =
                         differ.iter().partition(|&&i| h2[i].t.to_bits() == hc[i].t.to_bits() && h2[i].is_hit());

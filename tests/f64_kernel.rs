@@ -184,7 +184,7 @@ fn zero_area_triangles_inside_leaves_are_never_hit() {
             assert!(hits.iter().all(|h| !h.t.is_nan() && !h.u.is_nan() && !h.v.is_nan()), "leaf {leaf}: NaN");
         }
         // These rays go through edges and vertices on purpose, and the straight ones lie in
-        // the faces of leaf boxes, which f32 traversal may cull (traverse.glsl's TINY_DIR
+        // the faces of leaf boxes, which f32 traversal may cull (box.glsl's TINY_DIR
         // slopes): the acceptance rule explains those misses by their 0-ULP edge distance.
         let agreement = compare_closest(&broken, &rays, &closest, &reference);
         assert!(agreement.all_explained(), "leaf {leaf}: {} {:?}", agreement.summary(), agreement.disagreements);

@@ -232,7 +232,7 @@ impl Lcg {
 }
 
 /// The leaf step: per unit (slot) a hit distance or a miss; ties are frequent (few distinct t).
-/// Sequential (traverse.glsl's leaf loop): in slot order, a hit at t <= best is kept.
+/// Sequential (leaf.glsl's leaf loop): in slot order, a hit at t <= best is kept.
 fn leaf_sequential(t: &[Option<f32>], tmax: f32) -> Option<(f32, usize)> {
     let mut best = None;
     let mut bt = tmax;

@@ -1,4 +1,4 @@
-//! The GPU traversal counters (`raycast.<method>.stats`, `glsl/traverse.glsl`) against the CPU
+//! The GPU traversal counters (`raycast.<method>.stats`, `glsl/counts.glsl`) against the CPU
 //! mirror of the kernel loop (`trilab::traversal::ray_steps`), on the bunny with primary and
 //! random rays, for every method.
 //!

@@ -1,7 +1,7 @@
 //! The traversals beside while-if on the GPU (issue 15, "traversals worth measuring"):
-//! while-while with leaf postponing (`*_ww` variants of raycast.comp, glsl/while_while.glsl,
+//! while-while with leaf postponing (`*_ww` variants of raycast.comp, glsl/traversal/while_while.glsl,
 //! binary nodes), the subgroup-cooperative kernel (glsl/raycast_coop.comp; bvh2, bvh4, bvh8) and
-//! persistent threads with dynamic ray fetch (glsl/raycast_persistent.comp; bvh2, bvh4, closest).
+//! persistent threads with dynamic ray fetch (glsl/raycast_persistent.comp; bvh2, bvh4, bvh8, closest).
 //! With validation on, on the bunny's primary, diffuse and random sets, for every method:
 //! - each traversal's closest hits pass the agreement rule against the CPU f64 reference and equal
 //!   while-if's hits on the same layout ray for ray (and so bvh2's: tests/layouts_gpu.rs);
@@ -57,10 +57,10 @@ fn every_traversal_equals_while_if_ray_for_ray() {
         let sets = ray_sets(&bunny, "bunny", &reference, &SIZES, None).unwrap();
         let refs: Vec<_> = sets.iter().map(|(_, rays)| reference.trace_all(rays, false)).collect();
         let combos = combos();
-        // Every layout has its while-if, bvh2 while-while, and the layouts whose node formats
-        // the cooperative kernel reads (bvh2, bvh4, bvh8; not cwbvh's) the cooperative kernel, bvh2 and
-        // bvh4 persistent threads.
-        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 3 + 2, "{combos:?}");
+        // Every layout has its while-if, bvh2 while-while, and the layouts that give a step
+        // (glsl/layout_interface.glsl: bvh2, bvh4, bvh8; not cwbvh, whose traversal is its own) the
+        // cooperative kernel and persistent threads.
+        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 3 + 3, "{combos:?}");
         let mut lines = vec![];
         for method in Method::ALL {
             for &layout in Layout::ALL {
@@ -266,7 +266,7 @@ fn raycast_takes_the_traversal_from_the_command_line() {
         (&["--layout", "bvh4", "--traversal", "while-while"][..], "while-while"),
         (&["--traversal", "coop", "--any-hit"][..], "coop"),
         (&["--traversal", "coop", "--scene-access", "address"][..], "address"),
-        (&["--layout", "bvh8", "--traversal", "persistent"][..], "persistent"),
+        (&["--layout", "cwbvh", "--traversal", "persistent"][..], "persistent"),
         (&["--layout", "bvh4", "--traversal", "persistent", "--any-hit"][..], "persistent"),
     ] {
         let rays = p("r.rays");

@@ -31,4 +31,18 @@ vec3 reflect_about(vec3 v, vec3 h) {
     return 2.0 * dot(v, h) * h - v;
 }
 
+// The end of every lobe-mixing BSDF's sample (phong, blinn_phong, ashikhmin_shirley), once
+// `s.wi` is drawn from the chosen lobe: no sample below the surface or at pdf 0; else the pdf of
+// the whole mixture (<name>_pdf) and the weight f cos / pdf (<name>_eval).
+#define LOBE_SAMPLE_RETURN(name)                                                               \
+    if (s.wi.z <= 0.0) {                                                                       \
+        return false;                                                                          \
+    }                                                                                          \
+    s.pdf = name##_pdf(m, wo, s.wi);                                                           \
+    if (!(s.pdf > 0.0)) {                                                                      \
+        return false;                                                                          \
+    }                                                                                          \
+    s.weight = name##_eval(m, wo, s.wi) * (s.wi.z / s.pdf);                                    \
+    return true
+
 #endif

@@ -50,15 +50,7 @@ bool phong_sample(Material m, vec3 wo, vec3 u, out BsdfSample s) {
     } else {
         s.wi = cosine_hemisphere(u.xy);
     }
-    if (s.wi.z <= 0.0) {
-        return false;
-    }
-    s.pdf = phong_pdf(m, wo, s.wi);
-    if (!(s.pdf > 0.0)) {
-        return false;
-    }
-    s.weight = phong_eval(m, wo, s.wi) * (s.wi.z / s.pdf);
-    return true;
+    LOBE_SAMPLE_RETURN(phong);
 }
 
 #endif

@@ -7,7 +7,7 @@
 // rounded to f32, unless two triangles tie (traversal order then picks one).
 // Closest hit is decided in double: `f64_best` holds the best t so far, set to the ray's tmax
 // once per ray (INTERSECTOR_RAY_SETUP) and lowered with every hit accepted. The leaf loop's
-// h.t = float(t) is what traversal culls boxes with (f32, conservative: traverse.glsl scales the
+// h.t = float(t) is what traversal culls boxes with (f32, conservative: box.glsl scales the
 // far distance up by more than the half ULP float() may round down).
 // Needs shaderFloat64 (SPIR-V capability Float64): kernel creation fails with
 // Error::Unsupported on devices without it.

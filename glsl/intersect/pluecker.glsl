@@ -27,7 +27,7 @@
 // between them; a value of 0 is accepted on both sides. The shift rounds the vertices relative to
 // O, so the test can accept a triangle that the exact ray misses by that rounding, like Woop et
 // al.'s watertight test: traversal uses the conservative box test (CONSERVATIVE_TRAVERSAL,
-// traverse.glsl).
+// box.glsl).
 // Where it can: at a shared vertex. The spokes (edges meeting there) are separate sums of
 // rounded products, each of whose signs can be wrong when the ray passes within rounding of the
 // vertex (unlike the watertight test's 2D edge functions, whose signs are never wrong, only 0),
@@ -43,7 +43,7 @@
 
 #include "types.glsl"
 
-// Ask traverse.glsl for the conservative box test this test needs.
+// Ask box.glsl for the conservative box test this test needs.
 #define CONSERVATIVE_TRAVERSAL
 
 #include "mt_layout.glsl"

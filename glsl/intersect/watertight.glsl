@@ -38,7 +38,7 @@
 //
 // Because the sheared vertices are rounded, the test accepts triangles that the exact ray misses
 // by up to a few ulps of their distance from the origin. BVH traversal must not cull the boxes of
-// those triangles, so this intersector turns on CONSERVATIVE_TRAVERSAL (traverse.glsl, after
+// those triangles, so this intersector turns on CONSERVATIVE_TRAVERSAL (box.glsl, after
 // the paper's sec. 5).
 //
 // Data: Möller–Trumbore's layout (glsl/mt_layout.glsl, src/encoding/mt.rs), so a comparison
@@ -48,7 +48,7 @@
 
 #include "types.glsl"
 
-// Ask traverse.glsl for the conservative box test this test needs.
+// Ask box.glsl for the conservative box test this test needs.
 #define CONSERVATIVE_TRAVERSAL
 
 #include "mt_layout.glsl"
@@ -68,7 +68,7 @@ struct WatertightRay {
     vec3 shear; // (Sx, Sy, Sz)
 };
 
-// Set by trace() once per ray, through INTERSECTOR_RAY_SETUP (traverse.glsl), before any leaf is
+// Set by trace() once per ray, through INTERSECTOR_RAY_SETUP (leaf.glsl), before any leaf is
 // tested; intersect_triangle reads it. One traced ray at a time per invocation, so one variable.
 WatertightRay wt_ray;
 

@@ -1,11 +1,12 @@
 // The cwbvh layout's traversal (the `*_cwbvh` variants: `// trilab:layouts` in raycast.comp and
 // pathtrace.comp): Ylitie, Karras & Laine, "Efficient Incoherent Ray Traversal on GPUs Through
 // Compressed Wide BVHs" (HPG 2017), sec. 4: octant-ordered node groups with hit masks over
-// 8-wide 80-byte nodes whose child boxes are quantized to 8 bits per plane. Included by
-// traverse.glsl in place of the binary trace(); the leaf loop (intersect_leaf), the box test
-// (HIT_BOX, conservative for watertight) and the packed leaf entries (LEAF_ENTRY, shared.glsl) are
-// traverse.glsl's. Host side: src/encoding/layout/cwbvh.rs; the format, the quantization and
-// the CPU model of this loop: src/bvh/cwbvh.rs (CwNode, CwBvh::trace).
+// 8-wide 80-byte nodes whose child boxes are quantized to 8 bits per plane. Its traversal is its
+// own (LAYOUT_TRACE, layout_interface.glsl): trace() here runs in place of the per-ray while-if
+// loop, with the leaf loop (leaf.glsl), the box test (box.glsl) and the packed leaf entries
+// (LEAF_ENTRY, shared.glsl) every layout uses. Host side: src/encoding/layout/cwbvh.rs; the
+// format, the quantization and the CPU model of this loop: src/bvh/cwbvh.rs (CwNode,
+// CwBvh::trace).
 //
 // Buffer at BINDING_NODES, 16-byte texels: node i is texels 5i .. 5i + 4,
 //   5i:     p.x, p.y, p.z (f32 bits), e.x | e.y << 8 | e.z << 16 | imask << 24
@@ -35,6 +36,10 @@
 #ifndef TRILAB_LAYOUT_CWBVH
 #define TRILAB_LAYOUT_CWBVH
 
+#include "layout_interface.glsl"
+
+#define LAYOUT_TRACE
+
 // Tests present child `j` (0..3) of a half whose meta bytes are `meta4`, box bytes in the
 // words lx .. hz; sets its bit in `hits`.
 #define CWBVH_TEST(j, meta4, lx, ly, lz, hx, hy, hz)                                           \
@@ -47,26 +52,34 @@
             vec3 qhi = vec3(bitfieldExtract(hx, 8 * j, 8), bitfieldExtract(hy, 8 * j, 8),      \
                             bitfieldExtract(hz, 8 * j, 8));                                    \
             float tn;                                                                          \
-            if (HIT_BOX(p + qlo * scale, p + qhi * scale, h.t, tn)) {                          \
+            if (hit_box(b, p + qlo * scale, p + qhi * scale, h.t, tn)) {                       \
                 uint bit = (meta & 0x18u) == 0x18u ? (meta & 31u) ^ oct_inv : meta & 31u;      \
                 hits |= 1u << bit;                                                             \
             }                                                                                  \
         }                                                                                      \
     }
 
+// The tree's box, for the conservative test only: the root's whole grid, p .. p + 255 scale,
+// contains every box of the tree. (The traversal starts at the root group, not at an entry.)
+LayoutRoot layout_root() {
+    LayoutRoot root;
+    root.entry = 0u;
+    root.bmin = vec3(0.0);
+    root.bmax = vec3(0.0);
+#ifdef CONSERVATIVE_TRAVERSAL
+    uvec4 root0 = SCENE_TEXEL(scene_nodes, 0u);
+    root.bmin = uintBitsToFloat(root0.xyz);
+    vec3 scale = uintBitsToFloat(
+        uvec3(bitfieldExtract(root0.w, 0, 8), bitfieldExtract(root0.w, 8, 8), bitfieldExtract(root0.w, 16, 8)) << 23u);
+    root.bmax = root.bmin + 255.0 * scale;
+#endif
+    return root;
+}
+
 // Traces `r` through the compressed 8-wide BVH, updating `h` (h.t must start at the ray's tmax).
 void trace(TraceRay r, inout HitState h, bool any_hit) {
-#ifdef INTERSECTOR_RAY_SETUP
-    INTERSECTOR_RAY_SETUP(r, h);
-#endif
-#ifdef CONSERVATIVE_TRAVERSAL
-    // The root's whole grid, p .. p + 255 scale: contains every box of the tree.
-    uvec4 root0 = SCENE_TEXEL(scene_nodes, 0u);
-    vec3 root_p = uintBitsToFloat(root0.xyz);
-    vec3 root_scale = uintBitsToFloat(
-        uvec3(bitfieldExtract(root0.w, 0, 8), bitfieldExtract(root0.w, 8, 8), bitfieldExtract(root0.w, 16, 8)) << 23u);
-    ConservativeRay cons = make_conservative_ray(r, root_p, root_p + 255.0 * root_scale);
-#endif
+    BoxRay b;
+    ray_enter(r, h, layout_root(), b);
     bvec3 neg = lessThan(r.dir, vec3(0.0));
     uint oct_inv = 7u ^ (uint(neg.x) | uint(neg.y) << 1u | uint(neg.z) << 2u);
     uint stack_base[CWBVH_STACK_SIZE];

@@ -52,7 +52,7 @@
 //! plane by the sign of the ray direction (near = `min` where the direction is positive, `max`
 //! where it is negative, as Embree and tinybvh's BVH4/8 do) never hits that box, whatever the
 //! ray ([`slab_ordered`], tested for every octant and zero components). The min/max-swapping
-//! test of `glsl/traverse.glsl`'s `hit_box` does NOT miss it (on each axis the swap turns
+//! test of `glsl/box.glsl`'s `hit_box` does NOT miss it (on each axis the swap turns
 //! `(+inf, -inf)` into an unbounded interval), so a kernel with that test must check the slot.
 //!
 //! The root's own box is [`WideBvh::bounds`] (the binary root's); node 0 is the root. The inner
@@ -893,7 +893,7 @@ mod tests {
             }
         }
         assert_eq!(n, 124 * 3);
-        // The swapping test (traverse.glsl's hit_box) does hit it: why kernels must not use it
+        // The swapping test (box.glsl's hit_box) does hit it: why kernels must not use it
         // on empty slots without checking them.
         let (o, inv) = (Vec3::ZERO, Vec3::ONE);
         let (t0, t1) = ((EMPTY_BOX.min - o) * inv, (EMPTY_BOX.max - o) * inv);

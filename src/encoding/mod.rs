@@ -1,7 +1,7 @@
 //! Intersectors and their GPU layouts: each method's encoding of the same BVH.
 //!
 //! An intersector is one unit: `glsl/intersect/<glsl>.glsl` holds its primitive test (the leaf
-//! loop, hit update and any-hit exit are `glsl/traverse.glsl`'s), and `src/encoding/<name>.rs`
+//! loop, hit update and any-hit exit are `glsl/leaf.glsl`'s), and `src/encoding/<name>.rs`
 //! holds everything the host knows about it in one [`Intersector`]: names and title, its layout
 //! types, encoder and memory plan, and the host layout of its primitive struct (checked against
 //! the SPIR-V by `tests/reflection.rs`). What the GLSL states itself (triangles per primitive,
@@ -24,7 +24,9 @@ pub mod plan;
 
 pub use layout::{Layout, LayoutNodes, LayoutSpec};
 pub use plan::{AccessPath, BufferPlan, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
-pub use variants::{support as traversal_support, Raycast, RaycastKey, Traversal, COOP_SUBGROUP_OPERATIONS};
+pub use variants::{
+    support as traversal_support, BsdfSet, PathtraceKey, Raycast, RaycastKey, Traversal, COOP_SUBGROUP_OPERATIONS,
+};
 
 use crate::bvh::{Bvh, BvhNode, PAD_SLOT};
 use crate::named::Named;
@@ -140,7 +142,7 @@ impl Method {
     }
 
     /// Whether the kernels traverse with the conservative box test (the intersector defines
-    /// `CONSERVATIVE_TRAVERSAL`, `glsl/traverse.glsl`).
+    /// `CONSERVATIVE_TRAVERSAL`, `glsl/box.glsl`).
     pub fn conservative_traversal(self) -> bool {
         self.facts().conservative_traversal
     }

@@ -294,7 +294,7 @@ impl MemoryPlan {
             return Err(err(
                 "bvh nodes / slot ids",
                 format!("{} nodes and {} slots", self.counts.nodes, self.slot_count()),
-                format!("{MAX_NODE_INDEX} of each (27-bit indices in glsl/traverse.glsl)"),
+                format!("{MAX_NODE_INDEX} of each (27-bit indices in LEAF_ENTRY, glsl/shared.glsl)"),
                 "a larger leaf size (fewer nodes), or a smaller scene",
             ));
         }

@@ -1,6 +1,6 @@
 //! Traversal statistics from the GPU: the `stats` variant of `glsl/raycast.comp` writes, per
 //! ray, how many BVH nodes its traversal visited and how many triangles it tested (the counters
-//! are defined in `glsl/traverse.glsl`). `traversal::ray_steps` is the CPU mirror these are
+//! are defined in `glsl/counts.glsl`). `traversal::ray_steps` is the CPU mirror these are
 //! checked against (`tests/traversal_stats.rs`).
 
 use bytemuck::{Pod, Zeroable};

@@ -22,10 +22,10 @@ pub use passes::render;
 
 use glam::{DVec3, Vec3};
 
-use crate::encoding::{EncodedScene, Layout, Method};
+use crate::encoding::{BsdfSet, EncodedScene, Layout, Method, PathtraceKey};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
-use crate::kernels::{self, KernelSource};
+use crate::kernels::KernelSource;
 use crate::named::named_enum;
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::Camera;
@@ -148,33 +148,24 @@ pub struct PathtraceKernel {
 impl PathtraceKernel {
     /// The kernel for `method` and a scene whose materials use the BSDFs in `mask`.
     pub fn choose(method: Method, mask: u32, choice: KernelChoice) -> PathtraceKernel {
-        // `glsl/pathtrace.comp`'s variants: `all`, and one per BSDF named as its GLSL file.
-        let variant = |v: &str| {
-            kernels::find("pathtrace", method.glsl_name(), v)
-                .unwrap_or_else(|| panic!("pathtrace.{}.{v} was not compiled", method.glsl_name()))
-        };
-        let single = BsdfKind::ALL.into_iter().find(|k| k.bit() == mask);
-        match (choice, single) {
-            (KernelChoice::Specialised, Some(kind)) => {
-                PathtraceKernel { source: variant(&kind.name().replace('-', "_")), spec_mask: mask }
-            }
-            (KernelChoice::Specialised, None) => PathtraceKernel { source: variant("all"), spec_mask: mask.max(1) },
-            (KernelChoice::General, _) => PathtraceKernel { source: variant("all"), spec_mask: BSDF_MASK_ALL },
-        }
+        Self::choose_on(method, Layout::Bvh2, mask, choice)
     }
 
-    /// [`PathtraceKernel::choose`] for a scene whose nodes are in `layout`: a wide layout has the
-    /// `all_<layout>` variant only (`// trilab:layouts all` in `glsl/pathtrace.comp`), narrowed
-    /// to the same BSDFs by the specialisation constant.
+    /// [`PathtraceKernel::choose`] for a scene whose nodes are in `layout`: the single-BSDF
+    /// kernel where the scene uses one BSDF and one was compiled (the binary nodes), else the
+    /// all-BSDF kernel narrowed to the scene's BSDFs by the specialisation constant (a wide
+    /// layout has that one only: `// trilab:layouts all` in `glsl/pathtrace.comp`).
     pub fn choose_on(method: Method, layout: Layout, mask: u32, choice: KernelChoice) -> PathtraceKernel {
-        let k = Self::choose(method, mask, choice);
-        if layout == Layout::Bvh2 {
-            return k;
-        }
-        let v = format!("all{}", layout.variant_suffix());
-        let source = kernels::find("pathtrace", method.glsl_name(), &v)
-            .unwrap_or_else(|| panic!("pathtrace.{}.{v} was not compiled", method.glsl_name()));
-        PathtraceKernel { source, spec_mask: k.spec_mask.max(1) }
+        let key = |bsdfs| PathtraceKey { method, bsdfs, layout };
+        let single = BsdfKind::ALL.into_iter().find(|k| k.bit() == mask);
+        let (bsdfs, spec_mask) = match (choice, single) {
+            (KernelChoice::Specialised, Some(kind)) if key(BsdfSet::One(kind)).source().is_ok() => {
+                (BsdfSet::One(kind), mask)
+            }
+            (KernelChoice::Specialised, _) => (BsdfSet::All, mask.max(1)),
+            (KernelChoice::General, _) => (BsdfSet::All, BSDF_MASK_ALL),
+        };
+        PathtraceKernel { source: key(bsdfs).source().unwrap_or_else(|e| panic!("{e}")), spec_mask }
     }
 
     /// BSDFs carried, by name.

@@ -1,5 +1,5 @@
 //! The paper's binary tree: 32-byte nodes (`bvh::BvhNode`), one node per step of
-//! `glsl/traverse.glsl`'s while-if loop (Shumskiy & Parshin, appendix 8.3; Aila & Laine 2009).
+//! `glsl/traversal/while_if.glsl`'s loop (`glsl/layout/bvh2.glsl`, the default layout) (Shumskiy & Parshin, appendix 8.3; Aila & Laine 2009).
 
 use super::LayoutSpec;
 use crate::bvh::BvhNode;

@@ -1,13 +1,15 @@
 //! Node layouts: how the BVH's inner nodes reach the ray-casting and path-tracing kernels
 //! (issue 15's second axis beside the intersectors).
 //!
-//! A layout is one unit, like an intersector: `glsl/layout/<name>.glsl` holds its traversal
-//! (`trace()`, in place of `glsl/traverse.glsl`'s binary one; the leaf loop and the box test stay
-//! `traverse.glsl`'s, so every intersector runs on every layout), `src/encoding/layout/<name>.rs`
+//! A layout is one unit, like an intersector: `glsl/layout/<name>.glsl` holds its node format and
+//! its step (`glsl/layout_interface.glsl`: the root, `layout_visit`, the stack size; the leaf loop
+//! and the box test are every layout's, so every intersector runs on every layout, and every
+//! traversal drives the step), `src/encoding/layout/<name>.rs`
 //! holds everything the host knows about it in one [`LayoutSpec`] (names, node size, how its node
 //! buffer is made from the encoding's binary nodes, the memory plan's bound, the kernel's stack),
 //! and one line of `layouts!` below. build.rs compiles the variants a kernel lists on its
-//! `// trilab:layouts` line once per file in `glsl/layout/` (`closest_bvh4`, `any_bda_bvh8`, ...);
+//! `// trilab:layouts` line once per file in `glsl/layout/` but the default `bvh2.glsl`
+//! (`closest_bvh4`, `any_bda_bvh8`, ...);
 //! everything that lists layouts (the CLI's values, `bench --layouts`, the study) reads
 //! [`Layout::ALL`].
 //!

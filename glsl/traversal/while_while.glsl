@@ -1,8 +1,9 @@
 // "While-while" traversal of the binary BVH with leaf postponing (the `*_ww` variants of
 // raycast.comp, WHILE_WHILE): Aila & Laine, "Understanding the Efficiency of Ray Traversal on
 // GPUs", HPG 2009, sec. 3 (while-while, postponed leaves), as in their 2012 kernels' structure.
-// Included by traverse.glsl in place of its while-if trace() (binary nodes only); the box test,
-// the packed entries (LEAF_ENTRY, shared.glsl) and the leaf loop are traverse.glsl's.
+// Included by traverse.glsl in place of while-if (binary nodes only: the children come from
+// layout/bvh2.glsl's bvh2_children); the box test, the packed entries (LEAF_ENTRY, shared.glsl)
+// and the leaf loop are every traversal's (bvh.glsl).
 //
 // One ray per invocation. The inner loop runs over inner nodes only: when it reaches a leaf and
 // has none postponed, it keeps that leaf for later and goes on with the next entry of the stack;
@@ -18,6 +19,10 @@
 #ifndef TRILAB_WHILE_WHILE
 #define TRILAB_WHILE_WHILE
 
+#ifndef TRILAB_LAYOUT_BVH2
+#error "while_while.glsl walks the binary nodes (layout/bvh2.glsl) only"
+#endif
+
 // Bottom-of-stack sentinel (the count bits are 31 > MAX_LEAF_SIZE: no real entry has it).
 const uint WW_DONE = 0xFFFFFFFFu;
 
@@ -27,22 +32,15 @@ bool ww_is_leaf(uint e) {
 
 // Traces `r` through the BVH, updating `h` (h.t must start at the ray's tmax).
 void trace(TraceRay r, inout HitState h, bool any_hit) {
-#ifdef INTERSECTOR_RAY_SETUP
-    INTERSECTOR_RAY_SETUP(r, h);
-#endif
-    float troot;
-    BvhNode root = load_node(0u);
-#ifdef CONSERVATIVE_TRAVERSAL
-    ConservativeRay cons = make_conservative_ray(r, root.bmin, root.bmax);
-#endif
-    COUNT_BOXES(1u);
-    if (!HIT_BOX(root.bmin, root.bmax, h.t, troot)) {
+    LayoutRoot root = layout_root();
+    BoxRay b;
+    if (!ray_enter(r, h, root, b)) {
         return;
     }
     uint stack[STACK_SIZE + 1];
     stack[0] = WW_DONE;
     uint sp = 1u;
-    uint current = pack_node(root);
+    uint current = root.entry;
     uint leaf = WW_DONE; // the postponed leaf, or none
     if (ww_is_leaf(current)) {
         leaf = current;
@@ -52,19 +50,14 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
         // Inner nodes, until a second leaf or the end (or every lane holds a leaf).
         while (LEAF_ENTRY_COUNT(current) == 0u) {
             COUNT_INNER();
-            COUNT_BOXES(2u);
-            uint first = LEAF_ENTRY_FIRST(current);
-            BvhNode l = load_node(first);
-            BvhNode rr = load_node(first + 1u);
-            float tl, tr;
-            bool want_l = HIT_BOX(l.bmin, l.bmax, h.t, tl);
-            bool want_r = HIT_BOX(rr.bmin, rr.bmax, h.t, tr);
-            if (want_l && want_r) {
-                bool left_first = tl <= tr;
-                stack[sp++] = pack_node(left_first ? rr : l);
-                current = pack_node(left_first ? l : rr);
-            } else if (want_l || want_r) {
-                current = pack_node(want_l ? l : rr);
+            uint near, far;
+            float t_far;
+            uint n = bvh2_children(b, h.t, LEAF_ENTRY_FIRST(current), near, far, t_far);
+            if (n == 2u) {
+                stack[sp++] = far;
+                current = near;
+            } else if (n == 1u) {
+                current = near;
             } else {
                 current = stack[--sp];
             }
