@@ -24,11 +24,17 @@ void stack_push(uint entry, float tnear) {
     stack_size += 1u;
 }
 
+// The top entry, whatever its distance (while-while, which pushes a sentinel first and culls
+// nothing).
+uint stack_pop() {
+    stack_size -= 1u;
+    return stack_entry[stack_size];
+}
+
 // The nearest pushed entry whose entry distance is not beyond `tmax` (the closest hit so far),
 // into `entry`; the others on the way are dropped. False when none is left.
 bool stack_pop_nearest(float tmax, out uint entry) {
-    // One exit, and `entry` written on every path: a return inside the loop (or an output left
-    // unwritten) becomes state the caller's loop carries (measured: more lavapipe spills).
+    // One exit, `entry` written on every path (glsl/README.md, "Writing a unit").
     entry = 0u;
     bool found = false;
     while (stack_size > 0u) {

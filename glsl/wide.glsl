@@ -42,6 +42,7 @@ WideQuad wide_load(uint node, uint quad) {
 // an empty slot's inverted box (+inf, -inf) would be hit: the slot's child word is checked
 // instead (empty slots are never tested).
 float wide_test(BoxRay b, WideQuad q, uint k, float tmax, float miss, inout uint hits, out uint entry) {
+    float t = miss;
     entry = 0u;
     if (q.kid[k] != EMPTY_CHILD) {
         COUNT_BOXES(1u);
@@ -49,10 +50,10 @@ float wide_test(BoxRay b, WideQuad q, uint k, float tmax, float miss, inout uint
         if (hit_box(b, vec3(q.mnx[k], q.mny[k], q.mnz[k]), vec3(q.mxx[k], q.mxy[k], q.mxz[k]), tmax, tn)) {
             entry = LEAF_ENTRY(q.kid[k], q.cnt[k]);
             hits += 1u;
-            return tn;
+            t = tn;
         }
     }
-    return miss;
+    return t;
 }
 
 // Node 0, an inner node; the tree's box (only for the conservative test) is the union of its

@@ -13,7 +13,8 @@
 
 #include "layout_interface.glsl"
 
-#define LAYOUT_STACK_SIZE STACK_SIZE
+// One more than the tree needs (STACK_SIZE): while-while keeps a sentinel at the bottom.
+#define LAYOUT_STACK_SIZE (STACK_SIZE + 1)
 #define LAYOUT_WIDTH 2u
 #define LAYOUT_TESTS_ROOT
 #include "stack.glsl"
@@ -31,43 +32,26 @@ LayoutRoot layout_root() {
     return LayoutRoot(n.bmin, n.bmax, pack_node(n));
 }
 
-// The children of inner node `first` (at first and first + 1) against [tmin, tmax]: how many are
-// hit; the nearer hit one's entry in `near` (the left one on a tie), the other's in `far` with its
-// entry distance in `t_far` (when both are hit). while_while.glsl steps with this too.
-uint bvh2_children(BoxRay b, float tmax, uint first, out uint near, out uint far, out float t_far) {
+// The children of inner node `node` (at node and node + 1): the nearer hit one visited next (the
+// left one on a tie), the farther pushed with its entry distance. One branch for the whole step,
+// the push inside it (glsl/README.md, "Writing a unit": a second branch on a count returned by a
+// helper cost while-while 20-30 %).
+bool layout_visit(BoxRay b, float tmax, uint node, out uint next) {
     COUNT_BOXES(2u);
-    BvhNode l = load_node(first);
-    BvhNode rr = load_node(first + 1u);
+    BvhNode l = load_node(node);
+    BvhNode rr = load_node(node + 1u);
     float tl, tr;
     bool want_l = hit_box(b, l.bmin, l.bmax, tmax, tl);
     bool want_r = hit_box(b, rr.bmin, rr.bmax, tmax, tr);
-    // Every output written on every path (an output left unwritten becomes state the caller's
-    // loop carries).
-    near = 0u;
-    far = 0u;
-    t_far = 0.0;
+    next = 0u;
     if (want_l && want_r) {
         bool left_first = tl <= tr;
-        near = pack_node(left_first ? l : rr);
-        far = pack_node(left_first ? rr : l);
-        t_far = left_first ? tr : tl;
-        return 2u;
+        stack_push(pack_node(left_first ? rr : l), left_first ? tr : tl);
+        next = pack_node(left_first ? l : rr);
+    } else if (want_l || want_r) {
+        next = pack_node(want_l ? l : rr);
     }
-    if (want_l || want_r) {
-        near = pack_node(want_l ? l : rr);
-        return 1u;
-    }
-    return 0u;
-}
-
-bool layout_visit(BoxRay b, float tmax, uint node, out uint next) {
-    uint far;
-    float t_far;
-    uint hits = bvh2_children(b, tmax, node, next, far, t_far);
-    if (hits == 2u) {
-        stack_push(far, t_far);
-    }
-    return hits > 0u;
+    return want_l || want_r;
 }
 
 // Child `ch` of inner node `first` (ch >= 2: a copy of child 1, marked unoccupied).

@@ -45,32 +45,31 @@ bool layout_visit(BoxRay b, float tmax, uint node, out uint next) {
     float t2 = wide_test(b, q, 2u, tmax, NO_HIT, hits, e2);
     float t3 = wide_test(b, q, 3u, tmax, NO_HIT, hits, e3);
     next = 0u;
-    if (hits == 0u) {
-        return false;
-    }
-    // Far to near; the misses (NO_HIT) end up last.
-    WIDE_SWAP_IF_LESS(0, 1)
-    WIDE_SWAP_IF_LESS(2, 3)
-    WIDE_SWAP_IF_LESS(0, 2)
-    WIDE_SWAP_IF_LESS(1, 3)
-    WIDE_SWAP_IF_LESS(1, 2)
-    if (hits == 1u) {
-        next = e0;
-    } else {
-        stack_push(e0, t0);
-        if (hits == 2u) {
-            next = e1;
+    if (hits > 0u) {
+        // Far to near; the misses (NO_HIT) end up last.
+        WIDE_SWAP_IF_LESS(0, 1)
+        WIDE_SWAP_IF_LESS(2, 3)
+        WIDE_SWAP_IF_LESS(0, 2)
+        WIDE_SWAP_IF_LESS(1, 3)
+        WIDE_SWAP_IF_LESS(1, 2)
+        if (hits == 1u) {
+            next = e0;
         } else {
-            stack_push(e1, t1);
-            if (hits == 3u) {
-                next = e2;
+            stack_push(e0, t0);
+            if (hits == 2u) {
+                next = e1;
             } else {
-                stack_push(e2, t2);
-                next = e3;
+                stack_push(e1, t1);
+                if (hits == 3u) {
+                    next = e2;
+                } else {
+                    stack_push(e2, t2);
+                    next = e3;
+                }
             }
         }
     }
-    return true;
+    return hits > 0u;
 }
 
 #endif

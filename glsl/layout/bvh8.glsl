@@ -72,9 +72,6 @@ bool layout_visit(BoxRay b, float tmax, uint node, out uint next) {
         t7 = wide_test(b, q, 3u, tmax, BVH8_MISS, hits, e7);
     }
     next = 0u;
-    if (hits == 0u) {
-        return false;
-    }
     if (hits > 1u) {
         BVH8_SORT(0, 2) BVH8_SORT(1, 3) BVH8_SORT(4, 6) BVH8_SORT(5, 7)
         BVH8_SORT(0, 4) BVH8_SORT(1, 5) BVH8_SORT(2, 6) BVH8_SORT(3, 7)
@@ -84,13 +81,14 @@ bool layout_visit(BoxRay b, float tmax, uint node, out uint next) {
         BVH8_SORT(1, 2) BVH8_SORT(3, 4) BVH8_SORT(5, 6)
         BVH8_PUSH(7) BVH8_PUSH(6) BVH8_PUSH(5) BVH8_PUSH(4)
         BVH8_PUSH(3) BVH8_PUSH(2) BVH8_PUSH(1)
-    } else {
+        next = e0;
+    } else if (hits == 1u) {
         // One hit: bring it to slot 0 (a scan, no sort needed for one).
         BVH8_SORT(0, 1) BVH8_SORT(0, 2) BVH8_SORT(0, 3) BVH8_SORT(0, 4)
         BVH8_SORT(0, 5) BVH8_SORT(0, 6) BVH8_SORT(0, 7)
+        next = e0;
     }
-    next = e0;
-    return true;
+    return hits > 0u;
 }
 
 #endif

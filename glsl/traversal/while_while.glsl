@@ -1,9 +1,9 @@
 // "While-while" traversal of the binary BVH with leaf postponing (the `*_ww` variants of
 // raycast.comp, WHILE_WHILE): Aila & Laine, "Understanding the Efficiency of Ray Traversal on
 // GPUs", HPG 2009, sec. 3 (while-while, postponed leaves), as in their 2012 kernels' structure.
-// Included by traverse.glsl in place of while-if (binary nodes only: the children come from
-// layout/bvh2.glsl's bvh2_children); the box test, the packed entries (LEAF_ENTRY, shared.glsl)
-// and the leaf loop are every traversal's (bvh.glsl).
+// Included by traverse.glsl in place of while-if for the binary nodes (raycast.comp's `*_ww`
+// variants); the step is the layout's (layout_visit), the stack stack.glsl's (a sentinel at the
+// bottom, popped without a distance test), the box test and the leaf loop every traversal's.
 //
 // One ray per invocation. The inner loop runs over inner nodes only: when it reaches a leaf and
 // has none postponed, it keeps that leaf for later and goes on with the next entry of the stack;
@@ -15,13 +15,10 @@
 //
 // Same results as while-if: the leaves are tested in the same order; a postponed leaf only lets
 // the inner loop test a few boxes against a farther h.t than while-if would have (more boxes,
-// never fewer, so never a missed hit). Stack: STACK_SIZE entries plus the sentinel at the bottom.
+// never fewer, so never a missed hit).
 #ifndef TRILAB_WHILE_WHILE
 #define TRILAB_WHILE_WHILE
 
-#ifndef TRILAB_LAYOUT_BVH2
-#error "while_while.glsl walks the binary nodes (layout/bvh2.glsl) only"
-#endif
 
 // Bottom-of-stack sentinel (the count bits are 31 > MAX_LEAF_SIZE: no real entry has it).
 const uint WW_DONE = 0xFFFFFFFFu;
@@ -37,9 +34,8 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
     if (!ray_enter(r, h, root, b)) {
         return;
     }
-    uint stack[STACK_SIZE + 1];
-    stack[0] = WW_DONE;
-    uint sp = 1u;
+    stack_size = 0u;
+    stack_push(WW_DONE, 0.0);
     uint current = root.entry;
     uint leaf = WW_DONE; // the postponed leaf, or none
     if (ww_is_leaf(current)) {
@@ -50,21 +46,13 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
         // Inner nodes, until a second leaf or the end (or every lane holds a leaf).
         while (LEAF_ENTRY_COUNT(current) == 0u) {
             COUNT_INNER();
-            uint near, far;
-            float t_far;
-            uint n = bvh2_children(b, h.t, LEAF_ENTRY_FIRST(current), near, far, t_far);
-            if (n == 2u) {
-                stack[sp++] = far;
-                current = near;
-            } else if (n == 1u) {
-                current = near;
-            } else {
-                current = stack[--sp];
+            if (!layout_visit(b, h.t, LEAF_ENTRY_FIRST(current), current)) {
+                current = stack_pop();
             }
             // Postpone a leaf: keep it and go on with the next entry.
             if (leaf == WW_DONE && ww_is_leaf(current)) {
                 leaf = current;
-                current = stack[--sp];
+                current = stack_pop();
             }
             if (subgroupAll(leaf != WW_DONE)) {
                 break;
@@ -81,7 +69,7 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
             leaf = WW_DONE;
             if (ww_is_leaf(current)) {
                 leaf = current;
-                current = stack[--sp];
+                current = stack_pop();
             }
         }
         if (current == WW_DONE) {
