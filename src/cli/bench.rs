@@ -158,9 +158,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let o = BenchOptions {
         scenes,
         methods: a.methods.or_device(&ctx),
-        leaf_size: a.bvh.leaf_size,
-        leaf_policy: a.bvh.shape.leaf_policy,
-        sah_group: a.bvh.shape.sah_group,
+        build: a.bvh.options(),
         repeat: a.repeat,
         width: a.width,
         height: a.height,

@@ -9,7 +9,7 @@ use trilab::render::KernelChoice;
 
 use super::bench::output_files;
 use super::choice::choice;
-use super::{repeat, scenes_help, GpuArgs, JsonArg, MethodsArg};
+use super::{repeat, scenes_help, GpuArgs, JsonArg, LeafSizeArg, MethodsArg};
 
 /// Path-tracing benchmark: samples/s and rays/s per scene, method and kernel choice.
 #[derive(Args)]
@@ -22,9 +22,8 @@ pub struct BenchRenderArgs {
     /// Kernel choices to time (specialised, general).
     #[arg(long, value_parser = choice::<KernelChoice>(), value_delimiter = ',', default_value = "specialised")]
     kernels: Vec<KernelChoice>,
-    /// Max triangles per BVH leaf (1..=16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    leaf_size: u32,
+    #[command(flatten)]
+    leaf: LeafSizeArg,
     /// Image width in pixels.
     #[arg(long, value_name = "W", default_value_t = 200)]
     width: u32,
@@ -64,7 +63,7 @@ pub fn run(a: BenchRenderArgs) -> Result<()> {
         scenes,
         methods: a.methods.or_device(&ctx),
         kernels: a.kernels,
-        leaf_size: a.leaf_size,
+        build: a.leaf.options(),
         width: a.width,
         height: a.height,
         spp: a.spp,

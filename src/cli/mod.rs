@@ -98,38 +98,67 @@ impl GpuArgs {
     }
 }
 
-/// How the BVH is built (`--leaf-size`, `--leaf-policy`, `--sah-group`).
-#[derive(Args, Clone)]
+/// How the BVH is built: `--leaf-size`, `--leaf-policy`, `--sah-group`, turned into the
+/// library's [`BuildOptions`] here only. A command that takes some of them flattens the part it
+/// takes ([`LeafSizeArg`], [`TreeShapeArgs`], [`SahGroupArg`]), so each flag is declared once.
+#[derive(Args, Clone, Copy)]
 pub struct BuildArgs {
-    /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    pub leaf_size: u32,
+    #[command(flatten)]
+    pub leaf: LeafSizeArg,
     #[command(flatten)]
     pub shape: TreeShapeArgs,
 }
 
+impl BuildArgs {
+    pub fn options(&self) -> BuildOptions {
+        self.shape.options(self.leaf.leaf_size)
+    }
+}
+
+/// `--leaf-size`: the most triangles in a leaf, the tree otherwise the default one.
+#[derive(Args, Clone, Copy)]
+pub struct LeafSizeArg {
+    /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    pub leaf_size: u32,
+}
+
+impl LeafSizeArg {
+    pub fn options(&self) -> BuildOptions {
+        BuildOptions::new(self.leaf_size)
+    }
+}
+
 /// `--leaf-policy` and `--sah-group`: how the SAH shapes the tree (beside one leaf size, or a
 /// list of them).
-#[derive(Args, Clone)]
+#[derive(Args, Clone, Copy)]
 pub struct TreeShapeArgs {
     /// `fill`: nodes with <= leaf-size triangles become leaves (the paper's); `sah`: the SAH
     /// decides and leaf-size is only a cap.
     #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
     pub leaf_policy: LeafPolicy,
+    #[command(flatten)]
+    pub sah_group: SahGroupArg,
+}
+
+impl TreeShapeArgs {
+    /// The build options of a tree of this shape with at most `leaf_size` triangles a leaf.
+    pub fn options(&self, leaf_size: u32) -> BuildOptions {
+        BuildOptions {
+            leaf_policy: self.leaf_policy,
+            sah_group: self.sah_group.sah_group,
+            ..BuildOptions::new(leaf_size)
+        }
+    }
+}
+
+/// `--sah-group`: the SAH's pricing of a leaf (`BuildOptions::sah_group`).
+#[derive(Args, Clone, Copy)]
+pub struct SahGroupArg {
     /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
     /// Quad kernels test them.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub sah_group: u32,
-}
-
-impl BuildArgs {
-    pub fn options(&self) -> BuildOptions {
-        BuildOptions {
-            leaf_policy: self.shape.leaf_policy,
-            sah_group: self.shape.sah_group,
-            ..BuildOptions::new(self.leaf_size)
-        }
-    }
 }
 
 /// Which methods (comma-separated; each command says its default).

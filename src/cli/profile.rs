@@ -10,7 +10,7 @@ use trilab::harness::profile::{self, ProfileOptions};
 use trilab::harness::rayset::RaySet;
 
 use super::choice::choice;
-use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, MethodsArg};
+use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, LeafSizeArg, MethodsArg};
 
 /// Driver-level profile of the ray-casting kernels: timestamps, pipeline statistics,
 /// shader-clock heat maps, executable statistics, subgroup/workgroup-size sweeps,
@@ -23,9 +23,8 @@ pub struct ProfileArgs {
     /// Methods (default: every method the device runs).
     #[command(flatten)]
     methods: MethodsArg,
-    /// Max triangles per BVH leaf (1..=16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    leaf_size: u32,
+    #[command(flatten)]
+    leaf: LeafSizeArg,
     /// BVH node layout every kernel traverses (`bvh2`, `bvh4`, `bvh8`, ...).
     #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
     layout: Layout,
@@ -92,7 +91,7 @@ pub fn run(a: ProfileArgs) -> Result<()> {
     let o = ProfileOptions {
         scene: a.scene.clone(),
         methods: a.methods.or_device(&ctx),
-        leaf_size: a.leaf_size,
+        build: a.leaf.options(),
         layout: a.layout,
         width: a.width,
         height: a.height,

@@ -9,7 +9,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::agreement::compare_closest;
-use crate::bvh::{BuildOptions, LeafPolicy};
+use crate::bvh::BuildOptions;
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions};
@@ -29,10 +29,8 @@ use crate::scene::{load_obj, Mesh};
 pub struct BenchOptions {
     pub scenes: Vec<PathBuf>,
     pub methods: Vec<Method>,
-    pub leaf_size: u32,
-    pub leaf_policy: LeafPolicy,
-    /// `BuildOptions::sah_group`: 4 prices leaves in quads.
-    pub sah_group: u32,
+    /// The BVH every method's encoding shares.
+    pub build: BuildOptions,
     pub warmup: usize,
     pub repeat: usize,
     pub width: u32,
@@ -72,9 +70,7 @@ impl Default for BenchOptions {
         BenchOptions {
             scenes: vec![],
             methods: Method::ALL.to_vec(),
-            leaf_size: 4,
-            leaf_policy: LeafPolicy::Fill,
-            sah_group: 1,
+            build: BuildOptions::new(4),
             warmup: 1,
             repeat: 5,
             width: 800,
@@ -475,8 +471,8 @@ fn row(
         ray_set: set,
         rays: rays.len(),
         method,
-        leaf_size: o.map(|o| o.leaf_size),
-        sah_group: o.map(|o| o.sah_group),
+        leaf_size: o.map(|o| o.build.max_leaf_size),
+        sah_group: o.map(|o| o.build.sah_group),
         scene_bytes: footprint.0,
         scene_access: footprint.1,
         layout: o.map(|_| Layout::Bvh2),
@@ -511,8 +507,12 @@ pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<cr
         for set in &sets {
             for &m in &o.methods {
                 for &l in &layouts {
-                    let tracer =
-                        CellTracer::Method { method: m, layout: l, leaf: o.leaf_size, sah_group: Some(o.sah_group) };
+                    let tracer = CellTracer::Method {
+                        method: m,
+                        layout: l,
+                        leaf: o.build.max_leaf_size,
+                        sah_group: Some(o.build.sah_group),
+                    };
                     cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
                 }
             }
@@ -556,11 +556,6 @@ impl BenchOptions {
         }
     }
 
-    /// The BVH every method's encoding shares.
-    pub fn build_options(&self) -> BuildOptions {
-        BuildOptions { leaf_policy: self.leaf_policy, sah_group: self.sah_group, ..BuildOptions::new(self.leaf_size) }
-    }
-
     /// The ray sets' sizes.
     pub fn sizes(&self) -> RaySetSizes {
         RaySetSizes {
@@ -577,7 +572,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
     o.sizes().check_memory()?;
     let mut report = BenchReport {
         provenance: Provenance::of(ctx),
-        leaf_size: o.leaf_size,
+        leaf_size: o.build.max_leaf_size,
         repeat: o.repeat,
         rows: vec![],
         peers: vec![],
@@ -637,7 +632,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         }
         progress(&format!("{name}: {} triangles; making ray sets", mesh.triangle_count()));
         let t = Instant::now();
-        let host = HostScene::build(&name, &mesh, &o.build_options())?;
+        let host = HostScene::build(&name, &mesh, &o.build)?;
         let reference = host.reference();
         let mut sets = ray_sets(&mesh, &name, &reference, &o.sizes(), o.rays_dir.as_deref())?;
         // An empty set has no speed: it is skipped with a note, and the other sets still run.

@@ -59,7 +59,7 @@ pub use crate::rays::differing_hits;
 pub struct ProfileOptions {
     pub scene: PathBuf,
     pub methods: Vec<Method>,
-    pub leaf_size: u32,
+    pub build: BuildOptions,
     /// The node layout every kernel traverses (its `*_<layout>` variants).
     pub layout: Layout,
     /// Primary rays: a `width` x `height` camera image (the heat maps' size).
@@ -89,7 +89,7 @@ impl Default for ProfileOptions {
         ProfileOptions {
             scene: PathBuf::from("bunny"),
             methods: Method::ALL.to_vec(),
-            leaf_size: 4,
+            build: BuildOptions::new(4),
             layout: Layout::Bvh2,
             width: 800,
             height: 600,
@@ -522,7 +522,7 @@ pub fn run(
     let host_load_before = load_average();
     let name = crate::scene::scene_name(&o.scene);
     let mesh = load_obj(&o.scene)?;
-    let host = HostScene::build(&name, &mesh, &BuildOptions::new(o.leaf_size))?;
+    let host = HostScene::build(&name, &mesh, &o.build)?;
     let reference = host.reference();
     let sets = ray_sets(&mesh, &name, &reference, &o.sizes(), None)?;
     let refs: Vec<Vec<RefHit>> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
@@ -601,7 +601,7 @@ pub fn run(
         host_load_after: load_average(),
         scene: name,
         triangles: mesh.triangle_count(),
-        leaf_size: o.leaf_size,
+        leaf_size: o.build.max_leaf_size,
         layout: o.layout,
         warmup: o.warmup,
         repeat: o.repeat.max(1),
@@ -744,7 +744,7 @@ fn threads_section(
         scene: &o.scene,
         rays_dir: dir.path(),
         methods: &o.methods,
-        leaf_size: o.leaf_size,
+        leaf_size: o.build.max_leaf_size,
         layout: o.layout,
         repeat: o.repeat.max(1),
         device_index: info.index,
