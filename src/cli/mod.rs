@@ -181,6 +181,57 @@ impl MethodsArg {
     }
 }
 
+/// `--out DIR`: where a report goes as `<stem>.json` (the report) and `<stem>.md` (its tables),
+/// or the old spellings `--json-out FILE` and `--md-out FILE` (hidden) for either file alone.
+#[derive(Args, Clone)]
+pub struct ReportOutArgs {
+    /// Directory to write bench.json (the report) and bench.md (its tables) into.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Old spelling: write the report as JSON to this file (use --out DIR).
+    #[arg(long, value_name = "FILE", hide = true)]
+    pub json_out: Option<PathBuf>,
+    /// Old spelling: write the report's tables as Markdown to this file (use --out DIR).
+    #[arg(long, value_name = "FILE", hide = true)]
+    pub md_out: Option<PathBuf>,
+}
+
+impl ReportOutArgs {
+    /// The two report files (`<stem>.json`, `<stem>.md` in `--out`, or the old `--json-out` and
+    /// `--md-out` files), each checked before any work: writable, and not one of the `scenes`
+    /// (names are resolved to the files they find).
+    pub fn files(&self, stem: &str, scenes: &[PathBuf]) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
+        let (json, md) = match &self.out {
+            Some(dir) => {
+                if dir.is_file() {
+                    return Err(Error::Usage(format!("--out {}: is a file; --out names a directory", dir.display())));
+                }
+                let json = self.json_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.json")));
+                let md = self.md_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.md")));
+                (Some(json), Some(md))
+            }
+            None => (self.json_out.clone(), self.md_out.clone()),
+        };
+        let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
+        let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
+        for (option, file) in [("--json-out", &json), ("--md-out", &md)] {
+            if let Some(file) = file {
+                let option = if self.out.is_some() { "--out" } else { option };
+                trilab::io::check_output(option, trilab::io::Output::File(file), &inputs)?;
+            }
+        }
+        Ok((json, md))
+    }
+
+    /// Makes the `--out` directory (if given), once the report is ready to write.
+    pub fn create_dir(&self) -> Result<()> {
+        match &self.out {
+            Some(dir) => std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e)),
+            None => Ok(()),
+        }
+    }
+}
+
 /// `--json`: the report as JSON instead of text.
 #[derive(Args, Clone, Copy)]
 pub struct JsonArg {
