@@ -188,7 +188,7 @@ fn layout_speed_on_the_bunny() {
         let o = BenchOptions::default();
         let host = HostScene::build("bunny", &bunny, &o.build).unwrap();
         let reference = host.reference();
-        let sets = ray_sets(&bunny, "bunny", &reference, &o.sizes(), None).unwrap();
+        let sets = ray_sets(&bunny, "bunny", &reference, &o.sizes, None).unwrap();
         let layouts = Layout::ALL;
         let scenes: Vec<_> =
             layouts.iter().map(|&l| host.upload(ctx, &SceneRequest::new(Method::Mt).layout(l)).unwrap()).collect();

@@ -9,7 +9,7 @@ use trilab::harness::bench::{self, BenchOptions};
 use trilab::harness::peers::TinybvhLayout;
 
 use super::choice::choice;
-use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, ReportOutArgs};
+use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs};
 
 /// Ray-casting benchmark: primary, diffuse and random rays, every method, validated against
 /// the f64 reference, optionally beside the Embree and tinybvh peers.
@@ -25,21 +25,8 @@ pub struct BenchArgs {
     /// Timed runs per ray set and method after one warm-up (at least 1; median, min, max).
     #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
-    /// Primary rays: the camera image's width in pixels.
-    #[arg(long, value_name = "W", default_value_t = 800)]
-    width: u32,
-    /// Primary rays: the camera image's height in pixels.
-    #[arg(long, value_name = "H", default_value_t = 600)]
-    height: u32,
-    /// Diffuse rays: cosine-distributed bounces per primary hit.
-    #[arg(long, value_name = "N", default_value_t = 8, alias = "per-hit")]
-    diffuse_per_hit: u32,
-    /// Random rays: how many, from a sphere around the scene into its box.
-    #[arg(long, value_name = "N", default_value_t = 1_000_000, alias = "count")]
-    random_rays: usize,
-    /// Seed of the diffuse and random ray sets.
-    #[arg(long, value_name = "N", default_value_t = 7)]
-    seed: u64,
+    #[command(flatten)]
+    rays: RaySetArgs,
     /// Read <scene>.{primary,diffuse,random}.rays from this directory instead of generating.
     #[arg(long, value_name = "DIR")]
     rays_dir: Option<PathBuf>,
@@ -121,11 +108,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         methods: a.methods.or_device(&ctx),
         build: a.bvh.options(),
         repeat: a.repeat,
-        width: a.width,
-        height: a.height,
-        diffuse_per_hit: a.diffuse_per_hit,
-        random_rays: a.random_rays,
-        seed: a.seed,
+        sizes: a.rays.sizes(),
         rays_dir: a.rays_dir,
         embree: a.embree,
         tinybvh: a.tinybvh,

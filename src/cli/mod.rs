@@ -41,6 +41,7 @@ use trilab::bvh::{BuildOptions, LeafPolicy};
 use trilab::encoding::Method;
 use trilab::error::{Error, Result};
 use trilab::gpu::{Context, ContextOptions, Validation, ValidationLog};
+use trilab::harness::rayset::RaySetSizes;
 use trilab::report::Report;
 
 use choice::choice;
@@ -159,6 +160,39 @@ pub struct SahGroupArg {
     /// Quad kernels test them.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub sah_group: u32,
+}
+
+/// The three ray sets a benchmark makes (`trilab bench`'s defaults; a command with smaller sets
+/// changes the defaults with `mut_arg`), as the harness's [`RaySetSizes`].
+#[derive(Args, Clone, Copy)]
+pub struct RaySetArgs {
+    /// Primary rays: the camera image's width in pixels.
+    #[arg(long, value_name = "W", default_value_t = RaySetSizes::default().width)]
+    pub width: u32,
+    /// Primary rays: the camera image's height in pixels.
+    #[arg(long, value_name = "H", default_value_t = RaySetSizes::default().height)]
+    pub height: u32,
+    /// Diffuse rays: cosine-distributed bounces per primary hit.
+    #[arg(long, value_name = "N", default_value_t = RaySetSizes::default().diffuse_per_hit, alias = "per-hit")]
+    pub diffuse_per_hit: u32,
+    /// Random rays: how many, from a sphere around the scene into its box.
+    #[arg(long, value_name = "N", default_value_t = RaySetSizes::default().random_rays, alias = "count")]
+    pub random_rays: usize,
+    /// Seed of the diffuse and random ray sets.
+    #[arg(long, value_name = "N", default_value_t = RaySetSizes::default().seed)]
+    pub seed: u64,
+}
+
+impl RaySetArgs {
+    pub fn sizes(&self) -> RaySetSizes {
+        RaySetSizes {
+            width: self.width,
+            height: self.height,
+            diffuse_per_hit: self.diffuse_per_hit,
+            random_rays: self.random_rays,
+            seed: self.seed,
+        }
+    }
 }
 
 /// Which methods (comma-separated; each command says its default).

@@ -33,11 +33,8 @@ pub struct BenchOptions {
     pub build: BuildOptions,
     pub warmup: usize,
     pub repeat: usize,
-    pub width: u32,
-    pub height: u32,
-    pub diffuse_per_hit: u32,
-    pub random_rays: usize,
-    pub seed: u64,
+    /// The ray sets' sizes.
+    pub sizes: RaySetSizes,
     /// Read `<scene>.{primary,diffuse,random}.rays` from here instead of generating (for
     /// example the peer's held-out sets from ../shared/peers/make_rays.sh).
     pub rays_dir: Option<PathBuf>,
@@ -73,11 +70,7 @@ impl Default for BenchOptions {
             build: BuildOptions::new(4),
             warmup: 1,
             repeat: 5,
-            width: 800,
-            height: 600,
-            diffuse_per_hit: 8,
-            random_rays: 1_000_000,
-            seed: 7,
+            sizes: RaySetSizes::default(),
             rays_dir: None,
             embree: None,
             tinybvh: None,
@@ -494,7 +487,7 @@ fn row(
 /// (`--random-rays 0`) is not planned; `driver`: the driver peers the run has (ray query, the ray
 /// tracing pipeline); `peers`: the peer programs that passed their probe.
 pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<crate::rows::Cell> {
-    let sizes = o.sizes();
+    let sizes = o.sizes;
     let sets: Vec<RaySet> = <RaySet as crate::named::Named>::ALL
         .iter()
         .copied()
@@ -555,21 +548,10 @@ impl BenchOptions {
             Peer::RayTracingPipeline => self.ray_tracing_pipeline,
         }
     }
-
-    /// The ray sets' sizes.
-    pub fn sizes(&self) -> RaySetSizes {
-        RaySetSizes {
-            width: self.width,
-            height: self.height,
-            diffuse_per_hit: self.diffuse_per_hit,
-            random_rays: self.random_rays,
-            seed: self.seed,
-        }
-    }
 }
 
 pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
-    o.sizes().check_memory()?;
+    o.sizes.check_memory()?;
     let mut report = BenchReport {
         provenance: Provenance::of(ctx),
         leaf_size: o.build.max_leaf_size,
@@ -634,11 +616,11 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let t = Instant::now();
         let host = HostScene::build(&name, &mesh, &o.build)?;
         let reference = host.reference();
-        let mut sets = ray_sets(&mesh, &name, &reference, &o.sizes(), o.rays_dir.as_deref())?;
+        let mut sets = ray_sets(&mesh, &name, &reference, &o.sizes, o.rays_dir.as_deref())?;
         // An empty set has no speed: it is skipped with a note, and the other sets still run.
         sets.retain(|(set, rays)| {
             if rays.is_empty() {
-                let note = format!("{name} {set}: skipped, no rays ({})", o.sizes().why_empty(*set));
+                let note = format!("{name} {set}: skipped, no rays ({})", o.sizes.why_empty(*set));
                 progress(&note);
                 report.notes.push(note);
             }
@@ -885,7 +867,7 @@ mod tests {
         assert_eq!(filled.len(), 5, "each row its own planned cell");
         assert!(filled.iter().all(|c| c["set"] == "diffuse"));
         // Without the ray query and peers, and with an empty random set, they are not planned.
-        let o = BenchOptions { random_rays: 0, ..o };
+        let o = BenchOptions { sizes: RaySetSizes { random_rays: 0, ..o.sizes }, ..o };
         let plan = plan_cells(&o, &[], &[]);
         assert_eq!(plan.len(), 2 * 2);
         assert!(plan.iter().all(|c| c.contains_key("method") && c["set"] != "random"));
