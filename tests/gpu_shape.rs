@@ -81,6 +81,7 @@ fn a_driver_that_is_not_mesa_is_named_by_its_own_name_and_version() {
 fn without_ray_query_the_bench_runs_the_ray_tracing_pipeline_and_notes_the_rest() {
     use trilab::gpu::{ContextOptions, Peer, Validation};
     use trilab::harness::bench::{self, BenchOptions, Tracer};
+    use trilab::harness::rayset::RaySetSizes;
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
         let ctx =
@@ -90,10 +91,7 @@ fn without_ray_query_the_bench_runs_the_ray_tracing_pipeline_and_notes_the_rest(
         let o = BenchOptions {
             scenes: vec!["bunny".into()],
             methods: vec![trilab::encoding::Method::Mt],
-            width: 24,
-            height: 18,
-            diffuse_per_hit: 1,
-            random_rays: 500,
+            sizes: RaySetSizes { width: 24, height: 18, diffuse_per_hit: 1, random_rays: 500, ..Default::default() },
             repeat: 1,
             ray_query: true,
             ray_tracing_pipeline: true,

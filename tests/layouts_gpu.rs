@@ -186,16 +186,16 @@ fn layout_speed_on_the_bunny() {
     let out = common::with_gpu(3000, |ctx| {
         let bunny = common::bunny();
         let o = BenchOptions::default();
-        let host = HostScene::build("bunny", &bunny, &o.build_options()).unwrap();
+        let host = HostScene::build("bunny", &bunny, &o.build).unwrap();
         let reference = host.reference();
-        let sets = ray_sets(&bunny, "bunny", &reference, &o.sizes(), None).unwrap();
+        let sets = ray_sets(&bunny, "bunny", &reference, &o.sizes, None).unwrap();
         let layouts = Layout::ALL;
         let scenes: Vec<_> =
             layouts.iter().map(|&l| host.upload(ctx, &SceneRequest::new(Method::Mt).layout(l)).unwrap()).collect();
         let mut out = vec![format!(
             "{} | leaf {} | mt | {} rounds, interleaved, 1 warm-up each | Mrays/s median (min-max), GPU timestamps",
             ctx.info().name,
-            o.leaf_size,
+            o.build.max_leaf_size,
             ROUNDS
         )];
         for (set, rays) in &sets {

@@ -9,6 +9,7 @@ use trilab::bvh::{BuildOptions, Bvh};
 use trilab::encoding::{Method, Raycast};
 use trilab::gpu::{Context, PipelineOptions, RaycastOptions};
 use trilab::harness::profile::{self, differing_hits, dispatch_once, sweep, ProfileOptions, Status};
+use trilab::harness::rayset::RaySetSizes;
 use trilab::pipeline::{DeviceScene, HostScene, SceneRequest};
 use trilab::rays::{primary_rays, random_rays, Camera, Ray};
 use trilab::reference::Reference;
@@ -161,10 +162,7 @@ fn profile_reports_unsupported_exactly_where_features_are_absent() {
         let o = ProfileOptions {
             scene: common::root().join("scenes/bunny.obj"),
             methods: vec![Method::Mt, Method::QuadUnit],
-            width: 40,
-            height: 30,
-            diffuse_per_hit: 1,
-            random_rays: 1000,
+            sizes: RaySetSizes { width: 40, height: 30, diffuse_per_hit: 1, random_rays: 1000, ..Default::default() },
             warmup: 1,
             repeat: 2,
             workgroup_sizes: vec![32, 128],

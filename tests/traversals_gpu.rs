@@ -294,7 +294,7 @@ fn traversal_speed_on_the_bunny() {
     let out = common::with_gpu(3000, |ctx| {
         let bunny = common::bunny();
         let o = BenchOptions::default();
-        let host = HostScene::build("bunny", &bunny, &o.build_options()).unwrap();
+        let host = HostScene::build("bunny", &bunny, &o.build).unwrap();
         let reference = host.reference();
         let sets = ray_sets(&bunny, "bunny", &reference, &FIGURE_SIZES, None).unwrap();
         let mut combos = combos();
@@ -315,7 +315,7 @@ fn traversal_speed_on_the_bunny() {
             ctx.info().name,
             ctx.info().driver_label(),
             ctx.info().subgroup_size,
-            o.leaf_size,
+            o.build.max_leaf_size,
             ROUNDS
         )];
         for method in [Method::Mt, Method::Unit] {

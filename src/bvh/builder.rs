@@ -124,6 +124,19 @@ impl BuildOptions {
         Ok(())
     }
 
+    /// Serialises the options as every report and option record names them, `leaf_size`,
+    /// `leaf_policy`, `sah_group` (the builder and the costs are the defaults there); a struct
+    /// holding the options writes them among its own fields with
+    /// `#[serde(flatten, serialize_with = "BuildOptions::serialize_fields")]`.
+    pub fn serialize_fields<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut st = s.serialize_struct("BuildOptions", 3)?;
+        st.serialize_field("leaf_size", &self.max_leaf_size)?;
+        st.serialize_field("leaf_policy", &self.leaf_policy)?;
+        st.serialize_field("sah_group", &self.sah_group)?;
+        st.end()
+    }
+
     pub fn new(max_leaf_size: u32) -> Self {
         BuildOptions {
             max_leaf_size,

@@ -10,7 +10,7 @@ use trilab::harness::rayset::{RaySet, RaySetSizes};
 use trilab::named::Named;
 
 use super::choice::choice;
-use super::{scenes_help, GpuArgs, JsonArg};
+use super::{scenes_help, GpuArgs, JsonArg, LeafSizeArg};
 
 /// The workload both sides run, in the bench vocabulary (smaller defaults: many rounds).
 #[derive(Args, Clone)]
@@ -41,9 +41,8 @@ pub struct WorkloadArgs {
     /// Seed of the ray sets (both sides trace the same rays).
     #[arg(long, value_name = "N", default_value_t = 7)]
     seed: u64,
-    /// Max triangles per BVH leaf.
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    leaf_size: u32,
+    #[command(flatten)]
+    leaf: LeafSizeArg,
     /// How the kernels read the scene: `auto` uses texel buffers when every buffer fits one
     /// binding, else buffer device addresses.
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
@@ -77,7 +76,7 @@ impl WorkloadArgs {
                 random_rays: self.random_rays,
                 seed: self.seed,
             },
-            leaf_size: self.leaf_size,
+            build: self.leaf.options(),
             scene_access: self.scene_access,
             batch_rays: self.batch_rays,
             pathtrace: self.pathtrace,

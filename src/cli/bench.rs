@@ -4,12 +4,12 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::encoding::{Layout, SceneAccess};
-use trilab::error::{Error, Result};
+use trilab::error::Result;
 use trilab::harness::bench::{self, BenchOptions};
 use trilab::harness::peers::TinybvhLayout;
 
 use super::choice::choice;
-use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg};
+use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs};
 
 /// Ray-casting benchmark: primary, diffuse and random rays, every method, validated against
 /// the f64 reference, optionally beside the Embree and tinybvh peers.
@@ -25,21 +25,8 @@ pub struct BenchArgs {
     /// Timed runs per ray set and method after one warm-up (at least 1; median, min, max).
     #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
-    /// Primary rays: the camera image's width in pixels.
-    #[arg(long, value_name = "W", default_value_t = 800)]
-    width: u32,
-    /// Primary rays: the camera image's height in pixels.
-    #[arg(long, value_name = "H", default_value_t = 600)]
-    height: u32,
-    /// Diffuse rays: cosine-distributed bounces per primary hit.
-    #[arg(long, value_name = "N", default_value_t = 8, alias = "per-hit")]
-    diffuse_per_hit: u32,
-    /// Random rays: how many, from a sphere around the scene into its box.
-    #[arg(long, value_name = "N", default_value_t = 1_000_000, alias = "count")]
-    random_rays: usize,
-    /// Seed of the diffuse and random ray sets.
-    #[arg(long, value_name = "N", default_value_t = 7)]
-    seed: u64,
+    #[command(flatten)]
+    rays: RaySetArgs,
     /// Read <scene>.{primary,diffuse,random}.rays from this directory instead of generating.
     #[arg(long, value_name = "DIR")]
     rays_dir: Option<PathBuf>,
@@ -80,15 +67,8 @@ pub struct BenchArgs {
     /// and plans the whole matrix; `trilab merge` joins the shards' folders.
     #[arg(long, value_name = "I/N")]
     shard: Option<trilab::rows::Shard>,
-    /// Directory to write bench.json (the report) and bench.md (the tables) into.
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
-    /// Old spelling: write the report as JSON to this file (use --out DIR).
-    #[arg(long, value_name = "FILE", hide = true)]
-    json_out: Option<PathBuf>,
-    /// Old spelling: write the tables as Markdown to this file (use --out DIR).
-    #[arg(long, value_name = "FILE", hide = true)]
-    md_out: Option<PathBuf>,
+    #[command(flatten)]
+    out: ReportOutArgs,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -118,55 +98,17 @@ impl PeerChoice {
     }
 }
 
-/// `--out DIR` as the two report files (`<stem>.json`, `<stem>.md`), or the old
-/// `--json-out`/`--md-out` files, each checked before any work: writable, and not one of the
-/// `scenes` (names are resolved to the files they find).
-pub fn output_files(
-    out: &Option<PathBuf>,
-    json_out: &Option<PathBuf>,
-    md_out: &Option<PathBuf>,
-    stem: &str,
-    scenes: &[PathBuf],
-) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
-    let (json, md) = match out {
-        Some(dir) => {
-            if dir.is_file() {
-                return Err(Error::Usage(format!("--out {}: is a file; --out names a directory", dir.display())));
-            }
-            let json = json_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.json")));
-            let md = md_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.md")));
-            (Some(json), Some(md))
-        }
-        None => (json_out.clone(), md_out.clone()),
-    };
-    let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
-    let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
-    for (option, file) in [("--json-out", &json), ("--md-out", &md)] {
-        if let Some(file) = file {
-            let option = if out.is_some() { "--out" } else { option };
-            trilab::io::check_output(option, trilab::io::Output::File(file), &inputs)?;
-        }
-    }
-    Ok((json, md))
-}
-
 pub fn run(a: BenchArgs) -> Result<()> {
     let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
-    let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench", &scenes)?;
+    let (json_out, md_out) = a.out.files("bench", &scenes)?;
     BenchOptions { scenes: scenes.clone(), shard: a.shard, ..Default::default() }.check_shard()?;
     let ctx = a.gpu.context()?;
     let o = BenchOptions {
         scenes,
         methods: a.methods.or_device(&ctx),
-        leaf_size: a.bvh.leaf_size,
-        leaf_policy: a.bvh.shape.leaf_policy,
-        sah_group: a.bvh.shape.sah_group,
+        build: a.bvh.options(),
         repeat: a.repeat,
-        width: a.width,
-        height: a.height,
-        diffuse_per_hit: a.diffuse_per_hit,
-        random_rays: a.random_rays,
-        seed: a.seed,
+        sizes: a.rays.sizes(),
         rays_dir: a.rays_dir,
         embree: a.embree,
         tinybvh: a.tinybvh,
@@ -184,8 +126,6 @@ pub fn run(a: BenchArgs) -> Result<()> {
     }
     let report = bench::run(&ctx, &o, |m| eprintln!("  {m}"))?;
     a.json.print(&report);
-    if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
+    a.out.create_dir()?;
     report.write(json_out.as_deref(), md_out.as_deref())
 }

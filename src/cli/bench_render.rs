@@ -3,13 +3,12 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use trilab::error::{Error, Result};
+use trilab::error::Result;
 use trilab::harness::bench_render::{self, RenderBenchOptions};
 use trilab::render::KernelChoice;
 
-use super::bench::output_files;
 use super::choice::choice;
-use super::{repeat, scenes_help, GpuArgs, JsonArg, MethodsArg};
+use super::{repeat, scenes_help, GpuArgs, JsonArg, LeafSizeArg, MethodsArg, ReportOutArgs};
 
 /// Path-tracing benchmark: samples/s and rays/s per scene, method and kernel choice.
 #[derive(Args)]
@@ -22,9 +21,8 @@ pub struct BenchRenderArgs {
     /// Kernel choices to time (specialised, general).
     #[arg(long, value_parser = choice::<KernelChoice>(), value_delimiter = ',', default_value = "specialised")]
     kernels: Vec<KernelChoice>,
-    /// Max triangles per BVH leaf (1..=16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    leaf_size: u32,
+    #[command(flatten)]
+    leaf: LeafSizeArg,
     /// Image width in pixels.
     #[arg(long, value_name = "W", default_value_t = 200)]
     width: u32,
@@ -40,15 +38,8 @@ pub struct BenchRenderArgs {
     /// Timed renders per configuration after one warm-up (at least 1).
     #[arg(long, value_name = "N", default_value_t = 3, value_parser = repeat)]
     repeat: usize,
-    /// Directory to write bench.json (the report) and bench.md (the table) into.
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
-    /// Old spelling: write the report as JSON to this file (use --out DIR).
-    #[arg(long, value_name = "FILE", hide = true)]
-    json_out: Option<PathBuf>,
-    /// Old spelling: write the table as Markdown to this file (use --out DIR).
-    #[arg(long, value_name = "FILE", hide = true)]
-    md_out: Option<PathBuf>,
+    #[command(flatten)]
+    out: ReportOutArgs,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -58,13 +49,13 @@ pub struct BenchRenderArgs {
 pub fn run(a: BenchRenderArgs) -> Result<()> {
     let scenes =
         if a.scenes.is_empty() { ["bunny", "dragon", "buddha"].iter().map(PathBuf::from).collect() } else { a.scenes };
-    let (json_out, md_out) = output_files(&a.out, &a.json_out, &a.md_out, "bench", &scenes)?;
+    let (json_out, md_out) = a.out.files("bench", &scenes)?;
     let ctx = a.gpu.context()?;
     let o = RenderBenchOptions {
         scenes,
         methods: a.methods.or_device(&ctx),
         kernels: a.kernels,
-        leaf_size: a.leaf_size,
+        build: a.leaf.options(),
         width: a.width,
         height: a.height,
         spp: a.spp,
@@ -78,8 +69,6 @@ pub fn run(a: BenchRenderArgs) -> Result<()> {
     } else {
         println!("{}", trilab::report::Report::to_text(&report));
     }
-    if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
+    a.out.create_dir()?;
     report.write(json_out.as_deref(), md_out.as_deref())
 }

@@ -3,32 +3,24 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use trilab::bvh::LeafPolicy;
 use trilab::encoding::Layout;
 use trilab::error::Result;
 use trilab::harness::build_bench::{self, BuildBenchOptions};
 
 use super::choice::choice;
-use super::{repeat, JsonArg};
+use super::{repeat, BuildArgs, JsonArg};
 
 /// BVH build benchmark: seconds, Mtris/s, SAH cost, nodes and depth per scene and thread
 /// count for the parallel and serial binned SAH and the full sweep, optionally beside
 /// Embree 3's builder on the same triangles, and each node layout's conversion time and bytes
 /// per triangle; build.csv, layouts.csv, build.json, build.md.
 #[derive(Args)]
+#[command(mut_arg("sah_group", |a| a.help("Triangles the SAH prices as one test (1: classic; Embree's SAH block size)")))]
 pub struct BuildBenchArgs {
     #[arg(long, value_name = "A,B", value_delimiter = ',', required = true, help = super::scenes_help!())]
     scenes: Vec<PathBuf>,
-    /// Max triangles per BVH leaf (1..=16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    leaf_size: u32,
-    /// `fill`: nodes with <= leaf-size triangles become leaves (the paper's); `sah`: the SAH
-    /// decides and leaf-size is only a cap.
-    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
-    leaf_policy: LeafPolicy,
-    /// Triangles the SAH prices as one test (1: classic; Embree's SAH block size).
-    #[arg(long, value_name = "N", default_value_t = 1)]
-    sah_group: u32,
+    #[command(flatten)]
+    bvh: BuildArgs,
     /// Thread counts, comma-separated, each run in turn (default: one per logical CPU; at most 4
     /// per logical CPU, or 64 where that is fewer).
     #[arg(long, value_name = "N,...", value_delimiter = ',')]
@@ -64,9 +56,7 @@ pub fn run(a: BuildBenchArgs) -> Result<()> {
     let d = BuildBenchOptions::default();
     let o = BuildBenchOptions {
         scenes: a.scenes,
-        leaf_size: a.leaf_size,
-        leaf_policy: a.leaf_policy,
-        sah_group: a.sah_group,
+        build: a.bvh.options(),
         threads: if a.threads.is_empty() { d.threads } else { a.threads },
         repeat: a.repeat,
         serial: !a.no_serial,

@@ -32,7 +32,9 @@ pub struct BvhArgs {
 pub fn run(a: BvhArgs) -> Result<()> {
     // Every count before the first build, not when its turn comes.
     build_bench::check_threads(&a.threads)?;
-    let build = || bvh_stats::run(&a.scene, &a.leaf_sizes, a.shape.leaf_policy, a.shape.sah_group);
+    // The tree's shape; its leaf size is each of --leaf-sizes in turn.
+    let shape = a.shape.options(0);
+    let build = || bvh_stats::run(&a.scene, &a.leaf_sizes, shape);
     let report = if a.threads.is_empty() {
         build()?
     } else {

@@ -41,6 +41,7 @@ use trilab::bvh::{BuildOptions, LeafPolicy};
 use trilab::encoding::Method;
 use trilab::error::{Error, Result};
 use trilab::gpu::{Context, ContextOptions, Validation, ValidationLog};
+use trilab::harness::rayset::RaySetSizes;
 use trilab::report::Report;
 
 use choice::choice;
@@ -98,36 +99,98 @@ impl GpuArgs {
     }
 }
 
-/// How the BVH is built (`--leaf-size`, `--leaf-policy`, `--sah-group`).
-#[derive(Args, Clone)]
+/// How the BVH is built: `--leaf-size`, `--leaf-policy`, `--sah-group`, turned into the
+/// library's [`BuildOptions`] here only. A command that takes some of them flattens the part it
+/// takes ([`LeafSizeArg`], [`TreeShapeArgs`], [`SahGroupArg`]), so each flag is declared once.
+#[derive(Args, Clone, Copy)]
 pub struct BuildArgs {
-    /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    pub leaf_size: u32,
+    #[command(flatten)]
+    pub leaf: LeafSizeArg,
     #[command(flatten)]
     pub shape: TreeShapeArgs,
 }
 
+impl BuildArgs {
+    pub fn options(&self) -> BuildOptions {
+        self.shape.options(self.leaf.leaf_size)
+    }
+}
+
+/// `--leaf-size`: the most triangles in a leaf, the tree otherwise the default one.
+#[derive(Args, Clone, Copy)]
+pub struct LeafSizeArg {
+    /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    pub leaf_size: u32,
+}
+
+impl LeafSizeArg {
+    pub fn options(&self) -> BuildOptions {
+        BuildOptions::new(self.leaf_size)
+    }
+}
+
 /// `--leaf-policy` and `--sah-group`: how the SAH shapes the tree (beside one leaf size, or a
 /// list of them).
-#[derive(Args, Clone)]
+#[derive(Args, Clone, Copy)]
 pub struct TreeShapeArgs {
     /// `fill`: nodes with <= leaf-size triangles become leaves (the paper's); `sah`: the SAH
     /// decides and leaf-size is only a cap.
     #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
     pub leaf_policy: LeafPolicy,
+    #[command(flatten)]
+    pub sah_group: SahGroupArg,
+}
+
+impl TreeShapeArgs {
+    /// The build options of a tree of this shape with at most `leaf_size` triangles a leaf.
+    pub fn options(&self, leaf_size: u32) -> BuildOptions {
+        BuildOptions {
+            leaf_policy: self.leaf_policy,
+            sah_group: self.sah_group.sah_group,
+            ..BuildOptions::new(leaf_size)
+        }
+    }
+}
+
+/// `--sah-group`: the SAH's pricing of a leaf (`BuildOptions::sah_group`).
+#[derive(Args, Clone, Copy)]
+pub struct SahGroupArg {
     /// Triangles the SAH prices as one test: 1 (classic), or 4 to price leaves in quads as the
     /// Quad kernels test them.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub sah_group: u32,
 }
 
-impl BuildArgs {
-    pub fn options(&self) -> BuildOptions {
-        BuildOptions {
-            leaf_policy: self.shape.leaf_policy,
-            sah_group: self.shape.sah_group,
-            ..BuildOptions::new(self.leaf_size)
+/// The three ray sets a benchmark makes (`trilab bench`'s defaults; a command with smaller sets
+/// changes the defaults with `mut_arg`), as the harness's [`RaySetSizes`].
+#[derive(Args, Clone, Copy)]
+pub struct RaySetArgs {
+    /// Primary rays: the camera image's width in pixels.
+    #[arg(long, value_name = "W", default_value_t = RaySetSizes::default().width)]
+    pub width: u32,
+    /// Primary rays: the camera image's height in pixels.
+    #[arg(long, value_name = "H", default_value_t = RaySetSizes::default().height)]
+    pub height: u32,
+    /// Diffuse rays: cosine-distributed bounces per primary hit.
+    #[arg(long, value_name = "N", default_value_t = RaySetSizes::default().diffuse_per_hit, alias = "per-hit")]
+    pub diffuse_per_hit: u32,
+    /// Random rays: how many, from a sphere around the scene into its box.
+    #[arg(long, value_name = "N", default_value_t = RaySetSizes::default().random_rays, alias = "count")]
+    pub random_rays: usize,
+    /// Seed of the diffuse and random ray sets.
+    #[arg(long, value_name = "N", default_value_t = RaySetSizes::default().seed)]
+    pub seed: u64,
+}
+
+impl RaySetArgs {
+    pub fn sizes(&self) -> RaySetSizes {
+        RaySetSizes {
+            width: self.width,
+            height: self.height,
+            diffuse_per_hit: self.diffuse_per_hit,
+            random_rays: self.random_rays,
+            seed: self.seed,
         }
     }
 }
@@ -148,6 +211,57 @@ impl MethodsArg {
             trilab::conditioning::available_methods(ctx.enabled())
         } else {
             self.methods.clone()
+        }
+    }
+}
+
+/// `--out DIR`: where a report goes as `<stem>.json` (the report) and `<stem>.md` (its tables),
+/// or the old spellings `--json-out FILE` and `--md-out FILE` (hidden) for either file alone.
+#[derive(Args, Clone)]
+pub struct ReportOutArgs {
+    /// Directory to write bench.json (the report) and bench.md (its tables) into.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Old spelling: write the report as JSON to this file (use --out DIR).
+    #[arg(long, value_name = "FILE", hide = true)]
+    pub json_out: Option<PathBuf>,
+    /// Old spelling: write the report's tables as Markdown to this file (use --out DIR).
+    #[arg(long, value_name = "FILE", hide = true)]
+    pub md_out: Option<PathBuf>,
+}
+
+impl ReportOutArgs {
+    /// The two report files (`<stem>.json`, `<stem>.md` in `--out`, or the old `--json-out` and
+    /// `--md-out` files), each checked before any work: writable, and not one of the `scenes`
+    /// (names are resolved to the files they find).
+    pub fn files(&self, stem: &str, scenes: &[PathBuf]) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
+        let (json, md) = match &self.out {
+            Some(dir) => {
+                if dir.is_file() {
+                    return Err(Error::Usage(format!("--out {}: is a file; --out names a directory", dir.display())));
+                }
+                let json = self.json_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.json")));
+                let md = self.md_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.md")));
+                (Some(json), Some(md))
+            }
+            None => (self.json_out.clone(), self.md_out.clone()),
+        };
+        let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
+        let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
+        for (option, file) in [("--json-out", &json), ("--md-out", &md)] {
+            if let Some(file) = file {
+                let option = if self.out.is_some() { "--out" } else { option };
+                trilab::io::check_output(option, trilab::io::Output::File(file), &inputs)?;
+            }
+        }
+        Ok((json, md))
+    }
+
+    /// Makes the `--out` directory (if given), once the report is ready to write.
+    pub fn create_dir(&self) -> Result<()> {
+        match &self.out {
+            Some(dir) => std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e)),
+            None => Ok(()),
         }
     }
 }

@@ -10,22 +10,26 @@ use trilab::harness::profile::{self, ProfileOptions};
 use trilab::harness::rayset::RaySet;
 
 use super::choice::choice;
-use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, MethodsArg};
+use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, LeafSizeArg, MethodsArg, RaySetArgs};
 
 /// Driver-level profile of the ray-casting kernels: timestamps, pipeline statistics,
 /// shader-clock heat maps, executable statistics, subgroup/workgroup-size sweeps,
 /// LP_NUM_THREADS scaling, driver statistics (lavapipe's machine code); profile.md,
 /// profile.json, rows.jsonl and PNGs.
 #[derive(Args)]
+#[command(
+    mut_arg("width", |a| a.help("Primary rays: a width x height camera image (also the heat maps' size)")),
+    mut_arg("diffuse_per_hit", |a| a.default_value("2")),
+    mut_arg("random_rays", |a| a.default_value("250000"))
+)]
 pub struct ProfileArgs {
     #[arg(long, value_name = "S", help = scene_help!())]
     scene: PathBuf,
     /// Methods (default: every method the device runs).
     #[command(flatten)]
     methods: MethodsArg,
-    /// Max triangles per BVH leaf (1..=16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    leaf_size: u32,
+    #[command(flatten)]
+    leaf: LeafSizeArg,
     /// BVH node layout every kernel traverses (`bvh2`, `bvh4`, `bvh8`, ...).
     #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
     layout: Layout,
@@ -33,21 +37,8 @@ pub struct ProfileArgs {
     /// results/<device>/profile (lavapipe for Mesa's llvmpipe).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
-    /// Primary rays: a width x height camera image (also the heat maps' size).
-    #[arg(long, value_name = "W", default_value_t = 800)]
-    width: u32,
-    /// Primary rays: the camera image's height in pixels.
-    #[arg(long, value_name = "H", default_value_t = 600)]
-    height: u32,
-    /// Diffuse rays: cosine-distributed bounces per primary hit.
-    #[arg(long, value_name = "N", default_value_t = 2, alias = "per-hit")]
-    diffuse_per_hit: u32,
-    /// Random rays: how many, from a sphere around the scene into its box.
-    #[arg(long, value_name = "N", default_value_t = 250_000, alias = "count")]
-    random_rays: usize,
-    /// Seed of the diffuse and random ray sets.
-    #[arg(long, value_name = "N", default_value_t = 7)]
-    seed: u64,
+    #[command(flatten)]
+    rays: RaySetArgs,
     /// Timed runs after one warm-up (at least 1); median, min and max are reported.
     #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
     repeat: usize,
@@ -92,13 +83,9 @@ pub fn run(a: ProfileArgs) -> Result<()> {
     let o = ProfileOptions {
         scene: a.scene.clone(),
         methods: a.methods.or_device(&ctx),
-        leaf_size: a.leaf_size,
+        build: a.leaf.options(),
         layout: a.layout,
-        width: a.width,
-        height: a.height,
-        diffuse_per_hit: a.diffuse_per_hit,
-        random_rays: a.random_rays,
-        seed: a.seed,
+        sizes: a.rays.sizes(),
         repeat: a.repeat,
         sweep_set: a.sweep_set,
         workgroup_sizes: a.workgroup_sizes.clone(),
@@ -111,7 +98,7 @@ pub fn run(a: ProfileArgs) -> Result<()> {
     let out = results_dir(&ctx, a.out.clone(), "profile");
     let files = ["profile.json", "profile.md", trilab::rows::FILE];
     trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &[&a.scene])?;
-    o.sizes().require_all()?;
+    o.sizes.require_all()?;
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;
     a.json.print(&report);

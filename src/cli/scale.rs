@@ -9,7 +9,7 @@ use trilab::harness::rayset::RaySet;
 use trilab::harness::scale::{self, ScaleOptions};
 
 use super::choice::choice;
-use super::{repeat, results_dir, GpuArgs, JsonArg, MethodsArg};
+use super::{repeat, results_dir, GpuArgs, JsonArg, LeafSizeArg, MethodsArg};
 
 /// Large scenes: load and BVH-build times, each method's GPU memory plan (bytes per buffer and
 /// per triangle, access path), upload and a timed, validated cast; writes scale.csv/json/md.
@@ -21,9 +21,8 @@ pub struct ScaleArgs {
     /// Methods (default: every method the device runs).
     #[command(flatten)]
     methods: MethodsArg,
-    /// Max triangles per BVH leaf (1..=16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    leaf_size: u32,
+    #[command(flatten)]
+    leaf: LeafSizeArg,
     /// Rays cast per scene and method (was `--rays`).
     #[arg(long, value_name = "N", default_value_t = 1_000_000, alias = "rays")]
     ray_count: usize,
@@ -69,7 +68,7 @@ pub fn run(a: ScaleArgs) -> Result<()> {
     let o = ScaleOptions {
         scenes,
         methods: a.methods.or_device(&ctx),
-        leaf_size: a.leaf_size,
+        build: a.leaf.options(),
         rays: a.ray_count,
         ray_kind: a.ray_set,
         warmup: 1,

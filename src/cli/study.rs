@@ -8,7 +8,7 @@ use trilab::error::Result;
 use trilab::harness::study::{self, Preset, StudyOptions};
 
 use super::choice::choice;
-use super::{repeat, results_dir, GpuArgs, JsonArg, MethodsArg};
+use super::{repeat, results_dir, GpuArgs, JsonArg, MethodsArg, SahGroupArg};
 
 /// The paper's study on this device: scene x leaf size {1,2,3,4,8,16} x method, path-trace
 /// seconds and Mrays/s per ray set, validated; writes study.csv/json/md and plots.
@@ -39,9 +39,8 @@ pub struct StudyArgs {
     /// Timed rounds after the warm-up round (at least 1; default: the preset's).
     #[arg(long, value_name = "N", value_parser = repeat)]
     repeat: Option<usize>,
-    /// Triangles the SAH prices as one test: 1 (the paper's SAH) or 4 (quad-aware).
-    #[arg(long, value_name = "N", default_value_t = 1)]
-    sah_group: u32,
+    #[command(flatten)]
+    sah_group: SahGroupArg,
     /// Run only shard I of N of the matrix: every N-th (scene, leaf size) group, round-robin from
     /// group I, so each leaf size's methods and layouts still run side by side. rows.jsonl names
     /// the shard and plans the whole matrix; the report's claims judge this shard's cells only
@@ -71,7 +70,7 @@ pub fn run(a: StudyArgs) -> Result<()> {
     if let Some(r) = a.repeat {
         o.repeat = r;
     }
-    o.sah_group = a.sah_group;
+    o.sah_group = a.sah_group.sah_group;
     o.shard = a.shard;
     o.check()?;
     let ctx = a.gpu.context()?;

@@ -9,7 +9,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::agreement::compare_closest;
-use crate::bvh::{BuildOptions, LeafPolicy};
+use crate::bvh::BuildOptions;
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions};
@@ -29,17 +29,12 @@ use crate::scene::{load_obj, Mesh};
 pub struct BenchOptions {
     pub scenes: Vec<PathBuf>,
     pub methods: Vec<Method>,
-    pub leaf_size: u32,
-    pub leaf_policy: LeafPolicy,
-    /// `BuildOptions::sah_group`: 4 prices leaves in quads.
-    pub sah_group: u32,
+    /// The BVH every method's encoding shares.
+    pub build: BuildOptions,
     pub warmup: usize,
     pub repeat: usize,
-    pub width: u32,
-    pub height: u32,
-    pub diffuse_per_hit: u32,
-    pub random_rays: usize,
-    pub seed: u64,
+    /// The ray sets' sizes.
+    pub sizes: RaySetSizes,
     /// Read `<scene>.{primary,diffuse,random}.rays` from here instead of generating (for
     /// example the peer's held-out sets from ../shared/peers/make_rays.sh).
     pub rays_dir: Option<PathBuf>,
@@ -72,16 +67,10 @@ impl Default for BenchOptions {
         BenchOptions {
             scenes: vec![],
             methods: Method::ALL.to_vec(),
-            leaf_size: 4,
-            leaf_policy: LeafPolicy::Fill,
-            sah_group: 1,
+            build: BuildOptions::new(4),
             warmup: 1,
             repeat: 5,
-            width: 800,
-            height: 600,
-            diffuse_per_hit: 8,
-            random_rays: 1_000_000,
-            seed: 7,
+            sizes: RaySetSizes::default(),
             rays_dir: None,
             embree: None,
             tinybvh: None,
@@ -475,8 +464,8 @@ fn row(
         ray_set: set,
         rays: rays.len(),
         method,
-        leaf_size: o.map(|o| o.leaf_size),
-        sah_group: o.map(|o| o.sah_group),
+        leaf_size: o.map(|o| o.build.max_leaf_size),
+        sah_group: o.map(|o| o.build.sah_group),
         scene_bytes: footprint.0,
         scene_access: footprint.1,
         layout: o.map(|_| Layout::Bvh2),
@@ -498,7 +487,7 @@ fn row(
 /// (`--random-rays 0`) is not planned; `driver`: the driver peers the run has (ray query, the ray
 /// tracing pipeline); `peers`: the peer programs that passed their probe.
 pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<crate::rows::Cell> {
-    let sizes = o.sizes();
+    let sizes = o.sizes;
     let sets: Vec<RaySet> = <RaySet as crate::named::Named>::ALL
         .iter()
         .copied()
@@ -511,8 +500,12 @@ pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<cr
         for set in &sets {
             for &m in &o.methods {
                 for &l in &layouts {
-                    let tracer =
-                        CellTracer::Method { method: m, layout: l, leaf: o.leaf_size, sah_group: Some(o.sah_group) };
+                    let tracer = CellTracer::Method {
+                        method: m,
+                        layout: l,
+                        leaf: o.build.max_leaf_size,
+                        sah_group: Some(o.build.sah_group),
+                    };
                     cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
                 }
             }
@@ -555,29 +548,13 @@ impl BenchOptions {
             Peer::RayTracingPipeline => self.ray_tracing_pipeline,
         }
     }
-
-    /// The BVH every method's encoding shares.
-    pub fn build_options(&self) -> BuildOptions {
-        BuildOptions { leaf_policy: self.leaf_policy, sah_group: self.sah_group, ..BuildOptions::new(self.leaf_size) }
-    }
-
-    /// The ray sets' sizes.
-    pub fn sizes(&self) -> RaySetSizes {
-        RaySetSizes {
-            width: self.width,
-            height: self.height,
-            diffuse_per_hit: self.diffuse_per_hit,
-            random_rays: self.random_rays,
-            seed: self.seed,
-        }
-    }
 }
 
 pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
-    o.sizes().check_memory()?;
+    o.sizes.check_memory()?;
     let mut report = BenchReport {
         provenance: Provenance::of(ctx),
-        leaf_size: o.leaf_size,
+        leaf_size: o.build.max_leaf_size,
         repeat: o.repeat,
         rows: vec![],
         peers: vec![],
@@ -637,13 +614,13 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         }
         progress(&format!("{name}: {} triangles; making ray sets", mesh.triangle_count()));
         let t = Instant::now();
-        let host = HostScene::build(&name, &mesh, &o.build_options())?;
+        let host = HostScene::build(&name, &mesh, &o.build)?;
         let reference = host.reference();
-        let mut sets = ray_sets(&mesh, &name, &reference, &o.sizes(), o.rays_dir.as_deref())?;
+        let mut sets = ray_sets(&mesh, &name, &reference, &o.sizes, o.rays_dir.as_deref())?;
         // An empty set has no speed: it is skipped with a note, and the other sets still run.
         sets.retain(|(set, rays)| {
             if rays.is_empty() {
-                let note = format!("{name} {set}: skipped, no rays ({})", o.sizes().why_empty(*set));
+                let note = format!("{name} {set}: skipped, no rays ({})", o.sizes.why_empty(*set));
                 progress(&note);
                 report.notes.push(note);
             }
@@ -890,7 +867,7 @@ mod tests {
         assert_eq!(filled.len(), 5, "each row its own planned cell");
         assert!(filled.iter().all(|c| c["set"] == "diffuse"));
         // Without the ray query and peers, and with an empty random set, they are not planned.
-        let o = BenchOptions { random_rays: 0, ..o };
+        let o = BenchOptions { sizes: RaySetSizes { random_rays: 0, ..o.sizes }, ..o };
         let plan = plan_cells(&o, &[], &[]);
         assert_eq!(plan.len(), 2 * 2);
         assert!(plan.iter().all(|c| c.contains_key("method") && c["set"] != "random"));

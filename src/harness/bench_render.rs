@@ -20,7 +20,7 @@ pub struct RenderBenchOptions {
     pub scenes: Vec<PathBuf>,
     pub methods: Vec<Method>,
     pub kernels: Vec<KernelChoice>,
-    pub leaf_size: u32,
+    pub build: BuildOptions,
     pub width: u32,
     pub height: u32,
     pub spp: u32,
@@ -36,7 +36,7 @@ impl Default for RenderBenchOptions {
             scenes: vec![],
             methods: Method::ALL.to_vec(),
             kernels: vec![KernelChoice::Specialised],
-            leaf_size: 4,
+            build: BuildOptions::new(4),
             width: 200,
             height: 150,
             spp: 16,
@@ -226,7 +226,7 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
         height: o.height,
         spp: o.spp,
         max_depth: o.max_depth,
-        leaf_size: o.leaf_size,
+        leaf_size: o.build.max_leaf_size,
         timed_on_gpu: info.timestamp_valid_bits > 0,
         repeat: o.repeat,
         rows: vec![],
@@ -234,7 +234,7 @@ pub fn run(ctx: &Context, o: &RenderBenchOptions, mut progress: impl FnMut(&str)
     for path in &o.scenes {
         let mesh = load_obj(path)?;
         let name = crate::scene::scene_name(path);
-        let host = HostScene::build(&name, &mesh, &BuildOptions::new(o.leaf_size))?;
+        let host = HostScene::build(&name, &mesh, &o.build)?;
         let settings = bench_settings(&mesh, (o.width, o.height), o.spp, o.max_depth, o.env);
         let mut reference_mean: Option<f64> = None;
         for &method in &o.methods {

@@ -33,9 +33,9 @@ use crate::scene::{load_obj, Mesh};
 pub struct BuildBenchOptions {
     /// OBJ files (`.obj`, `.obj.gz`) or `synth:<kind>:<N>` specs.
     pub scenes: Vec<PathBuf>,
-    pub leaf_size: u32,
-    pub leaf_policy: LeafPolicy,
-    pub sah_group: u32,
+    /// The tree every builder makes (each measurement sets its own builder).
+    #[serde(flatten, serialize_with = "BuildOptions::serialize_fields")]
+    pub build: BuildOptions,
     /// Thread counts for the parallel builder and Embree.
     pub threads: Vec<usize>,
     /// Timed runs per measurement, after one untimed warm-up.
@@ -57,9 +57,7 @@ impl Default for BuildBenchOptions {
     fn default() -> Self {
         BuildBenchOptions {
             scenes: vec![],
-            leaf_size: 4,
-            leaf_policy: LeafPolicy::Fill,
-            sah_group: 1,
+            build: BuildOptions::new(4),
             threads: vec![std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)],
             repeat: 5,
             serial: true,
@@ -153,12 +151,7 @@ pub struct BuildBenchReport {
 
 impl BuildBenchOptions {
     fn build_options(&self, builder: Builder) -> BuildOptions {
-        BuildOptions {
-            builder,
-            leaf_policy: self.leaf_policy,
-            sah_group: self.sah_group,
-            ..BuildOptions::new(self.leaf_size)
-        }
+        BuildOptions { builder, ..self.build }
     }
 
     /// Refuses what the benchmark cannot run, naming the option, before any work.
@@ -175,12 +168,7 @@ impl BuildBenchOptions {
                 self.scenes.len()
             ));
         }
-        if !(1..=crate::bvh::MAX_LEAF_SIZE).contains(&self.leaf_size) {
-            return bad(format!("--leaf-size {}: must be 1..={}", self.leaf_size, crate::bvh::MAX_LEAF_SIZE));
-        }
-        if !(1..=crate::bvh::MAX_LEAF_SIZE).contains(&self.sah_group) {
-            return bad(format!("--sah-group {}: must be 1..={}", self.sah_group, crate::bvh::MAX_LEAF_SIZE));
-        }
+        self.build.check()?;
         if self.threads.is_empty() {
             return bad("--threads: name at least one thread count".into());
         }
@@ -193,8 +181,11 @@ impl BuildBenchOptions {
                 return bad(format!("--layouts: {l} is named twice"));
             }
         }
-        if self.embree.is_some() && !self.sah_group.is_power_of_two() {
-            return bad(format!("--sah-group {}: Embree's SAH block size must be a power of two", self.sah_group));
+        if self.embree.is_some() && !self.build.sah_group.is_power_of_two() {
+            return bad(format!(
+                "--sah-group {}: Embree's SAH block size must be a power of two",
+                self.build.sah_group
+            ));
         }
         Ok(())
     }
@@ -215,9 +206,9 @@ impl BuildBenchOptions {
 pub fn plan_cells(o: &BuildBenchOptions, triangles: &[usize]) -> Vec<crate::rows::Cell> {
     use crate::rows::cell;
     let shape = |mut c: crate::rows::Cell| {
-        c.insert("leaf".into(), o.leaf_size.to_string());
-        if o.sah_group != 1 {
-            c.insert("sah_group".into(), o.sah_group.to_string());
+        c.insert("leaf".into(), o.build.max_leaf_size.to_string());
+        if o.build.sah_group != 1 {
+            c.insert("sah_group".into(), o.build.sah_group.to_string());
         }
         c
     };
@@ -525,8 +516,8 @@ fn run_peer(
 ) -> Result<PeerRun> {
     // Fill: a node of at most leaf_size triangles is a leaf (Embree: minLeafSize = maxLeafSize);
     // SAH: the SAH decides below leaf_size (minLeafSize = 1).
-    let min_leaf = match o.leaf_policy {
-        LeafPolicy::Fill => o.leaf_size,
+    let min_leaf = match o.build.leaf_policy {
+        LeafPolicy::Fill => o.build.max_leaf_size,
         LeafPolicy::Sah => 1,
     };
     let mut cmd = Command::new(bin);
@@ -534,9 +525,9 @@ fn run_peer(
     for (k, v) in [
         ("--threads", threads.to_string()),
         ("--repeat", o.repeat.to_string()),
-        ("--leaf", o.leaf_size.to_string()),
+        ("--leaf", o.build.max_leaf_size.to_string()),
         ("--min-leaf", min_leaf.to_string()),
-        ("--block", o.sah_group.to_string()),
+        ("--block", o.build.sah_group.to_string()),
         ("--max-depth", MAX_DEPTH.to_string()),
     ] {
         cmd.arg(k).arg(v);
@@ -703,7 +694,7 @@ impl BuildBenchReport {
                 r.node_bytes.to_string(),
                 r.node_bytes_per_triangle.to_string(),
                 r.sah_cost.to_string(),
-                self.options.leaf_size.to_string(),
+                self.options.build.max_leaf_size.to_string(),
                 self.provenance.commit.clone(),
             ])
             .map_err(io)?;
@@ -755,9 +746,9 @@ impl BuildBenchReport {
                 opt(r.nodes.map(|n| n.to_string())),
                 opt(r.leaves.map(|n| n.to_string())),
                 opt(r.depth.map(|n| n.to_string())),
-                o.leaf_size.to_string(),
-                o.leaf_policy.to_string(),
-                o.sah_group.to_string(),
+                o.build.max_leaf_size.to_string(),
+                o.build.leaf_policy.to_string(),
+                o.build.sah_group.to_string(),
                 p.cpu_model.clone(),
                 p.cores.to_string(),
                 p.commit.clone(),
@@ -787,7 +778,7 @@ impl BuildBenchReport {
             "Leaf size {}, leaf policy {}, SAH group {}; {} timed runs after one warm-up, seconds as median (min-max). \
              SAH cost: C_trav = 1, C_isect = 1, a leaf of n triangles costs ceil(n / {}), areas relative to the root; \
              every tree is priced by the same code (`Bvh::sah_cost`) after `Bvh::validate` accepted it.\n\n",
-            o.leaf_size, o.leaf_policy, o.sah_group, o.repeat, o.sah_group
+            o.build.max_leaf_size, o.build.leaf_policy, o.build.sah_group, o.repeat, o.build.sah_group
         );
         s += "- `trilab-binned`: the parallel binned SAH (32 bins) on a rayon pool of `threads`; its time \
               includes primitive setup (degeneracy test, boxes) and node assembly. Its tree is bitwise the same \
@@ -871,9 +862,9 @@ impl BuildBenchReport {
         let source = self.source();
         let o = &self.options;
         let shape = |mut c: Cell| {
-            c.insert("leaf".into(), o.leaf_size.to_string());
-            if o.sah_group != 1 {
-                c.insert("sah_group".into(), o.sah_group.to_string());
+            c.insert("leaf".into(), o.build.max_leaf_size.to_string());
+            if o.build.sah_group != 1 {
+                c.insert("sah_group".into(), o.build.sah_group.to_string());
             }
             c
         };

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use serde::ser::{Serialize, SerializeStruct, Serializer};
 
-use crate::bvh::{BuildOptions, Builder, BvhStats, LeafPolicy, PAPER_LEAF_SIZES};
+use crate::bvh::{BuildOptions, Builder, BvhStats, PAPER_LEAF_SIZES};
 use crate::encoding::{MemoryPlan, Method};
 use crate::error::Result;
 use crate::pipeline::HostScene;
@@ -36,8 +36,9 @@ pub struct BvhReport {
     pub scene: PathBuf,
     pub triangles: usize,
     pub vertices: usize,
-    pub sah_group: u32,
-    pub leaf_policy: LeafPolicy,
+    /// The tree's shape every build shares (its leaf policy and SAH group; each row has its own
+    /// leaf size and builder).
+    pub shape: BuildOptions,
     pub rows: Vec<BvhRow>,
     /// What loading the scene warned about (a missing MTL, ignored normals) and the builds whose
     /// EPO was not computed (past its work limit): the CLI prints them.
@@ -50,15 +51,16 @@ impl Serialize for BvhReport {
     }
 }
 
-/// Builds `scene`'s BVH at each of `leaf_sizes` (the paper's when empty) with both builders.
-pub fn run(scene: &Path, leaf_sizes: &[u32], leaf_policy: LeafPolicy, sah_group: u32) -> Result<BvhReport> {
+/// Builds `scene`'s BVH at each of `leaf_sizes` (the paper's when empty) with both builders, each
+/// tree shaped as `shape` says (its leaf size and builder are replaced).
+pub fn run(scene: &Path, leaf_sizes: &[u32], shape: BuildOptions) -> Result<BvhReport> {
     let mesh = load_obj(scene)?;
     let leaf_sizes = if leaf_sizes.is_empty() { &PAPER_LEAF_SIZES[..] } else { leaf_sizes };
     let mut rows = vec![];
     let mut warnings = mesh.warnings.clone();
     for &leaf in leaf_sizes {
         for builder in [Builder::default(), Builder::Sweep] {
-            let options = BuildOptions { builder, leaf_policy, sah_group, ..BuildOptions::new(leaf) };
+            let options = BuildOptions { builder, max_leaf_size: leaf, ..shape };
             let host = HostScene::build(crate::scene::scene_name(scene), &mesh, &options)?;
             let counts = host.counts();
             let gpu_scene_bytes =
@@ -74,8 +76,7 @@ pub fn run(scene: &Path, leaf_sizes: &[u32], leaf_policy: LeafPolicy, sah_group:
         scene: scene.to_owned(),
         triangles: mesh.triangle_count(),
         vertices: mesh.positions.len(),
-        sah_group,
-        leaf_policy,
+        shape,
         rows,
         warnings,
     })
@@ -92,8 +93,8 @@ impl Report for BvhReport {
             self.scene.display(),
             self.triangles,
             self.vertices,
-            self.sah_group,
-            self.leaf_policy
+            self.shape.sah_group,
+            self.shape.leaf_policy
         );
         // Two tables that each fit 100 columns: the tree, then the build and the GPU scene sizes
         // of the paper's four (the others share MT's data or Woop's size). The leaf-size

@@ -125,9 +125,9 @@ pub struct RaycastReport {
     pub peer: Option<Peer>,
     /// The driver's structures, for a peer.
     pub accel: Option<AccelStats>,
-    pub leaf_size: u32,
-    pub leaf_policy: String,
-    pub sah_group: u32,
+    /// The BVH built (as `leaf_size`, `leaf_policy`, `sah_group`).
+    #[serde(flatten, serialize_with = "BuildOptions::serialize_fields")]
+    pub build: BuildOptions,
     pub any_hit: bool,
     pub recentred: bool,
     pub rays: usize,
@@ -265,9 +265,7 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
         auto,
         peer: req.peer,
         accel: traced.accel,
-        leaf_size: req.build.max_leaf_size,
-        leaf_policy: req.build.leaf_policy.to_string(),
-        sah_group: req.build.sah_group,
+        build: req.build,
         any_hit: req.any_hit,
         recentred: req.recentre,
         rays: rays.len(),

@@ -40,6 +40,13 @@ pub struct RaySetSizes {
     pub seed: u64,
 }
 
+/// `trilab bench`'s sets: an 800 x 600 camera, 8 bounces per hit, a million random rays, seed 7.
+impl Default for RaySetSizes {
+    fn default() -> Self {
+        RaySetSizes { width: 800, height: 600, diffuse_per_hit: 8, random_rays: 1_000_000, seed: 7 }
+    }
+}
+
 impl RaySetSizes {
     /// Which size makes `set` empty, as the option that sets it (`--width 0`); otherwise the
     /// diffuse set is empty because no primary ray hit the scene.

@@ -36,7 +36,7 @@ pub struct ScaleOptions {
     /// Scene specs (paths; whatever `scene::load_obj` accepts).
     pub scenes: Vec<String>,
     pub methods: Vec<Method>,
-    pub leaf_size: u32,
+    pub build: BuildOptions,
     pub rays: usize,
     pub ray_kind: RayKind,
     pub warmup: usize,
@@ -172,10 +172,13 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
         let load_s = t.elapsed().as_secs_f64();
         let triangles = mesh.triangle_count() as u64;
         progress(&format!("{name}: {triangles} triangles loaded in {load_s:.2} s"));
-        let host = HostScene::build(&name, &mesh, &BuildOptions::new(o.leaf_size))?;
+        let host = HostScene::build(&name, &mesh, &o.build)?;
         let bvh_s = host.bvh.build_seconds;
         let bvh_mtris_per_s = triangles as f64 / bvh_s.max(1e-9) / 1e6;
-        progress(&format!("{name}: BVH (leaf {}) in {bvh_s:.2} s, {bvh_mtris_per_s:.2} Mtris/s", o.leaf_size));
+        progress(&format!(
+            "{name}: BVH (leaf {}) in {bvh_s:.2} s, {bvh_mtris_per_s:.2} Mtris/s",
+            o.build.max_leaf_size
+        ));
         layouts.extend(layout_plans(&name, &host.counts()));
         let rays = if o.plan_only { vec![] } else { make_rays(&host, o) };
         let sample: Vec<usize> = if rays.is_empty() {
@@ -194,7 +197,7 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
                 scene: name.clone(),
                 triangles,
                 method: m,
-                leaf_size: o.leaf_size,
+                leaf_size: o.build.max_leaf_size,
                 access: String::new(),
                 buffers: plan.buffers.iter().map(|b| (b.name.to_owned(), b.bytes)).collect(),
                 scene_bytes: plan.bytes(),

@@ -23,6 +23,7 @@ use crate::encoding::{Layout, Method};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::harness::provenance::Provenance;
+use crate::harness::rayset::RaySetSizes;
 use crate::harness::{accuracy, bench, calibration, devices, profile, study};
 use crate::named::{named_enum, Named};
 use crate::report::{Report, Table};
@@ -97,10 +98,7 @@ pub fn probe_options() -> bench::BenchOptions {
         scenes: vec![PathBuf::from("bunny")],
         methods: Method::paper(),
         repeat: 3,
-        width: 160,
-        height: 120,
-        diffuse_per_hit: 1,
-        random_rays: 20_000,
+        sizes: RaySetSizes { width: 160, height: 120, diffuse_per_hit: 1, random_rays: 20_000, ..Default::default() },
         ray_query: false,
         ray_tracing_pipeline: false,
         ..Default::default()
@@ -112,10 +110,7 @@ fn bench_size(scenes: &[&str], w: u32, h: u32, diffuse: u32, random: usize, repe
         scenes: scenes.iter().map(PathBuf::from).collect(),
         methods: Method::ALL.to_vec(),
         repeat,
-        width: w,
-        height: h,
-        diffuse_per_hit: diffuse,
-        random_rays: random,
+        sizes: RaySetSizes { width: w, height: h, diffuse_per_hit: diffuse, random_rays: random, ..Default::default() },
         ..Default::default()
     }
 }
@@ -232,10 +227,13 @@ pub fn ladder(part: Part) -> Vec<Size> {
                 reference_s: 3.0,
                 measured: true,
                 options: PartOptions::Profile(Box::new(profile::ProfileOptions {
-                    width: 160,
-                    height: 120,
-                    diffuse_per_hit: 1,
-                    random_rays: 20_000,
+                    sizes: RaySetSizes {
+                        width: 160,
+                        height: 120,
+                        diffuse_per_hit: 1,
+                        random_rays: 20_000,
+                        ..Default::default()
+                    },
                     repeat: 5,
                     workgroup_sizes: vec![64],
                     command: "trilab suite (profile, smoke size)".into(),
@@ -616,7 +614,7 @@ fn run_part(
             p.methods = crate::conditioning::available_methods(ctx.enabled());
             p.exe = o.exe.clone();
             p.driver_stats = o.driver_stats.clone();
-            p.sizes().require_all()?;
+            p.sizes.require_all()?;
             let r = profile::run(ctx, &p, Some(dir), &mut note)?;
             profile::write(&r, dir)?;
             Ok((Part::Profile.title().into(), profile_section(&r)))

@@ -73,9 +73,9 @@ pub struct RenderReport {
     /// The node layout traversed.
     pub layout: Layout,
     pub auto: Option<Recommendation>,
-    pub leaf_size: u32,
-    pub leaf_policy: crate::bvh::LeafPolicy,
-    pub sah_group: u32,
+    /// The BVH built (as `leaf_size`, `leaf_policy`, `sah_group`).
+    #[serde(flatten, serialize_with = "BuildOptions::serialize_fields")]
+    pub build: BuildOptions,
     pub kernel: &'static str,
     pub kernel_choice: KernelChoice,
     pub bsdfs_in_kernel: Vec<&'static str>,
@@ -301,9 +301,7 @@ pub fn run(
         method_choice: req.method.to_string(),
         layout: target.device.layout,
         auto: target.device.auto.clone(),
-        leaf_size: req.build.max_leaf_size,
-        leaf_policy: req.build.leaf_policy,
-        sah_group: req.build.sah_group,
+        build: req.build,
         kernel: target.kernel.source.name,
         kernel_choice: req.kernel,
         bsdfs_in_kernel: target.kernel.bsdfs(),

@@ -40,7 +40,8 @@ pub struct Workload {
     pub layouts: Vec<Layout>,
     pub sets: Vec<RaySet>,
     pub sizes: RaySetSizes,
-    pub leaf_size: u32,
+    /// The BVH every cell's encoding shares (`--leaf-size`; the tree shape is the default one).
+    pub build: BuildOptions,
     pub scene_access: SceneAccess,
     pub batch_rays: usize,
     /// Add a path-trace cell per scene, method and layout ([`PATHTRACE_SPP`] sample a pixel at
@@ -172,7 +173,7 @@ impl Workload {
             ("--diffuse-per-hit", self.sizes.diffuse_per_hit.to_string()),
             ("--random-rays", self.sizes.random_rays.to_string()),
             ("--seed", self.sizes.seed.to_string()),
-            ("--leaf-size", self.leaf_size.to_string()),
+            ("--leaf-size", self.build.max_leaf_size.to_string()),
             ("--scene-access", self.scene_access.to_string()),
             ("--batch-rays", self.batch_rays.to_string()),
         ] {
@@ -214,7 +215,7 @@ fn load_and_serve(
     say: &Say,
 ) -> Result<()> {
     let meshes: Vec<Mesh> = w.scenes.iter().map(|s| load_obj(s)).collect::<Result<_>>()?;
-    let build = BuildOptions::new(w.leaf_size);
+    let build = w.build;
     let hosts: Vec<HostScene> = meshes
         .iter()
         .zip(&w.scenes)
@@ -248,8 +249,12 @@ fn load_and_serve(
     for (i, scene) in &scenes {
         let kernel = scene.kernel(ctx, Raycast::Closest)?;
         for (set, rays, ref_hits) in &sets[*i] {
-            let tracer =
-                CellTracer::Method { method: scene.method, layout: scene.layout, leaf: w.leaf_size, sah_group: None };
+            let tracer = CellTracer::Method {
+                method: scene.method,
+                layout: scene.layout,
+                leaf: w.build.max_leaf_size,
+                sah_group: None,
+            };
             let bench = BenchCell { scene: hosts[*i].name.clone(), set: *set, rays: Some(rays.len()), tracer };
             let info = CellInfo {
                 kind: CellKind::Raycast,

@@ -59,15 +59,11 @@ pub use crate::rays::differing_hits;
 pub struct ProfileOptions {
     pub scene: PathBuf,
     pub methods: Vec<Method>,
-    pub leaf_size: u32,
+    pub build: BuildOptions,
     /// The node layout every kernel traverses (its `*_<layout>` variants).
     pub layout: Layout,
-    /// Primary rays: a `width` x `height` camera image (the heat maps' size).
-    pub width: u32,
-    pub height: u32,
-    pub diffuse_per_hit: u32,
-    pub random_rays: usize,
-    pub seed: u64,
+    /// The ray sets' sizes (the primary rays' camera image is the heat maps' size).
+    pub sizes: RaySetSizes,
     pub warmup: usize,
     pub repeat: usize,
     /// The ray set the subgroup- and workgroup-size sweeps time.
@@ -89,13 +85,9 @@ impl Default for ProfileOptions {
         ProfileOptions {
             scene: PathBuf::from("bunny"),
             methods: Method::ALL.to_vec(),
-            leaf_size: 4,
+            build: BuildOptions::new(4),
             layout: Layout::Bvh2,
-            width: 800,
-            height: 600,
-            diffuse_per_hit: 2,
-            random_rays: 250_000,
-            seed: 7,
+            sizes: RaySetSizes { diffuse_per_hit: 2, random_rays: 250_000, ..RaySetSizes::default() },
             warmup: 1,
             repeat: 5,
             sweep_set: RaySet::Random,
@@ -283,19 +275,6 @@ fn validated(mesh: &Mesh, rays: &[Ray], hits: &[Hit], reference: &[RefHit], what
 fn load_average() -> Option<String> {
     let text = std::fs::read_to_string("/proc/loadavg").ok()?;
     Some(text.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-}
-
-impl ProfileOptions {
-    /// The ray sets' sizes.
-    pub fn sizes(&self) -> RaySetSizes {
-        RaySetSizes {
-            width: self.width,
-            height: self.height,
-            diffuse_per_hit: self.diffuse_per_hit,
-            random_rays: self.random_rays,
-            seed: self.seed,
-        }
-    }
 }
 
 /// The sections measured per method (1-6), each with its status and note.
@@ -516,15 +495,15 @@ pub fn run(
     out_dir: Option<&Path>,
     mut progress: impl FnMut(&str),
 ) -> Result<ProfileReport> {
-    o.sizes().require_all()?;
-    o.sizes().check_memory()?;
+    o.sizes.require_all()?;
+    o.sizes.check_memory()?;
     let info = ctx.info();
     let host_load_before = load_average();
     let name = crate::scene::scene_name(&o.scene);
     let mesh = load_obj(&o.scene)?;
-    let host = HostScene::build(&name, &mesh, &BuildOptions::new(o.leaf_size))?;
+    let host = HostScene::build(&name, &mesh, &o.build)?;
     let reference = host.reference();
-    let sets = ray_sets(&mesh, &name, &reference, &o.sizes(), None)?;
+    let sets = ray_sets(&mesh, &name, &reference, &o.sizes, None)?;
     let refs: Vec<Vec<RefHit>> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
     let sweep_idx = sets.iter().position(|(s, _)| *s == o.sweep_set).expect("every ray set is made");
     progress(&format!(
@@ -581,7 +560,7 @@ pub fn run(
         for (method, cycles) in &primary_cycles {
             let file = format!("heatmap-{method}.png");
             let title = format!("{method}: shader-clock ticks per primary ray, {}", host.name);
-            let png = clock::heat_map_png(cycles, o.width, o.height, scale, &title)?;
+            let png = clock::heat_map_png(cycles, o.sizes.width, o.sizes.height, scale, &title)?;
             crate::io::write_atomic(&dir.join(&file), &png)?;
             for r in s.shader_clock.rows.iter_mut().filter(|r| r.method == *method && r.data.ray_set == RaySet::Primary)
             {
@@ -601,12 +580,12 @@ pub fn run(
         host_load_after: load_average(),
         scene: name,
         triangles: mesh.triangle_count(),
-        leaf_size: o.leaf_size,
+        leaf_size: o.build.max_leaf_size,
         layout: o.layout,
         warmup: o.warmup,
         repeat: o.repeat.max(1),
-        width: o.width,
-        height: o.height,
+        width: o.sizes.width,
+        height: o.sizes.height,
         ray_sets: sets.iter().map(|(n, r)| (*n, r.len())).collect(),
         sweep_set: o.sweep_set,
         default_local_size: crate::shared::WORKGROUP_SIZE,
@@ -744,7 +723,7 @@ fn threads_section(
         scene: &o.scene,
         rays_dir: dir.path(),
         methods: &o.methods,
-        leaf_size: o.leaf_size,
+        leaf_size: o.build.max_leaf_size,
         layout: o.layout,
         repeat: o.repeat.max(1),
         device_index: info.index,
