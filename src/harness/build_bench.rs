@@ -23,10 +23,10 @@ use serde::Serialize;
 use crate::bvh::{BuildOptions, Builder, Bvh, BvhNode, LeafPolicy, MAX_DEPTH};
 use crate::encoding::Layout;
 use crate::error::{Error, Result};
+use crate::harness::shard::{self, Shard, Split};
 use crate::named::Named;
 use crate::report::Summary;
 use crate::report::Table;
-use crate::rows::Shard;
 use crate::scene::{load_obj, Mesh};
 
 #[derive(Clone, Debug, Serialize)]
@@ -49,7 +49,7 @@ pub struct BuildBenchOptions {
     pub embree: Option<PathBuf>,
     /// Node layouts whose node buffer is made from the binary tree and timed.
     pub layouts: Vec<Layout>,
-    /// Run only this shard's scenes (round-robin, [`Shard::owns`] of the scene's index).
+    /// Run only this shard's scenes ([`BuildBenchOptions::split`]).
     pub shard: Option<Shard>,
 }
 
@@ -167,14 +167,10 @@ impl BuildBenchOptions {
         if self.scenes.is_empty() {
             return bad("--scenes: name at least one scene".into());
         }
-        if let Some(shard) = self.shard.filter(|s| s.count as usize > self.scenes.len()) {
-            return bad(format!(
-                "--shard {shard}: a build-bench shard takes whole scenes and this run has {} scene(s); use at most {} \
-                 shard(s)",
-                self.scenes.len(),
-                self.scenes.len()
-            ));
-        }
+        self.split().check(&format!(
+            "a build-bench shard takes whole scenes and this run has {} scene(s)",
+            self.scenes.len()
+        ))?;
         if !(1..=crate::bvh::MAX_LEAF_SIZE).contains(&self.leaf_size) {
             return bad(format!("--leaf-size {}: must be 1..={}", self.leaf_size, crate::bvh::MAX_LEAF_SIZE));
         }
@@ -201,10 +197,9 @@ impl BuildBenchOptions {
 }
 
 impl BuildBenchOptions {
-    /// Whether this run measures the scene at `scene_index`: always without a shard, else
-    /// round-robin over the scenes ([`Shard::owns`]).
-    pub fn runs_scene(&self, scene_index: usize) -> bool {
-        self.shard.is_none_or(|s| s.owns(scene_index))
+    /// The matrix as its shards split it: a shard takes whole scenes.
+    pub fn split(&self) -> Split {
+        Split::new(self.shard, self.scenes.len(), 1)
     }
 }
 
@@ -335,7 +330,7 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
         let n = mesh.triangle_count();
         // Another shard's scene is loaded only for its triangle count: whether it has a sweep row.
         triangles.push(n);
-        if !o.runs_scene(scene_index) {
+        if !o.split().runs(scene_index, 0) {
             continue;
         }
         progress(&format!("{name}: {n} triangles"));
@@ -837,14 +832,7 @@ impl BuildBenchReport {
 
     /// `partial: shard I/N, X of Y cells ...` for a sharded run, `None` for a whole one.
     pub fn partial(&self) -> Option<String> {
-        let shard = self.options.shard?;
-        let rows = self.rows();
-        let measured = self.plan.iter().filter(|c| rows.iter().any(|r| &r.cell == *c)).count();
-        Some(format!(
-            "partial: shard {shard}, {measured} of {} cells of the matrix (whole scenes); `trilab merge` of every \
-             shard's folder joins the matrix",
-            self.plan.len()
-        ))
+        shard::partial(self.options.shard, &self.plan, &self.rows(), "whole scenes")
     }
 
     /// Where the rows were measured: the host CPU (its model as the device, the logical CPUs as

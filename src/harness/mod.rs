@@ -26,6 +26,7 @@ pub mod raycast;
 pub mod rayset;
 pub mod compare;
 pub mod scale;
+pub mod shard;
 pub mod spirv;
 pub mod steps;
 pub mod study;
