@@ -170,31 +170,7 @@ pub struct BenchReport {
 
 impl Report for BenchReport {
     fn to_text(&self) -> String {
-        let mut s = format!("{}\n\n{}", self.header(), self.table().to_text());
-        if !self.peers.is_empty() {
-            s += &format!(
-                "\n{}\n\n{}\nspeed target (trilab / peer):\n\n{}",
-                peer_report::PEER_NOTE,
-                peer_report::peer_table(&self.peers).to_text(),
-                peer_report::target_table(&self.peers).to_text()
-            );
-            for note in peer_report::peer_notes(&self.peers) {
-                s += &format!("\n{note}\n");
-            }
-        }
-        if !self.accel.is_empty() {
-            s += &format!(
-                "\nthe driver's acceleration structures (ray-query and ray-tracing-pipeline rows):\n\n{}",
-                self.accel_table().to_text()
-            );
-        }
-        for note in &self.driver_notes {
-            s += &format!("\n{note}\n");
-        }
-        for note in &self.notes {
-            s += &format!("\n{note}\n");
-        }
-        s
+        self.render(false)
     }
 }
 
@@ -234,28 +210,37 @@ impl BenchReport {
 
     /// The tables in Markdown, under the header.
     pub fn markdown(&self) -> String {
-        let mut md = format!("{}\n\n{}", self.header(), self.table().to_markdown());
+        self.render(true)
+    }
+
+    /// The header, the tables (in Markdown or as text) and the notes: the text and the
+    /// Markdown differ only in how a table is drawn, a capital and the accel table's title.
+    fn render(&self, markdown: bool) -> String {
+        let table = |t: Table| if markdown { t.to_markdown() } else { t.to_text() };
+        let mut s = format!("{}\n\n{}", self.header(), table(self.table()));
         if !self.peers.is_empty() {
-            md += &format!(
-                "\n{}\n\n{}\nSpeed target (trilab / peer):\n\n{}",
+            s += &format!(
+                "\n{}\n\n{}\n{} target (trilab / peer):\n\n{}",
                 peer_report::PEER_NOTE,
-                peer_report::peer_table(&self.peers).to_markdown(),
-                peer_report::target_table(&self.peers).to_markdown()
+                table(peer_report::peer_table(&self.peers)),
+                if markdown { "Speed" } else { "speed" },
+                table(peer_report::target_table(&self.peers))
             );
             for note in peer_report::peer_notes(&self.peers) {
-                md += &format!("\n{note}\n");
+                s += &format!("\n{note}\n");
             }
         }
         if !self.accel.is_empty() {
-            md += &format!("\n{}", self.accel_table().to_markdown());
+            let title = match markdown {
+                true => "",
+                false => "the driver's acceleration structures (ray-query and ray-tracing-pipeline rows):\n\n",
+            };
+            s += &format!("\n{title}{}", table(self.accel_table()));
         }
-        for note in &self.driver_notes {
-            md += &format!("\n{note}\n");
+        for note in self.driver_notes.iter().chain(&self.notes) {
+            s += &format!("\n{note}\n");
         }
-        for note in &self.notes {
-            md += &format!("\n{note}\n");
-        }
-        md
+        s
     }
 
     /// Writes the report as JSON and the tables as Markdown where asked, each atomically, and

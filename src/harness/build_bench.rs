@@ -23,6 +23,7 @@ use serde::Serialize;
 use crate::bvh::{BuildOptions, Builder, Bvh, BvhNode, LeafPolicy, MAX_DEPTH};
 use crate::encoding::Layout;
 use crate::error::{Error, Result};
+use crate::harness::results::{self, Folder};
 use crate::harness::shard::{self, Shard, Split};
 use crate::named::Named;
 use crate::report::Summary;
@@ -664,9 +665,7 @@ impl BuildBenchReport {
 
     /// `layouts.csv`: one row per scene and layout.
     pub fn layouts_csv(&self) -> Result<String> {
-        let mut w = csv::Writer::from_writer(vec![]);
-        let io = |e: csv::Error| Error::Usage(format!("writing layouts.csv: {e}"));
-        w.write_record([
+        let header = [
             "scene",
             "triangles",
             "layout",
@@ -681,11 +680,10 @@ impl BuildBenchReport {
             "sah_cost",
             "leaf_size",
             "commit",
-        ])
-        .map_err(io)?;
-        for r in &self.layouts {
+        ];
+        let records = self.layouts.iter().map(|r| {
             let c = |f: fn(&Summary) -> f64| r.convert_seconds.as_ref().map(|s| f(s).to_string()).unwrap_or_default();
-            w.write_record([
+            [
                 r.scene.clone(),
                 r.triangles.to_string(),
                 r.layout.to_string(),
@@ -700,17 +698,13 @@ impl BuildBenchReport {
                 r.sah_cost.to_string(),
                 self.options.leaf_size.to_string(),
                 self.provenance.commit.clone(),
-            ])
-            .map_err(io)?;
-        }
-        let bytes = w.into_inner().map_err(|e| Error::Usage(format!("writing layouts.csv: {e}")))?;
-        Ok(String::from_utf8(bytes).expect("CSV of UTF-8 strings"))
+            ]
+        });
+        results::csv("layouts.csv", header, records)
     }
 
     pub fn csv(&self) -> Result<String> {
-        let mut w = csv::Writer::from_writer(vec![]);
-        let io = |e: csv::Error| Error::Usage(format!("writing build.csv: {e}"));
-        w.write_record([
+        let header = [
             "scene",
             "triangles",
             "builder",
@@ -731,12 +725,11 @@ impl BuildBenchReport {
             "cores",
             "commit",
             "date",
-        ])
-        .map_err(io)?;
+        ];
         let opt = |v: Option<String>| v.unwrap_or_default();
         let (o, p) = (&self.options, &self.provenance);
-        for r in &self.rows {
-            w.write_record([
+        let records = self.rows.iter().map(|r| {
+            [
                 r.scene.clone(),
                 r.triangles.to_string(),
                 r.builder.clone(),
@@ -757,11 +750,9 @@ impl BuildBenchReport {
                 p.cores.to_string(),
                 p.commit.clone(),
                 p.date.clone(),
-            ])
-            .map_err(io)?;
-        }
-        let bytes = w.into_inner().map_err(|e| Error::Usage(format!("writing build.csv: {e}")))?;
-        Ok(String::from_utf8(bytes).expect("CSV of UTF-8 strings"))
+            ]
+        });
+        results::csv("build.csv", header, records)
     }
 
     pub fn markdown(&self) -> String {
@@ -811,13 +802,12 @@ impl BuildBenchReport {
 
     /// Writes build.csv, layouts.csv, build.json and build.md into `dir` (each atomically).
     pub fn write(&self, dir: &Path) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        crate::io::write_atomic(&dir.join("build.csv"), self.csv()?.as_bytes())?;
-        crate::io::write_atomic(&dir.join("layouts.csv"), self.layouts_csv()?.as_bytes())?;
-        let json = serde_json::to_string_pretty(self).expect("serialisable report");
-        crate::io::write_atomic(&dir.join("build.json"), json.as_bytes())?;
-        crate::io::write_atomic(&dir.join("build.md"), self.markdown().as_bytes())?;
-        crate::rows::write(dir, Some(&self.plan()), &self.rows()).map(drop)
+        let mut folder = Folder::create(dir)?;
+        folder.put("build.csv", self.csv()?)?;
+        folder.put("layouts.csv", self.layouts_csv()?)?;
+        folder.put("build.json", serde_json::to_string_pretty(self).expect("serialisable report"))?;
+        folder.put("build.md", self.markdown())?;
+        folder.rows(Some(&self.plan()), &self.rows())
     }
 
     /// The plan of the whole matrix this report belongs to, with its shard.

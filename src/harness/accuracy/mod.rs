@@ -50,6 +50,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, RaycastOptions};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::RaySet;
+use crate::harness::results::Folder;
 use crate::harness::shard::{self, Shard, Split};
 use crate::harness::validate::measure_rays;
 use crate::named::named_enum;
@@ -1011,25 +1012,18 @@ pub fn partial(report: &AccuracyReport) -> Option<String> {
 
 /// Writes accuracy.csv, accuracy.json, accuracy.md and the plots into `dir`; returns the paths.
 pub fn write(report: &AccuracyReport, dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut folder = Folder::create(dir)?;
     let plots = plots::all(report, dir)?;
-    let mut written = Vec::new();
-    let mut put = |name: &str, bytes: Vec<u8>| -> Result<()> {
-        let p = dir.join(name);
-        crate::io::write_atomic(&p, &bytes)?;
-        written.push(p);
-        Ok(())
-    };
-    put("accuracy.csv", table::csv(report)?.into_bytes())?;
+    folder.put("accuracy.csv", table::csv(report)?)?;
     // What `trilab analyze --frontier` reads.
-    put("frontier.csv", table::frontier_csv(report)?.into_bytes())?;
-    put("translation.csv", table::translation_csv(report)?.into_bytes())?;
+    folder.put("frontier.csv", table::frontier_csv(report)?)?;
+    folder.put("translation.csv", table::translation_csv(report)?)?;
     let json = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(format!("accuracy.json: {e}")))?;
-    put("accuracy.json", json.into_bytes())?;
-    put("accuracy.md", table::markdown(report, &plots).into_bytes())?;
-    written.push(crate::rows::write(dir, Some(&plan(report)), &rows(report))?);
-    written.extend(plots.into_iter().map(|p| p.path));
-    Ok(written)
+    folder.put("accuracy.json", json)?;
+    folder.put("accuracy.md", table::markdown(report, &plots))?;
+    folder.rows(Some(&plan(report)), &rows(report))?;
+    folder.add(plots.into_iter().map(|p| p.path));
+    Ok(folder.written())
 }
 
 /// The report as result rows (`rows.jsonl`, what `trilab compare` reads), cell key `part`:

@@ -37,6 +37,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Context, RaycastOptions, TraversalSummary};
 use crate::harness::bench_render::{bench_settings, check_image_mean, summarise_renders, RenderMeasure};
 use crate::harness::rayset::{RaySet, RaySetSizes};
+use crate::harness::results::Folder;
 use crate::harness::shard::{Shard, Split};
 use crate::harness::validate::{mrays_summary, validate_hits};
 use crate::named::{named_enum, Named};
@@ -520,21 +521,14 @@ pub fn counts(kernel: &str) -> crate::spirv::InstructionCounts {
 /// Writes `study.csv`, `study.json`, `study.md` and the plots into `dir` (created if needed),
 /// each atomically. Returns the paths written.
 pub fn write(report: &StudyReport, dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let mut written = vec![];
-    let mut put = |name: &str, bytes: &[u8]| -> Result<()> {
-        let p = dir.join(name);
-        crate::io::write_atomic(&p, bytes)?;
-        written.push(p);
-        Ok(())
-    };
-    put("study.csv", table::csv(report)?.as_bytes())?;
-    put("study.json", (serde_json::to_string_pretty(report).expect("serialisable") + "\n").as_bytes())?;
+    let mut folder = Folder::create(dir)?;
+    folder.put("study.csv", table::csv(report)?)?;
+    folder.put("study.json", serde_json::to_string_pretty(report).expect("serialisable") + "\n")?;
     let plots = plots::all(report, dir)?;
-    put("study.md", table::markdown(report, &plots).as_bytes())?;
-    written.extend(plots.into_iter().map(|p| p.path));
-    written.push(result_rows::write(dir, Some(&plan(report)), &rows(report))?);
-    Ok(written)
+    folder.put("study.md", table::markdown(report, &plots))?;
+    folder.add(plots.into_iter().map(|p| p.path));
+    folder.rows(Some(&plan(report)), &rows(report))?;
+    Ok(folder.written())
 }
 
 /// The plan of the whole matrix this report belongs to (every shard's cells), with its shard.
