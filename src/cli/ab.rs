@@ -181,7 +181,6 @@ pub fn run(a: AbArgs) -> Result<()> {
     sigpipe(false);
     let report = report?;
     if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         ab::write(&report, dir)?;
         eprintln!("wrote {}", dir.display());
     }

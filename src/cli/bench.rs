@@ -121,7 +121,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         ..Default::default()
     };
     if let Some(shard) = o.shard {
-        let owned = (0..o.scenes.len()).filter(|&i| o.runs_scene(i)).count();
+        let owned = o.split().owned();
         eprintln!("bench: shard {shard}: {owned} of {} scene(s)", o.scenes.len());
     }
     let report = bench::run(&ctx, &o, |m| eprintln!("  {m}"))?;

@@ -7,6 +7,7 @@ use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
 use trilab::harness::profile::driver_stats::{self, CollectOptions, Selection};
 use trilab::harness::profile::Status;
+use trilab::harness::results::Folder;
 use trilab::named::Named;
 use trilab::report::Report;
 
@@ -90,11 +91,11 @@ pub fn run(a: DriverStatsArgs) -> Result<()> {
     if report.status != Status::Measured {
         return Err(Error::Unsupported(format!("driver-stats: {}", report.note)));
     }
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let mut folder = Folder::create(&out)?;
     a.json.print(&report);
-    trilab::io::write_atomic(&out.join(FILES[0]), report.to_json().as_bytes())?;
-    trilab::io::write_atomic(&out.join(FILES[1]), report.to_text().as_bytes())?;
-    trilab::rows::write(&out, None, &driver_stats::rows(&report))?;
+    folder.put(FILES[0], report.to_json())?;
+    folder.put(FILES[1], report.to_text())?;
+    folder.rows(None, &driver_stats::rows(&report))?;
     eprintln!("wrote {}", out.display());
     Ok(())
 }

@@ -80,14 +80,8 @@ pub fn run(a: StudyArgs) -> Result<()> {
     trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &inputs)?;
     eprintln!("study: {}", o.scaling());
     if let Some(shard) = o.shard {
-        let groups = (0..o.scenes.len())
-            .flat_map(|s| (0..o.leaf_sizes.len()).map(move |l| (s, l)))
-            .filter(|&(s, l)| o.runs_group(s, l))
-            .count();
-        eprintln!(
-            "study: shard {shard}: {groups} of {} (scene, leaf size) groups",
-            o.scenes.len() * o.leaf_sizes.len()
-        );
+        let split = o.split();
+        eprintln!("study: shard {shard}: {} of {} (scene, leaf size) groups", split.owned(), split.units());
     }
     let report = study::run(&ctx, &o, |m| eprintln!("  {m}"))?;
     a.json.print(&report);

@@ -17,12 +17,12 @@ use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
 use crate::harness::peers::{self, PeerKind, PeerOutcome, TinybvhLayout};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
+use crate::harness::shard::{self, Shard, Split};
 use crate::harness::validate::{interleaved, mrays_summary, Job};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::{self, Ray};
 use crate::reference::RefHit;
 use crate::report::{Report, Summary, Table};
-use crate::rows::{plan_matches, Shard};
 use crate::scene::{load_obj, Mesh};
 
 #[derive(Clone, Debug)]
@@ -53,7 +53,7 @@ pub struct BenchOptions {
     pub scene_access: SceneAccess,
     /// BVH node layouts, each method timed on each, side by side in one run (default: bvh2).
     pub layouts: Vec<Layout>,
-    /// Run only this shard's scenes ([`BenchOptions::runs_scene`]): a scene is the unit, so its
+    /// Run only this shard's scenes ([`BenchOptions::split`]): a scene is the unit, so its
     /// methods, layouts and peers stay interleaved side by side in one run.
     pub shard: Option<Shard>,
 }
@@ -159,31 +159,7 @@ pub struct BenchReport {
 
 impl Report for BenchReport {
     fn to_text(&self) -> String {
-        let mut s = format!("{}\n\n{}", self.header(), self.table().to_text());
-        if !self.peers.is_empty() {
-            s += &format!(
-                "\n{}\n\n{}\nspeed target (trilab / peer):\n\n{}",
-                peer_report::PEER_NOTE,
-                peer_report::peer_table(&self.peers).to_text(),
-                peer_report::target_table(&self.peers).to_text()
-            );
-            for note in peer_report::peer_notes(&self.peers) {
-                s += &format!("\n{note}\n");
-            }
-        }
-        if !self.accel.is_empty() {
-            s += &format!(
-                "\nthe driver's acceleration structures (ray-query and ray-tracing-pipeline rows):\n\n{}",
-                self.accel_table().to_text()
-            );
-        }
-        for note in &self.driver_notes {
-            s += &format!("\n{note}\n");
-        }
-        for note in &self.notes {
-            s += &format!("\n{note}\n");
-        }
-        s
+        self.render(false)
     }
 }
 
@@ -208,13 +184,7 @@ impl BenchReport {
 
     /// `partial: shard I/N, X of Y cells ...` for a sharded run, `None` for a whole one.
     pub fn partial(&self) -> Option<String> {
-        let shard = self.shard?;
-        let planned = self.plan.len();
-        let measured = self.plan.iter().filter(|c| rows(self).iter().any(|r| plan_matches(c, &r.cell))).count();
-        Some(format!(
-            "partial: shard {shard}, {measured} of {planned} cells of the matrix (whole scenes); \
-             `trilab merge` of every shard's folder joins the matrix"
-        ))
+        shard::partial(self.shard, &self.plan, &rows(self), "whole scenes")
     }
 
     /// The plan of the whole matrix this report belongs to, with its shard.
@@ -229,28 +199,37 @@ impl BenchReport {
 
     /// The tables in Markdown, under the header.
     pub fn markdown(&self) -> String {
-        let mut md = format!("{}\n\n{}", self.header(), self.table().to_markdown());
+        self.render(true)
+    }
+
+    /// The header, the tables (in Markdown or as text) and the notes: the text and the
+    /// Markdown differ only in how a table is drawn, a capital and the accel table's title.
+    fn render(&self, markdown: bool) -> String {
+        let table = |t: Table| if markdown { t.to_markdown() } else { t.to_text() };
+        let mut s = format!("{}\n\n{}", self.header(), table(self.table()));
         if !self.peers.is_empty() {
-            md += &format!(
-                "\n{}\n\n{}\nSpeed target (trilab / peer):\n\n{}",
+            s += &format!(
+                "\n{}\n\n{}\n{} target (trilab / peer):\n\n{}",
                 peer_report::PEER_NOTE,
-                peer_report::peer_table(&self.peers).to_markdown(),
-                peer_report::target_table(&self.peers).to_markdown()
+                table(peer_report::peer_table(&self.peers)),
+                if markdown { "Speed" } else { "speed" },
+                table(peer_report::target_table(&self.peers))
             );
             for note in peer_report::peer_notes(&self.peers) {
-                md += &format!("\n{note}\n");
+                s += &format!("\n{note}\n");
             }
         }
         if !self.accel.is_empty() {
-            md += &format!("\n{}", self.accel_table().to_markdown());
+            let title = match markdown {
+                true => "",
+                false => "the driver's acceleration structures (ray-query and ray-tracing-pipeline rows):\n\n",
+            };
+            s += &format!("\n{title}{}", table(self.accel_table()));
         }
-        for note in &self.driver_notes {
-            md += &format!("\n{note}\n");
+        for note in self.driver_notes.iter().chain(&self.notes) {
+            s += &format!("\n{note}\n");
         }
-        for note in &self.notes {
-            md += &format!("\n{note}\n");
-        }
-        md
+        s
     }
 
     /// Writes the report as JSON and the tables as Markdown where asked, each atomically, and
@@ -483,7 +462,7 @@ fn row(
 /// Every cell of the whole bench matrix (all shards), with the coordinates [`rows`] gives them
 /// except `rays`: a set's ray count is measured, not chosen (the diffuse set's depends on the
 /// primary hits), so a plan names a cell by scene, set and method/layout/leaf or peer, and a row
-/// fills it when it agrees on those ([`plan_matches`]). A set the options leave empty
+/// fills it when it agrees on those ([`crate::rows::plan_matches`]). A set the options leave empty
 /// (`--random-rays 0`) is not planned; `driver`: the driver peers the run has (ray query, the ray
 /// tracing pipeline); `peers`: the peer programs that passed their probe.
 pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<crate::rows::Cell> {
@@ -520,24 +499,18 @@ pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<cr
 }
 
 impl BenchOptions {
-    /// Refuses a shard count above the number of scenes (a shard takes whole scenes), naming
-    /// `--shard`, before any work.
-    pub fn check_shard(&self) -> Result<()> {
-        match self.shard {
-            Some(shard) if shard.count as usize > self.scenes.len() => Err(Error::Usage(format!(
-                "--shard {shard}: a bench shard takes whole scenes (each scene's methods, layouts and peers \
-                 interleaved in one run) and this run has {} scene(s); use at most {} shard(s)",
-                self.scenes.len(),
-                self.scenes.len()
-            ))),
-            _ => Ok(()),
-        }
+    /// The matrix as its shards split it: a shard takes whole scenes.
+    pub fn split(&self) -> Split {
+        Split::new(self.shard, self.scenes.len(), 1)
     }
 
-    /// Whether this run measures the scene at `scene_index`: always without a shard, else
-    /// round-robin over the scenes ([`Shard::owns`]).
-    pub fn runs_scene(&self, scene_index: usize) -> bool {
-        self.shard.is_none_or(|s| s.owns(scene_index))
+    /// Refuses more shards than scenes, naming `--shard`, before any work.
+    pub fn check_shard(&self) -> Result<()> {
+        self.split().check(&format!(
+            "a bench shard takes whole scenes (each scene's methods, layouts and peers interleaved in one run) and \
+             this run has {} scene(s)",
+            self.scenes.len()
+        ))
     }
 
     /// Whether the options ask for the driver peer `peer` (`--ray-query`,
@@ -602,7 +575,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
     let driver_peers: Vec<Peer> = driver.iter().map(PeerTracer::peer).collect();
     report.plan = plan_cells(o, &driver_peers, &peer_names);
     for (scene_index, scene_path) in o.scenes.iter().enumerate() {
-        if !o.runs_scene(scene_index) {
+        if !o.split().runs(scene_index, 0) {
             continue;
         }
         let name = crate::scene::scene_name(scene_path);
@@ -859,7 +832,7 @@ mod tests {
         assert_eq!(rows.len(), 5);
         let mut filled = vec![];
         for r in &rows {
-            let fits: Vec<&crate::rows::Cell> = plan.iter().filter(|c| plan_matches(c, &r.cell)).collect();
+            let fits: Vec<&crate::rows::Cell> = plan.iter().filter(|c| crate::rows::plan_matches(c, &r.cell)).collect();
             assert_eq!(fits.len(), 1, "{} fills {fits:?}", r.key());
             filled.push(fits[0].clone());
         }
@@ -882,7 +855,7 @@ mod tests {
             ..Default::default()
         };
         assert!(o.check_shard().is_ok());
-        assert_eq!((0..3).map(|i| o.runs_scene(i)).collect::<Vec<_>>(), [false, true, false]);
+        assert_eq!((0..3).map(|i| o.split().runs(i, 0)).collect::<Vec<_>>(), [false, true, false]);
         let e = BenchOptions { shard: shard("4/4"), ..o }.check_shard().unwrap_err().to_string();
         assert!(e.contains("--shard 4/4") && e.contains("3 scene(s)"), "{e}");
     }

@@ -23,10 +23,11 @@ use serde::Serialize;
 use crate::bvh::{BuildOptions, Builder, Bvh, BvhNode, LeafPolicy, MAX_DEPTH};
 use crate::encoding::Layout;
 use crate::error::{Error, Result};
+use crate::harness::results::{self, Folder};
+use crate::harness::shard::{self, Shard, Split};
 use crate::named::Named;
 use crate::report::Summary;
 use crate::report::Table;
-use crate::rows::Shard;
 use crate::scene::{load_obj, Mesh};
 
 #[derive(Clone, Debug, Serialize)]
@@ -49,7 +50,7 @@ pub struct BuildBenchOptions {
     pub embree: Option<PathBuf>,
     /// Node layouts whose node buffer is made from the binary tree and timed.
     pub layouts: Vec<Layout>,
-    /// Run only this shard's scenes (round-robin, [`Shard::owns`] of the scene's index).
+    /// Run only this shard's scenes ([`BuildBenchOptions::split`]).
     pub shard: Option<Shard>,
 }
 
@@ -160,14 +161,10 @@ impl BuildBenchOptions {
         if self.scenes.is_empty() {
             return bad("--scenes: name at least one scene".into());
         }
-        if let Some(shard) = self.shard.filter(|s| s.count as usize > self.scenes.len()) {
-            return bad(format!(
-                "--shard {shard}: a build-bench shard takes whole scenes and this run has {} scene(s); use at most {} \
-                 shard(s)",
-                self.scenes.len(),
-                self.scenes.len()
-            ));
-        }
+        self.split().check(&format!(
+            "a build-bench shard takes whole scenes and this run has {} scene(s)",
+            self.scenes.len()
+        ))?;
         self.build.check()?;
         if self.threads.is_empty() {
             return bad("--threads: name at least one thread count".into());
@@ -192,10 +189,9 @@ impl BuildBenchOptions {
 }
 
 impl BuildBenchOptions {
-    /// Whether this run measures the scene at `scene_index`: always without a shard, else
-    /// round-robin over the scenes ([`Shard::owns`]).
-    pub fn runs_scene(&self, scene_index: usize) -> bool {
-        self.shard.is_none_or(|s| s.owns(scene_index))
+    /// The matrix as its shards split it: a shard takes whole scenes.
+    pub fn split(&self) -> Split {
+        Split::new(self.shard, self.scenes.len(), 1)
     }
 }
 
@@ -326,7 +322,7 @@ pub fn run(o: &BuildBenchOptions, mut progress: impl FnMut(&str)) -> Result<Buil
         let n = mesh.triangle_count();
         // Another shard's scene is loaded only for its triangle count: whether it has a sweep row.
         triangles.push(n);
-        if !o.runs_scene(scene_index) {
+        if !o.split().runs(scene_index, 0) {
             continue;
         }
         progress(&format!("{name}: {n} triangles"));
@@ -660,9 +656,7 @@ impl BuildBenchReport {
 
     /// `layouts.csv`: one row per scene and layout.
     pub fn layouts_csv(&self) -> Result<String> {
-        let mut w = csv::Writer::from_writer(vec![]);
-        let io = |e: csv::Error| Error::Usage(format!("writing layouts.csv: {e}"));
-        w.write_record([
+        let header = [
             "scene",
             "triangles",
             "layout",
@@ -677,11 +671,10 @@ impl BuildBenchReport {
             "sah_cost",
             "leaf_size",
             "commit",
-        ])
-        .map_err(io)?;
-        for r in &self.layouts {
+        ];
+        let records = self.layouts.iter().map(|r| {
             let c = |f: fn(&Summary) -> f64| r.convert_seconds.as_ref().map(|s| f(s).to_string()).unwrap_or_default();
-            w.write_record([
+            [
                 r.scene.clone(),
                 r.triangles.to_string(),
                 r.layout.to_string(),
@@ -696,17 +689,13 @@ impl BuildBenchReport {
                 r.sah_cost.to_string(),
                 self.options.build.max_leaf_size.to_string(),
                 self.provenance.commit.clone(),
-            ])
-            .map_err(io)?;
-        }
-        let bytes = w.into_inner().map_err(|e| Error::Usage(format!("writing layouts.csv: {e}")))?;
-        Ok(String::from_utf8(bytes).expect("CSV of UTF-8 strings"))
+            ]
+        });
+        results::csv("layouts.csv", header, records)
     }
 
     pub fn csv(&self) -> Result<String> {
-        let mut w = csv::Writer::from_writer(vec![]);
-        let io = |e: csv::Error| Error::Usage(format!("writing build.csv: {e}"));
-        w.write_record([
+        let header = [
             "scene",
             "triangles",
             "builder",
@@ -727,12 +716,11 @@ impl BuildBenchReport {
             "cores",
             "commit",
             "date",
-        ])
-        .map_err(io)?;
+        ];
         let opt = |v: Option<String>| v.unwrap_or_default();
         let (o, p) = (&self.options, &self.provenance);
-        for r in &self.rows {
-            w.write_record([
+        let records = self.rows.iter().map(|r| {
+            [
                 r.scene.clone(),
                 r.triangles.to_string(),
                 r.builder.clone(),
@@ -753,11 +741,9 @@ impl BuildBenchReport {
                 p.cores.to_string(),
                 p.commit.clone(),
                 p.date.clone(),
-            ])
-            .map_err(io)?;
-        }
-        let bytes = w.into_inner().map_err(|e| Error::Usage(format!("writing build.csv: {e}")))?;
-        Ok(String::from_utf8(bytes).expect("CSV of UTF-8 strings"))
+            ]
+        });
+        results::csv("build.csv", header, records)
     }
 
     pub fn markdown(&self) -> String {
@@ -807,13 +793,12 @@ impl BuildBenchReport {
 
     /// Writes build.csv, layouts.csv, build.json and build.md into `dir` (each atomically).
     pub fn write(&self, dir: &Path) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        crate::io::write_atomic(&dir.join("build.csv"), self.csv()?.as_bytes())?;
-        crate::io::write_atomic(&dir.join("layouts.csv"), self.layouts_csv()?.as_bytes())?;
-        let json = serde_json::to_string_pretty(self).expect("serialisable report");
-        crate::io::write_atomic(&dir.join("build.json"), json.as_bytes())?;
-        crate::io::write_atomic(&dir.join("build.md"), self.markdown().as_bytes())?;
-        crate::rows::write(dir, Some(&self.plan()), &self.rows()).map(drop)
+        let mut folder = Folder::create(dir)?;
+        folder.put("build.csv", self.csv()?)?;
+        folder.put("layouts.csv", self.layouts_csv()?)?;
+        folder.put("build.json", serde_json::to_string_pretty(self).expect("serialisable report"))?;
+        folder.put("build.md", self.markdown())?;
+        folder.rows(Some(&self.plan()), &self.rows())
     }
 
     /// The plan of the whole matrix this report belongs to, with its shard.
@@ -828,14 +813,7 @@ impl BuildBenchReport {
 
     /// `partial: shard I/N, X of Y cells ...` for a sharded run, `None` for a whole one.
     pub fn partial(&self) -> Option<String> {
-        let shard = self.options.shard?;
-        let rows = self.rows();
-        let measured = self.plan.iter().filter(|c| rows.iter().any(|r| &r.cell == *c)).count();
-        Some(format!(
-            "partial: shard {shard}, {measured} of {} cells of the matrix (whole scenes); `trilab merge` of every \
-             shard's folder joins the matrix",
-            self.plan.len()
-        ))
+        shard::partial(self.options.shard, &self.plan, &self.rows(), "whole scenes")
     }
 
     /// Where the rows were measured: the host CPU (its model as the device, the logical CPUs as

@@ -50,14 +50,10 @@ pub fn colour(m: Method) -> RGBColor {
     METHOD_COLOURS[i % METHOD_COLOURS.len()]
 }
 
-pub(crate) const SCENE_COLOURS: [RGBColor; 6] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-];
+/// The colour of the `i`-th scene or device of a plot: tab10's first six, in turn.
+pub fn series_colour(i: usize) -> RGBColor {
+    METHOD_COLOURS[i % 6]
+}
 
 pub fn plot_err(what: &str, e: impl std::fmt::Display) -> Error {
     Error::Usage(format!("drawing the {what} plot: {e}"))
@@ -92,6 +88,21 @@ impl LegendEntry {
     }
 }
 
+/// A panel's chart builder: the caption in `caption_size` points, the margin and the axis
+/// label areas every plot has.
+pub fn chart_on<'a, 'b>(
+    area: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
+    caption: &str,
+    caption_size: u32,
+) -> ChartBuilder<'a, 'b, BitMapBackend<'b>> {
+    let mut b = ChartBuilder::on(area);
+    b.caption(caption, ("sans-serif", caption_size))
+        .margin(12)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(Y_LABEL_AREA);
+    b
+}
+
 /// A panel whose x axis is the leaf sizes `leaves` (one segment each, labelled with the size)
 /// and whose y axis is `y`, its mesh drawn: the chart of every time-against-leaf-size plot
 /// (the study's, the merge's).
@@ -103,11 +114,7 @@ pub fn leaf_size_chart<'a, 'b>(
     y_desc: &str,
     what: &str,
 ) -> Result<LeafSizeChart<'a, 'b>> {
-    let mut chart = ChartBuilder::on(area)
-        .caption(caption, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(X_LABEL_AREA)
-        .y_label_area_size(Y_LABEL_AREA)
+    let mut chart = chart_on(area, caption, 20)
         // Integer ranges include their end in plotters: n points are 0..n-1.
         .build_cartesian_2d((0u32..leaves.len().saturating_sub(1) as u32).into_segmented(), y)
         .map_err(|e| plot_err(what, e))?;
@@ -135,6 +142,87 @@ pub type LeafSizeChart<'a, 'b> = ChartContext<
         plotters::coord::types::RangedCoordf64,
     >,
 >;
+
+/// One series on a leaf-size chart: `points` (leaf size index, median, min, max) as a line
+/// through the medians with a min-max bar at each.
+pub fn line_with_error_bars(
+    chart: &mut LeafSizeChart,
+    points: &[(u32, f64, f64, f64)],
+    c: RGBColor,
+    what: &str,
+) -> Result<()> {
+    chart
+        .draw_series(LineSeries::new(points.iter().map(|p| (SegmentValue::CenterOf(p.0), p.1)), c.stroke_width(2)))
+        .map_err(|e| plot_err(what, e))?;
+    chart
+        .draw_series(
+            points.iter().map(|p| ErrorBar::new_vertical(SegmentValue::CenterOf(p.0), p.2, p.1, p.3, c.filled(), 6)),
+        )
+        .map_err(|e| plot_err(what, e))?;
+    Ok(())
+}
+
+/// A panel whose x axis is the categories `labels` (at 0, 1, ...; a group of bars each) and
+/// whose y axis runs from 0 to `ymax`, its mesh drawn: the chart of every grouped bar plot.
+pub fn category_chart<'a, 'b>(
+    area: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
+    caption: &str,
+    labels: &[&str],
+    ymax: f64,
+    y_desc: &str,
+    what: &str,
+) -> Result<CategoryChart<'a, 'b>> {
+    let mut chart = chart_on(area, caption, 20)
+        .build_cartesian_2d(-0.5f64..(labels.len() as f64 - 0.5), 0f64..ymax.max(1e-9))
+        .map_err(|e| plot_err(what, e))?;
+    chart
+        .configure_mesh()
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
+        .disable_x_mesh()
+        .x_labels(labels.len().max(1))
+        .x_label_formatter(&|x| {
+            let k = x.round();
+            if (x - k).abs() < 1e-6 && k >= 0.0 {
+                labels.get(k as usize).map(|s| s.to_string()).unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .y_desc(y_desc)
+        .draw()
+        .map_err(|e| plot_err(what, e))?;
+    Ok(chart)
+}
+
+/// The chart [`category_chart`] returns: x a category's index, y a value.
+pub type CategoryChart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// Series `j` of `n` on a category chart: a bar for each category with a value (`values[k]`),
+/// in the `j`-th of `n` slots of the category's group.
+pub fn bar_series(
+    chart: &mut CategoryChart,
+    values: &[Option<f64>],
+    (j, n): (usize, usize),
+    c: RGBColor,
+    what: &str,
+) -> Result<()> {
+    let width = 0.8 / n as f64;
+    let bars: Vec<Rectangle<(f64, f64)>> = values
+        .iter()
+        .enumerate()
+        .filter_map(|(k, v)| {
+            let x0 = k as f64 - 0.4 + j as f64 * width;
+            Some(Rectangle::new([(x0, 0.0), (x0 + width * 0.9, (*v)?)], c.filled()))
+        })
+        .collect();
+    chart.draw_series(bars).map_err(|e| plot_err(what, e))?;
+    Ok(())
+}
 
 /// Draws `panels` side by side with `draw(area, panel index)` and writes the PNG atomically.
 /// The legend (shared by every panel) goes in a strip right of the panels, never over data.

@@ -427,16 +427,12 @@ impl ScaleReport {
 
     /// Writes scale.csv, scale.json and scale.md into `dir` (created if needed).
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let json = serde_json::to_string_pretty(self).map_err(|e| Error::Usage(e.to_string()))?;
-        let files = [("scale.csv", self.csv()), ("scale.json", json + "\n"), ("scale.md", self.markdown())];
-        let mut out = vec![];
-        for (name, text) in files {
-            let p = dir.join(name);
-            crate::io::write_atomic(&p, text.as_bytes())?;
-            out.push(p);
-        }
-        Ok(out)
+        let mut folder = crate::harness::results::Folder::create(dir)?;
+        folder.put("scale.csv", self.csv())?;
+        folder.put("scale.json", json + "\n")?;
+        folder.put("scale.md", self.markdown())?;
+        Ok(folder.written())
     }
 }
 impl crate::report::Report for ScaleReport {

@@ -37,7 +37,7 @@ pub fn counts() -> SpirvReport {
 /// removing disassembly there of variants that no longer exist or are not among `which`.
 /// Returns how many files were written.
 pub fn write(dir: &Path, which: Disassembly) -> Result<usize> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut folder = crate::harness::results::Folder::create(dir)?;
     let files = crate::spirv::review_files(which);
     let keep: Vec<&String> = files.iter().map(|(n, _)| n).collect();
     for e in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.flatten() {
@@ -47,10 +47,10 @@ pub fn write(dir: &Path, which: Disassembly) -> Result<usize> {
         }
     }
     for (name, text) in &files {
-        crate::io::write_atomic(&dir.join(name), text.as_bytes())?;
+        folder.put(name, text)?;
     }
-    crate::rows::write(dir, None, &rows(&counts()))?;
-    Ok(files.len() + 1)
+    folder.rows(None, &rows(&counts()))?;
+    Ok(folder.written().len())
 }
 
 /// Where SPIR-V counts come from: the compiler, before any driver sees them.

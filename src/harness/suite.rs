@@ -24,6 +24,7 @@ use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::RaySetSizes;
+use crate::harness::results::Folder;
 use crate::harness::{accuracy, bench, calibration, devices, profile, study};
 use crate::named::{named_enum, Named};
 use crate::report::{Report, Table};
@@ -454,11 +455,11 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
     let keep = |f: &dyn Fn(&mut Kept)| f(&mut kept.lock().unwrap_or_else(|e| e.into_inner()));
     let start = Instant::now();
     let budget_s = o.budget_minutes * 60.0;
-    std::fs::create_dir_all(&o.out).map_err(|e| Error::io(&o.out, e))?;
+    let mut folder = Folder::create(&o.out)?;
     keep(&|k| k.out = o.out.clone());
     let devices = devices::run()?;
-    crate::io::write_atomic(&o.out.join("devices.txt"), devices.to_text().as_bytes())?;
-    crate::io::write_atomic(&o.out.join("devices.json"), devices.to_json().as_bytes())?;
+    folder.put("devices.txt", devices.to_text())?;
+    folder.put("devices.json", devices.to_json())?;
     keep(&|k| k.devices = true);
 
     // The host's speed without the driver, measured before the probe and after every part: a
@@ -549,9 +550,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
         });
         sections.push((section.0, section.1));
     }
-    let dir = o.out.join(calibration::COMMAND);
-    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-    crate::rows::write(&dir, None, &calibration_rows)?;
+    Folder::create(&o.out.join(calibration::COMMAND))?.rows(None, &calibration_rows)?;
     let report = SuiteReport {
         provenance: Provenance::of(ctx),
         budget_minutes: o.budget_minutes,
@@ -562,8 +561,8 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
         seconds: start.elapsed().as_secs_f64(),
         out: o.out.clone(),
     };
-    crate::io::write_atomic(&o.out.join("summary.md"), summary(&report).as_bytes())?;
-    crate::io::write_atomic(&o.out.join("suite.json"), report.to_json().as_bytes())?;
+    folder.put("summary.md", summary(&report))?;
+    folder.put("suite.json", report.to_json())?;
     keep(&|k| k.summary = true);
     Ok(report)
 }

@@ -24,6 +24,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::harness::results::Folder;
 use crate::report::{Report, Table};
 use crate::rows::{cell, Better, Class, Figure, Row, Source};
 use compiled::StatChange;
@@ -729,15 +730,14 @@ fn tail(stderr: &str) -> String {
 /// Writes `ab.json`, `ab.md` (the text report) and `rows.jsonl` (the `ab` rows) into `dir`,
 /// and each side's bench rows into `dir/a/rows.jsonl` and `dir/b/rows.jsonl`.
 pub fn write(r: &AbReport, dir: &Path) -> Result<()> {
-    crate::io::write_atomic(&dir.join("ab.json"), r.to_json().as_bytes())?;
-    crate::io::write_atomic(&dir.join("ab.md"), format!("```\n{}```\n", r.to_text()).as_bytes())?;
-    crate::rows::write(dir, None, &rows(r))?;
+    let mut folder = Folder::create(dir)?;
+    folder.put("ab.json", r.to_json())?;
+    folder.put("ab.md", format!("```\n{}```\n", r.to_text()))?;
+    folder.rows(None, &rows(r))?;
     for (pick, sub) in [(0, "a"), (1, "b")] {
-        let d = dir.join(sub);
-        std::fs::create_dir_all(&d).map_err(|e| Error::io(&d, e))?;
         let mut rows = side_rows(r, pick);
         rows.extend(r.driver_stats_rows[pick].iter().cloned());
-        crate::rows::write(&d, None, &rows)?;
+        Folder::create(&dir.join(sub))?.rows(None, &rows)?;
     }
     Ok(())
 }

@@ -50,13 +50,14 @@ use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, RaycastOptions};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::RaySet;
+use crate::harness::results::Folder;
+use crate::harness::shard::{self, Shard, Split};
 use crate::harness::validate::measure_rays;
 use crate::named::named_enum;
 use crate::pipeline::{HostScene, SceneRequest};
 use crate::rays::offset::{Offset, SurfacePoint};
 use crate::rays::{Camera, Hit, Ray};
 use crate::report::Summary;
-use crate::rows::Shard;
 use crate::scene::Mesh;
 use crate::shared::MISS_ID;
 
@@ -106,7 +107,7 @@ pub struct AccuracyOptions {
     pub scenes: Vec<PathBuf>,
     pub seed: u64,
     /// Run only this shard's (leaf size, layout) groups of the leak, false-hit and error sweeps
-    /// ([`AccuracyOptions::runs_group`]); the extremes, self-intersection and frontier run in
+    /// ([`AccuracyOptions::split`]); the extremes, self-intersection and frontier run in
     /// the one shard that owns the frontier's group ([`AccuracyOptions::runs_fixed_parts`]).
     pub shard: Option<Shard>,
 }
@@ -170,25 +171,20 @@ impl AccuracyOptions {
         }
     }
 
-    /// Refuses more shards than (leaf size, layout) groups, naming `--shard`, before any work.
-    pub fn check_shard(&self) -> Result<()> {
-        let groups = self.leaf_sizes.len() * self.layouts.len();
-        match self.shard {
-            Some(shard) if shard.count as usize > groups => Err(Error::Usage(format!(
-                "--shard {shard}: an accuracy shard takes whole (leaf size, layout) groups of the leak sweep and \
-                 this run has {groups} ({} leaf size(s) x {} layout(s)); use at most {groups} shard(s)",
-                self.leaf_sizes.len(),
-                self.layouts.len()
-            ))),
-            _ => Ok(()),
-        }
+    /// The leak, false-hit and error sweeps as their shards split them: a shard takes whole
+    /// (leaf size, layout) groups, leaf size major.
+    pub fn split(&self) -> Split {
+        Split::new(self.shard, self.leaf_sizes.len(), self.layouts.len())
     }
 
-    /// Whether this run sweeps the (leaf size, layout) group at `leaf_index`, `layout_index`:
-    /// always without a shard, else round-robin over the groups, leaf size major
-    /// ([`Shard::owns`]).
-    pub fn runs_group(&self, leaf_index: usize, layout_index: usize) -> bool {
-        self.shard.is_none_or(|s| s.owns(leaf_index * self.layouts.len() + layout_index))
+    /// Refuses more shards than (leaf size, layout) groups, naming `--shard`, before any work.
+    pub fn check_shard(&self) -> Result<()> {
+        let (leaves, layouts) = (self.leaf_sizes.len(), self.layouts.len());
+        self.split().check(&format!(
+            "an accuracy shard takes whole (leaf size, layout) groups of the leak sweep and this run has {} \
+             ({leaves} leaf size(s) x {layouts} layout(s))",
+            leaves * layouts
+        ))
     }
 
     /// Whether this run takes the extremes, self-intersection and frontier: the shard owning
@@ -199,7 +195,7 @@ impl AccuracyOptions {
     pub fn runs_fixed_parts(&self) -> bool {
         let leaf = self.leaf_sizes.iter().position(|&l| l == FIXED_LEAF).unwrap_or(0);
         let layout = self.layouts.iter().position(|&l| l == self.frontier_layout()).unwrap_or(0);
-        self.runs_group(leaf, layout)
+        self.split().runs(leaf, layout)
     }
 }
 
@@ -672,13 +668,14 @@ fn leaks_and_false_hits(
             rays.len() - leak_count,
             t0.elapsed().as_secs_f64()
         ));
+        let split = o.split();
         for (li, &leaf) in o.leaf_sizes.iter().enumerate() {
-            if !(0..o.layouts.len()).any(|yi| o.runs_group(li, yi)) {
+            if !split.runs_any(li) {
                 continue; // another shard's leaf size
             }
             let host = build(mesh, leaf);
             let groups = tracers.iter().flat_map(|t| o.layouts.iter().enumerate().map(move |(yi, l)| (t, yi, l)));
-            for (t, _, &layout) in groups.filter(|&(_, yi, _)| o.runs_group(li, yi)) {
+            for (t, _, &layout) in groups.filter(|&(_, yi, _)| split.runs(li, yi)) {
                 let (hits, _) = cast(ctx, t, &host, layout, &rays)?;
                 let mut leaks = 0;
                 for (pi, (label, s, n)) in parts.iter().enumerate() {
@@ -1004,42 +1001,29 @@ pub fn plan(report: &AccuracyReport) -> crate::rows::Plan {
 
 /// `partial: shard I/N, X of Y cells ...` for a sharded run, `None` for a whole one.
 pub fn partial(report: &AccuracyReport) -> Option<String> {
-    let shard = report.options.shard?;
-    let rows = rows(report);
-    let measured = report.plan.iter().filter(|c| rows.iter().any(|r| crate::rows::plan_matches(c, &r.cell))).count();
     let fixed = if report.options.runs_fixed_parts() {
         "with the extremes, self-intersection and frontier"
     } else {
         "without the extremes, self-intersection and frontier (another shard's)"
     };
-    Some(format!(
-        "partial: shard {shard}, {measured} of {} cells of the matrix (whole leaf size and layout groups, {fixed}); \
-         `trilab merge` of every shard's folder joins the matrix",
-        report.plan.len()
-    ))
+    let whole = format!("whole leaf size and layout groups, {fixed}");
+    shard::partial(report.options.shard, &report.plan, &rows(report), &whole)
 }
 
 /// Writes accuracy.csv, accuracy.json, accuracy.md and the plots into `dir`; returns the paths.
 pub fn write(report: &AccuracyReport, dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut folder = Folder::create(dir)?;
     let plots = plots::all(report, dir)?;
-    let mut written = Vec::new();
-    let mut put = |name: &str, bytes: Vec<u8>| -> Result<()> {
-        let p = dir.join(name);
-        crate::io::write_atomic(&p, &bytes)?;
-        written.push(p);
-        Ok(())
-    };
-    put("accuracy.csv", table::csv(report)?.into_bytes())?;
+    folder.put("accuracy.csv", table::csv(report)?)?;
     // What `trilab analyze --frontier` reads.
-    put("frontier.csv", table::frontier_csv(report)?.into_bytes())?;
-    put("translation.csv", table::translation_csv(report)?.into_bytes())?;
+    folder.put("frontier.csv", table::frontier_csv(report)?)?;
+    folder.put("translation.csv", table::translation_csv(report)?)?;
     let json = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(format!("accuracy.json: {e}")))?;
-    put("accuracy.json", json.into_bytes())?;
-    put("accuracy.md", table::markdown(report, &plots).into_bytes())?;
-    written.push(crate::rows::write(dir, Some(&plan(report)), &rows(report))?);
-    written.extend(plots.into_iter().map(|p| p.path));
-    Ok(written)
+    folder.put("accuracy.json", json)?;
+    folder.put("accuracy.md", table::markdown(report, &plots))?;
+    folder.rows(Some(&plan(report)), &rows(report))?;
+    folder.add(plots.into_iter().map(|p| p.path));
+    Ok(folder.written())
 }
 
 /// The report as result rows (`rows.jsonl`, what `trilab compare` reads), cell key `part`:

@@ -8,7 +8,7 @@ use plotters::prelude::*;
 
 use super::AccuracyReport;
 use crate::error::Result;
-use crate::harness::plots::{colour, plot_err, render_png, LegendEntry, Marker, Plot, X_LABEL_AREA, Y_LABEL_AREA};
+use crate::harness::plots::{chart_on, colour, plot_err, render_png, LegendEntry, Marker, Plot};
 
 /// x values on a log axis: 0 is drawn at a tenth of the smallest positive value (labelled in
 /// the table), so perfect methods stay on the plot.
@@ -36,11 +36,7 @@ fn panel(
     let xv = |v: f64| if v > 0.0 && v.is_finite() { v } else { floor };
     let xmax = xs.iter().copied().map(xv).fold(floor, f64::max) * 10.0;
     let ymax = rows.iter().map(|r| r.mrays_per_s.expect("filtered").max).fold(0.0, f64::max) * 1.2;
-    let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 18))
-        .margin(12)
-        .x_label_area_size(X_LABEL_AREA)
-        .y_label_area_size(Y_LABEL_AREA)
+    let mut chart = chart_on(area, title, 18)
         .build_cartesian_2d((floor / 2.0..xmax).log_scale(), 0f64..ymax.max(1e-9))
         .map_err(|e| plot_err(what, e))?;
     chart
@@ -73,32 +69,40 @@ fn legend(report: &AccuracyReport) -> Vec<LegendEntry> {
         .collect()
 }
 
+/// A panel: its title, its x axis's description and its x value.
+type Panel = (&'static str, &'static str, fn(&super::FrontierRow) -> f64);
+
 /// Writes `frontier_leaks.png` and `frontier_t_error.png`.
 pub fn all(report: &AccuracyReport, dir: &Path) -> Result<Vec<Plot>> {
     if report.frontier.iter().all(|r| r.mrays_per_s.is_none()) {
         return Ok(vec![]);
     }
-    let leaks = Plot {
-        title: "Mrays/s against leaks and false hits per 10^6 rays (leaf 4)".into(),
-        path: dir.join("frontier_leaks.png"),
-    };
-    render_png(&leaks.path, 2, "frontier", &legend(report), |area, i| {
-        if i == 0 {
-            panel(report, area, "Mrays/s vs leaks", "leaks per 10^6 rays", &|r| r.leaks_per_million)
-        } else {
-            panel(report, area, "Mrays/s vs false hits", "false hits per 10^6 rays", &|r| r.false_hits_per_million)
-        }
-    })?;
-    let terr = Plot {
-        title: "Mrays/s against t error in f32 ULPs, median and p99 (leaf 4)".into(),
-        path: dir.join("frontier_t_error.png"),
-    };
-    render_png(&terr.path, 2, "frontier", &legend(report), |area, i| {
-        if i == 0 {
-            panel(report, area, "Mrays/s vs median t error", "median |t - t_ref| (ULPs)", &|r| r.t_ulps_median)
-        } else {
-            panel(report, area, "Mrays/s vs p99 t error", "p99 |t - t_ref| (ULPs)", &|r| r.t_ulps_p99)
-        }
-    })?;
-    Ok(vec![leaks, terr])
+    let plots: [(&str, &str, [Panel; 2]); 2] = [
+        (
+            "Mrays/s against leaks and false hits per 10^6 rays (leaf 4)",
+            "frontier_leaks.png",
+            [
+                ("Mrays/s vs leaks", "leaks per 10^6 rays", |r| r.leaks_per_million),
+                ("Mrays/s vs false hits", "false hits per 10^6 rays", |r| r.false_hits_per_million),
+            ],
+        ),
+        (
+            "Mrays/s against t error in f32 ULPs, median and p99 (leaf 4)",
+            "frontier_t_error.png",
+            [
+                ("Mrays/s vs median t error", "median |t - t_ref| (ULPs)", |r| r.t_ulps_median),
+                ("Mrays/s vs p99 t error", "p99 |t - t_ref| (ULPs)", |r| r.t_ulps_p99),
+            ],
+        ),
+    ];
+    let mut out = vec![];
+    for (title, file, panels) in plots {
+        let plot = Plot { title: title.into(), path: dir.join(file) };
+        render_png(&plot.path, 2, "frontier", &legend(report), |area, i| {
+            let (title, x_desc, x) = panels[i];
+            panel(report, area, title, x_desc, &x)
+        })?;
+        out.push(plot);
+    }
+    Ok(out)
 }

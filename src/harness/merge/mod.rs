@@ -726,13 +726,13 @@ pub const FILES: [&str; 2] = ["merge.md", "merge.json"];
 /// Writes the plots, `merge.md` and `merge.json` into `dir` (created if needed), each
 /// atomically. Returns the paths written.
 pub fn write(report: &MergeReport, dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut folder = crate::harness::results::Folder::create(dir)?;
     let plots = plots::all(report, dir)?;
-    let md = dir.join(FILES[0]);
-    crate::io::write_atomic(&md, report.markdown(&plots).as_bytes())?;
-    let json = dir.join(FILES[1]);
-    crate::io::write_atomic(&json, (serde_json::to_string_pretty(report).expect("serialisable") + "\n").as_bytes())?;
-    Ok(plots.into_iter().map(|p| p.path).chain([md, json]).collect())
+    let md = report.markdown(&plots);
+    folder.add(plots.into_iter().map(|p| p.path));
+    folder.put(FILES[0], md)?;
+    folder.put(FILES[1], serde_json::to_string_pretty(report).expect("serialisable") + "\n")?;
+    Ok(folder.written())
 }
 
 #[cfg(test)]

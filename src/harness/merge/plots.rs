@@ -6,19 +6,15 @@
 
 use std::path::Path;
 
-use plotters::coord::ranged1d::SegmentValue;
 use plotters::prelude::*;
 
 use super::{MergeReport, SpeedRow};
 use crate::error::Result;
 use crate::harness::plots::{
-    leaf_size_chart, plot_err, render_png, LegendEntry, Marker, Plot, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA,
+    bar_series, category_chart, leaf_size_chart, line_with_error_bars, plot_err, render_png, series_colour,
+    LegendEntry, Marker, Plot,
 };
 use crate::rows::Figure;
-
-fn device_colour(i: usize) -> RGBColor {
-    SCENE_COLOURS[i % SCENE_COLOURS.len()]
-}
 
 /// One render-time row: (scene, layout, method, leaf, per device).
 type TimeRow<'a> = (&'a str, &'a str, &'a str, u32, &'a [Option<Figure>]);
@@ -87,7 +83,7 @@ fn legend(report: &MergeReport, marker: Marker) -> Vec<LegendEntry> {
     super::series_names(&report.devices)
         .into_iter()
         .enumerate()
-        .map(|(i, name)| LegendEntry::new(name, device_colour(i), marker))
+        .map(|(i, name)| LegendEntry::new(name, series_colour(i), marker))
         .collect()
 }
 
@@ -114,16 +110,7 @@ fn time_vs_leaf(report: &MergeReport, t: &Times, scene: &str, layout: &str, path
         let mut chart =
             leaf_size_chart(area, &caption, &leaves, ymin..ymax, "time / device's fastest leaf (min-max)", what)?;
         for (d, pts) in all.iter().enumerate() {
-            let c = device_colour(d);
-            chart
-                .draw_series(LineSeries::new(pts.iter().map(|p| (SegmentValue::CenterOf(p.0), p.1)), c.stroke_width(2)))
-                .map_err(|e| plot_err(what, e))?;
-            chart
-                .draw_series(
-                    pts.iter()
-                        .map(|p| ErrorBar::new_vertical(SegmentValue::CenterOf(p.0), p.2, p.1, p.3, c.filled(), 6)),
-                )
-                .map_err(|e| plot_err(what, e))?;
+            line_with_error_bars(&mut chart, pts, series_colour(d), what)?;
         }
         Ok(())
     })
@@ -152,42 +139,11 @@ fn methods_vs_mt(report: &MergeReport, t: &Times, path: &Path) -> Result<()> {
         let ymax = values.iter().flatten().flatten().copied().fold(1.0, f64::max) * 1.15;
         let caption =
             if layout == "bvh2" { format!("{scene}: time / MT") } else { format!("{scene}, {layout}: time / MT") };
-        let mut chart = ChartBuilder::on(area)
-            .caption(caption, ("sans-serif", 20))
-            .margin(12)
-            .x_label_area_size(X_LABEL_AREA)
-            .y_label_area_size(Y_LABEL_AREA)
-            .build_cartesian_2d(-0.5f64..(methods.len() as f64 - 0.5), 0f64..ymax)
-            .map_err(|e| plot_err(what, e))?;
-        chart
-            .configure_mesh()
-            .label_style(("sans-serif", 14))
-            .axis_desc_style(("sans-serif", 15))
-            .disable_x_mesh()
-            .x_labels(methods.len().max(1))
-            .x_label_formatter(&|x| {
-                let k = x.round();
-                if (x - k).abs() < 1e-6 && k >= 0.0 {
-                    methods.get(k as usize).map(|s| s.to_string()).unwrap_or_default()
-                } else {
-                    String::new()
-                }
-            })
-            .y_desc("render time / MT's (geo. mean over leaves)")
-            .draw()
-            .map_err(|e| plot_err(what, e))?;
-        let width = 0.8 / devices.max(1) as f64;
+        let y_desc = "render time / MT's (geo. mean over leaves)";
+        let mut chart = category_chart(area, &caption, &methods, ymax, y_desc, what)?;
         for d in 0..devices {
-            let c = device_colour(d);
-            let bars: Vec<Rectangle<(f64, f64)>> = values
-                .iter()
-                .enumerate()
-                .filter_map(|(mi, v)| {
-                    let x0 = mi as f64 - 0.4 + d as f64 * width;
-                    Some(Rectangle::new([(x0, 0.0), (x0 + width * 0.9, v[d]?)], c.filled()))
-                })
-                .collect();
-            chart.draw_series(bars).map_err(|e| plot_err(what, e))?;
+            let per_method: Vec<Option<f64>> = values.iter().map(|v| v[d]).collect();
+            bar_series(&mut chart, &per_method, (d, devices.max(1)), series_colour(d), what)?;
         }
         chart
             .draw_series(LineSeries::new([(-0.5, 1.0), (methods.len() as f64 - 0.5, 1.0)], BLACK.stroke_width(1)))

@@ -760,13 +760,9 @@ impl crate::report::Report for ProfileReport {
 /// heat maps are already there ([`run`] wrote them).
 pub fn write(report: &ProfileReport, dir: &Path) -> Result<Vec<PathBuf>> {
     use crate::report::Report;
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let files = [("profile.json", report.to_json()), ("profile.md", report.to_text())];
-    let mut written = vec![];
-    for (name, text) in files {
-        crate::io::write_atomic(&dir.join(name), text.as_bytes())?;
-        written.push(dir.join(name));
-    }
-    written.push(crate::rows::write(dir, None, &rows(report))?);
-    Ok(written)
+    let mut folder = crate::harness::results::Folder::create(dir)?;
+    folder.put("profile.json", report.to_json())?;
+    folder.put("profile.md", report.to_text())?;
+    folder.rows(None, &rows(report))?;
+    Ok(folder.written())
 }

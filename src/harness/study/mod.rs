@@ -15,7 +15,7 @@
 //! cell and the plan of the whole matrix, what `trilab compare` and `trilab merge` read).
 //!
 //! Shards (`--shard I/N`, [`StudyOptions::shard`]): a shard runs every N-th (scene, leaf size)
-//! group of the matrix, round-robin from group I ([`owns_group`]). A group is the unit, not a
+//! group of the matrix, round-robin from group I ([`StudyOptions::split`]). A group is the unit, not a
 //! single cell, so every method and layout of a leaf size is still measured side by side,
 //! interleaved in one run (the comparisons claims (b) and (c) make), and each BVH is built by
 //! one shard only. A shard's report judges its own cells and says it is partial; `trilab merge`
@@ -37,12 +37,14 @@ use crate::error::{Error, Result};
 use crate::gpu::{Context, RaycastOptions, TraversalSummary};
 use crate::harness::bench_render::{bench_settings, check_image_mean, summarise_renders, RenderMeasure};
 use crate::harness::rayset::{RaySet, RaySetSizes};
+use crate::harness::results::Folder;
+use crate::harness::shard::{Shard, Split};
 use crate::harness::validate::{mrays_summary, validate_hits};
 use crate::named::{named_enum, Named};
 use crate::pipeline::{HostScene, SceneRequest};
 use crate::render::{render, KernelChoice, RenderTarget};
 use crate::report::Summary;
-use crate::rows::{self as result_rows, Better, Figure, Plan, Row, Shard};
+use crate::rows::{self as result_rows, Better, Figure, Plan, Row};
 use crate::scene::load_obj;
 
 pub use crate::bvh::PAPER_LEAF_SIZES;
@@ -85,7 +87,7 @@ pub struct StudyOptions {
     /// `BuildOptions::sah_group` (1: the paper's SAH; 4: quad-aware).
     pub sah_group: u32,
     pub seed: u64,
-    /// Run only this shard's (scene, leaf size) groups of the matrix ([`owns_group`]).
+    /// Run only this shard's (scene, leaf size) groups of the matrix ([`StudyOptions::split`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub shard: Option<Shard>,
 }
@@ -167,24 +169,18 @@ impl StudyOptions {
         for scene in &self.scenes {
             crate::scene::resolve(scene)?;
         }
-        if let Some(shard) = self.shard {
-            let groups = self.scenes.len() * self.leaf_sizes.len();
-            if shard.count as usize > groups {
-                return Err(Error::Usage(format!(
-                    "--shard {shard}: a study shard takes whole (scene, leaf size) groups and this matrix has \
-                     {groups} ({} scene(s) x {} leaf size(s)); use at most {groups} shards",
-                    self.scenes.len(),
-                    self.leaf_sizes.len()
-                )));
-            }
-        }
-        Ok(())
+        let (scenes, leaves) = (self.scenes.len(), self.leaf_sizes.len());
+        self.split().check(&format!(
+            "a study shard takes whole (scene, leaf size) groups and this matrix has {} ({scenes} scene(s) x \
+             {leaves} leaf size(s))",
+            scenes * leaves
+        ))
     }
 
-    /// Whether this run measures the (scene, leaf size) group at `scene_index`, `leaf_index` of
-    /// the matrix: always without a shard, else by [`owns_group`].
-    pub fn runs_group(&self, scene_index: usize, leaf_index: usize) -> bool {
-        self.shard.is_none_or(|s| owns_group(s, self.leaf_sizes.len(), scene_index, leaf_index))
+    /// The matrix as its shards split it: a shard takes whole (scene, leaf size) groups, in the
+    /// study's order (scene major).
+    pub fn split(&self) -> Split {
+        Split::new(self.shard, self.scenes.len(), self.leaf_sizes.len())
     }
 
     /// Every cell of the whole matrix (all shards), in the study's order: scene, leaf size,
@@ -228,13 +224,6 @@ impl StudyOptions {
 }
 
 pub use crate::harness::provenance::{commit, Provenance};
-
-/// Whether `shard` owns the (scene, leaf size) group at `scene_index`, `leaf_index` of a matrix
-/// with `leaf_sizes` leaf sizes per scene: round-robin over the groups in the study's order
-/// ([`Shard::owns`] of the group's index).
-pub fn owns_group(shard: Shard, leaf_sizes: usize, scene_index: usize, leaf_index: usize) -> bool {
-    shard.owns(scene_index * leaf_sizes + leaf_index)
-}
 
 /// The cell coordinates of a study row: `scene`, `leaf`, `method`, `layout`.
 pub fn cell_of(scene: &str, leaf: u32, method: Method, layout: Layout) -> result_rows::Cell {
@@ -360,7 +349,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
     let provenance = Provenance::of(ctx);
     let mut rows = vec![];
     for (scene_index, path) in o.scenes.iter().enumerate() {
-        if !(0..o.leaf_sizes.len()).any(|l| o.runs_group(scene_index, l)) {
+        if !o.split().runs_any(scene_index) {
             continue;
         }
         let mesh = load_obj(path)?;
@@ -377,7 +366,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
         let mut scene_mean: Option<f64> = None;
 
         for (leaf_index, &leaf) in o.leaf_sizes.iter().enumerate() {
-            if !o.runs_group(scene_index, leaf_index) {
+            if !o.split().runs(scene_index, leaf_index) {
                 continue;
             }
             let host =
@@ -532,21 +521,14 @@ pub fn counts(kernel: &str) -> crate::spirv::InstructionCounts {
 /// Writes `study.csv`, `study.json`, `study.md` and the plots into `dir` (created if needed),
 /// each atomically. Returns the paths written.
 pub fn write(report: &StudyReport, dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let mut written = vec![];
-    let mut put = |name: &str, bytes: &[u8]| -> Result<()> {
-        let p = dir.join(name);
-        crate::io::write_atomic(&p, bytes)?;
-        written.push(p);
-        Ok(())
-    };
-    put("study.csv", table::csv(report)?.as_bytes())?;
-    put("study.json", (serde_json::to_string_pretty(report).expect("serialisable") + "\n").as_bytes())?;
+    let mut folder = Folder::create(dir)?;
+    folder.put("study.csv", table::csv(report)?)?;
+    folder.put("study.json", serde_json::to_string_pretty(report).expect("serialisable") + "\n")?;
     let plots = plots::all(report, dir)?;
-    put("study.md", table::markdown(report, &plots).as_bytes())?;
-    written.extend(plots.into_iter().map(|p| p.path));
-    written.push(result_rows::write(dir, Some(&plan(report)), &rows(report))?);
-    Ok(written)
+    folder.put("study.md", table::markdown(report, &plots))?;
+    folder.add(plots.into_iter().map(|p| p.path));
+    folder.rows(Some(&plan(report)), &rows(report))?;
+    Ok(folder.written())
 }
 
 /// The plan of the whole matrix this report belongs to (every shard's cells), with its shard.

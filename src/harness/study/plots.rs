@@ -6,7 +6,6 @@
 
 use std::path::Path;
 
-use plotters::coord::ranged1d::SegmentValue;
 use plotters::prelude::*;
 
 use super::{counts, layouts_of, names_layouts, scenes, StudyReport, StudyRow};
@@ -14,7 +13,8 @@ use crate::encoding::{Layout, Method};
 use crate::error::Result;
 pub use crate::harness::plots::Plot;
 use crate::harness::plots::{
-    colour, leaf_size_chart, plot_err, render_png, LegendEntry, Marker, SCENE_COLOURS, X_LABEL_AREA, Y_LABEL_AREA,
+    bar_series, category_chart, chart_on, colour, leaf_size_chart, line_with_error_bars, plot_err, render_png,
+    series_colour, LegendEntry, Marker,
 };
 use crate::harness::rayset::RaySet;
 
@@ -66,16 +66,7 @@ fn time_vs_leaf(report: &StudyReport, path: &Path) -> Result<()> {
                     Some((i as u32, s.median, s.min, s.max))
                 })
                 .collect();
-            let c = colour(m);
-            chart
-                .draw_series(LineSeries::new(pts.iter().map(|p| (SegmentValue::CenterOf(p.0), p.1)), c.stroke_width(2)))
-                .map_err(|e| plot_err(what, e))?;
-            chart
-                .draw_series(
-                    pts.iter()
-                        .map(|p| ErrorBar::new_vertical(SegmentValue::CenterOf(p.0), p.2, p.1, p.3, c.filled(), 6)),
-                )
-                .map_err(|e| plot_err(what, e))?;
+            line_with_error_bars(&mut chart, &pts, colour(m), what)?;
         }
         Ok(())
     })
@@ -102,41 +93,12 @@ fn mrays_per_set(report: &StudyReport, path: &Path, leaf: u32) -> Result<()> {
         let at_leaf: Vec<&StudyRow> = rows_of(report, scene).filter(|r| r.leaf_size == leaf).collect();
         let ymax = at_leaf.iter().flat_map(|r| (0..sets.len()).filter_map(|s| value(r, s))).fold(0.0, f64::max) * 1.15;
         let rows: Vec<&StudyRow> = at_leaf.into_iter().filter(|r| r.layout == layout).collect();
-        let mut chart = ChartBuilder::on(area)
-            .caption(caption(report, scene, layout, &format!("Mrays/s, leaf {leaf}")), ("sans-serif", 20))
-            .margin(12)
-            .x_label_area_size(X_LABEL_AREA)
-            .y_label_area_size(Y_LABEL_AREA)
-            .build_cartesian_2d(-0.5f64..(sets.len() as f64 - 0.5), 0f64..ymax.max(1e-9))
-            .map_err(|e| plot_err(what, e))?;
-        chart
-            .configure_mesh()
-            .label_style(("sans-serif", 14))
-            .axis_desc_style(("sans-serif", 15))
-            .disable_x_mesh()
-            .x_labels(sets.len())
-            .x_label_formatter(&|x| {
-                let k = x.round();
-                if (x - k).abs() < 1e-6 && k >= 0.0 {
-                    sets.get(k as usize).map(|s| s.to_string()).unwrap_or_default()
-                } else {
-                    String::new()
-                }
-            })
-            .y_desc("Mrays/s (median)")
-            .draw()
-            .map_err(|e| plot_err(what, e))?;
-        let width = 0.8 / methods.len() as f64;
+        let caption = caption(report, scene, layout, &format!("Mrays/s, leaf {leaf}"));
+        let mut chart = category_chart(area, &caption, &sets, ymax, "Mrays/s (median)", what)?;
         for (j, &m) in methods.iter().enumerate() {
             let Some(r) = rows.iter().find(|r| r.method == m) else { continue };
-            let c = colour(m);
-            let bars: Vec<Rectangle<(f64, f64)>> = (0..sets.len())
-                .filter_map(|s| {
-                    let x0 = s as f64 - 0.4 + j as f64 * width;
-                    Some(Rectangle::new([(x0, 0.0), (x0 + width * 0.9, value(r, s)?)], c.filled()))
-                })
-                .collect();
-            chart.draw_series(bars).map_err(|e| plot_err(what, e))?;
+            let values: Vec<Option<f64>> = (0..sets.len()).map(|s| value(r, s)).collect();
+            bar_series(&mut chart, &values, (j, methods.len()), colour(m), what)?;
         }
         Ok(())
     })
@@ -150,11 +112,8 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
     let what = "instructions against time";
     let panels = ["path tracer: render time / MT", "ray cast, primary rays: time / MT"];
     let ls = layouts_of(report);
-    let legend: Vec<_> = scenes
-        .iter()
-        .enumerate()
-        .map(|(i, s)| LegendEntry::new(s.clone(), SCENE_COLOURS[i % SCENE_COLOURS.len()], Marker::Dot))
-        .collect();
+    let legend: Vec<_> =
+        scenes.iter().enumerate().map(|(i, s)| LegendEntry::new(s.clone(), series_colour(i), Marker::Dot)).collect();
     render_png(path, panels.len() * ls.len(), what, &legend, |area, panel| {
         let (layout, p) = (ls[panel / panels.len()], panel % panels.len());
         // (scene index, method, instructions, relative time)
@@ -183,20 +142,12 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
         let (xpad, ypad) = (((xmax - xmin) * 0.15).max(50.0), ((ymax - ymin) * 0.2).max(0.05));
         let xr = if pts.is_empty() { 0.0..1.0 } else { (xmin - xpad)..(xmax + xpad) };
         let yr = if pts.is_empty() { 0.0..1.0 } else { (ymin - ypad)..(ymax + ypad) };
-        let mut chart = ChartBuilder::on(area)
-            .caption(
-                if names_layouts(report) {
-                    format!("{}, {}, leaf {leaf}", layout.title(), panels[p])
-                } else {
-                    format!("{}, leaf {leaf}", panels[p])
-                },
-                ("sans-serif", 18),
-            )
-            .margin(12)
-            .x_label_area_size(X_LABEL_AREA)
-            .y_label_area_size(Y_LABEL_AREA)
-            .build_cartesian_2d(xr, yr)
-            .map_err(|e| plot_err(what, e))?;
+        let caption = if names_layouts(report) {
+            format!("{}, {}, leaf {leaf}", layout.title(), panels[p])
+        } else {
+            format!("{}, leaf {leaf}", panels[p])
+        };
+        let mut chart = chart_on(area, &caption, 18).build_cartesian_2d(xr, yr).map_err(|e| plot_err(what, e))?;
         chart
             .configure_mesh()
             .label_style(("sans-serif", 14))
@@ -207,7 +158,7 @@ fn instructions_vs_time(report: &StudyReport, path: &Path, leaf: u32) -> Result<
             .draw()
             .map_err(|e| plot_err(what, e))?;
         for si in 0..scenes.len() {
-            let c = SCENE_COLOURS[si % SCENE_COLOURS.len()];
+            let c = series_colour(si);
             let mine: Vec<_> = pts.iter().filter(|q| q.0 == si).collect();
             chart
                 .draw_series(mine.iter().map(|q| Circle::new((q.2, q.3), 5, c.filled())))

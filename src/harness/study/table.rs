@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use super::claims;
 use super::{cell, counts, layouts_of, names_layouts, scenes, StudyReport, StudyRow};
 use crate::encoding::{Layout, Method};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::harness::plots::Plot;
 use crate::report::Table;
 
@@ -18,7 +18,6 @@ const SETS: &[RaySet] = RaySet::ALL;
 
 /// `study.csv`.
 pub fn csv(report: &StudyReport) -> Result<String> {
-    let mut w = csv::Writer::from_writer(vec![]);
     let mut header: Vec<String> = [
         "scene",
         "triangles",
@@ -62,9 +61,7 @@ pub fn csv(report: &StudyReport) -> Result<String> {
         ["render_kernel", "raycast_kernel", "device", "driver", "mesa", "commit", "date", "timed_on_gpu"]
             .map(String::from),
     );
-    let err = |e: csv::Error| Error::Usage(format!("writing study.csv: {e}"));
-    w.write_record(&header).map_err(err)?;
-    for r in &report.rows {
+    let records = report.rows.iter().map(|r| {
         let s = r.render_seconds();
         let mut rec = vec![
             r.scene.clone(),
@@ -115,10 +112,9 @@ pub fn csv(report: &StudyReport) -> Result<String> {
             p.date.clone(),
             p.timed_on_gpu.to_string(),
         ]);
-        w.write_record(&rec).map_err(err)?;
-    }
-    let bytes = w.into_inner().map_err(|e| Error::Usage(format!("writing study.csv: {e}")))?;
-    Ok(String::from_utf8(bytes).expect("CSV of UTF-8 fields"))
+        rec
+    });
+    crate::harness::results::csv("study.csv", &header, records)
 }
 
 fn title(scene: &str) -> String {
