@@ -38,45 +38,67 @@ layout(push_constant) uniform Push {
 
 layout(local_size_x_id = SPEC_ID_WORKGROUP_SIZE, local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
 
+// The ray state of an invocation, between fetches.
+uint ray_id;
+TraceRay ray_r;
+BoxRay ray_b;
+HitState ray_h;
+
+// Dynamic fetch: takes the next ray of the dispatch and starts it (ray_enter). A ray that misses
+// the tree (LAYOUT_TESTS_ROOT) is written at once and the next one taken. False when no ray is
+// left. One exit (glsl/README.md, "Writing a unit").
+bool fetch_ray(LayoutRoot root) {
+    bool entered = false;
+    bool left = true;
+#ifdef LAYOUT_TESTS_ROOT
+    while (left && !entered) {
+#endif
+        ray_id = atomicAdd(next_ray, 1u);
+        left = ray_id < pc.ray_count;
+        if (left) {
+            Ray ray = rays[ray_id];
+            ray_r = make_trace_ray(ray);
+            ray_h = hit_start(ray.tmax);
+            entered = ray_enter(ray_r, ray_h, root, ray_b);
+            if (!entered) {
+                hits[ray_id] = hit_record(ray_h);
+            }
+        }
+#ifdef LAYOUT_TESTS_ROOT
+    }
+#endif
+    return entered;
+}
+
 void main() {
     // The root, once per invocation.
     LayoutRoot root = layout_root();
-    uint ray_id = 0u;
-    TraceRay r;
-    BoxRay b;
-    HitState h;
-    uint current = 0u;
-    bool fetch = true;
+    if (!fetch_ray(root)) {
+        return;
+    }
+    uint current = root.entry;
+    stack_size = 0u;
     while (true) {
-        if (fetch) {
-            // Dynamic fetch: the next ray of the dispatch.
-            ray_id = atomicAdd(next_ray, 1u);
-            if (ray_id >= pc.ray_count) {
-                return;
-            }
-            Ray ray = rays[ray_id];
-            r = make_trace_ray(ray);
-            h = hit_start(ray.tmax);
-            if (!ray_enter(r, h, root, b)) {
-                // It misses the tree: written at once, and the next one fetched.
-                hits[ray_id] = hit_record(h);
-                continue;
-            }
-            current = root.entry;
-            stack_size = 0u;
-            fetch = false;
-        }
         uint count = LEAF_ENTRY_COUNT(current);
         uint first = LEAF_ENTRY_FIRST(current);
+        bool pop = true;
         if (count > 0u) {
-            intersect_leaf(r, first, count, h, false);
-        } else if (layout_visit(b, h.t, first, current)) {
+            intersect_leaf(ray_r, first, count, ray_h, false);
+        } else {
+            pop = !layout_visit(ray_b, ray_h.t, first, current);
+        }
+        if (!pop) {
             continue;
         }
-        if (!stack_pop_nearest(h.t, current)) {
-            // The ray is done: store its hit; the next one is fetched at the top.
-            hits[ray_id] = hit_record(h);
-            fetch = true;
+        if (stack_pop_nearest(ray_h.t, current)) {
+            continue;
         }
+        // The ray is done: store its hit, take the next one inside the same loop.
+        hits[ray_id] = hit_record(ray_h);
+        if (!fetch_ray(root)) {
+            return;
+        }
+        current = root.entry;
+        stack_size = 0u;
     }
 }
