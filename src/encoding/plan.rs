@@ -416,11 +416,12 @@ pub fn check_rays(rays: u64, stats: bool, limits: &DeviceLimits) -> Result<u64> 
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::bvh::BuildOptions;
 
-    fn limits() -> DeviceLimits {
+    /// Roomy limits: every test scene fits the texel path.
+    pub(crate) fn limits() -> DeviceLimits {
         DeviceLimits {
             max_texel_buffer_elements: 1 << 27,
             max_storage_buffer_range: 1 << 27,
@@ -432,16 +433,7 @@ mod tests {
         }
     }
 
-    fn grid(n: u32) -> Mesh {
-        let mut pos = Vec::new();
-        let mut tris = Vec::new();
-        for i in 0..n {
-            let (x, y) = ((i % 17) as f32, (i / 17) as f32);
-            pos.extend([[x, y, 0.0], [x + 0.9, y, 0.3], [x, y + 0.9, 0.6]]);
-            tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
-        }
-        Mesh::from_triangles(pos, tris)
-    }
+    use crate::scene::test_grid as grid;
 
     #[test]
     fn plan_equals_the_encoded_buffers() {

@@ -358,28 +358,9 @@ mod tests {
     use super::*;
     use crate::encoding::Raycast;
 
-    fn grid(n: u32) -> Mesh {
-        let mut pos = Vec::new();
-        let mut tris = Vec::new();
-        for i in 0..n {
-            let (x, y) = ((i % 17) as f32, (i / 17) as f32);
-            pos.extend([[x, y, 0.0], [x + 0.9, y, 0.3], [x, y + 0.9, 0.6]]);
-            tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
-        }
-        Mesh::from_triangles(pos, tris)
-    }
+    use crate::scene::test_grid as grid;
 
-    fn limits() -> DeviceLimits {
-        DeviceLimits {
-            max_texel_buffer_elements: 1 << 27,
-            max_storage_buffer_range: 1 << 27,
-            max_buffer_size: None,
-            max_memory_allocation_size: 1 << 32,
-            device_local_bytes: 1 << 34,
-            budget_bytes: None,
-            buffer_device_address: true,
-        }
-    }
+    use crate::encoding::plan::tests::limits;
 
     #[test]
     fn bad_build_options_are_refused_before_building() {

@@ -109,6 +109,20 @@ impl Mesh {
     }
 }
 
+/// A test mesh of `n` small slanted triangles on a 17-wide grid (unit tests of the planners and
+/// the pipeline build trees over it).
+#[cfg(test)]
+pub(crate) fn test_grid(n: u32) -> Mesh {
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for i in 0..n {
+        let (x, y) = ((i % 17) as f32, (i / 17) as f32);
+        pos.extend([[x, y, 0.0], [x + 0.9, y, 0.3], [x, y + 0.9, 0.6]]);
+        tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
+    }
+    Mesh::from_triangles(pos, tris)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
