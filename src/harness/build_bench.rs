@@ -195,19 +195,40 @@ impl BuildBenchOptions {
     }
 }
 
+/// A build-bench cell: what the plan lists and a row measures, of one scene at the run's tree
+/// shape (`leaf`, and `sah_group` when it is not 1).
+#[derive(Clone, Debug, PartialEq)]
+pub enum BuildCell {
+    /// A builder at a thread count (`trilab-binned`, `trilab-serial`, `trilab-sweep`,
+    /// `embree-build`, `embree-commit`).
+    Build { scene: String, builder: String, threads: usize },
+    /// A layout's node buffer converted from the binary tree.
+    Convert { scene: String, layout: Layout },
+}
+
+impl BuildCell {
+    /// The cell's coordinates, as `rows.jsonl` names them.
+    pub fn coordinates(&self, build: &BuildOptions) -> crate::rows::Cell {
+        use crate::rows::cell;
+        let mut c = match self {
+            BuildCell::Build { scene, builder, threads } => {
+                cell([("scene", scene.clone()), ("builder", builder.clone()), ("threads", threads.to_string())])
+            }
+            BuildCell::Convert { scene, layout } => cell([("scene", scene.clone()), ("layout", layout.to_string())]),
+        };
+        c.insert("leaf".into(), build.max_leaf_size.to_string());
+        if build.sah_group != 1 {
+            c.insert("sah_group".into(), build.sah_group.to_string());
+        }
+        c
+    }
+}
+
 /// Every cell of the whole matrix (all shards) with [`BuildBenchReport::rows`]'s coordinates:
 /// per scene the binned build at each thread count, the serial build, the sweep (on scenes of at
 /// most `--sweep-max` triangles; `triangles`: each scene's count), Embree's build and commit at
 /// each thread count, and each layout's conversion.
 pub fn plan_cells(o: &BuildBenchOptions, triangles: &[usize]) -> Vec<crate::rows::Cell> {
-    use crate::rows::cell;
-    let shape = |mut c: crate::rows::Cell| {
-        c.insert("leaf".into(), o.build.max_leaf_size.to_string());
-        if o.build.sah_group != 1 {
-            c.insert("sah_group".into(), o.build.sah_group.to_string());
-        }
-        c
-    };
     let max_threads = o.threads.iter().max().copied().unwrap_or(1);
     let mut cells = vec![];
     for (scene, &n) in o.scenes.iter().zip(triangles) {
@@ -225,14 +246,14 @@ pub fn plan_cells(o: &BuildBenchOptions, triangles: &[usize]) -> Vec<crate::rows
                 builds.push(("embree-commit", t));
             }
         }
-        for (builder, t) in builds {
-            cells.push(shape(cell([("scene", name.clone()), ("builder", builder.into()), ("threads", t.to_string())])));
+        for (builder, threads) in builds {
+            cells.push(BuildCell::Build { scene: name.clone(), builder: builder.into(), threads });
         }
-        for l in &o.layouts {
-            cells.push(shape(cell([("scene", name.clone()), ("layout", l.to_string())])));
+        for &layout in &o.layouts {
+            cells.push(BuildCell::Convert { scene: name.clone(), layout });
         }
     }
-    cells
+    cells.iter().map(|c| c.coordinates(&o.build)).collect()
 }
 
 /// Threads per logical CPU that `--threads` may ask for ([`max_threads`]).
@@ -836,23 +857,13 @@ impl BuildBenchReport {
     /// buffer's `node_bytes`, `nodes` and `sah_cost` (counts). Measured on the host CPU: the
     /// source's device is the CPU model, its settings the logical CPUs.
     pub fn rows(&self) -> Vec<crate::rows::Row> {
-        use crate::rows::{cell, Better, Cell, Figure, Row};
+        use crate::rows::{Better, Figure, Row};
         let source = self.source();
-        let o = &self.options;
-        let shape = |mut c: Cell| {
-            c.insert("leaf".into(), o.build.max_leaf_size.to_string());
-            if o.build.sah_group != 1 {
-                c.insert("sah_group".into(), o.build.sah_group.to_string());
-            }
-            c
-        };
+        let build = &self.options.build;
         let mut out = vec![];
         for r in &self.rows {
-            let c = shape(cell([
-                ("scene", r.scene.clone()),
-                ("builder", r.builder.clone()),
-                ("threads", r.threads.to_string()),
-            ]));
+            let c = BuildCell::Build { scene: r.scene.clone(), builder: r.builder.clone(), threads: r.threads }
+                .coordinates(build);
             let mut row =
                 Row::new("build-bench", c, &source).with("build_s", Figure::timing(r.seconds, "s", Better::Lower));
             if let Some(sah) = r.sah_cost {
@@ -864,7 +875,7 @@ impl BuildBenchReport {
             out.push(row);
         }
         for l in &self.layouts {
-            let c = shape(cell([("scene", l.scene.clone()), ("layout", l.layout.to_string())]));
+            let c = BuildCell::Convert { scene: l.scene.clone(), layout: l.layout }.coordinates(build);
             let mut row = Row::new("build-bench", c, &source)
                 .with("node_bytes", Figure::count(l.node_bytes as f64, "bytes"))
                 .with("nodes", Figure::count(l.nodes as f64, "nodes"))
