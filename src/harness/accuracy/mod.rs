@@ -203,7 +203,6 @@ impl AccuracyOptions {
 /// `methods` the device runs, except the frontier's `rays` (its diffuse ray count depends on the
 /// bunny's primary hits: measured, not planned).
 pub fn plan_cells(o: &AccuracyOptions, methods: &[Method]) -> Vec<crate::rows::Cell> {
-    use crate::rows::cell;
     let mut methods = methods.to_vec();
     methods.sort_by_key(|m| m.to_string());
     let mut cells = vec![];
@@ -211,45 +210,77 @@ pub fn plan_cells(o: &AccuracyOptions, methods: &[Method]) -> Vec<crate::rows::C
         if o.leak_rays > 0 {
             for leaf in &o.leaf_sizes {
                 for layout in &o.layouts {
-                    cells.push(cell([
-                        ("part", "leaks".to_owned()),
-                        ("method", m.to_string()),
-                        ("leaf", leaf.to_string()),
-                        ("layout", layout.to_string()),
-                        ("leak_rays", o.leak_rays.to_string()),
-                    ]));
+                    cells.push(AccuracyCell::Leaks { method: *m, leaf: *leaf, layout: *layout, rays: o.leak_rays });
                 }
             }
         }
         if o.extreme_rays > 0 {
             for kind in EXTREME_KINDS {
-                cells.push(cell([
-                    ("part", "extremes".to_owned()),
-                    ("method", m.to_string()),
-                    ("kind", kind.to_owned()),
-                    ("rays", o.extreme_rays.to_string()),
-                ]));
+                cells.push(AccuracyCell::Extremes { method: *m, kind: kind.to_string(), rays: o.extreme_rays });
             }
         }
         if o.self_rays > 0 && !o.self_scales.is_empty() {
             for scheme in &o.schemes {
-                cells.push(cell([
-                    ("part", "self-intersection".to_owned()),
-                    ("method", m.to_string()),
-                    ("scheme", scheme.name().to_owned()),
-                    ("rays", o.self_rays.to_string()),
-                ]));
+                cells.push(AccuracyCell::SelfIntersection { method: *m, scheme: *scheme, rays: o.self_rays });
             }
         }
         if o.bench_width > 0 && o.bench_height > 0 {
-            cells.push(cell([
-                ("part", "frontier".to_owned()),
-                ("method", m.to_string()),
-                ("layout", o.frontier_layout().to_string()),
-            ]));
+            cells.push(AccuracyCell::Frontier { method: *m, layout: o.frontier_layout(), rays: None });
         }
     }
-    cells
+    cells.iter().map(AccuracyCell::coordinates).collect()
+}
+
+/// An accuracy cell: what the plan lists and a row measures, one per part of the study.
+#[derive(Clone, Debug, PartialEq)]
+pub enum AccuracyCell {
+    /// Leaks and false hits through the closed meshes (`rays`: `--leak-rays`).
+    Leaks { method: Method, leaf: u32, layout: Layout, rays: usize },
+    /// One kind of extreme geometry (`EXTREME_KINDS`).
+    Extremes { method: Method, kind: String, rays: usize },
+    /// One self-intersection offset scheme.
+    SelfIntersection { method: Method, scheme: Offset, rays: usize },
+    /// The speed/accuracy frontier's timing (`rays`: known once measured; the plan has none).
+    Frontier { method: Method, layout: Layout, rays: Option<usize> },
+}
+
+impl AccuracyCell {
+    /// The cell's coordinates, as `rows.jsonl` names them.
+    pub fn coordinates(&self) -> crate::rows::Cell {
+        use crate::rows::cell;
+        match self {
+            AccuracyCell::Leaks { method, leaf, layout, rays } => cell([
+                ("part", "leaks".to_owned()),
+                ("method", method.to_string()),
+                ("leaf", leaf.to_string()),
+                ("layout", layout.to_string()),
+                ("leak_rays", rays.to_string()),
+            ]),
+            AccuracyCell::Extremes { method, kind, rays } => cell([
+                ("part", "extremes".to_owned()),
+                ("method", method.to_string()),
+                ("kind", kind.clone()),
+                ("rays", rays.to_string()),
+            ]),
+            AccuracyCell::SelfIntersection { method, scheme, rays } => cell([
+                ("part", "self-intersection".to_owned()),
+                ("method", method.to_string()),
+                ("scheme", scheme.name().to_owned()),
+                ("rays", rays.to_string()),
+            ]),
+            AccuracyCell::Frontier { method, layout, rays } => {
+                let mut c = cell([
+                    ("part", "frontier".to_owned()),
+                    ("method", method.to_string()),
+                    ("layout", layout.to_string()),
+                ]);
+                if let Some(r) = rays {
+                    c.insert("rays".into(), r.to_string());
+                }
+                c
+            }
+        }
+    }
 }
 
 /// The extreme kinds, in the order [`extremes`] measures them.
@@ -1038,7 +1069,7 @@ pub fn write(report: &AccuracyReport, dir: &Path) -> Result<Vec<PathBuf>> {
 /// - `frontier` per method and layout: `mrays_per_s` (timing, min-max over the rounds) where it
 ///   was timed.
 pub fn rows(report: &AccuracyReport) -> Vec<crate::rows::Row> {
-    use crate::rows::{cell, Better, Figure, Row};
+    use crate::rows::{Better, Figure, Row};
     let source = report.provenance.source();
     let bad = |n: usize, unit: &str| Figure::correctness(n as f64, unit, Better::Lower);
     let mut out = vec![];
@@ -1062,13 +1093,7 @@ pub fn rows(report: &AccuracyReport) -> Vec<crate::rows::Row> {
             nan += t.nan;
             different += t.different_triangle;
         }
-        let c = cell([
-            ("part", "leaks".to_owned()),
-            ("method", method.to_string()),
-            ("leaf", leaf.to_string()),
-            ("layout", layout.to_string()),
-            ("leak_rays", report.options.leak_rays.to_string()),
-        ]);
+        let c = AccuracyCell::Leaks { method, leaf, layout, rays: report.options.leak_rays }.coordinates();
         let mut row = Row::new("accuracy", c, &source)
             .with("leaks", bad(leaks, "rays"))
             .with("false_hits", bad(false_hits, "rays"))
@@ -1096,12 +1121,8 @@ pub fn rows(report: &AccuracyReport) -> Vec<crate::rows::Row> {
             nan += r.tally.nan;
             degenerate += r.tally.degenerate_hits;
         }
-        let c = cell([
-            ("part", "extremes".to_owned()),
-            ("method", method.to_string()),
-            ("kind", kind.to_owned()),
-            ("rays", report.options.extreme_rays.to_string()),
-        ]);
+        let c =
+            AccuracyCell::Extremes { method, kind: kind.to_owned(), rays: report.options.extreme_rays }.coordinates();
         out.push(
             Row::new("accuracy", c, &source)
                 .with("leaks", bad(leaks, "rays"))
@@ -1120,12 +1141,7 @@ pub fn rows(report: &AccuracyReport) -> Vec<crate::rows::Row> {
             escaped += r.escaped;
             nan += r.nan;
         }
-        let c = cell([
-            ("part", "self-intersection".to_owned()),
-            ("method", method.to_string()),
-            ("scheme", scheme.name().to_owned()),
-            ("rays", report.options.self_rays.to_string()),
-        ]);
+        let c = AccuracyCell::SelfIntersection { method, scheme, rays: report.options.self_rays }.coordinates();
         out.push(
             Row::new("accuracy", c, &source)
                 .with("self_hits", bad(self_hits, "rays"))
@@ -1135,12 +1151,8 @@ pub fn rows(report: &AccuracyReport) -> Vec<crate::rows::Row> {
     }
     for f in &report.frontier {
         if let Some(speed) = f.mrays_per_s {
-            let c = cell([
-                ("part", "frontier".to_owned()),
-                ("method", f.method.to_string()),
-                ("layout", f.layout.to_string()),
-                ("rays", report.frontier_rays.to_string()),
-            ]);
+            let c = AccuracyCell::Frontier { method: f.method, layout: f.layout, rays: Some(report.frontier_rays) }
+                .coordinates();
             out.push(
                 Row::new("accuracy", c, &source).with("mrays_per_s", Figure::timing(speed, "Mrays/s", Better::Higher)),
             );
