@@ -22,6 +22,7 @@
 #endif
 #ifdef SCENE_ADDRESS
 #extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #endif
 #ifdef WHILE_WHILE
 #extension GL_KHR_shader_subgroup_vote : require

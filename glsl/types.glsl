@@ -48,14 +48,30 @@ struct BvhNode {
 //   address, and loads go through GL_EXT_buffer_reference (no per-binding size limit). The
 //   kernel must enable GL_EXT_buffer_reference itself (raycast.comp does). Indices stay 32-bit:
 //   SPIR-V treats access-chain indices as signed, so a buffer holds at most 2^31 texels here.
+//   A 16-byte texel is loaded as two 64-bit words (so the `*_bda` kernels need shaderInt64):
+//   llvmpipe turns a global load into one masked gather per component, and on a host whose
+//   gathers cost per element (AMD Zen) four 32-bit gathers per texel made the address path
+//   0.5-0.7x the texel path (issue 27; the roofline probe measures both forms). Two 64-bit
+//   gathers load the same bytes; GPUs load either form in one instruction.
 #ifdef SCENE_ADDRESS
-layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneF4 { vec4 texels[]; };
-layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneU4 { uvec4 texels[]; };
+layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneF4 { u64vec2 texels[]; };
+layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneU4 { u64vec2 texels[]; };
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer SceneU1 { uint texels[]; };
+uvec4 scene_words(u64vec2 w) {
+    return uvec4(unpackUint2x32(w.x), unpackUint2x32(w.y));
+}
+#define SCENE_TEXEL_TYPE_F4 vec4
+#define SCENE_TEXEL_TYPE_U4 uvec4
+#define SCENE_TEXEL_TYPE_U1 uint
+#define SCENE_TEXEL_CAST_F4(w_) uintBitsToFloat(scene_words(w_))
+#define SCENE_TEXEL_CAST_U4(w_) scene_words(w_)
+#define SCENE_TEXEL_CAST_U1(w_) (w_)
 #define SCENE_BUFFER(binding_, format_, kind_, name_) \
-    layout(std140, set = 0, binding = binding_) uniform name_##Address { Scene##kind_ name_; }
-#define SCENE_TEXEL(name_, i_) name_.texels[i_]
-#define SCENE_TEXEL_R32(name_, i_) name_.texels[i_]
+    layout(std140, set = 0, binding = binding_) uniform name_##Address { Scene##kind_ name_; }; \
+    SCENE_TEXEL_TYPE_##kind_ name_##_texel(uint i) { return SCENE_TEXEL_CAST_##kind_(name_.texels[i]); } \
+    const uint name_##_texel_bytes = 16u
+#define SCENE_TEXEL(name_, i_) name_##_texel(uint(i_))
+#define SCENE_TEXEL_R32(name_, i_) name_##_texel(uint(i_))
 #else
 #define SCENE_IMAGE_F4 imageBuffer
 #define SCENE_IMAGE_U4 uimageBuffer
