@@ -3,10 +3,11 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use trilab::encoding::{Layout, SceneAccess};
+use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::Result;
 use trilab::harness::bench::{self, BenchOptions};
 use trilab::harness::peers::TinybvhLayout;
+use trilab::rays::order::RayOrder;
 
 use super::choice::choice;
 use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs};
@@ -62,6 +63,16 @@ pub struct BenchArgs {
     /// each, side by side in one run (default: bvh2).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
+    /// Traversals, comma-separated (`while-if`, `while-while`, `coop`, `persistent`): every
+    /// method and layout is timed with each that has a kernel for it, side by side in one run; a
+    /// traversal x layout without one is left out with a note (default: while-if).
+    #[arg(long, value_name = "T,...", value_parser = choice::<Traversal>(), value_delimiter = ',')]
+    traversals: Vec<Traversal>,
+    /// Orders to dispatch each ray set in, comma-separated (`given`, `octant-origin`), timed
+    /// side by side: a reordering's host time (sorting the rays, putting the hits back) counts in
+    /// its kernel time and is shown as `reorder ms` (default: given).
+    #[arg(long, value_name = "O,...", value_parser = choice::<RayOrder>(), value_delimiter = ',')]
+    orders: Vec<RayOrder>,
     /// Run only shard I of N: every N-th scene, round-robin from scene I (a scene is the unit, so
     /// its methods, layouts and peers stay interleaved in one run). rows.jsonl names the shard
     /// and plans the whole matrix; `trilab merge` joins the shards' folders.
@@ -115,6 +126,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
         tinybvh_layouts: a.tinybvh_layouts,
         scene_access: a.scene_access,
         layouts: if a.layouts.is_empty() { vec![Layout::Bvh2] } else { a.layouts },
+        traversals: if a.traversals.is_empty() { vec![Traversal::WhileIf] } else { a.traversals },
+        orders: if a.orders.is_empty() { vec![RayOrder::Given] } else { a.orders },
         ray_query: a.ray_query.runs(&ctx),
         ray_tracing_pipeline: a.ray_tracing_pipeline.runs(&ctx),
         shard: a.shard,

@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
-use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess};
+use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
 use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions};
 use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
@@ -20,6 +20,7 @@ use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
 use crate::harness::shard::{self, Shard, Split};
 use crate::harness::validate::{interleaved, mrays_summary, Job};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
+use crate::rays::order::RayOrder;
 use crate::rays::{self, Ray};
 use crate::reference::RefHit;
 use crate::report::{Report, Summary, Table};
@@ -53,6 +54,12 @@ pub struct BenchOptions {
     pub scene_access: SceneAccess,
     /// BVH node layouts, each method timed on each, side by side in one run (default: bvh2).
     pub layouts: Vec<Layout>,
+    /// Traversals, each method and layout timed with each that has a kernel for it (default:
+    /// while-if); a combination without a kernel is left out with a note.
+    pub traversals: Vec<Traversal>,
+    /// The orders each set is dispatched in (default: as given), side by side: a reordering's
+    /// host time (the sort, and putting the hits back) is part of its kernel time.
+    pub orders: Vec<RayOrder>,
     /// Run only this shard's scenes ([`BenchOptions::split`]): a scene is the unit, so its
     /// methods, layouts and peers stay interleaved side by side in one run.
     pub shard: Option<Shard>,
@@ -80,6 +87,8 @@ impl Default for BenchOptions {
             ray_tracing_pipeline: true,
             scene_access: SceneAccess::Auto,
             layouts: vec![Layout::Bvh2],
+            traversals: vec![Traversal::WhileIf],
+            orders: vec![RayOrder::Given],
             shard: None,
         }
     }
@@ -120,6 +129,13 @@ pub struct BenchRow {
     pub scene_access: Option<AccessPath>,
     /// The BVH node layout our kernel traversed (`None` for a peer).
     pub layout: Option<Layout>,
+    /// How our kernel walked the tree (`None` for a peer).
+    pub traversal: Option<Traversal>,
+    /// The order our kernel's rays were dispatched in (`None` for a peer).
+    pub order: Option<RayOrder>,
+    /// The host's time to reorder the rays and put the hits back, ms, part of `kernel_ms`
+    /// (`None` for a peer, or rays dispatched as given).
+    pub reorder_ms: Option<Summary>,
     /// Kernel time (GPU timestamps), milliseconds.
     pub kernel_ms: Summary,
     /// Rays per second at the median, min and max kernel time, millions.
@@ -131,6 +147,21 @@ pub struct BenchRow {
     pub unexplained_disagreements: usize,
     pub invalid: usize,
     pub embree_mrays_per_s: Option<f64>,
+}
+
+impl BenchRow {
+    /// How the peer comparison names our row: the method, with its traversal and ray order
+    /// where they are not the defaults (the layout has its own column).
+    fn label(&self, method: Method) -> String {
+        let mut s = method.to_string();
+        if let Some(t) = self.traversal.filter(|&t| t != Traversal::default()) {
+            s += &format!(" {t}");
+        }
+        if let Some(o) = self.order.filter(|&o| o != RayOrder::default()) {
+            s += &format!(" {o}");
+        }
+        s
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -248,36 +279,43 @@ impl BenchReport {
         Ok(())
     }
 
+    /// One row per measured cell. The traversal column appears when a row's traversal is not
+    /// while-if, the order and reorder columns when a row's rays were reordered (`kernel ms`
+    /// then includes the reordering; `reorder ms` is that share).
     pub fn table(&self) -> Table {
-        let mut t = Table::new([
-            "scene",
-            "rays",
-            "set",
-            "method",
-            "layout",
-            "leaf",
-            "MB",
-            "kernel ms",
-            "Mrays/s",
-            "min..max",
-            "agree %",
-            "Embree",
-        ]);
+        let traversals = self.rows.iter().any(|r| r.traversal.is_some_and(|t| t != Traversal::default()));
+        let orders = self.rows.iter().any(|r| r.order.is_some_and(|o| o != RayOrder::default()));
+        let mut header = vec!["scene", "rays", "set", "method", "layout"];
+        header.extend(traversals.then_some("traversal"));
+        header.extend(orders.then_some("order"));
+        header.extend(["leaf", "MB", "kernel ms"]);
+        header.extend(orders.then_some("reorder ms"));
+        header.extend(["Mrays/s", "min..max", "agree %", "Embree"]);
+        let mut t = Table::new(header);
+        let or_dash = |s: Option<String>| s.unwrap_or_else(|| "-".into());
         for r in &self.rows {
-            t.row([
+            let mut cells = vec![
                 r.scene.clone(),
                 r.rays.to_string(),
                 r.ray_set.to_string(),
                 r.method.to_string(),
-                r.layout.map_or_else(|| "-".into(), |l| l.to_string()),
-                r.leaf_size.map_or_else(|| "-".into(), |l| l.to_string()),
+                or_dash(r.layout.map(|l| l.to_string())),
+            ];
+            cells.extend(traversals.then(|| or_dash(r.traversal.map(|t| t.to_string()))));
+            cells.extend(orders.then(|| or_dash(r.order.map(|o| o.to_string()))));
+            cells.extend([
+                or_dash(r.leaf_size.map(|l| l.to_string())),
                 format!("{:.2}", r.scene_bytes as f64 / 1e6),
                 format!("{:.1}", r.kernel_ms.median),
+            ]);
+            cells.extend(orders.then(|| or_dash(r.reorder_ms.map(|m| format!("{:.1}", m.median)))));
+            cells.extend([
                 rate(r.mrays_per_s),
                 format!("{}..{}", rate(r.mrays_per_s_min), rate(r.mrays_per_s_max)),
                 format!("{:.4}", 100.0 * r.agreement),
-                r.embree_mrays_per_s.map(|e| format!("{e:.2}")).unwrap_or_else(|| "-".into()),
+                or_dash(r.embree_mrays_per_s.map(|e| format!("{e:.2}"))),
             ]);
+            t.row(cells);
         }
         t
     }
@@ -330,8 +368,9 @@ pub struct BenchCell {
 /// Who traced a bench cell's rays.
 #[derive(Clone, Debug, PartialEq)]
 pub enum CellTracer {
-    /// One of trilab's kernels; `sah_group` only when it is not 1.
-    Method { method: Method, layout: Layout, leaf: u32, sah_group: Option<u32> },
+    /// One of trilab's kernels; `sah_group` only when it is not 1, the traversal and the ray
+    /// order only when they are not the defaults (while-if, as given).
+    Method { method: Method, layout: Layout, leaf: u32, sah_group: Option<u32>, traversal: Traversal, order: RayOrder },
     /// A peer, by its name (the driver's ray query, Embree, tinybvh's kernels).
     Peer(String),
 }
@@ -344,12 +383,18 @@ impl BenchCell {
             c.insert("rays".into(), rays.to_string());
         }
         match &self.tracer {
-            CellTracer::Method { method, layout, leaf, sah_group } => {
+            CellTracer::Method { method, layout, leaf, sah_group, traversal, order } => {
                 c.insert("method".into(), method.to_string());
                 c.insert("layout".into(), layout.to_string());
                 c.insert("leaf".into(), leaf.to_string());
                 if let Some(g) = sah_group.filter(|&g| g != 1) {
                     c.insert("sah_group".into(), g.to_string());
+                }
+                if *traversal != Traversal::default() {
+                    c.insert("traversal".into(), traversal.to_string());
+                }
+                if *order != RayOrder::default() {
+                    c.insert("order".into(), order.to_string());
                 }
             }
             CellTracer::Peer(p) => {
@@ -371,6 +416,8 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
                 layout: r.layout.unwrap_or(Layout::Bvh2),
                 leaf: r.leaf_size.unwrap_or(report.leaf_size),
                 sah_group: r.sah_group,
+                traversal: r.traversal.unwrap_or_default(),
+                order: r.order.unwrap_or_default(),
             },
             Tracer::Peer(p) => CellTracer::Peer(p.to_string()),
         };
@@ -448,6 +495,9 @@ fn row(
         scene_bytes: footprint.0,
         scene_access: footprint.1,
         layout: o.map(|_| Layout::Bvh2),
+        traversal: o.map(|_| Traversal::WhileIf),
+        order: o.map(|_| RayOrder::Given),
+        reorder_ms: None,
         kernel_ms: ms,
         mrays_per_s: mr.median,
         mrays_per_s_min: mr.min,
@@ -472,18 +522,19 @@ pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<cr
         .copied()
         .filter(|&set| o.rays_dir.is_some() || !sizes.why_empty(set).starts_with("--"))
         .collect();
-    let layouts = if o.layouts.is_empty() { vec![Layout::Bvh2] } else { o.layouts.clone() };
     let mut cells = vec![];
     for scene in &o.scenes {
         let name = crate::scene::scene_name(scene);
         for set in &sets {
-            for &m in &o.methods {
-                for &l in &layouts {
+            for (m, l, t) in o.kernels() {
+                for &order in &o.orders() {
                     let tracer = CellTracer::Method {
                         method: m,
                         layout: l,
                         leaf: o.build.max_leaf_size,
                         sah_group: Some(o.build.sah_group),
+                        traversal: t,
+                        order,
                     };
                     cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
                 }
@@ -515,6 +566,54 @@ impl BenchOptions {
 
     /// Whether the options ask for the driver peer `peer` (`--ray-query`,
     /// `--ray-tracing-pipeline`).
+    /// Every (method, layout, traversal) timed: the options' combinations that have a
+    /// closest-hit kernel on the texel path (a traversal's support does not depend on the
+    /// method: `encoding::variants`' test holds it).
+    pub fn kernels(&self) -> Vec<(Method, Layout, Traversal)> {
+        let or = |v: &[Layout], d: Layout| if v.is_empty() { vec![d] } else { v.to_vec() };
+        let traversals = if self.traversals.is_empty() { vec![Traversal::WhileIf] } else { self.traversals.clone() };
+        let mut out = vec![];
+        for &m in &self.methods {
+            for &l in &or(&self.layouts, Layout::Bvh2) {
+                for &t in &traversals {
+                    if m.traversal_kernel(Raycast::Closest, AccessPath::Texel, l, t).is_ok() {
+                        out.push((m, l, t));
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The traversal x layout pairs asked for that have no kernel, one note each.
+    pub fn kernel_notes(&self) -> Vec<String> {
+        let layouts = if self.layouts.is_empty() { vec![Layout::Bvh2] } else { self.layouts.clone() };
+        let mut notes = vec![];
+        for &t in &self.traversals {
+            for &l in &layouts {
+                if let Some(&m) = self.methods.first() {
+                    if m.traversal_kernel(Raycast::Closest, AccessPath::Texel, l, t).is_err() {
+                        notes.push(format!(
+                            "{t} traversal on {l}: not run, no kernel ({} has: {})",
+                            t,
+                            crate::encoding::traversal_support(t)
+                        ));
+                    }
+                }
+            }
+        }
+        notes
+    }
+
+    /// The ray orders, the default alone when none was asked for.
+    pub fn orders(&self) -> Vec<RayOrder> {
+        if self.orders.is_empty() {
+            vec![RayOrder::Given]
+        } else {
+            self.orders.clone()
+        }
+    }
+
     pub fn wants(&self, peer: Peer) -> bool {
         match peer {
             Peer::RayQuery => self.ray_query,
@@ -574,6 +673,10 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
     let peer_names: Vec<String> = programs.iter().map(|p| p.kind.to_string()).collect();
     let driver_peers: Vec<Peer> = driver.iter().map(PeerTracer::peer).collect();
     report.plan = plan_cells(o, &driver_peers, &peer_names);
+    for note in o.kernel_notes() {
+        progress(&note);
+        report.notes.push(note);
+    }
     for (scene_index, scene_path) in o.scenes.iter().enumerate() {
         if !o.split().runs(scene_index, 0) {
             continue;
@@ -602,11 +705,10 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
         // Each method's plan picks its access path before encoding (and fails clearly if the
         // scene cannot fit); its kernels read the scene through that path.
-        let layouts = if o.layouts.is_empty() { vec![Layout::Bvh2] } else { o.layouts.clone() };
         let scenes: Vec<DeviceScene> = o
-            .methods
-            .iter()
-            .flat_map(|&m| layouts.iter().map(move |&l| SceneRequest::new(m).access(o.scene_access).layout(l)))
+            .kernels()
+            .into_iter()
+            .map(|(m, l, t)| SceneRequest::new(m).access(o.scene_access).layout(l).traversal(t))
             .map(|req| host.upload(ctx, &req))
             .collect::<Result<_>>()?;
         let accel = match driver.is_empty() {
@@ -625,23 +727,34 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         for ((set, rays), ref_hits) in sets.iter().zip(&ref_hits) {
             let set = *set;
             let mut best: f64 = 0.0;
-            let label = |scene: &DeviceScene| {
-                if scene.layout == Layout::Bvh2 {
-                    scene.method.to_string()
-                } else {
-                    format!("{} {}", scene.method, scene.layout)
+            let label = |scene: &DeviceScene, order: RayOrder| {
+                let mut s = scene.method.to_string();
+                if scene.layout != Layout::Bvh2 {
+                    s += &format!(" {}", scene.layout);
                 }
+                if scene.traversal != Traversal::default() {
+                    s += &format!(" {}", scene.traversal);
+                }
+                if order != RayOrder::default() {
+                    s += &format!(" {order}");
+                }
+                s
             };
-            let jobs: Vec<Job> =
-                scenes.iter().zip(&kernels).map(|(scene, kernel)| Job { scene, kernel, rays, ref_hits }).collect();
+            let jobs: Vec<Job> = scenes
+                .iter()
+                .zip(&kernels)
+                .flat_map(|(scene, kernel)| o.orders().into_iter().map(move |order| (scene, kernel, order)))
+                .map(|(scene, kernel, order)| Job { scene, kernel, rays, ref_hits, order })
+                .collect();
             let measured = interleaved(ctx, &mesh, &jobs, o.warmup, o.repeat, o.batch_rays)
-                .map_err(|(i, e)| Error::Usage(format!("{name} {set} {}: {e}", label(&scenes[i]))))?;
-            for (scene, m) in scenes.iter().zip(measured) {
+                .map_err(|(i, e)| Error::Usage(format!("{name} {set} {}: {e}", label(jobs[i].scene, jobs[i].order))))?;
+            for (job, m) in jobs.iter().zip(measured) {
+                let (scene, order) = (job.scene, job.order);
                 let (ms, agreement) = (m.kernel_ms, m.agreement);
                 let mr = mrays_summary(rays.len(), ms);
                 progress(&format!(
                     "{name} {set} {}: {:.2} Mrays/s ({:.1} ms), {}",
-                    label(scene),
+                    label(scene, order),
                     mr.median,
                     ms.median,
                     agreement.summary()
@@ -651,6 +764,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 let bytes = (scene.bytes, Some(scene.access));
                 let mut r = row(&name, &mesh, set, rays, tracer, Some(o), bytes, ms, &agreement);
                 r.layout = Some(scene.layout);
+                r.traversal = Some(scene.traversal);
+                r.order = Some(order);
+                r.reorder_ms = (order != RayOrder::Given).then_some(m.reorder_ms);
                 report.rows.push(r);
             }
             // Every driver peer over the scene's one structure (built whenever there is a peer).
@@ -699,7 +815,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 }
                 let mine = report.rows.iter().filter(|r| r.scene == name && r.ray_set == set);
                 let best = TrilabBest::fastest(mine.filter_map(|r| match r.method {
-                    Tracer::Method(m) => Some((m.to_string(), r.layout, r.mrays_per_s)),
+                    Tracer::Method(m) => Some((r.label(m), r.layout, r.mrays_per_s)),
                     Tracer::Peer(_) => None, // the driver's ray tracing is not ours
                 }));
                 report.peers.push(PeerComparison::new(&name, set, rays.len(), best, results));
@@ -727,7 +843,15 @@ mod tests {
 
     #[test]
     fn a_bench_cell_plans_and_rows_with_the_same_coordinates() {
-        let tracer = CellTracer::Method { method: Method::Mt, layout: Layout::Bvh4, leaf: 4, sah_group: Some(1) };
+        let method = |sah_group, traversal, order| CellTracer::Method {
+            method: Method::Mt,
+            layout: Layout::Bvh4,
+            leaf: 4,
+            sah_group: Some(sah_group),
+            traversal,
+            order,
+        };
+        let tracer = method(1, Traversal::WhileIf, RayOrder::Given);
         let planned = BenchCell { scene: "bunny".into(), set: RaySet::Diffuse, rays: None, tracer };
         let measured = BenchCell { rays: Some(9794), ..planned.clone() };
         let want = [("layout", "bvh4"), ("leaf", "4"), ("method", "mt"), ("scene", "bunny"), ("set", "diffuse")];
@@ -738,10 +862,19 @@ mod tests {
         assert_eq!(row.get("rays").map(String::as_str), Some("9794"));
         assert!(crate::rows::plan_matches(&plan, &row));
         // A SAH group of 1 is the default and unnamed; another is a coordinate of both.
-        let grouped = CellTracer::Method { method: Method::Mt, layout: Layout::Bvh4, leaf: 4, sah_group: Some(4) };
+        let grouped = method(4, Traversal::WhileIf, RayOrder::Given);
         let g = BenchCell { tracer: grouped, ..planned.clone() }.coordinates();
         assert_eq!(g.get("sah_group").map(String::as_str), Some("4"));
         assert!(!crate::rows::plan_matches(&g, &row));
+        // So are a traversal other than while-if and a ray order other than the given one.
+        let ww =
+            BenchCell { tracer: method(1, Traversal::WhileWhile, RayOrder::Given), ..planned.clone() }.coordinates();
+        assert_eq!(ww.get("traversal").map(String::as_str), Some("while-while"));
+        assert!(!crate::rows::plan_matches(&ww, &row) && !ww.contains_key("order"));
+        let sorted = BenchCell { tracer: method(1, Traversal::WhileIf, RayOrder::OctantOrigin), ..planned.clone() }
+            .coordinates();
+        assert_eq!(sorted.get("order").map(String::as_str), Some("octant-origin"));
+        assert!(!crate::rows::plan_matches(&sorted, &row) && !sorted.contains_key("traversal"));
         let peer = BenchCell { tracer: CellTracer::Peer("embree".into()), ..planned }.coordinates();
         assert_eq!(peer.get("peer").map(String::as_str), Some("embree"));
         assert!(!peer.contains_key("method") && !peer.contains_key("leaf"));
@@ -774,6 +907,9 @@ mod tests {
                 scene_bytes: 3_000_000 + (ms.median * 1000.0) as usize,
                 scene_access: layout.map(|_| AccessPath::Texel),
                 layout,
+                traversal: layout.map(|_| Traversal::WhileIf),
+                order: layout.map(|_| RayOrder::Given),
+                reorder_ms: None,
                 kernel_ms: ms,
                 mrays_per_s: mr.median,
                 mrays_per_s_min: mr.min,

@@ -6,6 +6,7 @@ use crate::encoding::Raycast;
 use crate::error::{Error, Result};
 use crate::gpu::{Context, Kernel, RaycastOptions};
 use crate::pipeline::DeviceScene;
+use crate::rays::order::{self, RayOrder};
 use crate::rays::{Hit, Ray};
 use crate::reference::RefHit;
 use crate::report::Summary;
@@ -77,13 +78,19 @@ pub struct Job<'a> {
     pub kernel: &'a Kernel,
     pub rays: &'a [Ray],
     pub ref_hits: &'a [RefHit],
+    /// The order the rays are dispatched in; the time to reorder them and to put the hits back
+    /// is part of the job's time.
+    pub order: RayOrder,
 }
 
 /// One job's validated timings from [`interleaved`].
 #[derive(Clone, Debug)]
 pub struct Interleaved {
-    /// Kernel time per timed round (GPU timestamps, or host wall time without them), ms.
+    /// Kernel time per timed round (GPU timestamps, or host wall time without them), ms, with
+    /// the host's time to reorder the rays and put the hits back when the job reorders.
     pub kernel_ms: Summary,
+    /// The host's reordering time per timed round, ms (0 for [`RayOrder::Given`]).
+    pub reorder_ms: Summary,
     /// The last timed round's agreement with the reference and hits.
     pub agreement: Agreement,
     pub hits: Vec<Hit>,
@@ -107,25 +114,39 @@ pub fn interleaved(
 ) -> std::result::Result<Vec<Interleaved>, (usize, Error)> {
     let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
     let mut times: Vec<Vec<f64>> = vec![vec![]; jobs.len()];
+    let mut reorder: Vec<Vec<f64>> = vec![vec![]; jobs.len()];
     let mut last: Vec<Option<(Agreement, Vec<Hit>, usize)>> = vec![None; jobs.len()];
     for round in 0..warmup + repeat.max(1) {
         for k in 0..jobs.len() {
             let i = (k + round) % jobs.len();
             let j = &jobs[i];
-            let res = j.scene.cast_with(ctx, j.kernel, j.rays, &once).map_err(|e| (i, e))?;
+            let t = std::time::Instant::now();
+            let order = j.order.permutation(j.rays);
+            let permuted = order.as_ref().map(|o| order::permute(o, j.rays));
+            let mut host_ms = t.elapsed().as_secs_f64() * 1e3;
+            let mut res =
+                j.scene.cast_with(ctx, j.kernel, permuted.as_deref().unwrap_or(j.rays), &once).map_err(|e| (i, e))?;
+            if let Some(o) = &order {
+                let t = std::time::Instant::now();
+                res.hits = order::unpermute(o, &res.hits);
+                host_ms += t.elapsed().as_secs_f64() * 1e3;
+            }
             let agreement = validate_hits(mesh, j.rays, &res.hits, j.ref_hits).map_err(|e| (i, e))?;
             if round >= warmup {
-                times[i].push(res.time_ms().map_err(|e| (i, e))?.median);
+                times[i].push(res.time_ms().map_err(|e| (i, e))?.median + host_ms);
+                reorder[i].push(host_ms);
                 last[i] = Some((agreement, res.hits, res.batches));
             }
         }
     }
     Ok(times
         .iter()
+        .zip(&reorder)
         .zip(last)
-        .map(|(t, l)| {
+        .map(|((t, r), l)| {
             let (agreement, hits, batches) = l.expect("at least one timed round");
-            Interleaved { kernel_ms: Summary::of(t).expect("at least one timed round"), agreement, hits, batches }
+            let of = |v: &[f64]| Summary::of(v).expect("at least one timed round");
+            Interleaved { kernel_ms: of(t), reorder_ms: of(r), agreement, hits, batches }
         })
         .collect())
 }

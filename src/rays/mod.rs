@@ -7,6 +7,7 @@
 pub mod camera;
 mod generate;
 pub mod offset;
+pub mod order;
 pub mod sidecar;
 
 pub use camera::{primary_rays, Camera, CameraSpec};

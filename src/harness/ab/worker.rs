@@ -254,6 +254,8 @@ fn load_and_serve(
                 layout: scene.layout,
                 leaf: w.build.max_leaf_size,
                 sah_group: None,
+                traversal: scene.traversal,
+                order: crate::rays::order::RayOrder::Given,
             };
             let bench = BenchCell { scene: hosts[*i].name.clone(), set: *set, rays: Some(rays.len()), tracer };
             let info = CellInfo {

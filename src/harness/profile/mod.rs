@@ -523,7 +523,13 @@ pub fn run(
         .iter()
         .zip(&kernels)
         .flat_map(|(scene, kernel)| {
-            sets.iter().zip(&refs).map(move |((_, rays), ref_hits)| Job { scene, kernel, rays, ref_hits })
+            sets.iter().zip(&refs).map(move |((_, rays), ref_hits)| Job {
+                scene,
+                kernel,
+                rays,
+                ref_hits,
+                order: crate::rays::order::RayOrder::Given,
+            })
         })
         .collect();
     let ropts = RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), ..Default::default() };

@@ -1,0 +1,94 @@
+//! `trilab bench --traversals` and `--orders` (issue 27 items 3 and 5): every method x layout x
+//! traversal that has a kernel is timed with every ray order in one run, each validated against
+//! the f64 reference before it counts (bench refuses a speed otherwise); a combination without a
+//! kernel is a note, not an error; the rows carry the traversal and the order as coordinates
+//! only where they are not the defaults. Validation layers on; a wall-clock limit.
+
+mod common;
+
+use serde_json::Value;
+
+const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny.obj");
+
+#[test]
+fn bench_times_every_traversal_and_ray_order_side_by_side() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("bench")).unwrap();
+    let out = dir.path().join("bench").to_string_lossy().into_owned();
+    let args = [
+        "bench",
+        "--scenes",
+        BUNNY,
+        "--methods",
+        "unit",
+        "--layouts",
+        "bvh2,bvh4",
+        "--traversals",
+        "while-if,while-while",
+        "--orders",
+        "given,octant-origin",
+        "--width",
+        "48",
+        "--height",
+        "32",
+        "--random-rays",
+        "3000",
+        "--repeat",
+        "1",
+        "--validation",
+        "--json",
+        "--out",
+        &out,
+    ];
+    let o = common::cli::trilab(&args, 600);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    let j: Value = serde_json::from_slice(&o.stdout).expect("bench --json prints JSON");
+    let rows = j["rows"].as_array().unwrap();
+    // bvh2 has both traversals, bvh4 while-if only: 3 kernels x 2 orders x 3 sets.
+    let mut seen: Vec<(String, String, String, String)> = rows
+        .iter()
+        .map(|r| {
+            let s = |k: &str| r[k].as_str().unwrap_or_default().to_owned();
+            (s("ray_set"), s("layout"), s("traversal"), s("order"))
+        })
+        .collect();
+    seen.sort();
+    seen.dedup();
+    assert_eq!(seen.len(), 18, "{seen:?}");
+    for set in ["primary", "diffuse", "random"] {
+        for (layout, traversal) in [("bvh2", "while-if"), ("bvh2", "while-while"), ("bvh4", "while-if")] {
+            for order in ["given", "octant-origin"] {
+                let want = (set.to_owned(), layout.to_owned(), traversal.to_owned(), order.to_owned());
+                assert!(seen.contains(&want), "no row {want:?}");
+            }
+        }
+    }
+    assert!(stderr.contains("while-while traversal on bvh4: not run"), "{stderr}");
+    for r in rows {
+        // Each row agreed with the reference (bench refuses a speed otherwise) ...
+        assert!(r["agreement"].as_f64().unwrap() >= 0.9999, "{r}");
+        // ... and a reordered row's time holds its reordering.
+        let kernel = r["kernel_ms"]["median"].as_f64().unwrap();
+        match r["order"].as_str().unwrap() {
+            "given" => assert!(r["reorder_ms"].is_null(), "{r}"),
+            _ => {
+                let reorder = r["reorder_ms"]["median"].as_f64().unwrap();
+                assert!(reorder > 0.0 && reorder < kernel, "{r}");
+            }
+        }
+    }
+    // rows.jsonl: the coordinates appear only where they are not the defaults.
+    let text = std::fs::read_to_string(dir.path().join("bench").join("rows.jsonl")).unwrap();
+    let cells: Vec<Value> = text
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).unwrap())
+        .filter(|l| l["type"] == "row")
+        .map(|l| l["cell"].clone())
+        .collect();
+    assert_eq!(cells.len(), 18);
+    let count = |k: &str, v: &str| cells.iter().filter(|c| c[k] == v).count();
+    assert_eq!(count("traversal", "while-while"), 6);
+    assert_eq!(count("order", "octant-origin"), 9);
+    assert!(cells.iter().all(|c| c["traversal"] != "while-if" && c["order"] != "given"));
+}
