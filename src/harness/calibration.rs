@@ -305,12 +305,46 @@ impl Workload {
     }
 }
 
+/// A calibration cell: the command whose timings a calibration row calibrates, and the workload
+/// that measured the host (what `trilab compare` sets against the other side's).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CalibrationCell {
+    pub command: String,
+    pub workload: String,
+}
+
+impl CalibrationCell {
+    /// This file's workload ([`WORKLOAD`]) calibrating `command`.
+    pub fn of(command: &str) -> CalibrationCell {
+        CalibrationCell { command: command.into(), workload: WORKLOAD.into() }
+    }
+
+    /// The cell's coordinates, as `rows.jsonl` names them.
+    pub fn coordinates(&self) -> crate::rows::Cell {
+        cell([("command", &self.command), ("workload", &self.workload)])
+    }
+}
+
+impl TryFrom<&crate::rows::Cell> for CalibrationCell {
+    /// The coordinate the cell lacks, naming the cell.
+    type Error = String;
+
+    /// Reads [`CalibrationCell::coordinates`] back; a cell naming no workload reads as the empty
+    /// name, which only another such cell shares.
+    fn try_from(c: &crate::rows::Cell) -> std::result::Result<CalibrationCell, String> {
+        let command = c.get("command").cloned().ok_or_else(|| {
+            format!("{COMMAND} cell `{}` has no `command` coordinate", crate::rows::cell_key(COMMAND, c))
+        })?;
+        Ok(CalibrationCell { command, workload: c.get("workload").cloned().unwrap_or_default() })
+    }
+}
+
 /// The calibration of one command's timings: the points measured just before and just after it,
 /// pooled (the host's speed while it ran, load included).
 pub fn row(command: &str, before: &Point, after: &Point, source: &Source) -> Row {
     let rounds: Vec<f64> = before.rounds_ms.iter().chain(&after.rounds_ms).copied().collect();
     let summary = Summary::of(&rounds).expect("a calibration point has rounds");
-    Row::new(COMMAND, cell([("command", command), ("workload", WORKLOAD)]), source)
+    Row::new(COMMAND, CalibrationCell::of(command).coordinates(), source)
         .with("cpu_ms", Figure::timing(summary, "ms", Better::Lower))
         .with("hits", Figure::count(before.hits as f64, "rays"))
         .with("checksum", Figure::count(before.checksum as f64, "sum of ids"))
@@ -347,5 +381,19 @@ mod tests {
         let r = row("bench", &p, &p, &s);
         assert_eq!(r.figures["cpu_ms"].runs, 2 * ROUNDS);
         assert_eq!(r.cell["workload"], WORKLOAD);
+    }
+
+    #[test]
+    fn a_calibration_cell_is_read_back_from_the_coordinates_it_writes() {
+        let want = cell([("command", "bench"), ("workload", "soup64k-v1")]);
+        assert_eq!(CalibrationCell::of("bench").coordinates(), want);
+        let read = CalibrationCell::try_from(&want).unwrap();
+        assert_eq!((read.command.as_str(), read.workload.as_str()), ("bench", "soup64k-v1"));
+        assert_eq!(read.coordinates(), want);
+        // A cell naming no workload: the empty name.
+        let bare = CalibrationCell::try_from(&cell([("command", "study")])).unwrap();
+        assert_eq!(bare.workload, "");
+        let e = CalibrationCell::try_from(&cell([("workload", "soup64k-v1")])).unwrap_err();
+        assert!(e.contains("has no `command` coordinate") && e.contains("calibration workload=soup64k-v1"), "{e}");
     }
 }

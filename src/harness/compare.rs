@@ -34,7 +34,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::harness::calibration;
+use crate::harness::calibration::{self, CalibrationCell};
 use crate::host::Host;
 use crate::named::named_enum;
 use crate::report::{Report, Table};
@@ -549,19 +549,24 @@ pub fn compare(base: Side, base_rows: &[Row], new: Side, new_rows: &[Row], thres
     compare_with(base, base_rows, new, new_rows, &o).expect("the raw rule needs no calibration")
 }
 
-/// The calibration rows of one side, by the command they calibrate; the other rows.
-fn split_calibration(rows: &[Row]) -> (BTreeMap<String, &Row>, Vec<&Row>) {
+/// The calibration rows of one side with their cells, by the command they calibrate; the other
+/// rows.
+fn split_calibration(rows: &[Row]) -> (BTreeMap<String, (CalibrationCell, &Row)>, Vec<&Row>) {
     let (cal, rest): (Vec<&Row>, Vec<&Row>) = rows.iter().partition(|r| r.command == calibration::COMMAND);
-    (cal.into_iter().filter_map(|r| Some((r.cell.get("command")?.clone(), r))).collect(), rest)
+    let by_command = cal.into_iter().filter_map(|r| {
+        let c = CalibrationCell::try_from(&r.cell).ok()?;
+        Some((c.command.clone(), (c, r)))
+    });
+    (by_command.collect(), rest)
 }
 
 /// The calibration pair of `command`, or why there is none.
 fn calibration_pair(
     command: &str,
-    base: &BTreeMap<String, &Row>,
-    new: &BTreeMap<String, &Row>,
+    base: &BTreeMap<String, (CalibrationCell, &Row)>,
+    new: &BTreeMap<String, (CalibrationCell, &Row)>,
 ) -> std::result::Result<HostCalibration, String> {
-    let (Some(b), Some(n)) = (base.get(command), new.get(command)) else {
+    let (Some((bc, b)), Some((nc, n))) = (base.get(command), new.get(command)) else {
         let missing: Vec<&str> =
             [("BASE", base), ("NEW", new)].iter().filter(|(_, m)| !m.contains_key(command)).map(|(s, _)| *s).collect();
         return Err(format!(
@@ -570,12 +575,10 @@ fn calibration_pair(
             if missing.len() == 1 { "has" } else { "have" }
         ));
     };
-    let workload = |r: &Row| r.cell.get("workload").cloned().unwrap_or_default();
-    if workload(b) != workload(n) {
+    if bc.workload != nc.workload {
         return Err(format!(
             "the calibration workloads of `{command}` differ (BASE {}, NEW {}): their times cannot be set against each other",
-            workload(b),
-            workload(n)
+            bc.workload, nc.workload
         ));
     }
     let same =
@@ -583,7 +586,7 @@ fn calibration_pair(
     let (Some(bt), Some(nt), true) = (b.figures.get("cpu_ms"), n.figures.get("cpu_ms"), same) else {
         return Err(format!(
             "the calibration rows of `{command}` disagree on their hits or lack `cpu_ms`: one of them is not the workload `{}`",
-            workload(b)
+            bc.workload
         ));
     };
     if !(bt.median > 0.0 && nt.median > 0.0) {
@@ -591,7 +594,7 @@ fn calibration_pair(
     }
     Ok(HostCalibration {
         command: command.to_owned(),
-        workload: workload(b),
+        workload: bc.workload.clone(),
         base: bt.clone(),
         new: nt.clone(),
         factor: nt.median / bt.median,

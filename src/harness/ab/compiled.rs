@@ -16,7 +16,7 @@ use serde::Serialize;
 
 use super::worker::{CellInfo, CellKind};
 use super::{AbOptions, Side};
-use crate::harness::profile::driver_stats::{base_variant, COMMAND};
+use crate::harness::profile::driver_stats::{KernelCell, COMMAND};
 use crate::kernels::KERNELS;
 use crate::rows::Row;
 
@@ -37,11 +37,9 @@ pub struct SideStats {
     pub note: String,
 }
 
-/// Kernel file, variant without its layout suffix, method and layout of a cell's kernel: the
-/// coordinates of its `driver-stats` row.
-fn coordinates(c: &CellInfo) -> Option<[String; 4]> {
-    let k = KERNELS.iter().find(|k| k.name == c.kernel)?;
-    Some([k.kernel.into(), base_variant(k).into(), k.intersector.replace('_', "-"), k.layout.into()])
+/// The `driver-stats` cell of a cell's kernel.
+fn kernel_cell(c: &CellInfo) -> Option<KernelCell> {
+    KERNELS.iter().find(|k| k.name == c.kernel).map(KernelCell::of)
 }
 
 /// Runs `trilab driver-stats` in `side`'s environment for the ray-casting cells' kernels,
@@ -50,20 +48,21 @@ fn coordinates(c: &CellInfo) -> Option<[String; 4]> {
 /// keeps both sides' measurements of one kernel apart.
 pub fn collect(o: &AbOptions, name: &str, side: &Side, cells: &[CellInfo], dir: &Path) -> SideStats {
     let none = |note: String| SideStats { rows: vec![], note };
-    let coords: Vec<[String; 4]> =
-        cells.iter().filter(|c| c.kind == CellKind::Raycast).filter_map(coordinates).collect();
+    let coords: Vec<KernelCell> =
+        cells.iter().filter(|c| c.kind == CellKind::Raycast).filter_map(kernel_cell).collect();
     if coords.is_empty() {
         return none("no ray-casting cell (driver-stats dispatches ray-casting kernels only)".into());
     }
-    let list = |i: usize| {
-        let mut v: Vec<&str> = coords.iter().map(|c| c[i].as_str()).collect();
+    let list = |field: fn(&KernelCell) -> &str| {
+        let mut v: Vec<&str> = coords.iter().map(field).collect();
         v.sort_unstable();
         v.dedup();
         v.join(",")
     };
     let mut cmd = Command::new(&o.exe);
     cmd.arg(COMMAND)
-        .args(["--kernels", &list(0), "--variants", &list(1), "--methods", &list(2), "--layouts", &list(3)])
+        .args(["--kernels", &list(|c| &c.kernel), "--variants", &list(|c| &c.variant)])
+        .args(["--methods", &list(|c| &c.method), "--layouts", &list(|c| &c.layout)])
         .arg("--out")
         .arg(dir);
     if o.validation {
@@ -99,9 +98,8 @@ pub fn collect(o: &AbOptions, name: &str, side: &Side, cells: &[CellInfo], dir: 
 
 /// The figures of `cell`'s kernel in `rows`, name to value.
 fn figures_of(rows: &[Row], cell: &CellInfo) -> Option<BTreeMap<String, f64>> {
-    let [kernel, variant, method, layout] = coordinates(cell)?;
-    let want = [("kernel", kernel), ("variant", variant), ("method", method), ("layout", layout)];
-    let row = rows.iter().find(|r| want.iter().all(|(k, v)| r.cell.get(*k) == Some(v)))?;
+    let want = kernel_cell(cell)?;
+    let row = rows.iter().find(|r| KernelCell::try_from(&r.cell).as_ref() == Ok(&want))?;
     Some(row.figures.iter().map(|(n, f)| (n.clone(), f.median)).collect())
 }
 

@@ -29,9 +29,10 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::encoding::{Layout, Method};
+use crate::encoding::Layout;
 use crate::error::{Error, Result};
 use crate::harness::study::claims::{self, Claim, Grid, GridCell};
+use crate::harness::study::StudyCell;
 use crate::report::{Summary, Table};
 use crate::rows::{self, Cell, Class, Figure, Plan, Row, Shard, Source};
 
@@ -395,21 +396,17 @@ pub fn grid(label: &str, rows: &[(Row, PathBuf)], plans: &[(Plan, PathBuf)]) -> 
         .filter(|(p, _)| p.command == "study" && p.source.device_label() == label)
         .flat_map(|(p, f)| p.cells.iter().map(move |c| (c, f)));
     for (c, f) in planned.chain(mine.iter().map(|(r, f)| (&r.cell, *f))) {
-        let (scene, leaf, method, layout) = coordinates(c, f)?;
-        push(&mut g.scenes, scene);
-        push(&mut g.leaf_sizes, leaf);
-        push(&mut g.methods, method);
-        push(&mut g.layouts, layout);
+        let c = StudyCell::parse(c, f)?;
+        push(&mut g.scenes, c.scene);
+        push(&mut g.leaf_sizes, c.leaf);
+        push(&mut g.methods, c.method);
+        push(&mut g.layouts, c.layout);
     }
     for (r, f) in mine {
-        let (scene, leaf, method, layout) = coordinates(&r.cell, f)?;
         let t = &r.figures["render_s"];
         g.repeat = g.repeat.min(t.runs);
         g.times.push(GridCell {
-            scene,
-            leaf,
-            method,
-            layout,
+            cell: StudyCell::parse(&r.cell, f)?,
             seconds: Summary { median: t.median, min: t.min, max: t.max, runs: t.runs },
         });
     }
@@ -420,24 +417,6 @@ fn push<T: PartialEq>(v: &mut Vec<T>, x: T) {
     if !v.contains(&x) {
         v.push(x);
     }
-}
-
-/// A study cell's (scene, leaf, method, layout); a cell without them, or with a method or
-/// layout this trilab does not know, is an error naming the file.
-fn coordinates(c: &Cell, file: &Path) -> Result<(String, u32, Method, Layout)> {
-    let key = rows::cell_key("study", c);
-    let get = |k: &str| {
-        c.get(k).ok_or_else(|| Error::bad_input(file, None, format!("study cell `{key}` has no `{k}` coordinate")))
-    };
-    let bad = |k: &str, e: String| Error::bad_input(file, None, format!("study cell `{key}`: {k}: {e}"));
-    let leaf = get("leaf")?.parse::<u32>().map_err(|e| bad("leaf", e.to_string()))?;
-    let method = get("method")?.parse::<Method>().map_err(|e| bad("method", e.to_string()))?;
-    // Rows written before layouts were an axis have none: the binary tree.
-    let layout = match c.get("layout") {
-        Some(l) => l.parse::<Layout>().map_err(|e| bad("layout", e.to_string()))?,
-        None => Layout::Bvh2,
-    };
-    Ok((get("scene")?.clone(), leaf, method, layout))
 }
 
 fn device_claims(label: &str, rows: &[(Row, PathBuf)], plans: &[(Plan, PathBuf)]) -> Result<Option<DeviceClaims>> {
@@ -738,6 +717,7 @@ pub fn write(report: &MergeReport, dir: &Path) -> Result<Vec<PathBuf>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::encoding::Method;
     use crate::harness::study::testing::synthetic;
     use crate::harness::study::{self, StudyReport};
 
@@ -815,7 +795,8 @@ mod tests {
         assert_eq!(m.missing.len(), 1, "{:?}", m.missing);
         let miss = &m.missing[0];
         assert_eq!((miss.device.as_str(), miss.planned_by_device), ("gpu-b", false));
-        assert_eq!(miss.cell, study::cell_of("dragon", 4, Method::QuadUnit, Layout::Bvh2));
+        let dragon = [("layout", "bvh2"), ("leaf", "4"), ("method", "quad-unit"), ("scene", "dragon")];
+        assert_eq!(miss.cell, rows::cell(dragon));
         // With gpu-b's full plan (its run planned the cell), the cell is missing from its own plan.
         let full = plan(&a, Some(Shard { index: 1, count: 2 }));
         let full = Plan { source: b.provenance.source(), ..full };
@@ -836,7 +817,7 @@ mod tests {
     }
 
     fn lost_cell(r: &study::StudyRow) -> Cell {
-        study::cell_of(&r.scene, r.leaf_size, r.method, r.layout)
+        r.cell().coordinates()
     }
 
     #[test]

@@ -9,15 +9,21 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::{MergeReport, SpeedRow};
+use crate::encoding::{Layout, Method};
 use crate::error::Result;
 use crate::harness::plots::{
     bar_series, category_chart, leaf_size_chart, line_with_error_bars, plot_err, render_png, series_colour,
     LegendEntry, Marker, Plot,
 };
+use crate::harness::study::StudyCell;
+use crate::named::Named;
 use crate::rows::Figure;
 
-/// One render-time row: (scene, layout, method, leaf, per device).
-type TimeRow<'a> = (&'a str, &'a str, &'a str, u32, &'a [Option<Figure>]);
+/// One render-time row: its study cell and its figure per device.
+struct TimeRow<'a> {
+    cell: StudyCell,
+    per_device: &'a [Option<Figure>],
+}
 
 /// The study's render-time rows.
 struct Times<'a> {
@@ -25,53 +31,59 @@ struct Times<'a> {
 }
 
 impl<'a> Times<'a> {
+    /// Every study cell's render time (merge has read each of those cells already: none is
+    /// unreadable here).
     fn of(report: &'a MergeReport) -> Times<'a> {
         let rows = report
             .speed
             .iter()
             .filter(|r| r.command == "study" && r.figure == "render_s")
             .filter_map(|r: &'a SpeedRow| {
-                let get = |k: &str| r.cell.get(k).map(String::as_str);
-                let leaf = get("leaf")?.parse().ok()?;
-                Some((get("scene")?, get("layout").unwrap_or("bvh2"), get("method")?, leaf, r.per_device.as_slice()))
+                Some(TimeRow { cell: StudyCell::try_from(&r.cell).ok()?, per_device: r.per_device.as_slice() })
             })
             .collect();
         Times { rows }
     }
 
+    fn of_panel<'s>(&'s self, scene: &'s str, layout: Layout) -> impl Iterator<Item = &'s StudyCell> {
+        self.rows.iter().map(|r| &r.cell).filter(move |c| c.scene == scene && c.layout == layout)
+    }
+
     /// (scene, layout) pairs in order of first appearance.
-    fn panels(&self) -> Vec<(&'a str, &'a str)> {
+    fn panels(&self) -> Vec<(&str, Layout)> {
         let mut v = vec![];
-        for r in &self.rows {
-            if !v.contains(&(r.0, r.1)) {
-                v.push((r.0, r.1));
+        for c in self.rows.iter().map(|r| &r.cell) {
+            if !v.contains(&(c.scene.as_str(), c.layout)) {
+                v.push((c.scene.as_str(), c.layout));
             }
         }
         v
     }
 
-    fn methods(&self, scene: &str, layout: &str) -> Vec<&'a str> {
+    fn methods(&self, scene: &str, layout: Layout) -> Vec<Method> {
         let mut v = vec![];
-        for r in self.rows.iter().filter(|r| r.0 == scene && r.1 == layout) {
-            if !v.contains(&r.2) {
-                v.push(r.2);
+        for c in self.of_panel(scene, layout) {
+            if !v.contains(&c.method) {
+                v.push(c.method);
             }
         }
         v
     }
 
-    fn leaves(&self, scene: &str, layout: &str) -> Vec<u32> {
-        let mut v: Vec<u32> = self.rows.iter().filter(|r| r.0 == scene && r.1 == layout).map(|r| r.3).collect();
+    fn leaves(&self, scene: &str, layout: Layout) -> Vec<u32> {
+        let mut v: Vec<u32> = self.of_panel(scene, layout).map(|c| c.leaf).collect();
         v.sort();
         v.dedup();
         v
     }
 
-    fn get(&self, scene: &str, layout: &str, method: &str, leaf: u32, device: usize) -> Option<&'a Figure> {
+    fn get(&self, scene: &str, layout: Layout, method: Method, leaf: u32, device: usize) -> Option<&'a Figure> {
         self.rows
             .iter()
-            .find(|r| r.0 == scene && r.1 == layout && r.2 == method && r.3 == leaf)
-            .and_then(|r| r.4.get(device)?.as_ref())
+            .find(|r| {
+                r.cell.scene == scene && r.cell.layout == layout && r.cell.method == method && r.cell.leaf == leaf
+            })
+            .and_then(|r| r.per_device.get(device)?.as_ref())
     }
 }
 
@@ -89,12 +101,12 @@ fn legend(report: &MergeReport, marker: Marker) -> Vec<LegendEntry> {
 
 /// Render time against leaf size, one panel per method of one (scene, layout), one line per
 /// device, each divided by the device's fastest median of that method (1 = its best leaf size).
-fn time_vs_leaf(report: &MergeReport, t: &Times, scene: &str, layout: &str, path: &Path) -> Result<()> {
+fn time_vs_leaf(report: &MergeReport, t: &Times, scene: &str, layout: Layout, path: &Path) -> Result<()> {
     let methods = t.methods(scene, layout);
     let leaves = t.leaves(scene, layout);
     let what = "merged time against leaf size";
     // (method, device) -> points (leaf index, median, min, max), normalised.
-    let series = |m: &str, d: usize| -> Vec<(u32, f64, f64, f64)> {
+    let series = |m: Method, d: usize| -> Vec<(u32, f64, f64, f64)> {
         let pts: Vec<(u32, &Figure)> =
             leaves.iter().enumerate().filter_map(|(i, &l)| Some((i as u32, t.get(scene, layout, m, l, d)?))).collect();
         let best = pts.iter().map(|p| p.1.median).fold(f64::INFINITY, f64::min);
@@ -106,7 +118,7 @@ fn time_vs_leaf(report: &MergeReport, t: &Times, scene: &str, layout: &str, path
         let all: Vec<Vec<(u32, f64, f64, f64)>> = (0..devices).map(|d| series(m, d)).collect();
         let ymax = all.iter().flatten().map(|p| p.3).fold(1.0, f64::max) * 1.05;
         let ymin = all.iter().flatten().map(|p| p.2).fold(1.0, f64::min) * 0.95;
-        let caption = if layout == "bvh2" { format!("{scene}, {m}") } else { format!("{scene}, {layout}, {m}") };
+        let caption = if layout == Layout::Bvh2 { format!("{scene}, {m}") } else { format!("{scene}, {layout}, {m}") };
         let mut chart =
             leaf_size_chart(area, &caption, &leaves, ymin..ymax, "time / device's fastest leaf (min-max)", what)?;
         for (d, pts) in all.iter().enumerate() {
@@ -126,21 +138,26 @@ fn methods_vs_mt(report: &MergeReport, t: &Times, path: &Path) -> Result<()> {
         let (scene, layout) = panels[i];
         let methods = t.methods(scene, layout);
         let leaves = t.leaves(scene, layout);
-        let rel = |m: &str, d: usize| -> Option<f64> {
+        let rel = |m: Method, d: usize| -> Option<f64> {
             let logs: Vec<f64> = leaves
                 .iter()
                 .filter_map(|&l| {
-                    Some((t.get(scene, layout, m, l, d)?.median / t.get(scene, layout, "mt", l, d)?.median).ln())
+                    Some((t.get(scene, layout, m, l, d)?.median / t.get(scene, layout, Method::Mt, l, d)?.median).ln())
                 })
                 .collect();
             (!logs.is_empty()).then(|| (logs.iter().sum::<f64>() / logs.len() as f64).exp())
         };
-        let values: Vec<Vec<Option<f64>>> = methods.iter().map(|m| (0..devices).map(|d| rel(m, d)).collect()).collect();
+        let values: Vec<Vec<Option<f64>>> =
+            methods.iter().map(|&m| (0..devices).map(|d| rel(m, d)).collect()).collect();
         let ymax = values.iter().flatten().flatten().copied().fold(1.0, f64::max) * 1.15;
-        let caption =
-            if layout == "bvh2" { format!("{scene}: time / MT") } else { format!("{scene}, {layout}: time / MT") };
+        let caption = if layout == Layout::Bvh2 {
+            format!("{scene}: time / MT")
+        } else {
+            format!("{scene}, {layout}: time / MT")
+        };
         let y_desc = "render time / MT's (geo. mean over leaves)";
-        let mut chart = category_chart(area, &caption, &methods, ymax, y_desc, what)?;
+        let names: Vec<&str> = methods.iter().map(|m| m.name()).collect();
+        let mut chart = category_chart(area, &caption, &names, ymax, y_desc, what)?;
         for d in 0..devices {
             let per_method: Vec<Option<f64>> = values.iter().map(|v| v[d]).collect();
             bar_series(&mut chart, &per_method, (d, devices.max(1)), series_colour(d), what)?;
@@ -160,14 +177,14 @@ pub fn all(report: &MergeReport, dir: &Path) -> Result<Vec<Plot>> {
         return Ok(out);
     }
     for (scene, layout) in t.panels() {
-        let name = if layout == "bvh2" {
+        let name = if layout == Layout::Bvh2 {
             format!("merge-time-vs-leaf-{}.png", file_part(scene))
         } else {
-            format!("merge-time-vs-leaf-{}-{}.png", file_part(scene), file_part(layout))
+            format!("merge-time-vs-leaf-{}-{}.png", file_part(scene), file_part(layout.name()))
         };
         let path = dir.join(name);
         time_vs_leaf(report, &t, scene, layout, &path)?;
-        let on = if layout == "bvh2" { String::new() } else { format!(" on {layout}") };
+        let on = if layout == Layout::Bvh2 { String::new() } else { format!(" on {layout}") };
         out.push(Plot {
             title: format!(
                 "{scene}{on}: render time against leaf size, per device (1 = the device's fastest leaf size)"

@@ -108,10 +108,13 @@ impl Selection {
         }
         let picked: Vec<&'static KernelSource> = KERNELS
             .iter()
-            .filter(|s| self.kernels.iter().any(|k| k == s.kernel))
-            .filter(|s| self.variants.iter().any(|v| v == base_variant(s)))
-            .filter(|s| methods.iter().any(|m| *m == s.intersector.replace('_', "-")))
-            .filter(|s| layouts.iter().any(|l| l == s.layout))
+            .filter(|s| {
+                let c = KernelCell::of(s);
+                self.kernels.contains(&c.kernel)
+                    && self.variants.contains(&c.variant)
+                    && methods.contains(&c.method)
+                    && layouts.contains(&c.layout)
+            })
             .collect();
         if picked.is_empty() {
             return Err(Error::Usage(format!(
@@ -124,16 +127,63 @@ impl Selection {
     }
 }
 
+/// A driver-statistics cell: one compiled kernel variant, as its row names it and as `trilab ab
+/// --driver-stats` finds a cell's kernel among the rows.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct KernelCell {
+    /// The kernel file (`raycast`, `pathtrace`, ...).
+    pub kernel: String,
+    /// The variant without its layout suffix ([`base_variant`]).
+    pub variant: String,
+    /// The intersector as `--methods` names it (`quad-mt`).
+    pub method: String,
+    pub layout: String,
+}
+
+impl KernelCell {
+    /// The cell of a kernel of the registry.
+    pub fn of(k: &KernelSource) -> KernelCell {
+        KernelCell {
+            kernel: k.kernel.into(),
+            variant: base_variant(k).into(),
+            method: k.intersector.replace('_', "-"),
+            layout: k.layout.into(),
+        }
+    }
+
+    /// The cell's coordinates, as `rows.jsonl` names them.
+    pub fn coordinates(&self) -> crate::rows::Cell {
+        cell([("kernel", &self.kernel), ("variant", &self.variant), ("method", &self.method), ("layout", &self.layout)])
+    }
+}
+
+impl TryFrom<&crate::rows::Cell> for KernelCell {
+    /// The coordinate the cell lacks, naming the cell.
+    type Error = String;
+
+    /// Reads [`KernelCell::coordinates`] back.
+    fn try_from(c: &crate::rows::Cell) -> std::result::Result<KernelCell, String> {
+        let get = |k: &str| {
+            c.get(k).cloned().ok_or_else(|| {
+                format!("{COMMAND} cell `{}` has no `{k}` coordinate", crate::rows::cell_key(COMMAND, c))
+            })
+        };
+        Ok(KernelCell {
+            kernel: get("kernel")?,
+            variant: get("variant")?,
+            method: get("method")?,
+            layout: get("layout")?,
+        })
+    }
+}
+
 /// One kernel variant's statistics.
 #[derive(Clone, Debug, Serialize)]
 pub struct KernelStats {
     /// `<kernel>.<method>.<variant>`.
     pub name: String,
-    pub kernel: String,
-    /// The variant without its layout suffix.
-    pub variant: String,
-    pub method: String,
-    pub layout: String,
+    #[serde(flatten)]
+    pub cell: KernelCell,
     /// lavapipe: the counts from its machine code.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lavapipe: Option<KernelAsm>,
@@ -144,15 +194,7 @@ pub struct KernelStats {
 
 impl KernelStats {
     fn of(k: &KernelSource) -> KernelStats {
-        KernelStats {
-            name: k.name.into(),
-            kernel: k.kernel.into(),
-            variant: base_variant(k).into(),
-            method: k.intersector.replace('_', "-"),
-            layout: k.layout.into(),
-            lavapipe: None,
-            executable: BTreeMap::new(),
-        }
+        KernelStats { name: k.name.into(), cell: KernelCell::of(k), lavapipe: None, executable: BTreeMap::new() }
     }
 
     /// Vector reloads: moves from stack slots and other instructions reading them.
@@ -445,9 +487,7 @@ pub fn rows(r: &DriverStatsReport) -> Vec<Row> {
     r.kernels
         .iter()
         .map(|k| {
-            let c =
-                cell([("kernel", &k.kernel), ("variant", &k.variant), ("method", &k.method), ("layout", &k.layout)]);
-            let mut row = Row::new(COMMAND, c, &source);
+            let mut row = Row::new(COMMAND, k.cell.coordinates(), &source);
             if let Some(a) = &k.lavapipe {
                 let t = &a.total;
                 for (name, v, unit) in [
@@ -491,10 +531,10 @@ pub fn table(kernels: &[KernelStats]) -> crate::report::Table {
         let t_ = &a.total;
         let trunc = if a.truncated { " (truncated)" } else { "" };
         t.row([
-            k.kernel.clone(),
-            k.variant.clone(),
-            k.method.clone(),
-            k.layout.clone(),
+            k.cell.kernel.clone(),
+            k.cell.variant.clone(),
+            k.cell.method.clone(),
+            k.cell.layout.clone(),
             format!("{}{trunc}", t_.instructions),
             t_.vector_spills.to_string(),
             KernelStats::vector_reloads(a).to_string(),
@@ -621,6 +661,21 @@ mod tests {
         assert!(bad.kernels().unwrap_err().to_string().contains("no kernel `nope`"));
         let none = Selection { variants: vec!["nope".into()], ..Selection::default() };
         assert!(none.kernels().is_err());
+    }
+
+    #[test]
+    fn a_kernel_cell_is_read_back_from_the_coordinates_it_writes() {
+        let k = kernels_named(&["raycast.quad-mt.closest_bda_bvh8"])[0];
+        let want = [("kernel", "raycast"), ("layout", "bvh8"), ("method", "quad-mt"), ("variant", "closest_bda")];
+        let c = KernelCell::of(k).coordinates();
+        assert_eq!(c.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect::<Vec<_>>(), want);
+        let read = KernelCell::try_from(&crate::rows::cell(want)).unwrap();
+        assert_eq!(read, KernelCell::of(k));
+        assert_eq!(read.coordinates(), c);
+        let no_variant = crate::rows::cell([("kernel", "raycast"), ("method", "mt"), ("layout", "bvh2")]);
+        let e = KernelCell::try_from(&no_variant).unwrap_err();
+        assert!(e.contains("has no `variant` coordinate"), "{e}");
+        assert!(e.contains("driver-stats kernel=raycast layout=bvh2 method=mt"), "{e}");
     }
 
     fn kernels_named(names: &[&str]) -> Vec<&'static KernelSource> {

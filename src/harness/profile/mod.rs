@@ -624,29 +624,66 @@ fn driver_stats_section(
     Ok(Section { status: r.status, note: r.note, rows: r.kernels })
 }
 
-/// The profile's rows: timings (with the pipeline statistics' invocations as a count) per
-/// method and ray set, the subgroup/workgroup sweeps and LP_NUM_THREADS runs (command
-/// `profile`, cell scene/set/method/layout/kernel/variant and the swept size), and the driver
-/// statistics (command [`driver_stats::COMMAND`]). The shader-clock ticks are a distribution
-/// over rays of one run, not rounds, and are left out.
-pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
-    use crate::rows::{cell, Better, Figure, Row as R};
-    let source = r.provenance.source();
-    let base = |method: Method, set: RaySet| {
-        cell([
-            ("scene", r.scene.clone()),
-            ("set", set.to_string()),
-            ("method", method.to_string()),
-            ("layout", r.layout.to_string()),
+/// A profile cell: one method's closest-hit ray-casting kernel on one ray set of the profiled
+/// scene and layout, at the default launch or at one swept setting.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProfileCell {
+    pub scene: String,
+    pub set: RaySet,
+    pub method: Method,
+    pub layout: Layout,
+    pub swept: Option<Swept>,
+}
+
+/// The launch setting a profile sweep changed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Swept {
+    /// The required subgroup size (0: the driver's choice).
+    SubgroupSize(u32),
+    /// The workgroup's local size.
+    LocalSize(u32),
+    /// lavapipe's `LP_NUM_THREADS`.
+    Threads(usize),
+}
+
+impl ProfileCell {
+    /// The cell's coordinates, as `rows.jsonl` names them: the kernel is always `raycast`'s
+    /// `closest` variant, and a swept setting adds its own coordinate.
+    pub fn coordinates(&self) -> crate::rows::Cell {
+        let mut c = crate::rows::cell([
+            ("scene", self.scene.clone()),
+            ("set", self.set.to_string()),
+            ("method", self.method.to_string()),
+            ("layout", self.layout.to_string()),
             ("kernel", "raycast".into()),
             ("variant", "closest".into()),
-        ])
+        ]);
+        let (key, value) = match self.swept {
+            None => return c,
+            Some(Swept::SubgroupSize(n)) => ("subgroup_size", n as usize),
+            Some(Swept::LocalSize(n)) => ("local_size", n as usize),
+            Some(Swept::Threads(n)) => ("threads", n),
+        };
+        c.insert(key.into(), value.to_string());
+        c
+    }
+}
+
+/// The profile's rows: timings (with the pipeline statistics' invocations as a count) per
+/// method and ray set, the subgroup/workgroup sweeps and LP_NUM_THREADS runs (command
+/// `profile`, [`ProfileCell`]), and the driver statistics (command [`driver_stats::COMMAND`]).
+/// The shader-clock ticks are a distribution over rays of one run, not rounds, and are left out.
+pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
+    use crate::rows::{Better, Figure, Row as R};
+    let source = r.provenance.source();
+    let base = |method: Method, set: RaySet, swept: Option<Swept>| {
+        ProfileCell { scene: r.scene.clone(), set, method, layout: r.layout, swept }.coordinates()
     };
     let mrays = |rays: usize, ms: &Summary| mrays_summary(rays, *ms);
     let mut out = vec![];
     for t in &r.timestamps.rows {
         let d = &t.data;
-        let mut row = R::new("profile", base(t.method, d.ray_set), &source)
+        let mut row = R::new("profile", base(t.method, d.ray_set, None), &source)
             .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
             .with("mrays_per_s", Figure::timing(mrays(d.rays, &d.kernel_ms), "Mrays/s", Better::Higher))
             .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher));
@@ -660,20 +697,16 @@ pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
         }
         out.push(row);
     }
-    let sweeps = [("subgroup_size", &r.subgroup_sizes), ("local_size", &r.workgroup_sizes)];
-    for (key, section) in sweeps {
-        for t in &section.rows {
-            let d = &t.data;
-            let size = if key == "subgroup_size" { d.subgroup_size.unwrap_or(0) } else { d.local_size };
-            let mut c = base(t.method, d.ray_set);
-            c.insert(key.into(), size.to_string());
-            out.push(
-                R::new("profile", c, &source)
-                    .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
-                    .with("mrays_per_s", Figure::timing(mrays(d.rays, &d.kernel_ms), "Mrays/s", Better::Higher))
-                    .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher)),
-            );
-        }
+    let subgroups = r.subgroup_sizes.rows.iter().map(|t| (t, Swept::SubgroupSize(t.data.subgroup_size.unwrap_or(0))));
+    let locals = r.workgroup_sizes.rows.iter().map(|t| (t, Swept::LocalSize(t.data.local_size)));
+    for (t, swept) in subgroups.chain(locals) {
+        let d = &t.data;
+        out.push(
+            R::new("profile", base(t.method, d.ray_set, Some(swept)), &source)
+                .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
+                .with("mrays_per_s", Figure::timing(mrays(d.rays, &d.kernel_ms), "Mrays/s", Better::Higher))
+                .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher)),
+        );
     }
     for t in &r.lp_num_threads_scaling.rows {
         let d = &t.data;
@@ -681,10 +714,8 @@ pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
             Ok(s) => s,
             Err(_) => continue,
         };
-        let mut c = base(t.method, set);
-        c.insert("threads".into(), d.threads.to_string());
         out.push(
-            R::new("profile", c, &source)
+            R::new("profile", base(t.method, set, Some(Swept::Threads(d.threads))), &source)
                 .with("kernel_ms", Figure::timing(d.kernel_ms, "ms", Better::Lower))
                 .with("agreement", Figure::correctness(d.agreement, "fraction", Better::Higher)),
         );
@@ -771,4 +802,35 @@ pub fn write(report: &ProfileReport, dir: &Path) -> Result<Vec<PathBuf>> {
     folder.put("profile.md", report.to_text())?;
     folder.rows(None, &rows(report))?;
     Ok(folder.written())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_profile_cell_names_its_kernel_and_the_setting_a_sweep_changed() {
+        let c = ProfileCell {
+            scene: "bunny".into(),
+            set: RaySet::Diffuse,
+            method: Method::QuadUnit,
+            layout: Layout::Bvh4,
+            swept: None,
+        };
+        let base = [
+            ("kernel", "raycast"),
+            ("layout", "bvh4"),
+            ("method", "quad-unit"),
+            ("scene", "bunny"),
+            ("set", "diffuse"),
+            ("variant", "closest"),
+        ];
+        let pairs = |c: &crate::rows::Cell| c.iter().map(|(k, v)| (k.to_owned(), v.to_owned())).collect::<Vec<_>>();
+        let with = |extra: Option<(&str, &str)>| pairs(&crate::rows::cell(base.iter().copied().chain(extra)));
+        assert_eq!(pairs(&c.coordinates()), with(None));
+        let swept = |s: Swept| pairs(&ProfileCell { swept: Some(s), ..c.clone() }.coordinates());
+        assert_eq!(swept(Swept::SubgroupSize(16)), with(Some(("subgroup_size", "16"))));
+        assert_eq!(swept(Swept::LocalSize(64)), with(Some(("local_size", "64"))));
+        assert_eq!(swept(Swept::Threads(2)), with(Some(("threads", "2"))));
+    }
 }

@@ -15,7 +15,7 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::{layouts_of, names_layouts, scenes, StudyReport};
+use super::{layouts_of, names_layouts, scenes, StudyCell, StudyReport};
 use crate::encoding::{Layout, Method};
 use crate::report::Summary;
 
@@ -36,10 +36,8 @@ pub struct Grid {
 /// One cell's render seconds.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct GridCell {
-    pub scene: String,
-    pub leaf: u32,
-    pub method: Method,
-    pub layout: Layout,
+    #[serde(flatten)]
+    pub cell: StudyCell,
     pub seconds: Summary,
 }
 
@@ -52,17 +50,7 @@ impl Grid {
             methods: report.options.methods.clone(),
             layouts: layouts_of(report),
             repeat: report.options.repeat,
-            times: report
-                .rows
-                .iter()
-                .map(|r| GridCell {
-                    scene: r.scene.clone(),
-                    leaf: r.leaf_size,
-                    method: r.method,
-                    layout: r.layout,
-                    seconds: r.render_seconds(),
-                })
-                .collect(),
+            times: report.rows.iter().map(|r| GridCell { cell: r.cell(), seconds: r.render_seconds() }).collect(),
         }
     }
 
@@ -70,7 +58,7 @@ impl Grid {
     pub fn time(&self, scene: &str, leaf: u32, m: Method, l: Layout) -> Option<Summary> {
         self.times
             .iter()
-            .find(|c| c.scene == scene && c.leaf == leaf && c.method == m && c.layout == l)
+            .find(|c| c.cell.scene == scene && c.cell.leaf == leaf && c.cell.method == m && c.cell.layout == l)
             .map(|c| c.seconds)
     }
 

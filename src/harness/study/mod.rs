@@ -192,7 +192,7 @@ impl StudyOptions {
             for &leaf in &self.leaf_sizes {
                 for &method in &self.methods {
                     for &layout in &self.layouts {
-                        cells.push(cell_of(&name, leaf, method, layout));
+                        cells.push(StudyCell { scene: name.clone(), leaf, method, layout }.coordinates());
                     }
                 }
             }
@@ -225,14 +225,52 @@ impl StudyOptions {
 
 pub use crate::harness::provenance::{commit, Provenance};
 
-/// The cell coordinates of a study row: `scene`, `leaf`, `method`, `layout`.
-pub fn cell_of(scene: &str, leaf: u32, method: Method, layout: Layout) -> result_rows::Cell {
-    result_rows::cell([
-        ("scene", scene.to_owned()),
-        ("leaf", leaf.to_string()),
-        ("method", method.to_string()),
-        ("layout", layout.to_string()),
-    ])
+/// A study cell: what the plan lists and a row measures, and what `trilab merge` reads back
+/// from both to judge the claims: one (scene, leaf size, method, layout).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct StudyCell {
+    pub scene: String,
+    pub leaf: u32,
+    pub method: Method,
+    pub layout: Layout,
+}
+
+impl StudyCell {
+    /// The cell's coordinates, as `rows.jsonl` names them: `scene`, `leaf`, `method`, `layout`.
+    pub fn coordinates(&self) -> result_rows::Cell {
+        result_rows::cell([
+            ("scene", self.scene.clone()),
+            ("leaf", self.leaf.to_string()),
+            ("method", self.method.to_string()),
+            ("layout", self.layout.to_string()),
+        ])
+    }
+
+    /// The study cell of a row's or a plan's coordinates read from `file`: an error naming the
+    /// file, the cell and the coordinate it lacks or holds a value of this trilab does not know.
+    pub fn parse(c: &result_rows::Cell, file: &Path) -> Result<StudyCell> {
+        StudyCell::try_from(c).map_err(|why| Error::bad_input(file, None, why))
+    }
+}
+
+impl TryFrom<&result_rows::Cell> for StudyCell {
+    /// What is wrong, naming the cell and the coordinate.
+    type Error = String;
+
+    /// Reads [`StudyCell::coordinates`] back. Rows written before layouts were an axis have no
+    /// `layout`: the binary tree.
+    fn try_from(c: &result_rows::Cell) -> std::result::Result<StudyCell, String> {
+        let key = result_rows::cell_key("study", c);
+        let get = |k: &str| c.get(k).ok_or_else(|| format!("study cell `{key}` has no `{k}` coordinate"));
+        let bad = |k: &str, e: String| format!("study cell `{key}`: {k}: {e}");
+        let leaf = get("leaf")?.parse::<u32>().map_err(|e| bad("leaf", e.to_string()))?;
+        let method = get("method")?.parse::<Method>().map_err(|e| bad("method", e))?;
+        let layout = match c.get("layout") {
+            Some(l) => l.parse::<Layout>().map_err(|e| bad("layout", e))?,
+            None => Layout::Bvh2,
+        };
+        Ok(StudyCell { scene: get("scene")?.clone(), leaf, method, layout })
+    }
 }
 
 /// One ray set's measurement in a cell.
@@ -284,6 +322,11 @@ pub struct StudyRow {
 }
 
 impl StudyRow {
+    /// The cell this row measured.
+    pub fn cell(&self) -> StudyCell {
+        StudyCell { scene: self.scene.clone(), leaf: self.leaf_size, method: self.method, layout: self.layout }
+    }
+
     pub fn render_seconds(&self) -> Summary {
         let s = self.render.ms;
         Summary { median: s.median * 1e-3, min: s.min * 1e-3, max: s.max * 1e-3, runs: s.runs }
@@ -553,7 +596,7 @@ pub fn rows(report: &StudyReport) -> Vec<Row> {
         .rows
         .iter()
         .map(|r| {
-            let mut row = Row::new("study", cell_of(&r.scene, r.leaf_size, r.method, r.layout), &source)
+            let mut row = Row::new("study", r.cell().coordinates(), &source)
                 .with("render_s", Figure::timing(r.render_seconds(), "s", Better::Lower))
                 .with("msamples_per_s", Figure::timing(r.render.msamples_per_s, "Msamples/s", Better::Higher))
                 .with("sah_cost", Figure::count(r.bvh.sah_cost, "SAH cost"))
@@ -668,5 +711,46 @@ pub(crate) mod testing {
         }
         o.scenes = vec![];
         StudyReport { options: o, scaling: String::new(), provenance: prov, rows, seconds: 0.0 }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pairs(c: &result_rows::Cell) -> Vec<(&str, &str)> {
+        c.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect()
+    }
+
+    #[test]
+    fn a_study_cell_reads_back_from_the_coordinates_it_writes() {
+        let want = [("layout", "cwbvh"), ("leaf", "8"), ("method", "quad-unit"), ("scene", "dragon")];
+        let c = StudyCell { scene: "dragon".into(), leaf: 8, method: Method::QuadUnit, layout: Layout::Cwbvh };
+        assert_eq!(pairs(&c.coordinates()), want);
+        let read = StudyCell::try_from(&result_rows::cell(want)).unwrap();
+        assert_eq!(read, c);
+        assert_eq!(pairs(&read.coordinates()), want);
+        // Rows from before layouts were an axis name none: the binary tree.
+        let old = result_rows::cell([("scene", "bunny"), ("leaf", "4"), ("method", "mt")]);
+        let read = StudyCell::try_from(&old).unwrap();
+        assert_eq!((read.layout, read.leaf, read.method), (Layout::Bvh2, 4, Method::Mt));
+    }
+
+    #[test]
+    fn a_study_cell_without_a_coordinate_or_with_an_unknown_value_names_it_and_the_file() {
+        let file = Path::new("runs/a/rows.jsonl");
+        let no_method = result_rows::cell([("scene", "bunny"), ("leaf", "4"), ("layout", "bvh2")]);
+        let e = StudyCell::parse(&no_method, file).unwrap_err().to_string();
+        assert!(e.contains("runs/a/rows.jsonl") && e.contains("has no `method` coordinate"), "{e}");
+        assert!(e.contains("study layout=bvh2 leaf=4 scene=bunny"), "{e}");
+        let no_scene = result_rows::cell([("leaf", "4"), ("method", "mt")]);
+        let e = StudyCell::parse(&no_scene, file).unwrap_err().to_string();
+        assert!(e.contains("has no `scene` coordinate"), "{e}");
+        let bad_leaf = result_rows::cell([("scene", "bunny"), ("leaf", "four"), ("method", "mt")]);
+        let e = StudyCell::parse(&bad_leaf, file).unwrap_err().to_string();
+        assert!(e.contains("leaf:") && e.contains("runs/a/rows.jsonl"), "{e}");
+        let bad_layout = result_rows::cell([("scene", "bunny"), ("leaf", "4"), ("method", "mt"), ("layout", "bvh3")]);
+        let e = StudyCell::parse(&bad_layout, file).unwrap_err().to_string();
+        assert!(e.contains("layout:") && e.contains("bvh3"), "{e}");
     }
 }
