@@ -1,5 +1,6 @@
-//! `trilab bench --traversals` and `--orders` (issue 27 items 3 and 5): every method x layout x
-//! traversal that has a kernel is timed with every ray order in one run, each validated against
+//! `trilab bench --traversals`, `--scene-access texel,address` and `--orders` (issue 27 items 2, 3
+//! and 5): every method x layout x traversal x access path that has a kernel is timed with every
+//! ray order in one run, each validated against
 //! the f64 reference before it counts (bench refuses a speed otherwise); a combination without a
 //! kernel is a note, not an error; the rows carry the traversal and the order as coordinates
 //! only where they are not the defaults. Validation layers on; a wall-clock limit.
@@ -27,6 +28,8 @@ fn bench_times_every_traversal_and_ray_order_side_by_side() {
         "while-if,while-while",
         "--orders",
         "given,octant-origin",
+        "--scene-access",
+        "texel,address",
         "--width",
         "48",
         "--height",
@@ -45,26 +48,41 @@ fn bench_times_every_traversal_and_ray_order_side_by_side() {
     assert!(o.status.success(), "{stderr}");
     let j: Value = serde_json::from_slice(&o.stdout).expect("bench --json prints JSON");
     let rows = j["rows"].as_array().unwrap();
-    // bvh2 has both traversals, bvh4 while-if only: 3 kernels x 2 orders x 3 sets.
-    let mut seen: Vec<(String, String, String, String)> = rows
+    // While-if on both layouts and both paths, while-while on bvh2's texel path only: 5 kernels
+    // x 2 orders x 3 sets.
+    let mut seen: Vec<(String, String, String, String, String)> = rows
         .iter()
         .map(|r| {
             let s = |k: &str| r[k].as_str().unwrap_or_default().to_owned();
-            (s("ray_set"), s("layout"), s("traversal"), s("order"))
+            (s("ray_set"), s("layout"), s("traversal"), s("scene_access"), s("order"))
         })
         .collect();
     seen.sort();
     seen.dedup();
-    assert_eq!(seen.len(), 18, "{seen:?}");
+    assert_eq!(seen.len(), 30, "{seen:?}");
+    let kernels = [
+        ("bvh2", "while-if", "texel"),
+        ("bvh2", "while-if", "address"),
+        ("bvh2", "while-while", "texel"),
+        ("bvh4", "while-if", "texel"),
+        ("bvh4", "while-if", "address"),
+    ];
     for set in ["primary", "diffuse", "random"] {
-        for (layout, traversal) in [("bvh2", "while-if"), ("bvh2", "while-while"), ("bvh4", "while-if")] {
+        for (layout, traversal, access) in kernels {
             for order in ["given", "octant-origin"] {
-                let want = (set.to_owned(), layout.to_owned(), traversal.to_owned(), order.to_owned());
+                let want = [set, layout, traversal, access, order].map(str::to_owned);
+                let want = (want[0].clone(), want[1].clone(), want[2].clone(), want[3].clone(), want[4].clone());
                 assert!(seen.contains(&want), "no row {want:?}");
             }
         }
     }
-    assert!(stderr.contains("while-while traversal on bvh4: not run"), "{stderr}");
+    for note in [
+        "while-while traversal on bvh4 (texel path): not run",
+        "while-while traversal on bvh2 (address path): not run",
+        "while-while traversal on bvh4 (address path): not run",
+    ] {
+        assert!(stderr.contains(note), "{note}: {stderr}");
+    }
     for r in rows {
         // Each row agreed with the reference (bench refuses a speed otherwise) ...
         assert!(r["agreement"].as_f64().unwrap() >= 0.9999, "{r}");
@@ -86,9 +104,10 @@ fn bench_times_every_traversal_and_ray_order_side_by_side() {
         .filter(|l| l["type"] == "row")
         .map(|l| l["cell"].clone())
         .collect();
-    assert_eq!(cells.len(), 18);
+    assert_eq!(cells.len(), 30);
     let count = |k: &str, v: &str| cells.iter().filter(|c| c[k] == v).count();
     assert_eq!(count("traversal", "while-while"), 6);
-    assert_eq!(count("order", "octant-origin"), 9);
-    assert!(cells.iter().all(|c| c["traversal"] != "while-if" && c["order"] != "given"));
+    assert_eq!(count("order", "octant-origin"), 15);
+    assert_eq!(count("access", "address"), 12);
+    assert!(cells.iter().all(|c| c["traversal"] != "while-if" && c["order"] != "given" && c["access"] != "texel"));
 }

@@ -56,9 +56,10 @@ pub struct BenchArgs {
     #[arg(long, value_enum, default_value_t = PeerChoice::Auto)]
     ray_tracing_pipeline: PeerChoice,
     /// How the kernels read the scenes: `auto` uses texel buffers when every buffer fits one
-    /// binding, else buffer device addresses (`trilab scale` reports which).
-    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
-    scene_access: SceneAccess,
+    /// binding, else buffer device addresses (`trilab scale` reports which); several,
+    /// comma-separated (`texel,address`), are timed side by side.
+    #[arg(long, value_name = "A,...", value_parser = choice::<SceneAccess>(), value_delimiter = ',', default_value = "auto")]
+    scene_access: Vec<SceneAccess>,
     /// BVH node layouts, comma-separated (`bvh2`, `bvh4`, `bvh8`, ...): every method is timed on
     /// each, side by side in one run (default: bvh2).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]

@@ -50,8 +50,9 @@ pub struct BenchOptions {
     pub ray_query: bool,
     /// Add the driver's ray tracing pipeline as a peer row where the device has it.
     pub ray_tracing_pipeline: bool,
-    /// How the kernels read each scene (`encoding::plan`; `auto`: texel buffers when they fit).
-    pub scene_access: SceneAccess,
+    /// How the kernels read each scene (`encoding::plan`; `auto`: texel buffers when they fit);
+    /// several are timed side by side (texel and address: what the address path costs).
+    pub scene_access: Vec<SceneAccess>,
     /// BVH node layouts, each method timed on each, side by side in one run (default: bvh2).
     pub layouts: Vec<Layout>,
     /// Traversals, each method and layout timed with each that has a kernel for it (default:
@@ -63,6 +64,15 @@ pub struct BenchOptions {
     /// Run only this shard's scenes ([`BenchOptions::split`]): a scene is the unit, so its
     /// methods, layouts and peers stay interleaved side by side in one run.
     pub shard: Option<Shard>,
+}
+
+/// The path a kernel for `access` is looked up on before the scene is planned: `auto` takes the
+/// texel path wherever the scene fits one binding.
+fn path_of(access: SceneAccess) -> AccessPath {
+    match access {
+        SceneAccess::Address => AccessPath::Address,
+        SceneAccess::Auto | SceneAccess::Texel => AccessPath::Texel,
+    }
 }
 
 /// Wall-clock target of one submit of a driver peer (its batch is sized to it,
@@ -85,7 +95,7 @@ impl Default for BenchOptions {
             batch_rays: 1 << 20,
             ray_query: true,
             ray_tracing_pipeline: true,
-            scene_access: SceneAccess::Auto,
+            scene_access: vec![SceneAccess::Auto],
             layouts: vec![Layout::Bvh2],
             traversals: vec![Traversal::WhileIf],
             orders: vec![RayOrder::Given],
@@ -159,6 +169,9 @@ impl BenchRow {
         }
         if let Some(o) = self.order.filter(|&o| o != RayOrder::default()) {
             s += &format!(" {o}");
+        }
+        if self.scene_access == Some(AccessPath::Address) {
+            s += " address";
         }
         s
     }
@@ -285,7 +298,9 @@ impl BenchReport {
     pub fn table(&self) -> Table {
         let traversals = self.rows.iter().any(|r| r.traversal.is_some_and(|t| t != Traversal::default()));
         let orders = self.rows.iter().any(|r| r.order.is_some_and(|o| o != RayOrder::default()));
+        let access = self.rows.iter().any(|r| r.scene_access == Some(AccessPath::Address));
         let mut header = vec!["scene", "rays", "set", "method", "layout"];
+        header.extend(access.then_some("access"));
         header.extend(traversals.then_some("traversal"));
         header.extend(orders.then_some("order"));
         header.extend(["leaf", "MB", "kernel ms"]);
@@ -301,6 +316,7 @@ impl BenchReport {
                 r.method.to_string(),
                 or_dash(r.layout.map(|l| l.to_string())),
             ];
+            cells.extend(access.then(|| or_dash(r.scene_access.map(|a| a.name().to_owned()))));
             cells.extend(traversals.then(|| or_dash(r.traversal.map(|t| t.to_string()))));
             cells.extend(orders.then(|| or_dash(r.order.map(|o| o.to_string()))));
             cells.extend([
@@ -370,7 +386,16 @@ pub struct BenchCell {
 pub enum CellTracer {
     /// One of trilab's kernels; `sah_group` only when it is not 1, the traversal and the ray
     /// order only when they are not the defaults (while-if, as given).
-    Method { method: Method, layout: Layout, leaf: u32, sah_group: Option<u32>, traversal: Traversal, order: RayOrder },
+    /// The access path is named only when it is the address path.
+    Method {
+        method: Method,
+        layout: Layout,
+        leaf: u32,
+        sah_group: Option<u32>,
+        traversal: Traversal,
+        order: RayOrder,
+        access: AccessPath,
+    },
     /// A peer, by its name (the driver's ray query, Embree, tinybvh's kernels).
     Peer(String),
 }
@@ -383,7 +408,7 @@ impl BenchCell {
             c.insert("rays".into(), rays.to_string());
         }
         match &self.tracer {
-            CellTracer::Method { method, layout, leaf, sah_group, traversal, order } => {
+            CellTracer::Method { method, layout, leaf, sah_group, traversal, order, access } => {
                 c.insert("method".into(), method.to_string());
                 c.insert("layout".into(), layout.to_string());
                 c.insert("leaf".into(), leaf.to_string());
@@ -395,6 +420,9 @@ impl BenchCell {
                 }
                 if *order != RayOrder::default() {
                     c.insert("order".into(), order.to_string());
+                }
+                if *access == AccessPath::Address {
+                    c.insert("access".into(), access.name().into());
                 }
             }
             CellTracer::Peer(p) => {
@@ -418,6 +446,7 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
                 sah_group: r.sah_group,
                 traversal: r.traversal.unwrap_or_default(),
                 order: r.order.unwrap_or_default(),
+                access: r.scene_access.unwrap_or(AccessPath::Texel),
             },
             Tracer::Peer(p) => CellTracer::Peer(p.to_string()),
         };
@@ -526,7 +555,7 @@ pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<cr
     for scene in &o.scenes {
         let name = crate::scene::scene_name(scene);
         for set in &sets {
-            for (m, l, t) in o.kernels() {
+            for (m, l, t, a) in o.kernels() {
                 for &order in &o.orders() {
                     let tracer = CellTracer::Method {
                         method: m,
@@ -535,6 +564,7 @@ pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<cr
                         sah_group: Some(o.build.sah_group),
                         traversal: t,
                         order,
+                        access: path_of(a),
                     };
                     cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
                 }
@@ -566,43 +596,52 @@ impl BenchOptions {
 
     /// Whether the options ask for the driver peer `peer` (`--ray-query`,
     /// `--ray-tracing-pipeline`).
-    /// Every (method, layout, traversal) timed: the options' combinations that have a
-    /// closest-hit kernel on the texel path (a traversal's support does not depend on the
-    /// method: `encoding::variants`' test holds it).
-    pub fn kernels(&self) -> Vec<(Method, Layout, Traversal)> {
-        let or = |v: &[Layout], d: Layout| if v.is_empty() { vec![d] } else { v.to_vec() };
-        let traversals = if self.traversals.is_empty() { vec![Traversal::WhileIf] } else { self.traversals.clone() };
+    /// Every (method, layout, traversal, access) timed: the options' combinations that have a
+    /// closest-hit kernel (`auto` is checked as the texel path, which it takes wherever a scene
+    /// fits one binding; a traversal's support does not depend on the method:
+    /// `encoding::variants`' test holds it).
+    pub fn kernels(&self) -> Vec<(Method, Layout, Traversal, SceneAccess)> {
         let mut out = vec![];
         for &m in &self.methods {
-            for &l in &or(&self.layouts, Layout::Bvh2) {
-                for &t in &traversals {
-                    if m.traversal_kernel(Raycast::Closest, AccessPath::Texel, l, t).is_ok() {
-                        out.push((m, l, t));
-                    }
+            for (l, t, a) in self.combinations() {
+                if m.traversal_kernel(Raycast::Closest, path_of(a), l, t).is_ok() {
+                    out.push((m, l, t, a));
                 }
             }
         }
         out
     }
 
-    /// The traversal x layout pairs asked for that have no kernel, one note each.
-    pub fn kernel_notes(&self) -> Vec<String> {
-        let layouts = if self.layouts.is_empty() { vec![Layout::Bvh2] } else { self.layouts.clone() };
-        let mut notes = vec![];
-        for &t in &self.traversals {
-            for &l in &layouts {
-                if let Some(&m) = self.methods.first() {
-                    if m.traversal_kernel(Raycast::Closest, AccessPath::Texel, l, t).is_err() {
-                        notes.push(format!(
-                            "{t} traversal on {l}: not run, no kernel ({} has: {})",
-                            t,
-                            crate::encoding::traversal_support(t)
-                        ));
-                    }
+    /// Every layout x traversal x access asked for, defaults where a list is empty.
+    fn combinations(&self) -> Vec<(Layout, Traversal, SceneAccess)> {
+        let or = |v: &[Layout], d: Layout| if v.is_empty() { vec![d] } else { v.to_vec() };
+        let traversals = if self.traversals.is_empty() { vec![Traversal::WhileIf] } else { self.traversals.clone() };
+        let access = if self.scene_access.is_empty() { vec![SceneAccess::Auto] } else { self.scene_access.clone() };
+        let mut out = vec![];
+        for l in or(&self.layouts, Layout::Bvh2) {
+            for &t in &traversals {
+                for &a in &access {
+                    out.push((l, t, a));
                 }
             }
         }
-        notes
+        out
+    }
+
+    /// The traversal x layout x access combinations asked for that have no kernel, one note each.
+    pub fn kernel_notes(&self) -> Vec<String> {
+        let Some(&m) = self.methods.first() else { return vec![] };
+        self.combinations()
+            .into_iter()
+            .filter(|&(l, t, a)| m.traversal_kernel(Raycast::Closest, path_of(a), l, t).is_err())
+            .map(|(l, t, a)| {
+                format!(
+                    "{t} traversal on {l} ({} path): not run, no kernel ({t} has: {})",
+                    path_of(a).name(),
+                    crate::encoding::traversal_support(t)
+                )
+            })
+            .collect()
     }
 
     /// The ray orders, the default alone when none was asked for.
@@ -708,7 +747,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let scenes: Vec<DeviceScene> = o
             .kernels()
             .into_iter()
-            .map(|(m, l, t)| SceneRequest::new(m).access(o.scene_access).layout(l).traversal(t))
+            .map(|(m, l, t, a)| SceneRequest::new(m).access(a).layout(l).traversal(t))
             .map(|req| host.upload(ctx, &req))
             .collect::<Result<_>>()?;
         let accel = match driver.is_empty() {
@@ -737,6 +776,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 }
                 if order != RayOrder::default() {
                     s += &format!(" {order}");
+                }
+                if scene.access == AccessPath::Address {
+                    s += " address";
                 }
                 s
             };
@@ -850,6 +892,7 @@ mod tests {
             sah_group: Some(sah_group),
             traversal,
             order,
+            access: AccessPath::Texel,
         };
         let tracer = method(1, Traversal::WhileIf, RayOrder::Given);
         let planned = BenchCell { scene: "bunny".into(), set: RaySet::Diffuse, rays: None, tracer };
@@ -875,6 +918,11 @@ mod tests {
             .coordinates();
         assert_eq!(sorted.get("order").map(String::as_str), Some("octant-origin"));
         assert!(!crate::rows::plan_matches(&sorted, &row) && !sorted.contains_key("traversal"));
+        let address =
+            CellTracer::Method { access: AccessPath::Address, ..method(1, Traversal::WhileIf, RayOrder::Given) };
+        let a = BenchCell { tracer: address, ..planned.clone() }.coordinates();
+        assert_eq!(a.get("access").map(String::as_str), Some("address"));
+        assert!(!crate::rows::plan_matches(&a, &row) && !row.contains_key("access"));
         let peer = BenchCell { tracer: CellTracer::Peer("embree".into()), ..planned }.coordinates();
         assert_eq!(peer.get("peer").map(String::as_str), Some("embree"));
         assert!(!peer.contains_key("method") && !peer.contains_key("leaf"));

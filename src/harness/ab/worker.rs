@@ -256,6 +256,7 @@ fn load_and_serve(
                 sah_group: None,
                 traversal: scene.traversal,
                 order: crate::rays::order::RayOrder::Given,
+                access: scene.access,
             };
             let bench = BenchCell { scene: hosts[*i].name.clone(), set: *set, rays: Some(rays.len()), tracer };
             let info = CellInfo {
