@@ -918,8 +918,15 @@ mod tests {
             .coordinates();
         assert_eq!(sorted.get("order").map(String::as_str), Some("octant-origin"));
         assert!(!crate::rows::plan_matches(&sorted, &row) && !sorted.contains_key("traversal"));
-        let address =
-            CellTracer::Method { access: AccessPath::Address, ..method(1, Traversal::WhileIf, RayOrder::Given) };
+        let address = CellTracer::Method {
+            method: Method::Mt,
+            layout: Layout::Bvh4,
+            leaf: 4,
+            sah_group: Some(1),
+            traversal: Traversal::WhileIf,
+            order: RayOrder::Given,
+            access: AccessPath::Address,
+        };
         let a = BenchCell { tracer: address, ..planned.clone() }.coordinates();
         assert_eq!(a.get("access").map(String::as_str), Some("address"));
         assert!(!crate::rows::plan_matches(&a, &row) && !row.contains_key("access"));
