@@ -38,6 +38,13 @@ def run(binary, line, out_dir, rays_dir):
                     continue
                 cell = dict(row["cell"])
                 cell.pop("rays", None)
+                # Rows of a build without a coordinate (older builds name no `access`) still
+                # match: the access path is the command line's, which the key holds.
+                cell.pop("access", None)
+                access = next((a for a in args if a.startswith("--scene-access")), None)
+                if access:
+                    i = args.index(access)
+                    cell["access"] = access.split("=", 1)[1] if "=" in access else args[i + 1]
                 key = "bench " + " ".join(f"{k}={v}" for k, v in sorted(cell.items()))
                 cells[key] = row["figures"]["mrays_per_s"]["median"]
         return cells
