@@ -141,3 +141,61 @@ fn a_small_sweep_writes_its_rows_and_table() {
     }
     assert!(out.join("roofline.md").is_file() && out.join("roofline.json").is_file());
 }
+
+/// `bench --roofline`: every kernel row carries its fetches per ray and its share of the roofline
+/// at its scene's size; a bench without the flag carries neither.
+#[test]
+fn bench_with_roofline_adds_each_kernels_share_of_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let bench = |out: &std::path::Path, roofline: bool| {
+        std::fs::create_dir_all(out).unwrap();
+        let mut a = vec![
+            "bench",
+            "--scenes",
+            "bunny",
+            "--methods",
+            "mt",
+            "--layouts",
+            "bvh2,bvh4",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--diffuse-per-hit",
+            "0",
+            "--random-rays",
+            "500",
+            "--repeat",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        if roofline {
+            a.push("--roofline");
+        }
+        let o = trilab(&a, 600);
+        assert!(o.status.success(), "{}", text(&o));
+        (text(&o), trilab::rows::read(&out.join(trilab::rows::FILE)).unwrap())
+    };
+    let (said, rows) = bench(&dir.path().join("with"), true);
+    assert!(said.contains("of roofline %") && said.contains("checksums of"), "{said}");
+    let kernels: Vec<_> = rows.rows.iter().filter(|r| r.cell.contains_key("method")).collect();
+    assert_eq!(kernels.len(), 4, "mt on bvh2 and bvh4, primary and random rays");
+    for r in &kernels {
+        let e = &r.figures.get("roofline_efficiency").unwrap_or_else(|| panic!("{}: no roofline_efficiency", r.key()));
+        assert!(e.median > 0.0 && e.min <= e.median && e.median <= e.max, "{}: {e:?}", r.key());
+        // A ray that enters the tree visits the root and at least one leaf.
+        assert!(r.figures["fetches_per_ray"].median >= 1.0, "{}", r.key());
+    }
+    // bvh4 visits fewer nodes than bvh2 on the same rays (16 vs 8 on random rays, README).
+    let fetches = |layout: &str, set: &str| {
+        kernels
+            .iter()
+            .find(|r| r.cell["layout"] == layout && r.cell["set"] == set)
+            .map(|r| r.figures["fetches_per_ray"].median)
+            .unwrap()
+    };
+    assert!(fetches("bvh4", "random") < fetches("bvh2", "random"));
+    let (_, rows) = bench(&dir.path().join("without"), false);
+    assert!(rows.rows.iter().all(|r| !r.figures.contains_key("roofline_efficiency")));
+}
