@@ -353,6 +353,19 @@ pub fn measure_at(
     run(ctx, &o, progress)
 }
 
+/// The roofline's node steps per second (millions, median) at a working set of `bytes` on each
+/// of `o.access` that the device can read at that size: [`measure_at`], then
+/// [`RooflineReport::at`] (log-log between the two sizes around `bytes`).
+pub fn rates_at(
+    ctx: &Context,
+    bytes: u64,
+    o: &RooflineOptions,
+    progress: impl FnMut(&str),
+) -> Result<Vec<(RooflineAccess, f64)>> {
+    let report = measure_at(ctx, bytes, &o.access, o, progress)?;
+    Ok(o.access.iter().filter_map(|&a| Some((a, report.at(a, bytes)?))).collect())
+}
+
 impl RooflineReport {
     /// The cell's measurement, if it was measured.
     pub fn get(&self, access: RooflineAccess, bytes: u64) -> Option<&Measured> {
