@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::cli::trilab;
+use common::cli::{run, trilab};
 use trilab::gpu::roofline::{self, RooflineAccess, RooflinePush};
 use trilab::named::Named;
 
@@ -220,4 +220,51 @@ fn bench_with_roofline_adds_each_kernels_share_of_it() {
     assert!(fetches("bvh4", "random") < fetches("bvh2", "random"));
     let (_, rows) = bench(&dir.path().join("without"), false);
     assert!(rows.rows.iter().all(|r| !r.figures.contains_key("roofline_efficiency")));
+}
+
+/// Sizes a path cannot hold are skipped naming the limit, and the other paths still run
+/// (`TRILAB_TEST_LIMITS` lowers the device's limits as the scene planner's tests do).
+#[test]
+fn sizes_past_a_paths_limit_are_skipped_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("roofline");
+    let args = [
+        "roofline",
+        "--sizes",
+        "16K,256K",
+        "--invocations",
+        "2048",
+        "--steps",
+        "8",
+        "--rounds",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let limits = "max_texel_buffer_elements=4096,max_storage_buffer_range=65536";
+    let (o, _) = run(&args, None, &[("TRILAB_TEST_LIMITS", limits)], 240);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(
+        t.contains("skipped: 256 KiB on the texel path: 16384 texels, more than maxTexelBufferElements (4096)"),
+        "{t}"
+    );
+    assert!(
+        t.contains("skipped: 256 KiB on the storage path: 262144 bytes, more than maxStorageBufferRange (65536)"),
+        "{t}"
+    );
+    let rows = trilab::rows::read(&out.join(trilab::rows::FILE)).unwrap();
+    let mut keys: Vec<String> = rows.rows.iter().map(|r| format!("{} {}", r.cell["access"], r.cell["bytes"])).collect();
+    keys.sort();
+    assert_eq!(keys, ["address 16384", "address 262144", "storage 16384", "texel 16384"]);
+    // Without the address path (no bufferDeviceAddress) and nothing else left: an error saying why.
+    let (o, _) = run(
+        &["roofline", "--sizes", "256K", "--access", "texel,address", "--out", out.to_str().unwrap()],
+        None,
+        &[("TRILAB_TEST_LIMITS", "max_texel_buffer_elements=4096,buffer_device_address=0")],
+        120,
+    );
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(t.contains("nothing to measure") && t.contains("bufferDeviceAddress"), "{t}");
 }

@@ -17,6 +17,7 @@ use super::context::Context;
 use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::kernel::Kernel;
 use super::timestamps::Timestamps;
+use crate::encoding::DeviceLimits;
 use crate::error::{Error, Result};
 use crate::kernels::{KernelSource, NO_INTERSECTOR};
 use crate::named::{named_enum, Named};
@@ -192,18 +193,18 @@ pub fn reference(nodes: &[RooflineNode], push: &RooflinePush) -> Result<Vec<u32>
     Ok((0..push.count).map(|i| reference_one(nodes, push, i)).collect())
 }
 
-/// Why a working set of `bytes` cannot be read `access`'s way on this device (`None`: it can).
-pub fn unsupported(ctx: &Context, access: RooflineAccess, bytes: u64) -> Option<String> {
-    let info = ctx.info();
+/// Why a working set of `bytes` cannot be read `access`'s way within `limits` (a device's,
+/// `Context::limits`, lowered by `TRILAB_TEST_LIMITS` in tests); `None`: it can.
+pub fn unsupported(limits: &DeviceLimits, access: RooflineAccess, bytes: u64) -> Option<String> {
     let texels = bytes / 16;
     match access {
-        RooflineAccess::Texel if texels > info.max_texel_buffer_elements as u64 => {
-            Some(format!("{texels} texels, more than maxTexelBufferElements ({})", info.max_texel_buffer_elements))
+        RooflineAccess::Texel if texels > limits.max_texel_buffer_elements => {
+            Some(format!("{texels} texels, more than maxTexelBufferElements ({})", limits.max_texel_buffer_elements))
         }
-        RooflineAccess::Storage if bytes > info.max_storage_buffer_range as u64 => {
-            Some(format!("{} bytes, more than maxStorageBufferRange ({})", bytes, info.max_storage_buffer_range))
+        RooflineAccess::Storage if bytes > limits.max_storage_buffer_range => {
+            Some(format!("{bytes} bytes, more than maxStorageBufferRange ({})", limits.max_storage_buffer_range))
         }
-        RooflineAccess::Address if !ctx.enabled().buffer_device_address => {
+        RooflineAccess::Address if !limits.buffer_device_address => {
             Some("bufferDeviceAddress is not enabled on this device".into())
         }
         // The kernel's texel indices are 32-bit, and SPIR-V's access-chain indices signed.
@@ -265,8 +266,9 @@ impl RooflineData {
 pub fn upload(ctx: &Context, name: &str, nodes: &[RooflineNode]) -> Result<RooflineData> {
     let count = nodes.len() as u64;
     let bytes = count * NODE_BYTES;
+    let limits = ctx.limits()?;
     let unsupported: Vec<(RooflineAccess, String)> =
-        RooflineAccess::ALL.iter().filter_map(|&a| unsupported(ctx, a, bytes).map(|w| (a, w))).collect();
+        RooflineAccess::ALL.iter().filter_map(|&a| unsupported(&limits, a, bytes).map(|w| (a, w))).collect();
     let can = |a: RooflineAccess| !unsupported.iter().any(|(u, _)| *u == a);
     let mut usage = vk::BufferUsageFlags::STORAGE_BUFFER;
     if can(RooflineAccess::Texel) {

@@ -207,21 +207,24 @@ pub fn run(ctx: &Context, o: &RooflineOptions, mut progress: impl FnMut(&str)) -
     sizes.sort_unstable();
     sizes.dedup();
     // Every size stays on the device for the whole sweep (the rounds interleave them): keep to
-    // 3/4 of the device-local heap, and each size's host copy to the memory available now.
-    let budget = info.device_local_heap_bytes / 4 * 3;
+    // 3/4 of the device-local heap (and of its budget left now, where the driver reports one),
+    // and each size's host copy to the memory available now.
+    let limits = ctx.limits()?;
+    let heap = limits.device_local_bytes.min(limits.budget_bytes.unwrap_or(u64::MAX));
+    let budget = heap / 4 * 3;
     let host = crate::memory::available();
     let mut resident = 0u64;
     let mut skipped = vec![];
     let mut data: Vec<(u64, RooflineData)> = vec![];
     let mut hosts: Vec<Vec<kernel::RooflineNode>> = vec![];
     for &bytes in &sizes {
-        let largest = info.max_memory_allocation_size.min(info.max_buffer_size.unwrap_or(u64::MAX));
+        let largest = limits.max_memory_allocation_size.min(limits.max_buffer_size.unwrap_or(u64::MAX));
         let why = if bytes > largest {
             Some(format!("more than the largest buffer the device allows ({})", show_bytes(largest)))
         } else if resident + bytes > budget {
             Some(format!(
-                "with the smaller sizes more than 3/4 of the device-local heap ({})",
-                show_bytes(info.device_local_heap_bytes)
+                "with the smaller sizes more than 3/4 of the device-local memory ({}, or its budget left)",
+                show_bytes(heap)
             ))
         } else if host.is_some_and(|h| bytes.saturating_mul(2) > h) {
             Some(format!(
