@@ -146,6 +146,8 @@ pub fn nodes(count: usize, seed: u64) -> Result<Vec<RooflineNode>> {
 
 /// Invocation `i`'s checksum: the kernel's walk on the CPU, operation for operation (each float
 /// operation exact or one correctly rounded product, so the GPU's must be equal bit for bit).
+/// `nodes` holds `push.mask + 1` nodes, as [`reference`] checks (every index is masked, so a
+/// shorter buffer would be read past its end).
 pub fn reference_one(nodes: &[RooflineNode], push: &RooflinePush, i: u32) -> u32 {
     let base = hash(i ^ hash(push.seed));
     let h: Vec<u32> = (0..7u32).map(|j| hash(base.wrapping_add(j.wrapping_mul(0x9E37_79B9)))).collect();
