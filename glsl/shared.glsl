@@ -65,6 +65,8 @@
 // raycast_persistent.comp: the next ray index of the dispatch (one uint, atomicAdd per fetch);
 // the host zeroes it before each dispatch (gpu::raycast::cast_rays).
 #define BINDING_RAY_COUNTER 21
+// roofline.comp: one checksum (uint) per invocation. Its nodes are bound at BINDING_NODES.
+#define BINDING_ROOFLINE_OUT 22
 
 // BSDF kinds (Material.kind; one file each in bsdf/). A kernel's BSDF_MASK has bit (1 << kind)
 // set for every kind it carries.

@@ -5,8 +5,9 @@
 #                                          checks the size budget, prints the device tool's
 #                                          `carry` list and the one command to give it
 #   scripts/device-run.sh run [MINUTES]   there (and here, as CI's rehearsal on lavapipe): loaders,
-#                                          `trilab devices`, `trilab suite` with the tinybvh peer
-#                                          and three layouts, everything in one archive under $OUT
+#                                          `trilab devices`, `trilab roofline`, `trilab suite` with
+#                                          the tinybvh peer and three layouts, everything in one
+#                                          archive under $OUT
 #   scripts/device-run.sh unpack ARCHIVE [ROOT]
 #                                          here: the archive into ROOT/results/<device>/ (ROOT: this
 #                                          checkout), stored as results/ keeps results, then
@@ -139,6 +140,7 @@ run() {
   }
   trap pack_results EXIT
 
+  local rc
   say "run: $minutes minutes, commit $(cat "$travel/COMMIT" 2>/dev/null || echo unknown), host $(uname -n), $(nproc) CPUs"
   # Loaders in a private prefix (never over /): the Vulkan loader (libvulkan.so.1, which trilab
   # opens) and the OpenCL ICD loader (which tinybvh_rays links).
@@ -180,6 +182,30 @@ run() {
     say "no tinybvh peer packed: the bench runs without it"
   fi
 
+  # The traversal roofline (`trilab roofline`: node steps per second per working set and access
+  # path, what the suite's kernels can be held against), before the suite and outside its budget:
+  # seconds on a GPU. A run of under 4 minutes (the rehearsal on lavapipe, where the full sweep
+  # takes a minute or more) sweeps two small sizes only; one of under 90 s skips it.
+  local roof=(roofline --rounds 3) roof_s=$(( $(left) / 6 ))
+  [ "$roof_s" -le 90 ] || roof_s=90
+  if [ "$(left)" -lt 240 ]; then
+    roof=(roofline --rounds 2 --sizes 16K,1M --invocations 65536)
+    roof_s=20
+  fi
+  if [ "$(left)" -ge 90 ]; then
+    say "trilab ${roof[*]} (at most $roof_s s)"
+    rc=0
+    (cd "$work" && timeout -k 5 "$roof_s" "$exe" "${roof[@]}" >> "$log" 2>&1) || rc=$?
+    case $rc in
+      0) say "roofline completed" ;;
+      124 | 137) say "roofline stopped after $roof_s s: no roofline in this archive" ;;
+      *) say "roofline exit $rc (see above)" ;;
+    esac
+    pack_results
+  else
+    say "roofline skipped: $(left) s left is too short a run"
+  fi
+
   # The suite's budget: what is left but a minute (the archive, a part that overruns its
   # prediction); the suite scales every part to it from its own probe of this device, and a
   # hard stop 30 s before the deadline keeps the whole inside the device tool's 10 minutes.
@@ -188,7 +214,7 @@ run() {
   local budget_min
   budget_min=$(awk -v s="$budget_s" 'BEGIN { printf "%.2f", s / 60 }')
   say "trilab suite --budget-minutes $budget_min --layouts $LAYOUTS ${peer[*]}"
-  local rc=0
+  rc=0
   (cd "$work" && timeout -s INT -k 15 $(( $(left) - 30 )) "$exe" suite --budget-minutes "$budget_min" --no-threads \
     --layouts "$LAYOUTS" --scene-dir "$root/scenes" "${peer[@]}" >> "$log" 2>&1) || rc=$?
   case $rc in

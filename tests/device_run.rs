@@ -139,6 +139,7 @@ fn the_rehearsal_runs_end_to_end_and_unpacks() {
     let said = text(&o);
     assert!(o.status.success(), "run failed:\n{said}");
     assert!(said.contains("suite completed"), "{said}");
+    assert!(said.contains("roofline completed"), "{said}");
     let archive = assert_comes_back(&out);
     let files = entries(&archive);
     for want in [
@@ -147,6 +148,8 @@ fn the_rehearsal_runs_end_to_end_and_unpacks() {
         "results/lavapipe/suite/summary.md",
         "results/lavapipe/suite/bench/rows.jsonl",
         "results/lavapipe/suite/study/rows.jsonl",
+        "results/lavapipe/roofline/rows.jsonl",
+        "results/lavapipe/roofline/roofline.md",
     ] {
         assert!(files.iter().any(|f| f.trim_start_matches("./") == want), "{want} not in the archive: {files:?}");
     }

@@ -8,6 +8,7 @@ use std::mem::{offset_of, size_of};
 use ash::vk;
 use trilab::bvh::BvhNode;
 use trilab::encoding::{AccessPath, Method, Raycast};
+use trilab::gpu::roofline::RooflinePush;
 use trilab::gpu::TraversalCounts;
 use trilab::kernels::KERNELS;
 use trilab::named::Named;
@@ -34,7 +35,7 @@ fn array_of(size: usize, offsets: &[usize]) -> BufferLayout {
 }
 
 /// What the host writes at (raycast) or reads from (probe) each storage-buffer binding.
-fn host_layout(method: &str, binding: u32) -> BufferLayout {
+fn host_layout(method: &str, binding: u32, storage: bool) -> BufferLayout {
     let node = || {
         array_of(
             size_of::<BvhNode>(),
@@ -75,6 +76,8 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
         }
         // raycast's `*_bda` variants: each scene binding is a uniform block holding the scene
         // buffer's 8-byte device address (gpu::raycast uploads `address.to_le_bytes()`).
+        // roofline's `storage` variant: the nodes as uvec4 texels, two per `RooflineNode`.
+        ("none", BINDING_NODES) if storage => BufferLayout { array_stride: Some(16), member_offsets: vec![] },
         (_, BINDING_NODES | BINDING_SLOT_IDS | BINDING_PRIMS | BINDING_INDICES) => {
             BufferLayout { array_stride: None, member_offsets: vec![0] }
         }
@@ -128,6 +131,8 @@ fn host_layout(method: &str, binding: u32) -> BufferLayout {
                 offset_of!(ProbeOut, eval_pdf),
             ],
         ),
+        // roofline: one checksum per invocation (gpu::roofline::run reads them back as u32).
+        ("none", BINDING_ROOFLINE_OUT) => array_of(size_of::<u32>(), &[]),
         (m, b) => panic!("no host layout for storage-buffer binding {b} of method {m}"),
     }
 }
@@ -148,6 +153,15 @@ fn host_push(kernel: &str) -> Vec<u32> {
         "bsdf_probe" => {
             vec![offset_of!(ProbePush, mode) as u32, offset_of!(ProbePush, count) as u32]
         }
+        "roofline" => [
+            offset_of!(RooflinePush, mask),
+            offset_of!(RooflinePush, steps),
+            offset_of!(RooflinePush, count),
+            offset_of!(RooflinePush, seed),
+        ]
+        .iter()
+        .map(|&o| o as u32)
+        .collect(),
         k => panic!("unknown kernel {k}"),
     }
 }
@@ -162,7 +176,7 @@ fn rust_structs_match_spirv_offsets_and_strides() {
                 assert_eq!(spirv.member_offsets, host_push(k.kernel), "{}: push constants", k.name);
                 continue;
             }
-            let host = host_layout(k.intersector, binding);
+            let host = host_layout(k.intersector, binding, k.kernel == "roofline" && k.variant == "storage");
             assert_eq!(spirv, &host, "{}: binding {binding}: SPIR-V declares {spirv:?}, host uses {host:?}", k.name);
             checked_structs += !host.member_offsets.is_empty() as usize;
         }
@@ -175,6 +189,8 @@ fn rust_structs_match_spirv_offsets_and_strides() {
         .iter()
         .map(|k| match (k.kernel, k.variant) {
             ("pathtrace" | "rng_probe", _) => 1,
+            // roofline: its push constants only (nodes are uvec4 texels, checksums u32).
+            ("roofline", _) => 0,
             ("raycast" | "raycast_coop", v) if v.starts_with("stats") => 3,
             _ => 2,
         })
@@ -189,6 +205,7 @@ fn kernels_bind_what_the_host_provides() {
         assert_eq!(l.local_size, (WORKGROUP_SIZE, 1, 1), "{}", k.name);
         let push_bytes = match k.kernel {
             "bsdf_probe" => size_of::<ProbePush>() as u32,
+            "roofline" => size_of::<RooflinePush>() as u32,
             _ => 4 * host_push(k.kernel).len() as u32,
         };
         assert_eq!(l.push_constants, Some((0, push_bytes)), "{}: push constants", k.name);
@@ -201,6 +218,8 @@ fn kernels_bind_what_the_host_provides() {
             // The BSDF probe reads only materials.
             ("bsdf_probe", _) => vec![BINDING_MATERIALS],
             ("rng_probe", _) => vec![],
+            // roofline's nodes: a texel buffer, a storage buffer or an address (below).
+            ("roofline", _) => vec![BINDING_NODES],
             ("raycast" | "raycast_coop" | "raycast_persistent", Some(_)) => scene,
             // The driver's structure replaces ours; the BLAS primitive -> OBJ id table remains.
             ("rayquery", _) => vec![BINDING_SLOT_IDS],
@@ -226,13 +245,21 @@ fn kernels_bind_what_the_host_provides() {
             ("pathtrace", _) => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             ("bsdf_probe", _) => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
             ("rng_probe", _) => vec![BINDING_RNG_PROBE_OUT],
+            ("roofline", _) => vec![BINDING_ROOFLINE_OUT],
             _ => vec![BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS],
         };
         let mut expected: Vec<u32> = texels.iter().chain(&buffers).chain(&accels).copied().collect();
         expected.sort();
         assert_eq!(set.keys().copied().collect::<Vec<_>>(), expected, "{} bindings", k.name);
         for (b, d) in set {
-            let want = if texels.contains(b) && k.variant.contains("_bda") {
+            let want = if k.kernel == "roofline" && *b == BINDING_NODES {
+                match k.variant {
+                    "texel" => vk::DescriptorType::STORAGE_TEXEL_BUFFER,
+                    "storage" => vk::DescriptorType::STORAGE_BUFFER,
+                    "address" => vk::DescriptorType::UNIFORM_BUFFER,
+                    v => panic!("{}: unknown roofline variant {v}", k.name),
+                }
+            } else if texels.contains(b) && k.variant.contains("_bda") {
                 // The address path: a uniform block holding the buffer's device address.
                 vk::DescriptorType::UNIFORM_BUFFER
             } else if texels.contains(b) {

@@ -79,6 +79,14 @@ pub struct BenchArgs {
     /// and plans the whole matrix; `trilab merge` joins the shards' folders.
     #[arg(long, value_name = "I/N")]
     shard: Option<trilab::rows::Shard>,
+    /// Also measure the traversal roofline (`trilab roofline`: node steps/s of a dependent
+    /// 32-byte-node walk) at each scene's working set (its encoded bytes: nodes, primitives,
+    /// slot ids) on the access path its kernels read, and add per kernel its share of it:
+    /// (nodes visited + triangles tested per ray, from the kernel's stats variant on the same
+    /// rays) x Mrays/s / the roofline's Msteps/s. A node of any layout and a triangle each count
+    /// as one fetch.
+    #[arg(long)]
+    roofline: bool,
     #[command(flatten)]
     out: ReportOutArgs,
     #[command(flatten)]
@@ -132,6 +140,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
         ray_query: a.ray_query.runs(&ctx),
         ray_tracing_pipeline: a.ray_tracing_pipeline.runs(&ctx),
         shard: a.shard,
+        roofline: a
+            .roofline
+            .then(|| trilab::harness::roofline::RooflineOptions { rounds: a.repeat, ..Default::default() }),
         ..Default::default()
     };
     if let Some(shard) = o.shard {

@@ -24,6 +24,7 @@ pub mod profile;
 pub mod raycast;
 pub mod rays;
 pub mod render;
+pub mod roofline;
 pub mod scale;
 pub mod signals;
 pub mod spirv;

@@ -86,6 +86,13 @@ impl Context {
         } else {
             self.upload(name, bytes, vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER)?
         };
+        self.texel_view(name, buffer, texel)
+    }
+
+    /// `buffer` (made with STORAGE_TEXEL_BUFFER usage, a whole number of `texel`s, at most
+    /// maxTexelBufferElements of them: the caller checked) with a texel view over all of it.
+    pub(crate) fn texel_view(&self, name: &str, buffer: Buffer, texel: Texel) -> Result<TexelBuffer> {
+        let texels = (buffer.size / texel.size() as u64).max(1);
         let info = vk::BufferViewCreateInfo::default()
             .buffer(buffer.raw)
             .format(texel_format(texel))

@@ -11,6 +11,8 @@
 //! - [`markers`]: crash markers (GPU breadcrumbs + dispatch log), device-loss and out-of-memory
 //!   errors that name the dispatch, fault injection for testing them.
 //! - [`raycast`]: batched ray casting with timestamp queries.
+//! - [`roofline`]: the traversal roofline's pointer chase (`glsl/roofline.comp`), its node
+//!   buffer and its CPU reference.
 //! - [`slowdown`]: a planted slowdown of one kernel (`TRILAB_INJECT_SLOWDOWN`), for tests of the
 //!   regression gate.
 //! - [`traversal_stats`]: per-ray traversal work from the kernels' `stats` variant.
@@ -32,6 +34,7 @@ pub mod markers;
 pub mod peer;
 pub mod raycast;
 pub mod rayquery;
+pub mod roofline;
 pub mod rtpipeline;
 pub mod slowdown;
 pub(crate) mod timestamps;

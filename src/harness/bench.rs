@@ -12,11 +12,13 @@ use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
+use crate::gpu::roofline::RooflineAccess;
 use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions};
 use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
 use crate::harness::peers::{self, PeerKind, PeerOutcome, TinybvhLayout};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
+use crate::harness::roofline;
 use crate::harness::shard::{self, Shard, Split};
 use crate::harness::validate::{interleaved, mrays_summary, Job};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
@@ -64,6 +66,10 @@ pub struct BenchOptions {
     /// Run only this shard's scenes ([`BenchOptions::split`]): a scene is the unit, so its
     /// methods, layouts and peers stay interleaved side by side in one run.
     pub shard: Option<Shard>,
+    /// `--roofline`: per scene, the traversal roofline (`harness::roofline`, these settings; its
+    /// sizes and paths are the scene's) at the scene's bytes on each access path its kernels
+    /// read, and per kernel row its [`RooflineEfficiency`].
+    pub roofline: Option<crate::harness::roofline::RooflineOptions>,
 }
 
 /// The path a kernel for `access` is looked up on before the scene is planned: `auto` takes the
@@ -100,6 +106,7 @@ impl Default for BenchOptions {
             traversals: vec![Traversal::WhileIf],
             orders: vec![RayOrder::Given],
             shard: None,
+            roofline: None,
         }
     }
 }
@@ -157,6 +164,32 @@ pub struct BenchRow {
     pub unexplained_disagreements: usize,
     pub invalid: usize,
     pub embree_mrays_per_s: Option<f64>,
+    /// `--roofline`: the kernel's fetches per second against the roofline's at its scene's size.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub roofline: Option<RooflineEfficiency>,
+}
+
+/// A kernel's node and triangle fetches per second against the traversal roofline's node steps
+/// per second at its scene's working set (its encoded bytes: nodes, primitives, slot ids) on
+/// the access path it reads the scene through. A fetch is a node visited (inner or leaf, any
+/// layout's node size) or a triangle tested, from the kernel's `stats` variant on the same rays;
+/// the roofline's step is one dependent 32-byte node load with a slab test. So `efficiency` =
+/// (nodes + triangles per ray) x Mrays/s / roofline Msteps/s: 1 means the kernel fetches as
+/// fast as a pure dependent walk does at that size.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct RooflineEfficiency {
+    /// Nodes visited per ray, mean (inner and leaf).
+    pub nodes_per_ray: f64,
+    /// Triangles tested per ray, mean.
+    pub triangles_per_ray: f64,
+    /// The roofline at the scene's bytes on its access path, Msteps/s (median; interpolated
+    /// between the two power-of-two sizes around it).
+    pub roofline_msteps_per_s: f64,
+    /// Fetches per second over the roofline's steps per second, at the median Mrays/s.
+    pub efficiency: f64,
+    /// The same at the slowest and fastest rounds.
+    pub efficiency_min: f64,
+    pub efficiency_max: f64,
 }
 
 impl BenchRow {
@@ -299,6 +332,7 @@ impl BenchReport {
         let traversals = self.rows.iter().any(|r| r.traversal.is_some_and(|t| t != Traversal::default()));
         let orders = self.rows.iter().any(|r| r.order.is_some_and(|o| o != RayOrder::default()));
         let access = self.rows.iter().any(|r| r.scene_access == Some(AccessPath::Address));
+        let roofline = self.rows.iter().any(|r| r.roofline.is_some());
         let mut header = vec!["scene", "rays", "set", "method", "layout"];
         header.extend(access.then_some("access"));
         header.extend(traversals.then_some("traversal"));
@@ -306,6 +340,9 @@ impl BenchReport {
         header.extend(["leaf", "MB", "kernel ms"]);
         header.extend(orders.then_some("reorder ms"));
         header.extend(["Mrays/s", "min..max", "agree %", "Embree"]);
+        if roofline {
+            header.extend(["fetches/ray", "roofline Msteps/s", "of roofline %"]);
+        }
         let mut t = Table::new(header);
         let or_dash = |s: Option<String>| s.unwrap_or_else(|| "-".into());
         for r in &self.rows {
@@ -331,6 +368,17 @@ impl BenchReport {
                 format!("{:.4}", 100.0 * r.agreement),
                 or_dash(r.embree_mrays_per_s.map(|e| format!("{e:.2}"))),
             ]);
+            if roofline {
+                let extra = match &r.roofline {
+                    Some(e) => [
+                        format!("{:.1}", e.nodes_per_ray + e.triangles_per_ray),
+                        format!("{:.1}", e.roofline_msteps_per_s),
+                        format!("{:.1}", 100.0 * e.efficiency),
+                    ],
+                    None => ["-".into(), "-".into(), "-".into()],
+                };
+                cells.extend(extra);
+            }
             t.row(cells);
         }
         t
@@ -460,6 +508,14 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
                 .with("invalid", Figure::correctness(r.invalid as f64, "rays", Better::Lower))
                 .with("scene_bytes", Figure::count(r.scene_bytes as f64, "bytes")),
         );
+        if let Some(e) = &r.roofline {
+            let eff = Summary { median: e.efficiency, min: e.efficiency_min, max: e.efficiency_max, ..r.kernel_ms };
+            let row = out.pop().expect("the row just pushed");
+            out.push(
+                row.with("roofline_efficiency", Figure::timing(eff, "fraction", Better::Higher))
+                    .with("fetches_per_ray", Figure::count(e.nodes_per_ray + e.triangles_per_ray, "fetches")),
+            );
+        }
     }
     for p in &report.peers {
         for peer in &p.peers {
@@ -535,6 +591,7 @@ fn row(
         unexplained_disagreements: agreement.unexplained,
         invalid: agreement.invalid.len(),
         embree_mrays_per_s: None,
+        roofline: None,
     }
 }
 
@@ -760,6 +817,11 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             true => None,
         };
         let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
+        // The roofline at every scene's bytes on its access path, before any timing.
+        let roofline = match &o.roofline {
+            Some(ro) => Some(scene_roofline(ctx, &scenes, ro, &mut progress)?),
+            None => None,
+        };
         // Every set's reference before any timing: the f64 traversal fills every core (and
         // rayon's threads linger), which would slow whichever kernel ran next.
         let ref_hits: Vec<Vec<RefHit>> = sets.iter().map(|(_, rays)| reference.trace_all(rays, false)).collect();
@@ -809,6 +871,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 r.traversal = Some(scene.traversal);
                 r.order = Some(order);
                 r.reorder_ms = (order != RayOrder::Given).then_some(m.reorder_ms);
+                if let Some(roof) = &roofline {
+                    r.roofline = efficiency(ctx, scene, rays, roof, &r, o.batch_rays)?;
+                }
                 report.rows.push(r);
             }
             // Every driver peer over the scene's one structure (built whenever there is a peer).
@@ -865,6 +930,60 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         }
     }
     Ok(report)
+}
+
+/// The roofline at the bytes of each of `scenes` on the access path it reads ([`roofline::run`]
+/// over the two powers of two around each size, interleaved).
+fn scene_roofline(
+    ctx: &Context,
+    scenes: &[DeviceScene],
+    o: &roofline::RooflineOptions,
+    progress: &mut impl FnMut(&str),
+) -> Result<roofline::RooflineReport> {
+    let mut sizes: Vec<u64> = scenes.iter().flat_map(|s| roofline::sizes_around(s.bytes as u64)).collect();
+    sizes.sort_unstable();
+    sizes.dedup();
+    let mut access: Vec<RooflineAccess> = scenes.iter().map(|s| RooflineAccess::of_scene(s.access)).collect();
+    access.sort_unstable();
+    access.dedup();
+    let o = roofline::RooflineOptions { sizes, access, ..o.clone() };
+    let report = roofline::run(ctx, &o, &mut *progress)?;
+    for s in &report.skipped {
+        progress(&format!("roofline: {} skipped: {}", roofline::show_size(s.bytes), s.why));
+    }
+    Ok(report)
+}
+
+/// `row`'s kernel against the roofline: its nodes and triangles per ray from the `stats` variant
+/// of its scene on the same rays, and the roofline at the scene's bytes on its access path
+/// (`None` where the roofline measured that path at no size).
+fn efficiency(
+    ctx: &Context,
+    scene: &DeviceScene,
+    rays: &[Ray],
+    roof: &roofline::RooflineReport,
+    row: &BenchRow,
+    batch_rays: usize,
+) -> Result<Option<RooflineEfficiency>> {
+    let Some(steps) = roof.at(RooflineAccess::of_scene(scene.access), scene.bytes as u64) else {
+        return Ok(None);
+    };
+    if scene.kernel_source(Raycast::Stats).is_err() {
+        return Ok(None); // a traversal without a stats kernel (persistent threads): no counts
+    }
+    let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
+    let counts = scene.cast(ctx, Raycast::Stats, rays, &once)?.traversal.unwrap_or_default();
+    let t = crate::gpu::TraversalSummary::of(&counts);
+    let fetches = t.nodes.mean + t.triangles.mean;
+    let of = |mrays: f64| fetches * mrays / steps;
+    Ok(Some(RooflineEfficiency {
+        nodes_per_ray: t.nodes.mean,
+        triangles_per_ray: t.triangles.mean,
+        roofline_msteps_per_s: steps,
+        efficiency: of(row.mrays_per_s),
+        efficiency_min: of(row.mrays_per_s_min),
+        efficiency_max: of(row.mrays_per_s_max),
+    }))
 }
 
 /// The progress line of the driver's acceleration structure.
@@ -973,6 +1092,7 @@ mod tests {
                 unexplained_disagreements: 3,
                 invalid: 0,
                 embree_mrays_per_s: None,
+                roofline: None,
             }
         };
         let s = |median: f64, min: f64, max: f64| Summary { median, min, max, runs: 5 };

@@ -24,6 +24,7 @@ pub mod profile;
 pub mod provenance;
 pub mod raycast;
 pub mod rayset;
+pub mod roofline;
 pub mod results;
 pub mod compare;
 pub mod scale;

@@ -1,0 +1,77 @@
+//! `trilab roofline`.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use trilab::error::Result;
+use trilab::gpu::roofline::RooflineAccess;
+use trilab::harness::roofline::{self, RooflineOptions};
+use trilab::named::Named;
+
+use super::choice::choice;
+use super::{GpuArgs, JsonArg};
+
+/// The device's traversal roofline: node steps per second of a dependent walk through 32-byte
+/// nodes (two 16-byte loads, a slab test, the next index from the loaded words) per working-set
+/// size, from the caches to DRAM, and per way of reading the nodes (texel buffer, storage buffer,
+/// buffer device address); sizes and paths interleaved round by round, medians with min-max of
+/// GPU timestamps, each cell's checksums checked against the CPU's walk first.
+#[derive(Args)]
+pub struct RooflineArgs {
+    /// Working-set sizes, comma-separated: powers of two of at least 64 bytes, in bytes or with
+    /// K, M, G (binary). Sizes the device cannot hold are skipped, naming why.
+    #[arg(
+        long,
+        value_name = "SIZE,...",
+        value_delimiter = ',',
+        value_parser = roofline::parse_size,
+        default_value = "16K,64K,256K,1M,4M,16M,64M,256M"
+    )]
+    sizes: Vec<u64>,
+    /// Access paths, comma-separated (default: all three).
+    #[arg(long, value_name = "A,...", value_parser = choice::<RooflineAccess>(), value_delimiter = ',')]
+    access: Vec<RooflineAccess>,
+    /// Timed rounds, each running every size and path once, after one warm-up round.
+    #[arg(long, value_name = "N", default_value_t = 5, value_parser = super::repeat)]
+    rounds: usize,
+    /// Invocations per dispatch.
+    #[arg(long, value_name = "N", default_value_t = roofline::DEFAULT_INVOCATIONS)]
+    invocations: u32,
+    /// Dependent node steps per invocation.
+    #[arg(long, value_name = "N", default_value_t = roofline::DEFAULT_STEPS)]
+    steps: u32,
+    /// Seed of the node buffers, start nodes and ray state.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    seed: u32,
+    /// Directory for roofline.json, roofline.md and rows.jsonl (default: results/<device>/roofline).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
+    #[command(flatten)]
+    gpu: GpuArgs,
+}
+
+pub fn run(a: RooflineArgs) -> Result<()> {
+    let o = RooflineOptions {
+        sizes: a.sizes,
+        access: if a.access.is_empty() { RooflineAccess::ALL.to_vec() } else { a.access },
+        rounds: a.rounds,
+        invocations: a.invocations,
+        steps: a.steps,
+        seed: a.seed,
+        ..RooflineOptions::default()
+    };
+    o.check()?;
+    if let Some(out) = &a.out {
+        trilab::io::check_output("--out", trilab::io::Output::Dir(out, &roofline::FILES), &[])?;
+    }
+    let ctx = a.gpu.context()?;
+    let out = super::results_dir(&ctx, a.out.clone(), "roofline");
+    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &roofline::FILES), &[])?;
+    let report = roofline::run(&ctx, &o, |m| eprintln!("  {m}"))?;
+    a.json.print(&report);
+    report.write(&out)?;
+    eprintln!("wrote {}", out.display());
+    Ok(())
+}
