@@ -5,8 +5,9 @@ use std::path::PathBuf;
 use clap::Args;
 use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::Result;
-use trilab::harness::bench::{self, BenchOptions};
+use trilab::harness::bench::{self, BenchOptions, BenchReport};
 use trilab::harness::peers::TinybvhLayout;
+use trilab::harness::results::Results;
 use trilab::rays::order::RayOrder;
 
 use super::choice::choice;
@@ -120,7 +121,7 @@ impl PeerChoice {
 
 pub fn run(a: BenchArgs) -> Result<()> {
     let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
-    let (json_out, md_out) = a.out.files("bench", &scenes)?;
+    let (json_out, md_out) = a.out.files(<BenchReport as Results>::STEM, &scenes)?;
     BenchOptions { scenes: scenes.clone(), shard: a.shard, ..Default::default() }.check_shard()?;
     let ctx = a.gpu.context()?;
     let o = BenchOptions {

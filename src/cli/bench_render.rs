@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::error::Result;
-use trilab::harness::bench_render::{self, RenderBenchOptions};
+use trilab::harness::bench_render::{self, RenderBenchOptions, RenderBenchReport};
+use trilab::harness::results::Results;
 use trilab::render::KernelChoice;
 
 use super::choice::choice;
@@ -49,7 +50,7 @@ pub struct BenchRenderArgs {
 pub fn run(a: BenchRenderArgs) -> Result<()> {
     let scenes =
         if a.scenes.is_empty() { ["bunny", "dragon", "buddha"].iter().map(PathBuf::from).collect() } else { a.scenes };
-    let (json_out, md_out) = a.out.files("bench", &scenes)?;
+    let (json_out, md_out) = a.out.files(<RenderBenchReport as Results>::STEM, &scenes)?;
     let ctx = a.gpu.context()?;
     let o = RenderBenchOptions {
         scenes,

@@ -9,7 +9,6 @@ use trilab::harness::profile::driver_stats::{self, CollectOptions, Selection};
 use trilab::harness::profile::Status;
 use trilab::harness::results::Folder;
 use trilab::named::Named;
-use trilab::report::Report;
 
 use super::choice::choice;
 use super::{results_dir, GpuArgs, JsonArg, MethodsArg};
@@ -93,9 +92,7 @@ pub fn run(a: DriverStatsArgs) -> Result<()> {
     }
     let mut folder = Folder::create(&out)?;
     a.json.print(&report);
-    folder.put(FILES[0], report.to_json())?;
-    folder.put(FILES[1], report.to_text())?;
-    folder.rows(None, &driver_stats::rows(&report))?;
+    folder.results(&report)?;
     eprintln!("wrote {}", out.display());
     Ok(())
 }

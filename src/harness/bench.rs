@@ -240,6 +240,22 @@ impl Report for BenchReport {
     }
 }
 
+impl crate::harness::results::Results for BenchReport {
+    const STEM: &'static str = "bench";
+
+    fn markdown(&self, _: &[crate::harness::plots::Plot]) -> String {
+        BenchReport::markdown(self)
+    }
+
+    fn rows(&self) -> Option<Vec<crate::rows::Row>> {
+        Some(rows(self))
+    }
+
+    fn plan(&self) -> Option<crate::rows::Plan> {
+        Some(BenchReport::plan(self))
+    }
+}
+
 impl BenchReport {
     /// Device, driver, host and how the rows were timed.
     pub fn header(&self) -> String {
@@ -312,17 +328,7 @@ impl BenchReport {
     /// Writes the report as JSON and the tables as Markdown where asked, each atomically, and
     /// [`rows`] as `rows.jsonl` beside the JSON file (else beside the Markdown).
     pub fn write(&self, json: Option<&Path>, md: Option<&Path>) -> Result<()> {
-        if let Some(p) = json {
-            crate::io::write_atomic(p, self.to_json().as_bytes())?;
-        }
-        if let Some(p) = md {
-            crate::io::write_atomic(p, self.markdown().as_bytes())?;
-        }
-        if let Some(file) = json.or(md) {
-            let dir = file.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-            crate::rows::write(dir, Some(&self.plan()), &rows(self))?;
-        }
-        Ok(())
+        crate::harness::results::write(self, json, md).map(drop)
     }
 
     /// One row per measured cell. The traversal column appears when a row's traversal is not

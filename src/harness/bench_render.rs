@@ -87,6 +87,20 @@ impl Report for RenderBenchReport {
     }
 }
 
+impl crate::harness::results::Results for RenderBenchReport {
+    /// `bench.json`, `bench.md` in `--out`, as bench's.
+    const STEM: &'static str = "bench";
+
+    fn markdown(&self, _: &[crate::harness::plots::Plot]) -> String {
+        format!("{}\n{}", self.header(), self.table().to_markdown())
+    }
+
+    /// None: bench-render writes no rows.
+    fn rows(&self) -> Option<Vec<crate::rows::Row>> {
+        None
+    }
+}
+
 impl RenderBenchReport {
     /// Device, driver and the settings every row shares.
     pub fn header(&self) -> String {
@@ -106,13 +120,7 @@ impl RenderBenchReport {
 
     /// Writes the report as JSON and the table as Markdown where asked, each atomically.
     pub fn write(&self, json: Option<&Path>, md: Option<&Path>) -> Result<()> {
-        if let Some(p) = md {
-            crate::io::write_atomic(p, format!("{}\n{}", self.header(), self.table().to_markdown()).as_bytes())?;
-        }
-        if let Some(p) = json {
-            crate::io::write_atomic(p, self.to_json().as_bytes())?;
-        }
-        Ok(())
+        crate::harness::results::write(self, json, md).map(drop)
     }
 
     pub fn table(&self) -> Table {

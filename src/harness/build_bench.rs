@@ -23,7 +23,7 @@ use serde::Serialize;
 use crate::bvh::{BuildOptions, Builder, Bvh, BvhNode, LeafPolicy, MAX_DEPTH};
 use crate::encoding::Layout;
 use crate::error::{Error, Result};
-use crate::harness::results::{self, Folder};
+use crate::harness::results;
 use crate::harness::shard::{self, Shard, Split};
 use crate::named::Named;
 use crate::report::Summary;
@@ -814,12 +814,7 @@ impl BuildBenchReport {
 
     /// Writes build.csv, layouts.csv, build.json and build.md into `dir` (each atomically).
     pub fn write(&self, dir: &Path) -> Result<()> {
-        let mut folder = Folder::create(dir)?;
-        folder.put("build.csv", self.csv()?)?;
-        folder.put("layouts.csv", self.layouts_csv()?)?;
-        folder.put("build.json", serde_json::to_string_pretty(self).expect("serialisable report"))?;
-        folder.put("build.md", self.markdown())?;
-        folder.rows(Some(&self.plan()), &self.rows())
+        results::write_folder(dir, self).map(drop)
     }
 
     /// The plan of the whole matrix this report belongs to, with its shard.
@@ -889,6 +884,26 @@ impl BuildBenchReport {
             r.figures.retain(|_, f| f.median.is_finite() && f.min.is_finite() && f.max.is_finite());
         }
         out
+    }
+}
+
+impl results::Results for BuildBenchReport {
+    const STEM: &'static str = "build";
+
+    fn markdown(&self, _: &[crate::harness::plots::Plot]) -> String {
+        BuildBenchReport::markdown(self)
+    }
+
+    fn rows(&self) -> Option<Vec<crate::rows::Row>> {
+        Some(BuildBenchReport::rows(self))
+    }
+
+    fn plan(&self) -> Option<crate::rows::Plan> {
+        Some(BuildBenchReport::plan(self))
+    }
+
+    fn files(&self) -> Result<Vec<(&'static str, String)>> {
+        Ok(vec![("build.csv", self.csv()?), ("layouts.csv", self.layouts_csv()?)])
     }
 }
 

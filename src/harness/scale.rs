@@ -427,12 +427,26 @@ impl ScaleReport {
 
     /// Writes scale.csv, scale.json and scale.md into `dir` (created if needed).
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
-        let json = serde_json::to_string_pretty(self).map_err(|e| Error::Usage(e.to_string()))?;
-        let mut folder = crate::harness::results::Folder::create(dir)?;
-        folder.put("scale.csv", self.csv())?;
-        folder.put("scale.json", json + "\n")?;
-        folder.put("scale.md", self.markdown())?;
-        Ok(folder.written())
+        crate::harness::results::write_folder(dir, self)
+    }
+}
+
+/// No rows: scale's figures are limits and sizes, not cells to compare.
+impl crate::harness::results::Results for ScaleReport {
+    const STEM: &'static str = "scale";
+
+    const JSON_NEWLINE: bool = true;
+
+    fn markdown(&self, _: &[crate::harness::plots::Plot]) -> String {
+        ScaleReport::markdown(self)
+    }
+
+    fn rows(&self) -> Option<Vec<crate::rows::Row>> {
+        None
+    }
+
+    fn files(&self) -> Result<Vec<(&'static str, String)>> {
+        Ok(vec![("scale.csv", self.csv())])
     }
 }
 impl crate::report::Report for ScaleReport {

@@ -392,6 +392,23 @@ pub struct SuiteReport {
     pub out: PathBuf,
 }
 
+/// `suite.json` and `summary.md`; the parts' rows are in their folders.
+impl crate::harness::results::Results for SuiteReport {
+    const STEM: &'static str = "suite";
+
+    fn markdown_file() -> String {
+        "summary.md".into()
+    }
+
+    fn markdown(&self, _: &[crate::harness::plots::Plot]) -> String {
+        summary(self)
+    }
+
+    fn rows(&self) -> Option<Vec<crate::rows::Row>> {
+        None
+    }
+}
+
 impl Report for SuiteReport {
     fn to_text(&self) -> String {
         let mut s = format!(
@@ -561,8 +578,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
         seconds: start.elapsed().as_secs_f64(),
         out: o.out.clone(),
     };
-    folder.put("summary.md", summary(&report))?;
-    folder.put("suite.json", report.to_json())?;
+    folder.results(&report)?;
     keep(&|k| k.summary = true);
     Ok(report)
 }

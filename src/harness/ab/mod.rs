@@ -272,6 +272,20 @@ fn side_label(s: &SideReport) -> String {
     format!("{} on {}", field("driver"), field("device"))
 }
 
+/// No plan: the cells are what both sides ran.
+impl crate::harness::results::Results for AbReport {
+    const STEM: &'static str = "ab";
+
+    /// The text report, as a code block.
+    fn markdown(&self, _: &[crate::harness::plots::Plot]) -> String {
+        format!("```\n{}```\n", self.to_text())
+    }
+
+    fn rows(&self) -> Option<Vec<Row>> {
+        Some(rows(self))
+    }
+}
+
 impl Report for AbReport {
     fn to_text(&self) -> String {
         let mut s = String::new();
@@ -730,10 +744,7 @@ fn tail(stderr: &str) -> String {
 /// Writes `ab.json`, `ab.md` (the text report) and `rows.jsonl` (the `ab` rows) into `dir`,
 /// and each side's bench rows into `dir/a/rows.jsonl` and `dir/b/rows.jsonl`.
 pub fn write(r: &AbReport, dir: &Path) -> Result<()> {
-    let mut folder = Folder::create(dir)?;
-    folder.put("ab.json", r.to_json())?;
-    folder.put("ab.md", format!("```\n{}```\n", r.to_text()))?;
-    folder.rows(None, &rows(r))?;
+    crate::harness::results::write_folder(dir, r)?;
     for (pick, sub) in [(0, "a"), (1, "b")] {
         let mut rows = side_rows(r, pick);
         rows.extend(r.driver_stats_rows[pick].iter().cloned());

@@ -50,7 +50,6 @@ use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, RaycastOptions};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::RaySet;
-use crate::harness::results::Folder;
 use crate::harness::shard::{self, Shard, Split};
 use crate::harness::validate::measure_rays;
 use crate::named::named_enum;
@@ -1043,18 +1042,36 @@ pub fn partial(report: &AccuracyReport) -> Option<String> {
 
 /// Writes accuracy.csv, accuracy.json, accuracy.md and the plots into `dir`; returns the paths.
 pub fn write(report: &AccuracyReport, dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut folder = Folder::create(dir)?;
-    let plots = plots::all(report, dir)?;
-    folder.put("accuracy.csv", table::csv(report)?)?;
-    // What `trilab analyze --frontier` reads.
-    folder.put("frontier.csv", table::frontier_csv(report)?)?;
-    folder.put("translation.csv", table::translation_csv(report)?)?;
-    let json = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(format!("accuracy.json: {e}")))?;
-    folder.put("accuracy.json", json)?;
-    folder.put("accuracy.md", table::markdown(report, &plots))?;
-    folder.rows(Some(&plan(report)), &rows(report))?;
-    folder.add(plots.into_iter().map(|p| p.path));
-    Ok(folder.written())
+    crate::harness::results::write_folder(dir, report)
+}
+
+impl crate::harness::results::Results for AccuracyReport {
+    const STEM: &'static str = "accuracy";
+
+    fn markdown(&self, plots: &[crate::harness::plots::Plot]) -> String {
+        table::markdown(self, plots)
+    }
+
+    fn rows(&self) -> Option<Vec<crate::rows::Row>> {
+        Some(rows(self))
+    }
+
+    fn plan(&self) -> Option<crate::rows::Plan> {
+        Some(plan(self))
+    }
+
+    fn files(&self) -> Result<Vec<(&'static str, String)>> {
+        // frontier.csv is what `trilab analyze --frontier` reads.
+        Ok(vec![
+            ("accuracy.csv", table::csv(self)?),
+            ("frontier.csv", table::frontier_csv(self)?),
+            ("translation.csv", table::translation_csv(self)?),
+        ])
+    }
+
+    fn plots(&self, dir: &Path) -> Result<Vec<crate::harness::plots::Plot>> {
+        plots::all(self, dir)
+    }
 }
 
 /// The report as result rows (`rows.jsonl`, what `trilab compare` reads), cell key `part`:

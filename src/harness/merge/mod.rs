@@ -705,13 +705,26 @@ pub const FILES: [&str; 2] = ["merge.md", "merge.json"];
 /// Writes the plots, `merge.md` and `merge.json` into `dir` (created if needed), each
 /// atomically. Returns the paths written.
 pub fn write(report: &MergeReport, dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut folder = crate::harness::results::Folder::create(dir)?;
-    let plots = plots::all(report, dir)?;
-    let md = report.markdown(&plots);
-    folder.add(plots.into_iter().map(|p| p.path));
-    folder.put(FILES[0], md)?;
-    folder.put(FILES[1], serde_json::to_string_pretty(report).expect("serialisable") + "\n")?;
-    Ok(folder.written())
+    crate::harness::results::write_folder(dir, report)
+}
+
+/// No rows: merge reads rows and writes none.
+impl crate::harness::results::Results for MergeReport {
+    const STEM: &'static str = "merge";
+
+    const JSON_NEWLINE: bool = true;
+
+    fn markdown(&self, plots: &[crate::harness::plots::Plot]) -> String {
+        MergeReport::markdown(self, plots)
+    }
+
+    fn rows(&self) -> Option<Vec<Row>> {
+        None
+    }
+
+    fn plots(&self, dir: &Path) -> Result<Vec<crate::harness::plots::Plot>> {
+        plots::all(self, dir)
+    }
 }
 
 #[cfg(test)]

@@ -554,6 +554,19 @@ pub const LEGEND: &str = "\nvector spills: xmm/ymm/zmm stores to fixed stack slo
      (llvmpipe's texel-fetch/image/size helpers); stack bytes: the largest frame. Counts are static (code size), not \
      executed instructions.\n";
 
+/// `driver-stats.json`, `driver-stats.md` (the text report), `rows.jsonl` (no plan).
+impl crate::harness::results::Results for DriverStatsReport {
+    const STEM: &'static str = "driver-stats";
+
+    fn markdown(&self, _: &[crate::harness::plots::Plot]) -> String {
+        crate::report::Report::to_text(self)
+    }
+
+    fn rows(&self) -> Option<Vec<Row>> {
+        Some(rows(self))
+    }
+}
+
 impl crate::report::Report for DriverStatsReport {
     fn to_text(&self) -> String {
         let p = &self.provenance;

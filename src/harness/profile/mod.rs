@@ -793,15 +793,23 @@ impl crate::report::Report for ProfileReport {
     }
 }
 
+/// No plan: a profile is not sharded.
+impl crate::harness::results::Results for ProfileReport {
+    const STEM: &'static str = "profile";
+
+    fn markdown(&self, _: &[crate::harness::plots::Plot]) -> String {
+        crate::report::Report::to_text(self)
+    }
+
+    fn rows(&self) -> Option<Vec<crate::rows::Row>> {
+        Some(rows(self))
+    }
+}
+
 /// Writes profile.json and profile.md into `dir` (created if needed), each atomically; the
 /// heat maps are already there ([`run`] wrote them).
 pub fn write(report: &ProfileReport, dir: &Path) -> Result<Vec<PathBuf>> {
-    use crate::report::Report;
-    let mut folder = crate::harness::results::Folder::create(dir)?;
-    folder.put("profile.json", report.to_json())?;
-    folder.put("profile.md", report.to_text())?;
-    folder.rows(None, &rows(report))?;
-    Ok(folder.written())
+    crate::harness::results::write_folder(dir, report)
 }
 
 #[cfg(test)]

@@ -37,7 +37,6 @@ use crate::error::{Error, Result};
 use crate::gpu::{Context, RaycastOptions, TraversalSummary};
 use crate::harness::bench_render::{bench_settings, check_image_mean, summarise_renders, RenderMeasure};
 use crate::harness::rayset::{RaySet, RaySetSizes};
-use crate::harness::results::Folder;
 use crate::harness::shard::{Shard, Split};
 use crate::harness::validate::{mrays_summary, validate_hits};
 use crate::named::{named_enum, Named};
@@ -564,14 +563,33 @@ pub fn counts(kernel: &str) -> crate::spirv::InstructionCounts {
 /// Writes `study.csv`, `study.json`, `study.md` and the plots into `dir` (created if needed),
 /// each atomically. Returns the paths written.
 pub fn write(report: &StudyReport, dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut folder = Folder::create(dir)?;
-    folder.put("study.csv", table::csv(report)?)?;
-    folder.put("study.json", serde_json::to_string_pretty(report).expect("serialisable") + "\n")?;
-    let plots = plots::all(report, dir)?;
-    folder.put("study.md", table::markdown(report, &plots))?;
-    folder.add(plots.into_iter().map(|p| p.path));
-    folder.rows(Some(&plan(report)), &rows(report))?;
-    Ok(folder.written())
+    crate::harness::results::write_folder(dir, report)
+}
+
+impl crate::harness::results::Results for StudyReport {
+    const STEM: &'static str = "study";
+
+    const JSON_NEWLINE: bool = true;
+
+    fn markdown(&self, plots: &[crate::harness::plots::Plot]) -> String {
+        table::markdown(self, plots)
+    }
+
+    fn rows(&self) -> Option<Vec<Row>> {
+        Some(rows(self))
+    }
+
+    fn plan(&self) -> Option<Plan> {
+        Some(plan(self))
+    }
+
+    fn files(&self) -> Result<Vec<(&'static str, String)>> {
+        Ok(vec![("study.csv", table::csv(self)?)])
+    }
+
+    fn plots(&self, dir: &Path) -> Result<Vec<crate::harness::plots::Plot>> {
+        plots::all(self, dir)
+    }
 }
 
 /// The plan of the whole matrix this report belongs to (every shard's cells), with its shard.
