@@ -487,11 +487,19 @@ impl RooflineReport {
 
     /// Writes roofline.json, roofline.md and rows.jsonl into `dir`; the files written.
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
-        let mut folder = crate::harness::results::Folder::create(dir)?;
-        folder.put("roofline.json", self.to_json())?;
-        folder.put("roofline.md", self.to_markdown())?;
-        folder.rows(None, &self.rows())?;
-        Ok(folder.written())
+        crate::harness::results::write_folder(dir, self)
+    }
+}
+
+impl crate::harness::results::Results for RooflineReport {
+    const STEM: &'static str = "roofline";
+
+    fn markdown(&self, _plots: &[crate::harness::plots::Plot]) -> String {
+        self.to_markdown()
+    }
+
+    fn rows(&self) -> Option<Vec<crate::rows::Row>> {
+        Some(RooflineReport::rows(self))
     }
 }
 
