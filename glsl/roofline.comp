@@ -1,6 +1,6 @@
 #version 460
 // trilab:intersector none
-// trilab:variants texel storage=ROOFLINE_STORAGE address=ROOFLINE_ADDRESS
+// trilab:variants texel storage=ROOFLINE_STORAGE address=ROOFLINE_ADDRESS address32=ROOFLINE_ADDRESS,ROOFLINE_WORDS32
 // The traversal roofline (`trilab roofline`, issue 27): what vkpeak is to arithmetic, for the
 // gathers of a traversal. Each invocation walks `steps` dependent steps through a buffer of
 // 32-byte nodes (bvh2's size: two 16-byte texels, box min + a word, box max + a word), each step
@@ -16,19 +16,31 @@
 //   texel    a storage texel buffer (rgba32ui) read with imageLoad: trilab's texel path
 //   storage  a readonly storage buffer of uvec4
 //   address  GL_EXT_buffer_reference: a uniform block at the binding holds the buffer's device
-//            address, as the raycast kernels' `*_bda` variants (types.glsl, SCENE_ADDRESS)
+//            address, as the raycast kernels' `*_bda` variants (types.glsl, SCENE_ADDRESS); a
+//            16-byte texel loaded as two 64-bit words, as they load it
+//   address32  the same, a texel loaded as one uvec4 (four 32-bit words): the `*_bda` kernels'
+//            form before issue 27, which llvmpipe gathers once per component
 // Rust twin: trilab::gpu::roofline (RooflinePush, nodes, reference).
 #extension GL_GOOGLE_include_directive : require
 #ifdef ROOFLINE_ADDRESS
 #extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #endif
 
 #include "shared.glsl"
 
-#if defined(ROOFLINE_ADDRESS)
+#if defined(ROOFLINE_ADDRESS) && defined(ROOFLINE_WORDS32)
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer RooflineTexels { uvec4 texels[]; };
 layout(std140, set = 0, binding = BINDING_NODES) uniform NodesAddress { RooflineTexels nodes; };
 #define NODE_TEXEL(i_) nodes.texels[i_]
+#elif defined(ROOFLINE_ADDRESS)
+layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer RooflineTexels { u64vec2 texels[]; };
+layout(std140, set = 0, binding = BINDING_NODES) uniform NodesAddress { RooflineTexels nodes; };
+uvec4 roofline_texel(uint i) {
+    u64vec2 w = nodes.texels[i];
+    return uvec4(unpackUint2x32(w.x), unpackUint2x32(w.y));
+}
+#define NODE_TEXEL(i_) roofline_texel(i_)
 #elif defined(ROOFLINE_STORAGE)
 layout(std430, set = 0, binding = BINDING_NODES) readonly restrict buffer Nodes { uvec4 texels[]; } nodes;
 #define NODE_TEXEL(i_) nodes.texels[i_]

@@ -256,7 +256,7 @@ fn kernels_bind_what_the_host_provides() {
                 match k.variant {
                     "texel" => vk::DescriptorType::STORAGE_TEXEL_BUFFER,
                     "storage" => vk::DescriptorType::STORAGE_BUFFER,
-                    "address" => vk::DescriptorType::UNIFORM_BUFFER,
+                    "address" | "address32" => vk::DescriptorType::UNIFORM_BUFFER,
                     v => panic!("{}: unknown roofline variant {v}", k.name),
                 }
             } else if texels.contains(b) && k.variant.contains("_bda") {

@@ -256,7 +256,10 @@ fn sizes_past_a_paths_limit_are_skipped_naming_it() {
     let rows = trilab::rows::read(&out.join(trilab::rows::FILE)).unwrap();
     let mut keys: Vec<String> = rows.rows.iter().map(|r| format!("{} {}", r.cell["access"], r.cell["bytes"])).collect();
     keys.sort();
-    assert_eq!(keys, ["address 16384", "address 262144", "storage 16384", "texel 16384"]);
+    assert_eq!(
+        keys,
+        ["address 16384", "address 262144", "address32 16384", "address32 262144", "storage 16384", "texel 16384"]
+    );
     // Without the address path (no bufferDeviceAddress) and nothing else left: an error saying why.
     let (o, _) = run(
         &["roofline", "--sizes", "256K", "--access", "texel,address", "--out", out.to_str().unwrap()],

@@ -32,8 +32,12 @@ named_enum! {
         Texel = "texel",
         /// A readonly storage buffer of uvec4.
         Storage = "storage",
-        /// GL_EXT_buffer_reference through the buffer's device address (the scene's address path).
+        /// GL_EXT_buffer_reference through the buffer's device address, a 16-byte texel as two
+        /// 64-bit words (the scene's address path).
         Address = "address",
+        /// The same, a texel as one uvec4 of four 32-bit words (the address path's form before
+        /// issue 27: llvmpipe gathers once per component).
+        Address32 = "address32",
     }
 }
 
@@ -206,11 +210,13 @@ pub fn unsupported(limits: &DeviceLimits, access: RooflineAccess, bytes: u64) ->
         RooflineAccess::Storage if bytes > limits.max_storage_buffer_range => {
             Some(format!("{bytes} bytes, more than maxStorageBufferRange ({})", limits.max_storage_buffer_range))
         }
-        RooflineAccess::Address if !limits.buffer_device_address => {
+        RooflineAccess::Address | RooflineAccess::Address32 if !limits.buffer_device_address => {
             Some("bufferDeviceAddress is not enabled on this device".into())
         }
         // The kernel's texel indices are 32-bit, and SPIR-V's access-chain indices signed.
-        RooflineAccess::Address if texels > i32::MAX as u64 => Some(format!("{texels} texels, more than 2^31 - 1")),
+        RooflineAccess::Address | RooflineAccess::Address32 if texels > i32::MAX as u64 => {
+            Some(format!("{texels} texels, more than 2^31 - 1"))
+        }
         _ => None,
     }
 }
@@ -257,7 +263,7 @@ impl RooflineData {
         Ok(match (access, &self.store, &self.pointer) {
             (RooflineAccess::Texel, Store::Texels(t), _) => Resource::Texels(t),
             (RooflineAccess::Storage, _, _) => Resource::whole(self.buffer()),
-            (RooflineAccess::Address, _, Some(p)) => Resource::whole(p),
+            (RooflineAccess::Address | RooflineAccess::Address32, _, Some(p)) => Resource::whole(p),
             _ => return Err(Error::Unsupported(format!("roofline {access} path: not bound"))),
         })
     }
@@ -269,8 +275,12 @@ pub fn upload(ctx: &Context, name: &str, nodes: &[RooflineNode]) -> Result<Roofl
     let count = nodes.len() as u64;
     let bytes = count * NODE_BYTES;
     let limits = ctx.limits()?;
-    let unsupported: Vec<(RooflineAccess, String)> =
+    let mut unsupported: Vec<(RooflineAccess, String)> =
         RooflineAccess::ALL.iter().filter_map(|&a| unsupported(&limits, a, bytes).map(|w| (a, w))).collect();
+    // The 64-bit words of the address path (a device limit does not say it; the features do).
+    if !ctx.enabled().shader_int64 && !unsupported.iter().any(|(a, _)| *a == RooflineAccess::Address) {
+        unsupported.push((RooflineAccess::Address, "shaderInt64 is not enabled on this device".into()));
+    }
     let can = |a: RooflineAccess| !unsupported.iter().any(|(u, _)| *u == a);
     let mut usage = vk::BufferUsageFlags::STORAGE_BUFFER;
     if can(RooflineAccess::Texel) {

@@ -1,8 +1,8 @@
 //! `trilab roofline`: the device's traversal roofline (issue 27), what vkpeak is to arithmetic,
 //! for the gathers of a traversal. `glsl/roofline.comp` walks dependent 32-byte nodes (two
 //! texels, bvh2's node size) with a slab test per step (`gpu::roofline`); this sweeps it over
-//! working-set sizes from the caches to DRAM and over the three ways a kernel reads nodes
-//! (texel, storage, address), interleaved: round r runs every cell before round r + 1, so a
+//! working-set sizes from the caches to DRAM and over the four ways a kernel reads nodes
+//! (texel, storage, address, address32), interleaved: round r runs every cell before round r + 1, so a
 //! burst of other work lands on every cell alike. The rate is node steps per second, the median
 //! of the rounds with min and max, from GPU timestamps. Every cell's checksums are checked
 //! against the CPU's walk (a sample of invocations) before its time counts.
