@@ -331,13 +331,17 @@ impl BenchReport {
         crate::harness::results::write(self, json, md).map(drop)
     }
 
-    /// One row per measured cell. The traversal column appears when a row's traversal is not
-    /// while-if, the order and reorder columns when a row's rays were reordered (`kernel ms`
-    /// then includes the reordering; `reorder ms` is that share).
+    /// One row per measured cell. The access column appears when rows read their scenes both
+    /// ways, the traversal column when a row's traversal is not while-if, the order and reorder
+    /// columns when a row's rays were reordered (`kernel ms` then includes the reordering;
+    /// `reorder ms` is that share).
     pub fn table(&self) -> Table {
         let traversals = self.rows.iter().any(|r| r.traversal.is_some_and(|t| t != Traversal::default()));
         let orders = self.rows.iter().any(|r| r.order.is_some_and(|o| o != RayOrder::default()));
-        let access = self.rows.iter().any(|r| r.scene_access == Some(AccessPath::Address));
+        // The access column only where rows read scenes both ways (one path is the header's
+        // `--scene-access`, as before lists were taken).
+        let access = self.rows.iter().any(|r| r.scene_access == Some(AccessPath::Address))
+            && self.rows.iter().any(|r| r.scene_access == Some(AccessPath::Texel));
         let roofline = self.rows.iter().any(|r| r.roofline.is_some());
         let mut header = vec!["scene", "rays", "set", "method", "layout"];
         header.extend(access.then_some("access"));
