@@ -862,6 +862,8 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 .collect();
             let measured = interleaved(ctx, &mesh, &jobs, o.warmup, o.repeat, o.batch_rays)
                 .map_err(|(i, e)| Error::Usage(format!("{name} {set} {}: {e}", label(jobs[i].scene, jobs[i].order))))?;
+            // Each kernel's traversal counts on this set, cast once however many orders it ran in.
+            let mut counts: Vec<Option<Option<crate::gpu::TraversalSummary>>> = vec![None; scenes.len()];
             for (job, m) in jobs.iter().zip(measured) {
                 let (scene, order) = (job.scene, job.order);
                 let (ms, agreement) = (m.kernel_ms, m.agreement);
@@ -882,7 +884,13 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 r.order = Some(order);
                 r.reorder_ms = (order != RayOrder::Given).then_some(m.reorder_ms);
                 if let Some(roof) = &roofline {
-                    r.roofline = efficiency(ctx, scene, rays, roof, &r, o.batch_rays)?;
+                    let i =
+                        scenes.iter().position(|s| std::ptr::eq(s, scene)).expect("a job's scene is one of the scenes");
+                    let t = match counts[i] {
+                        Some(t) => t,
+                        None => *counts[i].insert(fetch_counts(ctx, scene, rays, o.batch_rays)?),
+                    };
+                    r.roofline = t.and_then(|t| efficiency(scene, roof, &r, &t));
                 }
                 report.rows.push(r);
             }
@@ -964,36 +972,42 @@ fn scene_roofline(
     Ok(report)
 }
 
-/// `row`'s kernel against the roofline: its nodes and triangles per ray from the `stats` variant
-/// of its scene on the same rays, and the roofline at the scene's bytes on its access path
-/// (`None` where the roofline measured that path at no size).
-fn efficiency(
+/// A kernel's traversal counts on `rays` from its `stats` variant; `None` for a traversal
+/// without one (persistent threads).
+fn fetch_counts(
     ctx: &Context,
     scene: &DeviceScene,
     rays: &[Ray],
-    roof: &roofline::RooflineReport,
-    row: &BenchRow,
     batch_rays: usize,
-) -> Result<Option<RooflineEfficiency>> {
-    let Some(steps) = roof.at(RooflineAccess::of_scene(scene.access), scene.bytes as u64) else {
-        return Ok(None);
-    };
+) -> Result<Option<crate::gpu::TraversalSummary>> {
     if scene.kernel_source(Raycast::Stats).is_err() {
-        return Ok(None); // a traversal without a stats kernel (persistent threads): no counts
+        return Ok(None);
     }
     let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
     let counts = scene.cast(ctx, Raycast::Stats, rays, &once)?.traversal.unwrap_or_default();
-    let t = crate::gpu::TraversalSummary::of(&counts);
+    Ok(Some(crate::gpu::TraversalSummary::of(&counts)))
+}
+
+/// `row`'s kernel against the roofline: its nodes and triangles per ray (`t`, [`fetch_counts`])
+/// and the roofline at the scene's bytes on its access path (`None` where the roofline measured
+/// that path at no size).
+fn efficiency(
+    scene: &DeviceScene,
+    roof: &roofline::RooflineReport,
+    row: &BenchRow,
+    t: &crate::gpu::TraversalSummary,
+) -> Option<RooflineEfficiency> {
+    let steps = roof.at(RooflineAccess::of_scene(scene.access), scene.bytes as u64)?;
     let fetches = t.nodes.mean + t.triangles.mean;
     let of = |mrays: f64| fetches * mrays / steps;
-    Ok(Some(RooflineEfficiency {
+    Some(RooflineEfficiency {
         nodes_per_ray: t.nodes.mean,
         triangles_per_ray: t.triangles.mean,
         roofline_msteps_per_s: steps,
         efficiency: of(row.mrays_per_s),
         efficiency_min: of(row.mrays_per_s_min),
         efficiency_max: of(row.mrays_per_s_max),
-    }))
+    })
 }
 
 /// The progress line of the driver's acceleration structure.
