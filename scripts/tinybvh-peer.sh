@@ -33,4 +33,20 @@ fi
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
 bash "$src/build.sh" "$out" >&2
+# tinyocl picks its vendor define from the OpenCL device's name, and PoCL names its CPU device
+# "pthread-<cpu>-<model>": on an AMD EPYC or Ryzen host that reads as an AMD GPU (ISAMD), which
+# turns on USE_VLOAD_VSTORE, whose cast of a __global pointer to a private one PoCL's OpenCL C 3.0
+# refuses ("changes address space of pointer"), so no OpenCL kernel could run there. A kernel
+# compiled for an x86-64 CPU is no GPU vendor's: it gets ISOTHER, the define an Intel host's PoCL
+# device already gets in effect (neither uses vload). An AMD GPU's compile (amdgcn) is unchanged.
+cl="$out/tinybvh_cl/traverse.cl"
+if [ -f "$cl" ] && ! grep -q "trilab: PoCL CPU device" "$cl"; then
+  tmp=$(mktemp "$cl.XXXXXX")
+  {
+    printf '// trilab: PoCL CPU device named after an AMD CPU is not an AMD GPU (scripts/tinybvh-peer.sh)\n'
+    printf '#if defined(ISAMD) && defined(__x86_64__)\n#undef ISAMD\n#define ISOTHER\n#endif\n'
+    cat "$cl"
+  } >"$tmp"
+  mv "$tmp" "$cl"
+fi
 echo "$out/tinybvh_rays"
