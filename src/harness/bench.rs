@@ -12,13 +12,13 @@ use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
-use crate::gpu::roofline::RooflineAccess;
 use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions};
+use crate::harness::efficiency;
+pub use crate::harness::efficiency::RooflineEfficiency;
 use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
 use crate::harness::peers::{self, PeerKind, PeerOutcome, TinybvhLayout};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
-use crate::harness::roofline;
 use crate::harness::shard::{self, Shard, Split};
 use crate::harness::validate::{interleaved, mrays_summary, Job};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
@@ -167,29 +167,6 @@ pub struct BenchRow {
     /// `--roofline`: the kernel's fetches per second against the roofline's at its scene's size.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub roofline: Option<RooflineEfficiency>,
-}
-
-/// A kernel's node and triangle fetches per second against the traversal roofline's node steps
-/// per second at its scene's working set (its encoded bytes: nodes, primitives, slot ids) on
-/// the access path it reads the scene through. A fetch is a node visited (inner or leaf, any
-/// layout's node size) or a triangle tested, from the kernel's `stats` variant on the same rays;
-/// the roofline's step is one dependent 32-byte node load with a slab test. So `efficiency` =
-/// (nodes + triangles per ray) x Mrays/s / roofline Msteps/s: 1 means the kernel fetches as
-/// fast as a pure dependent walk does at that size.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct RooflineEfficiency {
-    /// Nodes visited per ray, mean (inner and leaf).
-    pub nodes_per_ray: f64,
-    /// Triangles tested per ray, mean.
-    pub triangles_per_ray: f64,
-    /// The roofline at the scene's bytes on its access path, Msteps/s (median; interpolated
-    /// between the two power-of-two sizes around it).
-    pub roofline_msteps_per_s: f64,
-    /// Fetches per second over the roofline's steps per second, at the median Mrays/s.
-    pub efficiency: f64,
-    /// The same at the slowest and fastest rounds.
-    pub efficiency_min: f64,
-    pub efficiency_max: f64,
 }
 
 impl BenchRow {
@@ -351,7 +328,7 @@ impl BenchReport {
         header.extend(orders.then_some("reorder ms"));
         header.extend(["Mrays/s", "min..max", "agree %", "Embree"]);
         if roofline {
-            header.extend(["fetches/ray", "roofline Msteps/s", "of roofline %"]);
+            header.extend(efficiency::COLUMNS);
         }
         let mut t = Table::new(header);
         let or_dash = |s: Option<String>| s.unwrap_or_else(|| "-".into());
@@ -379,15 +356,7 @@ impl BenchReport {
                 or_dash(r.embree_mrays_per_s.map(|e| format!("{e:.2}"))),
             ]);
             if roofline {
-                let extra = match &r.roofline {
-                    Some(e) => [
-                        format!("{:.1}", e.nodes_per_ray + e.triangles_per_ray),
-                        format!("{:.1}", e.roofline_msteps_per_s),
-                        format!("{:.1}", 100.0 * e.efficiency),
-                    ],
-                    None => ["-".into(), "-".into(), "-".into()],
-                };
-                cells.extend(extra);
+                cells.extend(RooflineEfficiency::cells(r.roofline.as_ref()));
             }
             t.row(cells);
         }
@@ -519,12 +488,8 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
                 .with("scene_bytes", Figure::count(r.scene_bytes as f64, "bytes")),
         );
         if let Some(e) = &r.roofline {
-            let eff = Summary { median: e.efficiency, min: e.efficiency_min, max: e.efficiency_max, ..r.kernel_ms };
             let row = out.pop().expect("the row just pushed");
-            out.push(
-                row.with("roofline_efficiency", Figure::timing(eff, "fraction", Better::Higher))
-                    .with("fetches_per_ray", Figure::count(e.nodes_per_ray + e.triangles_per_ray, "fetches")),
-            );
+            out.push(e.add_figures(row, r.kernel_ms.runs));
         }
     }
     for p in &report.peers {
@@ -829,7 +794,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
         // The roofline at every scene's bytes on its access path, before any timing.
         let roofline = match &o.roofline {
-            Some(ro) => Some(scene_roofline(ctx, &scenes, ro, &mut progress)?),
+            Some(ro) => Some(efficiency::scene_roofline(ctx, &scenes, ro, &mut progress)?),
             None => None,
         };
         // Every set's reference before any timing: the f64 traversal fills every core (and
@@ -888,9 +853,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                         scenes.iter().position(|s| std::ptr::eq(s, scene)).expect("a job's scene is one of the scenes");
                     let t = match counts[i] {
                         Some(t) => t,
-                        None => *counts[i].insert(fetch_counts(ctx, scene, rays, o.batch_rays)?),
+                        None => *counts[i].insert(efficiency::fetch_counts(ctx, scene, rays, o.batch_rays)?),
                     };
-                    r.roofline = t.and_then(|t| efficiency(scene, roof, &r, &t));
+                    r.roofline = t.and_then(|t| efficiency::efficiency(scene, roof, mr, &t));
                 }
                 report.rows.push(r);
             }
@@ -948,66 +913,6 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         }
     }
     Ok(report)
-}
-
-/// The roofline at the bytes of each of `scenes` on the access path it reads ([`roofline::run`]
-/// over the two powers of two around each size, interleaved).
-fn scene_roofline(
-    ctx: &Context,
-    scenes: &[DeviceScene],
-    o: &roofline::RooflineOptions,
-    progress: &mut impl FnMut(&str),
-) -> Result<roofline::RooflineReport> {
-    let mut sizes: Vec<u64> = scenes.iter().flat_map(|s| roofline::sizes_around(s.bytes as u64)).collect();
-    sizes.sort_unstable();
-    sizes.dedup();
-    let mut access: Vec<RooflineAccess> = scenes.iter().map(|s| RooflineAccess::of_scene(s.access)).collect();
-    access.sort_unstable();
-    access.dedup();
-    let o = roofline::RooflineOptions { sizes, access, ..o.clone() };
-    let report = roofline::run(ctx, &o, &mut *progress)?;
-    for s in &report.skipped {
-        progress(&format!("roofline: {} skipped: {}", roofline::show_size(s.bytes), s.why));
-    }
-    Ok(report)
-}
-
-/// A kernel's traversal counts on `rays` from its `stats` variant; `None` for a traversal
-/// without one (persistent threads).
-fn fetch_counts(
-    ctx: &Context,
-    scene: &DeviceScene,
-    rays: &[Ray],
-    batch_rays: usize,
-) -> Result<Option<crate::gpu::TraversalSummary>> {
-    if scene.kernel_source(Raycast::Stats).is_err() {
-        return Ok(None);
-    }
-    let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
-    let counts = scene.cast(ctx, Raycast::Stats, rays, &once)?.traversal.unwrap_or_default();
-    Ok(Some(crate::gpu::TraversalSummary::of(&counts)))
-}
-
-/// `row`'s kernel against the roofline: its nodes and triangles per ray (`t`, [`fetch_counts`])
-/// and the roofline at the scene's bytes on its access path (`None` where the roofline measured
-/// that path at no size).
-fn efficiency(
-    scene: &DeviceScene,
-    roof: &roofline::RooflineReport,
-    row: &BenchRow,
-    t: &crate::gpu::TraversalSummary,
-) -> Option<RooflineEfficiency> {
-    let steps = roof.at(RooflineAccess::of_scene(scene.access), scene.bytes as u64)?;
-    let fetches = t.nodes.mean + t.triangles.mean;
-    let of = |mrays: f64| fetches * mrays / steps;
-    Some(RooflineEfficiency {
-        nodes_per_ray: t.nodes.mean,
-        triangles_per_ray: t.triangles.mean,
-        roofline_msteps_per_s: steps,
-        efficiency: of(row.mrays_per_s),
-        efficiency_min: of(row.mrays_per_s_min),
-        efficiency_max: of(row.mrays_per_s_max),
-    })
 }
 
 /// The progress line of the driver's acceleration structure.
