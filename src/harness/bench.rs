@@ -16,11 +16,11 @@ use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastO
 use crate::harness::efficiency;
 pub use crate::harness::efficiency::RooflineEfficiency;
 use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
-use crate::harness::peers::{self, PeerKind, PeerOutcome, TinybvhLayout};
+use crate::harness::peers::{self, PeerKind, PeerOutcome, PeerResult, PeerRound, PeerSet, TinybvhLayout};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
 use crate::harness::shard::{self, Shard, Split};
-use crate::harness::validate::{interleaved, mrays_summary, Job};
+use crate::harness::validate::{interleaved_with, mrays_summary, Job, RoundJob};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::order::RayOrder;
 use crate::rays::{self, Ray};
@@ -239,12 +239,13 @@ impl BenchReport {
         let p = &self.provenance;
         let lp = p.lp_num_threads.as_deref().map(|n| format!(", LP_NUM_THREADS={n}")).unwrap_or_default();
         let mut s = format!(
-            "device: {} ({}); host: {}{lp}; leaf size {}; median of {} rounds after 1 warm-up, the kernels interleaved in every round (GPU timestamps)",
+            "device: {} ({}); host: {}{lp}; leaf size {}; median of {} rounds after 1 warm-up, the kernels{} interleaved in every round (GPU timestamps)",
             p.device,
             p.driver,
             p.host.label(),
             self.leaf_size,
-            self.repeat
+            self.repeat,
+            if self.peers.is_empty() { "" } else { " and peer programs" }
         );
         if let Some(note) = self.partial() {
             s += &format!("\n{note}");
@@ -396,7 +397,7 @@ impl BenchReport {
 /// row, cell `scene`, `set`, `rays` and either `method`, `layout`, `leaf` (our kernels) or `peer`
 /// (the driver's ray query, Embree, tinybvh); figures `mrays_per_s` (timing, with min-max over
 /// the rounds), `agreement`, `unexplained`, `invalid` (correctness) and `scene_bytes` (count).
-/// A peer program reports its best run only: its `mrays_per_s` has one run and no spread.
+/// A peer program's `mrays_per_s` is over the same rounds as the kernels' (one trace a round).
 /// One bench cell: what its plan entry and its row are both made from, so the two cannot
 /// spell a coordinate differently. `rays` is measured (a diffuse set's size depends on the
 /// scene's hits): the plan leaves it out, a row carries it.
@@ -497,10 +498,11 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
             let tracer = CellTracer::Peer(peer.peer.to_string());
             let c = BenchCell { scene: p.scene.clone(), set: p.ray_set, rays: Some(p.rays), tracer }.coordinates();
             let row = match &peer.outcome {
-                PeerOutcome::Timed { mrays_per_s, agreement, .. } => {
-                    let best = Summary { median: *mrays_per_s, min: *mrays_per_s, max: *mrays_per_s, runs: 1 };
+                PeerOutcome::Timed { mrays_per_s, mrays_per_s_min, mrays_per_s_max, trace_ms, agreement, .. } => {
+                    let (median, min, max) = (*mrays_per_s, *mrays_per_s_min, *mrays_per_s_max);
+                    let speed = Summary { median, min, max, runs: trace_ms.runs };
                     Row::new("bench", c, &source)
-                        .with("mrays_per_s", Figure::timing(best, "Mrays/s", Better::Higher))
+                        .with("mrays_per_s", Figure::timing(speed, "Mrays/s", Better::Higher))
                         .with("agreement", Figure::correctness(*agreement, "fraction", Better::Higher))
                 }
                 PeerOutcome::WrongHits { agreement: Some(a), .. } => {
@@ -825,8 +827,24 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 .flat_map(|(scene, kernel)| o.orders().into_iter().map(move |order| (scene, kernel, order)))
                 .map(|(scene, kernel, order)| Job { scene, kernel, rays, ref_hits, order })
                 .collect();
-            let measured = interleaved(ctx, &mesh, &jobs, o.warmup, o.repeat, o.batch_rays)
-                .map_err(|(i, e)| Error::Usage(format!("{name} {set} {}: {e}", label(jobs[i].scene, jobs[i].order))))?;
+            // The peer programs run in the same rounds, each once a round beside every kernel.
+            let rays_file = tmp.path().join(format!("scene{scene_index}.{set}.rays"));
+            if !programs.is_empty() {
+                rays::write_rays(&rays_file, rays)?;
+            }
+            let peer_set = PeerSet { scene_obj: &scene_obj, rays_file: &rays_file, mesh: &mesh, rays, ref_hits };
+            let mut peer_rounds: Vec<PeerRound> = (programs.iter().enumerate())
+                .map(|(k, p)| PeerRound::new(p, &peer_set, tmp.path().join(format!("peer{k}.hits"))))
+                .collect();
+            let mut others: Vec<&mut dyn RoundJob> = peer_rounds.iter_mut().map(|p| p as &mut dyn RoundJob).collect();
+            let measured = interleaved_with(ctx, &mesh, &jobs, &mut others, o.warmup, o.repeat, o.batch_rays).map_err(
+                |(i, e)| match jobs.get(i) {
+                    Some(j) => Error::Usage(format!("{name} {set} {}: {e}", label(j.scene, j.order))),
+                    None => Error::Usage(format!("{name} {set}: {e}")),
+                },
+            )?;
+            drop(others);
+            let results: Vec<PeerResult> = peer_rounds.into_iter().map(PeerRound::finish).collect();
             // Each kernel's traversal counts on this set, cast once however many orders it ran in.
             let mut counts: Vec<Option<Option<crate::gpu::TraversalSummary>>> = vec![None; scenes.len()];
             for (job, m) in jobs.iter().zip(measured) {
@@ -888,15 +906,8 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 report.rows.push(row(&name, &mesh, set, rays, Tracer::Peer(peer), None, (bytes, None), ms, &agreement));
             }
             if !programs.is_empty() {
-                let rays_file = tmp.path().join(format!("scene{scene_index}.{set}.rays"));
-                rays::write_rays(&rays_file, rays)?;
-                let hits_file = tmp.path().join("peer.hits");
-                let mut results = vec![];
-                for p in &programs {
-                    let r =
-                        peers::run_peer(p, &scene_obj, &rays_file, &hits_file, &mesh, rays, ref_hits, o.repeat.max(3))?;
+                for r in &results {
                     progress(&format!("{name} {set} {}", r.progress(best)));
-                    results.push(r);
                 }
                 if let Some(e) = results.iter().find(|r| r.peer == PeerKind::Embree).and_then(|r| r.mrays_per_s()) {
                     for r in report.rows.iter_mut().filter(|r| r.scene == name && r.ray_set == set) {
@@ -1035,7 +1046,9 @@ mod tests {
             peer: PeerKind::Embree,
             outcome: PeerOutcome::Timed {
                 mrays_per_s: 21.5,
-                median_mrays_per_s: None,
+                mrays_per_s_min: 20.0,
+                mrays_per_s_max: 22.0,
+                trace_ms: Summary { median: 48_000.0 / 21.5e3, min: 48_000.0 / 22e3, max: 48_000.0 / 20e3, runs: 5 },
                 build_ms: None,
                 threads: Some(2),
                 agreement: 0.99995,
@@ -1144,7 +1157,8 @@ mod tests {
         let peer = &json["peers"][0]["peers"][0];
         let e = rows.iter().find(|r| r.cell.get("peer").map(String::as_str) == peer["peer"].as_str()).unwrap();
         assert_eq!(e.figures["mrays_per_s"].median, peer["mrays_per_s"].as_f64().unwrap());
-        assert_eq!(e.figures["mrays_per_s"].runs, 1, "a peer's best run has no spread");
+        let f = &e.figures["mrays_per_s"];
+        assert_eq!((f.min, f.max, f.runs), (20.0, 22.0, 5), "a peer's rounds, as trilab's rows have them");
         assert_eq!(e.figures["agreement"].median, peer["agreement"].as_f64().unwrap());
         // The rows survive their file format, and the cells are unique.
         let text = crate::rows::to_jsonl(None, &rows);
