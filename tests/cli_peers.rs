@@ -1,10 +1,13 @@
-//! `trilab bench --embree/--tinybvh` with fake peer programs (shell scripts written here): a
-//! peer's line is read and set beside trilab's best row with the ratios and the speed target; a
-//! peer whose hits disagree with the f64 reference is reported as failing, never timed; an
-//! OpenCL layout without OpenCL is skipped with a note; a missing program, a garbage line or a
-//! crash is an error naming the program and layout before the long work. The correct fakes get
-//! their hits from `trilab raycast` itself, so they are right by construction, not by copying a
-//! value from the code under test. Every run has a wall-clock limit and validation on.
+//! `trilab bench --embree/--tinybvh` with fake peer programs (shell scripts written here): each
+//! peer is started once in every one of bench's rounds, rotating with trilab's kernels (the
+//! fakes log every start, so the order is checked), and its rounds' median, min and max are set
+//! beside trilab's best row with the ratios and the speed target; a peer whose hits disagree
+//! with the f64 reference is reported as failing, never timed; an OpenCL layout without OpenCL
+//! is skipped with a note; a missing program, a garbage line or a crash is an error naming the
+//! program and layout, before the long work when the probe finds it, and in the rounds when it
+//! starts there. The correct fakes get their hits from `trilab raycast` itself, so they are
+//! right by construction, not by copying a value from the code under test. Every run has a
+//! wall-clock limit and validation on.
 
 mod common;
 
@@ -28,8 +31,6 @@ const SMALL: &[&str] = &[
     "1",
     "--random-rays",
     "500",
-    "--repeat",
-    "1",
 ];
 
 /// Writes an executable shell script `name` into `dir`.
@@ -52,37 +53,69 @@ fn raycast_line(scene: &str, rays: &str, hits: &str) -> String {
     )
 }
 
-/// A fake `embree_rays trace OBJ RAYS HITS REPEAT`: right hits, Embree's line at 3.25 Mrays/s.
+/// The shell lines that append `NAME RAYS-FILE REPEAT RATE` to `peers.log` beside the script
+/// (RATE: `$rate`, which they set first, from the count of lines already there: `BASE + k % 3`
+/// plus `.FRAC`, so a peer's rounds differ).
+fn log_line(name: &str, rays: &str, repeat: &str, base: u32, frac: &str) -> String {
+    format!(
+        "log=\"$(dirname \"$0\")/peers.log\"\nk=$(cat \"$log\" 2>/dev/null | wc -l)\n\
+         rate=\"$(( {base} + k % 3 )).{frac}\"\necho \"{name} $(basename \"{rays}\") {repeat} $rate\" >> \"$log\"\n"
+    )
+}
+
+/// A fake `embree_rays trace OBJ RAYS HITS REPEAT`: right hits, Embree's line at 3.25, 4.25 or
+/// 5.25 Mrays/s (logged).
 fn fake_embree(dir: &Path) -> PathBuf {
     let body = format!(
-        "n=$(( $(wc -c < \"$3\") / 32 ))\n{}\
-         echo \"embree3 default threads=2 tris=1 rays=$n hits=0 build_ms=1.0 best_s=0.001 mrays_per_s=3.25\"\n",
-        raycast_line("$2", "$3", "$4")
+        "n=$(( $(wc -c < \"$3\") / 32 ))\n{}{}\
+         echo \"embree3 default threads=2 tris=1 rays=$n hits=0 build_ms=1.0 best_s=0.001 mrays_per_s=$rate\"\n",
+        raycast_line("$2", "$3", "$4"),
+        log_line("embree3", "$3", "$5", 3, "25")
     );
     script(dir, "embree_rays", &body)
 }
 
-/// A fake `tinybvh_rays trace LAYOUT OBJ RAYS HITS REPEATS`: `cpu-bvh8` right at 2.50 Mrays/s,
-/// `ocl-bvh2` wrong (every ray "hits" triangle 0 at t = 0), `ocl-cwbvh` without OpenCL.
+/// A fake `tinybvh_rays trace LAYOUT OBJ RAYS HITS REPEATS`: `cpu-bvh8` right at 2.50, 3.50 or
+/// 4.50 Mrays/s, `ocl-bvh2` wrong (every ray "hits" triangle 0 at t = 0), `ocl-cwbvh` without
+/// OpenCL; every start logged.
 fn fake_tinybvh(dir: &Path) -> PathBuf {
     let body = format!(
-        "n=$(( $(wc -c < \"$4\") / 32 ))\n\
+        "n=$(( $(wc -c < \"$4\") / 32 ))\n{}\
          case \"$2\" in\n\
          ocl-cwbvh) echo 'no OpenCL device' >&2; exit 3 ;;\n\
          ocl-bvh2) head -c $(( n * 16 )) /dev/zero > \"$5\" ;;\n\
          *) {} ;;\n\
          esac\n\
-         echo \"layout=$2 scene=x rays=$n build_ms=1.0 trace_ms=0.4 mrays_per_s=2.50 threads=2 hits=0 median_ms=0.5 repeats=1 builder=BuildHQ\"\n",
+         echo \"layout=$2 scene=x rays=$n build_ms=1.0 trace_ms=0.4 mrays_per_s=$rate threads=2 hits=0 median_ms=0.5 repeats=1 builder=BuildHQ\"\n",
+        log_line("$2", "$4", "$6", 2, "50"),
         raycast_line("$3", "$4", "$5").trim_end()
     );
     script(dir, "tinybvh_rays", &body)
 }
 
+/// `peers.log` beside the fakes: (peer, ray file, REPEAT argument, rate) per start, in order.
+fn peer_log(dir: &Path) -> Vec<(String, String, String, f64)> {
+    let text = std::fs::read_to_string(dir.join("peers.log")).unwrap();
+    text.lines()
+        .map(|l| {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            (w[0].to_owned(), w[1].to_owned(), w[2].to_owned(), w[3].parse().unwrap())
+        })
+        .collect()
+}
+
+/// The small bench with `extra` (one timed round unless `extra` gives `--repeat`).
 fn bench(extra: &[&str], timeout_s: u64) -> std::process::Output {
     let mut args = SMALL.to_vec();
+    if !extra.contains(&"--repeat") {
+        args.extend(["--repeat", "1"]);
+    }
     args.extend(extra);
     common::cli::trilab(&args, timeout_s)
 }
+
+/// Timed rounds of the main test.
+const REPEAT: usize = 3;
 
 #[test]
 fn peers_are_validated_then_timed_beside_trilabs_best() {
@@ -90,9 +123,22 @@ fn peers_are_validated_then_timed_beside_trilabs_best() {
     let (embree, tinybvh) = (s(&fake_embree(dir.path())), s(&fake_tinybvh(dir.path())));
     let out = s(dir.path());
     let layouts = "cpu-bvh8,ocl-bvh2,ocl-cwbvh";
+    let repeat = REPEAT.to_string();
     let o = bench(
-        &["--embree", &embree, "--tinybvh", &tinybvh, "--tinybvh-layouts", layouts, "--json", "--out", &out],
-        300,
+        &[
+            "--embree",
+            &embree,
+            "--tinybvh",
+            &tinybvh,
+            "--tinybvh-layouts",
+            layouts,
+            "--repeat",
+            &repeat,
+            "--json",
+            "--out",
+            &out,
+        ],
+        600,
     );
     let err = ok(&o);
     let j: Value = serde_json::from_slice(&o.stdout).expect("bench --json prints JSON");
@@ -101,11 +147,33 @@ fn peers_are_validated_then_timed_beside_trilabs_best() {
         notes.iter().any(|n| n.contains("tinybvh ocl-cwbvh: skipped") && n.contains("no OpenCL device")),
         "the OpenCL layout without OpenCL is skipped with its reason: {notes:?}"
     );
+    // Every start of a peer, in order: the probe's, then per set one in each round.
+    let log = peer_log(dir.path());
+    assert!(log.iter().all(|l| l.2 == "1"), "each start traces the set once: {log:?}");
+    let probes: Vec<&str> = log.iter().filter(|l| l.1 == "probe.rays").map(|l| l.0.as_str()).collect();
+    assert_eq!(probes, ["embree3", "cpu-bvh8", "ocl-bvh2", "ocl-cwbvh"]);
     let rows = j["rows"].as_array().unwrap();
     let comparisons = j["peers"].as_array().unwrap();
     assert_eq!(comparisons.len(), 3, "one comparison per ray set");
     for c in comparisons {
         let set = c["ray_set"].as_str().unwrap();
+        let starts: Vec<&(String, String, String, f64)> =
+            log.iter().filter(|l| l.1 == format!("scene0.{set}.rays")).collect();
+        // The rounds: trilab's one kernel (mt bvh2) and the three peers, the opener rotating;
+        // ocl-bvh2's wrong hits (found in the warm-up round) stop it. So the peers' starts
+        // follow from where the kernel stands in each round.
+        let units = ["kernel", "embree3", "cpu-bvh8", "ocl-bvh2"];
+        let mut want = vec![];
+        for round in 0..1 + REPEAT {
+            for k in 0..units.len() {
+                let u = units[(k + round) % units.len()];
+                if u != "kernel" && (u != "ocl-bvh2" || round == 0) {
+                    want.push(u);
+                }
+            }
+        }
+        let got: Vec<&str> = starts.iter().map(|l| l.0.as_str()).collect();
+        assert_eq!(got, want, "{set}: the peers' starts, interleaved with the kernel's rounds");
         // trilab's best is the fastest of its own rows on this set, named.
         let mine: Vec<&Value> = rows.iter().filter(|r| r["ray_set"] == set && r["method"] == "mt").collect();
         let best = mine.iter().map(|r| r["mrays_per_s"].as_f64().unwrap()).fold(0.0, f64::max);
@@ -116,43 +184,95 @@ fn peers_are_validated_then_timed_beside_trilabs_best() {
         let peers = c["peers"].as_array().unwrap();
         let names: Vec<&str> = peers.iter().map(|p| p["peer"].as_str().unwrap()).collect();
         assert_eq!(names, ["embree3", "tinybvh cpu-bvh8", "tinybvh ocl-bvh2"], "{set}");
-        // The right peers are timed at the rate their line gives, after passing the f64 check.
-        assert_eq!(peers[0]["status"], "timed");
-        assert_eq!(peers[0]["mrays_per_s"], 3.25);
-        assert_eq!(peers[0]["agreement"], 1.0, "{set}: raycast's hits agree with the reference");
-        assert_eq!(peers[1]["status"], "timed");
-        assert_eq!(peers[1]["mrays_per_s"], 2.5);
-        let n = c["rays"].as_f64().unwrap();
-        let median = peers[1]["median_mrays_per_s"].as_f64().unwrap();
-        assert!((median - n / 0.5e3).abs() < 1e-9, "median from median_ms=0.5: {median}");
+        // The right peers are timed over the timed rounds (the warm-up's start not counted):
+        // the median, slowest and fastest of the rates their lines gave, after the f64 check.
+        let rounds = |peer: &str| {
+            let mut r: Vec<f64> = starts.iter().filter(|l| l.0 == peer).skip(1).map(|l| l.3).collect();
+            r.sort_by(f64::total_cmp);
+            assert_eq!(r.len(), REPEAT, "{set} {peer}: one start per timed round");
+            (r[REPEAT / 2], r[0], r[REPEAT - 1])
+        };
+        let close = |a: &Value, b: f64| (a.as_f64().unwrap() - b).abs() < 1e-9 * b;
+        for (p, name) in [(&peers[0], "embree3"), (&peers[1], "cpu-bvh8")] {
+            let (median, min, max) = rounds(name);
+            assert_eq!(p["status"], "timed", "{set} {name}");
+            assert!(close(&p["mrays_per_s"], median), "{set} {name}: {p} against {median}");
+            assert!(close(&p["mrays_per_s_min"], min) && close(&p["mrays_per_s_max"], max), "{set} {name}: {p}");
+            assert_eq!(p["trace_ms"]["runs"], REPEAT, "{set} {name}");
+            assert_eq!(p["agreement"], 1.0, "{set}: raycast's hits agree with the reference");
+        }
         // The wrong peer is reported as failing validation, with no speed.
         assert_eq!(peers[2]["status"], "wrong-hits", "{set}: a peer with wrong hits is not timed: {}", peers[2]);
         assert!(peers[2].get("mrays_per_s").is_none());
         assert!(peers[2]["reason"].as_str().unwrap().contains("disagree with the f64 reference"));
         assert!(peers[2]["agreement"].as_f64().unwrap() < 0.5);
-        // Ratios and the target, from the figures above.
-        let t = &c["target"];
-        let e = t["vs_embree"]["ratio"].as_f64().unwrap();
-        assert!((e - best / 3.25).abs() < 1e-9 && t["vs_embree"]["met"] == (best / 3.25 >= 0.6), "{t}");
-        assert!((t["vs_cpu_bvh8"]["ratio"].as_f64().unwrap() - best / 2.5).abs() < 1e-9, "{t}");
-        assert!(t["vs_best_opencl"].is_null(), "no OpenCL layout passed: no OpenCL target cell: {t}");
+        // Ratios and the target, from the medians.
+        let (e, t) = (peers[0]["mrays_per_s"].as_f64().unwrap(), peers[1]["mrays_per_s"].as_f64().unwrap());
+        let target = &c["target"];
+        let r = target["vs_embree"]["ratio"].as_f64().unwrap();
+        assert!((r - best / e).abs() < 1e-9 && target["vs_embree"]["met"] == (best / e >= 0.6), "{target}");
+        assert!((target["vs_cpu_bvh8"]["ratio"].as_f64().unwrap() - best / t).abs() < 1e-9, "{target}");
+        assert!(target["vs_best_opencl"].is_null(), "no OpenCL layout passed: no OpenCL target cell: {target}");
         for r in mine {
-            assert_eq!(r["embree_mrays_per_s"], 3.25);
+            assert_eq!(r["embree_mrays_per_s"].as_f64(), Some(e));
         }
     }
     assert!(err.contains("tinybvh ocl-bvh2: failed validation"), "{err}");
-    // The Markdown file carries the same tables and says why a peer failed.
+    // rows.jsonl: a peer's rate over the same rounds as the kernels'.
+    let rows = trilab::rows::read(&Path::new(&out).join(trilab::rows::FILE)).unwrap();
+    let peer_rows: Vec<_> = rows.rows.iter().filter(|r| r.figures.contains_key("mrays_per_s")).collect();
+    assert!(peer_rows.iter().all(|r| r.figures["mrays_per_s"].runs == REPEAT), "{peer_rows:?}");
+    // The Markdown file carries the same tables, says which figures they compare and why a
+    // peer failed.
     let md = std::fs::read_to_string(Path::new(&out).join("bench.md")).unwrap();
-    for needle in
-        ["| trilab mt bvh2 |", "| embree3 | 3.25 |", "wrong hits", "Speed target", "failed validation, not timed"]
-    {
+    let e = comparisons[0]["peers"][0]["mrays_per_s"].as_f64().unwrap();
+    for needle in [
+        "| trilab mt bvh2 |",
+        &format!("| embree3 | {e:.2} |"),
+        "wrong hits",
+        "Speed target",
+        "failed validation, not timed",
+        "compare the medians",
+        "kernels and peer programs interleaved in every round",
+    ] {
         assert!(md.contains(needle), "bench.md lacks `{needle}`:\n{md}");
     }
     let line = md.lines().find(|l| l.contains("| random |") && l.contains("tinybvh cpu-bvh8")).unwrap();
-    assert!(
-        line.contains(&format!("{:.2}", comparisons[2]["trilab"]["mrays_per_s"].as_f64().unwrap() / 2.5)),
-        "{line}"
-    );
+    let t = comparisons[2]["peers"][1]["mrays_per_s"].as_f64().unwrap();
+    assert!(line.contains(&format!("{:.2}", comparisons[2]["trilab"]["mrays_per_s"].as_f64().unwrap() / t)), "{line}");
+}
+
+/// A peer that passes the probe and then fails in the rounds (a garbage line, a crash) is an
+/// error naming the program, the scene and the set; so is one that traces another number of rays.
+#[test]
+fn a_peer_that_fails_in_the_rounds_is_an_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    // Right on its first two starts (the probe and the primary set's warm-up round), then not.
+    let body = |bad: &str| {
+        format!(
+            "n=$(( $(wc -c < \"$3\") / 32 ))\n{}{}\
+             if [ \"$k\" -ge 2 ]; then {bad}; fi\n\
+             echo \"embree3 default threads=2 rays=$n mrays_per_s=$rate\"\n",
+            raycast_line("$2", "$3", "$4"),
+            log_line("embree3", "$3", "$5", 3, "25")
+        )
+    };
+    let cases = [
+        ("garbage", "echo hello; exit 0", vec!["no result line", "`hello`"]),
+        ("crash", "echo 'Segmentation fault' >&2; exit 139", vec!["failed", "Segmentation fault"]),
+        ("short", "echo \"embree3 rays=3 mrays_per_s=1.0\"; exit 0", vec!["traced 3 rays"]),
+    ];
+    for (name, bad, needles) in cases {
+        let sub = dir.path().join(name);
+        std::fs::create_dir(&sub).unwrap();
+        let p = s(&script(&sub, "embree_rays", &body(bad)));
+        let e = expect_error(&bench(&["--embree", &p, "--repeat", "2"], 300), &["Embree peer", &p]);
+        for needle in needles.iter().chain(&["bunny primary"]) {
+            assert!(e.contains(needle), "{name}: the error lacks `{needle}`: {e}");
+        }
+        assert!(e.contains("ray sets ready"), "{name}: found in the rounds, after the probe: {e}");
+        assert_eq!(peer_log(&sub).len(), 3, "{name}: no start after the failing one");
+    }
 }
 
 #[test]

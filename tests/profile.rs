@@ -228,3 +228,110 @@ fn profile_reports_unsupported_exactly_where_features_are_absent() {
     let md = profile::markdown::render(&r, "trilab profile (test)");
     assert!(md.contains("## 7. LP_NUM_THREADS scaling"));
 }
+
+/// `profile --roofline` (issue 27 item 1): every timing row carries its kernel's fetches per ray
+/// (exactly what the kernel's stats variant counts on the same rays, and within the traversal
+/// mirror's tolerance of the CPU's counts, as tests/traversal_stats.rs holds them), the roofline
+/// at the scene's bytes (> 0) and the efficiency those give at the row's Mrays/s (> 0; not held
+/// below 1: a kernel's triangle loads are not all dependent, and this test's short probe is
+/// dispatch-bound). Without the flag the JSON, the rows and the table are what they were.
+#[test]
+fn profile_with_roofline_gives_each_kernel_its_fetches_and_share_of_the_roofline() {
+    use trilab::gpu::TraversalSummary;
+    use trilab::harness::rayset::ray_sets;
+    use trilab::harness::roofline::RooflineOptions;
+    /// Largest relative difference of the mean counters from the CPU mirror's.
+    const MEAN_TOLERANCE: f64 = 0.005;
+    let methods = [Method::Mt, Method::QuadUnit];
+    let sizes = RaySetSizes { width: 24, height: 16, diffuse_per_hit: 1, random_rays: 600, ..Default::default() };
+    let (with, without, counted) = common::with_gpu(600, move |ctx| {
+        let base = ProfileOptions {
+            scene: common::root().join("scenes/bunny.obj"),
+            methods: methods.to_vec(),
+            sizes,
+            warmup: 1,
+            repeat: 2,
+            workgroup_sizes: vec![],
+            ..Default::default()
+        };
+        let ro = RooflineOptions { invocations: 8192, steps: 16, rounds: 2, ..Default::default() };
+        let with = profile::run(ctx, &ProfileOptions { roofline: Some(ro), ..base.clone() }, None, |_| {}).unwrap();
+        let without = profile::run(ctx, &base, None, |_| {}).unwrap();
+        // The profile's rays (its ray sets are a function of the scene and sizes) on its tree.
+        let mesh = common::bunny();
+        let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
+        let sets = ray_sets(&mesh, "bunny", &host.reference(), &sizes, None).unwrap();
+        let mut counted = vec![];
+        for m in methods {
+            let scene = host.upload(ctx, &SceneRequest::new(m)).unwrap();
+            for (set, rays) in &sets {
+                let opts = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
+                let gpu =
+                    TraversalSummary::of(&scene.cast(ctx, Raycast::Stats, rays, &opts).unwrap().traversal.unwrap());
+                let cpu = trilab::traversal::ray_steps_with(&mesh, &host.bvh, rays, m.conservative_traversal());
+                let n = cpu.len() as f64;
+                let nodes = cpu.iter().map(|s| s.iterations() as f64).sum::<f64>() / n;
+                let triangles = cpu.iter().map(|s| s.triangles as f64).sum::<f64>() / n;
+                counted.push((m, *set, gpu, nodes, triangles));
+            }
+        }
+        (with, without, counted)
+    });
+    assert_eq!(with.timestamps.rows.len(), methods.len() * 3);
+    for row in &with.timestamps.rows {
+        let d = &row.data;
+        let what = format!("{} {}", row.method, d.ray_set);
+        let e = d.roofline.unwrap_or_else(|| panic!("{what}: no roofline efficiency"));
+        let (_, _, gpu, cpu_nodes, cpu_triangles) =
+            counted.iter().find(|c| c.0 == row.method && c.1 == d.ray_set).expect("counted on every set");
+        assert_eq!((e.nodes_per_ray, e.triangles_per_ray), (gpu.nodes.mean, gpu.triangles.mean), "{what}");
+        let rel = |a: f64, b: f64| (a - b).abs() / b.max(1e-12);
+        assert!(rel(e.nodes_per_ray, *cpu_nodes) <= MEAN_TOLERANCE, "{what}: {e:?} against CPU {cpu_nodes}");
+        assert!(rel(e.triangles_per_ray, *cpu_triangles) <= MEAN_TOLERANCE, "{what}: {e:?} against {cpu_triangles}");
+        assert!(e.nodes_per_ray >= 1.0, "{what}: every ray visits the root");
+        assert!(e.roofline_msteps_per_s > 0.0 && e.roofline_msteps_per_s.is_finite(), "{what}: {e:?}");
+        let want = e.fetches_per_ray() * d.mrays_per_s / e.roofline_msteps_per_s;
+        assert!(rel(e.efficiency, want) < 1e-9, "{what}: {e:?}, want {want}");
+        assert!(0.0 < e.efficiency_min && e.efficiency_min <= e.efficiency, "{what}: {e:?}");
+        assert!(e.efficiency <= e.efficiency_max && e.efficiency_max.is_finite(), "{what}: {e:?}");
+    }
+    // The rows: the same cells, and the two figures only with the flag.
+    let (rows_with, rows_without) = (profile::rows(&with), profile::rows(&without));
+    let cells = |rows: &[trilab::rows::Row]| rows.iter().map(|r| r.key()).collect::<Vec<_>>();
+    assert_eq!(cells(&rows_with), cells(&rows_without));
+    let timing_rows = |rows: &[trilab::rows::Row]| {
+        rows.iter()
+            .filter(|r| r.command == "profile" && r.figures.contains_key("mrays_per_s") && r.cell.len() == 6)
+            .count()
+    };
+    assert_eq!(timing_rows(&rows_with), methods.len() * 3);
+    for r in rows_with.iter().filter(|r| r.figures.contains_key("roofline_efficiency")) {
+        let t = with
+            .timestamps
+            .rows
+            .iter()
+            .find(|t| r.cell["method"] == t.method.to_string() && r.cell["set"] == t.data.ray_set.to_string())
+            .unwrap();
+        let e = t.data.roofline.unwrap();
+        let f = &r.figures["roofline_efficiency"];
+        assert_eq!((f.median, f.min, f.max), (e.efficiency, e.efficiency_min, e.efficiency_max), "{}", r.key());
+        assert_eq!(r.figures["fetches_per_ray"].median, e.fetches_per_ray(), "{}", r.key());
+    }
+    assert_eq!(rows_with.iter().filter(|r| r.figures.contains_key("roofline_efficiency")).count(), methods.len() * 3);
+    assert!(rows_without
+        .iter()
+        .all(|r| !r.figures.contains_key("roofline_efficiency") && !r.figures.contains_key("fetches_per_ray")));
+    // The JSON and the table.
+    let json = serde_json::to_value(&without).unwrap();
+    assert!(json["timestamps"]["rows"].as_array().unwrap().iter().all(|r| r.get("roofline").is_none()));
+    let json = serde_json::to_value(&with).unwrap();
+    assert!(json["timestamps"]["rows"].as_array().unwrap().iter().all(|r| r["roofline"]["efficiency"].is_f64()));
+    let md = |r: &profile::ProfileReport| profile::markdown::render(r, "trilab profile (test)");
+    let (md_with, md_without) = (md(&with), md(&without));
+    assert!(md_with.contains("| fetches/ray | roofline Msteps/s | of roofline % |"), "{md_with}");
+    assert!(!md_without.contains("roofline"), "{md_without}");
+    assert!(
+        md_without.contains("| method | set | rays | dispatches | kernel ms | min..max | Mrays/s | agree % |\n"),
+        "{md_without}"
+    );
+}

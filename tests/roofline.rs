@@ -222,6 +222,38 @@ fn bench_with_roofline_adds_each_kernels_share_of_it() {
     assert!(rows.rows.iter().all(|r| !r.figures.contains_key("roofline_efficiency")));
 }
 
+/// `profile --roofline`: its timing table, profile.json and rows.jsonl carry each kernel's fetches
+/// per ray and share of the roofline, as bench's do (tests/profile.rs holds the counts to the
+/// stats variant's and the CPU's).
+#[test]
+fn profile_with_roofline_adds_each_kernels_share_of_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("profile");
+    let small = "profile --scene bunny --methods mt --width 16 --height 16 --diffuse-per-hit 1 --random-rays 500 \
+                 --repeat 1 --workgroup-sizes 64 --no-threads --no-driver-stats --roofline --out";
+    let mut args: Vec<&str> = small.split_whitespace().collect();
+    args.push(out.to_str().unwrap());
+    let o = trilab(&args, 600);
+    assert!(o.status.success(), "{}", text(&o));
+    let md = std::fs::read_to_string(out.join("profile.md")).unwrap();
+    assert!(md.contains("| fetches/ray | roofline Msteps/s | of roofline % |"), "{md}");
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("profile.json")).unwrap()).unwrap();
+    let timings = json["timestamps"]["rows"].as_array().unwrap();
+    assert_eq!(timings.len(), 3, "mt on three ray sets");
+    let rows = trilab::rows::read(&out.join(trilab::rows::FILE)).unwrap();
+    for t in timings {
+        let e = &t["roofline"];
+        assert!(e["efficiency"].as_f64().unwrap() > 0.0 && e["roofline_msteps_per_s"].as_f64().unwrap() > 0.0, "{t}");
+        let row = rows
+            .rows
+            .iter()
+            .find(|r| r.cell.get("set").map(String::as_str) == t["ray_set"].as_str() && r.cell.len() == 6)
+            .unwrap_or_else(|| panic!("no row for {t}"));
+        assert_eq!(row.figures["roofline_efficiency"].median, e["efficiency"].as_f64().unwrap(), "{}", row.key());
+        assert!(row.figures["fetches_per_ray"].median >= 1.0, "{}", row.key());
+    }
+}
+
 /// Sizes a path cannot hold are skipped naming the limit, and the other paths still run
 /// (`TRILAB_TEST_LIMITS` lowers the device's limits as the scene planner's tests do).
 #[test]

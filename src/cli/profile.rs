@@ -8,6 +8,7 @@ use trilab::error::{Error, Result};
 use trilab::harness::profile::driver_stats::CollectOptions;
 use trilab::harness::profile::{self, ProfileOptions};
 use trilab::harness::rayset::RaySet;
+use trilab::harness::roofline::RooflineOptions;
 
 use super::choice::choice;
 use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, LeafSizeArg, MethodsArg, RaySetArgs};
@@ -59,6 +60,11 @@ pub struct ProfileArgs {
     /// GALLIVM_DEBUG=asm; `trilab driver-stats` gives them alone).
     #[arg(long)]
     no_driver_stats: bool,
+    /// Also measure the traversal roofline at the scene's working set on the access path its
+    /// kernels read, and add to each kernel's timing its fetches per ray (its stats variant on
+    /// the same rays) and its share of the roofline, as `bench --roofline` does.
+    #[arg(long)]
+    roofline: bool,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -93,6 +99,7 @@ pub fn run(a: ProfileArgs) -> Result<()> {
         exe,
         driver_stats,
         command: format!("trilab {}", std::env::args().skip(1).collect::<Vec<_>>().join(" ")),
+        roofline: a.roofline.then(|| RooflineOptions { rounds: a.repeat, ..Default::default() }),
         ..Default::default()
     };
     let out = results_dir(&ctx, a.out.clone(), "profile");

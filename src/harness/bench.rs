@@ -12,15 +12,15 @@ use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
-use crate::gpu::roofline::RooflineAccess;
 use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions};
+use crate::harness::efficiency;
+pub use crate::harness::efficiency::RooflineEfficiency;
 use crate::harness::peer_report::{self, PeerComparison, TrilabBest};
-use crate::harness::peers::{self, PeerKind, PeerOutcome, TinybvhLayout};
+use crate::harness::peers::{self, PeerKind, PeerOutcome, PeerResult, PeerRound, PeerSet, TinybvhLayout};
 use crate::harness::provenance::Provenance;
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
-use crate::harness::roofline;
 use crate::harness::shard::{self, Shard, Split};
-use crate::harness::validate::{interleaved, mrays_summary, Job};
+use crate::harness::validate::{interleaved_with, mrays_summary, Job, RoundJob};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::order::RayOrder;
 use crate::rays::{self, Ray};
@@ -169,29 +169,6 @@ pub struct BenchRow {
     pub roofline: Option<RooflineEfficiency>,
 }
 
-/// A kernel's node and triangle fetches per second against the traversal roofline's node steps
-/// per second at its scene's working set (its encoded bytes: nodes, primitives, slot ids) on
-/// the access path it reads the scene through. A fetch is a node visited (inner or leaf, any
-/// layout's node size) or a triangle tested, from the kernel's `stats` variant on the same rays;
-/// the roofline's step is one dependent 32-byte node load with a slab test. So `efficiency` =
-/// (nodes + triangles per ray) x Mrays/s / roofline Msteps/s: 1 means the kernel fetches as
-/// fast as a pure dependent walk does at that size.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct RooflineEfficiency {
-    /// Nodes visited per ray, mean (inner and leaf).
-    pub nodes_per_ray: f64,
-    /// Triangles tested per ray, mean.
-    pub triangles_per_ray: f64,
-    /// The roofline at the scene's bytes on its access path, Msteps/s (median; interpolated
-    /// between the two power-of-two sizes around it).
-    pub roofline_msteps_per_s: f64,
-    /// Fetches per second over the roofline's steps per second, at the median Mrays/s.
-    pub efficiency: f64,
-    /// The same at the slowest and fastest rounds.
-    pub efficiency_min: f64,
-    pub efficiency_max: f64,
-}
-
 impl BenchRow {
     /// How the peer comparison names our row: the method, with its traversal and ray order
     /// where they are not the defaults (the layout has its own column).
@@ -262,12 +239,13 @@ impl BenchReport {
         let p = &self.provenance;
         let lp = p.lp_num_threads.as_deref().map(|n| format!(", LP_NUM_THREADS={n}")).unwrap_or_default();
         let mut s = format!(
-            "device: {} ({}); host: {}{lp}; leaf size {}; median of {} rounds after 1 warm-up, the kernels interleaved in every round (GPU timestamps)",
+            "device: {} ({}); host: {}{lp}; leaf size {}; median of {} rounds after 1 warm-up, the kernels{} interleaved in every round (GPU timestamps)",
             p.device,
             p.driver,
             p.host.label(),
             self.leaf_size,
-            self.repeat
+            self.repeat,
+            if self.peers.is_empty() { "" } else { " and peer programs" }
         );
         if let Some(note) = self.partial() {
             s += &format!("\n{note}");
@@ -351,7 +329,7 @@ impl BenchReport {
         header.extend(orders.then_some("reorder ms"));
         header.extend(["Mrays/s", "min..max", "agree %", "Embree"]);
         if roofline {
-            header.extend(["fetches/ray", "roofline Msteps/s", "of roofline %"]);
+            header.extend(efficiency::COLUMNS);
         }
         let mut t = Table::new(header);
         let or_dash = |s: Option<String>| s.unwrap_or_else(|| "-".into());
@@ -379,15 +357,7 @@ impl BenchReport {
                 or_dash(r.embree_mrays_per_s.map(|e| format!("{e:.2}"))),
             ]);
             if roofline {
-                let extra = match &r.roofline {
-                    Some(e) => [
-                        format!("{:.1}", e.nodes_per_ray + e.triangles_per_ray),
-                        format!("{:.1}", e.roofline_msteps_per_s),
-                        format!("{:.1}", 100.0 * e.efficiency),
-                    ],
-                    None => ["-".into(), "-".into(), "-".into()],
-                };
-                cells.extend(extra);
+                cells.extend(RooflineEfficiency::cells(r.roofline.as_ref()));
             }
             t.row(cells);
         }
@@ -427,7 +397,7 @@ impl BenchReport {
 /// row, cell `scene`, `set`, `rays` and either `method`, `layout`, `leaf` (our kernels) or `peer`
 /// (the driver's ray query, Embree, tinybvh); figures `mrays_per_s` (timing, with min-max over
 /// the rounds), `agreement`, `unexplained`, `invalid` (correctness) and `scene_bytes` (count).
-/// A peer program reports its best run only: its `mrays_per_s` has one run and no spread.
+/// A peer program's `mrays_per_s` is over the same rounds as the kernels' (one trace a round).
 /// One bench cell: what its plan entry and its row are both made from, so the two cannot
 /// spell a coordinate differently. `rays` is measured (a diffuse set's size depends on the
 /// scene's hits): the plan leaves it out, a row carries it.
@@ -519,12 +489,8 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
                 .with("scene_bytes", Figure::count(r.scene_bytes as f64, "bytes")),
         );
         if let Some(e) = &r.roofline {
-            let eff = Summary { median: e.efficiency, min: e.efficiency_min, max: e.efficiency_max, ..r.kernel_ms };
             let row = out.pop().expect("the row just pushed");
-            out.push(
-                row.with("roofline_efficiency", Figure::timing(eff, "fraction", Better::Higher))
-                    .with("fetches_per_ray", Figure::count(e.nodes_per_ray + e.triangles_per_ray, "fetches")),
-            );
+            out.push(e.add_figures(row, r.kernel_ms.runs));
         }
     }
     for p in &report.peers {
@@ -532,10 +498,11 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
             let tracer = CellTracer::Peer(peer.peer.to_string());
             let c = BenchCell { scene: p.scene.clone(), set: p.ray_set, rays: Some(p.rays), tracer }.coordinates();
             let row = match &peer.outcome {
-                PeerOutcome::Timed { mrays_per_s, agreement, .. } => {
-                    let best = Summary { median: *mrays_per_s, min: *mrays_per_s, max: *mrays_per_s, runs: 1 };
+                PeerOutcome::Timed { mrays_per_s, mrays_per_s_min, mrays_per_s_max, trace_ms, agreement, .. } => {
+                    let (median, min, max) = (*mrays_per_s, *mrays_per_s_min, *mrays_per_s_max);
+                    let speed = Summary { median, min, max, runs: trace_ms.runs };
                     Row::new("bench", c, &source)
-                        .with("mrays_per_s", Figure::timing(best, "Mrays/s", Better::Higher))
+                        .with("mrays_per_s", Figure::timing(speed, "Mrays/s", Better::Higher))
                         .with("agreement", Figure::correctness(*agreement, "fraction", Better::Higher))
                 }
                 PeerOutcome::WrongHits { agreement: Some(a), .. } => {
@@ -829,7 +796,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
         // The roofline at every scene's bytes on its access path, before any timing.
         let roofline = match &o.roofline {
-            Some(ro) => Some(scene_roofline(ctx, &scenes, ro, &mut progress)?),
+            Some(ro) => Some(efficiency::scene_roofline(ctx, &scenes, ro, &mut progress)?),
             None => None,
         };
         // Every set's reference before any timing: the f64 traversal fills every core (and
@@ -860,8 +827,24 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 .flat_map(|(scene, kernel)| o.orders().into_iter().map(move |order| (scene, kernel, order)))
                 .map(|(scene, kernel, order)| Job { scene, kernel, rays, ref_hits, order })
                 .collect();
-            let measured = interleaved(ctx, &mesh, &jobs, o.warmup, o.repeat, o.batch_rays)
-                .map_err(|(i, e)| Error::Usage(format!("{name} {set} {}: {e}", label(jobs[i].scene, jobs[i].order))))?;
+            // The peer programs run in the same rounds, each once a round beside every kernel.
+            let rays_file = tmp.path().join(format!("scene{scene_index}.{set}.rays"));
+            if !programs.is_empty() {
+                rays::write_rays(&rays_file, rays)?;
+            }
+            let peer_set = PeerSet { scene_obj: &scene_obj, rays_file: &rays_file, mesh: &mesh, rays, ref_hits };
+            let mut peer_rounds: Vec<PeerRound> = (programs.iter().enumerate())
+                .map(|(k, p)| PeerRound::new(p, &peer_set, tmp.path().join(format!("peer{k}.hits"))))
+                .collect();
+            let mut others: Vec<&mut dyn RoundJob> = peer_rounds.iter_mut().map(|p| p as &mut dyn RoundJob).collect();
+            let measured = interleaved_with(ctx, &mesh, &jobs, &mut others, o.warmup, o.repeat, o.batch_rays).map_err(
+                |(i, e)| match jobs.get(i) {
+                    Some(j) => Error::Usage(format!("{name} {set} {}: {e}", label(j.scene, j.order))),
+                    None => Error::Usage(format!("{name} {set}: {e}")),
+                },
+            )?;
+            drop(others);
+            let results: Vec<PeerResult> = peer_rounds.into_iter().map(PeerRound::finish).collect();
             // Each kernel's traversal counts on this set, cast once however many orders it ran in.
             let mut counts: Vec<Option<Option<crate::gpu::TraversalSummary>>> = vec![None; scenes.len()];
             for (job, m) in jobs.iter().zip(measured) {
@@ -888,9 +871,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                         scenes.iter().position(|s| std::ptr::eq(s, scene)).expect("a job's scene is one of the scenes");
                     let t = match counts[i] {
                         Some(t) => t,
-                        None => *counts[i].insert(fetch_counts(ctx, scene, rays, o.batch_rays)?),
+                        None => *counts[i].insert(efficiency::fetch_counts(ctx, scene, rays, o.batch_rays)?),
                     };
-                    r.roofline = t.and_then(|t| efficiency(scene, roof, &r, &t));
+                    r.roofline = t.and_then(|t| efficiency::efficiency(scene, roof, mr, &t));
                 }
                 report.rows.push(r);
             }
@@ -923,15 +906,8 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 report.rows.push(row(&name, &mesh, set, rays, Tracer::Peer(peer), None, (bytes, None), ms, &agreement));
             }
             if !programs.is_empty() {
-                let rays_file = tmp.path().join(format!("scene{scene_index}.{set}.rays"));
-                rays::write_rays(&rays_file, rays)?;
-                let hits_file = tmp.path().join("peer.hits");
-                let mut results = vec![];
-                for p in &programs {
-                    let r =
-                        peers::run_peer(p, &scene_obj, &rays_file, &hits_file, &mesh, rays, ref_hits, o.repeat.max(3))?;
+                for r in &results {
                     progress(&format!("{name} {set} {}", r.progress(best)));
-                    results.push(r);
                 }
                 if let Some(e) = results.iter().find(|r| r.peer == PeerKind::Embree).and_then(|r| r.mrays_per_s()) {
                     for r in report.rows.iter_mut().filter(|r| r.scene == name && r.ray_set == set) {
@@ -948,66 +924,6 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         }
     }
     Ok(report)
-}
-
-/// The roofline at the bytes of each of `scenes` on the access path it reads ([`roofline::run`]
-/// over the two powers of two around each size, interleaved).
-fn scene_roofline(
-    ctx: &Context,
-    scenes: &[DeviceScene],
-    o: &roofline::RooflineOptions,
-    progress: &mut impl FnMut(&str),
-) -> Result<roofline::RooflineReport> {
-    let mut sizes: Vec<u64> = scenes.iter().flat_map(|s| roofline::sizes_around(s.bytes as u64)).collect();
-    sizes.sort_unstable();
-    sizes.dedup();
-    let mut access: Vec<RooflineAccess> = scenes.iter().map(|s| RooflineAccess::of_scene(s.access)).collect();
-    access.sort_unstable();
-    access.dedup();
-    let o = roofline::RooflineOptions { sizes, access, ..o.clone() };
-    let report = roofline::run(ctx, &o, &mut *progress)?;
-    for s in &report.skipped {
-        progress(&format!("roofline: {} skipped: {}", roofline::show_size(s.bytes), s.why));
-    }
-    Ok(report)
-}
-
-/// A kernel's traversal counts on `rays` from its `stats` variant; `None` for a traversal
-/// without one (persistent threads).
-fn fetch_counts(
-    ctx: &Context,
-    scene: &DeviceScene,
-    rays: &[Ray],
-    batch_rays: usize,
-) -> Result<Option<crate::gpu::TraversalSummary>> {
-    if scene.kernel_source(Raycast::Stats).is_err() {
-        return Ok(None);
-    }
-    let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
-    let counts = scene.cast(ctx, Raycast::Stats, rays, &once)?.traversal.unwrap_or_default();
-    Ok(Some(crate::gpu::TraversalSummary::of(&counts)))
-}
-
-/// `row`'s kernel against the roofline: its nodes and triangles per ray (`t`, [`fetch_counts`])
-/// and the roofline at the scene's bytes on its access path (`None` where the roofline measured
-/// that path at no size).
-fn efficiency(
-    scene: &DeviceScene,
-    roof: &roofline::RooflineReport,
-    row: &BenchRow,
-    t: &crate::gpu::TraversalSummary,
-) -> Option<RooflineEfficiency> {
-    let steps = roof.at(RooflineAccess::of_scene(scene.access), scene.bytes as u64)?;
-    let fetches = t.nodes.mean + t.triangles.mean;
-    let of = |mrays: f64| fetches * mrays / steps;
-    Some(RooflineEfficiency {
-        nodes_per_ray: t.nodes.mean,
-        triangles_per_ray: t.triangles.mean,
-        roofline_msteps_per_s: steps,
-        efficiency: of(row.mrays_per_s),
-        efficiency_min: of(row.mrays_per_s_min),
-        efficiency_max: of(row.mrays_per_s_max),
-    })
 }
 
 /// The progress line of the driver's acceleration structure.
@@ -1130,7 +1046,9 @@ mod tests {
             peer: PeerKind::Embree,
             outcome: PeerOutcome::Timed {
                 mrays_per_s: 21.5,
-                median_mrays_per_s: None,
+                mrays_per_s_min: 20.0,
+                mrays_per_s_max: 22.0,
+                trace_ms: Summary { median: 48_000.0 / 21.5e3, min: 48_000.0 / 22e3, max: 48_000.0 / 20e3, runs: 5 },
                 build_ms: None,
                 threads: Some(2),
                 agreement: 0.99995,
@@ -1239,7 +1157,8 @@ mod tests {
         let peer = &json["peers"][0]["peers"][0];
         let e = rows.iter().find(|r| r.cell.get("peer").map(String::as_str) == peer["peer"].as_str()).unwrap();
         assert_eq!(e.figures["mrays_per_s"].median, peer["mrays_per_s"].as_f64().unwrap());
-        assert_eq!(e.figures["mrays_per_s"].runs, 1, "a peer's best run has no spread");
+        let f = &e.figures["mrays_per_s"];
+        assert_eq!((f.min, f.max, f.runs), (20.0, 22.0, 5), "a peer's rounds, as trilab's rows have them");
         assert_eq!(e.figures["agreement"].median, peer["agreement"].as_f64().unwrap());
         // The rows survive their file format, and the cells are unique.
         let text = crate::rows::to_jsonl(None, &rows);

@@ -13,6 +13,7 @@ pub mod build_bench;
 pub mod bvh_stats;
 pub mod calibration;
 pub mod devices;
+pub mod efficiency;
 pub mod hits;
 pub mod make_rays;
 pub mod merge;

@@ -1,5 +1,6 @@
 //! `bench`'s peer tables: per scene and ray set, trilab's fastest row (any method, any layout)
-//! beside each peer's validated speed on the same rays, the ratios trilab / peer, and issue 15's
+//! beside each peer's validated speed on the same rays in the same rounds (medians, the peer's
+//! min..max beside), the ratios trilab / peer of the medians, and issue 15's
 //! speed target: at least 0.6x Embree and tinybvh `cpu-bvh8`, at least 1.5x tinybvh's best
 //! OpenCL layout.
 
@@ -112,14 +113,16 @@ impl PeerComparison {
 
 /// What the peer table says about how the figures were taken.
 pub const PEER_NOTE: &str = "\
-Peers on the same ray files, each validated against the f64 reference before its speed counts;
-a peer's Mrays/s is its best of the runs (its own clock), trilab's the median of its rows.
-Issue 15's speed target: trilab / peer >= 0.6 vs embree3 and tinybvh cpu-bvh8, >= 1.5 vs the
-fastest tinybvh ocl-* layout.";
+Peers on the same ray files in the same rounds as trilab's kernels (each peer program started
+once a round, tracing the set once, its own clock; its BVH build not counted), every round
+validated against the f64 reference before its speed counts. Mrays/s is the median round for
+trilab's best row and for each peer, min..max the peer's slowest and fastest (its best) round;
+trilab/it and the speed target compare the medians. Issue 15's speed target: trilab / peer >=
+0.6 vs embree3 and tinybvh cpu-bvh8, >= 1.5 vs the fastest tinybvh ocl-* layout.";
 
 /// One line per tracer: trilab's best, then each peer with its ratio and target cell.
 pub fn peer_table(comparisons: &[PeerComparison]) -> Table {
-    let mut t = Table::new(["scene", "set", "tracer", "Mrays/s", "agree %", "trilab/it", "target"]);
+    let mut t = Table::new(["scene", "set", "tracer", "Mrays/s", "min..max", "agree %", "trilab/it", "target"]);
     for c in comparisons {
         let (scene, set) = (c.scene.clone(), c.ray_set.to_string());
         t.row([
@@ -129,24 +132,27 @@ pub fn peer_table(comparisons: &[PeerComparison]) -> Table {
             format!("{:.2}", c.trilab.mrays_per_s),
             "-".into(),
             "-".into(),
+            "-".into(),
             String::new(),
         ]);
         for p in &c.peers {
-            let (rate, agree) = match &p.outcome {
-                PeerOutcome::Timed { mrays_per_s, agreement, .. } => {
-                    (format!("{mrays_per_s:.2}"), format!("{:.4}", 100.0 * agreement))
+            let (rate, range, agree) = match &p.outcome {
+                PeerOutcome::Timed { mrays_per_s, mrays_per_s_min: lo, mrays_per_s_max: hi, agreement, .. } => {
+                    (format!("{mrays_per_s:.2}"), format!("{lo:.2}..{hi:.2}"), format!("{:.4}", 100.0 * agreement))
                 }
-                PeerOutcome::WrongHits { agreement, .. } => {
-                    ("wrong hits".into(), agreement.map_or_else(|| "-".into(), |a| format!("{:.4}", 100.0 * a)))
-                }
-                PeerOutcome::Skipped { .. } => ("skipped".into(), "-".into()),
+                PeerOutcome::WrongHits { agreement, .. } => (
+                    "wrong hits".into(),
+                    "-".into(),
+                    agreement.map_or_else(|| "-".into(), |a| format!("{:.4}", 100.0 * a)),
+                ),
+                PeerOutcome::Skipped { .. } => ("skipped".into(), "-".into(), "-".into()),
             };
             let ratio = p.mrays_per_s().map_or_else(|| "-".into(), |m| format!("{:.2}", c.trilab.mrays_per_s / m));
             let target = c
                 .target_of(p.peer)
                 .map(|cell| format!("{} (>= {})", if cell.met { "met" } else { "short" }, cell.goal))
                 .unwrap_or_default();
-            t.row([scene.clone(), set.clone(), p.peer.to_string(), rate, agree, ratio, target]);
+            t.row([scene.clone(), set.clone(), p.peer.to_string(), rate, range, agree, ratio, target]);
         }
     }
     t
@@ -194,13 +200,16 @@ pub fn peer_notes(comparisons: &[PeerComparison]) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::report::Summary;
 
     fn timed(peer: PeerKind, m: f64) -> PeerResult {
         PeerResult {
             peer,
             outcome: PeerOutcome::Timed {
                 mrays_per_s: m,
-                median_mrays_per_s: None,
+                mrays_per_s_min: 0.9 * m,
+                mrays_per_s_max: 1.1 * m,
+                trace_ms: Summary { median: 1.0, min: 0.9, max: 1.1, runs: 3 },
                 build_ms: None,
                 threads: None,
                 agreement: 1.0,

@@ -2,9 +2,10 @@
 //! tinybvh (`tinybvh_rays`, scripts/tinybvh-peer.sh; its CPU layouts and its OpenCL kernels).
 //! Each is run as a separate process on the scene (written as a plain OBJ, so its triangle ids
 //! are ours) and the ray file a bench row traced, prints one `key=value` line, and writes a hit
-//! file (docs/formats.md). Its hits are checked against the f64 reference with the rule every
-//! trilab row passes ([`validate_hits`]) before its speed counts: a peer that returns wrong hits
-//! is reported as failing, never timed.
+//! file (docs/formats.md). Bench starts it once in every one of its interleaved rounds, beside
+//! trilab's kernels ([`PeerRound`]), each time tracing the set once. Its hits are checked against
+//! the f64 reference with the rule every trilab row passes ([`validate_hits`]) in every round
+//! before its speed counts: a peer that returns wrong hits is reported as failing, never timed.
 //!
 //! Failures: a missing or non-executable program is an error before any work; so is a peer that
 //! exits non-zero, prints no readable result line, or traces another number of rays. The one
@@ -20,10 +21,11 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::harness::validate::validate_hits;
+use crate::harness::validate::{validate_hits, RoundJob};
 use crate::named::{named_enum, Named};
 use crate::rays::{self, Ray};
 use crate::reference::RefHit;
+use crate::report::Summary;
 use crate::scene::Mesh;
 
 named_enum! {
@@ -99,20 +101,22 @@ impl PeerProgram {
         }
     }
 
-    fn command(&self, scene: &Path, rays: &Path, hits: &Path, repeat: usize) -> Command {
+    /// `PROGRAM trace [LAYOUT] SCENE RAYS HITS 1`: one traced run per process (its `REPEAT`
+    /// argument), so each of bench's rounds starts it once.
+    fn command(&self, scene: &Path, rays: &Path, hits: &Path) -> Command {
         let mut c = Command::new(&self.program);
         c.arg("trace");
         if let PeerKind::Tinybvh(l) = self.kind {
             c.arg(l.name());
         }
-        c.arg(scene).arg(rays).arg(hits).arg(repeat.max(1).to_string());
+        c.arg(scene).arg(rays).arg(hits).arg("1");
         c
     }
 
     /// Runs the peer on a ray file; its result line and the hits it wrote, or
     /// `Ok(Err(reason))` where an OpenCL layout has no OpenCL.
-    fn trace(&self, scene: &Path, rays_file: &Path, hits_file: &Path, rays: usize, repeat: usize) -> Result<Traced> {
-        let out = run_with_timeout(self.command(scene, rays_file, hits_file, repeat), PEER_TIMEOUT)
+    fn trace(&self, scene: &Path, rays_file: &Path, hits_file: &Path, rays: usize) -> Result<Traced> {
+        let out = run_with_timeout(self.command(scene, rays_file, hits_file), PEER_TIMEOUT)
             .map_err(|e| Error::Usage(format!("{}: cannot run it: {e}", self.describe())))?;
         let stdout = String::from_utf8_lossy(&out.stdout);
         let stderr = String::from_utf8_lossy(&out.stderr);
@@ -238,15 +242,19 @@ pub fn parse_line(stdout: &str) -> std::result::Result<PeerLine, String> {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 #[serde(tag = "status", rename_all = "kebab-case")]
 pub enum PeerOutcome {
-    /// Its hits passed the f64 check; its own timing.
+    /// Its hits passed the f64 check in every round; its own clock, one trace per round.
     Timed {
-        /// At its best run (its own figure).
+        /// At its median round: the figure set beside trilab's medians.
         mrays_per_s: f64,
-        /// At its median run, where it reports one (tinybvh).
-        median_mrays_per_s: Option<f64>,
+        /// At its slowest and fastest rounds (the fastest is its best).
+        mrays_per_s_min: f64,
+        mrays_per_s_max: f64,
+        /// Its trace time per round, ms (median, min, max, rounds).
+        trace_ms: Summary,
+        /// Its own BVH build per run, ms (median over the rounds; not part of the trace time).
         build_ms: Option<f64>,
         threads: Option<u32>,
-        /// Fraction of rays agreeing with the f64 reference.
+        /// Fraction of rays agreeing with the f64 reference (the last round's).
         agreement: f64,
     },
     /// Its hits failed the f64 check (or the hit file had the wrong size): no speed.
@@ -264,18 +272,22 @@ pub struct PeerResult {
 }
 
 impl PeerResult {
-    /// `<peer>: 3.25 Mrays/s; best trilab / it = 0.52`, or why it has no speed.
+    /// `<peer>: 3.25 Mrays/s (median of 5 rounds, 3.10..3.40); best trilab / it = 0.52`, or why it
+    /// has no speed.
     pub fn progress(&self, best_trilab: f64) -> String {
         match &self.outcome {
-            PeerOutcome::Timed { mrays_per_s: m, .. } => {
-                format!("{}: {m:.2} Mrays/s; best trilab / it = {:.2}", self.peer, best_trilab / m)
-            }
+            PeerOutcome::Timed { mrays_per_s: m, mrays_per_s_min: lo, mrays_per_s_max: hi, trace_ms, .. } => format!(
+                "{}: {m:.2} Mrays/s (median of {} rounds, {lo:.2}..{hi:.2}); best trilab / it = {:.2}",
+                self.peer,
+                trace_ms.runs,
+                best_trilab / m
+            ),
             PeerOutcome::Skipped { reason } => format!("{}: skipped: {reason}", self.peer),
             PeerOutcome::WrongHits { reason, .. } => format!("{}: failed validation, not timed: {reason}", self.peer),
         }
     }
 
-    /// Its validated Mrays/s (best run), if it was timed.
+    /// Its validated Mrays/s (median round), if it was timed.
     pub fn mrays_per_s(&self) -> Option<f64> {
         match self.outcome {
             PeerOutcome::Timed { mrays_per_s, .. } => Some(mrays_per_s),
@@ -344,7 +356,7 @@ pub fn probe(peers: &[PeerProgram], dir: &Path, notes: &mut Vec<String>) -> Resu
     for p in peers {
         let hits_file = dir.join("probe.hits");
         let _ = std::fs::remove_file(&hits_file);
-        match p.trace(&scene, &rays_file, &hits_file, rays.len(), 1)? {
+        match p.trace(&scene, &rays_file, &hits_file, rays.len())? {
             Traced::NoOpenCl(reason) => notes.push(format!("{}: skipped, no OpenCL: {reason}", p.kind)),
             Traced::Done(_, hits) if hits.len() != rays.len() => {
                 return Err(Error::Usage(format!(
@@ -360,41 +372,102 @@ pub fn probe(peers: &[PeerProgram], dir: &Path, notes: &mut Vec<String>) -> Resu
     Ok(ok)
 }
 
-/// Runs one peer on a ray set (the scene as [`write_obj`] wrote it, the rays as written to
-/// `rays_file`) and checks its hits against the f64 reference before its time counts.
-#[allow(clippy::too_many_arguments)]
-pub fn run_peer(
-    peer: &PeerProgram,
-    scene_obj: &Path,
-    rays_file: &Path,
-    hits_file: &Path,
-    mesh: &Mesh,
-    rays: &[Ray],
-    ref_hits: &[RefHit],
-    repeat: usize,
-) -> Result<PeerResult> {
-    let _ = std::fs::remove_file(hits_file);
-    let outcome = match peer.trace(scene_obj, rays_file, hits_file, rays.len(), repeat)? {
-        Traced::NoOpenCl(reason) => PeerOutcome::Skipped { reason: format!("no OpenCL: {reason}") },
-        Traced::Done(_, hits) if hits.len() != rays.len() => PeerOutcome::WrongHits {
-            agreement: None,
-            reason: format!("its hit file holds {} hits for {} rays", hits.len(), rays.len()),
-        },
-        Traced::Done(line, hits) => match validate_hits(mesh, rays, &hits, ref_hits) {
-            Ok(a) => PeerOutcome::Timed {
-                mrays_per_s: line.mrays_per_s,
-                median_mrays_per_s: line.median_ms.filter(|&m| m > 0.0).map(|m| rays.len() as f64 / (m * 1e3)),
-                build_ms: line.build_ms,
-                threads: line.threads,
-                agreement: a.fraction(),
-            },
-            Err(e) => {
-                let a = crate::agreement::compare_closest(mesh, rays, &hits, ref_hits);
-                PeerOutcome::WrongHits { agreement: Some(a.fraction()), reason: e.to_string() }
+/// One peer program on one ray set as a job of bench's interleaved rounds
+/// ([`crate::harness::validate::interleaved_with`]): every run starts the program once to trace
+/// the set once (its `REPEAT` 1, so its figure is that one trace, its BVH build not counted) and
+/// checks its hits against the f64 reference before the round's time counts. The figures are the
+/// rounds' median with the slowest and fastest (its best), as trilab's rows have them.
+///
+/// A program that cannot run, prints no readable line or traces another number of rays is an
+/// error ([`RoundJob::run_once`]); wrong hits, or an OpenCL layout that finds no OpenCL, are its
+/// outcome instead: the program is not run again, and [`PeerRound::finish`] reports why.
+pub struct PeerRound<'a> {
+    peer: &'a PeerProgram,
+    set: &'a PeerSet<'a>,
+    hits_file: PathBuf,
+    /// Trace time per timed round, ms.
+    ms: Vec<f64>,
+    build_ms: Vec<f64>,
+    threads: Option<u32>,
+    agreement: Option<f64>,
+    /// Why it stopped: wrong hits, or no OpenCL.
+    stopped: Option<PeerOutcome>,
+}
+
+/// What every peer of one ray set reads and is checked against: the scene as [`write_obj`]
+/// wrote it, the rays as written to `rays_file`, and their f64 reference hits.
+pub struct PeerSet<'a> {
+    pub scene_obj: &'a Path,
+    pub rays_file: &'a Path,
+    pub mesh: &'a Mesh,
+    pub rays: &'a [Ray],
+    pub ref_hits: &'a [RefHit],
+}
+
+impl<'a> PeerRound<'a> {
+    /// `peer` on `set`; its hits go to `hits_file`.
+    pub fn new(peer: &'a PeerProgram, set: &'a PeerSet<'a>, hits_file: PathBuf) -> PeerRound<'a> {
+        PeerRound { peer, set, hits_file, ms: vec![], build_ms: vec![], threads: None, agreement: None, stopped: None }
+    }
+
+    /// How it did over the rounds.
+    pub fn finish(self) -> PeerResult {
+        let median = |v: &[f64]| Summary::of(v).map(|s| s.median);
+        let outcome = match (self.stopped, Summary::of(&self.ms), self.agreement) {
+            (Some(why), ..) => why,
+            (None, Some(trace_ms), Some(agreement)) => {
+                let mr = crate::harness::validate::mrays_summary(self.set.rays.len(), trace_ms);
+                PeerOutcome::Timed {
+                    mrays_per_s: mr.median,
+                    mrays_per_s_min: mr.min,
+                    mrays_per_s_max: mr.max,
+                    trace_ms,
+                    build_ms: median(&self.build_ms),
+                    threads: self.threads,
+                    agreement,
+                }
             }
-        },
-    };
-    Ok(PeerResult { peer: peer.kind, outcome })
+            (None, ..) => PeerOutcome::Skipped { reason: "no timed round".into() },
+        };
+        PeerResult { peer: self.peer.kind, outcome }
+    }
+}
+
+impl RoundJob for PeerRound<'_> {
+    fn run_once(&mut self, timed: bool) -> Result<()> {
+        if self.stopped.is_some() {
+            return Ok(());
+        }
+        let _ = std::fs::remove_file(&self.hits_file);
+        let set = self.set;
+        let (rays, n) = (set.rays, set.rays.len());
+        let (line, hits) = match self.peer.trace(set.scene_obj, set.rays_file, &self.hits_file, n)? {
+            Traced::NoOpenCl(reason) => {
+                self.stopped = Some(PeerOutcome::Skipped { reason: format!("no OpenCL: {reason}") });
+                return Ok(());
+            }
+            Traced::Done(line, hits) => (line, hits),
+        };
+        if hits.len() != n {
+            let reason = format!("its hit file holds {} hits for {n} rays", hits.len());
+            self.stopped = Some(PeerOutcome::WrongHits { agreement: None, reason });
+            return Ok(());
+        }
+        match validate_hits(set.mesh, rays, &hits, set.ref_hits) {
+            Ok(a) if timed => {
+                self.ms.push(n as f64 / (line.mrays_per_s * 1e3));
+                self.build_ms.extend(line.build_ms);
+                self.threads = line.threads;
+                self.agreement = Some(a.fraction());
+            }
+            Ok(_) => {}
+            Err(e) => {
+                let a = crate::agreement::compare_closest(set.mesh, rays, &hits, set.ref_hits);
+                self.stopped = Some(PeerOutcome::WrongHits { agreement: Some(a.fraction()), reason: e.to_string() });
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Writes `mesh` as a plain OBJ (`v x y z`, then one `f a b c` per triangle in id order), so a

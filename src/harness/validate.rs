@@ -98,12 +98,81 @@ pub struct Interleaved {
     pub batches: usize,
 }
 
-/// Times every job with their rounds interleaved: `warmup` untimed rounds of every job, then
-/// `repeat` timed rounds, each running every job once, the job that opens a round rotating, so
-/// that a burst of other work on the host lands on all jobs alike rather than on the few timed
-/// while it lasted (on a busy 2-core lavapipe host, back-to-back rounds let one kernel's cells
-/// read 1.4-1.7x slow together). Every round's hits are validated against the f64 reference
-/// before its time counts. An error names the job (its index).
+/// Work timed once in every round beside the kernels of [`interleaved_with`] (a peer program
+/// on the same rays): it validates its own answer and keeps its own times.
+pub trait RoundJob {
+    /// Runs once; `timed` is false in the warm-up rounds, whose time does not count.
+    fn run_once(&mut self, timed: bool) -> Result<()>;
+}
+
+/// The rounds every interleaved measurement runs: `warmup` untimed rounds, then `repeat` (at
+/// least 1) timed ones, each running every job once, the job that opens a round rotating. An
+/// error names the job (its index).
+pub fn rounds(jobs: &mut [&mut dyn RoundJob], warmup: usize, repeat: usize) -> std::result::Result<(), (usize, Error)> {
+    for round in 0..warmup + repeat.max(1) {
+        for k in 0..jobs.len() {
+            let i = (k + round) % jobs.len();
+            jobs[i].run_once(round >= warmup).map_err(|e| (i, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// One kernel job as a [`RoundJob`]: each run casts its rays once (reordered and put back where
+/// its order says), validates the hits and, in a timed round, keeps the time.
+pub struct KernelRound<'a> {
+    ctx: &'a Context,
+    mesh: &'a Mesh,
+    job: &'a Job<'a>,
+    once: RaycastOptions,
+    times: Vec<f64>,
+    reorder: Vec<f64>,
+    last: Option<(Agreement, Vec<Hit>, usize)>,
+}
+
+impl<'a> KernelRound<'a> {
+    pub fn new(ctx: &'a Context, mesh: &'a Mesh, job: &'a Job<'a>, batch_rays: usize) -> KernelRound<'a> {
+        let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
+        KernelRound { ctx, mesh, job, once, times: vec![], reorder: vec![], last: None }
+    }
+
+    /// Its timed rounds' figures; `None` before any timed round.
+    pub fn finish(self) -> Option<Interleaved> {
+        let (agreement, hits, batches) = self.last?;
+        let of = |v: &[f64]| Summary::of(v);
+        Some(Interleaved { kernel_ms: of(&self.times)?, reorder_ms: of(&self.reorder)?, agreement, hits, batches })
+    }
+}
+
+impl RoundJob for KernelRound<'_> {
+    fn run_once(&mut self, timed: bool) -> Result<()> {
+        let j = self.job;
+        let t = std::time::Instant::now();
+        let order = j.order.permutation(j.rays);
+        let permuted = order.as_ref().map(|o| order::permute(o, j.rays));
+        let mut host_ms = t.elapsed().as_secs_f64() * 1e3;
+        let mut res = j.scene.cast_with(self.ctx, j.kernel, permuted.as_deref().unwrap_or(j.rays), &self.once)?;
+        if let Some(o) = &order {
+            let t = std::time::Instant::now();
+            res.hits = order::unpermute(o, &res.hits);
+            host_ms += t.elapsed().as_secs_f64() * 1e3;
+        }
+        let agreement = validate_hits(self.mesh, j.rays, &res.hits, j.ref_hits)?;
+        if timed {
+            self.times.push(res.time_ms()?.median + host_ms);
+            self.reorder.push(host_ms);
+            self.last = Some((agreement, res.hits, res.batches));
+        }
+        Ok(())
+    }
+}
+
+/// Times every job with their rounds interleaved ([`rounds`]): `warmup` untimed rounds of every
+/// job, then `repeat` timed rounds, each running every job once, the job that opens a round
+/// rotating, so that a burst of other work on the host lands on all jobs alike rather than on
+/// the few timed while it lasted (on a busy 2-core lavapipe host, back-to-back rounds let one
+/// kernel's cells read 1.4-1.7x slow together). Every round's hits are validated against the
+/// f64 reference before its time counts. An error names the job (its index).
 pub fn interleaved(
     ctx: &Context,
     mesh: &Mesh,
@@ -112,41 +181,72 @@ pub fn interleaved(
     repeat: usize,
     batch_rays: usize,
 ) -> std::result::Result<Vec<Interleaved>, (usize, Error)> {
-    let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
-    let mut times: Vec<Vec<f64>> = vec![vec![]; jobs.len()];
-    let mut reorder: Vec<Vec<f64>> = vec![vec![]; jobs.len()];
-    let mut last: Vec<Option<(Agreement, Vec<Hit>, usize)>> = vec![None; jobs.len()];
-    for round in 0..warmup + repeat.max(1) {
-        for k in 0..jobs.len() {
-            let i = (k + round) % jobs.len();
-            let j = &jobs[i];
-            let t = std::time::Instant::now();
-            let order = j.order.permutation(j.rays);
-            let permuted = order.as_ref().map(|o| order::permute(o, j.rays));
-            let mut host_ms = t.elapsed().as_secs_f64() * 1e3;
-            let mut res =
-                j.scene.cast_with(ctx, j.kernel, permuted.as_deref().unwrap_or(j.rays), &once).map_err(|e| (i, e))?;
-            if let Some(o) = &order {
-                let t = std::time::Instant::now();
-                res.hits = order::unpermute(o, &res.hits);
-                host_ms += t.elapsed().as_secs_f64() * 1e3;
+    interleaved_with(ctx, mesh, jobs, &mut [], warmup, repeat, batch_rays)
+}
+
+/// [`interleaved`] with `others` (the peer programs) run once in every round too, warm-up rounds
+/// included, rotating with the kernels: the kernels are jobs `0..jobs.len()`, `others[k]` job
+/// `jobs.len() + k` (the index an error names). The others keep their own figures.
+pub fn interleaved_with(
+    ctx: &Context,
+    mesh: &Mesh,
+    jobs: &[Job],
+    others: &mut [&mut dyn RoundJob],
+    warmup: usize,
+    repeat: usize,
+    batch_rays: usize,
+) -> std::result::Result<Vec<Interleaved>, (usize, Error)> {
+    let mut kernels: Vec<KernelRound> = jobs.iter().map(|j| KernelRound::new(ctx, mesh, j, batch_rays)).collect();
+    let mut all: Vec<&mut dyn RoundJob> = vec![];
+    for k in kernels.iter_mut() {
+        all.push(k);
+    }
+    for o in others.iter_mut() {
+        all.push(&mut **o);
+    }
+    rounds(&mut all, warmup, repeat)?;
+    drop(all);
+    Ok(kernels.into_iter().map(|k| k.finish().expect("at least one timed round")).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A job that logs (its index, timed) on every run and fails on its `fail_at`-th run.
+    struct Logged<'a> {
+        id: usize,
+        log: &'a std::cell::RefCell<Vec<(usize, bool)>>,
+        fail_at: Option<usize>,
+    }
+
+    impl RoundJob for Logged<'_> {
+        fn run_once(&mut self, timed: bool) -> Result<()> {
+            let mut log = self.log.borrow_mut();
+            if self.fail_at == Some(log.iter().filter(|e| e.0 == self.id).count()) {
+                return Err(Error::Usage(format!("job {} failed", self.id)));
             }
-            let agreement = validate_hits(mesh, j.rays, &res.hits, j.ref_hits).map_err(|e| (i, e))?;
-            if round >= warmup {
-                times[i].push(res.time_ms().map_err(|e| (i, e))?.median + host_ms);
-                reorder[i].push(host_ms);
-                last[i] = Some((agreement, res.hits, res.batches));
-            }
+            log.push((self.id, timed));
+            Ok(())
         }
     }
-    Ok(times
-        .iter()
-        .zip(&reorder)
-        .zip(last)
-        .map(|((t, r), l)| {
-            let (agreement, hits, batches) = l.expect("at least one timed round");
-            let of = |v: &[f64]| Summary::of(v).expect("at least one timed round");
-            Interleaved { kernel_ms: of(t), reorder_ms: of(r), agreement, hits, batches }
-        })
-        .collect())
+
+    #[test]
+    fn every_round_runs_every_job_once_the_opener_rotating() {
+        let log = std::cell::RefCell::new(vec![]);
+        let mut jobs: Vec<Logged> = (0..3).map(|id| Logged { id, log: &log, fail_at: None }).collect();
+        let mut all: Vec<&mut dyn RoundJob> = jobs.iter_mut().map(|j| j as &mut dyn RoundJob).collect();
+        rounds(&mut all, 1, 2).unwrap();
+        let want =
+            [(0, false), (1, false), (2, false), (1, true), (2, true), (0, true), (2, true), (0, true), (1, true)];
+        assert_eq!(log.borrow().as_slice(), want);
+        // An error names the job and ends the rounds there.
+        log.borrow_mut().clear();
+        let mut jobs: Vec<Logged> =
+            (0..2).map(|id| Logged { id, log: &log, fail_at: (id == 1).then_some(1) }).collect();
+        let mut all: Vec<&mut dyn RoundJob> = jobs.iter_mut().map(|j| j as &mut dyn RoundJob).collect();
+        let (i, e) = rounds(&mut all, 0, 3).unwrap_err();
+        assert_eq!((i, e.to_string().contains("job 1 failed")), (1, true));
+        assert_eq!(log.borrow().as_slice(), [(0, true), (1, true)]);
+    }
 }

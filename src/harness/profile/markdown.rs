@@ -3,6 +3,7 @@
 use std::fmt::Write as _;
 
 use super::{ProfileReport, Row, Section, SizeTiming, Status};
+use crate::harness::efficiency::RooflineEfficiency;
 use crate::report::Summary;
 use crate::report::Table;
 
@@ -113,11 +114,17 @@ fn header(r: &ProfileReport, command: &str) -> String {
 fn timestamps(out: &mut String, r: &ProfileReport) {
     let _ = writeln!(out, "## 1. Per-dispatch kernel time (GPU timestamps)\n");
     status(out, &r.timestamps);
-    let mut t = Table::new(["method", "set", "rays", "dispatches", "kernel ms", "min..max", "Mrays/s", "agree %"]);
+    // `--roofline`: each kernel's fetches per ray and its share of the roofline (as bench's).
+    let roofline = r.timestamps.rows.iter().any(|row| row.data.roofline.is_some());
+    let mut header = vec!["method", "set", "rays", "dispatches", "kernel ms", "min..max", "Mrays/s", "agree %"];
+    if roofline {
+        header.extend(crate::harness::efficiency::COLUMNS);
+    }
+    let mut t = Table::new(header);
     for row in &r.timestamps.rows {
         let d = &row.data;
         let [med, range] = ms(&d.kernel_ms);
-        t.row([
+        let mut cells = vec![
             row.method.to_string(),
             d.ray_set.to_string(),
             d.rays.to_string(),
@@ -126,9 +133,22 @@ fn timestamps(out: &mut String, r: &ProfileReport) {
             range,
             format!("{:.2}", d.mrays_per_s),
             format!("{:.4}", 100.0 * d.agreement),
-        ]);
+        ];
+        if roofline {
+            cells.extend(RooflineEfficiency::cells(d.roofline.as_ref()));
+        }
+        t.row(cells);
     }
     *out += &t.to_markdown();
+    if roofline {
+        let _ = writeln!(
+            out,
+            "
+`of roofline %`: (nodes visited + triangles tested per ray, from the kernel's stats variant on the same \
+             rays) x Mrays/s over the traversal roofline's Msteps/s (`trilab roofline`) at the scene's bytes on its \
+             access path."
+        );
+    }
 }
 
 /// 2. Invocations counted by pipeline statistics.

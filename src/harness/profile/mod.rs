@@ -2,7 +2,8 @@
 //! device offers, each feature-detected and reported as unsupported (or not applicable) where
 //! absent, never emulated:
 //!
-//! 1. per-dispatch kernel time from GPU timestamps (median, min, max after warm-up);
+//! 1. per-dispatch kernel time from GPU timestamps (median, min, max after warm-up), and with
+//!    `--roofline` each kernel's share of the traversal roofline (`harness::efficiency`);
 //! 2. pipeline statistics: compute-shader invocations of a dispatch, beside the count launched;
 //! 3. shader-clock ticks per ray (raycast.comp's `clock` variant, [`clock`]): statistics per
 //!    ray set and heat maps of the primary rays;
@@ -37,7 +38,9 @@ use crate::bvh::BuildOptions;
 use crate::encoding::{AccessPath, Layout, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, EnabledFeatures, Kernel, PipelineOptions, RaycastOptions};
+use crate::harness::efficiency::{self, RooflineEfficiency};
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
+use crate::harness::roofline::RooflineReport;
 use crate::harness::validate::{interleaved, mrays_per_s as mrays, mrays_summary, Interleaved, Job};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::{Hit, Ray};
@@ -78,6 +81,9 @@ pub struct ProfileOptions {
     /// The trilab executable the driver-statistics section runs under GALLIVM_DEBUG=asm
     /// (`None`: the section is skipped).
     pub driver_stats: Option<driver_stats::CollectOptions>,
+    /// `--roofline`: the traversal roofline (these settings; its sizes and path are the scene's)
+    /// at the scene's bytes on its access path, and per timing row its [`RooflineEfficiency`].
+    pub roofline: Option<crate::harness::roofline::RooflineOptions>,
 }
 
 impl Default for ProfileOptions {
@@ -96,6 +102,7 @@ impl Default for ProfileOptions {
             exe: None,
             command: "trilab profile".into(),
             driver_stats: None,
+            roofline: None,
         }
     }
 }
@@ -166,6 +173,9 @@ pub struct Timing {
     pub kernel_ms: Summary,
     pub mrays_per_s: f64,
     pub agreement: f64,
+    /// `--roofline`: the kernel's fetches per second against the roofline's at its scene's size.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub roofline: Option<RooflineEfficiency>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -353,6 +363,8 @@ struct MethodRun<'a, P: FnMut(&str)> {
     /// Section 1's timings of this method on every set, measured beforehand with every method's
     /// rounds interleaved (`validate::interleaved`); `per_set` takes them.
     timed: Vec<Interleaved>,
+    /// `--roofline`: the roofline at the scene's bytes, for each timing's efficiency.
+    roofline: Option<&'a RooflineReport>,
     progress: &'a mut P,
 }
 
@@ -381,6 +393,7 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
                 kernel_ms: ms,
                 mrays_per_s: mrays(rays.len(), ms.median),
                 agreement,
+                roofline: self.efficiency(rays, ms)?,
             };
             s.timestamps.rows.push(Row::new(info, method, timing));
             if self.en.pipeline_statistics_query {
@@ -408,6 +421,14 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
             }
         }
         Ok((sweep_hits, primary_cycles))
+    }
+
+    /// `--roofline`: the kernel's traversal counts on `rays` against the roofline at its Mrays/s
+    /// (from `ms`); `None` without the flag, or where the kernel or roofline has no figure.
+    fn efficiency(&self, rays: &[Ray], ms: Summary) -> Result<Option<RooflineEfficiency>> {
+        let Some(roof) = self.roofline else { return Ok(None) };
+        let counts = efficiency::fetch_counts(self.ctx, &self.scene, rays, self.ropts.batch_rays)?;
+        Ok(counts.and_then(|t| efficiency::efficiency(&self.scene, roof, mrays_summary(rays.len(), ms), &t)))
     }
 
     /// Section 3 on one set: ticks per ray from the `clock` variant, whose hits must equal the
@@ -519,6 +540,11 @@ pub fn run(
     let scenes: Vec<DeviceScene> =
         o.methods.iter().map(|&m| host.upload(ctx, &SceneRequest::new(m).layout(o.layout))).collect::<Result<_>>()?;
     let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
+    // The roofline at the scenes' bytes on their access paths, before any timing.
+    let roofline = match &o.roofline {
+        Some(ro) => Some(efficiency::scene_roofline(ctx, &scenes, ro, &mut progress)?),
+        None => None,
+    };
     let jobs: Vec<Job> = scenes
         .iter()
         .zip(&kernels)
@@ -553,6 +579,7 @@ pub fn run(
             sweep_idx,
             ropts: ropts.clone(),
             timed: section1.by_ref().take(sets.len()).collect(),
+            roofline: roofline.as_ref(),
             progress: &mut progress,
         };
         debug_assert_eq!(m.method(), method);
@@ -694,6 +721,9 @@ pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
                 "compute_shader_invocations",
                 Figure::count(inv.data.compute_shader_invocations as f64, "invocations"),
             );
+        }
+        if let Some(e) = &d.roofline {
+            row = e.add_figures(row, d.kernel_ms.runs);
         }
         out.push(row);
     }
