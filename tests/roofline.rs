@@ -303,3 +303,83 @@ fn sizes_past_a_paths_limit_are_skipped_naming_it() {
     assert_eq!(o.status.code(), Some(1), "{t}");
     assert!(t.contains("nothing to measure") && t.contains("bufferDeviceAddress"), "{t}");
 }
+
+/// `bench --roofline`'s lanes busy: for every kernel row, the share of lane-steps that fetch
+/// for a ray when the subgroup's rays run in lock-step, in the order the kernel got them. Held
+/// to this test's own sum over the CPU mirror's counts (equal to the mt kernel's own on bvh2,
+/// tests/traversal_stats.rs) grouped in the rays' dispatch order: as given, and after the
+/// octant-origin sort (the sort moves rays between subgroups, so the figure must follow it).
+#[test]
+fn bench_lanes_busy_follows_the_rays_a_subgroup_traces_together() {
+    use trilab::rays::order::RayOrder;
+    let dir = tempfile::tempdir().unwrap();
+    let rays_dir = dir.path().join("rays");
+    std::fs::create_dir_all(&rays_dir).unwrap();
+    let out = |set: &str| rays_dir.join(format!("bunny.{set}.rays")).to_str().unwrap().to_string();
+    for a in [
+        vec!["rays", "primary", "--scene", "bunny", "--width", "24", "--height", "16", "--out", &out("primary")],
+        vec!["rays", "diffuse", "--scene", "bunny", "--width", "24", "--height", "16", "--out", &out("diffuse")],
+        vec!["rays", "random", "--scene", "bunny", "--random-rays", "3001", "--out", &out("random")],
+    ] {
+        let o = trilab(&a, 120);
+        assert!(o.status.success(), "{}", text(&o));
+    }
+    let bench_out = dir.path().join("bench");
+    std::fs::create_dir_all(&bench_out).unwrap();
+    let args = [
+        "bench",
+        "--scenes",
+        "bunny",
+        "--methods",
+        "mt",
+        "--rays-dir",
+        rays_dir.to_str().unwrap(),
+        "--orders",
+        "given,octant-origin",
+        "--repeat",
+        "1",
+        "--roofline",
+        "--out",
+        bench_out.to_str().unwrap(),
+    ];
+    let o = trilab(&args, 600);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("lanes busy %"), "{}", text(&o));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(bench_out.join("bench.json")).unwrap()).unwrap();
+    let mesh = common::bunny();
+    let bvh = trilab::bvh::Bvh::build(&mesh, &trilab::bvh::BuildOptions::new(4));
+    let mut checked = 0;
+    let mut busy_by_order = std::collections::BTreeMap::new();
+    for row in report["rows"].as_array().unwrap() {
+        let set = row["ray_set"].as_str().unwrap();
+        let order: RayOrder = row["order"].as_str().unwrap().parse().unwrap();
+        let e = &row["roofline"];
+        let lanes = e["lanes"].as_u64().unwrap() as usize;
+        assert!(lanes >= 1, "{row}");
+        let rays = trilab::rays::read_rays(std::path::Path::new(&out(set))).unwrap();
+        let steps = trilab::traversal::ray_steps(&mesh, &bvh, &rays);
+        let fetches: Vec<u64> = steps.iter().map(|s| (s.inner + s.leaves + s.triangles) as u64).collect();
+        let dispatched: Vec<u64> = match order.permutation(&rays) {
+            Some(p) => p.iter().map(|&i| fetches[i as usize]).collect(),
+            None => fetches.clone(),
+        };
+        let (mut done, mut paid) = (0u64, 0u64);
+        for group in dispatched.chunks(lanes) {
+            done += group.iter().sum::<u64>();
+            paid += lanes as u64 * group.iter().max().unwrap();
+        }
+        let want = done as f64 / paid as f64;
+        let got = e["lanes_busy"].as_f64().unwrap_or_else(|| panic!("no lanes_busy in {row}"));
+        assert!((got - want).abs() < 1e-12, "{set} {order}: lanes busy {got}, want {want}");
+        assert!(want > 0.0 && want <= 1.0);
+        busy_by_order.insert((set.to_string(), order.to_string()), got);
+        checked += 1;
+    }
+    assert_eq!(checked, 6, "three sets x two orders");
+    // The sort changes which rays share a subgroup, and with it the figure.
+    assert_ne!(
+        busy_by_order[&("random".into(), "given".into())],
+        busy_by_order[&("random".into(), "octant-origin".into())]
+    );
+}

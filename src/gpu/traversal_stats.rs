@@ -79,9 +79,59 @@ impl TraversalSummary {
     }
 }
 
+/// The share of SIMD lane-iterations that do a ray's work when `lanes` consecutive rays run in
+/// lock-step, as one subgroup (a ray-casting kernel's invocation `i` traces ray `i`, and a
+/// subgroup is `lanes` consecutive invocations): per group of rays, the sum of `work` over the
+/// group against `lanes` x its largest, summed over the groups (a last partial group counts
+/// its idle lanes too: the driver runs it as a whole row). 1 when every lane of a group does
+/// the same work; `None` for no rays or no work.
+///
+/// An upper bound on the lanes kept busy: it lines the rays' work up as if every lane ran the
+/// same step at the same time, whereas lanes at different kinds of step (one in a leaf, one at
+/// an inner node) also wait for each other's branch.
+pub fn lanes_busy(counts: &[TraversalCounts], lanes: usize, work: impl Fn(&TraversalCounts) -> u32) -> Option<f64> {
+    let lanes = lanes.max(1);
+    let (done, paid) = counts.chunks(lanes).fold((0u64, 0u64), |(done, paid), group| {
+        let w = group.iter().map(&work);
+        (done + w.clone().map(u64::from).sum::<u64>(), paid + lanes as u64 * u64::from(w.max().unwrap_or(0)))
+    });
+    (paid > 0).then(|| done as f64 / paid as f64)
+}
+
+/// A ray's fetches as the traversal roofline counts them: nodes visited and triangles tested.
+pub fn fetches(c: &TraversalCounts) -> u32 {
+    c.nodes() + c.triangles
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lanes_busy_is_work_done_over_lanes_times_the_longest() {
+        let n = |inner| TraversalCounts { inner, ..Default::default() };
+        let nodes = |c: &TraversalCounts| c.nodes();
+        // Two groups of 4: (1, 2, 3, 4) pays 16 for 10, (4, 4, 4, 4) pays 16 for 16.
+        let counts: Vec<_> = [1, 2, 3, 4, 4, 4, 4, 4].into_iter().map(n).collect();
+        assert_eq!(lanes_busy(&counts, 4, nodes), Some(26.0 / 32.0));
+        // One lane per group: nothing waits.
+        assert_eq!(lanes_busy(&counts, 1, nodes), Some(1.0));
+        // Eight lanes: one group, 8 x 4 paid for 26.
+        assert_eq!(lanes_busy(&counts, 8, nodes), Some(26.0 / 32.0));
+        // A partial last group pays for its idle lanes: (4, 4, 4, 4), (1) -> 17 of 16 + 4.
+        let partial: Vec<_> = [4, 4, 4, 4, 1].into_iter().map(n).collect();
+        assert_eq!(lanes_busy(&partial, 4, nodes), Some(17.0 / 20.0));
+        // The order of the rays matters: sorted by work, the long rays share a group.
+        let mut sorted = counts.clone();
+        sorted.sort_by_key(|c| c.inner);
+        let shuffled: Vec<_> = [1, 4, 2, 4, 3, 4, 4, 4].into_iter().map(n).collect();
+        assert!(lanes_busy(&shuffled, 2, nodes) < lanes_busy(&sorted, 2, nodes));
+        assert_eq!(lanes_busy(&[], 8, nodes), None);
+        assert_eq!(lanes_busy(&[n(0), n(0)], 8, nodes), None);
+        // Fetches are nodes plus triangles.
+        let c = TraversalCounts { inner: 3, leaves: 2, triangles: 7, slots: 8, boxes: 7 };
+        assert_eq!(fetches(&c), 12);
+    }
 
     #[test]
     fn summary_means_and_maxima() {

@@ -846,7 +846,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             drop(others);
             let results: Vec<PeerResult> = peer_rounds.into_iter().map(PeerRound::finish).collect();
             // Each kernel's traversal counts on this set, cast once however many orders it ran in.
-            let mut counts: Vec<Option<Option<crate::gpu::TraversalSummary>>> = vec![None; scenes.len()];
+            let mut counts: Vec<Option<Option<Vec<crate::gpu::TraversalCounts>>>> = vec![None; scenes.len()];
             for (job, m) in jobs.iter().zip(measured) {
                 let (scene, order) = (job.scene, job.order);
                 let (ms, agreement) = (m.kernel_ms, m.agreement);
@@ -869,11 +869,16 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 if let Some(roof) = &roofline {
                     let i =
                         scenes.iter().position(|s| std::ptr::eq(s, scene)).expect("a job's scene is one of the scenes");
-                    let t = match counts[i] {
-                        Some(t) => t,
-                        None => *counts[i].insert(efficiency::fetch_counts(ctx, scene, rays, o.batch_rays)?),
+                    let c = match &counts[i] {
+                        Some(c) => c,
+                        None => counts[i].insert(efficiency::fetch_counts(ctx, scene, rays, o.batch_rays)?),
                     };
-                    r.roofline = t.and_then(|t| efficiency::efficiency(scene, roof, mr, &t));
+                    // The lanes a subgroup's rays keep busy depend on which rays share it: the
+                    // order the kernel got them in (the sort is deterministic).
+                    let (lanes, dispatched) = (ctx.info().subgroup_size, order.permutation(rays));
+                    r.roofline = c
+                        .as_deref()
+                        .and_then(|c| efficiency::efficiency(scene, roof, mr, c, lanes, dispatched.as_deref()));
                 }
                 report.rows.push(r);
             }

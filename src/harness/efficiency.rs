@@ -12,7 +12,8 @@ use serde::Serialize;
 use crate::encoding::Raycast;
 use crate::error::Result;
 use crate::gpu::roofline::RooflineAccess;
-use crate::gpu::{Context, RaycastOptions, TraversalSummary};
+use crate::gpu::traversal_stats;
+use crate::gpu::{Context, RaycastOptions, TraversalCounts, TraversalSummary};
 use crate::harness::roofline::{self, RooflineOptions, RooflineReport};
 use crate::pipeline::DeviceScene;
 use crate::rays::Ray;
@@ -39,10 +40,18 @@ pub struct RooflineEfficiency {
     /// The same at the slowest and fastest rounds.
     pub efficiency_min: f64,
     pub efficiency_max: f64,
+    /// Rays in lock-step: the device's subgroup size (lavapipe: one SIMD row of the host CPU).
+    pub lanes: u32,
+    /// Where the gap to the roofline goes, first part: the share of lane-steps that fetch for a
+    /// ray when `lanes` consecutive rays of the dispatch (in the order the kernel got them) run
+    /// in lock-step, from the same per-ray counts ([`crate::gpu::traversal_stats::lanes_busy`]:
+    /// an upper bound). The roofline's walk keeps every lane busy, so `efficiency /
+    /// lanes_busy` is what a busy lane fetches against it; `None` for no fetches.
+    pub lanes_busy: Option<f64>,
 }
 
 /// The table columns [`RooflineEfficiency::cells`] fills.
-pub const COLUMNS: [&str; 3] = ["fetches/ray", "roofline Msteps/s", "of roofline %"];
+pub const COLUMNS: [&str; 4] = ["fetches/ray", "roofline Msteps/s", "of roofline %", "lanes busy %"];
 
 impl RooflineEfficiency {
     /// Nodes and triangles per ray.
@@ -51,14 +60,15 @@ impl RooflineEfficiency {
     }
 
     /// The [`COLUMNS`] of a row: its figures, or dashes where it has none.
-    pub fn cells(e: Option<&RooflineEfficiency>) -> [String; 3] {
+    pub fn cells(e: Option<&RooflineEfficiency>) -> [String; 4] {
         match e {
             Some(e) => [
                 format!("{:.1}", e.fetches_per_ray()),
                 format!("{:.1}", e.roofline_msteps_per_s),
                 format!("{:.1}", 100.0 * e.efficiency),
+                e.lanes_busy.map_or("-".into(), |b| format!("{:.0} of {}", 100.0 * b, e.lanes)),
             ],
-            None => ["-".into(), "-".into(), "-".into()],
+            None => ["-".into(), "-".into(), "-".into(), "-".into()],
         }
     }
 
@@ -67,8 +77,13 @@ impl RooflineEfficiency {
     pub fn add_figures(&self, row: crate::rows::Row, runs: usize) -> crate::rows::Row {
         use crate::rows::{Better, Figure};
         let eff = Summary { median: self.efficiency, min: self.efficiency_min, max: self.efficiency_max, runs };
-        row.with("roofline_efficiency", Figure::timing(eff, "fraction", Better::Higher))
-            .with("fetches_per_ray", Figure::count(self.fetches_per_ray(), "fetches"))
+        let row = row
+            .with("roofline_efficiency", Figure::timing(eff, "fraction", Better::Higher))
+            .with("fetches_per_ray", Figure::count(self.fetches_per_ray(), "fetches"));
+        match self.lanes_busy {
+            Some(b) => row.with("lanes_busy", Figure::count(b, "fraction")),
+            None => row,
+        }
     }
 }
 
@@ -94,34 +109,43 @@ pub fn scene_roofline(
     Ok(report)
 }
 
-/// A kernel's traversal counts on `rays` from its `stats` variant (one untimed cast); `None`
-/// for a traversal without one (persistent threads).
+/// A kernel's traversal counts per ray on `rays`, in their order, from its `stats` variant (one
+/// untimed cast); `None` for a traversal without one (persistent threads).
 pub fn fetch_counts(
     ctx: &Context,
     scene: &DeviceScene,
     rays: &[Ray],
     batch_rays: usize,
-) -> Result<Option<TraversalSummary>> {
+) -> Result<Option<Vec<TraversalCounts>>> {
     if scene.kernel_source(Raycast::Stats).is_err() {
         return Ok(None);
     }
     let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
-    let counts = scene.cast(ctx, Raycast::Stats, rays, &once)?.traversal.unwrap_or_default();
-    Ok(Some(TraversalSummary::of(&counts)))
+    Ok(Some(scene.cast(ctx, Raycast::Stats, rays, &once)?.traversal.unwrap_or_default()))
 }
 
-/// `scene`'s kernel against the roofline: its nodes and triangles per ray (`t`, [`fetch_counts`])
-/// at its Mrays/s (`mrays`: median, slowest and fastest rounds) over the roofline at the
-/// scene's bytes on its access path (`None` where the roofline measured that path at no size).
+/// `scene`'s kernel against the roofline: its nodes and triangles per ray (`counts`, per ray in
+/// the set's order: [`fetch_counts`]) at its Mrays/s (`mrays`: median, slowest and fastest
+/// rounds) over the roofline at the scene's bytes on its access path (`None` where the roofline
+/// measured that path at no size); and the lanes those counts keep busy in groups of `lanes`
+/// rays, the rays dispatched in `order` (`order[k]`: the set's index of the `k`-th ray
+/// dispatched; `None`: as given).
 pub fn efficiency(
     scene: &DeviceScene,
     roof: &RooflineReport,
     mrays: Summary,
-    t: &TraversalSummary,
+    counts: &[TraversalCounts],
+    lanes: u32,
+    order: Option<&[u32]>,
 ) -> Option<RooflineEfficiency> {
     let steps = roof.at(RooflineAccess::of_scene(scene.access), scene.bytes as u64)?;
+    let t = TraversalSummary::of(counts);
     let fetches = t.nodes.mean + t.triangles.mean;
     let of = |mrays: f64| fetches * mrays / steps;
+    let dispatched: Vec<TraversalCounts> = match order {
+        Some(o) => o.iter().map(|&i| counts[i as usize]).collect(),
+        None => counts.to_vec(),
+    };
     Some(RooflineEfficiency {
         nodes_per_ray: t.nodes.mean,
         triangles_per_ray: t.triangles.mean,
@@ -129,5 +153,7 @@ pub fn efficiency(
         efficiency: of(mrays.median),
         efficiency_min: of(mrays.min),
         efficiency_max: of(mrays.max),
+        lanes,
+        lanes_busy: traversal_stats::lanes_busy(&dispatched, lanes as usize, traversal_stats::fetches),
     })
 }

@@ -428,7 +428,9 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
     fn efficiency(&self, rays: &[Ray], ms: Summary) -> Result<Option<RooflineEfficiency>> {
         let Some(roof) = self.roofline else { return Ok(None) };
         let counts = efficiency::fetch_counts(self.ctx, &self.scene, rays, self.ropts.batch_rays)?;
-        Ok(counts.and_then(|t| efficiency::efficiency(&self.scene, roof, mrays_summary(rays.len(), ms), &t)))
+        let lanes = self.ctx.info().subgroup_size;
+        Ok(counts
+            .and_then(|c| efficiency::efficiency(&self.scene, roof, mrays_summary(rays.len(), ms), &c, lanes, None)))
     }
 
     /// Section 3 on one set: ticks per ray from the `clock` variant, whose hits must equal the
