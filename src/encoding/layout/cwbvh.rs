@@ -7,16 +7,18 @@
 
 use super::{inner_nodes, LayoutNodes, LayoutSpec};
 use crate::bvh::cwbvh::CW_NODE_TEXELS;
-use crate::bvh::{BuildOptions, BvhNode, CwBvh, CwNode, SlotOrder};
+use crate::bvh::{BuildOptions, BvhNode, CwBvh, CwNode, NodeOrder, NodeTree, SlotOrder};
 use crate::shared::CWBVH_STACK_SIZE;
 
-fn build(binary: &[BvhNode], o: &BuildOptions) -> Result<LayoutNodes, String> {
-    let cw = CwBvh::from_binary_nodes(binary, o, SlotOrder::Greedy)?;
+fn build(binary: &[BvhNode], o: &BuildOptions, order: NodeOrder) -> Result<LayoutNodes, String> {
+    let mut cw = CwBvh::from_binary_nodes(binary, o, SlotOrder::Greedy)?;
+    order.reorder_cwbvh(&mut cw)?;
     Ok(LayoutNodes {
         bytes: bytemuck::cast_slice(&cw.words()).to_vec(),
         nodes: cw.nodes.len(),
         stack_bound: cw.stack_bound(),
         sah_cost: cw.sah_cost(o),
+        locality: NodeTree::cwbvh(&cw.nodes, &cw.bounds).locality(),
     })
 }
 

@@ -23,7 +23,7 @@ mod bvh4;
 mod bvh8;
 mod cwbvh;
 
-use crate::bvh::{BuildOptions, BvhNode};
+use crate::bvh::{BuildOptions, BvhNode, Locality, NodeOrder, NodeTree};
 use crate::named::Named;
 
 use super::plan::SceneCounts;
@@ -39,10 +39,22 @@ pub struct LayoutNodes {
     pub stack_bound: usize,
     /// The tree's SAH cost, priced with the build options (node cost per node visited).
     pub sah_cost: f64,
+    /// How close the nodes a descent reads lie, in the buffer's node order.
+    pub locality: Locality,
 }
 
-/// Makes a layout's node buffer from the encoding's binary nodes, or says why it cannot.
-pub type BuildNodes = fn(&[BvhNode], &BuildOptions) -> Result<LayoutNodes, String>;
+/// Makes a layout's node buffer from the encoding's binary nodes with its nodes in the given
+/// order (`bvh::order`), or says why it cannot.
+pub type BuildNodes = fn(&[BvhNode], &BuildOptions, NodeOrder) -> Result<LayoutNodes, String>;
+
+/// A layout's node buffer as `trilab bvh` reports it: its size and locality in one node order.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct NodeFootprint {
+    pub nodes: usize,
+    /// The bytes bound at `BINDING_NODES` (cwbvh's leaf table included).
+    pub bytes: usize,
+    pub locality: Locality,
+}
 
 /// Everything the host knows about one layout (`src/encoding/layout/<name>.rs`'s `LAYOUT`).
 #[derive(Clone, Copy, Debug)]
@@ -131,7 +143,33 @@ impl Layout {
 
     /// The node buffer for `binary` (the encoding's nodes), `None` for the binary layout.
     pub fn nodes(self, binary: &[BvhNode], o: &BuildOptions) -> Result<Option<LayoutNodes>, String> {
-        self.spec().build.map(|b| b(binary, o)).transpose()
+        self.nodes_in(binary, o, NodeOrder::Built)
+    }
+
+    /// The same with the nodes in `order`; `None` for the binary layout, whose nodes are the
+    /// encoding's own (`NodeOrder::reorder_binary` orders them).
+    pub fn nodes_in(
+        self,
+        binary: &[BvhNode],
+        o: &BuildOptions,
+        order: NodeOrder,
+    ) -> Result<Option<LayoutNodes>, String> {
+        self.spec().build.map(|b| b(binary, o, order)).transpose()
+    }
+
+    /// This layout's node buffer for `binary` in `order`: nodes, bytes and locality (the binary
+    /// layout's from `binary` itself, reordered).
+    pub fn footprint(self, binary: &[BvhNode], o: &BuildOptions, order: NodeOrder) -> Result<NodeFootprint, String> {
+        if let Some(built) = self.nodes_in(binary, o, order)? {
+            return Ok(NodeFootprint { nodes: built.nodes, bytes: built.bytes.len(), locality: built.locality });
+        }
+        let mut nodes = binary.to_vec();
+        order.reorder_binary(&mut nodes)?;
+        Ok(NodeFootprint {
+            nodes: nodes.len(),
+            bytes: std::mem::size_of_val(nodes.as_slice()),
+            locality: NodeTree::binary(&nodes).locality(),
+        })
     }
 }
 
@@ -155,11 +193,19 @@ impl serde::Serialize for Layout {
     }
 }
 
-/// A wide tree's node buffer: the binary nodes collapsed with [`crate::bvh::Collapse::Sah`].
-pub(super) fn wide_nodes<const N: usize>(binary: &[BvhNode], o: &BuildOptions) -> Result<LayoutNodes, String> {
+/// A wide tree's node buffer: the binary nodes collapsed with [`crate::bvh::Collapse::Sah`], in
+/// `order`.
+pub(super) fn wide_nodes<const N: usize>(
+    binary: &[BvhNode],
+    o: &BuildOptions,
+    order: NodeOrder,
+) -> Result<LayoutNodes, String> {
     use crate::bvh::{Collapse, WideBvh};
     let start = std::time::Instant::now();
-    let nodes = WideBvh::<N>::collapse_nodes(binary, o, Collapse::Sah);
+    let mut nodes = WideBvh::<N>::collapse_nodes(binary, o, Collapse::Sah);
+    let bounds = binary[0].aabb();
+    order.reorder_wide(&mut nodes, &bounds)?;
+    let locality = NodeTree::wide(&nodes, &bounds)?.locality();
     let tree = WideBvh::<N> {
         nodes,
         bounds: binary[0].aabb(),
@@ -172,6 +218,7 @@ pub(super) fn wide_nodes<const N: usize>(binary: &[BvhNode], o: &BuildOptions) -
         nodes: tree.nodes.len(),
         stack_bound: tree.stack_bound(),
         sah_cost: tree.sah_cost(o),
+        locality,
     })
 }
 
@@ -234,6 +281,18 @@ mod tests {
                     );
                     assert_eq!(built.bytes.len() % 16, 0, "{l}: whole texels");
                     assert!(built.nodes >= 1 && built.stack_bound <= l.spec().stack_size as usize, "{l} n={n}");
+                    // Every node order gives the same tree: its bytes, nodes, stack and cost.
+                    for &order in NodeOrder::ALL {
+                        let o = l.nodes_in(&bvh.nodes, &bvh.options, order).unwrap().unwrap();
+                        assert_eq!(
+                            (o.bytes.len(), o.nodes, o.stack_bound, o.sah_cost),
+                            (built.bytes.len(), built.nodes, built.stack_bound, built.sah_cost),
+                            "{l} {order} n={n} leaf={leaf}"
+                        );
+                        if order == NodeOrder::Built {
+                            assert!(o.bytes == built.bytes, "{l}: the built order is the buffer as before");
+                        }
+                    }
                 }
             }
         }
