@@ -407,6 +407,9 @@ impl NodeOrder {
     /// The binary nodes (as `Bvh::nodes` or an encoding's) in this order: an inner node's
     /// `left_or_first` renamed, leaves untouched.
     pub fn reorder_binary(self, nodes: &mut Vec<BvhNode>) -> Result<(), String> {
+        if self == NodeOrder::Built {
+            return Ok(());
+        }
         let Some(new) = NodeTree::binary(nodes).permutation(self)? else { return Ok(()) };
         *nodes = permute(nodes, &new, |n| {
             if !n.is_leaf() {
@@ -420,6 +423,9 @@ impl NodeOrder {
 
     /// Wide nodes (`bounds`: the root's box) in this order: every inner slot's index renamed.
     pub fn reorder_wide<const N: usize>(self, nodes: &mut Vec<WideNode<N>>, bounds: &Aabb) -> Result<(), String> {
+        if self == NodeOrder::Built {
+            return Ok(());
+        }
         let Some(new) = NodeTree::wide(nodes, bounds)?.permutation(self)? else { return Ok(()) };
         *nodes = permute(nodes, &new, |n| {
             for s in 0..n.children() {
@@ -434,6 +440,9 @@ impl NodeOrder {
     /// A compressed tree in this order: every `child_base` renamed (its inner children move
     /// together); the leaf table and every `leaf_base` stay.
     pub fn reorder_cwbvh(self, cw: &mut CwBvh) -> Result<(), String> {
+        if self == NodeOrder::Built {
+            return Ok(());
+        }
         let Some(new) = NodeTree::cwbvh(&cw.nodes, &cw.bounds).permutation(self)? else { return Ok(()) };
         cw.nodes = permute(&cw.nodes, &new, |n| {
             if n.imask != 0 {

@@ -908,7 +908,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 .collect();
             let measured = interleaved(ctx, &mesh, &jobs, o.warmup, o.repeat, o.batch_rays)
                 .map_err(|(i, e)| Error::Usage(format!("{name} {set} {}: {e}", label(jobs[i].scene, jobs[i].order))))?;
-            // Each kernel's traversal counts on this set, cast once however many orders it ran in.
+            // Each kernel's traversal counts on this set, cast once however many ray orders it ran
+            // in and whatever its nodes' order (the walk does not depend on either:
+            // tests/node_orders_gpu.rs), on the first scene of that kernel.
             let mut counts: Vec<Option<Option<crate::gpu::TraversalSummary>>> = vec![None; scenes.len()];
             for (job, m) in jobs.iter().zip(measured) {
                 let (scene, order) = (job.scene, job.order);
@@ -931,11 +933,14 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 r.order = Some(order);
                 r.reorder_ms = (order != RayOrder::Given).then_some(m.reorder_ms);
                 if let Some(roof) = &roofline {
-                    let i =
-                        scenes.iter().position(|s| std::ptr::eq(s, scene)).expect("a job's scene is one of the scenes");
+                    let kernel = |s: &DeviceScene| (s.method, s.layout, s.traversal, s.access);
+                    let i = scenes
+                        .iter()
+                        .position(|s| kernel(s) == kernel(scene))
+                        .expect("a job's scene is one of the scenes");
                     let t = match counts[i] {
                         Some(t) => t,
-                        None => *counts[i].insert(fetch_counts(ctx, scene, rays, o.batch_rays)?),
+                        None => *counts[i].insert(fetch_counts(ctx, &scenes[i], rays, o.batch_rays)?),
                     };
                     r.roofline = t.and_then(|t| efficiency(scene, roof, &r, &t));
                 }
