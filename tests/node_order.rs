@@ -4,7 +4,11 @@
 //! the f64 reference and the while-if mirror on the binary nodes, `WideBvh::trace` on bvh4 and
 //! bvh8, `CwBvh::trace` on cwbvh — returns exactly the built order's hits and does exactly its
 //! work on every ray, closest and any hit; while the node arrays themselves differ from the
-//! built ones (so a renumbering that did nothing would fail here).
+//! built ones (so a renumbering that did nothing would fail here). `trilab bvh --layouts
+//! --node-orders` reports each layout's bytes per triangle and each order's locality, and
+//! without them what it reported before.
+
+mod common;
 
 use std::path::Path;
 
@@ -146,4 +150,39 @@ fn breadth_first_and_treelets_on_the_bunny() {
         assert_eq!(at as usize, tree.len());
         assert!(treelets.len() > 10, "{layout}: {} treelets", treelets.len());
     }
+}
+
+#[test]
+fn bvh_reports_bytes_per_triangle_and_locality_per_layout_and_order() {
+    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny.obj");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["bvh", "--scene", bunny, "--leaf-sizes", "4", "--json"];
+        args.extend(extra);
+        let o = common::cli::trilab(&args, 120);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    // Without either option: the list of builds, as before.
+    assert!(run(&[]).is_array());
+    let j = run(&["--layouts", "bvh2,cwbvh", "--node-orders", "built,breadth-first,treelets"]);
+    assert_eq!(j["builds"].as_array().unwrap().len(), 2, "both builders");
+    let layouts = j["layouts"].as_array().unwrap();
+    assert_eq!(layouts.len(), 2, "the binned tree's two layouts");
+    let leaf = &j["leaf_bytes_per_triangle"]["4"];
+    for l in layouts {
+        let node = l["node_bytes_per_triangle"].as_f64().unwrap();
+        assert!(node > 1.0 && node < 40.0, "{l}");
+        for m in ["mt", "unit", "quad-unit"] {
+            let total = l["bytes_per_triangle"][m].as_f64().unwrap();
+            assert!((total - node - leaf[m].as_f64().unwrap()).abs() < 1e-9, "{l}: nodes + leaves");
+        }
+        let loc = l["locality"].as_array().unwrap();
+        assert_eq!(loc.len(), 3);
+        let pages = |k: usize| loc[k][1]["pages_per_step"].as_f64().unwrap();
+        assert_eq!(loc[2][0], "treelets");
+        assert!(pages(2) < pages(1), "{}: treelets leave a page less often than breadth first", l["layout"]);
+    }
+    // cwbvh's nodes and leaf table take fewer bytes than bvh2's nodes.
+    let node = |k: usize| layouts[k]["node_bytes_per_triangle"].as_f64().unwrap();
+    assert!(node(1) < 0.5 * node(0));
 }

@@ -167,16 +167,16 @@ impl NodeTree {
             *a = bounds.area();
         }
         for (i, n) in nodes.iter().enumerate() {
-            let inner: Vec<usize> = (0..n.children()).filter(|&s| !n.is_leaf(s)).collect();
-            for (k, &s) in inner.iter().enumerate() {
-                if n.child[s] != n.child[inner[0]] + k as u32 || n.child[s] as usize >= nodes.len() {
+            let mut group: Option<(u32, u32)> = None;
+            for s in (0..n.children()).filter(|&s| !n.is_leaf(s)) {
+                let (first, len) = group.unwrap_or((n.child[s], 0));
+                if n.child[s] != first + len || n.child[s] as usize >= nodes.len() {
                     return Err(format!("node {i}'s inner children are not consecutive in slot order"));
                 }
                 t.area[n.child[s] as usize] = n.child_box(s).area();
+                group = Some((first, len + 1));
             }
-            if let Some(&s) = inner.first() {
-                t.kids[i] = (n.child[s], inner.len() as u32);
-            }
+            t.kids[i] = group.unwrap_or((0, 0));
         }
         Ok(t)
     }

@@ -23,7 +23,7 @@ mod bvh4;
 mod bvh8;
 mod cwbvh;
 
-use crate::bvh::{BuildOptions, BvhNode, Locality, NodeOrder, NodeTree};
+use crate::bvh::{Aabb, BuildOptions, BvhNode, Locality, NodeOrder, NodeTree};
 use crate::named::Named;
 
 use super::plan::SceneCounts;
@@ -39,9 +39,12 @@ pub struct LayoutNodes {
     pub stack_bound: usize,
     /// The tree's SAH cost, priced with the build options (node cost per node visited).
     pub sah_cost: f64,
-    /// How close the nodes a descent reads lie, in the buffer's node order.
-    pub locality: Locality,
 }
+
+/// How close the nodes a descent reads lie in a layout's built node buffer (`bytes`, `nodes`
+/// nodes; `bounds`: the root's box), read back from the buffer (not made with every buffer, so
+/// neither uploads nor build-bench's conversion times pay for it).
+pub type NodeLocality = fn(&LayoutNodes, &Aabb) -> Result<Locality, String>;
 
 /// Makes a layout's node buffer from the encoding's binary nodes with its nodes in the given
 /// order (`bvh::order`), or says why it cannot.
@@ -76,6 +79,9 @@ pub struct LayoutSpec {
     /// `None` for the binary nodes themselves; an error where the tree cannot be represented
     /// (cwbvh: a box without a grid, word indices beyond 32 bits).
     pub build: Option<BuildNodes>,
+    /// The locality of a buffer `build` made (`None` with `build`: the binary nodes are read
+    /// directly).
+    pub locality: Option<NodeLocality>,
     /// An upper bound of the node buffer's bytes from counts alone, for the memory plan (a
     /// test holds every built buffer within it).
     pub plan_bytes: fn(&SceneCounts) -> u64,
@@ -161,7 +167,9 @@ impl Layout {
     /// layout's from `binary` itself, reordered).
     pub fn footprint(self, binary: &[BvhNode], o: &BuildOptions, order: NodeOrder) -> Result<NodeFootprint, String> {
         if let Some(built) = self.nodes_in(binary, o, order)? {
-            return Ok(NodeFootprint { nodes: built.nodes, bytes: built.bytes.len(), locality: built.locality });
+            let read = self.spec().locality.ok_or_else(|| format!("{self}: no reader of its nodes' locality"))?;
+            let locality = read(&built, &binary[0].aabb())?;
+            return Ok(NodeFootprint { nodes: built.nodes, bytes: built.bytes.len(), locality });
         }
         let mut nodes = binary.to_vec();
         order.reorder_binary(&mut nodes)?;
@@ -203,9 +211,7 @@ pub(super) fn wide_nodes<const N: usize>(
     use crate::bvh::{Collapse, WideBvh};
     let start = std::time::Instant::now();
     let mut nodes = WideBvh::<N>::collapse_nodes(binary, o, Collapse::Sah);
-    let bounds = binary[0].aabb();
-    order.reorder_wide(&mut nodes, &bounds)?;
-    let locality = NodeTree::wide(&nodes, &bounds)?.locality();
+    order.reorder_wide(&mut nodes, &binary[0].aabb())?;
     let tree = WideBvh::<N> {
         nodes,
         bounds: binary[0].aabb(),
@@ -218,8 +224,15 @@ pub(super) fn wide_nodes<const N: usize>(
         nodes: tree.nodes.len(),
         stack_bound: tree.stack_bound(),
         sah_cost: tree.sah_cost(o),
-        locality,
     })
+}
+
+/// [`NodeLocality`] of a wide tree's node buffer.
+pub(super) fn wide_locality<const N: usize>(built: &LayoutNodes, bounds: &Aabb) -> Result<Locality, String> {
+    use crate::bvh::WideNode;
+    let size = std::mem::size_of::<WideNode<N>>();
+    let nodes: Vec<WideNode<N>> = built.bytes.chunks_exact(size).map(bytemuck::pod_read_unaligned).collect();
+    Ok(NodeTree::wide(&nodes, bounds)?.locality())
 }
 
 /// Inner nodes of the binary tree: a collapsed tree has at most this many nodes (each wide node
@@ -243,6 +256,46 @@ mod tests {
             tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
         }
         Mesh::from_triangles(pos, tris)
+    }
+
+    /// Every layout's footprint in every order: the built buffer's nodes and bytes, and the
+    /// locality read back from the buffer equal to the one of the tree it was made from.
+    #[test]
+    fn footprints_read_the_built_buffers() {
+        use crate::bvh::{CwBvh, SlotOrder, WideBvh};
+        let bvh = Bvh::build(&grid(2000), &BuildOptions::new(4));
+        let bounds = bvh.nodes[0].aabb();
+        for &order in NodeOrder::ALL {
+            for &l in Layout::ALL {
+                let f = l.footprint(&bvh.nodes, &bvh.options, order).unwrap();
+                let want = match l {
+                    Layout::Bvh2 => {
+                        let mut n = bvh.nodes.clone();
+                        order.reorder_binary(&mut n).unwrap();
+                        (n.len(), NodeTree::binary(&n).locality())
+                    }
+                    Layout::Bvh4 => {
+                        let mut w = WideBvh::<4>::collapse(&bvh).nodes;
+                        order.reorder_wide(&mut w, &bounds).unwrap();
+                        (w.len(), NodeTree::wide(&w, &bounds).unwrap().locality())
+                    }
+                    Layout::Bvh8 => {
+                        let mut w = WideBvh::<8>::collapse(&bvh).nodes;
+                        order.reorder_wide(&mut w, &bounds).unwrap();
+                        (w.len(), NodeTree::wide(&w, &bounds).unwrap().locality())
+                    }
+                    Layout::Cwbvh => {
+                        let mut cw = CwBvh::build_with(&bvh, SlotOrder::Greedy).unwrap();
+                        order.reorder_cwbvh(&mut cw).unwrap();
+                        (cw.nodes.len(), NodeTree::cwbvh(&cw.nodes, &cw.bounds).locality())
+                    }
+                };
+                assert_eq!((f.nodes, f.locality), want, "{l} {order}");
+                let bytes = l.nodes(&bvh.nodes, &bvh.options).unwrap().map_or(bvh.nodes.len() * 32, |b| b.bytes.len());
+                assert_eq!(f.bytes, bytes, "{l} {order}: the built buffer's bytes");
+                assert!(f.locality.lines_per_step >= 1.0 && f.locality.pages_per_step > 0.0, "{l} {order}");
+            }
+        }
     }
 
     #[test]
