@@ -7,6 +7,8 @@
 //!   their SAH cost and a CPU traversal (issue 15 groundwork).
 //! - [`cwbvh`]: the 8-wide tree compressed into Ylitie et al.'s 80-byte nodes (quantized
 //!   child boxes, octant-ordered slots) and its hit-mask traversal on the CPU.
+//! - [`order`]: the tree's node order in memory (as built, depth first, breadth first, treelets),
+//!   applied to any layout's node array by renaming child indices (issue 27).
 //! - `BvhStats`: nodes, depth, leaf-size histogram, SAH cost, build time, and (with the mesh)
 //!   end-point overlap ([`epo`]).
 
@@ -14,12 +16,14 @@ pub mod builder;
 pub mod cwbvh;
 pub mod epo;
 mod node;
+pub mod order;
 pub mod wide;
 
 pub use crate::scene::Aabb;
 pub use builder::{BuildOptions, Builder, LeafPolicy, MAX_DEPTH, MAX_LEAF_SIZE, PAPER_LEAF_SIZES};
 pub use cwbvh::{CwBvh, CwNode, CwStats, SlotOrder};
 pub use node::BvhNode;
+pub use order::{Locality, NodeOrder, NodeTree};
 pub use wide::{Bvh4, Bvh4Node, Bvh8, Bvh8Node, Collapse, Wide2Node, WideBvh, WideHit, WideNode, WideStats, WideSteps};
 
 use crate::scene::Mesh;

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use trilab::bvh::NodeOrder;
 use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::Result;
 use trilab::harness::bench::{self, BenchOptions, BenchReport};
@@ -75,6 +76,12 @@ pub struct BenchArgs {
     /// its kernel time and is shown as `reorder ms` (default: given).
     #[arg(long, value_name = "O,...", value_parser = choice::<RayOrder>(), value_delimiter = ',')]
     orders: Vec<RayOrder>,
+    /// Orders of each layout's nodes in memory, comma-separated (`built`, `depth-first`,
+    /// `breadth-first`, `treelets`): every method, layout and traversal is timed on the nodes in
+    /// each, side by side in one run; the tree, its leaves and the rays' walks are the same
+    /// (default: built, the layout's own order).
+    #[arg(long, value_name = "O,...", value_parser = choice::<NodeOrder>(), value_delimiter = ',')]
+    node_orders: Vec<NodeOrder>,
     /// Run only shard I of N: every N-th scene, round-robin from scene I (a scene is the unit, so
     /// its methods, layouts and peers stay interleaved in one run). rows.jsonl names the shard
     /// and plans the whole matrix; `trilab merge` joins the shards' folders.
@@ -138,6 +145,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         layouts: if a.layouts.is_empty() { vec![Layout::Bvh2] } else { a.layouts },
         traversals: if a.traversals.is_empty() { vec![Traversal::WhileIf] } else { a.traversals },
         orders: if a.orders.is_empty() { vec![RayOrder::Given] } else { a.orders },
+        node_orders: if a.node_orders.is_empty() { vec![NodeOrder::Built] } else { a.node_orders },
         ray_query: a.ray_query.runs(&ctx),
         ray_tracing_pipeline: a.ray_tracing_pipeline.runs(&ctx),
         shard: a.shard,

@@ -3,9 +3,12 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use trilab::bvh::NodeOrder;
+use trilab::encoding::Layout;
 use trilab::error::Result;
 use trilab::harness::{build_bench, bvh_stats};
 
+use super::choice::choice;
 use super::{scene_help, JsonArg, TreeShapeArgs};
 
 /// Build the BVH and report its statistics (nodes, depth, leaf sizes, SAH cost, end-point
@@ -25,6 +28,18 @@ pub struct BvhArgs {
     /// time does.
     #[arg(long, value_name = "N,...", value_delimiter = ',')]
     threads: Vec<usize>,
+    /// Node layouts, comma-separated (`bvh2`, `bvh4`, `bvh8`, `cwbvh`): per leaf size, each
+    /// layout of the binned tree with its nodes and bytes per triangle (the node buffer, and the
+    /// node buffer plus each method's leaf bytes), and per node order the locality of a descent
+    /// (default with --node-orders: every layout; without either, no layout table).
+    #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
+    layouts: Vec<Layout>,
+    /// Node orders whose locality is reported per layout, comma-separated (`built`,
+    /// `depth-first`, `breadth-first`, `treelets`): the new 64-byte lines and 4 KiB pages a
+    /// step from a node to its child reads, weighted by the child's surface area (default with
+    /// --layouts: every order).
+    #[arg(long, value_name = "O,...", value_parser = choice::<NodeOrder>(), value_delimiter = ',')]
+    node_orders: Vec<NodeOrder>,
     #[command(flatten)]
     json: JsonArg,
 }
@@ -34,7 +49,7 @@ pub fn run(a: BvhArgs) -> Result<()> {
     build_bench::check_threads(&a.threads)?;
     // The tree's shape; its leaf size is each of --leaf-sizes in turn.
     let shape = a.shape.options(0);
-    let build = || bvh_stats::run(&a.scene, &a.leaf_sizes, shape);
+    let build = || bvh_stats::run_with_layouts(&a.scene, &a.leaf_sizes, shape, &a.layouts, &a.node_orders);
     let report = if a.threads.is_empty() {
         build()?
     } else {
@@ -42,6 +57,7 @@ pub fn run(a: BvhArgs) -> Result<()> {
         for &t in &a.threads {
             let r = build_bench::pool(t)?.install(build)?;
             match &mut report {
+                // The trees, so their layouts, do not depend on the threads: the first run's.
                 Some(all) => all.rows.extend(r.rows),
                 None => report = Some(r),
             }

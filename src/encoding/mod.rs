@@ -22,7 +22,7 @@ pub mod variants;
 pub mod layout;
 pub mod plan;
 
-pub use layout::{Layout, LayoutNodes, LayoutSpec};
+pub use layout::{Layout, LayoutNodes, LayoutSpec, NodeFootprint};
 pub use plan::{AccessPath, BufferPlan, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
 pub use variants::{
     support as traversal_support, BsdfSet, PathtraceKey, Raycast, RaycastKey, Traversal, COOP_SUBGROUP_OPERATIONS,

@@ -9,7 +9,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::agreement::compare_closest;
-use crate::bvh::BuildOptions;
+use crate::bvh::{BuildOptions, NodeOrder};
 use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
 use crate::gpu::{AccelStats, AccelStructure, Context, Peer, PeerTracer, RaycastOptions};
@@ -63,6 +63,9 @@ pub struct BenchOptions {
     /// The orders each set is dispatched in (default: as given), side by side: a reordering's
     /// host time (the sort, and putting the hits back) is part of its kernel time.
     pub orders: Vec<RayOrder>,
+    /// The node orders each layout's buffer is laid out in (`bvh::order`; default: as built),
+    /// each one more set of scenes timed side by side with the others.
+    pub node_orders: Vec<NodeOrder>,
     /// Run only this shard's scenes ([`BenchOptions::split`]): a scene is the unit, so its
     /// methods, layouts and peers stay interleaved side by side in one run.
     pub shard: Option<Shard>,
@@ -105,6 +108,7 @@ impl Default for BenchOptions {
             layouts: vec![Layout::Bvh2],
             traversals: vec![Traversal::WhileIf],
             orders: vec![RayOrder::Given],
+            node_orders: vec![NodeOrder::Built],
             shard: None,
             roofline: None,
         }
@@ -150,6 +154,10 @@ pub struct BenchRow {
     pub traversal: Option<Traversal>,
     /// The order our kernel's rays were dispatched in (`None` for a peer).
     pub order: Option<RayOrder>,
+    /// The order of the layout's nodes in memory (`None` for a peer); left out of the JSON when
+    /// it is the built one, so a run without `--node-orders` writes what it wrote before.
+    #[serde(skip_serializing_if = "built_order")]
+    pub node_order: Option<NodeOrder>,
     /// The host's time to reorder the rays and put the hits back, ms, part of `kernel_ms`
     /// (`None` for a peer, or rays dispatched as given).
     pub reorder_ms: Option<Summary>,
@@ -169,13 +177,21 @@ pub struct BenchRow {
     pub roofline: Option<RooflineEfficiency>,
 }
 
+/// Whether a row's node order is the built one (or it has none): not written.
+fn built_order(o: &Option<NodeOrder>) -> bool {
+    o.is_none_or(|o| o == NodeOrder::Built)
+}
+
 impl BenchRow {
-    /// How the peer comparison names our row: the method, with its traversal and ray order
-    /// where they are not the defaults (the layout has its own column).
+    /// How the peer comparison names our row: the method, with its traversal, node order and
+    /// ray order where they are not the defaults (the layout has its own column).
     fn label(&self, method: Method) -> String {
         let mut s = method.to_string();
         if let Some(t) = self.traversal.filter(|&t| t != Traversal::default()) {
             s += &format!(" {t}");
+        }
+        if !built_order(&self.node_order) {
+            s += &format!(" {}", self.node_order.unwrap_or_default());
         }
         if let Some(o) = self.order.filter(|&o| o != RayOrder::default()) {
             s += &format!(" {o}");
@@ -310,12 +326,14 @@ impl BenchReport {
     }
 
     /// One row per measured cell. The access column appears when rows read their scenes both
-    /// ways, the traversal column when a row's traversal is not while-if, the order and reorder
+    /// ways, the traversal column when a row's traversal is not while-if, the node order column
+    /// when a row's nodes are not in the built order, the order and reorder
     /// columns when a row's rays were reordered (`kernel ms` then includes the reordering;
     /// `reorder ms` is that share).
     pub fn table(&self) -> Table {
         let traversals = self.rows.iter().any(|r| r.traversal.is_some_and(|t| t != Traversal::default()));
         let orders = self.rows.iter().any(|r| r.order.is_some_and(|o| o != RayOrder::default()));
+        let node_orders = self.rows.iter().any(|r| !built_order(&r.node_order));
         // The access column only where rows read scenes both ways (one path is the header's
         // `--scene-access`, as before lists were taken).
         let access = self.rows.iter().any(|r| r.scene_access == Some(AccessPath::Address))
@@ -324,6 +342,7 @@ impl BenchReport {
         let mut header = vec!["scene", "rays", "set", "method", "layout"];
         header.extend(access.then_some("access"));
         header.extend(traversals.then_some("traversal"));
+        header.extend(node_orders.then_some("node order"));
         header.extend(orders.then_some("order"));
         header.extend(["leaf", "MB", "kernel ms"]);
         header.extend(orders.then_some("reorder ms"));
@@ -343,6 +362,7 @@ impl BenchReport {
             ];
             cells.extend(access.then(|| or_dash(r.scene_access.map(|a| a.name().to_owned()))));
             cells.extend(traversals.then(|| or_dash(r.traversal.map(|t| t.to_string()))));
+            cells.extend(node_orders.then(|| or_dash(r.node_order.map(|o| o.to_string()))));
             cells.extend(orders.then(|| or_dash(r.order.map(|o| o.to_string()))));
             cells.extend([
                 or_dash(r.leaf_size.map(|l| l.to_string())),
@@ -412,15 +432,16 @@ pub struct BenchCell {
 /// Who traced a bench cell's rays.
 #[derive(Clone, Debug, PartialEq)]
 pub enum CellTracer {
-    /// One of trilab's kernels; `sah_group` only when it is not 1, the traversal and the ray
-    /// order only when they are not the defaults (while-if, as given).
-    /// The access path is named only when it is the address path.
+    /// One of trilab's kernels; `sah_group` only when it is not 1, the traversal, the node
+    /// order and the ray order only when they are not the defaults (while-if, as built, as
+    /// given). The access path is named only when it is the address path.
     Method {
         method: Method,
         layout: Layout,
         leaf: u32,
         sah_group: Option<u32>,
         traversal: Traversal,
+        node_order: NodeOrder,
         order: RayOrder,
         access: AccessPath,
     },
@@ -436,7 +457,7 @@ impl BenchCell {
             c.insert("rays".into(), rays.to_string());
         }
         match &self.tracer {
-            CellTracer::Method { method, layout, leaf, sah_group, traversal, order, access } => {
+            CellTracer::Method { method, layout, leaf, sah_group, traversal, node_order, order, access } => {
                 c.insert("method".into(), method.to_string());
                 c.insert("layout".into(), layout.to_string());
                 c.insert("leaf".into(), leaf.to_string());
@@ -445,6 +466,9 @@ impl BenchCell {
                 }
                 if *traversal != Traversal::default() {
                     c.insert("traversal".into(), traversal.to_string());
+                }
+                if *node_order != NodeOrder::default() {
+                    c.insert("node_order".into(), node_order.to_string());
                 }
                 if *order != RayOrder::default() {
                     c.insert("order".into(), order.to_string());
@@ -473,6 +497,7 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
                 leaf: r.leaf_size.unwrap_or(report.leaf_size),
                 sah_group: r.sah_group,
                 traversal: r.traversal.unwrap_or_default(),
+                node_order: r.node_order.unwrap_or_default(),
                 order: r.order.unwrap_or_default(),
                 access: r.scene_access.unwrap_or(AccessPath::Texel),
             },
@@ -559,6 +584,7 @@ fn row(
         layout: o.map(|_| Layout::Bvh2),
         traversal: o.map(|_| Traversal::WhileIf),
         order: o.map(|_| RayOrder::Given),
+        node_order: o.map(|_| NodeOrder::Built),
         reorder_ms: None,
         kernel_ms: ms,
         mrays_per_s: mr.median,
@@ -590,17 +616,20 @@ pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<cr
         let name = crate::scene::scene_name(scene);
         for set in &sets {
             for (m, l, t, a) in o.kernels() {
-                for &order in &o.orders() {
-                    let tracer = CellTracer::Method {
-                        method: m,
-                        layout: l,
-                        leaf: o.build.max_leaf_size,
-                        sah_group: Some(o.build.sah_group),
-                        traversal: t,
-                        order,
-                        access: path_of(a),
-                    };
-                    cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
+                for node_order in o.node_orders() {
+                    for &order in &o.orders() {
+                        let tracer = CellTracer::Method {
+                            method: m,
+                            layout: l,
+                            leaf: o.build.max_leaf_size,
+                            sah_group: Some(o.build.sah_group),
+                            traversal: t,
+                            node_order,
+                            order,
+                            access: path_of(a),
+                        };
+                        cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
+                    }
                 }
             }
             let peers = driver.iter().map(Peer::to_string).chain(peers.iter().cloned());
@@ -676,6 +705,15 @@ impl BenchOptions {
                 )
             })
             .collect()
+    }
+
+    /// The node orders, the built one alone when none was asked for.
+    pub fn node_orders(&self) -> Vec<NodeOrder> {
+        if self.node_orders.is_empty() {
+            vec![NodeOrder::Built]
+        } else {
+            self.node_orders.clone()
+        }
     }
 
     /// The ray orders, the default alone when none was asked for.
@@ -777,11 +815,16 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         });
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
         // Each method's plan picks its access path before encoding (and fails clearly if the
-        // scene cannot fit); its kernels read the scene through that path.
+        // scene cannot fit); its kernels read the scene through that path. Each node order is
+        // one more scene of every kernel.
         let scenes: Vec<DeviceScene> = o
             .kernels()
             .into_iter()
-            .map(|(m, l, t, a)| SceneRequest::new(m).access(a).layout(l).traversal(t))
+            .flat_map(|(m, l, t, a)| {
+                o.node_orders()
+                    .into_iter()
+                    .map(move |n| SceneRequest::new(m).access(a).layout(l).traversal(t).node_order(n))
+            })
             .map(|req| host.upload(ctx, &req))
             .collect::<Result<_>>()?;
         let accel = match driver.is_empty() {
@@ -812,6 +855,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 }
                 if scene.traversal != Traversal::default() {
                     s += &format!(" {}", scene.traversal);
+                }
+                if scene.node_order != NodeOrder::Built {
+                    s += &format!(" {} nodes", scene.node_order);
                 }
                 if order != RayOrder::default() {
                     s += &format!(" {order}");
@@ -845,7 +891,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             )?;
             drop(others);
             let results: Vec<PeerResult> = peer_rounds.into_iter().map(PeerRound::finish).collect();
-            // Each kernel's traversal counts on this set, cast once however many orders it ran in.
+            // Each kernel's traversal counts on this set, cast once however many ray orders it ran
+            // in and whatever its nodes' order (the walk does not depend on either:
+            // tests/node_orders_gpu.rs), on the first scene of that kernel.
             let mut counts: Vec<Option<Option<Vec<crate::gpu::TraversalCounts>>>> = vec![None; scenes.len()];
             for (job, m) in jobs.iter().zip(measured) {
                 let (scene, order) = (job.scene, job.order);
@@ -864,14 +912,18 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                 let mut r = row(&name, &mesh, set, rays, tracer, Some(o), bytes, ms, &agreement);
                 r.layout = Some(scene.layout);
                 r.traversal = Some(scene.traversal);
+                r.node_order = Some(scene.node_order);
                 r.order = Some(order);
                 r.reorder_ms = (order != RayOrder::Given).then_some(m.reorder_ms);
                 if let Some(roof) = &roofline {
-                    let i =
-                        scenes.iter().position(|s| std::ptr::eq(s, scene)).expect("a job's scene is one of the scenes");
+                    let kernel = |s: &DeviceScene| (s.method, s.layout, s.traversal, s.access);
+                    let i = scenes
+                        .iter()
+                        .position(|s| kernel(s) == kernel(scene))
+                        .expect("a job's scene is one of the scenes");
                     let c = match &counts[i] {
                         Some(c) => c,
-                        None => counts[i].insert(efficiency::fetch_counts(ctx, scene, rays, o.batch_rays)?),
+                        None => counts[i].insert(efficiency::fetch_counts(ctx, &scenes[i], rays, o.batch_rays)?),
                     };
                     // The lanes a subgroup's rays keep busy depend on which rays share it: the
                     // order the kernel got them in (the sort is deterministic).
@@ -955,6 +1007,7 @@ mod tests {
             leaf: 4,
             sah_group: Some(sah_group),
             traversal,
+            node_order: NodeOrder::Built,
             order,
             access: AccessPath::Texel,
         };
@@ -982,12 +1035,27 @@ mod tests {
             .coordinates();
         assert_eq!(sorted.get("order").map(String::as_str), Some("octant-origin"));
         assert!(!crate::rows::plan_matches(&sorted, &row) && !sorted.contains_key("traversal"));
+        // And a node order other than the built one.
+        let treelets = CellTracer::Method {
+            method: Method::Mt,
+            layout: Layout::Bvh4,
+            leaf: 4,
+            sah_group: Some(1),
+            traversal: Traversal::WhileIf,
+            node_order: NodeOrder::Treelets,
+            order: RayOrder::Given,
+            access: AccessPath::Texel,
+        };
+        let t = BenchCell { tracer: treelets, ..planned.clone() }.coordinates();
+        assert_eq!(t.get("node_order").map(String::as_str), Some("treelets"));
+        assert!(!crate::rows::plan_matches(&t, &row) && !row.contains_key("node_order"));
         let address = CellTracer::Method {
             method: Method::Mt,
             layout: Layout::Bvh4,
             leaf: 4,
             sah_group: Some(1),
             traversal: Traversal::WhileIf,
+            node_order: NodeOrder::Built,
             order: RayOrder::Given,
             access: AccessPath::Address,
         };
@@ -1028,6 +1096,7 @@ mod tests {
                 layout,
                 traversal: layout.map(|_| Traversal::WhileIf),
                 order: layout.map(|_| RayOrder::Given),
+                node_order: layout.map(|_| NodeOrder::Built),
                 reorder_ms: None,
                 kernel_ms: ms,
                 mrays_per_s: mr.median,
@@ -1171,6 +1240,21 @@ mod tests {
         assert_eq!(back.rows, rows);
         let keys: std::collections::BTreeSet<String> = rows.iter().map(|r| r.key()).collect();
         assert_eq!(keys.len(), rows.len());
+    }
+
+    /// The node order column only where a row's nodes are not in the built order; the JSON
+    /// names a row's node order only then too.
+    #[test]
+    fn the_node_order_column_appears_only_when_an_order_is_not_the_built_one() {
+        let mut r = report();
+        let before = r.table().to_text();
+        assert!(!before.contains("node order"));
+        assert!(serde_json::to_value(&r).unwrap()["rows"][0].get("node_order").is_none());
+        r.rows[1].node_order = Some(NodeOrder::Treelets);
+        let text = r.table().to_text();
+        assert!(text.contains("node order") && text.contains("treelets"), "{text}");
+        assert_eq!(serde_json::to_value(&r).unwrap()["rows"][1]["node_order"], "treelets");
+        assert!(r.rows[1].label(Method::Mt).contains("treelets"));
     }
 
     #[test]

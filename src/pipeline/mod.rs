@@ -18,7 +18,7 @@ mod upload;
 
 use std::sync::Arc;
 
-use crate::bvh::{BuildOptions, Bvh};
+use crate::bvh::{BuildOptions, Bvh, NodeOrder};
 use crate::conditioning::{self, MethodChoice, Recommendation};
 use crate::encoding::plan::check_extras;
 use crate::encoding::{
@@ -61,6 +61,9 @@ pub struct SceneRequest {
     /// How the ray-casting kernels walk the tree ([`Traversal::WhileIf`] unless asked; the
     /// others have kernels for some layouts, kinds and paths only: `Method::traversal_kernel`).
     pub traversal: Traversal,
+    /// Where the layout's nodes sit in its node buffer ([`NodeOrder::Built`] unless asked:
+    /// `bvh::order`); every layout, kernel and traversal reads any order.
+    pub node_order: NodeOrder,
 }
 
 impl<M: Into<MethodChoice>> From<M> for SceneRequest {
@@ -78,6 +81,7 @@ impl SceneRequest {
             texel_only: None,
             layout: Layout::Bvh2,
             traversal: Traversal::WhileIf,
+            node_order: NodeOrder::Built,
         }
     }
 
@@ -94,6 +98,11 @@ impl SceneRequest {
     /// The same, its ray-casting kernels walking the tree with `traversal`.
     pub fn traversal(self, traversal: Traversal) -> SceneRequest {
         SceneRequest { traversal, ..self }
+    }
+
+    /// The same, the layout's nodes in `order`.
+    pub fn node_order(self, node_order: NodeOrder) -> SceneRequest {
+        SceneRequest { node_order, ..self }
     }
 
     /// The same, for a reader that has only the texel path (`why` names it).
@@ -153,6 +162,7 @@ impl<'m> HostScene<'m> {
             access,
             layout: request.layout,
             traversal: request.traversal,
+            node_order: request.node_order,
             limits: *limits,
         })
     }
@@ -177,6 +187,8 @@ pub struct ScenePlan<'h, 'm> {
     pub layout: Layout,
     /// How the ray-casting kernels walk the tree.
     pub traversal: Traversal,
+    /// Where the layout's nodes sit in its buffer.
+    pub node_order: NodeOrder,
     /// The limits it was checked against.
     pub limits: DeviceLimits,
 }
@@ -207,8 +219,12 @@ impl<'m> ScenePlan<'_, 'm> {
         reader: Option<&'static KernelSource>,
         inspect: impl FnOnce(&EncodedScene),
     ) -> Result<DeviceScene> {
-        let encoded = self.method.encode(self.host.mesh, &self.host.bvh);
+        let mut encoded = self.method.encode(self.host.mesh, &self.host.bvh);
         inspect(&encoded);
+        if self.layout.spec().build.is_none() {
+            // The binary layout's nodes are the encoding's own.
+            self.node_order.reorder_binary(&mut encoded.nodes).map_err(|e| self.refused(e))?;
+        }
         let wide = self.layout_nodes(&encoded)?;
         let buffers = SceneBuffers::upload(ctx, &encoded, self.access, reader, wide.as_ref().map(|w| &w.bytes[..]))?;
         Ok(DeviceScene {
@@ -216,6 +232,7 @@ impl<'m> ScenePlan<'_, 'm> {
             method: self.method,
             layout: self.layout,
             traversal: self.traversal,
+            node_order: self.node_order,
             leaf_size: encoded.leaf_size,
             auto: self.auto,
             plan: self.memory,
@@ -228,13 +245,23 @@ impl<'m> ScenePlan<'_, 'm> {
 }
 
 impl ScenePlan<'_, '_> {
+    /// The error for a node buffer this layout cannot make in this order.
+    fn refused(&self, e: String) -> Error {
+        let order = match self.node_order {
+            NodeOrder::Built => String::new(),
+            o => format!(" in {o} order"),
+        };
+        Error::Usage(format!("scene `{}`: its {} nodes cannot be built{order}: {e}", self.host.name, self.layout))
+    }
+
     /// The layout's node buffer made from the encoding's binary nodes (`None` for the binary
     /// layout), refused when the kernel's fixed stack could overflow on this tree or the buffer
     /// exceeds what the access path can bind.
     fn layout_nodes(&self, encoded: &EncodedScene) -> Result<Option<LayoutNodes>> {
-        let built = self.layout.nodes(&encoded.nodes, &self.host.bvh.options).map_err(|e| {
-            Error::Usage(format!("scene `{}`: its {} nodes cannot be built: {e}", self.host.name, self.layout))
-        })?;
+        let built = self
+            .layout
+            .nodes_in(&encoded.nodes, &self.host.bvh.options, self.node_order)
+            .map_err(|e| self.refused(e))?;
         let Some(built) = built else {
             return Ok(None);
         };
@@ -271,6 +298,8 @@ pub struct DeviceScene {
     /// How its ray-casting kernels walk the tree. The same buffers serve every traversal of the
     /// layout, so a caller may change it between casts (the traversal figures do).
     pub traversal: Traversal,
+    /// Where the layout's nodes sit in its node buffer.
+    pub node_order: NodeOrder,
     pub leaf_size: u32,
     /// Why `auto` picked the method (`None` when it was given).
     pub auto: Option<Recommendation>,

@@ -13,6 +13,7 @@ pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
     node_bytes: std::mem::size_of::<BvhNode>(),
     buffer: "bvh nodes",
     build: None,
+    locality: None,
     plan_bytes: |c| c.nodes * std::mem::size_of::<BvhNode>() as u64,
     stack_size: STACK_SIZE,
 };

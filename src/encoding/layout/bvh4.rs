@@ -3,7 +3,7 @@
 //! (`bvh::Bvh4Node`), the children's boxes in the parent; `glsl/layout/bvh4.glsl` tests a node's
 //! occupied children per step and visits them near to far.
 
-use super::{inner_nodes, wide_nodes, LayoutSpec};
+use super::{inner_nodes, wide_locality, wide_nodes, LayoutSpec};
 use crate::bvh::Bvh4Node;
 use crate::shared::BVH4_STACK_SIZE;
 
@@ -15,6 +15,7 @@ pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
     node_bytes: std::mem::size_of::<Bvh4Node>(),
     buffer: "bvh4 nodes",
     build: Some(wide_nodes::<4>),
+    locality: Some(wide_locality::<4>),
     plan_bytes: |c| inner_nodes(c) * std::mem::size_of::<Bvh4Node>() as u64,
     stack_size: BVH4_STACK_SIZE,
 };

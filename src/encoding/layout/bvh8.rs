@@ -3,7 +3,7 @@
 //! (`bvh::Bvh8Node`); `glsl/layout/bvh8.glsl` tests a node's occupied children per step, sorts
 //! the hit ones near to far and pushes all but the nearest.
 
-use super::{inner_nodes, wide_nodes, LayoutSpec};
+use super::{inner_nodes, wide_locality, wide_nodes, LayoutSpec};
 use crate::bvh::Bvh8Node;
 use crate::shared::BVH8_STACK_SIZE;
 
@@ -15,6 +15,7 @@ pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
     node_bytes: std::mem::size_of::<Bvh8Node>(),
     buffer: "bvh8 nodes",
     build: Some(wide_nodes::<8>),
+    locality: Some(wide_locality::<8>),
     plan_bytes: |c| inner_nodes(c) * std::mem::size_of::<Bvh8Node>() as u64,
     stack_size: BVH8_STACK_SIZE,
 };

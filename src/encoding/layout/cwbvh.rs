@@ -7,17 +7,27 @@
 
 use super::{inner_nodes, LayoutNodes, LayoutSpec};
 use crate::bvh::cwbvh::CW_NODE_TEXELS;
-use crate::bvh::{BuildOptions, BvhNode, CwBvh, CwNode, SlotOrder};
+use crate::bvh::{Aabb, Locality};
+use crate::bvh::{BuildOptions, BvhNode, CwBvh, CwNode, NodeOrder, NodeTree, SlotOrder};
 use crate::shared::CWBVH_STACK_SIZE;
 
-fn build(binary: &[BvhNode], o: &BuildOptions) -> Result<LayoutNodes, String> {
-    let cw = CwBvh::from_binary_nodes(binary, o, SlotOrder::Greedy)?;
+fn build(binary: &[BvhNode], o: &BuildOptions, order: NodeOrder) -> Result<LayoutNodes, String> {
+    let mut cw = CwBvh::from_binary_nodes(binary, o, SlotOrder::Greedy)?;
+    order.reorder_cwbvh(&mut cw)?;
     Ok(LayoutNodes {
         bytes: bytemuck::cast_slice(&cw.words()).to_vec(),
         nodes: cw.nodes.len(),
         stack_bound: cw.stack_bound(),
         sah_cost: cw.sah_cost(o),
     })
+}
+
+/// The locality of a built buffer: its nodes come first (the leaf table after them).
+fn locality(built: &LayoutNodes, bounds: &Aabb) -> Result<Locality, String> {
+    let size = std::mem::size_of::<CwNode>();
+    let bytes = built.bytes.get(..built.nodes * size).ok_or("a cwbvh buffer shorter than its nodes")?;
+    let nodes: Vec<CwNode> = bytes.chunks_exact(size).map(bytemuck::pod_read_unaligned).collect();
+    Ok(NodeTree::cwbvh(&nodes, bounds).locality())
 }
 
 pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
@@ -29,6 +39,7 @@ pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
     node_bytes: std::mem::size_of::<CwNode>(),
     buffer: "cwbvh nodes",
     build: Some(build),
+    locality: Some(locality),
     // The nodes, then one 4-byte leaf-table entry per binary leaf (at most half the binary
     // nodes, rounded up), padded to a whole texel.
     plan_bytes: |c| {

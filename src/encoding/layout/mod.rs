@@ -23,7 +23,7 @@ mod bvh4;
 mod bvh8;
 mod cwbvh;
 
-use crate::bvh::{BuildOptions, BvhNode};
+use crate::bvh::{Aabb, BuildOptions, BvhNode, Locality, NodeOrder, NodeTree};
 use crate::named::Named;
 
 use super::plan::SceneCounts;
@@ -41,8 +41,23 @@ pub struct LayoutNodes {
     pub sah_cost: f64,
 }
 
-/// Makes a layout's node buffer from the encoding's binary nodes, or says why it cannot.
-pub type BuildNodes = fn(&[BvhNode], &BuildOptions) -> Result<LayoutNodes, String>;
+/// How close the nodes a descent reads lie in a layout's built node buffer (`bytes`, `nodes`
+/// nodes; `bounds`: the root's box), read back from the buffer (not made with every buffer, so
+/// neither uploads nor build-bench's conversion times pay for it).
+pub type NodeLocality = fn(&LayoutNodes, &Aabb) -> Result<Locality, String>;
+
+/// Makes a layout's node buffer from the encoding's binary nodes with its nodes in the given
+/// order (`bvh::order`), or says why it cannot.
+pub type BuildNodes = fn(&[BvhNode], &BuildOptions, NodeOrder) -> Result<LayoutNodes, String>;
+
+/// A layout's node buffer as `trilab bvh` reports it: its size and locality in one node order.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct NodeFootprint {
+    pub nodes: usize,
+    /// The bytes bound at `BINDING_NODES` (cwbvh's leaf table included).
+    pub bytes: usize,
+    pub locality: Locality,
+}
 
 /// Everything the host knows about one layout (`src/encoding/layout/<name>.rs`'s `LAYOUT`).
 #[derive(Clone, Copy, Debug)]
@@ -64,6 +79,9 @@ pub struct LayoutSpec {
     /// `None` for the binary nodes themselves; an error where the tree cannot be represented
     /// (cwbvh: a box without a grid, word indices beyond 32 bits).
     pub build: Option<BuildNodes>,
+    /// The locality of a buffer `build` made (`None` with `build`: the binary nodes are read
+    /// directly).
+    pub locality: Option<NodeLocality>,
     /// An upper bound of the node buffer's bytes from counts alone, for the memory plan (a
     /// test holds every built buffer within it).
     pub plan_bytes: fn(&SceneCounts) -> u64,
@@ -131,7 +149,35 @@ impl Layout {
 
     /// The node buffer for `binary` (the encoding's nodes), `None` for the binary layout.
     pub fn nodes(self, binary: &[BvhNode], o: &BuildOptions) -> Result<Option<LayoutNodes>, String> {
-        self.spec().build.map(|b| b(binary, o)).transpose()
+        self.nodes_in(binary, o, NodeOrder::Built)
+    }
+
+    /// The same with the nodes in `order`; `None` for the binary layout, whose nodes are the
+    /// encoding's own (`NodeOrder::reorder_binary` orders them).
+    pub fn nodes_in(
+        self,
+        binary: &[BvhNode],
+        o: &BuildOptions,
+        order: NodeOrder,
+    ) -> Result<Option<LayoutNodes>, String> {
+        self.spec().build.map(|b| b(binary, o, order)).transpose()
+    }
+
+    /// This layout's node buffer for `binary` in `order`: nodes, bytes and locality (the binary
+    /// layout's from `binary` itself, reordered).
+    pub fn footprint(self, binary: &[BvhNode], o: &BuildOptions, order: NodeOrder) -> Result<NodeFootprint, String> {
+        if let Some(built) = self.nodes_in(binary, o, order)? {
+            let read = self.spec().locality.ok_or_else(|| format!("{self}: no reader of its nodes' locality"))?;
+            let locality = read(&built, &binary[0].aabb())?;
+            return Ok(NodeFootprint { nodes: built.nodes, bytes: built.bytes.len(), locality });
+        }
+        let mut nodes = binary.to_vec();
+        order.reorder_binary(&mut nodes)?;
+        Ok(NodeFootprint {
+            nodes: nodes.len(),
+            bytes: std::mem::size_of_val(nodes.as_slice()),
+            locality: NodeTree::binary(&nodes).locality(),
+        })
     }
 }
 
@@ -155,11 +201,17 @@ impl serde::Serialize for Layout {
     }
 }
 
-/// A wide tree's node buffer: the binary nodes collapsed with [`crate::bvh::Collapse::Sah`].
-pub(super) fn wide_nodes<const N: usize>(binary: &[BvhNode], o: &BuildOptions) -> Result<LayoutNodes, String> {
+/// A wide tree's node buffer: the binary nodes collapsed with [`crate::bvh::Collapse::Sah`], in
+/// `order`.
+pub(super) fn wide_nodes<const N: usize>(
+    binary: &[BvhNode],
+    o: &BuildOptions,
+    order: NodeOrder,
+) -> Result<LayoutNodes, String> {
     use crate::bvh::{Collapse, WideBvh};
     let start = std::time::Instant::now();
-    let nodes = WideBvh::<N>::collapse_nodes(binary, o, Collapse::Sah);
+    let mut nodes = WideBvh::<N>::collapse_nodes(binary, o, Collapse::Sah);
+    order.reorder_wide(&mut nodes, &binary[0].aabb())?;
     let tree = WideBvh::<N> {
         nodes,
         bounds: binary[0].aabb(),
@@ -173,6 +225,14 @@ pub(super) fn wide_nodes<const N: usize>(binary: &[BvhNode], o: &BuildOptions) -
         stack_bound: tree.stack_bound(),
         sah_cost: tree.sah_cost(o),
     })
+}
+
+/// [`NodeLocality`] of a wide tree's node buffer.
+pub(super) fn wide_locality<const N: usize>(built: &LayoutNodes, bounds: &Aabb) -> Result<Locality, String> {
+    use crate::bvh::WideNode;
+    let size = std::mem::size_of::<WideNode<N>>();
+    let nodes: Vec<WideNode<N>> = built.bytes.chunks_exact(size).map(bytemuck::pod_read_unaligned).collect();
+    Ok(NodeTree::wide(&nodes, bounds)?.locality())
 }
 
 /// Inner nodes of the binary tree: a collapsed tree has at most this many nodes (each wide node
@@ -196,6 +256,46 @@ mod tests {
             tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
         }
         Mesh::from_triangles(pos, tris)
+    }
+
+    /// Every layout's footprint in every order: the built buffer's nodes and bytes, and the
+    /// locality read back from the buffer equal to the one of the tree it was made from.
+    #[test]
+    fn footprints_read_the_built_buffers() {
+        use crate::bvh::{CwBvh, SlotOrder, WideBvh};
+        let bvh = Bvh::build(&grid(2000), &BuildOptions::new(4));
+        let bounds = bvh.nodes[0].aabb();
+        for &order in NodeOrder::ALL {
+            for &l in Layout::ALL {
+                let f = l.footprint(&bvh.nodes, &bvh.options, order).unwrap();
+                let want = match l {
+                    Layout::Bvh2 => {
+                        let mut n = bvh.nodes.clone();
+                        order.reorder_binary(&mut n).unwrap();
+                        (n.len(), NodeTree::binary(&n).locality())
+                    }
+                    Layout::Bvh4 => {
+                        let mut w = WideBvh::<4>::collapse(&bvh).nodes;
+                        order.reorder_wide(&mut w, &bounds).unwrap();
+                        (w.len(), NodeTree::wide(&w, &bounds).unwrap().locality())
+                    }
+                    Layout::Bvh8 => {
+                        let mut w = WideBvh::<8>::collapse(&bvh).nodes;
+                        order.reorder_wide(&mut w, &bounds).unwrap();
+                        (w.len(), NodeTree::wide(&w, &bounds).unwrap().locality())
+                    }
+                    Layout::Cwbvh => {
+                        let mut cw = CwBvh::build_with(&bvh, SlotOrder::Greedy).unwrap();
+                        order.reorder_cwbvh(&mut cw).unwrap();
+                        (cw.nodes.len(), NodeTree::cwbvh(&cw.nodes, &cw.bounds).locality())
+                    }
+                };
+                assert_eq!((f.nodes, f.locality), want, "{l} {order}");
+                let bytes = l.nodes(&bvh.nodes, &bvh.options).unwrap().map_or(bvh.nodes.len() * 32, |b| b.bytes.len());
+                assert_eq!(f.bytes, bytes, "{l} {order}: the built buffer's bytes");
+                assert!(f.locality.lines_per_step >= 1.0 && f.locality.pages_per_step > 0.0, "{l} {order}");
+            }
+        }
     }
 
     #[test]
@@ -234,6 +334,18 @@ mod tests {
                     );
                     assert_eq!(built.bytes.len() % 16, 0, "{l}: whole texels");
                     assert!(built.nodes >= 1 && built.stack_bound <= l.spec().stack_size as usize, "{l} n={n}");
+                    // Every node order gives the same tree: its bytes, nodes, stack and cost.
+                    for &order in NodeOrder::ALL {
+                        let o = l.nodes_in(&bvh.nodes, &bvh.options, order).unwrap().unwrap();
+                        assert_eq!(
+                            (o.bytes.len(), o.nodes, o.stack_bound, o.sah_cost),
+                            (built.bytes.len(), built.nodes, built.stack_bound, built.sah_cost),
+                            "{l} {order} n={n} leaf={leaf}"
+                        );
+                        if order == NodeOrder::Built {
+                            assert!(o.bytes == built.bytes, "{l}: the built order is the buffer as before");
+                        }
+                    }
                 }
             }
         }

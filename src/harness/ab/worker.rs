@@ -255,6 +255,7 @@ fn load_and_serve(
                 leaf: w.build.max_leaf_size,
                 sah_group: None,
                 traversal: scene.traversal,
+                node_order: scene.node_order,
                 order: crate::rays::order::RayOrder::Given,
                 access: scene.access,
             };
