@@ -66,7 +66,7 @@ impl RooflineEfficiency {
                 format!("{:.1}", e.fetches_per_ray()),
                 format!("{:.1}", e.roofline_msteps_per_s),
                 format!("{:.1}", 100.0 * e.efficiency),
-                e.lanes_busy.map_or("-".into(), |b| format!("{:.0} of {}", 100.0 * b, e.lanes)),
+                e.lanes_busy.map_or("-".into(), |b| format!("{:.0} ({} lanes)", 100.0 * b, e.lanes)),
             ],
             None => ["-".into(), "-".into(), "-".into(), "-".into()],
         }
