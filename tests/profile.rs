@@ -272,7 +272,13 @@ fn profile_with_roofline_gives_each_kernel_its_fetches_and_share_of_the_roofline
                 let n = cpu.len() as f64;
                 let nodes = cpu.iter().map(|s| s.iterations() as f64).sum::<f64>() / n;
                 let triangles = cpu.iter().map(|s| s.triangles as f64).sum::<f64>() / n;
-                counted.push((m, *set, gpu, nodes, triangles));
+                // Lanes busy from the mirror's fetches, in groups of the subgroup's size.
+                let lanes = ctx.info().subgroup_size as usize;
+                let fetches: Vec<u64> = cpu.iter().map(|s| (s.iterations() + s.triangles) as u64).collect();
+                let (done, paid) = fetches
+                    .chunks(lanes)
+                    .fold((0, 0), |(d, p), g| (d + g.iter().sum::<u64>(), p + lanes as u64 * g.iter().max().unwrap()));
+                counted.push((m, *set, gpu, nodes, triangles, (lanes as u32, done as f64 / paid as f64)));
             }
         }
         (with, without, counted)
@@ -282,7 +288,7 @@ fn profile_with_roofline_gives_each_kernel_its_fetches_and_share_of_the_roofline
         let d = &row.data;
         let what = format!("{} {}", row.method, d.ray_set);
         let e = d.roofline.unwrap_or_else(|| panic!("{what}: no roofline efficiency"));
-        let (_, _, gpu, cpu_nodes, cpu_triangles) =
+        let (_, _, gpu, cpu_nodes, cpu_triangles, (lanes, busy)) =
             counted.iter().find(|c| c.0 == row.method && c.1 == d.ray_set).expect("counted on every set");
         assert_eq!((e.nodes_per_ray, e.triangles_per_ray), (gpu.nodes.mean, gpu.triangles.mean), "{what}");
         let rel = |a: f64, b: f64| (a - b).abs() / b.max(1e-12);
@@ -294,8 +300,13 @@ fn profile_with_roofline_gives_each_kernel_its_fetches_and_share_of_the_roofline
         assert!(rel(e.efficiency, want) < 1e-9, "{what}: {e:?}, want {want}");
         assert!(0.0 < e.efficiency_min && e.efficiency_min <= e.efficiency, "{what}: {e:?}");
         assert!(e.efficiency <= e.efficiency_max && e.efficiency_max.is_finite(), "{what}: {e:?}");
+        // The lanes the rays keep busy in lock-step, from the kernel's own counts: the mirror's
+        // within the counts' tolerance.
+        assert_eq!(e.lanes, *lanes, "{what}: the device's subgroup size");
+        let got = e.lanes_busy.unwrap_or_else(|| panic!("{what}: no lanes busy"));
+        assert!((got - busy).abs() <= 0.01 && got <= 1.0, "{what}: lanes busy {got}, the mirror's {busy}");
     }
-    // The rows: the same cells, and the two figures only with the flag.
+    // The rows: the same cells, and the three figures only with the flag.
     let (rows_with, rows_without) = (profile::rows(&with), profile::rows(&without));
     let cells = |rows: &[trilab::rows::Row]| rows.iter().map(|r| r.key()).collect::<Vec<_>>();
     assert_eq!(cells(&rows_with), cells(&rows_without));
@@ -316,11 +327,12 @@ fn profile_with_roofline_gives_each_kernel_its_fetches_and_share_of_the_roofline
         let f = &r.figures["roofline_efficiency"];
         assert_eq!((f.median, f.min, f.max), (e.efficiency, e.efficiency_min, e.efficiency_max), "{}", r.key());
         assert_eq!(r.figures["fetches_per_ray"].median, e.fetches_per_ray(), "{}", r.key());
+        assert_eq!(Some(r.figures["lanes_busy"].median), e.lanes_busy, "{}", r.key());
     }
     assert_eq!(rows_with.iter().filter(|r| r.figures.contains_key("roofline_efficiency")).count(), methods.len() * 3);
     assert!(rows_without
         .iter()
-        .all(|r| !r.figures.contains_key("roofline_efficiency") && !r.figures.contains_key("fetches_per_ray")));
+        .all(|r| ["roofline_efficiency", "fetches_per_ray", "lanes_busy"].iter().all(|f| !r.figures.contains_key(*f))));
     // The JSON and the table.
     let json = serde_json::to_value(&without).unwrap();
     assert!(json["timestamps"]["rows"].as_array().unwrap().iter().all(|r| r.get("roofline").is_none()));
