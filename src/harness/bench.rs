@@ -75,6 +75,17 @@ pub struct BenchOptions {
     pub roofline: Option<crate::harness::roofline::RooflineOptions>,
 }
 
+/// A list option's values, or its default alone when the list is empty (every axis of a bench
+/// run: layout, traversal, access, node order and ray order default to the one the kernels had
+/// before the axis existed).
+fn or_default<T: Clone + Default>(v: &[T]) -> Vec<T> {
+    if v.is_empty() {
+        vec![T::default()]
+    } else {
+        v.to_vec()
+    }
+}
+
 /// The path a kernel for `access` is looked up on before the scene is planned: `auto` takes the
 /// texel path wherever the scene fits one binding.
 fn path_of(access: SceneAccess) -> AccessPath {
@@ -182,24 +193,42 @@ fn built_order(o: &Option<NodeOrder>) -> bool {
     o.is_none_or(|o| o == NodeOrder::Built)
 }
 
+/// A kernel's name: the method, then its layout (where given and not bvh2: progress lines; the
+/// tables give the layout a column), traversal, node order, ray order and access path where
+/// they are not the defaults (`quad-unit bvh4 while-while treelets nodes octant-origin address`).
+fn kernel_label(
+    method: Method,
+    layout: Option<Layout>,
+    traversal: Traversal,
+    node_order: NodeOrder,
+    order: RayOrder,
+    access: AccessPath,
+) -> String {
+    let mut s = method.to_string();
+    if let Some(l) = layout.filter(|&l| l != Layout::Bvh2) {
+        s += &format!(" {l}");
+    }
+    if traversal != Traversal::default() {
+        s += &format!(" {traversal}");
+    }
+    if node_order != NodeOrder::default() {
+        s += &format!(" {node_order} nodes");
+    }
+    if order != RayOrder::default() {
+        s += &format!(" {order}");
+    }
+    if access == AccessPath::Address {
+        s += " address";
+    }
+    s
+}
+
 impl BenchRow {
-    /// How the peer comparison names our row: the method, with its traversal, node order and
-    /// ray order where they are not the defaults (the layout has its own column).
+    /// How the peer comparison names our row ([`kernel_label`]).
     fn label(&self, method: Method) -> String {
-        let mut s = method.to_string();
-        if let Some(t) = self.traversal.filter(|&t| t != Traversal::default()) {
-            s += &format!(" {t}");
-        }
-        if !built_order(&self.node_order) {
-            s += &format!(" {}", self.node_order.unwrap_or_default());
-        }
-        if let Some(o) = self.order.filter(|&o| o != RayOrder::default()) {
-            s += &format!(" {o}");
-        }
-        if self.scene_access == Some(AccessPath::Address) {
-            s += " address";
-        }
-        s
+        let access = self.scene_access.unwrap_or(AccessPath::Texel);
+        let (t, n, o) = (self.traversal, self.node_order, self.order);
+        kernel_label(method, None, t.unwrap_or_default(), n.unwrap_or_default(), o.unwrap_or_default(), access)
     }
 }
 
@@ -657,8 +686,6 @@ impl BenchOptions {
         ))
     }
 
-    /// Whether the options ask for the driver peer `peer` (`--ray-query`,
-    /// `--ray-tracing-pipeline`).
     /// Every (method, layout, traversal, access) timed: the options' combinations that have a
     /// closest-hit kernel (`auto` is checked as the texel path, which it takes wherever a scene
     /// fits one binding; a traversal's support does not depend on the method:
@@ -677,11 +704,9 @@ impl BenchOptions {
 
     /// Every layout x traversal x access asked for, defaults where a list is empty.
     fn combinations(&self) -> Vec<(Layout, Traversal, SceneAccess)> {
-        let or = |v: &[Layout], d: Layout| if v.is_empty() { vec![d] } else { v.to_vec() };
-        let traversals = if self.traversals.is_empty() { vec![Traversal::WhileIf] } else { self.traversals.clone() };
-        let access = if self.scene_access.is_empty() { vec![SceneAccess::Auto] } else { self.scene_access.clone() };
+        let (traversals, access) = (or_default(&self.traversals), or_default(&self.scene_access));
         let mut out = vec![];
-        for l in or(&self.layouts, Layout::Bvh2) {
+        for l in or_default(&self.layouts) {
             for &t in &traversals {
                 for &a in &access {
                     out.push((l, t, a));
@@ -709,22 +734,16 @@ impl BenchOptions {
 
     /// The node orders, the built one alone when none was asked for.
     pub fn node_orders(&self) -> Vec<NodeOrder> {
-        if self.node_orders.is_empty() {
-            vec![NodeOrder::Built]
-        } else {
-            self.node_orders.clone()
-        }
+        or_default(&self.node_orders)
     }
 
     /// The ray orders, the default alone when none was asked for.
     pub fn orders(&self) -> Vec<RayOrder> {
-        if self.orders.is_empty() {
-            vec![RayOrder::Given]
-        } else {
-            self.orders.clone()
-        }
+        or_default(&self.orders)
     }
 
+    /// Whether the options ask for the driver peer `peer` (`--ray-query`,
+    /// `--ray-tracing-pipeline`).
     pub fn wants(&self, peer: Peer) -> bool {
         match peer {
             Peer::RayQuery => self.ray_query,
@@ -849,23 +868,8 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             let set = *set;
             let mut best: f64 = 0.0;
             let label = |scene: &DeviceScene, order: RayOrder| {
-                let mut s = scene.method.to_string();
-                if scene.layout != Layout::Bvh2 {
-                    s += &format!(" {}", scene.layout);
-                }
-                if scene.traversal != Traversal::default() {
-                    s += &format!(" {}", scene.traversal);
-                }
-                if scene.node_order != NodeOrder::Built {
-                    s += &format!(" {} nodes", scene.node_order);
-                }
-                if order != RayOrder::default() {
-                    s += &format!(" {order}");
-                }
-                if scene.access == AccessPath::Address {
-                    s += " address";
-                }
-                s
+                let (m, l, t, n) = (scene.method, Some(scene.layout), scene.traversal, scene.node_order);
+                kernel_label(m, l, t, n, order, scene.access)
             };
             let jobs: Vec<Job> = scenes
                 .iter()
@@ -895,6 +899,10 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             // in and whatever its nodes' order (the walk does not depend on either:
             // tests/node_orders_gpu.rs), on the first scene of that kernel.
             let mut counts: Vec<Option<Option<Vec<crate::gpu::TraversalCounts>>>> = vec![None; scenes.len()];
+            // The order each ray order dispatched the rays in, sorted once for every kernel's
+            // lanes busy (which rays share a subgroup).
+            let orders = o.orders();
+            let mut dispatched: Vec<Option<Option<Vec<u32>>>> = vec![None; orders.len()];
             for (job, m) in jobs.iter().zip(measured) {
                 let (scene, order) = (job.scene, job.order);
                 let (ms, agreement) = (m.kernel_ms, m.agreement);
@@ -927,10 +935,11 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
                     };
                     // The lanes a subgroup's rays keep busy depend on which rays share it: the
                     // order the kernel got them in (the sort is deterministic).
-                    let (lanes, dispatched) = (ctx.info().subgroup_size, order.permutation(rays));
-                    r.roofline = c
-                        .as_deref()
-                        .and_then(|c| efficiency::efficiency(scene, roof, mr, c, lanes, dispatched.as_deref()));
+                    let k = orders.iter().position(|&x| x == order).expect("a job's order is one of the orders");
+                    let d = dispatched[k].get_or_insert_with(|| order.permutation(rays));
+                    let lanes = ctx.info().subgroup_size;
+                    r.roofline =
+                        c.as_deref().and_then(|c| efficiency::efficiency(scene, roof, mr, c, lanes, d.as_deref()));
                 }
                 report.rows.push(r);
             }
