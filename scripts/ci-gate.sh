@@ -1,77 +1,153 @@
 #!/usr/bin/env bash
-# The lavapipe regression gate, the last step of README's test command (and so of CI): the suite
-# at its smoke sizes (`--size 0`: pinned, so every cell matches the baseline's) and the SPIR-V
-# counts of every kernel variant, then `trilab compare` against the committed baseline,
-# results/lavapipe/baseline/ (refresh it with `scripts/ci-gate.sh --refresh` when a change is
-# meant to move the numbers, and commit it).
+# The lavapipe regression gate, the last step of README's test command (and so of CI). It judges
+# the code only on evidence about the code (`trilab gate`, src/harness/gate.rs):
 #
-# The baseline was measured on one host; CI runs on whatever host it gets, idle or busy. So the
-# gate judges the code and the driver, not the host (`--timings calibrated`, README "Comparing
-# two runs"; the measurement behind the thresholds: results/lavapipe/gate-noise/README.md):
-# - a command's timings as a whole (bench, study, accuracy, profile) fail when, over the host
-#   calibration measured around them in the same run (a fixed CPU workload that does not go
-#   through the driver), they are slower by more than GATE_COMMAND_PCT: a slower or busier host
-#   slows the calibration alike and cancels; a slower driver (GALLIVM_PERF=nopt) does not;
-# - a kernel's cells (those sharing method, layout, traversal, variant, workgroup and subgroup
-#   size) fail when, against the mean change of their command, they are slower by more than
-#   GATE_KERNEL_PCT with the 95 % Student-t interval over the cells above 1: one kernel that
-#   slowed alone (a single cell is printed but never fails alone: on a busy 2-core host one
-#   sub-millisecond cell moves by x10 by itself);
-# - counts are exact (`--count-threshold 0`): SPIR-V instructions, scene bytes, SAH cost; and
-#   lavapipe's machine instructions, spills and helper calls per kernel where the baseline's
-#   host compiled for the same CPU (`jit_cpu`; on another CPU LLVM's code differs by the CPU
-#   alone, and compare says it did not judge them);
-# - correctness (agreement with the f64 reference, leaks, NaN hits) fails on any worsening.
-# A failure must repeat in a second measurement before the gate fails (see the end).
+# - counts and correctness against the committed baseline, results/lavapipe/baseline/ (exact):
+#   the suite at its smoke sizes (`--size 0`) and the SPIR-V counts of every kernel variant,
+#   measured here and compared with `trilab compare --timings ignore --count-threshold 0`:
+#   SPIR-V instructions, scene bytes, SAH cost, EPO, lavapipe's machine code where the baseline's
+#   host compiled for the same CPU; agreement with the f64 reference, leaks, NaN hits;
+# - timings only inside this run: `trilab ab` of the build the baseline was measured at (side A,
+#   built here from the baseline's commit in a git worktree that shares the cargo target folder,
+#   so only the trilab crate compiles; cached by commit in $TRILAB_GATE_CACHE, default
+#   ~/.cache/trilab/gate-base) against this build (side B), interleaved A B B A on this host; a
+#   kernel fails when it is slower beyond the gate's threshold with its whole 95 % interval
+#   past it, in that A/B and again when timed once more.
+#
+# Where there is no base build (a shallow clone, the baseline's commit missing, a baseline
+# measured on a tree with uncommitted changes) the gate says so and judges counts and correctness
+# alone: a timing from another run, on another host, is no evidence about the code.
+#
+# Usage: scripts/ci-gate.sh             the gate
+#        scripts/ci-gate.sh --refresh   rewrite the baseline from this build (a clean tree: its
+#                                       commit becomes the base every later gate builds; commit
+#                                       the folder it writes)
+#        scripts/ci-gate.sh --which-base   say which base build the gate would use, and stop
 set -euo pipefail
 cd "$(dirname "$0")/.."
 baseline=results/lavapipe/baseline
-out="${CARGO_TARGET_DIR:-target}/ci-gate"
-GATE_KERNEL_PCT=${GATE_KERNEL_PCT:-40}
-GATE_COMMAND_PCT=${GATE_COMMAND_PCT:-40}
+# The base build shares this build's target folder (a worktree's own would rebuild shaderc).
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$PWD/target}"
+out="$CARGO_TARGET_DIR/ci-gate"
+cache="${TRILAB_GATE_CACHE:-$HOME/.cache/trilab/gate-base}"
+# What a kernel's build is made of: when none of these differ from the baseline's commit, the
+# base build is this build.
+code_paths=(src glsl build.rs Cargo.toml Cargo.lock)
+
+# The baseline's commit, as its suite's provenance names it.
+baseline_commit() {
+  python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["provenance"]["commit"])' "$baseline/suite.json"
+}
+
+# Sets base_commit, and either base_bin (the build to time against; "." for this build) or
+# no_base (why there is none).
+which_base() {
+  base_commit=$(baseline_commit)
+  base_bin=""
+  no_base=""
+  case "$base_commit" in
+    "" | unknown | *-dirty)
+      no_base="the baseline names no clean commit (\`$base_commit\`): it was measured on a tree with uncommitted changes"
+      return
+      ;;
+  esac
+  if ! git cat-file -e "$base_commit^{commit}" 2>/dev/null; then
+    if [ "$(git rev-parse --is-shallow-repository 2>/dev/null)" = true ]; then
+      no_base="the baseline's commit $base_commit is not in this shallow clone (git fetch --unshallow gives it)"
+    else
+      no_base="the baseline's commit $base_commit is not in this repository"
+    fi
+    return
+  fi
+  if git diff --quiet "$base_commit" -- "${code_paths[@]}" &&
+    [ -z "$(git status --porcelain --untracked-files=all -- "${code_paths[@]}")" ]; then
+    base_bin=.
+  else
+    base_bin="$cache/$base_commit/trilab"
+  fi
+}
+
+# Builds the baseline's commit in a worktree beside this one, into the shared target folder,
+# and keeps its executable in the cache; then this build again (cargo relinks it).
+build_base() {
+  local wt start
+  wt="$(mktemp -d)/base-$base_commit"
+  start=$SECONDS
+  git worktree add --detach -q "$wt" "$base_commit"
+  if ! (cd "$wt" && cargo build --release --locked -q --bin trilab); then
+    git worktree remove --force "$wt"
+    echo "ci-gate: the baseline's commit $base_commit does not build here" >&2
+    exit 2
+  fi
+  mkdir -p "$cache/$base_commit"
+  cp "$CARGO_TARGET_DIR/release/trilab" "$cache/$base_commit/trilab.part"
+  mv "$cache/$base_commit/trilab.part" "$cache/$base_commit/trilab"
+  git worktree remove --force "$wt"
+  cargo build --release -q --bin trilab
+  echo "ci-gate: built the base ($base_commit) in $((SECONDS - start)) s, kept in $cache/$base_commit/" >&2
+}
 
 # The suite's smoke sizes and the SPIR-V counts (only the rows: the disassembly stays behind).
 measure() {
   local dest=$1
-  cargo run --release -q -- suite --size 0 --no-threads --out "$dest" > "$out/suite.txt"
-  cargo run --release -q -- spirv --out "$out/spirv" > /dev/null
+  "$trilab" suite --size 0 --no-threads --out "$dest" > "$out/suite.txt"
+  "$trilab" spirv --out "$out/spirv" > /dev/null
   mkdir -p "$dest/spirv"
   cp "$out/spirv/rows.jsonl" "$dest/spirv/rows.jsonl"
 }
 
+if [ "${1:-}" = "--which-base" ]; then
+  which_base
+  if [ -n "$no_base" ]; then
+    echo "no base build: $no_base"
+  elif [ "$base_bin" = . ]; then
+    echo "base: this build (no kernel code changed since the baseline's commit $base_commit)"
+  elif [ -x "$base_bin" ]; then
+    echo "base: $base_commit, cached at $base_bin"
+  else
+    echo "base: $base_commit, to be built into $base_bin"
+  fi
+  exit 0
+fi
+
+cargo build --release -q --bin trilab
+trilab="$CARGO_TARGET_DIR/release/trilab"
 rm -rf "$out"
 mkdir -p "$out"
-gate() {
-  cargo run --release -q -- compare "$1" "$2" --timings calibrated \
-    --threshold "$GATE_KERNEL_PCT" --command-threshold "$GATE_COMMAND_PCT" --count-threshold 0
-}
+
 if [ "${1:-}" = "--refresh" ]; then
-  # Two runs: the second must pass the gate against the first, or the first caught the host in
-  # a burst (one kernel measured fast, say) that every later CI run would be judged against.
+  # The baseline's commit is the base every later gate builds: it must be a commit, not a tree
+  # with changes on top of one.
+  if [ -n "$(git status --porcelain --untracked-files=no)" ]; then
+    echo "ci-gate: uncommitted changes; commit them first (the baseline names the commit it was measured at, and later gates build it)" >&2
+    exit 2
+  fi
+  # Two runs: their counts and correctness must agree exactly, or a count is not deterministic
+  # and every later gate would fail on it.
   measure "$out/first"
   measure "$out/second"
-  if ! gate "$out/first" "$out/second" > "$out/refresh-check.txt"; then
+  if ! "$trilab" gate "$out/first" "$out/second" --no-base "the refresh's own check" > "$out/refresh-check.txt"; then
     cat "$out/refresh-check.txt"
-    echo "ci-gate: two runs of this build disagree beyond the gate's thresholds; baseline not refreshed (run again on a quieter host)" >&2
+    echo "ci-gate: two runs of this build disagree on counts or correctness; baseline not refreshed" >&2
     exit 1
   fi
   rm -rf "$baseline"
   cp -r "$out/first" "$baseline"
   # Stored as results/ keeps results (bulky rows compressed): the tree has a size budget.
   scripts/compress-results.sh "$baseline"
-  echo "ci-gate: baseline refreshed in $baseline (a second run passed the gate against it)"
+  echo "ci-gate: baseline refreshed in $baseline at $(git rev-parse --short=12 HEAD) (a second run agreed on every count)"
   exit 0
+fi
+
+which_base
+if [ -z "$no_base" ] && [ "$base_bin" != . ] && [ ! -x "$base_bin" ]; then
+  build_base
 fi
 measure "$out/suite"
-if gate "$baseline" "$out/suite" > "$out/gate.txt"; then
-  cat "$out/gate.txt"
-  exit 0
+if [ -n "$no_base" ]; then
+  base_args=(--no-base "$no_base")
+else
+  [ "$base_bin" = . ] && base_bin=$trilab
+  base_args=(--base-bin "$base_bin" --base-commit "$base_commit")
 fi
-# A failure must repeat: a second measurement, judged alone, fails too. Counts and correctness
-# are exact, so their failures always repeat; a timing failure that does not was the host (on
-# 2026-11-27 a busy neighbour slowed the study's sub-millisecond cells x1.47 over the host
-# calibration in one CI run, and the gate passed at once when run again).
-cat "$out/gate.txt"
-echo "ci-gate: the gate failed; measuring again to see whether the failure repeats" >&2
-measure "$out/again"
-gate "$baseline" "$out/again"
+"$trilab" gate "$baseline" "$out/suite" "${base_args[@]}" --out "$out/gate"

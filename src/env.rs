@@ -23,7 +23,7 @@ pub const ENV_VARS: &[EnvVar] = &[
         name: "TRILAB_MAX_MEMORY",
         help: "bytes a command may plan to allocate (default: MemAvailable); larger sizes are refused",
     },
-    EnvVar { name: "TRILAB_COMMIT", help: "the commit recorded in reports when the source tree has no .git" },
+    EnvVar { name: "TRILAB_COMMIT", help: "the commit recorded in reports instead of the working directory's (a copy without .git; the gate's base build)" },
     EnvVar {
         name: "TRILAB_INJECT_FAULT",
         help: "device-lost@N or oom@N: fake a fault at the N-th marked submit (tests of fault reports)",

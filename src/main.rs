@@ -46,6 +46,7 @@ enum Cmd {
     DumpCli(cli::dump::DumpArgs),
     Hits(cli::hits::HitsArgs),
     Ab(cli::ab::AbArgs),
+    Gate(cli::gate::GateArgs),
     #[command(name = "__ab-worker", hide = true)]
     AbWorker(cli::ab::AbWorkerArgs),
 }
@@ -101,6 +102,7 @@ fn main() -> ExitCode {
         Cmd::DumpCli(a) => cli::dump::run(a, Cli::command()),
         Cmd::Hits(a) => cli::hits::run(a),
         Cmd::Ab(a) => cli::ab::run(a),
+        Cmd::Gate(a) => cli::gate::run(a),
         Cmd::AbWorker(a) => cli::ab::run_worker(a),
     });
     cli::exit(result)

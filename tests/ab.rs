@@ -197,3 +197,33 @@ fn driver_statistics_invocations_and_a_path_trace_on_request() {
     let text = std::fs::read_to_string(out.join("ab.md")).unwrap();
     assert!(text.contains("raycast.mt.closest: ") && text.contains("2 kernels compared, 2 changed"), "{text}");
 }
+
+#[test]
+fn another_build_on_side_a_reads_the_scenes_the_parent_resolved_and_kernels_are_judged_over_their_cells() {
+    // A copy of this executable in a folder with no `scenes/` near it, as the gate keeps its
+    // base build: the parent resolves `cornell` and gives both sides the same file.
+    let dir = tempfile::tempdir().unwrap();
+    let bin = dir.path().join("base/bin/trilab");
+    std::fs::create_dir_all(bin.parent().unwrap()).unwrap();
+    std::fs::copy(env!("CARGO_BIN_EXE_trilab"), &bin).unwrap();
+    let extra =
+        ["--a-bin", &s(&bin), "--scenes", "cornell", "--rounds", "4", "--max-rounds", "4", "--judge", "kernels"];
+    let (o, r) = ab(&extra, 120);
+    assert_eq!(o.status.code(), Some(0), "{}\n{r}", common::cli::stderr(&o));
+    assert_eq!(r["a"]["exe"], s(&bin), "{}", r["a"]);
+    assert_eq!(r["a"]["protocol"], r["b"]["protocol"]);
+    let workload: Vec<&str> = r["workload"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    let scene = workload[workload.iter().position(|a| *a == "--scenes").unwrap() + 1];
+    assert!(std::path::Path::new(scene).is_absolute() && scene.ends_with("scenes/cornell.obj"), "{workload:?}");
+    // Two kernels (mt, unit), each over its three ray sets, judged as kernels.
+    assert_eq!(r["judge"], "kernels");
+    let kernels = r["kernels"].as_array().unwrap();
+    let names: Vec<&str> = kernels.iter().map(|k| k["kernel"].as_str().unwrap()).collect();
+    assert_eq!(names, ["raycast mt bvh2", "raycast unit bvh2"], "{r}");
+    assert!(kernels.iter().all(|k| k["cells"] == 3 && k["ratio"]["rounds_a"] == 4), "{r}");
+    assert!(r["cells"].as_array().unwrap().iter().all(|c| c["rays_differing"] == 0), "{r}");
+    // A build that is not there: refused before any work, naming the option.
+    let (o, _) = ab(&["--b-bin", "/nonexistent/trilab"], 60);
+    assert_eq!(o.status.code(), Some(2));
+    common::cli::expect_error(&o, &["--b-bin", "/nonexistent/trilab", "no such file"]);
+}

@@ -1,138 +1,269 @@
-//! The regression gate's rule on real runs (issue 22): `trilab suite` at its smoke sizes (the
-//! bench and profile parts, which time most of the gate's kernels) once as the baseline, then on
-//! a busier host (a busy-looping process beside it), with lavapipe's optimiser off
-//! (`GALLIVM_PERF=nopt`: a slower driver) and with one kernel's dispatches recorded three times
-//! (`TRILAB_INJECT_SLOWDOWN`: one kernel slower, nothing else). `trilab compare --timings
-//! calibrated` at the thresholds scripts/ci-gate.sh uses passes the busier host and fails the
-//! other two, each on what it should. The driver statistics are left out (`--no-driver-stats`),
-//! so the slower driver is caught by its timings alone, not by its machine code.
+//! The regression gate's rules on real runs (issue 36: timings only inside one run).
 //!
-//! Every run has a wall-clock limit and the validation layer on (tests/common/cli.rs). The
-//! busy host is checked to have been slower (by the calibration), so the pass means something.
+//! `trilab gate` judges counts and correctness against a baseline and timings only by an A/B of
+//! the base build against this one, in the same run. With this build on both sides (as CI has
+//! when no kernel code changed since the baseline): a planted slowdown of one kernel on side B
+//! alone fails, naming that kernel only; the same slower driver on both sides passes, and so
+//! does a busier host; with no base build the gate says so, judges counts and correctness alone
+//! and never reads timings from another run. `scripts/ci-gate.sh --which-base` finds the base
+//! build or says why there is none (a shallow clone, a commit missing, a dirty baseline).
+//!
+//! Every run has a wall-clock limit and the validation layer on (tests/common/cli.rs); the runs
+//! that time go one at a time (two at once on a 2-core host would time each other).
 
 mod common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
+use std::sync::{Mutex, OnceLock};
 
 use common::cli::{ok, run, s};
 use serde_json::Value;
 
-/// The gate's thresholds, as scripts/ci-gate.sh states them: (kernel %, command %).
-fn gate_thresholds() -> (String, String) {
-    let script = std::fs::read_to_string(common::root().join("scripts/ci-gate.sh")).unwrap();
-    let value = |name: &str| {
-        let prefix = format!("{name}=${{{name}:-");
-        let line = script.lines().find(|l| l.starts_with(&prefix)).unwrap_or_else(|| panic!("no {name} in ci-gate.sh"));
-        line[prefix.len()..].trim_end_matches('}').to_owned()
-    };
-    (value("GATE_KERNEL_PCT"), value("GATE_COMMAND_PCT"))
+/// One timed run at a time.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
+/// The suite's bench part at smoke sizes and the SPIR-V counts, measured once for every test:
+/// the gate's baseline folder (a temporary folder kept for the process).
+fn measured() -> &'static Path {
+    static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    &DIR.get_or_init(|| {
+        let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+        let dir = tempfile::tempdir().unwrap();
+        let base = dir.path().join("base");
+        let args =
+            ["suite", "--size", "0", "--parts", "bench", "--no-threads", "--no-driver-stats", "--out", &s(&base)];
+        ok(&run(&args, None, &[], 300).0);
+        ok(&run(&["spirv", "--out", &s(&dir.path().join("spirv"))], None, &[], 120).0);
+        std::fs::create_dir(base.join("spirv")).unwrap();
+        std::fs::copy(dir.path().join("spirv/rows.jsonl"), base.join("spirv/rows.jsonl")).unwrap();
+        (dir, base)
+    })
+    .1
 }
 
-/// The suite's bench and profile parts at smoke sizes into `out`, with `env`.
-fn suite(out: &Path, env: &[(&str, &str)]) {
-    let args =
-        ["suite", "--size", "0", "--parts", "bench,profile", "--no-threads", "--no-driver-stats", "--out", &s(out)];
-    let (o, _) = run(&args, None, env, 300);
-    ok(&o);
-}
+/// The gate's A/B kept small: two methods' kernels on bvh2 over the bunny's three ray sets.
+const SMALL: &[&str] = &["--methods", "mt,unit", "--layouts", "bvh2", "--random-rays", "8000", "--rounds", "6"];
 
-/// `compare BASE NEW` as the gate runs it: the report and the exit status.
-fn gate(base: &Path, new: &Path) -> (Value, i32) {
-    let (kernel, command) = gate_thresholds();
-    let args = [
-        "compare",
-        &s(base),
-        &s(new),
-        "--timings",
-        "calibrated",
-        "--threshold",
-        &kernel,
-        "--command-threshold",
-        &command,
-        "--count-threshold",
-        "0",
-        "--json",
-    ];
-    let (o, _) = run(&args, None, &[], 60);
+/// `trilab gate BASE NEW extra... --json` with this build as the base build: the report and the
+/// exit status.
+fn gate(new: &Path, extra: &[&str], env: &[(&str, &str)]) -> (Value, i32, String) {
+    let exe = env!("CARGO_BIN_EXE_trilab");
+    let base = s(measured());
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let mut args = vec!["gate", &base, new.to_str().unwrap(), "--base-bin", exe, "--base-commit", "test-base"];
+    args.extend(SMALL);
+    args.extend(extra);
+    args.push("--json");
+    let (o, _) = run(&args, None, env, 600);
     let text = String::from_utf8_lossy(&o.stdout).into_owned();
     let report: Value =
         serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}{}", common::cli::stderr(&o)));
-    (report, o.status.code().expect("exited"))
+    (report, o.status.code().expect("exited"), common::cli::stderr(&o))
 }
 
-/// Busy-looping processes, killed on drop.
-struct Busy(Vec<Child>);
+fn failed_kernels(r: &Value) -> Vec<String> {
+    r["timings"]["failed"].as_array().unwrap().iter().map(|k| k.as_str().unwrap().to_owned()).collect()
+}
+
+#[test]
+fn a_planted_slowdown_of_one_kernel_on_side_b_fails_naming_that_kernel() {
+    let (r, code, e) = gate(measured(), &["--b-env", "TRILAB_INJECT_SLOWDOWN=raycast.unit.closest:2"], &[]);
+    assert_eq!(code, 1, "{e}\n{r}");
+    assert_eq!(r["timings"]["judged"], "judged", "{r}");
+    assert_eq!(failed_kernels(&r), ["raycast unit bvh2"], "{r}");
+    // Found in the first A/B and again when timed once more, which timed only that kernel.
+    let repeat = &r["timings"]["repeat"];
+    let methods: Vec<&str> =
+        repeat["cells"].as_array().unwrap().iter().map(|c| c["cell"]["method"].as_str().unwrap()).collect();
+    assert!(!methods.is_empty() && methods.iter().all(|m| *m == "unit"), "{repeat}");
+    // The counts and correctness agree with the baseline: the slowdown is all that failed.
+    assert_eq!(r["counts"]["passed"], true, "{r}");
+    assert_eq!(r["failures"].as_array().unwrap().len(), 1, "{r}");
+    let ab = &r["timings"]["ab"];
+    for k in ab["kernels"].as_array().unwrap() {
+        if k["method"] == "mt" {
+            assert_ne!(k["verdict"], "hurt-beyond-threshold", "{k}");
+        } else {
+            let ratio = k["ratio"]["ratio"].as_f64().unwrap();
+            assert!((1.3..4.0).contains(&ratio), "the unit kernel does twice its work: B/A {ratio}: {k}");
+        }
+    }
+    // Side A is the base build, named by the commit it was built from; the same rays give the
+    // same hits on both sides.
+    assert_eq!(ab["a"]["provenance"]["commit"], "test-base", "{}", ab["a"]);
+    assert!(ab["cells"].as_array().unwrap().iter().all(|c| c["rays_differing"] == 0), "{ab}");
+}
+
+#[test]
+fn the_same_slower_driver_on_both_sides_passes() {
+    let nopt = ["--a-env", "GALLIVM_PERF=nopt", "--b-env", "GALLIVM_PERF=nopt"];
+    let (r, code, e) = gate(measured(), &nopt, &[]);
+    assert_eq!(code, 0, "a slower driver under both builds is not a regression of the code: {e}\n{r}");
+    let ab = &r["timings"]["ab"];
+    for side in ["a", "b"] {
+        let env = ab[side]["given"]["env"].as_array().unwrap();
+        assert!(env.iter().any(|kv| kv[0] == "GALLIVM_PERF" && kv[1] == "nopt"), "{}", ab[side]);
+    }
+    assert_eq!(ab["kernels"].as_array().unwrap().len(), 2, "{ab}");
+}
+
+/// A busy-looping process, killed on drop.
+struct Busy(Child);
 
 impl Busy {
-    fn start(n: usize) -> Busy {
-        Busy((0..n).map(|_| Command::new("sh").args(["-c", "while :; do :; done"]).spawn().unwrap()).collect())
+    fn start() -> Busy {
+        Busy(Command::new("sh").args(["-c", "while :; do :; done"]).spawn().unwrap())
+    }
+
+    /// CPU seconds it has used (utime + stime from /proc).
+    fn cpu_s(&self) -> f64 {
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", self.0.id())).unwrap();
+        let fields: Vec<&str> = stat.rsplit(')').next().unwrap().split_whitespace().collect();
+        let ticks: f64 = fields[11].parse::<f64>().unwrap() + fields[12].parse::<f64>().unwrap();
+        ticks / 100.0
     }
 }
 
 impl Drop for Busy {
     fn drop(&mut self) {
-        for c in &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn a_busier_host_passes() {
+    let load = Busy::start();
+    let (r, code, e) = gate(measured(), &[], &[]);
+    // The load was there for the whole A/B: the loop was still running and used CPU time.
+    let cpu = load.cpu_s();
+    drop(load);
+    assert!(cpu > 1.0, "the busy loop used {cpu} CPU seconds");
+    assert_eq!(code, 0, "a busier host, the same for both builds, passes: {e}\n{r}");
+    assert!(failed_kernels(&r).is_empty(), "{r}");
+}
+
+/// `measured()`'s rows copied into `dir` with `f` applied to each row (as JSON).
+fn edited_copy(dir: &Path, f: impl Fn(&mut Value)) -> PathBuf {
+    let new = dir.join("new");
+    for sub in ["bench", "spirv", "calibration"] {
+        let from = measured().join(sub).join("rows.jsonl");
+        if !from.exists() {
+            continue;
+        }
+        std::fs::create_dir_all(new.join(sub)).unwrap();
+        let mut out = String::new();
+        for line in std::fs::read_to_string(&from).unwrap().lines() {
+            let mut v: Value = serde_json::from_str(line).unwrap();
+            f(&mut v);
+            out += &format!("{v}\n");
+        }
+        std::fs::write(new.join(sub).join("rows.jsonl"), out).unwrap();
+    }
+    new
+}
+
+/// Scales every timing figure of a row: `Mrays/s` divided by `k`, `ms` multiplied.
+fn slower(row: &mut Value, k: f64) {
+    let Some(figures) = row["figures"].as_object_mut() else { return };
+    for f in figures.values_mut().filter(|f| f["class"] == "timing") {
+        let scale = if f["better"] == "higher" { 1.0 / k } else { k };
+        for key in ["median", "min", "max"] {
+            let x = f[key].as_f64().unwrap();
+            f[key] = Value::from(x * scale);
         }
     }
 }
 
-/// What failed: command-wide slowdowns, kernel groups, single figures.
-fn failures(r: &Value) -> (Vec<String>, Vec<String>, Vec<String>) {
-    let names = |list: &str, f: &dyn Fn(&Value) -> String| -> Vec<String> {
-        r[list].as_array().unwrap().iter().filter(|x| x["regression"] == true).map(f).collect()
-    };
-    (
-        names("speed", &|x| x["command"].as_str().unwrap().to_owned()),
-        names("kernels", &|x| format!("{} {}", x["command"].as_str().unwrap(), x["kernel"].as_str().unwrap())),
-        names("changes", &|x| format!("{} {} {}", x["command"], x["cell"], x["figure"])),
-    )
+#[test]
+fn with_no_base_build_the_gate_says_so_and_judges_counts_and_correctness_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    // Every timing five times slower, as another host might read: not judged, not a failure.
+    let new = edited_copy(dir.path(), |row| slower(row, 5.0));
+    let base = s(measured());
+    let args = ["gate", &base, &s(&new), "--no-base", "the baseline's commit is not in this shallow clone"];
+    let (o, _) = run(&args, None, &[], 120);
+    let text = ok(&o);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("not judged: the baseline's commit is not in this shallow clone"), "{out}{text}");
+    assert!(
+        out.contains("timings not judged:") && out.contains("gate: pass (counts and correctness; timings not judged)"),
+        "{out}"
+    );
+    // A count that grew fails, and the verdict names it.
+    let bigger = edited_copy(&dir.path().join("count"), |row| {
+        slower(row, 5.0);
+        if let Some(f) = row["figures"].get_mut("scene_bytes") {
+            f["median"] = Value::from(f["median"].as_f64().unwrap() + 4.0);
+        }
+    });
+    let args = ["gate", &base, &s(&bigger), "--no-base", "none here", "--json"];
+    let (o, _) = run(&args, None, &[], 120);
+    assert_eq!(o.status.code(), Some(1), "{}", common::cli::stderr(&o));
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["timings"]["judged"], "not-judged", "{r}");
+    let why = r["failures"][0].as_str().unwrap();
+    assert!(why.contains("counts and correctness") && why.contains("count"), "{why}");
+    assert!(r["counts"]["changes"].as_array().unwrap().iter().all(|c| c["class"] != "timing"), "{r}");
+    // Neither a base build nor a reason: refused before any work.
+    let (o, _) = run(&["gate", &base, &s(&new)], None, &[], 60);
+    assert_eq!(o.status.code(), Some(2), "{}", common::cli::stderr(&o));
+    common::cli::expect_error(&o, &["--no-base"]);
+}
+
+/// `git args` in `dir`, which must succeed; its stdout.
+fn git(dir: &Path, args: &[&str]) -> String {
+    let o = Command::new("git").args(args).current_dir(dir).output().unwrap();
+    assert!(o.status.success(), "git {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).trim().to_owned()
+}
+
+/// `scripts/ci-gate.sh --which-base` in the clone `dir`, its baseline naming `commit`.
+fn which_base(dir: &Path, commit: &str) -> String {
+    let suite = dir.join("results/lavapipe/baseline/suite.json");
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&suite).unwrap()).unwrap();
+    v["provenance"]["commit"] = Value::from(commit);
+    std::fs::write(&suite, v.to_string()).unwrap();
+    let o = Command::new("bash")
+        .arg("scripts/ci-gate.sh")
+        .arg("--which-base")
+        .current_dir(dir)
+        .env("TRILAB_GATE_CACHE", dir.join("cache"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).trim().to_owned()
 }
 
 #[test]
-fn the_gate_passes_a_busier_host_and_fails_a_slower_driver_and_one_slower_kernel() {
+fn the_script_finds_the_base_build_or_says_why_there_is_none() {
+    let root = common::root();
     let dir = tempfile::tempdir().unwrap();
-    let base = dir.path().join("base");
-    suite(&base, &[]);
-    assert!(base.join("calibration/rows.jsonl").is_file(), "the suite writes its host calibration");
-
-    // A busier host: a busy loop beside the run (on this 2-core machine the calibration reads
-    // the host 0.49-0.69 times as fast). A busy loop per CPU is in results/lavapipe/gate-noise/:
-    // it passes there too, with less margin than a test that must never flake wants.
-    let busy = dir.path().join("busy");
-    {
-        let _load = Busy::start(1);
-        suite(&busy, &[]);
-    }
-    let (r, code) = gate(&base, &busy);
-    assert_eq!(r["timing_rule"], "calibrated", "{r}");
-    let host_speed = r["speed"].as_array().unwrap().iter().find(|s| s["command"] == "bench").unwrap()["host_speed"]
-        .as_f64()
-        .unwrap();
-    assert!(host_speed < 0.8, "the busy loops slowed the host (calibration speed {host_speed}): {r}");
-    assert_eq!(code, 0, "a busier host must pass the gate: {:?}\n{r}", failures(&r));
-
-    // A slower driver: every kernel slower, the host as fast as before.
-    let nopt = dir.path().join("nopt");
-    suite(&nopt, &[("GALLIVM_PERF", "nopt")]);
-    let (r, code) = gate(&base, &nopt);
-    let (commands, _, _) = failures(&r);
-    assert_eq!(code, 1, "a slower driver must fail the gate: {r}");
-    assert!(!commands.is_empty(), "it fails as a command-wide slowdown: {:?}", failures(&r));
-    assert_eq!(r["totals"]["correctness_worse"], 0, "{r}");
-
-    // One kernel slower (its dispatches recorded three times), nothing else changed.
-    let slow = dir.path().join("slow");
-    suite(&slow, &[("TRILAB_INJECT_SLOWDOWN", "raycast.unit.closest:3")]);
-    let (r, code) = gate(&base, &slow);
-    let (_, kernels, figures) = failures(&r);
-    assert_eq!(code, 1, "one slower kernel must fail the gate: {r}");
-    assert!(!kernels.is_empty() && kernels.iter().all(|k| k.contains("method=unit")), "{kernels:?}\n{r}");
-    assert!(figures.is_empty(), "no single figure fails alone under the calibrated rule: {figures:?}");
-    assert_eq!(
-        (r["totals"]["counts_changed"].as_u64(), r["totals"]["correctness_changed"].as_u64()),
-        (Some(0), Some(0))
+    let url = format!("file://{}", root.display());
+    // A full clone: the commit it is at (no kernel code changed), an older one, a dirty one, and
+    // one that is in no repository.
+    let full = dir.path().join("full");
+    git(dir.path(), &["clone", "-q", &url, &s(&full)]);
+    let head = git(&full, &["rev-parse", "--short=12", "HEAD"]);
+    let first = git(&full, &["rev-list", "--max-parents=0", "HEAD"]);
+    assert!(
+        which_base(&full, &head).starts_with("base: this build (no kernel code changed"),
+        "{}",
+        which_base(&full, &head)
     );
+    let older = which_base(&full, &first);
+    assert!(older.starts_with(&format!("base: {first}, to be built into ")), "{older}");
+    let dirty = which_base(&full, &format!("{head}-dirty"));
+    assert!(dirty.starts_with("no base build: the baseline names no clean commit"), "{dirty}");
+    let missing = which_base(&full, "0123456789ab");
+    assert!(
+        missing.starts_with("no base build: the baseline's commit 0123456789ab is not in this repository"),
+        "{missing}"
+    );
+    // A shallow clone lacks the older commit, and says what would give it.
+    let shallow = dir.path().join("shallow");
+    git(dir.path(), &["clone", "-q", "--depth", "1", &url, &s(&shallow)]);
+    let said = which_base(&shallow, &first);
+    assert!(said.contains("not in this shallow clone") && said.contains("--unshallow"), "{said}");
 }

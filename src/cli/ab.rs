@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use trilab::encoding::{Layout, Method, SceneAccess};
+use trilab::encoding::{Layout, Method, SceneAccess, Traversal};
 use trilab::error::{Error, Result};
-use trilab::harness::ab::{self, worker::Workload, AbOptions, Side};
+use trilab::harness::ab::{self, worker::Workload, AbOptions, Judge, Side};
 use trilab::harness::rayset::{RaySet, RaySetSizes};
 use trilab::named::Named;
 
@@ -23,6 +23,10 @@ pub struct WorkloadArgs {
     /// Node layouts, comma-separated (default: bvh2).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
+    /// Traversals, comma-separated (default: while-if); a layout without a kernel for one is
+    /// left out of it.
+    #[arg(long, value_name = "T,...", value_parser = choice::<Traversal>(), value_delimiter = ',')]
+    traversals: Vec<Traversal>,
     /// Ray sets, comma-separated (default: primary, diffuse, random).
     #[arg(long, value_name = "S,...", value_parser = choice::<RaySet>(), value_delimiter = ',')]
     sets: Vec<RaySet>,
@@ -63,11 +67,33 @@ pub struct WorkloadArgs {
 }
 
 impl WorkloadArgs {
-    fn workload(&self) -> Workload {
+    /// The workload these options give, each list left empty taken from `defaults` (the sizes
+    /// and settings are always these options').
+    pub fn workload_or(&self, defaults: Workload) -> Workload {
+        fn or<T: Clone>(given: &[T], d: Vec<T>) -> Vec<T> {
+            if given.is_empty() {
+                d
+            } else {
+                given.to_vec()
+            }
+        }
+        let w = self.workload();
+        Workload {
+            scenes: or(&self.scenes, defaults.scenes),
+            methods: or(&self.methods, defaults.methods),
+            layouts: or(&self.layouts, defaults.layouts),
+            traversals: or(&self.traversals, defaults.traversals),
+            sets: or(&self.sets, defaults.sets),
+            ..w
+        }
+    }
+
+    pub fn workload(&self) -> Workload {
         Workload {
             scenes: if self.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { self.scenes.clone() },
             methods: if self.methods.is_empty() { Method::ALL.to_vec() } else { self.methods.clone() },
             layouts: if self.layouts.is_empty() { vec![Layout::Bvh2] } else { self.layouts.clone() },
+            traversals: if self.traversals.is_empty() { vec![Traversal::WhileIf] } else { self.traversals.clone() },
             sets: if self.sets.is_empty() { RaySet::ALL.to_vec() } else { self.sets.clone() },
             sizes: RaySetSizes {
                 width: self.width,
@@ -85,25 +111,64 @@ impl WorkloadArgs {
     }
 }
 
+/// How many rounds the sides run, and when they stop (`ab` and `gate`).
+#[derive(Args, Clone, Copy)]
+pub struct RoundsArgs {
+    /// Rounds per side at least (2 or more).
+    #[arg(long, value_name = "N", default_value_t = 6)]
+    pub rounds: usize,
+    /// Rounds per side at most: rounds are added until every judged interval (each cell's, or
+    /// each kernel's with --judge kernels) is narrower than --target.
+    #[arg(long, value_name = "N", default_value_t = 20)]
+    pub max_rounds: usize,
+    /// Stop adding rounds when every judged 95 % interval is within +-PCT percent.
+    #[arg(long, value_name = "PCT", default_value_t = 2.0)]
+    pub target: f64,
+    /// Stop adding rounds after this many seconds.
+    #[arg(long, value_name = "S", default_value_t = 300.0)]
+    pub time_cap: f64,
+}
+
+impl RoundsArgs {
+    /// Refuses a target or time cap that is not a positive number, naming the option.
+    pub fn check(&self, threshold: f64) -> Result<()> {
+        for (name, v) in [("--target", self.target), ("--threshold", threshold), ("--time-cap", self.time_cap)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::Usage(format!("{name} {v}: must be a positive number")));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// `K=V`.
-fn env_pair(s: &str) -> std::result::Result<(String, String), String> {
+pub fn env_pair(s: &str) -> std::result::Result<(String, String), String> {
     match s.split_once('=') {
         Some((k, v)) if !k.is_empty() && !k.contains(char::is_whitespace) => Ok((k.into(), v.into())),
         _ => Err(format!("`{s}`: an environment setting is NAME=VALUE")),
     }
 }
 
-/// Two drivers or driver settings in one run, as gpu-trace-perf and Mesa's shader-db compare
-/// builds: the same workload (bench cells; on request a path-trace cell, driver statistics,
-/// pipeline statistics) under side A and side B, each its own process, rounds interleaved A B B
-/// A and validated against the f64 reference; per cell B/A kernel time with a 95 % interval
-/// (Welch's t on log times) and a verdict, the hits compared ray by ray; prints only what
-/// changed, then the totals. Exit status: 0 pass; 1 a cell hurt with its whole interval past
-/// --threshold, or any correctness figure of B worse; 2 the sides could not be compared (named).
+/// Two drivers, driver settings or trilab builds in one run, interleaved: per cell and kernel
+/// B/A kernel time with a 95 % interval, the hits compared ray by ray. Exit 0 pass, 1 hurt
+/// beyond --threshold or correctness worse, 2 the sides could not be compared.
+///
+/// The same workload (bench cells; on request a path-trace cell, driver statistics, pipeline
+/// statistics) under side A and side B, each its own process (its driver: --a-icd, --a-env; its
+/// build: --a-bin), as gpu-trace-perf and Mesa's shader-db compare builds. Every round times each
+/// cell's two sides back to back, which first alternating, each run validated against the f64
+/// reference; the ratio is paired round by round. Prints only what changed, then the totals.
 #[derive(Args)]
 pub struct AbArgs {
     #[command(flatten)]
     workload: WorkloadArgs,
+    /// Side A's trilab executable (default: this one): two builds of the kernels side by side,
+    /// each tracing the same scenes (resolved here) and rays.
+    #[arg(long, value_name = "FILE")]
+    a_bin: Option<PathBuf>,
+    /// Side B's trilab executable, as --a-bin.
+    #[arg(long, value_name = "FILE")]
+    b_bin: Option<PathBuf>,
     /// Side A's driver: the ICD JSON the Vulkan loader is given (`VK_DRIVER_FILES`); default:
     /// the loader's own choice.
     #[arg(long, value_name = "FILE")]
@@ -117,22 +182,15 @@ pub struct AbArgs {
     /// A variable set for side B only (repeatable).
     #[arg(long, value_name = "K=V", value_parser = env_pair)]
     b_env: Vec<(String, String)>,
-    /// Rounds per side at least (2 or more).
-    #[arg(long, value_name = "N", default_value_t = 6)]
-    rounds: usize,
-    /// Rounds per side at most: rounds are added (A B B A) until every cell's interval is
-    /// narrower than --target.
-    #[arg(long, value_name = "N", default_value_t = 20)]
-    max_rounds: usize,
-    /// Stop adding rounds when every cell's 95 % interval is within +-PCT percent.
-    #[arg(long, value_name = "PCT", default_value_t = 2.0)]
-    target: f64,
-    /// Stop adding rounds after this many seconds.
-    #[arg(long, value_name = "S", default_value_t = 300.0)]
-    time_cap: f64,
-    /// Exit 1 when a cell's whole interval is slower than this many percent.
+    #[command(flatten)]
+    rounds: RoundsArgs,
+    /// Exit 1 when a cell's (or kernel's, by --judge) whole interval is slower than this many
+    /// percent.
     #[arg(long, value_name = "PCT", default_value_t = 5.0)]
     threshold: f64,
+    /// What the verdict judges: each cell, or each kernel over its cells.
+    #[arg(long, value_parser = choice::<Judge>(), default_value_t = Judge::Cells)]
+    judge: Judge,
     /// After the rounds, each side's driver statistics of the ray-casting kernels (`trilab
     /// driver-stats` in that side's environment: lavapipe's machine code, or the executable
     /// statistics), printed where they differ; a driver without them is named, not a failure.
@@ -152,11 +210,7 @@ pub fn run(a: AbArgs) -> Result<()> {
     // 1 is a verdict (hurt, or a correctness figure worse); 2 means the sides could not be
     // compared, as `compare` and `diff` say.
     super::error_exit(2);
-    for (name, v) in [("--target", a.target), ("--threshold", a.threshold), ("--time-cap", a.time_cap)] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(Error::Usage(format!("{name} {v}: must be a positive number")));
-        }
-    }
+    a.rounds.check(a.threshold)?;
     if let Some(dir) = &a.out {
         let files = ["ab.json", "ab.md", trilab::rows::FILE];
         trilab::io::check_output("--out", trilab::io::Output::Dir(dir, &files), &[])?;
@@ -165,14 +219,15 @@ pub fn run(a: AbArgs) -> Result<()> {
     let validation = a.gpu.validation || std::env::var("TRILAB_VALIDATION").is_ok_and(|v| v.trim() == "1");
     let o = AbOptions {
         workload: a.workload.workload(),
-        a: Side { icd: a.a_icd, env: a.a_env },
-        b: Side { icd: a.b_icd, env: a.b_env },
+        a: Side { exe: a.a_bin, icd: a.a_icd, env: a.a_env },
+        b: Side { exe: a.b_bin, icd: a.b_icd, env: a.b_env },
         exe,
-        rounds: a.rounds,
-        max_rounds: a.max_rounds,
-        target: a.target / 100.0,
-        time_cap_s: a.time_cap,
+        rounds: a.rounds.rounds,
+        max_rounds: a.rounds.max_rounds,
+        target: a.rounds.target / 100.0,
+        time_cap_s: a.rounds.time_cap,
         threshold: a.threshold / 100.0,
+        judge: a.judge,
         validation,
         driver_stats: a.driver_stats,
     };
@@ -199,7 +254,7 @@ pub fn run(a: AbArgs) -> Result<()> {
 /// again before the report is printed (a closed stdout ends the process quietly, as `main`
 /// arranges for every command).
 #[cfg(unix)]
-fn sigpipe(ignore: bool) {
+pub fn sigpipe(ignore: bool) {
     // SAFETY: `signal` with SIG_IGN or SIG_DFL installs no handler of ours, only a disposition;
     // the worker threads of this process write only to pipes this function is meant to cover.
     unsafe {
@@ -208,7 +263,7 @@ fn sigpipe(ignore: bool) {
 }
 
 #[cfg(not(unix))]
-fn sigpipe(_ignore: bool) {}
+pub fn sigpipe(_ignore: bool) {}
 
 /// One side of `trilab ab` (run by it, not by hand).
 #[derive(Args)]

@@ -16,6 +16,7 @@ pub mod completions;
 pub mod devices;
 pub mod driver_stats;
 pub mod dump;
+pub mod gate;
 pub mod man;
 pub mod merge;
 pub mod hits;

@@ -88,7 +88,7 @@ fn or_default<T: Clone + Default>(v: &[T]) -> Vec<T> {
 
 /// The path a kernel for `access` is looked up on before the scene is planned: `auto` takes the
 /// texel path wherever the scene fits one binding.
-fn path_of(access: SceneAccess) -> AccessPath {
+pub fn path_of(access: SceneAccess) -> AccessPath {
     match access {
         SceneAccess::Address => AccessPath::Address,
         SceneAccess::Auto | SceneAccess::Texel => AccessPath::Texel,

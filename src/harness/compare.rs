@@ -61,6 +61,8 @@ named_enum! {
         Raw = "raw",
         /// command-wide speed over the host calibration, and each figure against its command (fails when a side has no calibration)
         Calibrated = "calibrated",
+        /// timings not judged, only counted (counts and correctness are): for two runs on different hosts, where a timing is no evidence about the code
+        Ignore = "ignore",
     }
 }
 
@@ -398,6 +400,8 @@ pub struct Totals {
     /// Counts not judged because a driver's JIT compiled them for different CPUs
     /// ([`rows::JIT_CPU`]: lavapipe's machine code on two hosts).
     pub counts_other_cpu: usize,
+    /// Timing figures of matched cells left unjudged by the `ignore` rule.
+    pub timings_not_judged: usize,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -688,6 +692,7 @@ pub fn compare_with(
             TimingRule::Calibrated
         }
         TimingRule::Raw => TimingRule::Raw,
+        TimingRule::Ignore => TimingRule::Ignore,
     };
     let different_hosts = !base.hosts.is_empty()
         && !new.hosts.is_empty()
@@ -699,6 +704,7 @@ pub fn compare_with(
             new.hosts.iter().map(Host::label).collect::<Vec<_>>().join(" | "),
             match rule {
                 TimingRule::Calibrated => "timings are judged by the host calibration",
+                TimingRule::Ignore => "timings are not judged (--timings ignore)",
                 _ if log_speed.is_empty() => "no timing is compared",
                 _ => "timings are compared raw, and a host's speed reads as a change (`trilab suite` writes the calibration that takes it out)",
             }
@@ -728,6 +734,10 @@ pub fn compare_with(
             };
             if bf.class != nf.class || bf.unit != nf.unit || bf.better != nf.better {
                 mismatched.push(format!("{} {name}", br.key()));
+                continue;
+            }
+            if rule == TimingRule::Ignore && bf.class == Class::Timing {
+                totals.timings_not_judged += 1;
                 continue;
             }
             let jit = |r: &Row| r.source.settings.get(rows::JIT_CPU).cloned();
@@ -864,6 +874,10 @@ pub fn compare_with(
             c.calibrated_speed = Some(calibrated);
             c.verdict = Some(verdict);
             regressions += c.regression as usize;
+            calibrations.push(cal.clone());
+        } else if let (TimingRule::Ignore, Some(Ok(cal))) = (rule, pairs.get(command)) {
+            // Shown, not judged: how the two hosts' speeds compared while each ran the command.
+            c.host_speed = Some(1.0 / cal.factor);
             calibrations.push(cal.clone());
         }
         speed.push(c);
@@ -1093,6 +1107,10 @@ impl Report for CompareReport {
                 t = self.threshold_pct,
                 keys = KERNEL_COORDINATES.join(", ")
             ),
+            TimingRule::Ignore => "rule: timings not judged (a timing measured in another run, let alone on another \
+                 host, is no evidence about the code: `trilab ab` times two builds side by side); every count and \
+                 correctness change is printed and judged\n\n"
+                .to_owned(),
             _ => format!(
                 "rule: timings raw: a timing is faster or slower only when the two runs' min-max ranges do not \
                  overlap, and is printed beyond {} %; every count and correctness change is printed\n\n",
@@ -1120,7 +1138,24 @@ impl Report for CompareReport {
                 s += &format!("  {name}: ... and {} more\n", list.len() - LIST_MAX);
             }
         }
-        s += &format!(
+        if self.timing_rule == TimingRule::Ignore {
+            s += &format!("timings not judged: {}\n", t.timings_not_judged);
+            for c in &self.speed {
+                let cal = self.calibrations.iter().find(|k| k.command == c.command);
+                s += &format!(
+                    "  {}: {} timings, speed NEW/BASE {:.3}{} (information only)\n",
+                    c.command,
+                    c.timings,
+                    c.geomean_speed,
+                    match (c.host_speed, cal) {
+                        (Some(h), Some(k)) =>
+                            format!("; host calibration speed {h:.3} ({} -> {})", shown(&k.base), shown(&k.new)),
+                        _ => String::new(),
+                    }
+                );
+            }
+        } else {
+            s += &format!(
             "timings{}: {} faster ({} beyond {} %), {} slower ({} beyond), {} within spread, {} without spread (one run)\n",
             if self.timing_rule == TimingRule::Calibrated { " (each against its command)" } else { "" },
             t.faster,
@@ -1131,10 +1166,10 @@ impl Report for CompareReport {
             t.within_spread,
             t.no_spread
         );
-        if self.timing_rule == TimingRule::Calibrated {
-            s += &format!("commands' timings as a whole (> 1: NEW faster):\n\n{}\n", self.speed_table().to_text());
-            let shown = self.kernels.iter().filter(|k| k.beyond_threshold).count();
-            s += &format!(
+            if self.timing_rule == TimingRule::Calibrated {
+                s += &format!("commands' timings as a whole (> 1: NEW faster):\n\n{}\n", self.speed_table().to_text());
+                let shown = self.kernels.iter().filter(|k| k.beyond_threshold).count();
+                s += &format!(
                 "kernels against their command: {} groups, {} slower and {} faster (interval and rounds agreeing), {shown} beyond {} %{}\n",
                 self.kernels.len(),
                 self.kernels.iter().filter(|k| k.verdict == Verdict::Slower).count(),
@@ -1142,15 +1177,16 @@ impl Report for CompareReport {
                 self.threshold_pct,
                 if shown > 0 { ":" } else { "" }
             );
-            if shown > 0 {
-                s += &format!("\n{}\n", self.kernels_table().to_text());
-            }
-        } else {
-            for c in &self.speed {
-                s += &format!(
-                    "speed NEW/BASE, geometric mean of {} timings of {} (> 1: NEW faster): {:.3}\n",
-                    c.timings, c.command, c.geomean_speed
-                );
+                if shown > 0 {
+                    s += &format!("\n{}\n", self.kernels_table().to_text());
+                }
+            } else {
+                for c in &self.speed {
+                    s += &format!(
+                        "speed NEW/BASE, geometric mean of {} timings of {} (> 1: NEW faster): {:.3}\n",
+                        c.timings, c.command, c.geomean_speed
+                    );
+                }
             }
         }
         for c in &self.counts {
@@ -1454,6 +1490,39 @@ mod tests {
         // Raw, the same runs fail on every cell.
         let r = gate(&base, &new, TimingRule::Raw).unwrap();
         assert_eq!((r.passed, r.regressions), (false, 12), "{}", r.to_text());
+    }
+
+    #[test]
+    fn the_ignore_rule_judges_no_timing_and_every_count_and_correctness_figure() {
+        // NEW's host is 2.2x slower and one kernel 1.6x slower on top: neither is judged.
+        let base = timed_side(1.0, 50.0, "fast CPU", 0.0);
+        let mut new = timed_side(2.2, 60.0, "slow CPU", 7.0);
+        for row in new.iter_mut().filter(|r| r.cell.get("method").map(String::as_str) == Some("unit")) {
+            let f = row.figures.get_mut("kernel_ms").unwrap();
+            (f.median, f.min, f.max) = (f.median * 1.6, f.min * 1.6, f.max * 1.6);
+        }
+        let r = gate(&base, &new, TimingRule::Ignore).unwrap();
+        assert_eq!(r.timing_rule, TimingRule::Ignore);
+        assert!(r.passed, "{}", r.to_text());
+        assert_eq!(r.totals.timings_not_judged, 12, "{}", r.to_text());
+        assert_eq!((r.totals.slower, r.totals.faster, r.kernels.len()), (0, 0, 0), "{}", r.to_text());
+        assert!(r.changes.iter().all(|c| c.class != Class::Timing), "{}", r.to_text());
+        // The calibration is shown as information: 60 ms against 50 ms, the host at 0.83.
+        let host = r.speed[0].host_speed.unwrap();
+        assert!((host - 50.0 / 60.0).abs() < 1e-9, "{host}");
+        let text = r.to_text();
+        assert!(text.contains("timings not judged: 12") && text.contains("information only"), "{text}");
+        assert!(text.contains("timings are not judged (--timings ignore)"), "{text}");
+        // A correctness figure worse still fails, and so does a count past its threshold.
+        let mut worse = new.clone();
+        worse[0].figures.get_mut("agreement").unwrap().median = 0.99;
+        let r = gate(&base, &worse, TimingRule::Ignore).unwrap();
+        assert_eq!((r.passed, r.totals.correctness_worse), (false, 1), "{}", r.to_text());
+        let (mut base, mut more) = (base, new);
+        base[0] = base[0].clone().with("scene_bytes", Figure::count(1000.0, "bytes"));
+        more[0] = more[0].clone().with("scene_bytes", Figure::count(1001.0, "bytes"));
+        let r = gate(&base, &more, TimingRule::Ignore).unwrap();
+        assert!(!r.passed && r.changes.iter().any(|c| c.figure == "scene_bytes" && c.regression), "{}", r.to_text());
     }
 
     #[test]

@@ -14,6 +14,7 @@ pub mod bvh_stats;
 pub mod calibration;
 pub mod devices;
 pub mod efficiency;
+pub mod gate;
 pub mod hits;
 pub mod make_rays;
 pub mod merge;

@@ -59,7 +59,7 @@ pub fn collect(o: &AbOptions, name: &str, side: &Side, cells: &[CellInfo], dir: 
         v.dedup();
         v.join(",")
     };
-    let mut cmd = Command::new(&o.exe);
+    let mut cmd = Command::new(side.exe(&o.exe));
     cmd.arg(COMMAND)
         .args(["--kernels", &list(|c| &c.kernel), "--variants", &list(|c| &c.variant)])
         .args(["--methods", &list(|c| &c.method), "--layouts", &list(|c| &c.layout)])
@@ -71,7 +71,7 @@ pub fn collect(o: &AbOptions, name: &str, side: &Side, cells: &[CellInfo], dir: 
     side.apply(&mut cmd);
     let out = match cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped()).output() {
         Ok(out) => out,
-        Err(e) => return none(format!("could not run {} {COMMAND}: {e}", o.exe.display())),
+        Err(e) => return none(format!("could not run {} {COMMAND}: {e}", side.exe(&o.exe).display())),
     };
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
@@ -149,6 +149,7 @@ mod tests {
             set: "primary".into(),
             method: "mt".into(),
             layout: "bvh2".into(),
+            traversal: "while-if".into(),
             rays: 10,
             kernel: kernel.into(),
             coordinates: Default::default(),

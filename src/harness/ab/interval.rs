@@ -1,4 +1,7 @@
-//! The ratio of two sides' kernel times with a confidence interval, from few rounds.
+//! The ratio of two sides' kernel times with a confidence interval, from few rounds: paired
+//! where each round timed the two sides of a cell back to back ([`Ratio::paired`]), else
+//! Welch's unpaired interval below (sides that timed whole rounds apart: a worker of
+//! protocol 1).
 //!
 //! Welch's t on log times: d = mean(ln b) - mean(ln a), its standard error
 //! se = sqrt(s_a^2 / n_a + s_b^2 / n_b), the Welch-Satterthwaite degrees of freedom, and the
@@ -52,6 +55,33 @@ impl Ratio {
             level,
             rounds_a: a.len(),
             rounds_b: b.len(),
+        })
+    }
+
+    /// The paired interval for B/A at `level` from `d`, each pair's ln(b) - ln(a) (a cell's two
+    /// sides timed back to back, so the moment's load on the host is common to both and cancels
+    /// in the difference): exp(mean d +- t_{(1+level)/2, n-1} sd(d) / sqrt(n)), Student's t on
+    /// the differences ("The probable error of a mean", Biometrika 6, 1908). `None` with fewer
+    /// than two pairs or a difference that is not finite.
+    pub fn paired(d: &[f64], level: f64) -> Option<Ratio> {
+        if d.len() < 2 || d.iter().any(|x| !x.is_finite()) {
+            return None;
+        }
+        let n = d.len() as f64;
+        let m = d.iter().sum::<f64>() / n;
+        let var = d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+        let half = if var == 0.0 {
+            0.0
+        } else {
+            StudentsT::new(0.0, 1.0, n - 1.0).ok()?.inverse_cdf(0.5 + level / 2.0) * (var / n).sqrt()
+        };
+        Some(Ratio {
+            ratio: m.exp(),
+            low: (m - half).exp(),
+            high: (m + half).exp(),
+            level,
+            rounds_a: d.len(),
+            rounds_b: d.len(),
         })
     }
 
@@ -137,6 +167,27 @@ mod tests {
         // Identical constant times: a zero-width interval at 1.
         let r = Ratio::welch(&[2.0, 2.0], &[2.0, 2.0], 0.95).unwrap();
         assert_eq!((r.low, r.high, r.verdict(0.05)), (1.0, 1.0, Verdict::Same));
+    }
+
+    #[test]
+    fn the_paired_interval_is_student_s_t_on_the_differences() {
+        // d = ln 1.1 + {0, 0.02, -0.02, 0.01, -0.01}: mean ln 1.1, sd sqrt(0.001/4), n = 5,
+        // t_0.975,4 = 2.7764451.
+        let d: Vec<f64> = [0.0, 0.02, -0.02, 0.01, -0.01].iter().map(|x| 1.1f64.ln() + x).collect();
+        let r = Ratio::paired(&d, 0.95).unwrap();
+        assert!((r.ratio - 1.1).abs() < 1e-12, "{r:?}");
+        let half = 2.7764451 * (0.001f64 / 4.0 / 5.0).sqrt();
+        assert!((r.half_width() - half).abs() < 1e-6, "{} vs {half}", r.half_width());
+        assert_eq!((r.rounds_a, r.rounds_b, r.verdict(0.05)), (5, 5, Verdict::HurtBeyondThreshold));
+        // A load that moves both sides of every pair alike is not in the differences: the same
+        // ratio, however large the moves.
+        let a = [1.0, 3.0, 0.5, 2.0];
+        let b: Vec<f64> = a.iter().map(|x| x * 1.1).collect();
+        let d: Vec<f64> = a.iter().zip(&b).map(|(x, y): (&f64, &f64)| y.ln() - x.ln()).collect();
+        let r = Ratio::paired(&d, 0.95).unwrap();
+        assert!((r.ratio - 1.1).abs() < 1e-12 && r.half_width() < 1e-12, "{r:?}");
+        assert!(Ratio::welch(&a, &b, 0.95).unwrap().verdict(0.05) == Verdict::Same, "unpaired, the moves hide it");
+        assert!(Ratio::paired(&d[..1], 0.95).is_none() && Ratio::paired(&[0.0, f64::NAN], 0.95).is_none());
     }
 
     /// At the 95 % level, A against A calls about 5 % of cells changed: checked here by

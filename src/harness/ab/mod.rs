@@ -4,13 +4,18 @@
 //!
 //! Each side is its own child process ([`worker`]): a driver is loaded once per process, and a
 //! side is named by the ICD file the Vulkan loader is given (`VK_DRIVER_FILES`) and the
-//! environment it runs in. The parent asks the sides for rounds in a balanced order (A B B A,
-//! repeated), so a slow drift of the host lands on both alike, one side running at a time;
-//! every round of every cell is validated against the f64 reference before its time counts.
-//! Rounds go on past the minimum until every cell's interval ([`interval`]) is narrower than
-//! the target, or the maximum rounds, or the time cap. Then per cell: the ratio B/A of kernel
-//! time with its 95 % interval and a verdict, the hits of A and B compared ray by ray, and each
-//! side's agreement with the reference.
+//! environment it runs in, and may run another trilab executable (two builds of the kernels).
+//! In each round the parent times every cell on both sides back to back, one side running at a
+//! time, which side first alternating from cell to cell and round to round, so the moment's load
+//! on the host lands on both alike and each cell's ratio is paired round by round (a worker of
+//! protocol 1 times whole rounds only: then rounds go A B B A and the intervals are unpaired);
+//! every run of every cell is validated against the f64 reference before its time counts.
+//! Rounds go on past the minimum until every judged interval ([`interval`]; each cell's, or each
+//! kernel's over its cells) is narrower than the target, or the maximum rounds, or the time cap.
+//! Then per cell and per kernel: the ratio B/A of kernel time with its 95 % interval and a
+//! verdict, the hits of A and B compared ray by ray, and each side's agreement with the
+//! reference. Cells are matched by what they are (scene, set, method, layout, traversal), so a
+//! build that added or dropped a kernel is still compared on the cells both run.
 
 pub mod compiled;
 pub mod interval;
@@ -25,15 +30,21 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::harness::results::Folder;
+use crate::named::named_enum;
 use crate::report::{Report, Table};
 use crate::rows::{cell, Better, Class, Figure, Row, Source};
 use compiled::StatChange;
 use interval::{Ratio, Verdict};
 use worker::{CellInfo, CellKind, CellRound, Message, Workload};
 
-/// One side: the driver the loader is given and the environment it runs in.
+/// One side: the trilab build it runs, the driver the loader is given and the environment it
+/// runs in.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Side {
+    /// The trilab executable this side runs (`None`: the one running `ab`): two builds of the
+    /// kernels timed side by side, as the regression gate times the baseline's build against the
+    /// build under test.
+    pub exe: Option<PathBuf>,
     /// The ICD JSON given to the loader as `VK_DRIVER_FILES` (`None`: the loader's own choice).
     pub icd: Option<PathBuf>,
     /// Variables set for this side only, in order.
@@ -41,15 +52,21 @@ pub struct Side {
 }
 
 impl Side {
-    /// `VK_DRIVER_FILES=... K=V`, or "trilab's own environment".
+    /// `bin=... VK_DRIVER_FILES=... K=V`, or "trilab's own environment".
     pub fn describe(&self) -> String {
-        let mut parts: Vec<String> = self.icd.iter().map(|p| format!("VK_DRIVER_FILES={}", p.display())).collect();
+        let mut parts: Vec<String> = self.exe.iter().map(|p| format!("bin={}", p.display())).collect();
+        parts.extend(self.icd.iter().map(|p| format!("VK_DRIVER_FILES={}", p.display())));
         parts.extend(self.env.iter().map(|(k, v)| format!("{k}={v}")));
         if parts.is_empty() {
             "trilab's own environment".into()
         } else {
             parts.join(" ")
         }
+    }
+
+    /// The executable this side runs: its own, or `default` (the running trilab).
+    pub fn exe<'a>(&'a self, default: &'a Path) -> &'a Path {
+        self.exe.as_deref().unwrap_or(default)
     }
 
     /// Gives `cmd` this side's driver and environment.
@@ -69,7 +86,7 @@ pub struct AbOptions {
     pub workload: Workload,
     pub a: Side,
     pub b: Side,
-    /// The trilab executable the workers run (`__ab-worker`).
+    /// The trilab executable a side runs (`__ab-worker`) unless it names its own.
     pub exe: PathBuf,
     /// Rounds per side at least (at least 2: an interval needs a spread).
     pub rounds: usize,
@@ -79,12 +96,36 @@ pub struct AbOptions {
     pub target: f64,
     /// Stop adding rounds past this many seconds.
     pub time_cap_s: f64,
-    /// A cell whose whole interval is past 1 + threshold fails the run.
+    /// A cell (or kernel, by `judge`) whose whole interval is past 1 + threshold fails the run.
     pub threshold: f64,
+    /// What the verdict judges: each cell, or each kernel over its cells.
+    pub judge: Judge,
     /// Load the validation layer in the workers (any message fails the side).
     pub validation: bool,
     /// After the rounds, each side's driver statistics of the ray-casting kernels, diffed.
     pub driver_stats: bool,
+}
+
+named_enum! {
+    /// What `ab`'s verdict judges.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum Judge: "judge" {
+        /// each cell alone (a scene, ray set and kernel): one that slowed on one ray set shows
+        Cells = "cells" (default),
+        /// each kernel over its cells (its scenes and ray sets, pooled round by round): a narrower interval, so a smaller slowdown of a kernel is told from noise (the regression gate's)
+        Kernels = "kernels",
+    }
+}
+
+impl Judge {
+    /// `cell` or `kernel`.
+    fn unit(self) -> &'static str {
+        match self {
+            Judge::Cells => "cell",
+            Judge::Kernels => "kernel",
+        }
+    }
 }
 
 /// The setting a side's rows carry (`A` or `B`): two sides' measurements of one cell on one
@@ -99,6 +140,10 @@ pub const LEVEL: f64 = 0.95;
 pub struct SideReport {
     pub name: &'static str,
     pub given: Side,
+    /// The executable it ran.
+    pub exe: PathBuf,
+    /// The ab protocol its worker spoke ([`worker::PROTOCOL`]).
+    pub protocol: u32,
     /// The worker's provenance: device, driver and version, Mesa version, host, settings.
     pub provenance: serde_json::Value,
     /// Mesa's on-disk shader cache before the side started: `warm` (it held files), `cold`,
@@ -120,6 +165,24 @@ pub struct SideCell {
     pub agree: usize,
     pub unexplained: usize,
     pub invalid: usize,
+}
+
+/// One kernel's comparison over its cells ([`Judge::Kernels`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct AbKernel {
+    /// `raycast mt bvh2` ([`CellInfo::kernel_label`]).
+    pub kernel: String,
+    pub kind: CellKind,
+    pub method: String,
+    pub layout: String,
+    pub traversal: String,
+    pub cells: usize,
+    /// B/A over its cells, round by round; `None` with fewer than two rounds a side in which
+    /// all its cells validated.
+    pub ratio: Option<Ratio>,
+    pub verdict: Option<Verdict>,
+    /// One of its cells' correctness is worse on B.
+    pub correctness_worse: bool,
 }
 
 /// One cell's comparison.
@@ -165,10 +228,22 @@ pub struct AbReport {
     pub level: f64,
     pub threshold: f64,
     pub target: f64,
+    /// What the verdict judged.
+    pub judge: Judge,
+    /// Whether each round timed every cell's two sides back to back (paired intervals), or
+    /// whole rounds apart (a worker of protocol 1: unpaired).
+    pub paired: bool,
     /// Why the rounds stopped: `target`, `max rounds` or `time cap`.
     pub stopped_by: String,
     pub seconds: f64,
+    /// The cells both sides ran.
     pub cells: Vec<AbCell>,
+    /// The kernels over those cells.
+    pub kernels: Vec<AbKernel>,
+    /// Cells only side A ran, and only side B (two builds: a kernel added or dropped).
+    pub only_in: [Vec<String>; 2],
+    /// Cells both sides name whose work differs (not compared), each with why.
+    pub mismatched: Vec<String>,
     /// With `--driver-stats`: how each side's statistics were obtained, or why it has none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub driver_stats: Option<[String; 2]>,
@@ -181,14 +256,23 @@ pub struct AbReport {
 }
 
 impl AbReport {
-    /// 1 when a cell is hurt beyond the threshold with its whole interval, or any correctness
-    /// figure got worse; else 0.
+    /// 1 when a cell (or a kernel, by [`Judge`]) is hurt beyond the threshold with its whole
+    /// interval, has no interval, or any correctness figure got worse; else 0.
     pub fn exit_code(&self) -> u8 {
-        let failed = self
-            .cells
-            .iter()
-            .any(|c| c.verdict == Some(Verdict::HurtBeyondThreshold) || c.correctness_worse || c.ratio.is_none());
-        u8::from(failed)
+        let judged = match self.judge {
+            Judge::Cells => {
+                self.cells.iter().any(|c| c.verdict == Some(Verdict::HurtBeyondThreshold) || c.ratio.is_none())
+            }
+            Judge::Kernels => {
+                self.kernels.iter().any(|k| k.verdict == Some(Verdict::HurtBeyondThreshold) || k.ratio.is_none())
+            }
+        };
+        u8::from(judged || self.cells.iter().any(|c| c.correctness_worse))
+    }
+
+    /// The kernels hurt beyond the threshold with their whole interval.
+    pub fn kernels_hurt(&self) -> Vec<&AbKernel> {
+        self.kernels.iter().filter(|k| k.verdict == Some(Verdict::HurtBeyondThreshold)).collect()
     }
 
     /// Cells helped, hurt (either kind), no change, and without an interval.
@@ -210,6 +294,37 @@ impl AbReport {
 }
 
 impl AbReport {
+    /// Kernels over their cells: those that changed, then the count; every kernel when they are
+    /// what the verdict judges.
+    fn kernels_text(&self) -> String {
+        let changed: Vec<&AbKernel> =
+            self.kernels.iter().filter(|k| k.verdict.is_none_or(|v| v != Verdict::Same)).collect();
+        let mut s = format!(
+            "\nkernels (each over its cells, round by round{}): {} compared, {} changed\n",
+            if self.judge == Judge::Kernels { "; what the verdict judges" } else { "" },
+            self.kernels.len(),
+            changed.len()
+        );
+        if !changed.is_empty() {
+            let mut t = Table::new(["kernel", "cells", "B/A", "interval", "verdict"]);
+            for k in changed {
+                let (ratio, interval) = match k.ratio {
+                    Some(r) => (format!("{:.3}", r.ratio), format!("[{:.3}, {:.3}]", r.low, r.high)),
+                    None => ("-".into(), "-".into()),
+                };
+                t.row([
+                    k.kernel.clone(),
+                    k.cells.to_string(),
+                    ratio,
+                    interval,
+                    k.verdict.map(|v| v.to_string()).unwrap_or_else(|| "no interval (rounds did not validate)".into()),
+                ]);
+            }
+            s += &format!("\n{}", t.to_text());
+        }
+        s
+    }
+
     /// Kernels whose driver statistics changed (each once, however many cells ran it), then
     /// totals per figure: kernels helped (fewer) and hurt (more).
     fn compiled_text(&self) -> String {
@@ -301,12 +416,27 @@ impl Report for AbReport {
             );
         }
         s += &format!(
-            "{} cells, rounds interleaved A B B A, stopped by {} after {:.0} s; B/A kernel time, {:.0} % interval (Welch's t on log times)\n\n",
+            "{} cells, {}, stopped by {} after {:.0} s; B/A kernel time, {:.0} % interval ({})\n",
             self.cells.len(),
+            if self.paired {
+                "each cell's sides back to back in every round, which first alternating"
+            } else {
+                "rounds interleaved A B B A (a side's worker times whole rounds only)"
+            },
             self.stopped_by,
             self.seconds,
-            self.level * 100.0
+            self.level * 100.0,
+            if self.paired { "Student's t on each round's log ratio" } else { "Welch's t on log times" }
         );
+        for (name, list) in ["A", "B"].iter().zip(&self.only_in) {
+            if !list.is_empty() {
+                s += &format!("only side {name} ran {} cell(s), not compared: {}\n", list.len(), list.join(", "));
+            }
+        }
+        for m in &self.mismatched {
+            s += &format!("not compared: {m}\n");
+        }
+        s += "\n";
         let changed: Vec<&AbCell> = self.cells.iter().filter(|c| c.changed()).collect();
         if changed.is_empty() {
             s += "no cell changed\n";
@@ -343,6 +473,7 @@ impl Report for AbReport {
             }
             s += &t.to_text();
         }
+        s += &self.kernels_text();
         s += &self.compiled_text();
         s += &self.invocations_text();
         let (helped, hurt, same, none) = self.totals();
@@ -353,9 +484,10 @@ impl Report for AbReport {
         );
         let worse = self.cells.iter().filter(|c| c.correctness_worse).count();
         s += &format!(
-            "verdict: {} (threshold {:.0} %: fails on a cell hurt with its whole interval past it, or any correctness worse: {worse} cell(s))\n",
+            "verdict: {} (threshold {} %: fails on a {} hurt with its whole interval past it, or any correctness worse: {worse} cell(s))\n",
             if self.exit_code() == 0 { "pass" } else { "FAIL" },
-            self.threshold * 100.0
+            self.threshold * 100.0,
+            self.judge.unit()
         );
         s
     }
@@ -493,11 +625,12 @@ struct Worker {
 }
 
 impl Worker {
-    fn start(o: &AbOptions, name: &'static str, side: &Side, dir: &Path) -> Result<Worker> {
+    fn start(o: &AbOptions, w: &Workload, name: &'static str, side: &Side, dir: &Path) -> Result<Worker> {
         let hits_dir = dir.join(name);
         std::fs::create_dir_all(&hits_dir).map_err(|e| Error::io(&hits_dir, e))?;
-        let mut cmd = Command::new(&o.exe);
-        cmd.arg("__ab-worker").args(o.workload.args()).arg("--hits-dir").arg(&hits_dir);
+        let exe = side.exe(&o.exe);
+        let mut cmd = Command::new(exe);
+        cmd.arg("__ab-worker").args(w.args()).arg("--hits-dir").arg(&hits_dir);
         if o.validation {
             cmd.arg("--validation");
         }
@@ -507,7 +640,7 @@ impl Worker {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .map_err(|e| Error::io(&o.exe, e))?;
+            .map_err(|e| Error::io(exe, e))?;
         let stdin = child.stdin.take().expect("piped");
         let lines = BufReader::new(child.stdout.take().expect("piped")).lines();
         let mut err = child.stderr.take().expect("piped");
@@ -545,6 +678,15 @@ impl Worker {
             .map_err(|e| Error::Usage(format!("side {}: the worker stopped reading ({e})", self.name)))
     }
 
+    /// Asks for one run of cell `i` (protocol 2).
+    fn cell(&mut self, i: usize) -> Result<CellRound> {
+        self.send(&format!("cell {i}"))?;
+        match self.next()? {
+            Message::Round { mut cells } if cells.len() == 1 => Ok(cells.remove(0)),
+            other => Err(Error::Usage(format!("side {}: expected cell {i}'s round, got {other:?}", self.name))),
+        }
+    }
+
     /// Asks for one round.
     fn round(&mut self) -> Result<Vec<CellRound>> {
         self.send("round")?;
@@ -561,8 +703,67 @@ impl Worker {
     }
 }
 
+/// Gives each scene spec as the parent resolves it: a file by its path, so both sides read the
+/// same file whatever build each runs and wherever it looks for names (a base build kept in a
+/// cache has no `scenes/` beside it); the compiled-in bunny and `synth:` specs as given.
+fn resolved_workload(w: &Workload) -> Result<Workload> {
+    let mut w = w.clone();
+    for spec in &mut w.scenes {
+        let source = crate::scene::find::resolve(spec)?;
+        if matches!(source.found.as_str(), "synthetic" | "built into trilab") {
+            continue;
+        }
+        *spec = std::path::absolute(&source.path).map_err(|e| Error::io(&source.path, e))?;
+    }
+    Ok(w)
+}
+
+/// A started side that said it is ready.
+struct Ready {
+    worker: Worker,
+    cells: Vec<CellInfo>,
+    report: SideReport,
+    invocations: Vec<Option<u64>>,
+    invocations_note: Option<String>,
+}
+
+fn start_side(o: &AbOptions, w: &Workload, name: &'static str, side: &Side, dir: &Path) -> Result<Ready> {
+    let cache = shader_cache(&side.env);
+    let mut worker = Worker::start(o, w, name, side, dir)?;
+    let ready = match worker.next() {
+        Ok(m) => m,
+        Err(e) => {
+            let err = worker.finish();
+            return Err(Error::Usage(format!("{e}{}", tail(&err))));
+        }
+    };
+    let Message::Ready { protocol, provenance, cells, pipeline_ms, invocations, invocations_note } = ready else {
+        worker.finish();
+        return Err(Error::Usage(format!("side {name}: the worker did not say it was ready")));
+    };
+    if protocol > worker::PROTOCOL {
+        worker.finish();
+        return Err(Error::Usage(format!(
+            "side {name}: its trilab ({}) speaks ab protocol {protocol}, this one {} (run ab from the newer build)",
+            side.exe(&o.exe).display(),
+            worker::PROTOCOL
+        )));
+    }
+    let report = SideReport {
+        name,
+        given: side.clone(),
+        exe: side.exe(&o.exe).to_owned(),
+        protocol,
+        provenance,
+        shader_cache: cache,
+        setup_ms: pipeline_ms,
+        rounds: 0,
+    };
+    Ok(Ready { worker, cells, report, invocations, invocations_note })
+}
+
 /// Runs the two sides and compares them. An error means they could not be compared (a side
-/// that does not start, a missing ICD file, different cells): exit 2.
+/// that does not start, a missing ICD file or executable, no cell in common): exit 2.
 pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     for (name, side) in [("--a-icd", &o.a), ("--b-icd", &o.b)] {
         if let Some(icd) = &side.icd {
@@ -574,6 +775,13 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
             }
         }
     }
+    for (name, side) in [("--a-bin", &o.a), ("--b-bin", &o.b)] {
+        if let Some(exe) = &side.exe {
+            if !exe.is_file() {
+                return Err(Error::Usage(format!("{name} {}: no such file (a trilab executable)", exe.display())));
+            }
+        }
+    }
     if o.rounds < 2 || o.max_rounds < o.rounds {
         return Err(Error::Usage(format!(
             "--rounds {} --max-rounds {}: at least 2 rounds a side, and no more than the maximum",
@@ -581,85 +789,127 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         )));
     }
     o.workload.sizes.check_memory()?;
+    let workload = resolved_workload(&o.workload)?;
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
     let start = Instant::now();
-    let mut sides = vec![];
-    let mut reports = vec![];
-    let mut counted = vec![];
+    let mut ready = vec![];
     for (name, side) in [("A", &o.a), ("B", &o.b)] {
-        let cache = shader_cache(&side.env);
-        progress(&format!("side {name}: starting ({}; shader cache {cache})", side.describe()));
-        let mut w = Worker::start(o, name, side, tmp.path())?;
-        let ready = match w.next() {
-            Ok(m) => m,
+        progress(&format!("side {name}: starting ({})", side.describe()));
+        let r = match start_side(o, &workload, name, side, tmp.path()) {
+            Ok(r) => r,
             Err(e) => {
-                let err = w.finish();
-                return Err(Error::Usage(format!("{e}{}", tail(&err))));
+                for r in ready {
+                    let r: Ready = r;
+                    r.worker.finish();
+                }
+                return Err(e);
             }
         };
-        let Message::Ready { provenance, cells, pipeline_ms, invocations, invocations_note } = ready else {
-            return Err(Error::Usage(format!("side {name}: the worker did not say it was ready")));
-        };
-        let report =
-            SideReport { name, given: side.clone(), provenance, shader_cache: cache, setup_ms: pipeline_ms, rounds: 0 };
         progress(&format!(
-            "side {name}: {} ready, {} cells, setup {:.1} s",
-            side_label(&report),
-            cells.len(),
-            pipeline_ms / 1e3
+            "side {name}: {} ready, {} cells, setup {:.1} s (shader cache {})",
+            side_label(&r.report),
+            r.cells.len(),
+            r.report.setup_ms / 1e3,
+            r.report.shader_cache
         ));
-        sides.push((w, cells));
-        reports.push(report);
-        counted.push((invocations, invocations_note));
+        ready.push(r);
     }
-    let (mut wb, cells_b) = sides.pop().expect("two sides");
-    let (mut wa, cells) = sides.pop().expect("two sides");
-    if cells != cells_b {
-        let (a, b) = (
-            cells.iter().map(CellInfo::label).collect::<Vec<_>>(),
-            cells_b.iter().map(CellInfo::label).collect::<Vec<_>>(),
-        );
+    let Ready { worker: mut wb, cells: cells_b, report: report_b, invocations: inv_b, invocations_note: note_b } =
+        ready.pop().expect("two sides");
+    let Ready { worker: mut wa, cells: cells_a, report: report_a, invocations: inv_a, invocations_note: note_a } =
+        ready.pop().expect("two sides");
+    // The cells both sides ran, matched by what they are, not by their place in each side's list.
+    let matching = match_cells(&cells_a, &cells_b);
+    if matching.pairs.is_empty() {
         wa.finish();
         wb.finish();
-        return Err(Error::Usage(format!("the sides do not run the same cells (A: {a:?}; B: {b:?})")));
+        let labels = |c: &[CellInfo]| c.iter().map(CellInfo::label).collect::<Vec<_>>();
+        return Err(Error::Usage(format!(
+            "the sides have no cell in common (A: {:?}; B: {:?})",
+            labels(&cells_a),
+            labels(&cells_b)
+        )));
     }
-    let mut times: [Vec<Vec<f64>>; 2] = [vec![vec![]; cells.len()], vec![vec![]; cells.len()]];
-    let mut worst: [Vec<SideCell>; 2] = std::array::from_fn(|_| {
-        cells
+    let pairs = &matching.pairs;
+    // Per side, per matched cell, one entry per round: the validated time, or None.
+    let mut times: [Vec<Vec<Option<f64>>>; 2] = [vec![vec![]; pairs.len()], vec![vec![]; pairs.len()]];
+    let mut worst: [Vec<SideCell>; 2] = std::array::from_fn(|side| {
+        pairs
             .iter()
-            .map(|c| SideCell { ms: vec![], failed_rounds: 0, agree: c.rays, unexplained: 0, invalid: 0 })
+            .map(|&(ia, ib)| {
+                let rays = if side == 0 { cells_a[ia].rays } else { cells_b[ib].rays };
+                SideCell { ms: vec![], failed_rounds: 0, agree: rays, unexplained: 0, invalid: 0 }
+            })
             .collect()
     });
+    let groups = kernel_groups(pairs.iter().map(|&(_, ib)| &cells_b[ib]));
+    // Both sides speak protocol 2: each cell's two sides run back to back, which side first
+    // alternating, so a moment's load on the host lands on both (paired intervals). An older
+    // worker times whole rounds only: rounds A B B A, unpaired intervals.
+    let paired = report_a.protocol >= worker::PROTOCOL_CELL && report_b.protocol >= worker::PROTOCOL_CELL;
     let mut rounds = [0usize; 2];
+    let record = |times: &mut [Vec<Vec<Option<f64>>>; 2],
+                  worst: &mut [Vec<SideCell>; 2],
+                  side: usize,
+                  p: usize,
+                  r: &CellRound| {
+        let s = &mut worst[side][p];
+        if r.ms.is_none() {
+            s.failed_rounds += 1;
+        }
+        times[side][p].push(r.ms);
+        s.agree = s.agree.min(r.agree);
+        s.unexplained = s.unexplained.max(r.unexplained);
+        s.invalid = s.invalid.max(r.invalid);
+    };
     let stopped_by;
     'rounds: loop {
-        // One balanced block: A B B A.
-        for side in [0usize, 1, 1, 0] {
-            let w = if side == 0 { &mut wa } else { &mut wb };
-            let res = w.round()?;
-            rounds[side] += 1;
-            for (i, r) in res.iter().enumerate() {
-                let s = &mut worst[side][i];
-                match r.ms {
-                    Some(ms) => times[side][i].push(ms),
-                    None => s.failed_rounds += 1,
+        if paired {
+            let round = rounds[0];
+            for k in 0..pairs.len() {
+                // The cell that opens a round rotates, and which side goes first alternates
+                // from cell to cell and from round to round.
+                let p = (k + round) % pairs.len();
+                let order = if (k + round) % 2 == 0 { [0usize, 1] } else { [1, 0] };
+                for side in order {
+                    let (w, i) = if side == 0 { (&mut wa, pairs[p].0) } else { (&mut wb, pairs[p].1) };
+                    let r = w.cell(i)?;
+                    record(&mut times, &mut worst, side, p, &r);
                 }
-                s.agree = s.agree.min(r.agree);
-                s.unexplained = s.unexplained.max(r.unexplained);
-                s.invalid = s.invalid.max(r.invalid);
+            }
+            rounds = [round + 1, round + 1];
+        } else {
+            // One balanced block: A B B A.
+            for side in [0usize, 1, 1, 0] {
+                let w = if side == 0 { &mut wa } else { &mut wb };
+                let res = w.round()?;
+                rounds[side] += 1;
+                for (p, &(ia, ib)) in pairs.iter().enumerate() {
+                    let r = res.get(if side == 0 { ia } else { ib }).ok_or_else(|| {
+                        Error::Usage(format!("side {}: a round answered fewer cells than it said it had", w.name))
+                    })?;
+                    record(&mut times, &mut worst, side, p, r);
+                }
             }
         }
         let n = rounds[0].min(rounds[1]);
         if n < o.rounds {
             continue;
         }
-        let widest = (0..cells.len())
-            .map(|i| Ratio::welch(&times[0][i], &times[1][i], LEVEL).map_or(f64::INFINITY, |r| r.half_width()))
-            .fold(0.0, f64::max);
-        progress(&format!("{n} rounds a side: widest interval +-{:.1} %", widest * 100.0));
+        // The intervals the verdict is given by must be narrow enough.
+        let widest = match o.judge {
+            Judge::Cells => (0..pairs.len())
+                .map(|p| cell_ratio(&times, p, paired).map_or(f64::INFINITY, |r| r.half_width()))
+                .fold(0.0, f64::max),
+            Judge::Kernels => groups
+                .iter()
+                .map(|g| kernel_ratio(&times, &g.members, paired).map_or(f64::INFINITY, |r| r.half_width()))
+                .fold(0.0, f64::max),
+        };
+        progress(&format!("{n} rounds a side: widest {} interval +-{:.1} %", o.judge.unit(), widest * 100.0));
         for (why, done) in [
             ("target", widest <= o.target),
-            ("max rounds", n + 2 > o.max_rounds),
+            ("max rounds", n + if paired { 1 } else { 2 } > o.max_rounds),
             ("time cap", start.elapsed().as_secs_f64() > o.time_cap_s),
         ] {
             if done {
@@ -671,33 +921,33 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     let (dir_a, dir_b) = (wa.hits_dir.clone(), wb.hits_dir.clone());
     wa.finish();
     wb.finish();
+    let matched_b: Vec<CellInfo> = pairs.iter().map(|&(_, ib)| cells_b[ib].clone()).collect();
     // The compilers' output, after the rounds: its compiles would time them otherwise.
     let stats = o.driver_stats.then(|| {
         [("A", &o.a), ("B", &o.b)].map(|(name, side)| {
             progress(&format!("side {name}: driver statistics"));
-            compiled::collect(o, name, side, &cells, &tmp.path().join(format!("driver-stats-{name}")))
+            compiled::collect(o, name, side, &matched_b, &tmp.path().join(format!("driver-stats-{name}")))
         })
     });
     let mut out = vec![];
-    for (i, c) in cells.into_iter().enumerate() {
-        let [ta, tb] = [&times[0][i], &times[1][i]];
-        let ratio = Ratio::welch(ta, tb, LEVEL);
-        let mut a = worst[0][i].clone();
-        let mut b = worst[1][i].clone();
-        a.ms = ta.clone();
-        b.ms = tb.clone();
+    for (p, &(ia, ib)) in pairs.iter().enumerate() {
+        let c = cells_b[ib].clone();
+        let ratio = cell_ratio(&times, p, paired);
+        let mut a = worst[0][p].clone();
+        let mut b = worst[1][p].clone();
+        a.ms = times[0][p].iter().flatten().copied().collect();
+        b.ms = times[1][p].iter().flatten().copied().collect();
         let rays_differing = match c.kind {
-            CellKind::Raycast => {
-                let read = |d: &Path| crate::rays::read_hits(&d.join(format!("{i}.hits")));
-                crate::rays::differing_hits(&read(&dir_a)?, &read(&dir_b)?)
-            }
+            CellKind::Raycast => crate::rays::differing_hits(
+                &crate::rays::read_hits(&dir_a.join(format!("{ia}.hits")))?,
+                &crate::rays::read_hits(&dir_b.join(format!("{ib}.hits")))?,
+            ),
             CellKind::Pathtrace => {
-                let image = |d: &Path| d.join(format!("{i}.image"));
-                worker::differing_pixels(&image(&dir_a), &image(&dir_b))?
+                worker::differing_pixels(&dir_a.join(format!("{ia}.image")), &dir_b.join(format!("{ib}.image")))?
             }
         };
         let compiled = stats.as_ref().and_then(|[sa, sb]| compiled::diff(sa, sb, &c));
-        let invocations = o.workload.pipeline_stats.then(|| [counted[0].0[i], counted[1].0[i]]);
+        let invocations = o.workload.pipeline_stats.then(|| [inv_a.get(ia).copied().flatten(), inv_b[ib]]);
         let correctness_worse = b.agree < a.agree || b.unexplained > a.unexplained || b.invalid > a.invalid;
         out.push(AbCell {
             cell: c,
@@ -711,24 +961,150 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
             invocations,
         });
     }
-    reports[0].rounds = rounds[0];
-    reports[1].rounds = rounds[1];
-    let b = reports.pop().expect("two");
-    let a = reports.pop().expect("two");
+    let kernels = groups
+        .iter()
+        .map(|g| {
+            let ratio = kernel_ratio(&times, &g.members, paired);
+            AbKernel {
+                kernel: g.kernel.clone(),
+                kind: g.first.kind,
+                method: g.first.method.clone(),
+                layout: g.first.layout.clone(),
+                traversal: g.first.traversal.clone(),
+                cells: g.members.len(),
+                ratio,
+                verdict: ratio.map(|r| r.verdict(o.threshold)),
+                correctness_worse: g.members.iter().any(|&p| out[p].correctness_worse),
+            }
+        })
+        .collect();
+    let (mut a, mut b) = (report_a, report_b);
+    a.rounds = rounds[0];
+    b.rounds = rounds[1];
     Ok(AbReport {
         a,
         b,
-        workload: o.workload.args(),
+        workload: workload.args(),
         level: LEVEL,
         threshold: o.threshold,
         target: o.target,
+        judge: o.judge,
+        paired,
         stopped_by: stopped_by.into(),
         seconds: start.elapsed().as_secs_f64(),
         cells: out,
+        kernels,
+        only_in: [
+            matching.only_a.iter().map(|&i| cells_a[i].label()).collect(),
+            matching.only_b.iter().map(|&i| cells_b[i].label()).collect(),
+        ],
+        mismatched: matching.mismatched,
         driver_stats: stats.as_ref().map(|s| s.clone().map(|x| x.note)),
-        pipeline_stats: o.workload.pipeline_stats.then(|| [counted[0].1.clone(), counted[1].1.clone()]),
+        pipeline_stats: o.workload.pipeline_stats.then_some([note_a, note_b]),
         driver_stats_rows: stats.map(|s| s.map(|x| x.rows)).unwrap_or_default(),
     })
+}
+
+/// How the two sides' cells pair up.
+#[derive(Debug, Default, PartialEq)]
+struct Matching {
+    /// (index in A's cells, index in B's), in B's order.
+    pairs: Vec<(usize, usize)>,
+    only_a: Vec<usize>,
+    only_b: Vec<usize>,
+    /// Cells both name that are not the same work (other ray counts): not compared.
+    mismatched: Vec<String>,
+}
+
+/// Pairs the cells of the two sides by [`CellInfo::key`]: a newer build may add cells (a new
+/// method), drop some or list them in another order, and still be timed against an older one
+/// on the cells both run. A cell both name but whose work differs (another ray count: the
+/// builds generate other rays) is not compared, and named.
+fn match_cells(a: &[CellInfo], b: &[CellInfo]) -> Matching {
+    let index: std::collections::HashMap<_, usize> = a.iter().enumerate().map(|(i, c)| (c.key(), i)).collect();
+    let mut m = Matching::default();
+    let mut used = vec![false; a.len()];
+    for (ib, c) in b.iter().enumerate() {
+        match index.get(&c.key()) {
+            Some(&ia) if a[ia].rays == c.rays => {
+                used[ia] = true;
+                m.pairs.push((ia, ib));
+            }
+            Some(&ia) => {
+                used[ia] = true;
+                m.mismatched.push(format!(
+                    "{}: A traced {} rays, B {} (the builds made other rays)",
+                    c.label(),
+                    a[ia].rays,
+                    c.rays
+                ));
+            }
+            None => m.only_b.push(ib),
+        }
+    }
+    m.only_a = (0..a.len()).filter(|&i| !used[i]).collect();
+    m
+}
+
+/// B/A for one matched cell, from its validated rounds: paired round by round when the two
+/// sides ran each round's cell back to back, else Welch's interval on the two sides' rounds.
+fn cell_ratio(times: &[Vec<Vec<Option<f64>>>; 2], p: usize, paired: bool) -> Option<Ratio> {
+    if paired {
+        let d: Vec<f64> = times[0][p]
+            .iter()
+            .zip(&times[1][p])
+            .filter_map(|(a, b)| Some(b.as_ref()?.ln() - a.as_ref()?.ln()))
+            .collect();
+        return Ratio::paired(&d, LEVEL);
+    }
+    let ok = |side: usize| times[side][p].iter().flatten().copied().collect::<Vec<f64>>();
+    Ratio::welch(&ok(0), &ok(1), LEVEL)
+}
+
+/// A kernel's cells ([`CellInfo::kernel_label`]) among the matched cells.
+struct KernelGroup {
+    kernel: String,
+    /// Its first cell (the kernel's kind, method, layout and traversal).
+    first: CellInfo,
+    /// Indices into the matched cells.
+    members: Vec<usize>,
+}
+
+fn kernel_groups<'c>(cells: impl Iterator<Item = &'c CellInfo>) -> Vec<KernelGroup> {
+    let mut groups: Vec<KernelGroup> = vec![];
+    for (p, c) in cells.enumerate() {
+        let k = c.kernel_label();
+        match groups.iter_mut().find(|g| g.kernel == k) {
+            Some(g) => g.members.push(p),
+            None => groups.push(KernelGroup { kernel: k, first: c.clone(), members: vec![p] }),
+        }
+    }
+    groups
+}
+
+/// B/A for one kernel over its cells, round by round (a round counts only when all its cells
+/// validated on both sides). Paired: each round's figure is the mean over its cells of ln(b) -
+/// ln(a), each cell's two sides timed back to back, and the interval is Student's t on those.
+/// Unpaired (whole rounds apart): each side's round figure is the geometric mean of its cells'
+/// times, and Welch's interval is taken over those. The cells of one round share that round's
+/// moment on the host, so they are not independent samples: pooling them per round keeps a
+/// burst that slowed one round from passing for several agreeing cells. Over its scenes and ray
+/// sets a kernel's interval is narrower than any one cell's, so a smaller slowdown of it can be
+/// told from noise.
+fn kernel_ratio(times: &[Vec<Vec<Option<f64>>>; 2], members: &[usize], paired: bool) -> Option<Ratio> {
+    let rounds = |side: usize| members.iter().map(|&p| times[side][p].len()).min().unwrap_or(0);
+    let log_mean = |side: usize, r: usize| -> Option<f64> {
+        let logs: Option<Vec<f64>> = members.iter().map(|&p| times[side][p][r].map(f64::ln)).collect();
+        logs.map(|l| l.iter().sum::<f64>() / l.len() as f64)
+    };
+    if paired {
+        let d: Vec<f64> =
+            (0..rounds(0).min(rounds(1))).filter_map(|r| Some(log_mean(1, r)? - log_mean(0, r)?)).collect();
+        return Ratio::paired(&d, LEVEL);
+    }
+    let per_round =
+        |side: usize| -> Vec<f64> { (0..rounds(side)).filter_map(|r| log_mean(side, r).map(f64::exp)).collect() };
+    Ratio::welch(&per_round(0), &per_round(1), LEVEL)
 }
 
 /// The last lines of a worker's stderr, for an error message.
@@ -751,4 +1127,103 @@ pub fn write(r: &AbReport, dir: &Path) -> Result<()> {
         Folder::create(&dir.join(sub))?.rows(None, &rows)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cell(method: &str, set: &str, rays: usize) -> CellInfo {
+        CellInfo {
+            kind: CellKind::Raycast,
+            scene: "bunny".into(),
+            set: set.into(),
+            method: method.into(),
+            layout: "bvh2".into(),
+            traversal: "while-if".into(),
+            rays,
+            kernel: format!("raycast.{method}.closest"),
+            coordinates: crate::rows::cell([("method", method), ("set", set)]),
+        }
+    }
+
+    #[test]
+    fn cells_pair_by_what_they_are_whatever_each_build_lists() {
+        // B lists the cells in another order, adds a method and made other rays for one cell.
+        let a = [cell("mt", "primary", 100), cell("mt", "random", 50), cell("unit", "primary", 100)];
+        let mut renamed = cell("unit", "primary", 100);
+        renamed.kernel = "raycast.unit.closest_v2".into();
+        renamed.coordinates = crate::rows::cell([("method", "unit"), ("set", "primary"), ("new", "axis")]);
+        let b = [renamed, cell("mt", "primary", 100), cell("quad-mt", "primary", 100), cell("mt", "random", 60)];
+        let m = match_cells(&a, &b);
+        assert_eq!(m.pairs, [(2, 0), (0, 1)], "{m:?}");
+        assert_eq!((m.only_a.as_slice(), m.only_b.as_slice()), (&[][..], &[2usize][..]));
+        assert_eq!(m.mismatched.len(), 1, "{m:?}");
+        assert!(m.mismatched[0].contains("bunny random mt bvh2") && m.mismatched[0].contains("A traced 50 rays, B 60"));
+        // Cells a build of protocol 1 names (no traversal field) are while-if's.
+        let old: CellInfo = serde_json::from_str(
+            r#"{"kind":"raycast","scene":"bunny","set":"primary","method":"mt","layout":"bvh2","rays":100,
+                "kernel":"raycast.mt.closest","coordinates":{"method":"mt","set":"primary"}}"#,
+        )
+        .unwrap();
+        assert_eq!(old.key(), cell("mt", "primary", 100).key());
+    }
+
+    #[test]
+    fn a_kernel_pools_its_cells_round_by_round() {
+        // Two cells of one kernel, five rounds a side; B takes 1.2x A, and each round moves
+        // both cells of a side together (the host's moment), by up to +-10 %, in another order
+        // on each side. Per round, ln of the geometric mean of the cells moves by ln(moment),
+        // so the interval is Welch's on those: exp(ln 1.2 +- t(0.975, 8) sqrt(2 s^2 / 5)), with
+        // s^2 = 0.006291 the moments' log variance: [1.0689, 1.3472].
+        let moment = [1.0, 1.1, 0.9, 1.05, 0.95];
+        let side = |k: f64, order: &[usize]| -> Vec<Vec<Option<f64>>> {
+            [2.0, 8.0].iter().map(|&ms| order.iter().map(|&i| Some(ms * moment[i] * k)).collect()).collect()
+        };
+        let mut times = [side(1.0, &[0, 1, 2, 3, 4]), side(1.2, &[4, 2, 0, 3, 1])];
+        let r = kernel_ratio(&times, &[0, 1], false).unwrap();
+        assert!((r.ratio - 1.2).abs() < 1e-9, "{r:?}");
+        assert!((r.low - 1.0689).abs() < 0.001 && (r.high - 1.3472).abs() < 0.001, "{r:?}");
+        assert_eq!((r.verdict(0.05), r.verdict(0.1)), (Verdict::HurtBeyondThreshold, Verdict::Hurt));
+        // A round in which one cell did not validate does not count for the kernel.
+        times[1][1][2] = None;
+        let r = kernel_ratio(&times, &[0, 1], false).unwrap();
+        assert_eq!((r.rounds_a, r.rounds_b), (5, 4));
+        // Each cell alone: the same ratio, from its own rounds.
+        let c = cell_ratio(&times, 0, false).unwrap();
+        assert!((c.ratio - 1.2).abs() < 1e-9 && c.rounds_b == 5, "{c:?}");
+        // Paired (each cell's sides back to back, sharing the moment): the moment cancels and
+        // B/A is 1.2 in every round, so the interval closes on it; a round in which one side of
+        // one cell did not validate is left out.
+        let both = |k: f64| -> Vec<Vec<Option<f64>>> {
+            [2.0, 8.0].iter().map(|&ms| moment.iter().map(|m| Some(ms * m * k)).collect()).collect()
+        };
+        let mut times = [both(1.0), both(1.2)];
+        let r = kernel_ratio(&times, &[0, 1], true).unwrap();
+        assert!((r.ratio - 1.2).abs() < 1e-9 && r.half_width() < 1e-9, "{r:?}");
+        times[0][0][3] = None;
+        let r = kernel_ratio(&times, &[0, 1], true).unwrap();
+        assert_eq!((r.rounds_a, r.rounds_b), (4, 4));
+        assert_eq!(cell_ratio(&times, 1, true).unwrap().rounds_a, 5);
+        // Fewer than two usable rounds: no interval.
+        let one = [vec![vec![Some(1.0)]], vec![vec![Some(1.0), Some(2.0)]]];
+        assert!(kernel_ratio(&one, &[0], false).is_none());
+    }
+
+    #[test]
+    fn kernels_group_cells_by_kind_method_layout_and_traversal() {
+        let mut ww = cell("mt", "primary", 10);
+        ww.traversal = "while-while".into();
+        let cells = [cell("mt", "primary", 10), cell("mt", "random", 10), ww, cell("unit", "primary", 10)];
+        let g = kernel_groups(cells.iter());
+        let got: Vec<(&str, &[usize])> = g.iter().map(|g| (g.kernel.as_str(), g.members.as_slice())).collect();
+        assert_eq!(
+            got,
+            [
+                ("raycast mt bvh2", &[0usize, 1][..]),
+                ("raycast mt bvh2 while-while", &[2][..]),
+                ("raycast unit bvh2", &[3][..])
+            ]
+        );
+    }
 }

@@ -3,11 +3,12 @@
 //! warm-up of every cell) and then times one round of every cell each time the parent asks.
 //! A driver is loaded once per process, so each side needs its own.
 //!
-//! The protocol is JSON lines: the worker prints [`Message::Ready`] (its provenance and cells),
-//! then reads one command a line on stdin (`round`, `quit`) and answers each `round` with
-//! [`Message::Round`]; any failure is [`Message::Failed`] and the end of the process. Each
-//! cell's first timed round writes its hits to `<hits_dir>/<cell index>.hits`, so the parent
-//! can compare the sides ray by ray.
+//! The protocol is JSON lines: the worker prints [`Message::Ready`] (its protocol version,
+//! provenance and cells), then reads one command a line on stdin and answers it with
+//! [`Message::Round`]: `round` times every cell once, `cell N` (protocol 2) times cell N once;
+//! `quit` ends it. Any failure is [`Message::Failed`] and the end of the process. Each cell's
+//! first timed run writes its hits to `<hits_dir>/<cell index>.hits` (a path-trace cell its
+//! image), so the parent can compare the sides ray by ray.
 
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -16,10 +17,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
-use crate::encoding::{Layout, Method, Raycast, SceneAccess};
+use crate::encoding::{Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, Kernel, RaycastOptions};
-use crate::harness::bench::{BenchCell, CellTracer};
+use crate::harness::bench::{path_of, BenchCell, CellTracer};
 use crate::harness::bench_render::{bench_settings, check_image_mean, summarise_renders};
 use crate::harness::profile::dispatch::dispatch_once;
 use crate::harness::provenance::Provenance;
@@ -38,6 +39,8 @@ pub struct Workload {
     pub scenes: Vec<PathBuf>,
     pub methods: Vec<Method>,
     pub layouts: Vec<Layout>,
+    /// How the kernels walk the tree; a (method, layout, traversal) with no kernel is left out.
+    pub traversals: Vec<Traversal>,
     pub sets: Vec<RaySet>,
     pub sizes: RaySetSizes,
     /// The BVH every cell's encoding shares (`--leaf-size`; the tree shape is the default one).
@@ -52,13 +55,24 @@ pub struct Workload {
     pub pipeline_stats: bool,
 }
 
+/// The version of the protocol below. A worker of another build answers with its own
+/// ([`Message::Ready`]); the parent takes every version up to its own that shares these
+/// messages, so a build can be timed against an older one (`ab --a-bin`). Version 1 (no
+/// `protocol` field) had no traversal axis (its cells are all while-if) and timed whole rounds
+/// only; version 2 adds `cell N`, so the parent can run the two sides' runs of one cell back to
+/// back.
+pub const PROTOCOL: u32 = 2;
+
+/// The first protocol with the `cell N` command (one cell timed at a time).
+pub const PROTOCOL_CELL: u32 = 2;
+
 /// A path-trace cell's samples per pixel.
 pub const PATHTRACE_SPP: u32 = 1;
 /// A path-trace cell's longest path.
 pub const PATHTRACE_DEPTH: u32 = 4;
 
 /// What a cell runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum CellKind {
     /// The closest-hit ray-casting kernel over a ray set.
@@ -76,6 +90,9 @@ pub struct CellInfo {
     pub set: String,
     pub method: String,
     pub layout: String,
+    /// The traversal (`while-if` for a path-trace cell, and from a version 1 worker).
+    #[serde(default = "while_if")]
+    pub traversal: String,
     /// Rays cast; a path-trace cell's samples (pixels x samples per pixel).
     pub rays: usize,
     /// The kernel that ran (`raycast.mt.closest`), for the driver statistics.
@@ -85,11 +102,58 @@ pub struct CellInfo {
     pub coordinates: crate::rows::Cell,
 }
 
+fn while_if() -> String {
+    Traversal::WhileIf.to_string()
+}
+
 impl CellInfo {
-    /// `bunny primary mt bvh2`.
+    /// `bunny primary mt bvh2` (and the traversal when it is not while-if).
     pub fn label(&self) -> String {
-        format!("{} {} {} {}", self.scene, self.set, self.method, self.layout)
+        let mut s = format!("{} {} {} {}", self.scene, self.set, self.method, self.layout);
+        if self.traversal != while_if() {
+            s = format!("{s} {}", self.traversal);
+        }
+        s
     }
+
+    /// What names a cell on both sides, whichever build each side runs: its kind, scene, set,
+    /// method, layout and traversal (not its kernel's name, nor its rows' coordinates, which a
+    /// build may spell differently).
+    pub fn key(&self) -> CellKey {
+        CellKey {
+            kind: self.kind,
+            scene: self.scene.clone(),
+            set: self.set.clone(),
+            method: self.method.clone(),
+            layout: self.layout.clone(),
+            traversal: self.traversal.clone(),
+        }
+    }
+
+    /// The kernel a cell times, as `ab` groups cells: its kind, method, layout and traversal
+    /// (`raycast mt bvh2`, `pathtrace mt bvh2`).
+    pub fn kernel_label(&self) -> String {
+        let kind = match self.kind {
+            CellKind::Raycast => "raycast",
+            CellKind::Pathtrace => "pathtrace",
+        };
+        let mut s = format!("{kind} {} {}", self.method, self.layout);
+        if self.traversal != while_if() {
+            s = format!("{s} {}", self.traversal);
+        }
+        s
+    }
+}
+
+/// A cell's identity across builds ([`CellInfo::key`]).
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub struct CellKey {
+    pub kind: CellKind,
+    pub scene: String,
+    pub set: String,
+    pub method: String,
+    pub layout: String,
+    pub traversal: String,
 }
 
 /// A round's result for one cell.
@@ -108,6 +172,9 @@ pub struct CellRound {
 pub enum Message {
     /// `provenance` is the worker's [`Provenance`], as JSON.
     Ready {
+        /// [`PROTOCOL`]; absent (1) from the first version.
+        #[serde(default = "first_protocol")]
+        protocol: u32,
         provenance: serde_json::Value,
         cells: Vec<CellInfo>,
         pipeline_ms: f64,
@@ -122,6 +189,10 @@ pub enum Message {
     Failed {
         error: String,
     },
+}
+
+fn first_protocol() -> u32 {
+    1
 }
 
 /// A ray set, its rays and the reference's hits.
@@ -167,6 +238,11 @@ impl Workload {
             "--sets".into(),
             join(self.sets.iter().map(|s| s.to_string()).collect()),
         ];
+        // Only when asked for: a worker of protocol 1 knows no traversal axis, and runs while-if.
+        if self.traversals != [Traversal::WhileIf] {
+            a.push("--traversals".into());
+            a.push(join(self.traversals.iter().map(|t| t.to_string()).collect()));
+        }
         for (k, v) in [
             ("--width", self.sizes.width.to_string()),
             ("--height", self.sizes.height.to_string()),
@@ -241,7 +317,15 @@ fn load_and_serve(
     for (i, host) in hosts.iter().enumerate() {
         for &m in &w.methods {
             for &l in &w.layouts {
-                scenes.push((i, host.upload(ctx, &SceneRequest::new(m).access(w.scene_access).layout(l))?));
+                for &tr in &w.traversals {
+                    // A traversal a layout has no kernel for is left out (bench's rule); `auto`
+                    // is checked as the texel path, as bench checks it.
+                    if m.traversal_kernel(Raycast::Closest, path_of(w.scene_access), l, tr).is_err() {
+                        continue;
+                    }
+                    let request = SceneRequest::new(m).access(w.scene_access).layout(l).traversal(tr);
+                    scenes.push((i, host.upload(ctx, &request)?));
+                }
             }
         }
     }
@@ -266,6 +350,7 @@ fn load_and_serve(
                 set: set.to_string(),
                 method: scene.method.to_string(),
                 layout: scene.layout.to_string(),
+                traversal: scene.traversal.to_string(),
                 rays: rays.len(),
                 kernel: kernel.name.to_string(),
                 coordinates: bench.coordinates(),
@@ -295,6 +380,7 @@ fn load_and_serve(
                         set: "pathtrace".into(),
                         method: m.to_string(),
                         layout: l.to_string(),
+                        traversal: while_if(),
                         rays: first.samples() as usize,
                         kernel: target.kernel.source.name.to_string(),
                         coordinates: crate::rows::cell([
@@ -343,56 +429,73 @@ fn load_and_serve(
     let pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
     let infos = cells.iter().map(|c| c.info.clone()).collect();
     let provenance = serde_json::to_value(Provenance::of(ctx)).expect("provenance serialises");
-    say(output, &Message::Ready { provenance, cells: infos, pipeline_ms, invocations, invocations_note })?;
+    say(
+        output,
+        &Message::Ready { protocol: PROTOCOL, provenance, cells: infos, pipeline_ms, invocations, invocations_note },
+    )?;
+    // Whether each cell has run its first timed run (which records its hits or image).
+    let mut recorded = vec![false; cells.len()];
+    let mut time_cell = |i: usize| -> Result<CellRound> {
+        let record = |what: &str| hits_dir.join(format!("{i}.{what}"));
+        let first = !std::mem::replace(&mut recorded[i], true);
+        Ok(match &cells[i].job {
+            Job::Raycast { scene, kernel, mesh, rays, ref_hits } => {
+                let res = scene.cast_with(ctx, kernel, rays, &opts)?;
+                let a = compare_closest(mesh, rays, &res.hits, ref_hits);
+                if first {
+                    rays::write_hits(&record("hits"), &res.hits)?;
+                }
+                let valid = a.passes(MIN_AGREEMENT);
+                let ms = if valid { Some(res.time_ms()?.median) } else { None };
+                CellRound { ms, agree: a.agree, unexplained: a.unexplained, invalid: a.invalid.len() }
+            }
+            Job::Pathtrace { target, settings, scene_mean } => {
+                let mut runs = vec![];
+                for _ in 0..RUNS_PER_ROUND {
+                    runs.push(render(ctx, target, settings, &mut |_| true)?);
+                }
+                if first {
+                    write_image(&record("image"), &runs[0])?;
+                }
+                let dropped = runs.iter().map(|r| r.dropped_samples).sum::<u64>() as usize;
+                let checked = summarise_renders(&runs)
+                    .ok()
+                    .filter(|m| check_image_mean(m.image_mean, &mut Some(*scene_mean)).is_ok());
+                let samples = runs[0].samples() as usize;
+                match checked {
+                    Some(m) => CellRound { ms: Some(m.ms.median), agree: samples, unexplained: 0, invalid: 0 },
+                    None => CellRound { ms: None, agree: 0, unexplained: 0, invalid: dropped },
+                }
+            }
+        })
+    };
     let mut round = 0usize;
     for line in input.lines() {
         let line = line.map_err(|e| Error::io(Path::new("stdin"), e))?;
-        match line.trim() {
-            "round" => {
-                let mut results = vec![None; cells.len()];
-                // The cell that opens a round rotates, as in every interleaved harness.
-                for k in 0..cells.len() {
-                    let i = (k + round) % cells.len();
-                    let record = |what: &str| hits_dir.join(format!("{i}.{what}"));
-                    results[i] = Some(match &cells[i].job {
-                        Job::Raycast { scene, kernel, mesh, rays, ref_hits } => {
-                            let res = scene.cast_with(ctx, kernel, rays, &opts)?;
-                            let a = compare_closest(mesh, rays, &res.hits, ref_hits);
-                            if round == 0 {
-                                rays::write_hits(&record("hits"), &res.hits)?;
-                            }
-                            let valid = a.passes(MIN_AGREEMENT);
-                            let ms = if valid { Some(res.time_ms()?.median) } else { None };
-                            CellRound { ms, agree: a.agree, unexplained: a.unexplained, invalid: a.invalid.len() }
-                        }
-                        Job::Pathtrace { target, settings, scene_mean } => {
-                            let mut runs = vec![];
-                            for _ in 0..RUNS_PER_ROUND {
-                                runs.push(render(ctx, target, settings, &mut |_| true)?);
-                            }
-                            if round == 0 {
-                                write_image(&record("image"), &runs[0])?;
-                            }
-                            let dropped = runs.iter().map(|r| r.dropped_samples).sum::<u64>() as usize;
-                            let checked = summarise_renders(&runs)
-                                .ok()
-                                .filter(|m| check_image_mean(m.image_mean, &mut Some(*scene_mean)).is_ok());
-                            let samples = runs[0].samples() as usize;
-                            match checked {
-                                Some(m) => {
-                                    CellRound { ms: Some(m.ms.median), agree: samples, unexplained: 0, invalid: 0 }
-                                }
-                                None => CellRound { ms: None, agree: 0, unexplained: 0, invalid: dropped },
-                            }
-                        }
-                    });
-                }
-                round += 1;
-                let cells = results.into_iter().map(|r| r.expect("every cell ran")).collect();
-                say(output, &Message::Round { cells })?;
+        let command = line.trim();
+        if command == "round" {
+            let mut results = vec![None; cells.len()];
+            // The cell that opens a round rotates, as in every interleaved harness.
+            for k in 0..cells.len() {
+                let i = (k + round) % cells.len();
+                results[i] = Some(time_cell(i)?);
             }
-            "quit" | "" => return Ok(()),
-            other => return Err(Error::Usage(format!("ab worker: unknown command `{other}`"))),
+            round += 1;
+            let cells = results.into_iter().map(|r| r.expect("every cell ran")).collect();
+            say(output, &Message::Round { cells })?;
+        } else if let Some(i) = command.strip_prefix("cell ") {
+            // One cell (protocol 2): the parent times the two sides' runs of a cell back to
+            // back, so the moment's load on the host is the same for both.
+            let i: usize =
+                i.trim().parse().ok().filter(|&i| i < cells.len()).ok_or_else(|| {
+                    Error::Usage(format!("ab worker: `{command}`: not one of the {} cells", cells.len()))
+                })?;
+            let r = time_cell(i)?;
+            say(output, &Message::Round { cells: vec![r] })?;
+        } else if matches!(command, "quit" | "") {
+            return Ok(());
+        } else {
+            return Err(Error::Usage(format!("ab worker: unknown command `{command}`")));
         }
     }
     Ok(())
