@@ -8,11 +8,13 @@
 #   SPIR-V instructions, scene bytes, SAH cost, EPO, lavapipe's machine code where the baseline's
 #   host compiled for the same CPU; agreement with the f64 reference, leaks, NaN hits;
 # - timings only inside this run: `trilab ab` of the build the baseline was measured at (side A,
-#   built here from the baseline's commit in a git worktree that shares the cargo target folder,
-#   so only the trilab crate compiles; cached by commit in $TRILAB_GATE_CACHE, default
-#   ~/.cache/trilab/gate-base) against this build (side B), interleaved A B B A on this host; a
-#   kernel fails when it is slower beyond the gate's threshold with its whole 95 % interval
-#   past it, in that A/B and again when timed once more.
+#   built here from the baseline's commit in a git worktree, its dependencies taken from this
+#   build's target folder, so only the trilab crate compiles; cached by commit in
+#   $TRILAB_GATE_CACHE, default ~/.cache/trilab/gate-base) against this build (side B), each
+#   cell's two sides timed back to back on this host; a kernel fails when it is slower beyond
+#   the gate's threshold with its whole 95 % interval past it, in that A/B and again when timed
+#   once more. When no kernel code changed since the baseline's commit, both sides run this
+#   build.
 #
 # Where there is no base build (a shallow clone, the baseline's commit missing, a baseline
 # measured on a tree with uncommitted changes) the gate says so and judges counts and correctness
@@ -67,23 +69,34 @@ which_base() {
   fi
 }
 
-# Builds the baseline's commit in a worktree beside this one, into the shared target folder,
-# and keeps its executable in the cache; then this build again (cargo relinks it).
+# Builds the baseline's commit in a worktree beside this one and keeps its executable in the
+# cache. Its target folder is a copy of this build's made of hard links, less trilab's own
+# artifacts: every dependency is already built there (shaderc too), so only the trilab crate
+# compiles, and this build's artifacts are never touched (two checkouts of one package share
+# artifact names, so building the other in the same folder would rebuild both, each time).
 build_base() {
-  local wt start
-  wt="$(mktemp -d)/base-$base_commit"
+  local tmp wt tgt start
+  tmp=$(mktemp -d)
+  wt="$tmp/base-$base_commit"
+  tgt="$CARGO_TARGET_DIR/gate-base-target"
   start=$SECONDS
+  rm -rf "$tgt"
+  mkdir -p "$tgt"
+  cp -al "$CARGO_TARGET_DIR/release" "$tgt/release"
+  rm -rf "$tgt"/release/.fingerprint/trilab-* "$tgt"/release/build/trilab-* "$tgt"/release/deps/*trilab* \
+    "$tgt"/release/trilab "$tgt"/release/trilab.d "$tgt"/release/libtrilab.*
   git worktree add --detach -q "$wt" "$base_commit"
-  if ! (cd "$wt" && cargo build --release --locked -q --bin trilab); then
+  if ! (cd "$wt" && CARGO_TARGET_DIR="$tgt" cargo build --release --locked -q --bin trilab); then
     git worktree remove --force "$wt"
+    rm -rf "$tgt" "$tmp"
     echo "ci-gate: the baseline's commit $base_commit does not build here" >&2
     exit 2
   fi
   mkdir -p "$cache/$base_commit"
-  cp "$CARGO_TARGET_DIR/release/trilab" "$cache/$base_commit/trilab.part"
+  cp "$tgt/release/trilab" "$cache/$base_commit/trilab.part"
   mv "$cache/$base_commit/trilab.part" "$cache/$base_commit/trilab"
   git worktree remove --force "$wt"
-  cargo build --release -q --bin trilab
+  rm -rf "$tgt" "$tmp"
   echo "ci-gate: built the base ($base_commit) in $((SECONDS - start)) s, kept in $cache/$base_commit/" >&2
 }
 

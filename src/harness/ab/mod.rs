@@ -406,13 +406,18 @@ impl Report for AbReport {
         let mut s = String::new();
         for side in [&self.a, &self.b] {
             s += &format!(
-                "{}: {} ({}; shader cache {}, setup {:.1} s, {} rounds)\n",
+                "{}: {} ({}; shader cache {}, setup {:.1} s, {} rounds{})\n",
                 side.name,
                 side_label(side),
                 side.given.describe(),
                 side.shader_cache,
                 side.setup_ms / 1e3,
-                side.rounds
+                side.rounds,
+                if side.protocol < worker::PROTOCOL {
+                    format!("; an older build: ab protocol {}", side.protocol)
+                } else {
+                    String::new()
+                }
             );
         }
         s += &format!(
