@@ -195,7 +195,9 @@ fn with_no_base_build_the_gate_says_so_and_judges_counts_and_correctness_alone()
     let bigger = edited_copy(&dir.path().join("count"), |row| {
         slower(row, 5.0);
         if let Some(f) = row["figures"].get_mut("scene_bytes") {
-            f["median"] = Value::from(f["median"].as_f64().unwrap() + 4.0);
+            for key in ["median", "min", "max"] {
+                f[key] = Value::from(f[key].as_f64().unwrap() + 4.0);
+            }
         }
     });
     let args = ["gate", &base, &s(&bigger), "--no-base", "none here", "--json"];
@@ -206,6 +208,22 @@ fn with_no_base_build_the_gate_says_so_and_judges_counts_and_correctness_alone()
     let why = r["failures"][0].as_str().unwrap();
     assert!(why.contains("counts and correctness") && why.contains("count"), "{why}");
     assert!(r["counts"]["changes"].as_array().unwrap().iter().all(|c| c["class"] != "timing"), "{r}");
+    // A ray set that agrees with the f64 reference on fewer rays fails too, whatever the
+    // threshold.
+    let worse = edited_copy(&dir.path().join("worse"), |row| {
+        if row["cell"]["method"] == "unit" && row["cell"]["set"] == "random" {
+            if let Some(f) = row["figures"].get_mut("agreement") {
+                for key in ["median", "min", "max"] {
+                    f[key] = Value::from(f[key].as_f64().unwrap() - 0.001);
+                }
+            }
+        }
+    });
+    let args = ["gate", &base, &s(&worse), "--no-base", "none here", "--json"];
+    let (o, _) = run(&args, None, &[], 120);
+    assert_eq!(o.status.code(), Some(1), "{}", common::cli::stderr(&o));
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["counts"]["totals"]["correctness_worse"], 1, "{r}");
     // Neither a base build nor a reason: refused before any work.
     let (o, _) = run(&["gate", &base, &s(&new)], None, &[], 60);
     assert_eq!(o.status.code(), Some(2), "{}", common::cli::stderr(&o));
