@@ -194,6 +194,8 @@ fn main() {
         }
     }
     writeln!(registry, "];").unwrap();
+    writeln!(registry, "/// The compiler that made every module above (see `spirv_compiler` in build.rs).").unwrap();
+    writeln!(registry, "pub const SPIRV_COMPILER: &str = {:?};", spirv_compiler()).unwrap();
     writeln!(registry, "pub static INTERSECTOR_FACTS: &[IntersectorFacts] = &[").unwrap();
     for method in &methods {
         match intersector_facts(&compiler, &glsl_dir, method) {
@@ -212,6 +214,35 @@ fn main() {
     }
     fs::write(out_dir.join("kernels.rs"), registry).unwrap();
     ray_tracing_stages(&compiler, &glsl_dir, &out_dir, &all_files);
+}
+
+/// The compiler this build script was linked against, as the SPIR-V counts name it: the Debian
+/// packages' versions when `crates/shaderc-link` linked the system's static libraries ("shaderc
+/// 2023.2-1, glslang 12.0.0-2, SPIRV-Tools 2023.1-2 (static system libraries)"), or the
+/// `shaderc-sys` release that built it from source and the SPIRV-Tools it bundles ("shaderc-sys
+/// 0.10.1 from source, SPIRV-Tools v2025.3"). glslang (the front end) and SPIRV-Tools (the
+/// optimiser) decide the instruction counts: a count is comparable only between modules of one
+/// compiler.
+fn spirv_compiler() -> String {
+    extern "C" {
+        fn spvSoftwareVersionString() -> *const std::ffi::c_char;
+    }
+    // SAFETY: SPIRV-Tools' C API (libspirv.h) returns a pointer to a static NUL-terminated
+    // string; it is linked into this build script through shaderc (shaderc_combined from source,
+    // or libSPIRV-Tools.a beside Debian's shaderc), and the string is only read.
+    let spirv_tools = unsafe { std::ffi::CStr::from_ptr(spvSoftwareVersionString()) }.to_string_lossy().into_owned();
+    if shaderc_link::LINKED == shaderc_link::SYSTEM {
+        format!("{} (static system libraries)", shaderc_link::PACKAGES)
+    } else {
+        let lock = fs::read_to_string(Path::new(&std::env::var("CARGO_MANIFEST_DIR").unwrap()).join("Cargo.lock"))
+            .unwrap_or_default();
+        let version = lock
+            .split("[[package]]")
+            .find(|p| p.contains("name = \"shaderc-sys\""))
+            .and_then(|p| p.lines().find_map(|l| l.strip_prefix("version = ")))
+            .map_or("?".to_string(), |v| v.trim_matches('"').to_string());
+        format!("shaderc-sys {version} from source, SPIRV-Tools {spirv_tools}")
+    }
 }
 
 // ---- Ray-tracing pipeline stages (glsl/raytrace/) ------------------------------------------

@@ -6,7 +6,10 @@
 #     AMD EPYC: README.md, "On Debian 12's own Mesa"), adds VK_KHR_ray_query, and prints its
 #     machine code under GALLIVM_DEBUG=asm (trilab driver-stats; 22.3.6's release build does not);
 #   - the Vulkan loader and headers, the Khronos validation layers, vulkaninfo, spirv-tools;
-#   - cmake, python3 and g++ to build shaderc from source (crate feature build-from-source);
+#   - Debian 12's shaderc 2023.2 as static libraries (libshaderc-dev, glslang-dev, spirv-tools):
+#     build.rs's shaderc links them (crates/shaderc-link), so a first build takes minutes; without
+#     them shaderc-sys builds shaderc, glslang and SPIRV-Tools from source (about 20 minutes on
+#     2 cores), for which cmake, python3, git and g++ stay listed;
 #   - procps, for the `kill` the Ctrl-C test sends SIGINT with;
 #   - Debian 12's own lavapipe (Mesa 22.3.6) unpacked, not installed, under
 #     ~/.cache/trilab/stock-mesa by scripts/stock-mesa.sh (an 8 MB download, once), so
@@ -21,7 +24,8 @@ if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 # pocl-opencl-icd and the OpenCL headers: the device run's rehearsal (tests/device_run.rs) builds
 # tinybvh's peer with OpenCL and runs its kernels on PoCL beside lavapipe, as a lent GPU runs
 # them on its own OpenCL beside its Vulkan driver.
-base_pkgs=(libvulkan1 libvulkan-dev vulkan-validationlayers vulkan-tools spirv-tools cmake python3 g++ pkg-config procps
+base_pkgs=(libvulkan1 libvulkan-dev vulkan-validationlayers vulkan-tools spirv-tools libshaderc-dev glslang-dev
+  cmake python3 g++ pkg-config procps
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers)
 missing=()
 for p in "${base_pkgs[@]}"; do

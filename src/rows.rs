@@ -100,6 +100,12 @@ impl Figure {
 /// rows name different ones.
 pub const JIT_CPU: &str = "jit_cpu";
 
+/// The setting naming the GLSL compiler that made the row's SPIR-V ([`crate::kernels::SPIRV_COMPILER`]):
+/// glslang and SPIRV-Tools decide the modules, so instruction counts (and the machine code a
+/// driver makes of them) are the same code's only when two rows name the same compiler;
+/// `trilab compare` does not judge counts whose rows name different ones.
+pub const SPIRV_COMPILER: &str = "spirv_compiler";
+
 /// Where a row was measured: enough to tell runners, devices and driver settings apart.
 #[derive(Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 pub struct Source {

@@ -12,6 +12,16 @@ const REFRESH: &str = "cargo run --release -- spirv --out spirv --studied";
 #[test]
 fn committed_spirv_matches_the_kernels() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("spirv");
+    // The counts are the compiler's: name both compilers first when they differ, since then every
+    // file differs and refreshing would only trade one compiler's review for another's.
+    let committed = std::fs::read_to_string(dir.join(trilab::spirv::COMPILER_FILE)).unwrap_or_default();
+    assert_eq!(
+        committed.trim(),
+        trilab::kernels::SPIRV_COMPILER,
+        "spirv/ was made by another GLSL compiler than this build's: its counts are that compiler's. The \
+         committed review is Debian 12's static shaderc (scripts/install-deps.sh installs libshaderc-dev \
+         glslang-dev spirv-tools, and build.rs links them); `{REFRESH}` only where the compiler is meant to change"
+    );
     let expected = trilab::spirv::review_files(trilab::spirv::Disassembly::Studied);
     let mut stale = vec![];
     for (name, text) in &expected {

@@ -400,6 +400,9 @@ pub struct Totals {
     /// Counts not judged because a driver's JIT compiled them for different CPUs
     /// ([`rows::JIT_CPU`]: lavapipe's machine code on two hosts).
     pub counts_other_cpu: usize,
+    /// Counts not judged because the two sides' SPIR-V came from different GLSL compilers
+    /// ([`rows::SPIRV_COMPILER`], or one side does not name its compiler).
+    pub counts_other_compiler: usize,
     /// Timing figures of matched cells left unjudged by the `ignore` rule.
     pub timings_not_judged: usize,
 }
@@ -458,10 +461,11 @@ pub fn load(path: &Path) -> Result<(Side, Vec<Row>)> {
 }
 
 /// `device (driver), commit C, K=V ...` (the host is named apart, with what its JIT compiles
-/// for: [`rows::JIT_CPU`] is the host's, not a setting of the run).
+/// for: [`rows::JIT_CPU`] is the host's, not a setting of the run; [`rows::SPIRV_COMPILER`] is
+/// the build's, named where counts are not judged for it).
 fn source_label(s: &rows::Source) -> String {
     let mut label = format!("{} ({}), commit {}", s.device, s.driver, s.commit);
-    for (k, v) in s.settings.iter().filter(|(k, _)| k.as_str() != rows::JIT_CPU) {
+    for (k, v) in s.settings.iter().filter(|(k, _)| k.as_str() != rows::JIT_CPU && k.as_str() != rows::SPIRV_COMPILER) {
         label.push_str(&format!(", {k}={v}"));
     }
     label
@@ -723,6 +727,7 @@ pub fn compare_with(
     let mut regressions = 0;
     let mut mismatched = vec![];
     let mut other_cpus: BTreeSet<(String, String, String)> = BTreeSet::new();
+    let mut other_compilers: BTreeSet<(String, String, String)> = BTreeSet::new();
     let mut cell_verdicts: BTreeMap<(String, Cell), Verdict> = BTreeMap::new();
     for (k, br, nr) in &matched {
         totals.cells_compared += 1;
@@ -744,6 +749,21 @@ pub fn compare_with(
             if bf.class == Class::Count && jit(br) != jit(nr) {
                 totals.counts_other_cpu += 1;
                 other_cpus.insert((k.0.clone(), jit(br).unwrap_or_default(), jit(nr).unwrap_or_default()));
+                continue;
+            }
+            // The driver-stats rows name their compiler too (the driver compiles the SPIR-V),
+            // bench's counts (bytes, SAH) do not depend on it and name none.
+            let compiler = |r: &Row| r.source.settings.get(rows::SPIRV_COMPILER).cloned();
+            if bf.class == Class::Count
+                && (compiler(br).is_some() || compiler(nr).is_some())
+                && compiler(br) != compiler(nr)
+            {
+                totals.counts_other_compiler += 1;
+                other_compilers.insert((
+                    k.0.clone(),
+                    compiler(br).unwrap_or_default(),
+                    compiler(nr).unwrap_or_default(),
+                ));
                 continue;
             }
             totals.figures_compared += 1;
@@ -835,6 +855,15 @@ pub fn compare_with(
             rows::JIT_CPU,
             name(b_cpu),
             name(n_cpu)
+        ));
+    }
+    for (command, b, n) in &other_compilers {
+        let name = |c: &String| if c.is_empty() { "not recorded".to_owned() } else { c.clone() };
+        warnings.push(format!(
+            "{command}: BASE's SPIR-V and NEW's come from different GLSL compilers (BASE: {}; NEW: {}): their \
+             counts differ by the compiler alone, so they are not judged",
+            name(b),
+            name(n)
         ));
     }
     if totals.cells_compared == 0 {
@@ -1208,6 +1237,9 @@ impl Report for CompareReport {
         }
         if t.counts_other_cpu > 0 {
             s += &format!("counts compiled for different CPUs, not judged: {}\n", t.counts_other_cpu);
+        }
+        if t.counts_other_compiler > 0 {
+            s += &format!("counts of different GLSL compilers, not judged: {}\n", t.counts_other_compiler);
         }
         s += &if self.passed {
             format!("verdict: pass (no regression beyond {}, no correctness worse)\n", self.thresholds())
@@ -1616,6 +1648,33 @@ mod tests {
         let new = row("AuthenticAMD 25/17 flags:00000000", 2540.0);
         let r = compare(side(&base, "base"), &base, side(&new, "new"), &new, 0.0);
         assert_eq!((r.passed, r.totals.counts_other_cpu, r.regressions), (false, 0, 1), "{}", r.to_text());
+    }
+
+    #[test]
+    fn spirv_counts_of_another_compiler_are_not_judged_and_of_the_same_one_are() {
+        let row = |compiler: Option<&str>, instructions: f64| {
+            let mut src = Source { device: "SPIR-V (no device)".into(), ..source("abc") };
+            if let Some(c) = compiler {
+                src.settings.insert(rows::SPIRV_COMPILER.into(), c.into());
+            }
+            vec![Row::new("spirv", cell([("kernel", "raycast.mt.closest")]), &src)
+                .with("spirv_instructions", Figure::count(instructions, "instructions"))]
+        };
+        let debian = "shaderc 2023.2-1, glslang 12.0.0-2, SPIRV-Tools 2023.1-2 (static system libraries)";
+        let base = row(Some("shaderc-sys 0.10.1 from source, SPIRV-Tools v2025.3"), 2531.0);
+        let new = row(Some(debian), 2600.0);
+        let r = compare(side(&base, "base"), &base, side(&new, "new"), &new, 0.0);
+        assert!(r.passed, "{}", r.to_text());
+        assert_eq!((r.totals.counts_other_compiler, r.totals.figures_compared), (1, 0));
+        assert!(r.warnings.iter().any(|w| w.contains("v2025.3") && w.contains("2023.2-1") && w.contains("not judged")));
+        // A side that names no compiler (rows from before it was recorded) is not judged either.
+        let r = compare(side(&row(None, 2531.0), "base"), &row(None, 2531.0), side(&new, "new"), &new, 0.0);
+        assert_eq!((r.passed, r.totals.counts_other_compiler), (true, 1), "{}", r.to_text());
+        assert!(r.warnings.iter().any(|w| w.contains("BASE: not recorded")), "{:?}", r.warnings);
+        // The same compiler: 69 more instructions fail at 0 %.
+        let base = row(Some(debian), 2531.0);
+        let r = compare(side(&base, "base"), &base, side(&new, "new"), &new, 0.0);
+        assert_eq!((r.passed, r.totals.counts_other_compiler, r.regressions), (false, 0, 1), "{}", r.to_text());
     }
 
     #[test]

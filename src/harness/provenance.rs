@@ -27,6 +27,8 @@ pub struct Provenance {
     /// `--scene-dir`, `TRILAB_SCENES`, beside the executable, built in, or the source tree).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub scenes: Vec<SceneSource>,
+    /// The GLSL compiler that made the kernels' SPIR-V ([`crate::kernels::SPIRV_COMPILER`]).
+    pub spirv_compiler: &'static str,
 }
 
 impl Provenance {
@@ -51,6 +53,7 @@ impl Provenance {
                 .chain([("subgroup_size".to_owned(), info.subgroup_size.to_string())])
                 .collect(),
             scenes: crate::scene::find::resolved_scenes(),
+            spirv_compiler: crate::kernels::SPIRV_COMPILER,
         }
     }
 }

@@ -551,6 +551,7 @@ mod tests {
             timed_on_gpu: true,
             settings: Default::default(),
             scenes: vec![],
+            spirv_compiler: "test compiler",
         };
         RooflineReport {
             provenance,

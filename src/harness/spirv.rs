@@ -16,16 +16,18 @@ pub struct VariantCounts {
     pub counts: InstructionCounts,
 }
 
-/// Every variant's counts (serialised as the list).
+/// Every variant's counts, and the compiler that made them.
 #[derive(Clone, Debug, Serialize)]
-#[serde(transparent)]
 pub struct SpirvReport {
+    /// [`crate::kernels::SPIRV_COMPILER`]: counts of two compilers are not comparable.
+    pub compiler: &'static str,
     pub variants: Vec<VariantCounts>,
 }
 
 /// The counts of every embedded kernel variant.
 pub fn counts() -> SpirvReport {
     SpirvReport {
+        compiler: crate::kernels::SPIRV_COMPILER,
         variants: crate::spirv::all_counts()
             .into_iter()
             .map(|(k, counts)| VariantCounts { variant: k.name, counts })
@@ -42,7 +44,9 @@ pub fn write(dir: &Path, which: Disassembly) -> Result<usize> {
     let keep: Vec<&String> = files.iter().map(|(n, _)| n).collect();
     for e in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        if (name.ends_with(".spvasm") || name == "instruction_counts.csv") && !keep.contains(&&name) {
+        if (name.ends_with(".spvasm") || name == "instruction_counts.csv" || name == crate::spirv::COMPILER_FILE)
+            && !keep.contains(&&name)
+        {
             std::fs::remove_file(e.path()).map_err(|err| Error::io(&e.path(), err))?;
         }
     }
@@ -59,7 +63,9 @@ pub const SOURCE_DRIVER: &str = "shaderc (build.rs)";
 
 /// The counts as result rows (`rows.jsonl`, what `trilab compare` reads): one row per kernel
 /// variant (cell `kernel`), each category of [`InstructionCounts`] a count figure
-/// (`spirv_instructions` is the whole module), shader-db style: any change is real.
+/// (`spirv_instructions` is the whole module), shader-db style: any change is real. Each row
+/// names its compiler ([`crate::rows::SPIRV_COMPILER`]), so that `trilab compare` judges counts
+/// only between modules of one compiler.
 pub fn rows(report: &SpirvReport) -> Vec<crate::rows::Row> {
     use crate::rows::{cell, Figure, Row, Source};
     let source = Source {
@@ -67,7 +73,7 @@ pub fn rows(report: &SpirvReport) -> Vec<crate::rows::Row> {
         driver: SOURCE_DRIVER.into(),
         commit: crate::harness::provenance::commit(),
         date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
-        settings: Default::default(),
+        settings: [(crate::rows::SPIRV_COMPILER.to_owned(), report.compiler.to_owned())].into(),
         host: None,
     };
     report
@@ -123,7 +129,7 @@ impl Report for SpirvReport {
                 c.other.to_string(),
             ]);
         }
-        t.to_text()
+        format!("compiler: {}\n{}", self.compiler, t.to_text())
     }
 }
 

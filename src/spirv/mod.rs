@@ -22,6 +22,10 @@ use crate::kernels::{KernelSource, KERNELS};
 pub const CSV_HEADER: &str =
     "variant,module_instructions,function_instructions,arithmetic,memory,control_flow,conversion,image,composite,other";
 
+/// The file of a review folder that names the compiler its counts and disassembly come from
+/// ([`crate::kernels::SPIRV_COMPILER`], one line).
+pub const COMPILER_FILE: &str = "compiler.txt";
+
 /// The rspirv disassembly of a module (deterministic for a given Cargo.lock).
 pub fn disassemble(words: &[u32]) -> Result<String, String> {
     let module = rspirv::dr::load_words(words).map_err(|e| e.to_string())?;
@@ -76,7 +80,7 @@ pub enum Disassembly {
 }
 
 /// Every file a review folder holds: (file name, contents): `instruction_counts.csv` (every
-/// variant) and the disassembly of `which` kernels. `spirv/` holds [`Disassembly::Studied`].
+/// variant), [`COMPILER_FILE`] and the disassembly of `which` kernels. `spirv/` holds [`Disassembly::Studied`].
 pub fn review_files(which: Disassembly) -> Vec<(String, String)> {
     let mut files: Vec<(String, String)> = KERNELS
         .iter()
@@ -88,6 +92,7 @@ pub fn review_files(which: Disassembly) -> Vec<(String, String)> {
         })
         .collect();
     files.push(("instruction_counts.csv".into(), counts_csv()));
+    files.push((COMPILER_FILE.into(), format!("{}\n", crate::kernels::SPIRV_COMPILER)));
     files.sort();
     files
 }

@@ -480,6 +480,8 @@ pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
 /// a count).
 pub fn rows(r: &DriverStatsReport) -> Vec<Row> {
     let mut source = r.provenance.source();
+    // The driver compiles the SPIR-V: another GLSL compiler's modules give other machine code.
+    source.settings.insert(crate::rows::SPIRV_COMPILER.into(), crate::kernels::SPIRV_COMPILER.into());
     if r.kernels.iter().any(|k| k.lavapipe.is_some()) {
         // lavapipe's machine code is LLVM's for this host's CPU: another CPU compiles other code.
         source.settings.insert(crate::rows::JIT_CPU.into(), r.provenance.host.cpu_id.clone());

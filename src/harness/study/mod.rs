@@ -688,6 +688,7 @@ pub(crate) mod testing {
             timed_on_gpu: true,
             settings: Default::default(),
             scenes: vec![],
+            spirv_compiler: "test compiler",
         };
         let mut rows = vec![];
         for sc in scenes {

@@ -1,0 +1,24 @@
+//! Which shaderc trilab's build script was linked against, decided by this crate's build script.
+//!
+//! trilab compiles its GLSL at build time with the `shaderc` crate (a build-dependency). On Debian
+//! 12, `libshaderc-dev`, `glslang-dev` and `spirv-tools` ship that compiler as static libraries,
+//! but Debian's `libshaderc_combined.a` holds only shaderc's own objects: glslang and SPIRV-Tools
+//! are separate archives. `shaderc-sys` links `shaderc_combined` alone; this crate's build script
+//! adds the rest, so the first build takes seconds instead of the 20 minutes a build of shaderc
+//! from source takes. Where those libraries are absent, it adds nothing and `shaderc-sys` builds
+//! from source (see `build.rs`).
+
+/// How the compiler was obtained: [`SYSTEM`] when linked from the system's static libraries,
+/// [`FROM_SOURCE`] when `shaderc-sys` built it.
+pub const LINKED: &str = env!("TRILAB_SHADERC_LINKED");
+
+/// [`LINKED`] when the system's static libraries were linked.
+pub const SYSTEM: &str = "system";
+
+/// [`LINKED`] when `shaderc-sys` built shaderc, glslang and SPIRV-Tools from its bundled source.
+pub const FROM_SOURCE: &str = "source";
+
+/// The system packages' versions when [`LINKED`] is [`SYSTEM`] (e.g. "shaderc 2023.2-1, glslang
+/// 12.0.0-2, SPIRV-Tools 2023.1-2"), or the folder they were linked from where `dpkg-query`
+/// cannot say; empty when built from source.
+pub const PACKAGES: &str = env!("TRILAB_SHADERC_PACKAGES");
