@@ -40,12 +40,13 @@ fn verdicts(report: &Value) -> Vec<(String, String)> {
 fn a_against_a_passes_and_nothing_is_hurt_beyond_the_threshold() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("ab");
-    let start = std::time::Instant::now();
-    let (o, r) = ab(&["--rounds", "4", "--max-rounds", "8", "--out", &s(&out)], 120);
-    let took = start.elapsed();
+    // A threshold no A/A can cross unless the pairing is broken (a side's rounds credited to the
+    // other, say): a test judges no timing on a shared host, where one small cell under load has
+    // read 2.2 ms in one round and 4.7 ms in the next (how often ab cries wolf at its real
+    // thresholds is measured, not tested: results/lavapipe/ab/sensitivity/, docs/gate.md).
+    let (o, r) = ab(&["--rounds", "4", "--max-rounds", "8", "--threshold", "50", "--out", &s(&out)], 120);
     let e = common::cli::stderr(&o);
     assert_eq!(o.status.code(), Some(0), "{e}\n{r}");
-    assert!(took.as_secs() < 60, "A against A took {took:?}");
     let cells = r["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 6, "2 methods x 3 ray sets: {r}");
     for c in cells {

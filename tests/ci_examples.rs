@@ -1,6 +1,7 @@
 //! examples/ci/ (a GitLab CI file and a GitHub Actions workflow) cannot run here, so their
-//! structure is checked: the jobs exist; the merge-request jobs run the suite and compare with
-//! a stated threshold; the nightly matrix gives every device every shard 1/N..N/N exactly once
+//! structure is checked: the jobs exist; the merge-request jobs run the suite, compare its counts
+//! and correctness with the committed baseline without judging its timings, and time the two
+//! drivers in one `ab` job with a stated threshold (docs/gate.md: timings only inside one run); the nightly matrix gives every device every shard 1/N..N/N exactly once
 //! (expanded the way each CI system expands it); the merge job needs the shard jobs and runs
 //! when a shard failed; and every trilab invocation in a script, with each matrix combination's
 //! variables put in, parses with trilab's own CLI (`trilab <args> --help`: clap rejects an
@@ -172,7 +173,7 @@ fn gitlab_matrix(job: &Value) -> Vec<Vars> {
 }
 
 fn gitlab_check(doc: &Value) -> Result<Vec<Vec<String>>, String> {
-    let jobs = ["build", "suite", "compare", "study-shard", "merge"];
+    let jobs = ["build", "suite", "compare", "ab", "study-shard", "merge"];
     for j in jobs {
         if !doc[j].is_mapping() {
             return Err(format!("no job `{j}`"));
@@ -187,8 +188,8 @@ fn gitlab_check(doc: &Value) -> Result<Vec<Vec<String>>, String> {
             .join("\n")
     };
     let mr = |j: &str| list(&doc[j]["rules"]).iter().any(|r| s(&r["if"]).contains("merge_request_event"));
-    if !mr("suite") || !mr("compare") {
-        return Err("suite and compare must run on merge requests".into());
+    if !mr("suite") || !mr("compare") || !mr("ab") {
+        return Err("suite, compare and ab must run on merge requests".into());
     }
     if !needs(&doc["compare"]).contains(&"suite".to_owned()) {
         return Err("compare must need suite (its results)".into());
@@ -267,14 +268,14 @@ fn github_matrix(matrix: &Value) -> Vec<Vars> {
 }
 
 fn github_check(doc: &Value) -> Result<Vec<Vec<String>>, String> {
-    let jobs = ["build", "suite", "compare", "study-shard", "merge"];
+    let jobs = ["build", "suite", "compare", "ab", "study-shard", "merge"];
     for j in jobs {
         if !doc["jobs"][j].is_mapping() {
             return Err(format!("no job `{j}`"));
         }
     }
     let job = |j: &str| &doc["jobs"][j];
-    for j in ["suite", "compare"] {
+    for j in ["suite", "compare", "ab"] {
         if !s(&job(j)["if"]).contains("pull_request") {
             return Err(format!("{j} must run on pull requests"));
         }
@@ -322,22 +323,38 @@ fn github_check(doc: &Value) -> Result<Vec<Vec<String>>, String> {
 /// A CI file's structural check: the trilab invocations, or what is wrong.
 type Check = fn(&Value) -> Result<Vec<Vec<String>>, String>;
 
-/// The compare invocations state a threshold (a number, in percent) and judge calibrated timings.
-fn threshold_stated(invocations: &[Vec<String>]) -> Result<(), String> {
+/// Timings are judged only inside one run (issue 36): every compare against the committed
+/// baseline leaves timings out (`--timings ignore`: the baseline ran on another host), and an
+/// `ab` names both sides' drivers (or builds) and states its threshold (a number, in percent).
+fn timings_judged_in_one_run(invocations: &[Vec<String>]) -> Result<(), String> {
     let compares: Vec<&Vec<String>> = invocations.iter().filter(|a| a[0] == "compare").collect();
     if compares.is_empty() {
         return Err("no `trilab compare`".into());
     }
     for a in compares {
+        if !a.windows(2).any(|w| w[0] == "--timings" && w[1] == "ignore") {
+            return Err(format!(
+                "`trilab {}` judges timings against a committed baseline (measured on another host): give --timings ignore",
+                a.join(" ")
+            ));
+        }
+    }
+    let abs: Vec<&Vec<String>> = invocations.iter().filter(|a| a[0] == "ab").collect();
+    if abs.is_empty() {
+        return Err("no `trilab ab`: nothing times the change against its base in one run".into());
+    }
+    for a in abs {
         let t =
             a.iter().position(|w| w == "--threshold").and_then(|i| a.get(i + 1)).and_then(|t| t.parse::<f64>().ok());
         if !t.is_some_and(|t| t > 0.0) {
             return Err(format!("`trilab {}` states no threshold", a.join(" ")));
         }
-        // The baseline ran on another host than the runner: its timings meet the runner's only
-        // through the host calibration (issue 22).
-        if !a.windows(2).any(|w| w[0] == "--timings" && w[1] == "calibrated") {
-            return Err(format!("`trilab {}` compares a committed baseline without --timings calibrated", a.join(" ")));
+        let names = |x: &str| a.iter().any(|w| w == &format!("--a-{x}")) && a.iter().any(|w| w == &format!("--b-{x}"));
+        if !names("icd") && !names("bin") {
+            return Err(format!(
+                "`trilab {}` does not name both sides (--a-icd/--b-icd or --a-bin/--b-bin)",
+                a.join(" ")
+            ));
         }
     }
     Ok(())
@@ -350,7 +367,7 @@ fn check_all_parse(invocations: &[Vec<String>]) {
     for a in &distinct {
         parses(a).unwrap();
     }
-    for cmd in ["suite", "compare", "study", "merge"] {
+    for cmd in ["suite", "compare", "ab", "study", "merge"] {
         assert!(invocations.iter().any(|a| a[0] == cmd), "no `trilab {cmd}`");
     }
     assert!(
@@ -363,7 +380,7 @@ fn check_all_parse(invocations: &[Vec<String>]) {
 fn the_gitlab_file_has_the_jobs_a_complete_shard_matrix_and_parsing_invocations() {
     let doc = load("gitlab-ci.yml");
     let inv = gitlab_check(&doc).unwrap();
-    threshold_stated(&inv).unwrap();
+    timings_judged_in_one_run(&inv).unwrap();
     // Every device x shard combination gives its own study invocation.
     assert_eq!(inv.iter().filter(|a| a[0] == "study").count(), gitlab_matrix(&doc["study-shard"]).len());
     assert!(inv.iter().filter(|a| a[0] == "study").all(|a| a.contains(&"--shard".to_owned())));
@@ -374,7 +391,7 @@ fn the_gitlab_file_has_the_jobs_a_complete_shard_matrix_and_parsing_invocations(
 fn the_github_workflow_has_the_jobs_a_complete_shard_matrix_and_parsing_invocations() {
     let doc = load("github-actions.yml");
     let inv = github_check(&doc).unwrap();
-    threshold_stated(&inv).unwrap();
+    timings_judged_in_one_run(&inv).unwrap();
     let combos = github_matrix(&doc["jobs"]["study-shard"]["strategy"]["matrix"]);
     assert!(combos.len() >= 2 * 4, "{combos:?}");
     assert_eq!(inv.iter().filter(|a| a[0] == "study").count(), combos.len());
@@ -423,10 +440,17 @@ fn the_checks_fail_on_a_dropped_shard_a_doubled_shard_a_lost_dependency_and_a_ba
     assert!(parses(&["study".into(), "--shard".into(), "5/4".into()]).is_err());
     assert!(parses(&["study".into(), "--no-such-option".into()]).is_err());
     assert!(parses(&["merge".into(), "x".into(), "--out".into(), "y".into()]).is_ok());
-    assert!(threshold_stated(&[vec!["compare".into(), "a".into(), "b".into()]]).is_err());
     let words = |w: &str| w.split(' ').map(String::from).collect::<Vec<String>>();
-    assert!(threshold_stated(&[words("compare a b --threshold 40")]).is_err(), "raw timings against a baseline");
-    assert!(threshold_stated(&[words("compare a b --timings calibrated --threshold 40")]).is_ok());
+    let ab = words("ab --a-icd a.json --b-icd b.json --judge kernels --threshold 10");
+    let judged = |c: &str| timings_judged_in_one_run(&[words(c), ab.clone()]);
+    assert!(judged("compare a b --timings ignore --count-threshold 0").is_ok());
+    assert!(judged("compare a b").is_err(), "raw timings against a baseline");
+    assert!(judged("compare a b --timings calibrated --threshold 40").is_err(), "calibrated timings of another host");
+    assert!(timings_judged_in_one_run(&[words("compare a b --timings ignore")]).is_err(), "no ab");
+    let one_side = words("ab --b-icd b.json --threshold 10");
+    assert!(timings_judged_in_one_run(&[words("compare a b --timings ignore"), one_side]).is_err());
+    let no_threshold = words("ab --a-bin a --b-bin b");
+    assert!(timings_judged_in_one_run(&[words("compare a b --timings ignore"), no_threshold]).is_err());
     let v: Vars = [("SHARD".to_owned(), "2/4".to_owned())].into();
     assert_eq!(
         invocations("chmod +x x/trilab && x/trilab study --shard ${SHARD} > log; echo", &v),
