@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """The table of scripts/gate-sensitivity.sh's runs: per condition and planted factor, what one
 A/B of the gate called on the planted kernels (caught: hurt beyond the gate's threshold with the
-whole interval) and on the others (false calls), with the kernels' interval half-widths.
+whole interval) and on the others (false calls), with the kernels' interval half-widths; then,
+from the same intervals, what other thresholds would have caught and falsely failed.
 
 Usage: scripts/gate-sensitivity-table.py OUT/runs.jsonl [SECONDS]
 """
@@ -43,7 +44,7 @@ def main():
         ratios = [k["ratio"] for k in planted if k["ratio"]]
         caught = sum(k["verdict"] == "hurt-beyond-threshold" for k in planted)
         hurt = sum(k["verdict"] == "hurt" for k in planted)
-        false_calls = sum(k["verdict"] not in ("no-change", None) for k in others)
+        false_calls = sum(k["verdict"] not in ("same", None) for k in others)
         false_fails = sum(k["verdict"] == "hurt-beyond-threshold" for k in others)
         halves = [math.log(k["high"] / k["low"]) / 2 * 100 for r in rs for k in r["kernels"] if k["low"]]
         ratio = (
@@ -55,6 +56,23 @@ def main():
             f"(+-{max(halves):.1f} %) | {statistics.median(r['rounds'] for r in rs):.0f} "
             f"| {statistics.median(r['seconds'] for r in rs):.0f} |"
         )
+    thresholds = [3, 5, 10, 15]
+    print(
+        "\nThe same intervals at other thresholds: a kernel would fail one A/B when its whole interval "
+        "is above 1 + threshold (planted kernels caught, of those planted; unplanted kernels falsely "
+        "failed, of all unplanted kernel-runs in every case).\n"
+    )
+    print("| condition | F | " + " | ".join(f"caught at {t} %" for t in thresholds) + " |")
+    print("|---|---:|" + "---:|" * len(thresholds))
+    for (cond, factor), rs in cases.items():
+        planted = [k for r in rs for k in r["kernels"] if k["planted"]]
+        if not planted:
+            continue
+        cells = [f"{sum(1 for k in planted if k['low'] and k['low'] > 1 + t / 100)} of {len(planted)}" for t in thresholds]
+        print(f"| {cond} | {factor:g} | " + " | ".join(cells) + " |")
+    others = [k for r in runs for k in r["kernels"] if not k["planted"]]
+    cells = [f"{sum(1 for k in others if k['low'] and k['low'] > 1 + t / 100)} of {len(others)}" for t in thresholds]
+    print("| false fails, all cases | | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@
 # Conditions: idle (nothing else started here), load1 (a busy-looping process beside the run),
 # cpu1 (the run pinned to one CPU: taskset -c 0), nopt (lavapipe without LLVM's optimiser on
 # both sides: a slower driver). Cases go round-robin (repeat 1 of every case, then repeat 2), so
-# a drift of the host lands on all alike. Writes OUT/<case>-<repeat>.json (the gate's report),
+# a drift of the host lands on all alike. Writes OUT/<case>-<repeat>.json.gz (the gate's report),
 # OUT/runs.jsonl (one line per run: every kernel's B/A, interval and verdict) and OUT/README.md
 # (the table, by scripts/gate-sensitivity-table.py).
 set -euo pipefail
@@ -71,5 +71,7 @@ print(json.dumps({
 EOF
   done
 done
+# The reports gzipped (the tree has a size budget); runs.jsonl holds what the table reads.
+gzip -9 -n "$out"/*.json
 python3 scripts/gate-sensitivity-table.py "$out/runs.jsonl" "$((SECONDS - start))" > "$out/README.md"
 cat "$out/README.md"

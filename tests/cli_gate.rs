@@ -42,8 +42,11 @@ fn measured() -> &'static Path {
     .1
 }
 
-/// The gate's A/B kept small: two methods' kernels on bvh2 over the bunny's three ray sets.
-const SMALL: &[&str] = &["--methods", "mt,unit", "--layouts", "bvh2", "--random-rays", "8000", "--rounds", "6"];
+/// The gate's A/B kept small: two methods' kernels on bvh2 over the bunny's three ray sets, at
+/// 10 % rather than the gate's 5 % (sub-millisecond cells, and these tests run on whatever host
+/// CI gives: the rules are tested here, the threshold is measured by scripts/gate-sensitivity.sh).
+const SMALL: &[&str] =
+    &["--methods", "mt,unit", "--layouts", "bvh2", "--random-rays", "8000", "--rounds", "6", "--threshold", "10"];
 
 /// `trilab gate BASE NEW extra... --json` with this build as the base build: the report and the
 /// exit status.
