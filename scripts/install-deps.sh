@@ -13,7 +13,10 @@
 #   - procps, for the `kill` the Ctrl-C test sends SIGINT with;
 #   - Debian 12's own lavapipe (Mesa 22.3.6) unpacked, not installed, under
 #     ~/.cache/trilab/stock-mesa by scripts/stock-mesa.sh (an 8 MB download, once), so
-#     tests/stock_mesa.rs can check trilab on the driver a user without backports has.
+#     tests/stock_mesa.rs can check trilab on the driver a user without backports has;
+#   - Google's SwiftShader (Vulkan on the CPU with its own JIT, not Mesa) unpacked from
+#     chromium-common, not installed, under ~/.cache/trilab/swiftshader by
+#     scripts/swiftshader.sh (a 32 MB download, once), for tests/swiftshader.rs.
 # Safe to run repeatedly; needs root (or sudo) for apt; the stock driver is unpacked as the
 # calling user.
 set -euo pipefail
@@ -37,18 +40,21 @@ mesa_ver=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true
 need_mesa=1
 case "$mesa_ver" in 2[5-9].*|3*) need_mesa=0 ;; esac
 
-# Debian 12's own lavapipe beside the installed one (never installed over it); apt's lists are
+# Debian 12's own lavapipe and SwiftShader beside the installed driver (never installed over it); apt's lists are
 # refreshed once if they do not know the bookworm package yet.
-stock_mesa() {
+unpacked_drivers() {
   local script
   script="$(dirname "$0")/stock-mesa.sh"
   "$script" --quiet >/dev/null 2>&1 || { $SUDO apt-get update -qq && "$script" --quiet >/dev/null; }
   echo "install-deps: stock lavapipe for tests/stock_mesa.rs: $("$script" --quiet)"
+  script="$(dirname "$0")/swiftshader.sh"
+  "$script" --quiet >/dev/null 2>&1 || { $SUDO apt-get update -qq && "$script" --quiet >/dev/null; }
+  echo "install-deps: SwiftShader for tests/swiftshader.rs: $("$script" --quiet)"
 }
 
 if [ ${#missing[@]} -eq 0 ] && [ $need_mesa -eq 0 ]; then
   echo "install-deps: all system packages present (mesa-vulkan-drivers $mesa_ver)"
-  stock_mesa
+  unpacked_drivers
   exit 0
 fi
 
@@ -68,4 +74,4 @@ if [ $need_mesa -eq 1 ]; then
   $SUDO apt-get install -y -qq --no-install-recommends -t bookworm-backports mesa-vulkan-drivers >/dev/null
 fi
 echo "install-deps: mesa-vulkan-drivers $(dpkg-query -W -f='${Version}' mesa-vulkan-drivers)"
-stock_mesa
+unpacked_drivers

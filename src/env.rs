@@ -37,6 +37,10 @@ pub const ENV_VARS: &[EnvVar] = &[
     EnvVar { name: "TRILAB_TEST_LIMITS", help: "lower device limits for tests, e.g. max_texel_buffer_elements=4096" },
     EnvVar { name: "LP_NUM_THREADS", help: "lavapipe: rasterizer/compute threads (0: run on the calling thread)" },
     EnvVar { name: "LP_NATIVE_VECTOR_WIDTH", help: "lavapipe: SIMD width in bits (128 or 256)" },
+    EnvVar {
+        name: "VK_DRIVER_FILES",
+        help: "the Vulkan loader's ICD files; where it names one file with a `version` file beside it (scripts/stock-mesa.sh, scripts/swiftshader.sh), reports name that package (`driver_package`)",
+    },
 ];
 
 /// The list as help text: one `NAME  what` line each.

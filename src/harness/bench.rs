@@ -1090,6 +1090,7 @@ mod tests {
             settings: [("subgroup_size".to_owned(), "8".to_owned())].into(),
             scenes: vec![],
             spirv_compiler: "test compiler",
+            driver_package: None,
         };
         let row = |method: Tracer, layout: Option<Layout>, ms: Summary, agreement: f64| {
             let mr = crate::harness::validate::mrays_summary(48_000, ms);

@@ -29,6 +29,12 @@ pub struct Provenance {
     pub scenes: Vec<SceneSource>,
     /// The GLSL compiler that made the kernels' SPIR-V ([`crate::kernels::SPIRV_COMPILER`]).
     pub spirv_compiler: &'static str,
+    /// The package an unpacked driver came from, where the loader was given one ICD file
+    /// (`VK_DRIVER_FILES`) with a `version` file beside it, as `scripts/stock-mesa.sh` and
+    /// `scripts/swiftshader.sh` write: SwiftShader reports no driver version of its own, and the
+    /// Chromium release that ships it is what names its build.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub driver_package: Option<String>,
 }
 
 impl Provenance {
@@ -54,8 +60,22 @@ impl Provenance {
                 .collect(),
             scenes: crate::scene::find::resolved_scenes(),
             spirv_compiler: crate::kernels::SPIRV_COMPILER,
+            driver_package: driver_package(),
         }
     }
+}
+
+/// The `version` file beside the one ICD file `VK_DRIVER_FILES` names, if there is exactly one and
+/// it has such a file (see [`Provenance::driver_package`]).
+fn driver_package() -> Option<String> {
+    let files = std::env::var_os("VK_DRIVER_FILES")?;
+    let mut paths = std::env::split_paths(&files);
+    let icd = paths.next()?;
+    if paths.next().is_some() {
+        return None;
+    }
+    let version = std::fs::read_to_string(icd.parent()?.join("version")).ok()?;
+    Some(version.trim().to_owned()).filter(|v| !v.is_empty() && v.len() < 200)
 }
 
 /// Environment variables of the drivers that change what a run measures: a row records them so

@@ -552,6 +552,7 @@ mod tests {
             settings: Default::default(),
             scenes: vec![],
             spirv_compiler: "test compiler",
+            driver_package: None,
         };
         RooflineReport {
             provenance,

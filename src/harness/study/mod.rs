@@ -689,6 +689,7 @@ pub(crate) mod testing {
             settings: Default::default(),
             scenes: vec![],
             spirv_compiler: "test compiler",
+            driver_package: None,
         };
         let mut rows = vec![];
         for sc in scenes {
