@@ -224,25 +224,23 @@ fn main() {
 /// optimiser) decide the instruction counts: a count is comparable only between modules of one
 /// compiler.
 fn spirv_compiler() -> String {
+    if !shaderc_link::from_source() {
+        return format!("{} (static system libraries)", shaderc_link::SYSTEM_LIBRARIES);
+    }
     extern "C" {
         fn spvSoftwareVersionString() -> *const std::ffi::c_char;
     }
     // SAFETY: SPIRV-Tools' C API (libspirv.h) returns a pointer to a static NUL-terminated
-    // string; it is linked into this build script through shaderc (shaderc_combined from source,
-    // or libSPIRV-Tools.a beside Debian's shaderc), and the string is only read.
+    // string; it is linked into this build script through shaderc_combined, and only read.
     let spirv_tools = unsafe { std::ffi::CStr::from_ptr(spvSoftwareVersionString()) }.to_string_lossy().into_owned();
-    if shaderc_link::LINKED == shaderc_link::SYSTEM {
-        format!("{} (static system libraries)", shaderc_link::PACKAGES)
-    } else {
-        let lock = fs::read_to_string(Path::new(&std::env::var("CARGO_MANIFEST_DIR").unwrap()).join("Cargo.lock"))
-            .unwrap_or_default();
-        let version = lock
-            .split("[[package]]")
-            .find(|p| p.contains("name = \"shaderc-sys\""))
-            .and_then(|p| p.lines().find_map(|l| l.strip_prefix("version = ")))
-            .map_or("?".to_string(), |v| v.trim_matches('"').to_string());
-        format!("shaderc-sys {version} from source, SPIRV-Tools {spirv_tools}")
-    }
+    let lock = fs::read_to_string(Path::new(&std::env::var("CARGO_MANIFEST_DIR").unwrap()).join("Cargo.lock"))
+        .unwrap_or_default();
+    let version = lock
+        .split("[[package]]")
+        .find(|p| p.contains("name = \"shaderc-sys\""))
+        .and_then(|p| p.lines().find_map(|l| l.strip_prefix("version = ")))
+        .map_or("?".to_string(), |v| v.trim_matches('"').to_string());
+    format!("shaderc-sys {version} from source, SPIRV-Tools {spirv_tools}")
 }
 
 // ---- Ray-tracing pipeline stages (glsl/raytrace/) ------------------------------------------

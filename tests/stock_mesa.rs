@@ -12,43 +12,12 @@
 
 mod common;
 
-use std::path::PathBuf;
-
 use common::cli::{expect_error, ok, run, s};
-
-/// The folder the script unpacks into (its default, or `TRILAB_STOCK_MESA`).
-fn stock_dir() -> PathBuf {
-    match std::env::var_os("TRILAB_STOCK_MESA") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(std::env::var_os("HOME").expect("HOME is set")).join(".cache/trilab/stock-mesa"),
-    }
-}
-
-/// The variables that select the unpacked driver (`VK_DRIVER_FILES`, and `LD_LIBRARY_PATH` when
-/// the script unpacked libraries too), from the script's `env` file.
-fn stock_env() -> Vec<(String, String)> {
-    let file = stock_dir().join("env");
-    let text = std::fs::read_to_string(&file).unwrap_or_else(|e| {
-        panic!(
-            "Debian 12's own lavapipe is not unpacked ({}: {e}): run `scripts/stock-mesa.sh` (downloads \
-             mesa-vulkan-drivers from bookworm and unpacks it there; never installs; install-deps.sh runs it)",
-            file.display()
-        )
-    });
-    let vars: Vec<(String, String)> =
-        text.lines().filter_map(|l| l.split_once('=')).map(|(k, v)| (k.to_owned(), v.to_owned())).collect();
-    let icd = vars.iter().find(|(k, _)| k == "VK_DRIVER_FILES").map(|(_, v)| PathBuf::from(v));
-    match icd {
-        Some(icd) if icd.is_file() => vars,
-        _ => panic!("{} names no ICD file that exists: run `scripts/stock-mesa.sh` again", file.display()),
-    }
-}
+use common::unpacked::STOCK_MESA;
 
 /// `trilab args` on the stock driver; panics past `timeout_s`.
 fn on_stock(args: &[&str], timeout_s: u64) -> std::process::Output {
-    let vars = stock_env();
-    let env: Vec<(&str, &str)> = vars.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
-    run(args, None, &env, timeout_s).0
+    STOCK_MESA.run(args, timeout_s)
 }
 
 #[test]
@@ -102,7 +71,7 @@ fn driver_stats_refuses_naming_why() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("ds");
     let (o, took) = {
-        let vars = stock_env();
+        let vars = STOCK_MESA.env();
         let env: Vec<(&str, &str)> = vars.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
         run(&["driver-stats", "--out", &s(&out)], None, &env, 120)
     };
@@ -149,7 +118,7 @@ fn the_smoke_suite_completes_and_says_what_this_driver_cannot_measure() {
 
 #[test]
 fn ab_of_the_stock_driver_against_the_installed_one_names_what_the_stock_one_lacks() {
-    let vars = stock_env();
+    let vars = STOCK_MESA.env();
     let icd = vars.iter().find(|(k, _)| k == "VK_DRIVER_FILES").map(|(_, v)| v.clone()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("ab");

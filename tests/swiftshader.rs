@@ -10,41 +10,12 @@
 
 mod common;
 
-use std::path::PathBuf;
-
-use common::cli::{ok, run};
+use common::cli::ok;
+use common::unpacked::SWIFTSHADER;
 use serde_json::Value;
 
-/// The folder the script unpacks into (its default, or `TRILAB_SWIFTSHADER`).
-fn swiftshader_dir() -> PathBuf {
-    match std::env::var_os("TRILAB_SWIFTSHADER") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(std::env::var_os("HOME").expect("HOME is set")).join(".cache/trilab/swiftshader"),
-    }
-}
-
-/// `VK_DRIVER_FILES` naming the unpacked driver, from the script's `env` file.
-fn swiftshader_env() -> Vec<(String, String)> {
-    let file = swiftshader_dir().join("env");
-    let text = std::fs::read_to_string(&file).unwrap_or_else(|e| {
-        panic!(
-            "SwiftShader is not unpacked ({}: {e}): run `scripts/swiftshader.sh` (downloads chromium-common \
-             and keeps its Vulkan driver there; never installs; install-deps.sh runs it)",
-            file.display()
-        )
-    });
-    let vars: Vec<(String, String)> =
-        text.lines().filter_map(|l| l.split_once('=')).map(|(k, v)| (k.to_owned(), v.to_owned())).collect();
-    match vars.iter().find(|(k, _)| k == "VK_DRIVER_FILES") {
-        Some((_, icd)) if PathBuf::from(icd).is_file() => vars,
-        _ => panic!("{} names no ICD file that exists: run `scripts/swiftshader.sh` again", file.display()),
-    }
-}
-
 fn on_swiftshader(args: &[&str], timeout_s: u64) -> std::process::Output {
-    let vars = swiftshader_env();
-    let env: Vec<(&str, &str)> = vars.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
-    run(args, None, &env, timeout_s).0
+    SWIFTSHADER.run(args, timeout_s)
 }
 
 #[test]
@@ -88,6 +59,6 @@ fn a_small_bench_on_a_scene_within_its_texel_limit_agrees_with_the_reference_and
         assert_eq!(r["agreement"].as_f64(), Some(1.0), "every ray agrees with the f64 reference: {r}");
     }
     assert!(v.to_string().contains("SwiftShader"), "{v}");
-    let version = std::fs::read_to_string(swiftshader_dir().join("version")).unwrap();
+    let version = std::fs::read_to_string(SWIFTSHADER.dir().join("version")).unwrap();
     assert_eq!(v["driver_package"].as_str(), Some(version.trim()), "the provenance names the package: {v}");
 }

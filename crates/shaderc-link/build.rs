@@ -28,7 +28,7 @@ const ARCHIVES: &[&str] = &[
     "SPIRV-Tools",
 ];
 
-/// The Debian packages that hold the archives, for the version [`PACKAGES`] names.
+/// The Debian packages that hold the archives, for the versions `SYSTEM_LIBRARIES` names.
 const PACKAGES: &[(&str, &str)] =
     &[("shaderc", "libshaderc-dev"), ("glslang", "glslang-dev"), ("SPIRV-Tools", "spirv-tools")];
 
@@ -43,16 +43,14 @@ fn main() {
         if combined.is_file() {
             // A shaderc_combined that holds glslang and SPIRV-Tools itself (the Vulkan SDK's, or
             // one built by hand): shaderc-sys's link line is complete.
-            println!("cargo:rustc-env=TRILAB_SHADERC_LINKED=system");
-            println!("cargo:rustc-env=TRILAB_SHADERC_PACKAGES=shaderc_combined from {}", dir.display());
+            println!("cargo:rustc-env=TRILAB_SHADERC_SYSTEM_LIBRARIES=shaderc_combined from {}", dir.display());
         } else {
             println!(
                 "cargo:warning=shaderc: no libshaderc_combined.a in {}: shaderc-sys builds shaderc from source \
                  (10-25 minutes; on Debian 12, scripts/install-deps.sh installs libshaderc-dev glslang-dev spirv-tools)",
                 dir.display()
             );
-            println!("cargo:rustc-env=TRILAB_SHADERC_LINKED=source");
-            println!("cargo:rustc-env=TRILAB_SHADERC_PACKAGES=");
+            println!("cargo:rustc-env=TRILAB_SHADERC_SYSTEM_LIBRARIES=");
         }
         return;
     }
@@ -75,8 +73,7 @@ fn main() {
     println!("cargo:rustc-link-lib=dylib=stdc++");
     let packages = package_versions().unwrap_or_else(|| format!("static libraries in {}", dir.display()));
     println!("cargo:warning=shaderc: linking the system's static shaderc ({packages})");
-    println!("cargo:rustc-env=TRILAB_SHADERC_LINKED=system");
-    println!("cargo:rustc-env=TRILAB_SHADERC_PACKAGES={packages}");
+    println!("cargo:rustc-env=TRILAB_SHADERC_SYSTEM_LIBRARIES={packages}");
 }
 
 /// The folder shaderc-sys searches: `SHADERC_LIB_DIR` (trilab's `.cargo/config.toml` sets it to

@@ -745,24 +745,21 @@ pub fn compare_with(
                 totals.timings_not_judged += 1;
                 continue;
             }
-            let jit = |r: &Row| r.source.settings.get(rows::JIT_CPU).cloned();
-            if bf.class == Class::Count && jit(br) != jit(nr) {
+            // A count is the same code's only where both rows name the same CPU the driver's JIT
+            // compiled for and the same GLSL compiler (rows whose counts depend on neither, such
+            // as bench's bytes and SAH cost, name neither: equal).
+            let setting = |r: &Row, key: &str| r.source.settings.get(key).cloned().unwrap_or_default();
+            if bf.class == Class::Count && setting(br, rows::JIT_CPU) != setting(nr, rows::JIT_CPU) {
                 totals.counts_other_cpu += 1;
-                other_cpus.insert((k.0.clone(), jit(br).unwrap_or_default(), jit(nr).unwrap_or_default()));
+                other_cpus.insert((k.0.clone(), setting(br, rows::JIT_CPU), setting(nr, rows::JIT_CPU)));
                 continue;
             }
-            // The driver-stats rows name their compiler too (the driver compiles the SPIR-V),
-            // bench's counts (bytes, SAH) do not depend on it and name none.
-            let compiler = |r: &Row| r.source.settings.get(rows::SPIRV_COMPILER).cloned();
-            if bf.class == Class::Count
-                && (compiler(br).is_some() || compiler(nr).is_some())
-                && compiler(br) != compiler(nr)
-            {
+            if bf.class == Class::Count && setting(br, rows::SPIRV_COMPILER) != setting(nr, rows::SPIRV_COMPILER) {
                 totals.counts_other_compiler += 1;
                 other_compilers.insert((
                     k.0.clone(),
-                    compiler(br).unwrap_or_default(),
-                    compiler(nr).unwrap_or_default(),
+                    setting(br, rows::SPIRV_COMPILER),
+                    setting(nr, rows::SPIRV_COMPILER),
                 ));
                 continue;
             }

@@ -8,17 +8,12 @@
 //! from source takes. Where those libraries are absent, it adds nothing and `shaderc-sys` builds
 //! from source (see `build.rs`).
 
-/// How the compiler was obtained: [`SYSTEM`] when linked from the system's static libraries,
-/// [`FROM_SOURCE`] when `shaderc-sys` built it.
-pub const LINKED: &str = env!("TRILAB_SHADERC_LINKED");
+/// What was linked from the system: the Debian packages' versions ("shaderc 2023.2-1, glslang
+/// 12.0.0-2, SPIRV-Tools 2023.1-2"), or the folder a `libshaderc_combined.a` was taken from where
+/// `dpkg-query` cannot say; empty when `shaderc-sys` built shaderc from its bundled source.
+pub const SYSTEM_LIBRARIES: &str = env!("TRILAB_SHADERC_SYSTEM_LIBRARIES");
 
-/// [`LINKED`] when the system's static libraries were linked.
-pub const SYSTEM: &str = "system";
-
-/// [`LINKED`] when `shaderc-sys` built shaderc, glslang and SPIRV-Tools from its bundled source.
-pub const FROM_SOURCE: &str = "source";
-
-/// The system packages' versions when [`LINKED`] is [`SYSTEM`] (e.g. "shaderc 2023.2-1, glslang
-/// 12.0.0-2, SPIRV-Tools 2023.1-2"), or the folder they were linked from where `dpkg-query`
-/// cannot say; empty when built from source.
-pub const PACKAGES: &str = env!("TRILAB_SHADERC_PACKAGES");
+/// Whether `shaderc-sys` built shaderc, glslang and SPIRV-Tools from source.
+pub const fn from_source() -> bool {
+    SYSTEM_LIBRARIES.is_empty()
+}
