@@ -1,6 +1,6 @@
 #version 460
-// trilab:variants all lambert=BSDF_MASK:0x1 oren_nayar=BSDF_MASK:0x2 phong=BSDF_MASK:0x4 blinn_phong=BSDF_MASK:0x8 ashikhmin_shirley=BSDF_MASK:0x10 glass=BSDF_MASK:0x20 mirror=BSDF_MASK:0x40
-// trilab:layouts all
+// trilab:variants all lambert=BSDF_MASK:0x1 oren_nayar=BSDF_MASK:0x2 phong=BSDF_MASK:0x4 blinn_phong=BSDF_MASK:0x8 ashikhmin_shirley=BSDF_MASK:0x10 glass=BSDF_MASK:0x20 mirror=BSDF_MASK:0x40 all_sb=SCENE_STORAGE
+// trilab:layouts all all_sb
 // Unidirectional path tracer, one pixel per invocation, `pc.sample_count` samples per dispatch
 // accumulated in sample order (so the image does not depend on how samples are batched).
 //
@@ -17,7 +17,9 @@
 //
 // Variants: `all` carries every BSDF; the others carry one each (BSDF_MASK). SPEC_BSDF_MASK,
 // a specialisation constant, narrows `all` to a scene's set at pipeline creation, so the driver
-// drops the BSDFs the scene does not use.
+// drops the BSDFs the scene does not use. `all_sb` (SCENE_STORAGE, issue 38) reads the scene,
+// the shading records and the lights from storage buffers instead of texel buffers
+// (glsl/types.glsl): for devices whose texel buffers are too small for the scene (SwiftShader).
 #extension GL_GOOGLE_include_directive : require
 
 #include "types.glsl"
@@ -55,9 +57,9 @@ layout(std430, set = 0, binding = BINDING_ACCUM) buffer Accum { vec4 accum[]; };
 layout(std430, set = 0, binding = BINDING_STATS) buffer Stats { uint stats[]; };
 
 // Per triangle slot: geometric normal (unit, from the vertex order) and material, one texel.
-layout(set = 0, binding = BINDING_SHADING, rgba32f) uniform readonly restrict imageBuffer scene_shading;
+SCENE_BUFFER(BINDING_SHADING, rgba32f, F4, scene_shading);
 // Emissive triangles, three texels each: (v0, cdf), (e1 = v1 - v0, material), (e2 = v2 - v0, area).
-layout(set = 0, binding = BINDING_LIGHTS, rgba32f) uniform readonly restrict imageBuffer scene_lights;
+SCENE_BUFFER(BINDING_LIGHTS, rgba32f, F4, scene_lights);
 
 layout(push_constant) uniform Push {
     uint sample_first;  // first sample index of this dispatch
@@ -143,7 +145,7 @@ uint pick_light(float u) {
     uint hi = params.light_count - 1u;
     while (lo < hi) {
         uint mid = (lo + hi) / 2u;
-        if (imageLoad(scene_lights, int(3u * mid)).w > u) {
+        if (SCENE_TEXEL(scene_lights, 3u * mid).w > u) {
             hi = mid;
         } else {
             lo = mid + 1u;
@@ -208,7 +210,7 @@ void main() {
             if (depth == 0u) {
                 coverage = 1.0;
             }
-            vec4 sh = imageLoad(scene_shading, int(h.slot));
+            vec4 sh = SCENE_TEXEL(scene_shading, h.slot);
             vec3 n = sh.xyz;
             Material m = load_material(floatBitsToUint(sh.w));
             vec3 p = origin + h.t * dir;
@@ -248,9 +250,9 @@ void main() {
                             continue;
                         }
                         uint li = pick_light(rand01(key, dim + DIM_LIGHT_PICK));
-                        vec4 l0 = imageLoad(scene_lights, int(3u * li));
-                        vec4 l1 = imageLoad(scene_lights, int(3u * li + 1u));
-                        vec4 l2 = imageLoad(scene_lights, int(3u * li + 2u));
+                        vec4 l0 = SCENE_TEXEL(scene_lights, 3u * li);
+                        vec4 l1 = SCENE_TEXEL(scene_lights, 3u * li + 1u);
+                        vec4 l2 = SCENE_TEXEL(scene_lights, 3u * li + 2u);
                         float a = rand01(key, dim + DIM_LIGHT_U);
                         float b = rand01(key, dim + DIM_LIGHT_V);
                         if (a + b > 1.0) {

@@ -53,7 +53,28 @@ struct BvhNode {
 //   gathers cost per element (AMD Zen) four 32-bit gathers per texel made the address path
 //   0.5-0.7x the texel path (issue 27; the roofline probe measures both forms). Two 64-bit
 //   gathers load the same bytes; GPUs load either form in one instruction.
-#ifdef SCENE_ADDRESS
+// - SCENE_STORAGE (the raycast kernels' `*_sb` variants, issue 38): the same binding is a
+//   readonly storage buffer of 16-byte (or 4-byte) words, loaded as uvec4 (uint). Its limit is
+//   maxStorageBufferRange bytes per binding (1 GiB on SwiftShader, whose texel buffers hold only
+//   65,536 texels), and it needs neither 64-bit integers nor device addresses: the path for
+//   devices that lack shaderInt64 (SwiftShader). On lavapipe a lane-varying storage load is
+//   gathered once per 32-bit word, so it is the slowest of the three there (the roofline).
+#if defined(SCENE_STORAGE)
+#define SCENE_STORAGE_TYPE_F4 uvec4
+#define SCENE_STORAGE_TYPE_U4 uvec4
+#define SCENE_STORAGE_TYPE_U1 uint
+#define SCENE_STORAGE_CAST_F4(w_) uintBitsToFloat(w_)
+#define SCENE_STORAGE_CAST_U4(w_) (w_)
+#define SCENE_STORAGE_CAST_U1(w_) (w_)
+#define SCENE_STORAGE_RESULT_F4 vec4
+#define SCENE_STORAGE_RESULT_U4 uvec4
+#define SCENE_STORAGE_RESULT_U1 uint
+#define SCENE_BUFFER(binding_, format_, kind_, name_) \
+    layout(std430, set = 0, binding = binding_) readonly restrict buffer name_##Storage { SCENE_STORAGE_TYPE_##kind_ texels[]; } name_; \
+    SCENE_STORAGE_RESULT_##kind_ name_##_texel(uint i) { return SCENE_STORAGE_CAST_##kind_(name_.texels[i]); }
+#define SCENE_TEXEL(name_, i_) name_##_texel(uint(i_))
+#define SCENE_TEXEL_R32(name_, i_) name_##_texel(uint(i_))
+#elif defined(SCENE_ADDRESS)
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneF4 { u64vec2 texels[]; };
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneU4 { u64vec2 texels[]; };
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer SceneU1 { uint texels[]; };

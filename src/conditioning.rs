@@ -489,17 +489,9 @@ impl std::fmt::Display for MethodChoice {
     }
 }
 
-/// Methods a device with `features` can run: those whose ray-casting kernels need no SPIR-V
-/// capability the device lacks (f64's need `shaderFloat64`).
-pub fn available_methods(features: &crate::gpu::EnabledFeatures) -> Vec<Method> {
-    use crate::encoding::{AccessPath, Raycast};
-    Method::ALL
-        .into_iter()
-        .filter(|&m| {
-            let k = m.raycast_kernel(Raycast::Closest, AccessPath::Texel);
-            crate::spirv::required_features(&k.words()).is_ok_and(|needs| needs.iter().all(|r| features.has(r.feature)))
-        })
-        .collect()
+/// Methods a device can run (`gpu::Capabilities::method`: f64's kernels need `shaderFloat64`).
+pub fn available_methods(caps: &crate::gpu::Capabilities) -> Vec<Method> {
+    Method::ALL.into_iter().filter(|&m| caps.method(m).is_ok()).collect()
 }
 
 /// Resolves `--method`: a fixed method as it is; `auto` through [`recommend`] on `mesh` with
@@ -508,7 +500,7 @@ pub fn available_methods(features: &crate::gpu::EnabledFeatures) -> Vec<Method> 
 pub fn resolve(
     choice: MethodChoice,
     mesh: &Mesh,
-    features: &crate::gpu::EnabledFeatures,
+    caps: &crate::gpu::Capabilities,
     frontier: Option<&Path>,
 ) -> Result<(Method, Option<Recommendation>)> {
     match choice {
@@ -519,7 +511,7 @@ pub fn resolve(
                 None => Frontier::builtin(),
             };
             let cond = Conditioning::of(mesh);
-            let r = recommend(&cond, &Target::default(), &frontier, &available_methods(features), OFFSET_SCHEME);
+            let r = recommend(&cond, &Target::default(), &frontier, &available_methods(caps), OFFSET_SCHEME);
             Ok((r.method, Some(r)))
         }
     }

@@ -61,7 +61,7 @@ fn every_method_casts_the_same_hits_twice() {
         let host = HostScene::build("bunny", &mesh, &BuildOptions::new(4)).unwrap();
         let rays = trilab::rays::random_rays(&mesh.bounds(), 4000, 5);
         let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1024 };
-        for m in trilab::conditioning::available_methods(ctx.enabled()) {
+        for m in trilab::conditioning::available_methods(&ctx.capabilities()) {
             let scene = host.upload(ctx, &SceneRequest::new(m)).unwrap();
             for kind in [Raycast::Closest, Raycast::Any] {
                 let k = scene.kernel(ctx, kind).unwrap();

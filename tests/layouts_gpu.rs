@@ -128,6 +128,17 @@ fn check_kinds(ctx: &trilab::gpu::Context, mesh: &Mesh) -> Vec<String> {
             assert!(bda.kernel_source(Raycast::Closest).unwrap().name.ends_with(&format!(".closest_bda_{layout}")));
             let hb = bda.cast(ctx, Raycast::Closest, rays, &common::ONCE).unwrap().hits;
             assert!(hb == closest, "{method} {layout}: the address path's hits differ from the texel path's");
+            // So does the storage path (issue 38), every kind it has.
+            let sb = host.upload(ctx, &SceneRequest::new(method).layout(layout).access(SceneAccess::Storage)).unwrap();
+            assert_eq!(sb.access, AccessPath::Storage);
+            assert!(sb.kernel_source(Raycast::Closest).unwrap().name.ends_with(&format!(".closest_sb_{layout}")));
+            assert!(sb.kernel_source(Raycast::Clock).is_err(), "{method} {layout}: the storage path has no clock");
+            let hs = sb.cast(ctx, Raycast::Closest, rays, &common::ONCE).unwrap().hits;
+            assert!(hs == closest, "{method} {layout}: the storage path's hits differ from the texel path's");
+            let any_sb = sb.cast(ctx, Raycast::Any, rays, &common::ONCE).unwrap().hits;
+            assert!(any_sb == any, "{method} {layout}: the storage path's any-hit answers differ");
+            let stats_sb = sb.cast(ctx, Raycast::Stats, rays, &common::ONCE).unwrap();
+            assert!(stats_sb.hits == closest && stats_sb.traversal.as_deref() == Some(&c[..]), "{method} {layout}");
             lines.push(format!(
                 "{method:>13} {layout}: nodes/ray {inner:.1} (bvh2 {:.1}), boxes/ray {boxes:.1} (bvh2 {:.1}), triangles/ray {tris:.1} (bvh2 {:.1})",
                 mean(&c2, |x| x.inner),

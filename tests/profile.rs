@@ -209,7 +209,7 @@ fn profile_reports_unsupported_exactly_where_features_are_absent() {
         .all(|x| x.data.hits_differing_from_default == 0));
     assert_eq!(r.workgroup_sizes.rows.len(), 2 * 2);
     assert_eq!(r.timestamps.rows.len(), 2 * 3);
-    if profile::threads::is_lavapipe(&info) {
+    if trilab::gpu::DriverKind::of(&info) == trilab::gpu::DriverKind::Lavapipe {
         assert_eq!(r.lp_num_threads_scaling.status, Status::Measured);
         let threads: Vec<usize> = r.lp_num_threads_scaling.rows.iter().map(|x| x.data.threads).collect();
         assert_eq!(threads.len(), 2 * 2 * 3, "two thread counts x two methods x three ray sets");

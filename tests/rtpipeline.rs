@@ -216,7 +216,8 @@ fn without_the_ray_tracing_pipeline_every_entry_point_is_an_unsupported_error() 
         };
         let ctx = Context::new(&options(true)).expect("a Vulkan device and the validation layer");
         assert!(!ctx.enabled().ray_tracing_pipeline && ctx.enabled().ray_query);
-        assert!(!Peer::RayTracingPipeline.enabled(&ctx) && Peer::RayQuery.enabled(&ctx));
+        let caps = ctx.capabilities();
+        assert!(caps.peer(Peer::RayTracingPipeline).is_err() && caps.peer(Peer::RayQuery).is_ok());
         let log = ctx.validation_log();
         let pipeline = rtpipeline::pipeline(&ctx, false).err();
         let tracer = PeerTracer::new(&ctx, Peer::RayTracingPipeline, true).err();

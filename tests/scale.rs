@@ -80,10 +80,13 @@ fn a_scene_that_does_not_fit_fails_before_upload_and_one_that_fits_uploads() {
             for want in ["bunny", m.name(), "all scene buffers", &plan.gpu_bytes().to_string(), "budget", "try"] {
                 assert!(msg.contains(want), "`{want}` missing from: {msg}");
             }
-            // Buffers beyond one binding, with no address path: names the buffer and the limit.
+            // Buffers beyond one texel binding, with no address path: storage buffers; beyond one
+            // storage binding too: names the buffer and the limit.
             let tight = DeviceLimits { max_texel_buffer_elements: 1000, buffer_device_address: false, ..real };
+            assert_eq!(host.plan_for(m, None, &SceneRequest::new(m), &tight).unwrap().access, AccessPath::Storage);
+            let tight = DeviceLimits { max_storage_buffer_range: 16000, ..tight };
             let msg = host.plan_for(m, None, &SceneRequest::new(m), &tight).err().expect("does not fit").to_string();
-            assert!(msg.contains("maxTexelBufferElements") && msg.contains("bufferDeviceAddress"), "{msg}");
+            assert!(msg.contains("maxStorageBufferRange") && msg.contains("16000"), "{msg}");
             // Forced texel path over the limit suggests the address path.
             let tight = DeviceLimits { max_texel_buffer_elements: 1000, ..real };
             let msg = plan.choose("bunny", SceneAccess::Texel, &tight).unwrap_err().to_string();

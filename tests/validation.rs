@@ -58,8 +58,8 @@ fn a_missing_barrier_is_reported_as_a_sync_hazard() {
 }
 
 /// Every kernel family under validation with synchronization validation on, through the paths
-/// the commands use: raycast (every method x closest, any, stats, clock, and closest/any
-/// through buffer device addresses), pathtrace (every
+/// the commands use: raycast (every method x closest, any, stats, clock, through texel buffers,
+/// storage buffers and buffer device addresses), pathtrace (every
 /// method x every BSDF variant and the all-BSDF kernel), ray query. `with_gpu` fails on any
 /// message, teardown included. (The probe kernels run under `with_gpu` in tests/probe.rs,
 /// tests/bsdf_probe.rs and tests/render.rs.)
@@ -77,10 +77,10 @@ fn every_kernel_family_runs_clean_under_synchronization_validation() {
         let rays = trilab::rays::random_rays(&mesh.bounds(), 600, 2);
         // Two batches, so consecutive submits share the output buffers.
         let opts = RaycastOptions { warmup: 1, repeat: 1, batch_rays: 512 };
-        for m in trilab::conditioning::available_methods(ctx.enabled()) {
-            // Every ray-casting variant, through texel buffers and (scenes beyond one binding's
-            // range) buffer device addresses.
-            let mut paths = vec![SceneAccess::Texel];
+        for m in trilab::conditioning::available_methods(&ctx.capabilities()) {
+            // Every ray-casting variant, through texel buffers, storage buffers (devices without
+            // 64-bit integers) and (scenes beyond one binding's range) buffer device addresses.
+            let mut paths = vec![SceneAccess::Texel, SceneAccess::Storage];
             if ctx.enabled().buffer_device_address {
                 paths.push(SceneAccess::Address);
             }
@@ -92,7 +92,7 @@ fn every_kernel_family_runs_clean_under_synchronization_validation() {
                 let once = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
                 let stats = scene.cast(ctx, Raycast::Stats, &rays, &once).unwrap();
                 assert_eq!(stats.traversal.unwrap().len(), rays.len());
-                if ctx.enabled().shader_clock {
+                if ctx.enabled().shader_clock && access != SceneAccess::Storage {
                     let k = scene.kernel(ctx, Raycast::Clock).unwrap();
                     let stats = ctx.enabled().pipeline_statistics_query;
                     let d = trilab::harness::profile::dispatch_once(ctx, &k, &scene, &rays, stats).unwrap();

@@ -121,7 +121,7 @@ impl PeerChoice {
         match self {
             PeerChoice::On => true,
             PeerChoice::Off => false,
-            PeerChoice::Auto => ctx.info().device_type != "CPU",
+            PeerChoice::Auto => !ctx.capabilities().is_cpu(),
         }
     }
 }

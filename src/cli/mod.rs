@@ -210,7 +210,7 @@ impl MethodsArg {
     /// The methods given, or every method `ctx`'s device can run.
     pub fn or_device(&self, ctx: &Context) -> Vec<Method> {
         if self.methods.is_empty() {
-            trilab::conditioning::available_methods(ctx.enabled())
+            trilab::conditioning::available_methods(&ctx.capabilities())
         } else {
             self.methods.clone()
         }

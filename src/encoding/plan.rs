@@ -12,9 +12,11 @@
 //! heap's budget left. Ray and hit buffers are bound per dispatch in ranges of at most
 //! `maxStorageBufferRange` (`gpu::raycast`), so only their whole size is limited.
 //!
-//! The scene's access path ([`AccessPath`]) is chosen here: storage texel buffers (the default
-//! kernels) when every buffer fits one binding, else buffer device addresses (the raycast
-//! kernels' `*_bda` variants).
+//! The scene's access path ([`AccessPath`]) is chosen here, from what the device offers: storage
+//! texel buffers (the default kernels) when every buffer fits one binding; else buffer device
+//! addresses (the raycast kernels' `*_bda` variants) where the device has `bufferDeviceAddress`
+//! and `shaderInt64`; else storage buffers (the `*_sb` variants: one binding holds
+//! `maxStorageBufferRange` bytes; SwiftShader, issue 38).
 
 use super::{Layout, Method};
 use crate::bvh::{Bvh, BvhNode};
@@ -43,8 +45,13 @@ pub struct DeviceLimits {
     pub device_local_bytes: u64,
     /// `VK_EXT_memory_budget`: that heap's budget minus its current usage.
     pub budget_bytes: Option<u64>,
-    /// `bufferDeviceAddress` is enabled (the address path is possible).
+    /// `bufferDeviceAddress` is enabled (the address path needs it).
     pub buffer_device_address: bool,
+    /// `shaderInt64` is enabled (the address path loads 64-bit words: `glsl/types.glsl`).
+    pub shader_int64: bool,
+    /// The path `auto` takes first where the scene fits it (`gpu::Capabilities::preferred_access`:
+    /// storage buffers on SwiftShader, measured faster there; texel buffers elsewhere).
+    pub preferred_access: AccessPath,
 }
 
 impl DeviceLimits {
@@ -80,7 +87,10 @@ impl DeviceLimits {
                     self.budget_bytes = Some(b);
                 }
                 "buffer_device_address" if v == 0 => self.buffer_device_address = false,
-                "buffer_device_address" => return Err(bad("buffer_device_address can only be turned off (0)".into())),
+                "shader_int64" if v == 0 => self.shader_int64 = false,
+                "buffer_device_address" | "shader_int64" => {
+                    return Err(bad(format!("{} can only be turned off (0)", name.trim())))
+                }
                 other => return Err(bad(format!("unknown limit `{other}`"))),
             }
         }
@@ -110,12 +120,15 @@ named_enum! {
     #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
     #[serde(rename_all = "kebab-case")]
     pub enum SceneAccess: "scene access" {
-        /// Texel buffers when every scene buffer fits one binding, else device addresses.
+        /// Texel buffers when every scene buffer fits one binding, else device addresses where
+        /// the device has them and 64-bit integers, else storage buffers.
         Auto = "auto" (default),
         /// Storage texel buffers (the default kernels).
         Texel = "texel",
-        /// Buffer device addresses (the `*_bda` kernels).
+        /// Buffer device addresses (the `*_bda` kernels; need shaderInt64).
         Address = "address",
+        /// Storage buffers (the `*_sb` kernels: closest, any, stats; while-if).
+        Storage = "storage",
     }
 }
 
@@ -125,13 +138,35 @@ named_enum! {
 pub enum AccessPath {
     Texel,
     Address,
+    Storage,
 }
 
 impl AccessPath {
+    pub const ALL: [AccessPath; 3] = [AccessPath::Texel, AccessPath::Address, AccessPath::Storage];
+
     pub fn name(self) -> &'static str {
         match self {
             AccessPath::Texel => "texel",
             AccessPath::Address => "address",
+            AccessPath::Storage => "storage",
+        }
+    }
+
+    /// The `--scene-access` choice that asks for this path.
+    pub fn requested(self) -> SceneAccess {
+        match self {
+            AccessPath::Texel => SceneAccess::Texel,
+            AccessPath::Address => SceneAccess::Address,
+            AccessPath::Storage => SceneAccess::Storage,
+        }
+    }
+
+    /// Most texels (of the buffer's own size) one scene buffer may hold on this path.
+    pub fn max_texels(self, limits: &DeviceLimits, texel_size: u64) -> u64 {
+        match self {
+            AccessPath::Texel => limits.max_texel_buffer_elements,
+            AccessPath::Address => MAX_ADDRESS_TEXELS,
+            AccessPath::Storage => (limits.max_storage_buffer_range / texel_size.max(1)).min(MAX_ADDRESS_TEXELS),
         }
     }
 }
@@ -327,13 +362,20 @@ impl MemoryPlan {
                 hint,
             )
         };
+        let address_missing = match (limits.buffer_device_address, limits.shader_int64) {
+            (true, true) => None,
+            (false, _) => Some("bufferDeviceAddress"),
+            (true, false) => Some("shaderInt64"),
+        };
         let address = || -> Result<AccessPath> {
-            if !limits.buffer_device_address {
+            if let Some(feature) = address_missing {
                 let b = over_texel.unwrap_or(&self.buffers[0]);
                 return Err(texel_err(
                     b,
-                    "a device with bufferDeviceAddress (the address path), a method with a smaller encoding, \
-                     or a smaller scene",
+                    &format!(
+                        "--scene-access storage (the address path needs {feature}, which the device lacks), \
+                         a method with a smaller encoding, or a smaller scene"
+                    ),
                 ));
             }
             if let Some(b) = self.buffers.iter().find(|b| b.texels() > MAX_ADDRESS_TEXELS) {
@@ -346,19 +388,54 @@ impl MemoryPlan {
             }
             Ok(AccessPath::Address)
         };
+        let storage = || -> Result<AccessPath> {
+            if let Some(b) =
+                self.buffers.iter().find(|b| b.texels() > AccessPath::Storage.max_texels(limits, b.texel_size))
+            {
+                return Err(err(
+                    b.name,
+                    format!("{} bytes", b.gpu_bytes()),
+                    format!(
+                        "{} bytes per binding (maxStorageBufferRange; at most 2^31 words on the storage path)",
+                        limits.max_storage_buffer_range
+                    ),
+                    smaller,
+                ));
+            }
+            Ok(AccessPath::Storage)
+        };
+        if requested == SceneAccess::Auto && limits.preferred_access == AccessPath::Storage {
+            if let Ok(path) = storage() {
+                return Ok(path);
+            }
+        }
         match (requested, over_texel) {
-            (SceneAccess::Texel, Some(b)) => Err(texel_err(b, "--scene-access address (or auto)")),
+            (SceneAccess::Texel, Some(b)) => Err(texel_err(b, "--scene-access address or storage (or auto)")),
             (SceneAccess::Texel, None) | (SceneAccess::Auto, None) => Ok(AccessPath::Texel),
-            (SceneAccess::Address, _) | (SceneAccess::Auto, Some(_)) => address(),
+            (SceneAccess::Address, _) => address(),
+            (SceneAccess::Storage, _) => storage(),
+            (SceneAccess::Auto, Some(_)) if address_missing.is_none() => address(),
+            (SceneAccess::Auto, Some(_)) => storage(),
         }
     }
 
-    /// [`MemoryPlan::choose`] for a reader that has only the texel path (`why` says which, e.g.
-    /// "the path tracer reads scenes through texel buffers only"): the hint of a "does not fit"
-    /// error then names what helps it, not `--scene-access`, and says why.
-    pub fn choose_texel_only(&self, scene: &str, limits: &DeviceLimits, why: &str) -> Result<AccessPath> {
-        self.choose(scene, SceneAccess::Texel, limits).map_err(|e| match e {
-            Error::SceneTooLarge(mut t) if t.hint.starts_with("--scene-access") => {
+    /// [`MemoryPlan::choose`] for a reader without the address path (`why` says which, e.g.
+    /// "the path tracer reads scenes through texel or storage buffers"): texel buffers where the
+    /// scene fits them, else storage buffers; the hint of a "does not fit" error then names what
+    /// helps it, not `--scene-access`, and says why.
+    pub fn choose_without_address(
+        &self,
+        scene: &str,
+        requested: SceneAccess,
+        limits: &DeviceLimits,
+        why: &str,
+    ) -> Result<AccessPath> {
+        if requested == SceneAccess::Address {
+            return Err(Error::Usage(format!("scene `{scene}`: --scene-access address is not possible: {why}")));
+        }
+        let no_address = DeviceLimits { buffer_device_address: false, ..*limits };
+        self.choose(scene, requested, &no_address).map_err(|e| match e {
+            Error::SceneTooLarge(mut t) => {
                 t.hint = format!("a method with a smaller encoding, or a smaller scene ({why})");
                 Error::SceneTooLarge(t)
             }
@@ -430,6 +507,8 @@ pub(crate) mod tests {
             device_local_bytes: 1 << 34,
             budget_bytes: None,
             buffer_device_address: true,
+            shader_int64: true,
+            preferred_access: AccessPath::Texel,
         }
     }
 
@@ -463,8 +542,26 @@ pub(crate) mod tests {
         assert_eq!(plan.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Address);
         let e = plan.choose("grid", SceneAccess::Texel, &l).unwrap_err().to_string();
         assert!(e.contains("unit triangles") && e.contains("300 texels") && e.contains("200"), "{e}");
-        l.buffer_device_address = false;
-        assert!(matches!(plan.choose("grid", SceneAccess::Auto, &l), Err(Error::SceneTooLarge(_))));
+        // Without device addresses or 64-bit integers (SwiftShader), auto takes storage buffers.
+        for (no, feature) in [("buffer_device_address=0", "bufferDeviceAddress"), ("shader_int64=0", "shaderInt64")] {
+            let l = l.with_overrides(no).unwrap();
+            assert_eq!(plan.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Storage, "{no}");
+            let e = plan.choose("grid", SceneAccess::Address, &l).unwrap_err().to_string();
+            assert!(e.contains(feature) && e.contains("--scene-access storage"), "{e}");
+        }
+        // ... unless a buffer is beyond one storage binding: 300 texels of 16 bytes.
+        l.max_storage_buffer_range = 299 * 16;
+        let l = l.with_overrides("shader_int64=0").unwrap();
+        let e = plan.choose("grid", SceneAccess::Auto, &l).unwrap_err().to_string();
+        assert!(e.contains("unit triangles") && e.contains("4800 bytes") && e.contains("maxStorageBufferRange"), "{e}");
+        assert!(matches!(plan.choose("grid", SceneAccess::Storage, &l), Err(Error::SceneTooLarge(_))));
+        // A device that prefers storage buffers (SwiftShader) gets them wherever they fit, and
+        // the texel path where they do not.
+        let mut l = DeviceLimits { preferred_access: AccessPath::Storage, ..limits() };
+        assert_eq!(plan.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Storage);
+        assert_eq!(plan.choose("grid", SceneAccess::Texel, &l).unwrap(), AccessPath::Texel);
+        l.max_storage_buffer_range = 16;
+        assert_eq!(plan.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Texel);
         let mut l = limits();
         l.budget_bytes = Some(1000);
         let e = plan.choose("grid", SceneAccess::Auto, &l).unwrap_err().to_string();
@@ -498,6 +595,7 @@ pub(crate) mod tests {
             "max_buffer_size",
             "budget_bytes=x",
             "buffer_device_address=1",
+            "shader_int64=1",
         ] {
             let e = limits().with_overrides(bad).unwrap_err().to_string();
             assert!(e.contains("TRILAB_TEST_LIMITS") && e.contains(bad), "{bad}: {e}");

@@ -58,26 +58,6 @@ named_enum! {
 /// shuffle.
 pub const COOP_SUBGROUP_OPERATIONS: u32 = 0x1 | 0x2 | 0x4 | 0x8 | 0x10;
 
-impl Traversal {
-    /// Why a device cannot run this traversal's kernels (`None`: it can): the cooperative kernel
-    /// needs subgroup operations in compute shaders ([`COOP_SUBGROUP_OPERATIONS`]) and at least
-    /// four lanes.
-    pub fn unsupported(self, subgroup_size: u32, subgroup_operations: u32) -> Option<String> {
-        match self {
-            Traversal::Coop if subgroup_operations & COOP_SUBGROUP_OPERATIONS != COOP_SUBGROUP_OPERATIONS => {
-                Some(format!(
-                "--traversal coop needs subgroup basic, vote, arithmetic, ballot and shuffle operations in compute \
-                 shaders (the device has {subgroup_operations:#x})"
-            ))
-            }
-            Traversal::Coop if subgroup_size < 4 => {
-                Some(format!("--traversal coop needs a subgroup of at least 4 lanes (the device has {subgroup_size})"))
-            }
-            _ => None,
-        }
-    }
-}
-
 /// A registry entry's method, layout and variant without the layout's suffix (`closest_bda` of
 /// `closest_bda_bvh4`).
 fn method_layout_variant(k: &KernelSource) -> Option<(Method, Layout, &'static str)> {
@@ -117,6 +97,7 @@ impl RaycastKey {
         for w in words {
             match w {
                 "bda" => access = AccessPath::Address,
+                "sb" => access = AccessPath::Storage,
                 "ww" => while_while = true,
                 _ => return None,
             }
@@ -165,9 +146,10 @@ pub fn support(traversal: Traversal) -> String {
     let kinds: BTreeSet<Raycast> = keys.iter().map(|k| k.kind).collect();
     let join = |v: Vec<&str>, sep: &str| v.join(sep);
     format!(
-        "{}; {} path; {}",
+        "{}; {} path{}; {}",
         join(layouts.iter().map(|l| l.name()).collect(), ", "),
-        join(access.iter().map(|a| a.name()).collect(), " and "),
+        join(access.iter().map(|a| a.name()).collect(), ", "),
+        if access.len() > 1 { "s" } else { "" },
         join(kinds.iter().map(|k| k.name()).collect(), ", ")
     )
 }
@@ -196,6 +178,8 @@ pub struct PathtraceKey {
     pub method: Method,
     pub bsdfs: BsdfSet,
     pub layout: Layout,
+    /// The texel path, or the storage path (`all_sb`: every BSDF only).
+    pub access: AccessPath,
 }
 
 fn pathtrace_matrix() -> &'static HashMap<PathtraceKey, &'static KernelSource> {
@@ -212,11 +196,15 @@ impl PathtraceKey {
             return None;
         }
         let (method, layout, base) = method_layout_variant(k)?;
+        let (base, access) = match base.strip_suffix("_sb") {
+            Some(b) => (b, AccessPath::Storage),
+            None => (base, AccessPath::Texel),
+        };
         let bsdfs = match base {
             "all" => BsdfSet::All,
             name => BsdfSet::One(BsdfKind::ALL.into_iter().find(|b| b.name().replace('-', "_") == name)?),
         };
-        Some(PathtraceKey { method, bsdfs, layout })
+        Some(PathtraceKey { method, bsdfs, layout, access })
     }
 
     /// Every path-tracing key the registry holds, sorted.
@@ -234,9 +222,11 @@ impl PathtraceKey {
                 BsdfSet::One(b) => format!("the {} BSDF alone", b.name()),
             };
             Error::Usage(format!(
-                "no {} path-tracing kernel for {bsdfs} on the {} layout (the wide layouts have the all-BSDF kernel only)",
+                "no {} path-tracing kernel for {bsdfs} on the {} layout on the {} path (the wide layouts and the \
+                 storage path have the all-BSDF kernel only)",
                 self.method.name(),
-                self.layout
+                self.layout,
+                self.access.name()
             ))
         })
     }
@@ -286,8 +276,15 @@ mod tests {
         let mut reached = vec![];
         for m in Method::ALL {
             for &kind in Raycast::ALL {
-                for access in [AccessPath::Texel, AccessPath::Address] {
-                    let k = m.raycast_kernel(kind, access);
+                for access in AccessPath::ALL {
+                    // The storage path (issue 38) serves devices without a shader clock.
+                    let k = m.layout_kernel(kind, access, Layout::Bvh2);
+                    assert_eq!(
+                        k.is_ok(),
+                        access != AccessPath::Storage || kind != Raycast::Clock,
+                        "{m} {kind} {access:?}"
+                    );
+                    let Ok(k) = k else { continue };
                     assert_eq!((k.kernel, k.intersector), ("raycast", m.glsl_name()));
                     reached.push(k.name);
                 }
@@ -296,18 +293,27 @@ mod tests {
             // The path tracer: every BSDF alone and all of them on the binary nodes, all of them on
             // every other layout.
             for &layout in Layout::ALL {
-                assert!(PathtraceKey { method: m, bsdfs: BsdfSet::All, layout }.source().is_ok(), "{m} {layout}");
-                for b in BsdfKind::ALL {
-                    let k = PathtraceKey { method: m, bsdfs: BsdfSet::One(b), layout };
-                    assert_eq!(k.source().is_ok(), layout == Layout::Bvh2, "{m} {layout} {}", b.name());
+                for access in [AccessPath::Texel, AccessPath::Storage] {
+                    let all = PathtraceKey { method: m, bsdfs: BsdfSet::All, layout, access };
+                    assert!(all.source().is_ok(), "{m} {layout} {access:?}");
+                    for b in BsdfKind::ALL {
+                        let k = PathtraceKey { method: m, bsdfs: BsdfSet::One(b), layout, access };
+                        let want = layout == Layout::Bvh2 && access == AccessPath::Texel;
+                        assert_eq!(k.source().is_ok(), want, "{m} {layout} {} {access:?}", b.name());
+                    }
                 }
             }
         }
-        // Every layout has every kind on both paths, named after it.
+        // Every layout has every kind on the texel and address paths and all but the clock on the
+        // storage path, named after it.
         for m in Method::ALL {
             for &layout in Layout::ALL {
                 for &kind in Raycast::ALL {
-                    for access in [AccessPath::Texel, AccessPath::Address] {
+                    for access in AccessPath::ALL {
+                        if access == AccessPath::Storage && kind == Raycast::Clock {
+                            assert!(m.layout_kernel(kind, access, layout).is_err());
+                            continue;
+                        }
                         let k = m.layout_kernel(kind, access, layout).unwrap();
                         assert_eq!(k.layout, layout.name(), "{}", k.name);
                         reached.push(k.name);
@@ -340,6 +346,7 @@ mod tests {
                             reached.push(k.name);
                         }
                         assert!(m.traversal_kernel(kind, AccessPath::Address, layout, t).is_err());
+                        assert!(m.traversal_kernel(kind, AccessPath::Storage, layout, t).is_err());
                     }
                 }
             }
@@ -369,7 +376,7 @@ mod tests {
         assert_eq!(support(Traversal::WhileWhile), "bvh2; texel path; closest, any, stats");
         assert_eq!(
             support(Traversal::WhileIf),
-            "bvh2, bvh4, bvh8, cwbvh; texel and address path; closest, any, stats, clock"
+            "bvh2, bvh4, bvh8, cwbvh; texel, address, storage paths; closest, any, stats, clock"
         );
     }
 }

@@ -103,11 +103,6 @@ pub struct AccelStructure {
     pub stats: AccelStats,
 }
 
-/// The error every ray-query entry point returns where the context has no ray query.
-pub fn unsupported(ctx: &Context) -> Error {
-    unsupported_feature(ctx, "ray query")
-}
-
 /// "`what`: unsupported on <device> (<driver>)", as [`Error::Unsupported`].
 pub(crate) fn unsupported_feature(ctx: &Context, what: &str) -> Error {
     let info = ctx.info();

@@ -295,11 +295,11 @@ impl DeviceInfo {
         }
     }
 
-    /// The device's folder under `results/`: `lavapipe` for Mesa's CPU driver, else the device
+    /// The device's folder under `results/`: `lavapipe` or `swiftshader` for those drivers, else the device
     /// name in lower case with runs of other characters as `-` ("nvidia-h100-80gb-hbm3").
     pub fn results_dir(&self) -> String {
-        if self.driver_id.contains("LLVMPIPE") {
-            return "lavapipe".into();
+        if let Some(dir) = super::DriverKind::of(self).results_dir() {
+            return dir.into();
         }
         let mut s = String::new();
         for c in self.name.to_lowercase().chars() {

@@ -229,18 +229,8 @@ impl Context {
     /// feature this context did not enable (the device lacks it, or the options left it off):
     /// creating the pipeline anyway would be invalid usage, and may crash a driver.
     pub(crate) fn check_capabilities(&self, kernel: &str, words: &[u32]) -> Result<()> {
-        let e = self.enabled();
-        for need in required_features(words).map_err(|m| Error::Spirv { kernel: kernel.into(), message: m })? {
-            if !e.has(need.feature) {
-                return Err(Error::Unsupported(format!(
-                    "kernel {kernel}: {} (SPIR-V capability {}) is not enabled on {}",
-                    need.feature.name(),
-                    need.capability,
-                    self.info().name
-                )));
-            }
-        }
-        Ok(())
+        required_features(words).map_err(|m| Error::Spirv { kernel: kernel.into(), message: m })?;
+        Ok(self.capabilities().module(kernel, words)?)
     }
 }
 

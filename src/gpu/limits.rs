@@ -21,6 +21,8 @@ impl Context {
             device_local_bytes: info.device_local_heap_bytes,
             budget_bytes: if info.memory_budget { budget(self) } else { None },
             buffer_device_address: self.enabled().buffer_device_address,
+            shader_int64: self.enabled().shader_int64,
+            preferred_access: self.capabilities().preferred_access(),
         };
         match &self.device.test_limits {
             Some(spec) => limits.with_overrides(spec),

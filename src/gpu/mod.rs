@@ -2,6 +2,8 @@
 //!
 //! - [`accel`]: the driver's acceleration structures (BLAS + TLAS) for ray query and the ray
 //!   tracing pipeline.
+//! - [`capabilities`]: one home for what a device can run ([`Capabilities`]: per kernel, method,
+//!   access path, traversal, driver peer and statistic, each "no" with its reason).
 //! - [`context`]: instance, device, queue, allocator, validation log, teardown.
 //! - [`device_info`]: what a device and its driver offer (`trilab devices`).
 //! - [`buffer`]: named buffers and texel buffers, uploads, downloads, one-shot submits.
@@ -24,6 +26,7 @@
 
 pub mod accel;
 pub mod buffer;
+pub mod capabilities;
 pub mod commands;
 pub mod context;
 pub mod descriptors;
@@ -42,6 +45,7 @@ pub mod traversal_stats;
 
 pub use accel::{AccelStats, AccelStructure};
 pub use buffer::{Buffer, TexelBuffer};
+pub use capabilities::{Capabilities, DriverKind, Statistic, Unsupported};
 pub use context::{Context, ContextOptions, EnabledFeatures, Validation, ValidationLog};
 pub use descriptors::Resource;
 pub use device_info::{DeviceInfo, RayTracingPipelineProperties};

@@ -14,9 +14,9 @@ use super::accel::AccelStructure;
 use super::context::Context;
 use super::kernel::Kernel;
 use super::raycast::{batch_for_with, RaycastOptions, RaycastResult};
+use super::rayquery;
 use super::rtpipeline::{self, RtPipeline};
-use super::{accel, rayquery};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::named::named_enum;
 use crate::rays::Ray;
 
@@ -34,23 +34,6 @@ named_enum! {
 }
 
 impl Peer {
-    /// Whether the context enabled what this peer needs.
-    pub fn enabled(self, ctx: &Context) -> bool {
-        match self {
-            Peer::RayQuery => ctx.enabled().ray_query,
-            Peer::RayTracingPipeline => ctx.enabled().ray_tracing_pipeline,
-        }
-    }
-
-    /// "<feature>: unsupported on <device> (<driver>)": what every entry point of this peer
-    /// returns where the context lacks it.
-    pub fn unsupported(self, ctx: &Context) -> Error {
-        match self {
-            Peer::RayQuery => accel::unsupported(ctx),
-            Peer::RayTracingPipeline => rtpipeline::unsupported(ctx),
-        }
-    }
-
     /// The feature in words: `ray query`, `ray tracing pipeline`.
     pub fn feature(self) -> &'static str {
         match self {

@@ -10,7 +10,7 @@
 //! [`super::rtpipeline`]), selected with `trilab raycast --peer ray-query` and reported as its
 //! own row by `trilab bench`.
 
-use super::accel::{unsupported, AccelStructure};
+use super::accel::AccelStructure;
 use super::context::Context;
 use super::descriptors::Resource;
 use super::kernel::Kernel;
@@ -22,9 +22,7 @@ use crate::shared::{BINDING_SLOT_IDS, BINDING_TLAS};
 /// The ray-query kernel (`rayquery.none.closest`, or `.any` for occlusion), or
 /// [`Error::Unsupported`](crate::error::Error::Unsupported) where the context has no ray query.
 pub fn kernel(ctx: &Context, any_hit: bool) -> Result<Kernel> {
-    if !ctx.enabled().ray_query {
-        return Err(unsupported(ctx));
-    }
+    ctx.capabilities().peer(super::Peer::RayQuery)?;
     let variant = if any_hit { "any" } else { "closest" };
     let src = crate::kernels::find("rayquery", crate::kernels::NO_INTERSECTOR, variant)
         .unwrap_or_else(|| panic!("rayquery.none.{variant} was not compiled (glsl/rayquery.comp)"));
@@ -40,9 +38,7 @@ pub fn raycast_rq(
     rays: &[Ray],
     opts: &RaycastOptions,
 ) -> Result<RaycastResult> {
-    if !ctx.enabled().ray_query {
-        return Err(unsupported(ctx));
-    }
+    ctx.capabilities().peer(super::Peer::RayQuery)?;
     let resources = [(BINDING_TLAS, Resource::Accel(accel)), (BINDING_SLOT_IDS, Resource::Texels(accel.prim_ids()))];
     cast_rays(ctx, kernel, &resources, rays, opts)
 }

@@ -48,11 +48,12 @@ impl RooflineAccess {
             .ok_or_else(|| Error::Usage(format!("roofline has no variant `{self}` (rebuild trilab)")))
     }
 
-    /// The scene's access path this one measures, where it is one (the storage path is not).
+    /// The probe of a scene's access path.
     pub fn of_scene(path: crate::encoding::AccessPath) -> RooflineAccess {
         match path {
             crate::encoding::AccessPath::Texel => RooflineAccess::Texel,
             crate::encoding::AccessPath::Address => RooflineAccess::Address,
+            crate::encoding::AccessPath::Storage => RooflineAccess::Storage,
         }
     }
 }
@@ -277,20 +278,24 @@ pub fn upload(ctx: &Context, name: &str, nodes: &[RooflineNode]) -> Result<Roofl
     let limits = ctx.limits()?;
     let mut unsupported: Vec<(RooflineAccess, String)> =
         RooflineAccess::ALL.iter().filter_map(|&a| unsupported(&limits, a, bytes).map(|w| (a, w))).collect();
-    // The 64-bit words of the address path (a device limit does not say it; the features do).
-    if !ctx.enabled().shader_int64 && !unsupported.iter().any(|(a, _)| *a == RooflineAccess::Address) {
-        unsupported.push((RooflineAccess::Address, "shaderInt64 is not enabled on this device".into()));
+    // The 64-bit words of the address path (a device limit does not say it; the features do:
+    // gpu::Capabilities). The address32 form loads 32-bit words and needs no shaderInt64.
+    if let Err(u) = ctx.capabilities().access(crate::encoding::AccessPath::Address) {
+        if !unsupported.iter().any(|(a, _)| *a == RooflineAccess::Address) {
+            unsupported.push((RooflineAccess::Address, u.why));
+        }
     }
     let can = |a: RooflineAccess| !unsupported.iter().any(|(u, _)| *u == a);
+    let addressed = can(RooflineAccess::Address) || can(RooflineAccess::Address32);
     let mut usage = vk::BufferUsageFlags::STORAGE_BUFFER;
     if can(RooflineAccess::Texel) {
         usage |= vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER;
     }
-    if can(RooflineAccess::Address) {
+    if addressed {
         usage |= vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
     }
     let buffer = ctx.upload(name, bytemuck::cast_slice(nodes), usage)?;
-    let pointer = match can(RooflineAccess::Address) {
+    let pointer = match addressed {
         true => {
             let address = device_address(ctx, &buffer);
             // `uniform NodesAddress { RooflineTexels nodes; }` (std140): the 8-byte address.

@@ -24,7 +24,7 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::accel::{device_address, unsupported_feature, AccelStructure};
+use super::accel::{device_address, AccelStructure};
 use super::buffer::Buffer;
 use super::commands::memory_barrier;
 use super::context::{Context, Device};
@@ -36,11 +36,6 @@ use crate::kernels::{find_rt, RtShaderSource};
 use crate::rays::Ray;
 use crate::shared::{BINDING_SLOT_IDS, BINDING_TLAS};
 use crate::spirv::reflect::reflect_stage;
-
-/// The error every ray-tracing-pipeline entry point returns where the context has none.
-pub fn unsupported(ctx: &Context) -> Error {
-    unsupported_feature(ctx, "ray tracing pipeline")
-}
 
 /// Where each group's records live in the shader binding table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -202,7 +197,17 @@ impl RtPipeline {
     pub fn new(ctx: &Context, any_hit: bool) -> Result<RtPipeline> {
         let props = match ctx.info().ray_tracing_pipeline {
             Some(p) if ctx.enabled().ray_tracing_pipeline => p,
-            _ => return Err(unsupported(ctx)),
+            _ => {
+                return Err(ctx.capabilities().peer(super::Peer::RayTracingPipeline).err().map_or_else(
+                    || {
+                        Error::Unsupported(format!(
+                            "ray tracing pipeline: no properties reported by {}",
+                            ctx.info().name
+                        ))
+                    },
+                    Error::from,
+                ))
+            }
         };
         let sbt_layout = SbtLayout::new(&props).ok_or_else(|| {
             Error::Unsupported(format!(
@@ -438,9 +443,7 @@ pub fn raycast_rtp(
     rays: &[Ray],
     opts: &RaycastOptions,
 ) -> Result<RaycastResult> {
-    if !ctx.enabled().ray_tracing_pipeline {
-        return Err(unsupported(ctx));
-    }
+    ctx.capabilities().peer(super::Peer::RayTracingPipeline)?;
     let resources = [(BINDING_TLAS, Resource::Accel(accel)), (BINDING_SLOT_IDS, Resource::Texels(accel.prim_ids()))];
     cast_rays_with(ctx, pipeline, &resources, rays, opts)
 }

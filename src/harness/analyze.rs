@@ -49,7 +49,8 @@ pub fn run(scene: &Path, target: Target, frontier: Option<&Path>, device: Option
         match Context::list_devices().ok().and_then(|l| choose_device(&l, device).ok().map(|i| l[i].clone())) {
             Some(info) => {
                 let f = EnabledFeatures::for_device(&info);
-                (conditioning::available_methods(&f), format!("methods this device ({}) can run", info.name))
+                let caps = crate::gpu::Capabilities::new(&info, &f);
+                (conditioning::available_methods(&caps), format!("methods this device ({}) can run", info.name))
             }
             None => (Method::ALL.to_vec(), "no Vulkan device found: every method assumed available".to_owned()),
         };

@@ -91,6 +91,7 @@ fn or_default<T: Clone + Default>(v: &[T]) -> Vec<T> {
 pub fn path_of(access: SceneAccess) -> AccessPath {
     match access {
         SceneAccess::Address => AccessPath::Address,
+        SceneAccess::Storage => AccessPath::Storage,
         SceneAccess::Auto | SceneAccess::Texel => AccessPath::Texel,
     }
 }
@@ -217,8 +218,8 @@ fn kernel_label(
     if order != RayOrder::default() {
         s += &format!(" {order}");
     }
-    if access == AccessPath::Address {
-        s += " address";
+    if access != AccessPath::Texel {
+        s += &format!(" {}", access.name());
     }
     s
 }
@@ -365,8 +366,8 @@ impl BenchReport {
         let node_orders = self.rows.iter().any(|r| !built_order(&r.node_order));
         // The access column only where rows read scenes both ways (one path is the header's
         // `--scene-access`, as before lists were taken).
-        let access = self.rows.iter().any(|r| r.scene_access == Some(AccessPath::Address))
-            && self.rows.iter().any(|r| r.scene_access == Some(AccessPath::Texel));
+        let access =
+            self.rows.iter().filter_map(|r| r.scene_access).collect::<std::collections::BTreeSet<_>>().len() > 1;
         let roofline = self.rows.iter().any(|r| r.roofline.is_some());
         let mut header = vec!["scene", "rays", "set", "method", "layout"];
         header.extend(access.then_some("access"));
@@ -502,7 +503,7 @@ impl BenchCell {
                 if *order != RayOrder::default() {
                     c.insert("order".into(), order.to_string());
                 }
-                if *access == AccessPath::Address {
+                if *access != AccessPath::Texel {
                     c.insert("access".into(), access.name().into());
                 }
             }
@@ -752,8 +753,36 @@ impl BenchOptions {
     }
 }
 
+/// `o` with what this device cannot run left out, one note each (`gpu::Capabilities`): methods
+/// whose kernels need a feature it lacks (f64 without shaderFloat64), traversals it cannot run
+/// (coop without subgroup operations), access paths it lacks (address without shaderInt64). A
+/// support matrix is per axis (the tests of `encoding::variants` hold that), so leaving out an
+/// axis's item leaves out exactly the cells that need it. An error when an axis keeps nothing.
+pub fn for_device(ctx: &Context, o: &BenchOptions, notes: &mut Vec<String>) -> Result<BenchOptions> {
+    use crate::gpu::Capabilities;
+    let caps = ctx.capabilities();
+    let mut o = o.clone();
+    o.methods = caps.keep("methods", &o.methods, Capabilities::method, notes)?;
+    o.traversals = caps.keep("traversals", &or_default(&o.traversals), Capabilities::traversal, notes)?;
+    o.scene_access = caps.keep(
+        "scene access paths",
+        &or_default(&o.scene_access),
+        |c, a| match a {
+            SceneAccess::Auto => Ok(()),
+            a => c.access(path_of(a)),
+        },
+        notes,
+    )?;
+    Ok(o)
+}
+
 pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
     o.sizes.check_memory()?;
+    let mut device_notes = vec![];
+    let o = &for_device(ctx, o, &mut device_notes)?;
+    for note in &device_notes {
+        progress(note);
+    }
     let mut report = BenchReport {
         provenance: Provenance::of(ctx),
         leaf_size: o.build.max_leaf_size,
@@ -762,7 +791,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         peers: vec![],
         accel: vec![],
         driver_notes: vec![],
-        notes: vec![],
+        notes: device_notes,
         shard: o.shard,
         plan: vec![],
     };
@@ -790,13 +819,13 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
     for &peer in <Peer as crate::named::Named>::ALL {
         let note = if !o.wants(peer) {
             format!("{}: not run (--{peer} off, or auto on a CPU device)", peer.feature())
-        } else if peer.enabled(ctx) {
-            driver.push(PeerTracer::new(ctx, peer, false)?);
-            continue;
-        } else {
-            let note = peer.unsupported(ctx).to_string();
+        } else if let Err(u) = ctx.capabilities().peer(peer) {
+            let note = u.to_string();
             progress(&note);
             note
+        } else {
+            driver.push(PeerTracer::new(ctx, peer, false)?);
+            continue;
         };
         report.driver_notes.push(note);
     }

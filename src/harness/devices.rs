@@ -29,6 +29,15 @@ impl Report for DevicesReport {
         let mut s = String::new();
         for d in &self.devices {
             s += &d.report();
+            // What it cannot run, and why (gpu::Capabilities, with the features a context
+            // would enable).
+            let enabled = crate::gpu::EnabledFeatures::for_device(d);
+            let caps = crate::gpu::Capabilities::new(d, &enabled);
+            for (what, why) in caps.table() {
+                if let Some(why) = why {
+                    s += &format!("    cannot run {what}: {why}\n");
+                }
+            }
             if Some(d.index) == chosen {
                 s += "    (default choice)\n";
             }

@@ -309,9 +309,7 @@ fn trace_ours(
     let kind = if req.any_hit { Raycast::Any } else { Raycast::Closest };
     // A traversal without this kernel, or that the device cannot run, is refused before upload.
     plan.method.traversal_kernel(kind, plan.access, plan.layout, plan.traversal)?;
-    if let Some(why) = plan.traversal.unsupported(ctx.info().subgroup_size, ctx.info().subgroup_operations) {
-        return Err(Error::Unsupported(format!("{why}, on {}", ctx.info().name)));
-    }
+    ctx.capabilities().traversal(plan.traversal)?;
     if let Some(r) = &plan.auto {
         note(&format!("--method auto picked {}:", plan.method));
         for line in &r.reasons {
@@ -352,9 +350,7 @@ fn trace_peer(
     opts: &RaycastOptions,
 ) -> Result<Traced> {
     // The peer's own "unsupported" before building a structure it cannot trace.
-    if !peer.enabled(ctx) {
-        return Err(peer.unsupported(ctx));
-    }
+    ctx.capabilities().peer(peer)?;
     let accel = AccelStructure::build(ctx, host.mesh)?;
     let tracer = PeerTracer::new(ctx, peer, req.any_hit)?;
     // Submits of about a second, whatever the driver's speed (--batch-rays caps them).

@@ -192,7 +192,10 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
         for &m in &o.methods {
             let plan = crate::encoding::MemoryPlan::of(m, &host.counts());
             // The path tracer's own buffers beyond the scene, without an image.
-            let extra_bytes: u64 = pathtrace_extras_for(&mesh, m, &plan.counts, 0).iter().map(|(b, _)| b.bytes).sum();
+            let extra_bytes: u64 = pathtrace_extras_for(&mesh, m, crate::encoding::AccessPath::Texel, &plan.counts, 0)
+                .iter()
+                .map(|(b, _)| b.bytes)
+                .sum();
             let mut row = ScaleRow {
                 scene: name.clone(),
                 triangles,

@@ -121,7 +121,7 @@ fn gpu_steps(
     };
     let (cpu, cpu_conservative) = (mirror(false), mirror(true));
     let methods =
-        if methods.is_empty() { crate::conditioning::available_methods(ctx.enabled()) } else { methods.to_vec() };
+        if methods.is_empty() { crate::conditioning::available_methods(&ctx.capabilities()) } else { methods.to_vec() };
     let mut rows = vec![];
     for m in methods {
         let scene = host.upload(ctx, &SceneRequest::new(m))?;

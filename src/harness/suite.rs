@@ -595,12 +595,12 @@ fn run_part(
     match options {
         PartOptions::Bench(b) => {
             let mut b = (**b).clone();
-            b.methods = crate::conditioning::available_methods(ctx.enabled())
+            b.methods = crate::conditioning::available_methods(&ctx.capabilities())
                 .into_iter()
                 .filter(|m| b.methods.contains(m))
                 .collect();
             // The driver peers as `trilab bench`'s `auto`: on wherever the device is not a CPU.
-            b.ray_query = ctx.info().device_type != "CPU";
+            b.ray_query = !ctx.capabilities().is_cpu();
             b.ray_tracing_pipeline = b.ray_query;
             b.embree = o.embree.clone();
             b.tinybvh = o.tinybvh.clone();
@@ -616,7 +616,7 @@ fn run_part(
         }
         PartOptions::Accuracy(a) => {
             let mut a = (**a).clone();
-            a.methods = crate::conditioning::available_methods(ctx.enabled())
+            a.methods = crate::conditioning::available_methods(&ctx.capabilities())
                 .into_iter()
                 .filter(|m| a.methods.contains(m))
                 .collect();
@@ -626,7 +626,7 @@ fn run_part(
         }
         PartOptions::Profile(p) => {
             let mut p = (**p).clone();
-            p.methods = crate::conditioning::available_methods(ctx.enabled());
+            p.methods = crate::conditioning::available_methods(&ctx.capabilities());
             p.exe = o.exe.clone();
             p.driver_stats = o.driver_stats.clone();
             p.sizes.require_all()?;

@@ -51,9 +51,9 @@ pub struct SceneRequest {
     /// How the kernels read the scene: `auto` takes texel buffers when every buffer fits one
     /// binding, else buffer device addresses.
     pub access: SceneAccess,
-    /// A reader of the scene that has only the texel path (the path tracer), and why: the plan
-    /// must then fit texel bindings, and a "does not fit" error says what helps that reader.
-    pub texel_only: Option<&'static str>,
+    /// A reader of the scene without the address path (the path tracer), and why: the plan takes
+    /// texel or storage buffers, and a "does not fit" error says what helps that reader.
+    pub without_address: Option<&'static str>,
     /// The node layout the kernels read ([`Layout::Bvh2`] unless asked): a wide layout binds its
     /// nodes, made from the encoding's binary nodes, where the binary ones would be; every
     /// kernel exists for every layout (`encoding::layout`).
@@ -78,7 +78,7 @@ impl SceneRequest {
         SceneRequest {
             method: method.into(),
             access: SceneAccess::Auto,
-            texel_only: None,
+            without_address: None,
             layout: Layout::Bvh2,
             traversal: Traversal::WhileIf,
             node_order: NodeOrder::Built,
@@ -105,9 +105,9 @@ impl SceneRequest {
         SceneRequest { node_order, ..self }
     }
 
-    /// The same, for a reader that has only the texel path (`why` names it).
-    pub fn texel_only(self, why: &'static str) -> SceneRequest {
-        SceneRequest { texel_only: Some(why), ..self }
+    /// The same, for a reader without the address path (`why` names it).
+    pub fn without_address(self, why: &'static str) -> SceneRequest {
+        SceneRequest { without_address: Some(why), ..self }
     }
 }
 
@@ -136,7 +136,7 @@ impl<'m> HostScene<'m> {
     /// Resolves the method, plans every buffer of its encoding and chooses the access path,
     /// against `ctx`'s limits; nothing is encoded or allocated.
     pub fn plan(&self, ctx: &Context, request: &SceneRequest) -> Result<ScenePlan<'_, 'm>> {
-        let (method, auto) = conditioning::resolve(request.method, self.mesh, ctx.enabled(), None)?;
+        let (method, auto) = conditioning::resolve(request.method, self.mesh, &ctx.capabilities(), None)?;
         self.plan_for(method, auto, request, &ctx.limits()?)
     }
 
@@ -150,8 +150,8 @@ impl<'m> HostScene<'m> {
         limits: &DeviceLimits,
     ) -> Result<ScenePlan<'_, 'm>> {
         let memory = MemoryPlan::of(method, &self.counts()).with_layout(request.layout);
-        let access = match request.texel_only {
-            Some(why) => memory.choose_texel_only(&self.name, limits, why)?,
+        let access = match request.without_address {
+            Some(why) => memory.choose_without_address(&self.name, request.access, limits, why)?,
             None => memory.choose(&self.name, request.access, limits)?,
         };
         Ok(ScenePlan {
@@ -274,10 +274,7 @@ impl ScenePlan<'_, '_> {
             )));
         }
         let texels = built.bytes.len() as u64 / 16;
-        let limit = match self.access {
-            AccessPath::Texel => self.limits.max_texel_buffer_elements,
-            AccessPath::Address => crate::encoding::plan::MAX_ADDRESS_TEXELS,
-        };
+        let limit = self.access.max_texels(&self.limits, 16);
         if texels > limit {
             return Err(Error::Usage(format!(
                 "scene `{}`: its {} nodes need {texels} texels; one binding holds {limit}",
@@ -323,10 +320,7 @@ impl DeviceScene {
     /// traversal (the cooperative kernel's subgroup operations).
     pub fn kernel(&self, ctx: &Context, kind: Raycast) -> Result<Arc<Kernel>> {
         let source = self.kernel_source(kind)?;
-        let info = ctx.info();
-        if let Some(why) = self.traversal.unsupported(info.subgroup_size, info.subgroup_operations) {
-            return Err(Error::Unsupported(format!("{why}, on {}", info.name)));
-        }
+        ctx.capabilities().traversal(self.traversal)?;
         ctx.kernel(source)
     }
 
@@ -411,11 +405,15 @@ mod tests {
         let p = host.plan_for(Method::Unit, None, &SceneRequest::new(Method::Unit), &l).unwrap();
         assert_eq!(p.access, AccessPath::Address);
         assert_eq!(p.method.raycast_kernel(Raycast::Stats, p.access).variant, "stats_bda");
-        // A texel-only reader is refused, and told what helps it.
-        let r = SceneRequest::new(Method::Unit).texel_only("the path tracer reads scenes through texel buffers only");
+        // A reader without the address path takes storage buffers; beyond those it is refused,
+        // and told what helps it.
+        let why = "the path tracer reads scenes through texel or storage buffers";
+        let r = SceneRequest::new(Method::Unit).without_address(why);
+        assert_eq!(host.plan_for(Method::Unit, None, &r, &l).unwrap().access, AccessPath::Storage);
+        l.max_storage_buffer_range = 200 * 16;
         match host.plan_for(Method::Unit, None, &r, &l) {
             Err(Error::SceneTooLarge(t)) => {
-                assert!(t.hint.ends_with("(the path tracer reads scenes through texel buffers only)"), "{}", t.hint);
+                assert!(t.hint.ends_with(&format!("({why})")), "{}", t.hint);
                 assert_eq!((t.scene.as_str(), t.buffer.as_str()), ("grid", "unit triangles"));
             }
             Err(e) => panic!("expected SceneTooLarge, got {e}"),

@@ -1,6 +1,7 @@
-//! A scene's buffers on the device, bound where the kernels read them: storage texel buffers, or
-//! on the address path the data in device-address buffers and, at each binding, a uniform block
-//! holding the address (`SCENE_ADDRESS` in `glsl/types.glsl`).
+//! A scene's buffers on the device, bound where the kernels read them: storage texel buffers; on
+//! the address path the data in device-address buffers and, at each binding, a uniform block
+//! holding the address (`SCENE_ADDRESS` in `glsl/types.glsl`); or on the storage path storage
+//! buffers (`SCENE_STORAGE`).
 
 use ash::vk;
 
@@ -17,6 +18,8 @@ enum SceneBinding {
     /// The data in a device-address buffer, and a uniform buffer holding its address, bound where
     /// the texel buffer would be (the `*_bda` kernels).
     Address { data: Buffer, pointer: Buffer },
+    /// A storage buffer (the `*_sb` kernels).
+    Storage(Buffer),
 }
 
 /// The scene's buffers by binding.
@@ -54,6 +57,13 @@ impl SceneBuffers {
                     )?;
                     SceneBinding::Address { data, pointer }
                 }
+                AccessPath::Storage => {
+                    // A binding cannot be empty: an empty buffer gets one zero texel, as on the
+                    // texel path.
+                    let one = vec![0u8; texel.size()];
+                    let bytes = if bytes.is_empty() { &one[..] } else { bytes };
+                    SceneBinding::Storage(ctx.upload(name, bytes, vk::BufferUsageFlags::STORAGE_BUFFER)?)
+                }
             };
             Ok((binding, b))
         };
@@ -76,7 +86,7 @@ impl SceneBuffers {
             .iter()
             .map(|(_, b)| match b {
                 SceneBinding::Texels(t) => t.buffer.size as usize,
-                SceneBinding::Address { data, .. } => data.size as usize,
+                SceneBinding::Address { data, .. } | SceneBinding::Storage(data) => data.size as usize,
             })
             .sum()
     }
@@ -88,7 +98,7 @@ impl SceneBuffers {
                 *b,
                 match t {
                     SceneBinding::Texels(t) => Resource::Texels(t),
-                    SceneBinding::Address { pointer, .. } => Resource::whole(pointer),
+                    SceneBinding::Address { pointer, .. } | SceneBinding::Storage(pointer) => Resource::whole(pointer),
                 },
             )
         })

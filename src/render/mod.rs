@@ -22,7 +22,7 @@ pub use passes::render;
 
 use glam::{DVec3, Vec3};
 
-use crate::encoding::{BsdfSet, EncodedScene, Layout, Method, PathtraceKey};
+use crate::encoding::{AccessPath, BsdfSet, EncodedScene, Layout, Method, PathtraceKey};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::kernels::KernelSource;
@@ -156,7 +156,19 @@ impl PathtraceKernel {
     /// all-BSDF kernel narrowed to the scene's BSDFs by the specialisation constant (a wide
     /// layout has that one only: `// trilab:layouts all` in `glsl/pathtrace.comp`).
     pub fn choose_on(method: Method, layout: Layout, mask: u32, choice: KernelChoice) -> PathtraceKernel {
-        let key = |bsdfs| PathtraceKey { method, bsdfs, layout };
+        Self::choose_for(method, layout, AccessPath::Texel, mask, choice)
+    }
+
+    /// [`PathtraceKernel::choose_on`] for a scene read through `access` (the storage path has
+    /// the all-BSDF kernel only).
+    pub fn choose_for(
+        method: Method,
+        layout: Layout,
+        access: AccessPath,
+        mask: u32,
+        choice: KernelChoice,
+    ) -> PathtraceKernel {
+        let key = |bsdfs| PathtraceKey { method, bsdfs, layout, access };
         let single = BsdfKind::ALL.into_iter().find(|k| k.bit() == mask);
         let (bsdfs, spec_mask) = match (choice, single) {
             (KernelChoice::Specialised, Some(kind)) if key(BsdfSet::One(kind)).source().is_ok() => {
@@ -453,9 +465,15 @@ impl RenderTarget {
         pixels: u64,
         raycast_too: bool,
     ) -> Result<RenderTarget> {
-        let plan = host.plan(ctx, &request.texel_only(plan::TEXEL_ONLY))?;
-        plan.check_extras(&plan::extras_for(host.mesh, plan.method, &plan.memory.counts, pixels))?;
-        let kernel = PathtraceKernel::choose_on(plan.method, plan.layout, RenderScene::bsdf_mask(host.mesh), choice);
+        let plan = host.plan(ctx, &request.without_address(plan::NO_ADDRESS))?;
+        plan.check_extras(&plan::extras_for(host.mesh, plan.method, plan.access, &plan.memory.counts, pixels))?;
+        let kernel = PathtraceKernel::choose_for(
+            plan.method,
+            plan.layout,
+            plan.access,
+            RenderScene::bsdf_mask(host.mesh),
+            choice,
+        );
         let reader = if raycast_too { None } else { Some(kernel.source) };
         let mut scene = None;
         let device = plan.upload_with(ctx, reader, |e| scene = Some(RenderScene::new(host.mesh, e)))?;

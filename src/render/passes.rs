@@ -10,6 +10,7 @@ use ash::vk;
 use super::{
     GpuParams, PartialRender, PathtracePush, Progress, RenderFailure, RenderResult, RenderSettings, RenderTarget,
 };
+use crate::encoding::AccessPath;
 use crate::error::{Error, Result};
 use crate::gpu::buffer::{read_back, Buffer, TexelBuffer};
 use crate::gpu::commands::memory_barrier;
@@ -24,14 +25,39 @@ use crate::shared::{BINDING_ACCUM, BINDING_LIGHTS, BINDING_MATERIALS, BINDING_PA
 /// closest-hit rays, occlusion rays, dropped samples, and one spare.
 const RENDER_COUNTERS: usize = 4;
 
+/// Shading records or lights: a texel buffer, or on the storage path (`all_sb`) a storage buffer.
+enum Extra {
+    Texels(TexelBuffer),
+    Storage(Buffer),
+}
+
+impl Extra {
+    fn upload(ctx: &Context, name: &str, bytes: &[u8], storage: bool) -> Result<Extra> {
+        if !storage {
+            return Ok(Extra::Texels(ctx.upload_texels(name, bytes, Texel::Rgba32Float)?));
+        }
+        // A binding cannot be empty: one zero texel (no lights), as a texel buffer gets.
+        let zero = [0u8; 16];
+        let bytes = if bytes.is_empty() { &zero[..] } else { bytes };
+        Ok(Extra::Storage(ctx.upload(name, bytes, vk::BufferUsageFlags::STORAGE_BUFFER)?))
+    }
+
+    fn resource(&self) -> Resource<'_> {
+        match self {
+            Extra::Texels(t) => Resource::Texels(t),
+            Extra::Storage(b) => Resource::whole(b),
+        }
+    }
+}
+
 /// The path tracer's own buffers beside the scene, and the descriptor set binding them with the
 /// scene's. The pool comes first so that it is destroyed first (fields drop in order).
 struct RenderBuffers<'a> {
     _pool: DescriptorPool<'a>,
     set: vk::DescriptorSet,
     _materials: TexelBuffer,
-    _shading: TexelBuffer,
-    _lights: TexelBuffer,
+    _shading: Extra,
+    _lights: Extra,
     _params: Buffer,
     /// Sum of radiance and coverage per pixel (rgba32f), on the device.
     accum: Buffer,
@@ -47,8 +73,9 @@ impl<'a> RenderBuffers<'a> {
         let scene = &target.scene;
         let pixels = s.pixels();
         let materials = ctx.upload_texels("materials", bytemuck::cast_slice(&scene.materials), Texel::Rgba32Float)?;
-        let shading = ctx.upload_texels("shading", bytemuck::cast_slice(&scene.shading), Texel::Rgba32Float)?;
-        let lights = ctx.upload_texels("lights", bytemuck::cast_slice(&scene.lights), Texel::Rgba32Float)?;
+        let storage = target.device.access == AccessPath::Storage;
+        let shading = Extra::upload(ctx, "shading", bytemuck::cast_slice(&scene.shading), storage)?;
+        let lights = Extra::upload(ctx, "lights", bytemuck::cast_slice(&scene.lights), storage)?;
         let params = GpuParams::new(s, scene);
         let params = ctx.upload("render params", bytemuck::bytes_of(&params), vk::BufferUsageFlags::UNIFORM_BUFFER)?;
         let accum = ctx.upload(
@@ -81,8 +108,8 @@ impl<'a> RenderBuffers<'a> {
         let mut resources: Vec<(u32, Resource)> = target.device.resources().collect();
         resources.extend([
             (BINDING_MATERIALS, Resource::Texels(&materials)),
-            (BINDING_SHADING, Resource::Texels(&shading)),
-            (BINDING_LIGHTS, Resource::Texels(&lights)),
+            (BINDING_SHADING, shading.resource()),
+            (BINDING_LIGHTS, lights.resource()),
             (BINDING_PARAMS, Resource::whole(&params)),
             (BINDING_ACCUM, Resource::whole(&accum)),
             (BINDING_STATS, Resource::whole(&stats)),

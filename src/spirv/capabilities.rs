@@ -1,6 +1,6 @@
 //! The optional device features a SPIR-V module needs, read from its `OpCapability`
 //! instructions: kernel creation checks them against what the context enabled, and
-//! `analyze::available_methods` asks which methods a device can run.
+//! `gpu::Capabilities` asks which kernels and methods a device can run.
 
 /// An optional device feature a SPIR-V capability needs (the `EnabledFeatures` that gate it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

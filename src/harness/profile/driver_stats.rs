@@ -44,9 +44,9 @@ use serde::Serialize;
 use super::lavapipe_asm::{self, KernelAsm};
 use super::Status;
 use crate::bvh::BuildOptions;
-use crate::encoding::{AccessPath, Layout, Method, RaycastKey, SceneAccess};
+use crate::encoding::{Layout, Method, RaycastKey};
 use crate::error::{Error, Result};
-use crate::gpu::{Context, PipelineOptions, RaycastOptions};
+use crate::gpu::{Context, PipelineOptions, RaycastOptions, Statistic};
 use crate::harness::provenance::Provenance;
 use crate::kernels::{KernelSource, KERNELS};
 use crate::named::Named;
@@ -226,11 +226,6 @@ pub struct CollectOptions {
     pub asm_dir: Option<PathBuf>,
 }
 
-/// Whether the device is lavapipe.
-pub fn is_lavapipe(ctx: &Context) -> bool {
-    super::threads::is_lavapipe(ctx.info())
-}
-
 /// The note of a lavapipe section.
 pub const LAVAPIPE_NOTE: &str = "lavapipe's own machine code: this executable run again with GALLIVM_DEBUG=asm and \
      MESA_SHADER_CACHE_DISABLE=true dispatches each kernel once (on cornell); gallivm's disassembly of the compiled shader functions \
@@ -242,7 +237,7 @@ pub const LAVAPIPE_NOTE: &str = "lavapipe's own machine code: this executable ru
 pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOptions) -> Result<DriverStatsReport> {
     let provenance = Provenance::of(ctx);
     let info = ctx.info();
-    if is_lavapipe(ctx) && !kernels.is_empty() {
+    if ctx.capabilities().statistic(Statistic::MachineCode).is_ok() && !kernels.is_empty() {
         // The first kernel alone first: a lavapipe that prints nothing for it reads no
         // GALLIVM_DEBUG, and is told before the other kernels are compiled.
         let mut dumps = lavapipe_dumps(&kernels[..1], o)?;
@@ -418,11 +413,7 @@ fn raycast_request(k: &KernelSource) -> Result<SceneRequest> {
             k.name
         ))
     })?;
-    let access = match key.access {
-        AccessPath::Texel => SceneAccess::Texel,
-        AccessPath::Address => SceneAccess::Address,
-    };
-    Ok(SceneRequest::new(key.method).layout(key.layout).access(access).traversal(key.traversal))
+    Ok(SceneRequest::new(key.method).layout(key.layout).access(key.access.requested()).traversal(key.traversal))
 }
 
 /// The child's side (`--emit-for-parent`, under GALLIVM_DEBUG=asm): dispatches each named
@@ -598,7 +589,7 @@ impl crate::report::Report for DriverStatsReport {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::encoding::Traversal;
+    use crate::encoding::{SceneAccess, Traversal};
 
     /// What a driver with `VK_KHR_pipeline_executable_properties` reports (lavapipe does not:
     /// these are the statistics an NVIDIA driver names), as figures: numbers kept per

@@ -37,7 +37,7 @@ use serde::Serialize;
 use crate::bvh::BuildOptions;
 use crate::encoding::{AccessPath, Layout, Method, Raycast};
 use crate::error::{Error, Result};
-use crate::gpu::{Context, DeviceInfo, EnabledFeatures, Kernel, PipelineOptions, RaycastOptions};
+use crate::gpu::{Context, DeviceInfo, EnabledFeatures, Kernel, PipelineOptions, RaycastOptions, Statistic};
 use crate::harness::efficiency::{self, RooflineEfficiency};
 use crate::harness::rayset::{ray_sets, RaySet, RaySetSizes};
 use crate::harness::roofline::RooflineReport;
@@ -769,14 +769,8 @@ fn threads_section(
     progress: &mut impl FnMut(&str),
 ) -> Result<Section<Row<ThreadMeasurement>>> {
     let info = ctx.info();
-    if !threads::is_lavapipe(info) {
-        return Ok(Section::new(
-            Status::NotApplicable,
-            format!(
-                "not applicable: LP_NUM_THREADS is a lavapipe setting; the device is {} ({})",
-                info.name, info.driver_id
-            ),
-        ));
+    if let Err(u) = ctx.capabilities().statistic(Statistic::ThreadCount) {
+        return Ok(Section::new(Status::NotApplicable, format!("not applicable: {}", u.why)));
     }
     let Some(exe) = &o.exe else {
         return Ok(Section::new(Status::Skipped, "skipped (no trilab executable given to run per thread count)"));

@@ -9,13 +9,7 @@ use serde::Serialize;
 
 use crate::encoding::Method;
 use crate::error::{Error, Result};
-use crate::gpu::DeviceInfo;
 use crate::report::Summary;
-
-/// Whether the device is lavapipe (the only driver that reads `LP_NUM_THREADS`).
-pub fn is_lavapipe(info: &DeviceInfo) -> bool {
-    info.driver_id == "MESA_LLVMPIPE"
-}
 
 /// Thread counts 1, 2, ... up to the host's cores.
 pub fn default_counts() -> Vec<usize> {
