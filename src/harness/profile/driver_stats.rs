@@ -290,11 +290,16 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
     Ok(DriverStatsReport {
         provenance,
         status: Status::NotApplicable,
-        note: format!(
-            "not available on this driver: {} ({}) offers no VK_KHR_pipeline_executable_properties, and the machine-code \
-             dump is lavapipe's",
-            info.name, info.driver_id
-        ),
+        note: {
+            // Neither source of driver statistics (gpu::Capabilities): say why for each.
+            let caps = ctx.capabilities();
+            let why = |s: Statistic| caps.statistic(s).err().map_or_else(String::new, |u| u.why);
+            format!(
+                "not available on this driver: {}; and {}",
+                why(Statistic::ExecutableStatistics),
+                why(Statistic::MachineCode)
+            )
+        },
         kernels: vec![],
     })
 }

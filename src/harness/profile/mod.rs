@@ -305,11 +305,12 @@ impl Sections {
     fn new(ctx: &Context, o: &ProfileOptions) -> Sections {
         let info = ctx.info();
         let en = ctx.enabled();
-        fn pick<T>(on: bool, yes: &str, no: &str) -> Section<T> {
-            if on {
-                Section::new(Status::Measured, yes)
-            } else {
-                Section::new(Status::Unsupported, no)
+        // Each statistic where the device has it (gpu::Capabilities), else the reason it has not.
+        let caps = ctx.capabilities();
+        fn pick<T>(can: std::result::Result<(), crate::gpu::Unsupported>, yes: &str) -> Section<T> {
+            match can {
+                Ok(()) => Section::new(Status::Measured, yes),
+                Err(u) => Section::new(Status::Unsupported, u.why),
             }
         }
         let (subgroup_plan, subgroup_sizes) = match sweep::subgroup_sizes(info, en, crate::shared::WORKGROUP_SIZE) {
@@ -317,28 +318,25 @@ impl Sections {
             Err(why) => (vec![], Section::new(Status::Unsupported, why)),
         };
         let (workgroup_plan, wg_note) = sweep::workgroup_sizes(info, &o.workgroup_sizes);
+        let timestamps = match caps.statistic(Statistic::Timestamps) {
+            Ok(()) => Section::new(Status::Measured, "kernel time between timestamps around each dispatch"),
+            Err(u) => Section::new(Status::Unsupported, format!("{}: host wall time instead", u.why)),
+        };
         Sections {
-            timestamps: pick(
-                crate::gpu::timestamps::Timestamps::supported(ctx),
-                "kernel time between timestamps around each dispatch",
-                "unsupported (no timestamps on the compute queue): host wall time instead",
-            ),
+            timestamps,
             pipeline_statistics: pick(
-                en.pipeline_statistics_query,
+                caps.statistic(Statistic::PipelineStatistics),
                 "VK_QUERY_TYPE_PIPELINE_STATISTICS, COMPUTE_SHADER_INVOCATIONS, one dispatch",
-                "unsupported (pipelineStatisticsQuery absent)",
             ),
             shader_clock: pick(
-                en.shader_clock,
+                caps.statistic(Statistic::ShaderClock),
                 "subgroup-scope clock (VK_KHR_shader_clock, clock2x32ARB) read before and after the trace; \
                  lanes in lock-step share one reading, so a ray's ticks are its subgroup's",
-                "unsupported (VK_KHR_shader_clock with shaderSubgroupClock absent)",
             ),
             executable_properties: pick(
-                en.pipeline_executable_properties,
+                caps.statistic(Statistic::ExecutableStatistics),
                 "pipelines created with CAPTURE_STATISTICS; this code path is untested on lavapipe (which lacks the \
                  extension)",
-                "unsupported (VK_KHR_pipeline_executable_properties absent)",
             ),
             subgroup_sizes,
             workgroup_sizes: Section::new(Status::Measured, wg_note),
@@ -770,7 +768,7 @@ fn threads_section(
 ) -> Result<Section<Row<ThreadMeasurement>>> {
     let info = ctx.info();
     if let Err(u) = ctx.capabilities().statistic(Statistic::ThreadCount) {
-        return Ok(Section::new(Status::NotApplicable, format!("not applicable: {}", u.why)));
+        return Ok(Section::new(Status::NotApplicable, u.why));
     }
     let Some(exe) = &o.exe else {
         return Ok(Section::new(Status::Skipped, "skipped (no trilab executable given to run per thread count)"));
