@@ -116,3 +116,65 @@ fn without_ray_query_the_bench_runs_the_ray_tracing_pipeline_and_notes_the_rest(
         report.driver_notes
     );
 }
+
+/// `gpu::Capabilities` answers from the device description alone: lavapipe's as it is, and the
+/// same with SwiftShader's identity and gaps put in (values as `trilab devices` prints them for
+/// chromium-common's SwiftShader: no shaderFloat64/Int64, no shader clock, no pipeline
+/// statistics, no ray tracing). Each "no" names the feature and the device; the driver's kind
+/// picks its results folder and the path `auto` prefers.
+#[test]
+fn capabilities_answer_from_the_device_description() {
+    use trilab::encoding::{AccessPath, Method, Traversal};
+    use trilab::gpu::{Capabilities, DriverKind, EnabledFeatures, Peer, Statistic};
+    let lp = lavapipe();
+    let en = EnabledFeatures::for_device(&lp);
+    let caps = Capabilities::new(&lp, &en);
+    assert_eq!(caps.driver(), DriverKind::Lavapipe);
+    assert!(caps.is_cpu());
+    assert!(Method::ALL.iter().all(|&m| caps.method(m).is_ok()), "lavapipe runs every method, f64 included");
+    assert!(AccessPath::ALL.iter().all(|&a| caps.access(a).is_ok()));
+    assert_eq!(caps.preferred_access(), AccessPath::Texel);
+    assert!(caps.statistic(Statistic::MachineCode).is_ok() && caps.statistic(Statistic::ThreadCount).is_ok());
+    assert!(caps.peer(Peer::RayQuery).is_ok());
+
+    let mut ss = lavapipe();
+    ss.name = "SwiftShader Device (Subzero)".into();
+    ss.driver_id = "GOOGLE_SWIFTSHADER".into();
+    ss.driver_name = "SwiftShader driver".into();
+    ss.driver_info = String::new();
+    ss.mesa_version = None;
+    (ss.shader_float64, ss.shader_int64, ss.shader_clock) = (false, false, None);
+    (ss.pipeline_statistics_query, ss.ray_query, ss.ray_tracing_pipeline) = (false, false, None);
+    ss.subgroup_size = 4;
+    let en = EnabledFeatures::for_device(&ss);
+    let caps = Capabilities::new(&ss, &en);
+    assert_eq!(caps.driver(), DriverKind::SwiftShader);
+    assert_eq!(ss.results_dir(), "swiftshader");
+    assert_eq!(caps.preferred_access(), AccessPath::Storage);
+    let f64 = caps.method(Method::F64).unwrap_err();
+    assert_eq!(f64.what, "method f64");
+    assert!(f64.why.contains("shaderFloat64") && f64.why.ends_with("on SwiftShader Device (Subzero)"), "{}", f64.why);
+    assert!(Method::ALL.iter().filter(|&&m| m != Method::F64).all(|&m| caps.method(m).is_ok()));
+    let address = caps.access(AccessPath::Address).unwrap_err();
+    assert!(address.why.contains("shaderInt64"), "{}", address.why);
+    assert!(caps.access(AccessPath::Storage).is_ok() && caps.access(AccessPath::Texel).is_ok());
+    assert!(caps.traversal(Traversal::Coop).is_ok(), "4 lanes with the subgroup operations coop needs");
+    let mut no_ops = ss.clone();
+    no_ops.subgroup_operations = 0x1;
+    let coop = Capabilities::new(&no_ops, &en).traversal(Traversal::Coop).unwrap_err();
+    assert!(coop.why.contains("ballot and shuffle") && coop.why.contains("0x1"), "{}", coop.why);
+    for s in [Statistic::ShaderClock, Statistic::PipelineStatistics, Statistic::MachineCode, Statistic::ThreadCount] {
+        assert!(caps.statistic(s).is_err(), "{}", s.name());
+    }
+    assert!(caps.statistic(Statistic::Timestamps).is_ok());
+    let rq = caps.peer(Peer::RayQuery).unwrap_err().to_string();
+    assert!(rq.starts_with("ray query: unsupported on SwiftShader Device (Subzero)"), "{rq}");
+    // keep(): what can run stays, each refusal a note; nothing left is an error naming each.
+    let mut notes = vec![];
+    let kept = caps.keep("methods", &[Method::Mt, Method::F64], Capabilities::method, &mut notes).unwrap();
+    assert_eq!(kept, vec![Method::Mt]);
+    assert_eq!(notes.len(), 1);
+    assert!(notes[0].starts_with("method f64: ") && notes[0].ends_with("; left out"), "{notes:?}");
+    let e = caps.keep("methods", &[Method::F64], Capabilities::method, &mut notes).unwrap_err().to_string();
+    assert!(e.contains("none of the methods asked for can run on SwiftShader") && e.contains("shaderFloat64"), "{e}");
+}

@@ -865,16 +865,33 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         // Each method's plan picks its access path before encoding (and fails clearly if the
         // scene cannot fit); its kernels read the scene through that path. Each node order is
         // one more scene of every kernel.
-        let scenes: Vec<DeviceScene> = o
-            .kernels()
-            .into_iter()
-            .flat_map(|(m, l, t, a)| {
-                o.node_orders()
-                    .into_iter()
-                    .map(move |n| SceneRequest::new(m).access(a).layout(l).traversal(t).node_order(n))
-            })
-            .map(|req| host.upload(ctx, &req))
-            .collect::<Result<_>>()?;
+        // A kernel the device cannot run on this scene (a traversal without a kernel on the path
+        // the scene needs here) is left out with its reason; the others run.
+        let mut scenes: Vec<DeviceScene> = vec![];
+        let requests = o.kernels().into_iter().flat_map(|(m, l, t, a)| {
+            o.node_orders()
+                .into_iter()
+                .map(move |n| SceneRequest::new(m).access(a).layout(l).traversal(t).node_order(n))
+        });
+        for req in requests {
+            match host.upload(ctx, &req) {
+                Ok(s) => scenes.push(s),
+                Err(Error::Unsupported(why)) => {
+                    let note = format!("{name}: {why}; left out");
+                    if !report.notes.contains(&note) {
+                        progress(&note);
+                        report.notes.push(note);
+                    }
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        if scenes.is_empty() {
+            return Err(Error::Unsupported(format!(
+                "{name}: none of the kernels asked for can run on this scene here: {}",
+                report.notes.join("; ")
+            )));
+        }
         let accel = match driver.is_empty() {
             false => {
                 let a = AccelStructure::build(ctx, &mesh)?;

@@ -154,6 +154,28 @@ impl<'m> HostScene<'m> {
             Some(why) => memory.choose_without_address(&self.name, request.access, limits, why)?,
             None => memory.choose(&self.name, request.access, limits)?,
         };
+        // `auto` may pick a path the traversal has no kernel for (the storage path a device
+        // prefers, or needs for a large scene, where coop and persistent have only texel
+        // kernels): then the texel path where the scene fits it, else the missing kernel named.
+        let has = |a| method.traversal_kernel(Raycast::Closest, a, request.layout, request.traversal).is_ok();
+        let access = match (request.access, request.without_address) {
+            (SceneAccess::Auto, None) if !has(access) => match memory.choose(&self.name, SceneAccess::Texel, limits) {
+                Ok(texel) if has(texel) => texel,
+                _ => {
+                    return Err(Error::Unsupported(format!(
+                        "scene `{}` does not fit this device's texel buffers, and the {} traversal on {} has no \
+                         kernel on the {} path it would take ({} has: {})",
+                        self.name,
+                        request.traversal,
+                        request.layout,
+                        access.name(),
+                        request.traversal,
+                        crate::encoding::traversal_support(request.traversal)
+                    )))
+                }
+            },
+            _ => access,
+        };
         Ok(ScenePlan {
             host: self,
             method,
