@@ -96,18 +96,21 @@ impl Statistic {
     ];
 }
 
-/// What cannot run, and why: the reason a cell becomes a note.
+/// What cannot run, and why: the reason a cell becomes a note. Shown as "`what`: `why` on
+/// `device`"; a report that names the device in its header shows `why` alone.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Unsupported {
     /// The thing asked for, in the command line's words (`method f64`, `--traversal coop`).
     pub what: String,
-    /// Why, naming the feature or limit and the device.
+    /// Why, naming the feature or limit ("shaderInt64 ... is not enabled").
     pub why: String,
+    /// The device (and, for a driver peer, its driver).
+    pub device: String,
 }
 
 impl fmt::Display for Unsupported {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.what, self.why)
+        write!(f, "{}: {} on {}", self.what, self.why, self.device)
     }
 }
 
@@ -140,7 +143,7 @@ impl<'a> Capabilities<'a> {
     }
 
     fn no(&self, what: impl Into<String>, why: impl fmt::Display) -> Result<(), Unsupported> {
-        Err(Unsupported { what: what.into(), why: format!("{why} on {}", self.info.name) })
+        Err(Unsupported { what: what.into(), why: why.to_string(), device: self.info.name.clone() })
     }
 
     /// A SPIR-V module (`name` in the answer): every optional feature its `OpCapability`
@@ -237,7 +240,8 @@ impl<'a> Capabilities<'a> {
             true => Ok(()),
             false => Err(Unsupported {
                 what: p.feature().into(),
-                why: format!("unsupported on {} ({})", self.info.name, self.info.driver_label()),
+                why: "unsupported".into(),
+                device: format!("{} ({})", self.info.name, self.info.driver_label()),
             }),
         }
     }
@@ -258,12 +262,13 @@ impl<'a> Capabilities<'a> {
             }
             Statistic::MachineCode | Statistic::ThreadCount if self.driver() != DriverKind::Lavapipe => {
                 let why = match s {
-                    Statistic::MachineCode => "only lavapipe prints its machine code",
-                    _ => "LP_NUM_THREADS is a lavapipe setting",
+                    Statistic::MachineCode => "printed only by lavapipe, not",
+                    _ => "a lavapipe setting, not read",
                 };
                 return Err(Unsupported {
                     what: what.into(),
-                    why: format!("{why}; the device is {} ({})", self.info.name, self.info.driver_id),
+                    why: why.into(),
+                    device: format!("{} ({})", self.info.name, self.info.driver_id),
                 });
             }
             Statistic::MachineCode | Statistic::ThreadCount => (true, ""),

@@ -293,9 +293,12 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
         note: {
             // Neither source of driver statistics (gpu::Capabilities): say why for each.
             let caps = ctx.capabilities();
-            let why = |s: Statistic| caps.statistic(s).err().map_or_else(String::new, |u| u.why);
+            let why =
+                |s: Statistic| caps.statistic(s).err().map_or_else(String::new, |u| format!("{}: {}", u.what, u.why));
             format!(
-                "not available on this driver: {}; and {}",
+                "not available on {} ({}): {}; {}",
+                info.name,
+                info.driver_id,
                 why(Statistic::ExecutableStatistics),
                 why(Statistic::MachineCode)
             )

@@ -768,7 +768,7 @@ fn threads_section(
 ) -> Result<Section<Row<ThreadMeasurement>>> {
     let info = ctx.info();
     if let Err(u) = ctx.capabilities().statistic(Statistic::ThreadCount) {
-        return Ok(Section::new(Status::NotApplicable, u.why));
+        return Ok(Section::new(Status::NotApplicable, format!("{}: {}", u.what, u.why)));
     }
     let Some(exe) = &o.exe else {
         return Ok(Section::new(Status::Skipped, "skipped (no trilab executable given to run per thread count)"));
