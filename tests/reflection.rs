@@ -30,6 +30,19 @@ fn scene_bindings(method: Method) -> Vec<u32> {
     method.encode(&mesh, &bvh).buffers().iter().map(|b| b.binding).collect()
 }
 
+/// The texel size of a scene binding read as a storage buffer (the `*_sb` variants, issue 38:
+/// `SCENE_STORAGE` in glsl/types.glsl declares each an array of its texels, uvec4 or uint), or
+/// `None` where the binding is no scene buffer: the encoding's texel for its buffers, a vec4 for
+/// the path tracer's shading records and lights.
+fn storage_texel_size(method: Option<Method>, binding: u32) -> Option<usize> {
+    if binding == BINDING_SHADING || binding == BINDING_LIGHTS {
+        return Some(16);
+    }
+    let mesh = trilab::scene::Mesh::from_triangles(vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]);
+    let bvh = trilab::bvh::Bvh::build(&mesh, &trilab::bvh::BuildOptions::new(4));
+    method?.encode(&mesh, &bvh).buffers().iter().find(|b| b.binding == binding).map(|b| b.texel.size())
+}
+
 fn array_of(size: usize, offsets: &[usize]) -> BufferLayout {
     BufferLayout { array_stride: Some(size as u32), member_offsets: offsets.iter().map(|&o| o as u32).collect() }
 }
@@ -176,7 +189,11 @@ fn rust_structs_match_spirv_offsets_and_strides() {
                 assert_eq!(spirv.member_offsets, host_push(k.kernel), "{}: push constants", k.name);
                 continue;
             }
-            let host = host_layout(k.intersector, binding, k.kernel == "roofline" && k.variant == "storage");
+            let sb = k.variant.contains("_sb");
+            let host = match storage_texel_size(method_of(k.intersector), binding).filter(|_| sb) {
+                Some(texel) => array_of(texel, &[]),
+                None => host_layout(k.intersector, binding, k.kernel == "roofline" && k.variant == "storage"),
+            };
             assert_eq!(spirv, &host, "{}: binding {binding}: SPIR-V declares {spirv:?}, host uses {host:?}", k.name);
             checked_structs += !host.member_offsets.is_empty() as usize;
         }
@@ -262,6 +279,10 @@ fn kernels_bind_what_the_host_provides() {
             } else if texels.contains(b) && k.variant.contains("_bda") {
                 // The address path: a uniform block holding the buffer's device address.
                 vk::DescriptorType::UNIFORM_BUFFER
+            } else if texels.contains(b) && k.variant.contains("_sb") && *b != BINDING_MATERIALS {
+                // The storage path: the scene (and the path tracer's shading and lights) in
+                // storage buffers; materials stay a texel buffer.
+                vk::DescriptorType::STORAGE_BUFFER
             } else if texels.contains(b) {
                 vk::DescriptorType::STORAGE_TEXEL_BUFFER
             } else if accels.contains(b) {
