@@ -16,6 +16,11 @@ use std::process::Output;
 /// 4096 texels per binding: every buffer of the bunny's encodings (69,451 triangles) is larger.
 const LIMITS: &str = "max_texel_buffer_elements=4096";
 
+/// A bench of the bunny small enough for a test: 48x36 camera, one diffuse ray per hit, 3,000
+/// random rays, one timed round.
+const SMALL_BENCH: [&str; 11] =
+    ["bench", "--width", "48", "--height", "36", "--diffuse-per-hit", "1", "--random-rays", "3000", "--repeat", "1"];
+
 fn trilab(args: &[&str], limits: bool) -> Output {
     trilab_with(args, if limits { Some(LIMITS) } else { None })
 }
@@ -77,26 +82,8 @@ fn without_64_bit_integers_a_scene_beyond_one_texel_binding_is_read_through_stor
     let o = trilab_with(&[&raycast[..], &["--method", "mt", "--scene-access", "address"]].concat(), limits);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("shaderInt64") && err.contains("--scene-access storage"), "{err}");
-    let bench = [
-        "bench",
-        "--width",
-        "48",
-        "--height",
-        "36",
-        "--diffuse-per-hit",
-        "1",
-        "--random-rays",
-        "3000",
-        "--repeat",
-        "1",
-        "--methods",
-        "mt,unit,quad-mt",
-        "--layouts",
-        "bvh2,bvh4,cwbvh",
-        "--json-out",
-        &d("bench.json"),
-    ];
-    ok(&trilab_with(&bench, limits), "bench");
+    let layouts = ["--methods", "mt,unit,quad-mt", "--layouts", "bvh2,bvh4,cwbvh", "--json-out", &d("bench.json")];
+    ok(&trilab_with(&[&SMALL_BENCH[..], &layouts].concat(), limits), "bench");
     let bench = json(&dir.path().join("bench.json"));
     all_on(&paths(&bench["rows"], "scene_access"), "storage", "bench");
     assert_eq!(bench["rows"].as_array().unwrap().len(), 27);
@@ -147,28 +134,8 @@ fn every_command_reads_a_scene_beyond_one_binding_through_addresses() {
     }
 
     // bench: every row on the address path, each validated before it has a speed.
-    let o = trilab(
-        &[
-            "bench",
-            "--width",
-            "48",
-            "--height",
-            "36",
-            "--diffuse-per-hit",
-            "1",
-            "--random-rays",
-            "3000",
-            "--repeat",
-            "1",
-            "--ray-query",
-            "off",
-            "--methods",
-            "mt,unit,quad-mt",
-            "--json-out",
-            &d("bench.json"),
-        ],
-        true,
-    );
+    let extra = ["--ray-query", "off", "--methods", "mt,unit,quad-mt", "--json-out", &d("bench.json")];
+    let o = trilab(&[&SMALL_BENCH[..], &extra].concat(), true);
     ok(&o, "bench");
     let bench = json(&dir.path().join("bench.json"));
     all_address(&paths(&bench["rows"], "scene_access"), "bench");
