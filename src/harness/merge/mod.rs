@@ -183,9 +183,23 @@ pub fn run(inputs: &[PathBuf]) -> Result<MergeReport> {
 pub fn merge(
     inputs: Vec<PathBuf>,
     files: Vec<PathBuf>,
-    rows: Vec<(Row, PathBuf)>,
-    plans: Vec<(Plan, PathBuf)>,
+    mut rows: Vec<(Row, PathBuf)>,
+    mut plans: Vec<(Plan, PathBuf)>,
 ) -> Result<MergeReport> {
+    // Two drivers of one device are two columns: lavapipe 22.3.6 and 25.0.7 both name their
+    // device "llvmpipe (LLVM 15.0.6, 256 bits)". Where one label covers more than one driver,
+    // the driver joins the label's settings.
+    let mut drivers: BTreeMap<String, std::collections::BTreeSet<String>> = BTreeMap::new();
+    for s in rows.iter().map(|(r, _)| &r.source).chain(plans.iter().map(|(p, _)| &p.source)) {
+        drivers.entry(s.device_label()).or_default().insert(s.driver.clone());
+    }
+    let by_driver = |s: &mut rows::Source| {
+        if drivers.get(&s.device_label()).is_some_and(|d| d.len() > 1) {
+            s.settings.insert("driver".into(), s.driver.clone());
+        }
+    };
+    rows.iter_mut().for_each(|(r, _)| by_driver(&mut r.source));
+    plans.iter_mut().for_each(|(p, _)| by_driver(&mut p.source));
     // Devices in order of first appearance.
     let mut labels: Vec<String> = vec![];
     for s in rows.iter().map(|(r, _)| &r.source).chain(plans.iter().map(|(p, _)| &p.source)) {
@@ -842,6 +856,24 @@ mod tests {
         assert!(e.contains("study scene=bunny leaf=1 method=mt"), "{e}");
         // The same numbers from another device are another column, not a duplicate.
         assert!(merged(&[("a", &a, None), ("b", &report("gpu-b", true), None)]).is_ok());
+    }
+
+    /// Two drivers that name their device alike (Debian's lavapipe 22.3.6 and 25.0.7 are both
+    /// "llvmpipe (LLVM 15.0.6, 256 bits)") are two columns, told apart by the driver; one
+    /// driver's runs stay one column.
+    #[test]
+    fn two_drivers_of_one_device_are_two_columns() {
+        let mut new = report("llvmpipe", true);
+        new.provenance.driver = "llvmpipe Mesa 25.0.7".into();
+        let mut old = report("llvmpipe", false);
+        old.provenance.driver = "llvmpipe Mesa 22.3.6".into();
+        let m = merged(&[("new", &new, None), ("old", &old, None)]).unwrap();
+        let labels: Vec<&str> = m.devices.iter().map(|d| d.label.as_str()).collect();
+        assert_eq!(labels, ["llvmpipe, driver=llvmpipe Mesa 25.0.7", "llvmpipe, driver=llvmpipe Mesa 22.3.6"]);
+        assert_eq!(m.claims_table().to_markdown().lines().next().map(|l| l.matches("driver=").count()), Some(2));
+        // One driver twice is still a cell measured twice.
+        let e = merged(&[("a", &new, None), ("b", &new, None)]).unwrap_err().to_string();
+        assert!(e.contains("measured twice") && !e.contains("driver="), "{e}");
     }
 
     #[test]
