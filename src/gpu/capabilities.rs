@@ -201,8 +201,9 @@ impl<'a> Capabilities<'a> {
     }
 
     /// The access path `auto` takes first where a scene fits it: storage buffers on SwiftShader
-    /// (1.5-1.65x the texel path's Mrays/s there on a 10,000-triangle soup, and the roofline's
-    /// fastest path: issue 38), texel buffers elsewhere (lavapipe: storage 0.7-0.8x texel).
+    /// (1.40-1.78x the texel path's Mrays/s there on a 10,000-triangle soup, and the roofline's
+    /// fastest path), texel buffers elsewhere (lavapipe: storage 0.60-0.86x texel on the bunny;
+    /// results/swiftshader/access-paths/, issue 38).
     pub fn preferred_access(&self) -> AccessPath {
         match self.driver() {
             DriverKind::SwiftShader => AccessPath::Storage,
