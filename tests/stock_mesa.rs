@@ -22,10 +22,7 @@ fn on_stock(args: &[&str], timeout_s: u64) -> std::process::Output {
 
 #[test]
 fn devices_names_mesa_22_3_6_and_what_it_lacks() {
-    let o = on_stock(&["devices"], 60);
-    let err = ok(&o);
-    let text = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(text.contains("Mesa 22.3.6"), "not the stock driver:\n{text}\n{err}");
+    let text = STOCK_MESA.devices("Mesa 22.3.6");
     assert!(text.contains("ray query:                no"), "{text}");
     assert!(text.contains("pipeline executable info: no"), "{text}");
 }

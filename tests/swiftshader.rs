@@ -22,10 +22,7 @@ fn on_swiftshader(args: &[&str], timeout_s: u64) -> std::process::Output {
 
 #[test]
 fn devices_names_swiftshader_and_what_it_lacks() {
-    let o = on_swiftshader(&["devices"], 60);
-    let err = ok(&o);
-    let text = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(text.contains("SwiftShader Device"), "not SwiftShader:\n{text}\n{err}");
+    let text = SWIFTSHADER.devices("SwiftShader Device");
     assert!(text.contains("GOOGLE_SWIFTSHADER"), "{text}");
     assert!(text.contains("shaderFloat64/Int64:      no/no"), "{text}");
     assert!(text.contains("maxTexelBufferElements:   65536"), "{text}");
@@ -65,11 +62,8 @@ fn a_small_bench_on_a_scene_within_its_texel_limit_agrees_with_the_reference_and
         "1",
         "--random-rays",
         "2000",
-        "--json",
     ];
-    let o = on_swiftshader(&args, 300);
-    let err = ok(&o);
-    let v: Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {err}"));
+    let v = SWIFTSHADER.json(&args, 300);
     let rows = v["rows"].as_array().unwrap_or_else(|| panic!("no rows: {v}"));
     assert_eq!(rows.len(), 4 * 2 * 3, "4 methods x 2 paths x 3 ray sets: {v}");
     for r in rows {
@@ -104,11 +98,8 @@ fn the_bunny_runs_through_storage_buffers_and_what_cannot_run_is_left_out_by_nam
         "1000",
         "--repeat",
         "1",
-        "--json",
     ];
-    let o = on_swiftshader(&args, 300);
-    let err = ok(&o);
-    let v: Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {err}"));
+    let v = SWIFTSHADER.json(&args, 300);
     let rows = v["rows"].as_array().unwrap_or_else(|| panic!("no rows: {v}"));
     // mt and unit, while-if, three sets. SwiftShader has coop's subgroup operations, but the
     // bunny needs the storage path here, where coop has no kernel: left out, named.

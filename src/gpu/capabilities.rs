@@ -149,15 +149,21 @@ impl<'a> Capabilities<'a> {
     /// A SPIR-V module (`name` in the answer): every optional feature its `OpCapability`
     /// instructions need is enabled. Kernel creation asks this before it creates a pipeline.
     pub fn module(&self, name: &str, words: &[u32]) -> Result<(), Unsupported> {
-        let what = format!("kernel {name}");
         match crate::spirv::required_features(words) {
-            Err(e) => self.no(what, format!("its SPIR-V does not parse ({e})")),
-            Ok(needs) => match needs.iter().find(|r| !self.enabled.has(r.feature)) {
-                Some(r) => {
-                    self.no(what, format!("{} (SPIR-V capability {}) is not enabled", r.feature.name(), r.capability))
-                }
-                None => Ok(()),
-            },
+            Err(e) => self.no(format!("kernel {name}"), format!("its SPIR-V does not parse ({e})")),
+            Ok(needs) => self.requirements(name, &needs),
+        }
+    }
+
+    /// A module's optional features, already read from its SPIR-V (`spirv::required_features`):
+    /// every one is enabled.
+    pub fn requirements(&self, name: &str, needs: &[crate::spirv::Requirement]) -> Result<(), Unsupported> {
+        match needs.iter().find(|r| !self.enabled.has(r.feature)) {
+            Some(r) => self.no(
+                format!("kernel {name}"),
+                format!("{} (SPIR-V capability {}) is not enabled", r.feature.name(), r.capability),
+            ),
+            None => Ok(()),
         }
     }
 

@@ -229,8 +229,8 @@ impl Context {
     /// feature this context did not enable (the device lacks it, or the options left it off):
     /// creating the pipeline anyway would be invalid usage, and may crash a driver.
     pub(crate) fn check_capabilities(&self, kernel: &str, words: &[u32]) -> Result<()> {
-        required_features(words).map_err(|m| Error::Spirv { kernel: kernel.into(), message: m })?;
-        Ok(self.capabilities().module(kernel, words)?)
+        let needs = required_features(words).map_err(|m| Error::Spirv { kernel: kernel.into(), message: m })?;
+        Ok(self.capabilities().requirements(kernel, &needs)?)
     }
 }
 

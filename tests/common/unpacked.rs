@@ -69,4 +69,21 @@ impl Unpacked {
         let env: Vec<(&str, &str)> = vars.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
         super::cli::run(args, None, &env, timeout_s).0
     }
+
+    /// `trilab devices` on this driver: its text, after checking that it ran and that the text
+    /// names the driver (`names`, e.g. "Mesa 22.3.6").
+    pub fn devices(&self, names: &str) -> String {
+        let o = self.run(&["devices"], 60);
+        let err = super::cli::ok(&o);
+        let text = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(text.contains(names), "not {}:\n{text}\n{err}", self.what);
+        text
+    }
+
+    /// `trilab args --json` on this driver, its report parsed, after checking that it ran.
+    pub fn json(&self, args: &[&str], timeout_s: u64) -> serde_json::Value {
+        let o = self.run(&[args, &["--json"]].concat(), timeout_s);
+        let err = super::cli::ok(&o);
+        serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {err}"))
+    }
 }
