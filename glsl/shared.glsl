@@ -67,6 +67,12 @@
 #define BINDING_RAY_COUNTER 21
 // roofline.comp: one checksum (uint) per invocation. Its nodes are bound at BINDING_NODES.
 #define BINDING_ROOFLINE_OUT 22
+// subgroup_probe.comp's output: one SubgroupProbeOut per invocation.
+#define BINDING_SUBGROUP_PROBE_OUT 23
+// subgroup_probe.comp's inputs: the same eight 16-byte words as a storage texel buffer and as a
+// storage buffer.
+#define BINDING_SUBGROUP_PROBE_TEXELS 24
+#define BINDING_SUBGROUP_PROBE_WORDS 25
 
 // BSDF kinds (Material.kind; one file each in bsdf/). A kernel's BSDF_MASK has bit (1 << kind)
 // set for every kind it carries.

@@ -8,7 +8,7 @@
 # silently at its default width. Widths lavapipe cannot give (16, 32, 64 lanes) are proved on
 # the CPU by tests/subgroup_widths.rs, which the main pass runs.
 #
-#   scripts/test-width.sh 128|256
+#   scripts/test-width.sh 128|256|512
 #
 # Needs lavapipe as the device trilab picks (the CI machine has no other).
 set -euo pipefail
@@ -18,8 +18,9 @@ bits=${1:-}
 case $bits in
 128) lanes=4 ;;
 256) lanes=8 ;;
+512) lanes=16 ;;
 *)
-    echo "usage: scripts/test-width.sh 128|256 (LP_NATIVE_VECTOR_WIDTH: lavapipe's SIMD width in bits)" >&2
+    echo "usage: scripts/test-width.sh 128|256|512 (LP_NATIVE_VECTOR_WIDTH: lavapipe's SIMD width in bits)" >&2
     exit 2
     ;;
 esac
@@ -29,7 +30,11 @@ esac
 # the profile's subgroup-scope clock and size sweep.
 tests=(raycast_bunny layouts_gpu traversals_gpu cwbvh_gpu subgroup_widths traversal_stats edge_cases f64_kernel watertight render profile)
 
+# Mesa's shader cache of its own for this width: lavapipe 25.0.7 keys its cached image functions
+# without the width and would call the default pass's 8-lane code at this one
+# (docs/driver-defects.md; trilab itself does the same, trilab::env::keep_lavapipe_cache_per_width).
 export LP_NATIVE_VECTOR_WIDTH=$bits TRILAB_EXPECT_SUBGROUP_SIZE=$lanes
+export MESA_SHADER_CACHE_DIR=${MESA_SHADER_CACHE_DIR:-${XDG_CACHE_HOME:-$HOME/.cache}/trilab/mesa-shader-cache-lp$bits}
 start=$SECONDS
 devices=$(cargo run --release --quiet -- devices --json)
 reported=$(printf '%s\n' "$devices" | grep -m1 '"subgroup_size"' | tr -dc '0-9')

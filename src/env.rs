@@ -36,7 +36,17 @@ pub const ENV_VARS: &[EnvVar] = &[
     },
     EnvVar { name: "TRILAB_TEST_LIMITS", help: "lower device limits for tests, e.g. max_texel_buffer_elements=4096" },
     EnvVar { name: "LP_NUM_THREADS", help: "lavapipe: rasterizer/compute threads (0: run on the calling thread)" },
-    EnvVar { name: "LP_NATIVE_VECTOR_WIDTH", help: "lavapipe: SIMD width in bits (128 or 256)" },
+    EnvVar {
+        name: "LP_NATIVE_VECTOR_WIDTH",
+        help: "lavapipe: SIMD width in bits (128, 256 or 512: 4, 8 or 16 lanes); trilab then keeps lavapipe's shader \
+               cache per width (below)",
+    },
+    EnvVar {
+        name: "MESA_SHADER_CACHE_DIR",
+        help: "Mesa's on-disk shader cache; unset while LP_NATIVE_VECTOR_WIDTH is set, trilab sets it to \
+               <XDG_CACHE_HOME or ~/.cache>/trilab/mesa-shader-cache-lp<bits> (lavapipe 25.0.7 reuses image \
+               functions cached at another width: docs/driver-defects.md)",
+    },
     EnvVar {
         name: "VK_DRIVER_FILES",
         help: "the Vulkan loader's ICD files; where it names one file with a `version` file beside it (scripts/stock-mesa.sh, scripts/swiftshader.sh), reports name that package (`driver_package`)",
@@ -52,4 +62,56 @@ pub fn help_text() -> String {
 /// The list as README.md's Markdown (between its `env: begin`/`env: end` markers).
 pub fn markdown() -> String {
     ENV_VARS.iter().map(|v| format!("- `{}`: {}.\n", v.name, v.help)).collect()
+}
+
+/// Where lavapipe's shader cache goes for SIMD width `bits` when the caller named none: one
+/// folder per width under `cache_home` (XDG_CACHE_HOME, else ~/.cache).
+///
+/// lavapipe 25.0.7 stores its precompiled texture and image functions in Mesa's on-disk cache
+/// under a key that leaves out the SIMD width, so a process at 16 lanes finds the 8-lane code a
+/// default run stored and calls it with 16-lane vectors: lanes 8-15 of every imageLoad read
+/// zeros, and a wider callee writes past a narrower caller's return slot
+/// (docs/driver-defects.md; tests/subgroup_probe.rs shows it).
+pub fn lavapipe_cache_dir(cache_home: &std::path::Path, bits: &str) -> std::path::PathBuf {
+    let bits: String = bits.chars().filter(char::is_ascii_alphanumeric).collect();
+    cache_home.join("trilab").join(format!("mesa-shader-cache-lp{bits}"))
+}
+
+/// Keeps lavapipe's shader cache per SIMD width: where `LP_NATIVE_VECTOR_WIDTH` is set and
+/// neither `MESA_SHADER_CACHE_DIR` nor `MESA_SHADER_CACHE_DISABLE` is, sets
+/// `MESA_SHADER_CACHE_DIR` to [`lavapipe_cache_dir`]. Returns the folder it chose, if any.
+///
+/// Call it first in `main`, before any thread starts and before the Vulkan loader reads the
+/// environment: it changes the process's environment.
+pub fn keep_lavapipe_cache_per_width() -> Option<std::path::PathBuf> {
+    let bits = std::env::var("LP_NATIVE_VECTOR_WIDTH").ok()?;
+    if std::env::var_os("MESA_SHADER_CACHE_DIR").is_some() || std::env::var_os("MESA_SHADER_CACHE_DISABLE").is_some() {
+        return None;
+    }
+    let home = std::env::var_os("XDG_CACHE_HOME")
+        .filter(|h| !h.is_empty())
+        .map(std::path::PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| std::path::PathBuf::from(h).join(".cache")))?;
+    let dir = lavapipe_cache_dir(&home, &bits);
+    std::env::set_var("MESA_SHADER_CACHE_DIR", &dir);
+    Some(dir)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_width_has_its_own_cache_folder() {
+        let home = std::path::Path::new("/c");
+        let a = lavapipe_cache_dir(home, "256");
+        let b = lavapipe_cache_dir(home, "512");
+        assert_ne!(a, b);
+        assert!(a.starts_with("/c/trilab"), "{a:?}");
+        // A hostile value cannot leave the folder.
+        assert_eq!(
+            lavapipe_cache_dir(home, "../../etc"),
+            std::path::PathBuf::from("/c/trilab/mesa-shader-cache-lpetc")
+        );
+    }
 }

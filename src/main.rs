@@ -66,6 +66,8 @@ fn default_sigpipe() {
 fn main() -> ExitCode {
     #[cfg(unix)]
     default_sigpipe();
+    // Before any thread and before the Vulkan loader reads the environment.
+    trilab::env::keep_lavapipe_cache_per_width();
     let matches = match Cli::command().try_get_matches() {
         Ok(m) => m,
         Err(e) => return cli::exit_parse_error(e),

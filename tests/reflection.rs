@@ -122,6 +122,10 @@ fn host_layout(method: &str, binding: u32, storage: bool) -> BufferLayout {
         (_, BINDING_ACCUM) => array_of(size_of::<[f32; 4]>(), &[]),
         // rng_probe: draws as uvec4 bits, then as vec4 floats (read back as words in tests/render.rs).
         ("none", BINDING_RNG_PROBE_OUT) => array_of(32, &[0, 16]),
+        // subgroup_probe: eleven uvec4 per invocation (read back as words in tests/subgroup_probe.rs),
+        // its input words uvec4.
+        ("none", BINDING_SUBGROUP_PROBE_OUT) => array_of(176, &(0..11).map(|m| 16 * m).collect::<Vec<_>>()),
+        ("none", BINDING_SUBGROUP_PROBE_WORDS) => array_of(16, &[]),
         (_, BINDING_STATS) => array_of(size_of::<u32>(), &[]),
         // raycast's `clock` variants: shader-clock ticks per ray, read back as u32.
         (glsl, BINDING_CYCLES) if method_of(glsl).is_some() => array_of(size_of::<u32>(), &[]),
@@ -163,6 +167,7 @@ fn host_push(kernel: &str) -> Vec<u32> {
             offset_of!(PathtracePush, pixel_count) as u32,
         ],
         "rng_probe" => vec![0, 4],
+        "subgroup_probe" => vec![0, 4],
         "bsdf_probe" => {
             vec![offset_of!(ProbePush, mode) as u32, offset_of!(ProbePush, count) as u32]
         }
@@ -205,7 +210,7 @@ fn rust_structs_match_spirv_offsets_and_strides() {
     let expected: usize = KERNELS
         .iter()
         .map(|k| match (k.kernel, k.variant) {
-            ("pathtrace" | "rng_probe", _) => 1,
+            ("pathtrace" | "rng_probe" | "subgroup_probe", _) => 1,
             // roofline: its push constants only (nodes are uvec4 texels, checksums u32).
             ("roofline", _) => 0,
             ("raycast" | "raycast_coop", v) if v.starts_with("stats") => 3,
@@ -235,6 +240,7 @@ fn kernels_bind_what_the_host_provides() {
             // The BSDF probe reads only materials.
             ("bsdf_probe", _) => vec![BINDING_MATERIALS],
             ("rng_probe", _) => vec![],
+            ("subgroup_probe", _) => vec![BINDING_SUBGROUP_PROBE_TEXELS],
             // roofline's nodes: a texel buffer, a storage buffer or an address (below).
             ("roofline", _) => vec![BINDING_NODES],
             ("raycast" | "raycast_coop" | "raycast_persistent", Some(_)) => scene,
@@ -262,6 +268,7 @@ fn kernels_bind_what_the_host_provides() {
             ("pathtrace", _) => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             ("bsdf_probe", _) => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
             ("rng_probe", _) => vec![BINDING_RNG_PROBE_OUT],
+            ("subgroup_probe", _) => vec![BINDING_SUBGROUP_PROBE_OUT, BINDING_SUBGROUP_PROBE_WORDS],
             ("roofline", _) => vec![BINDING_ROOFLINE_OUT],
             _ => vec![BINDING_PROBE_NODES, BINDING_PROBE_PRIMS, BINDING_PROBE_SLOT_IDS],
         };

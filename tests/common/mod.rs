@@ -38,6 +38,18 @@ pub fn with_gpu_options<T: Send + 'static>(
     options: ContextOptions,
     f: impl FnOnce(&Context) -> T + Send + 'static,
 ) -> T {
+    // lavapipe 25.0.7 reuses image functions its disk cache holds from another SIMD width
+    // (docs/driver-defects.md): a test process at a chosen width keeps its own cache. The trilab
+    // executable sees to it itself (trilab::env::keep_lavapipe_cache_per_width); a test binary
+    // is multi-threaded from its start and cannot, so whoever sets the width names the cache.
+    if let Ok(bits) = std::env::var("LP_NATIVE_VECTOR_WIDTH") {
+        assert!(
+            std::env::var_os("MESA_SHADER_CACHE_DIR").is_some()
+                || std::env::var_os("MESA_SHADER_CACHE_DISABLE").is_some(),
+            "LP_NATIVE_VECTOR_WIDTH={bits} without MESA_SHADER_CACHE_DIR: lavapipe would reuse image functions \
+             cached at another width (set a cache folder per width, as scripts/test-width.sh does)"
+        );
+    }
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {
         let ctx = Context::new(&ContextOptions { validation: Validation::Required, ..options }).unwrap_or_else(|e| {
