@@ -114,7 +114,7 @@ impl WorkloadArgs {
 /// How many rounds the sides run, and when they stop (`ab` and `gate`).
 #[derive(Args, Clone, Copy)]
 pub struct RoundsArgs {
-    /// Rounds per side at least (2 or more).
+    /// Rounds per side at least (2 or more; time is judged from 4 a side, fewer only shows it).
     #[arg(long, value_name = "N", default_value_t = 6)]
     pub rounds: usize,
     /// Rounds per side at most: rounds are added until every judged interval (each cell's, or

@@ -15,6 +15,11 @@
 
 use statrs::distribution::{ContinuousCDF, StudentsT};
 
+/// Rounds a side an interval needs before its verdict judges time. With 2 or 3 the interval
+/// rests on one or two degrees of freedom: wide when the rounds differ (t = 12.7 at one), and
+/// of zero width when they happen to agree to the nanosecond, a verdict of chance either way.
+pub const MIN_JUDGED_ROUNDS: usize = 4;
+
 /// B/A with its interval.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Ratio {
@@ -91,9 +96,12 @@ impl Ratio {
         (self.high / self.low).ln() / 2.0
     }
 
-    /// The verdict at `threshold` (a fraction: 0.05 for 5 %).
+    /// The verdict at `threshold` (a fraction: 0.05 for 5 %); [`Verdict::TooFewRounds`] with
+    /// fewer than [`MIN_JUDGED_ROUNDS`] a side.
     pub fn verdict(&self, threshold: f64) -> Verdict {
-        if self.low > 1.0 + threshold {
+        if self.rounds_a.min(self.rounds_b) < MIN_JUDGED_ROUNDS {
+            Verdict::TooFewRounds
+        } else if self.low > 1.0 + threshold {
             Verdict::HurtBeyondThreshold
         } else if self.low > 1.0 {
             Verdict::Hurt
@@ -117,6 +125,15 @@ pub enum Verdict {
     Hurt,
     /// The whole interval above 1 + threshold: fails the run.
     HurtBeyondThreshold,
+    /// Fewer than [`MIN_JUDGED_ROUNDS`] rounds a side: the ratio is shown, time not judged.
+    TooFewRounds,
+}
+
+impl Verdict {
+    /// Whether it says the time moved (helped or hurt).
+    pub fn moved(self) -> bool {
+        matches!(self, Verdict::Helped | Verdict::Hurt | Verdict::HurtBeyondThreshold)
+    }
 }
 
 impl std::fmt::Display for Verdict {
@@ -126,6 +143,7 @@ impl std::fmt::Display for Verdict {
             Verdict::Same => "no change",
             Verdict::Hurt => "hurt",
             Verdict::HurtBeyondThreshold => "HURT beyond threshold",
+            Verdict::TooFewRounds => "not judged (fewer than 4 rounds)",
         })
     }
 }
@@ -152,9 +170,25 @@ mod tests {
         let half = 2.7764451 * (0.02f64 / 3.0).sqrt();
         assert!((r.half_width() - half).abs() < 1e-6, "{} vs {half}", r.half_width());
         assert!((r.low - 2.0 * (-half).exp()).abs() < 1e-6);
-        assert_eq!(r.verdict(0.05), Verdict::HurtBeyondThreshold);
-        let back = Ratio::welch(&b, &a, 0.95).unwrap();
+        // Three rounds a side: the ratio is known, time is not judged.
+        assert_eq!(r.verdict(0.05), Verdict::TooFewRounds);
+        let a4: Vec<f64> = [0.0f64, 0.1, -0.1, 0.05].iter().map(|x| x.exp()).collect();
+        let b4: Vec<f64> = a4.iter().map(|x| 2.0 * x).collect();
+        assert_eq!(Ratio::welch(&a4, &b4, 0.95).unwrap().verdict(0.05), Verdict::HurtBeyondThreshold);
+        let back = Ratio::welch(&b4, &a4, 0.95).unwrap();
         assert!((back.ratio - 0.5).abs() < 1e-12 && back.verdict(0.05) == Verdict::Helped);
+    }
+
+    #[test]
+    fn fewer_than_four_rounds_are_not_judged_even_when_they_agree_exactly() {
+        // Two pairs with the same difference: a zero-width interval at 1.5, which would read as
+        // "HURT beyond threshold" from two samples.
+        let r = Ratio::paired(&[1.5f64.ln(), 1.5f64.ln()], 0.95).unwrap();
+        assert_eq!((r.low, r.high), (r.ratio, r.ratio));
+        assert_eq!(r.verdict(0.05), Verdict::TooFewRounds);
+        assert!(!Verdict::TooFewRounds.moved());
+        let four = Ratio::paired(&[1.5f64.ln(); 4], 0.95).unwrap();
+        assert_eq!(four.verdict(0.05), Verdict::HurtBeyondThreshold);
     }
 
     #[test]
@@ -165,7 +199,7 @@ mod tests {
         assert!(Ratio::welch(&a[..1], &b, 0.95).is_none());
         assert!(Ratio::welch(&[1.0, 0.0], &b, 0.95).is_none());
         // Identical constant times: a zero-width interval at 1.
-        let r = Ratio::welch(&[2.0, 2.0], &[2.0, 2.0], 0.95).unwrap();
+        let r = Ratio::welch(&[2.0; 4], &[2.0; 4], 0.95).unwrap();
         assert_eq!((r.low, r.high, r.verdict(0.05)), (1.0, 1.0, Verdict::Same));
     }
 

@@ -209,7 +209,7 @@ pub struct AbCell {
 
 impl AbCell {
     fn changed(&self) -> bool {
-        self.verdict.is_some_and(|v| v != Verdict::Same)
+        self.verdict.is_some_and(Verdict::moved)
             || self.rays_differing > 0
             || self.correctness_worse
             || self.invocations_differ()
@@ -275,14 +275,15 @@ impl AbReport {
         self.kernels.iter().filter(|k| k.verdict == Some(Verdict::HurtBeyondThreshold)).collect()
     }
 
-    /// Cells helped, hurt (either kind), no change, and without an interval.
+    /// Cells helped, hurt (either kind), no change, and without an interval or with too few
+    /// rounds to judge.
     pub fn totals(&self) -> (usize, usize, usize, usize) {
         let count = |f: &dyn Fn(Option<Verdict>) -> bool| self.cells.iter().filter(|c| f(c.verdict)).count();
         (
             count(&|v| v == Some(Verdict::Helped)),
             count(&|v| matches!(v, Some(Verdict::Hurt | Verdict::HurtBeyondThreshold))),
             count(&|v| v == Some(Verdict::Same)),
-            count(&|v| v.is_none()),
+            count(&|v| v.is_none_or(|v| v == Verdict::TooFewRounds)),
         )
     }
 
@@ -297,8 +298,7 @@ impl AbReport {
     /// Kernels over their cells: those that changed, then the count; every kernel when they are
     /// what the verdict judges.
     fn kernels_text(&self) -> String {
-        let changed: Vec<&AbKernel> =
-            self.kernels.iter().filter(|k| k.verdict.is_none_or(|v| v != Verdict::Same)).collect();
+        let changed: Vec<&AbKernel> = self.kernels.iter().filter(|k| k.verdict.is_none_or(Verdict::moved)).collect();
         let mut s = format!(
             "\nkernels (each over its cells, round by round{}): {} compared, {} changed\n",
             if self.judge == Judge::Kernels { "; what the verdict judges" } else { "" },
@@ -792,6 +792,14 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
             "--rounds {} --max-rounds {}: at least 2 rounds a side, and no more than the maximum",
             o.rounds, o.max_rounds
         )));
+    }
+    if o.max_rounds < interval::MIN_JUDGED_ROUNDS {
+        progress(&format!(
+            "warning: --max-rounds {}: fewer than {} rounds a side, so time is shown but not judged \
+             (hits and correctness still are)",
+            o.max_rounds,
+            interval::MIN_JUDGED_ROUNDS
+        ));
     }
     o.workload.sizes.check_memory()?;
     let workload = resolved_workload(&o.workload)?;
