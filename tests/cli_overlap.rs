@@ -106,3 +106,28 @@ fn random_rays_for_a_scene_at_one_point_name_the_point() {
     assert!(!e.contains("f32"), "not a matter of f32's range: {e}");
     assert!(!out.exists());
 }
+
+/// Issue 39: `bench`, `profile`, `study` and `scale` generate their ray sets themselves; the
+/// random set of a scene at one point is refused as `trilab rays` refuses it, before any ray
+/// is cast or any row written (before, they skipped the check).
+#[test]
+fn every_command_that_makes_random_rays_checks_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("point.obj");
+    std::fs::write(&scene, format!("v 1 2 3\n{}", "f 1 1 1\n".repeat(30))).unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let sc = s(&scene);
+    let o = s(&out);
+    for args in [
+        vec!["bench", "--scenes", &sc, "--out", &o],
+        vec!["profile", "--scene", &sc],
+        vec!["study", "--scenes", &sc, "--preset", "smoke", "--out", &o],
+        vec!["scale", "--scenes", &sc, "--ray-set", "random"],
+    ] {
+        let r = trilab(&args, 120);
+        let e = expect_error(&r, &["random rays cannot be made", "single point [1.0, 2.0, 3.0]", "no direction"]);
+        assert!(!e.contains("panicked"), "{args:?}: {e}");
+        assert!(!out.join("rows.jsonl").exists(), "{args:?} wrote rows");
+    }
+}

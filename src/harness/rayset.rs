@@ -120,10 +120,13 @@ fn reference_hits(reference: &Reference, rays: &[Ray]) -> Vec<Hit> {
 }
 
 impl RaySet {
-    /// This set for `mesh` (diffuse bounces off the hits `reference` finds).
-    pub fn generate(self, mesh: &Mesh, reference: &Reference, sizes: &RaySetSizes) -> Vec<Ray> {
+    /// This set for `mesh` (diffuse bounces off the hits `reference` finds), checked as `trilab
+    /// rays` checks what it writes ([`rays::check_rays`]): a set that cannot be represented in
+    /// f32, or random rays on a scene whose box is one point, is refused by name before any
+    /// ray is cast.
+    pub fn generate(self, mesh: &Mesh, reference: &Reference, sizes: &RaySetSizes) -> Result<Vec<Ray>> {
         let primary = || rays::primary_rays(&Camera::framing(&mesh.bounds()), sizes.width, sizes.height);
-        match self {
+        let made = match self {
             RaySet::Primary => primary(),
             RaySet::Diffuse => {
                 let primary = primary();
@@ -131,7 +134,8 @@ impl RaySet {
                 rays::diffuse_rays(mesh, &primary, &hits, sizes.diffuse_per_hit, sizes.seed)
             }
             RaySet::Random => rays::random_rays(&mesh.bounds(), sizes.random_rays, sizes.seed),
-        }
+        };
+        rays::check_rays(&self.to_string(), &mesh.bounds(), made)
     }
 
     /// `per_hit` diffuse bounces off the hits of `primary` (any camera).
@@ -156,7 +160,7 @@ pub fn ray_sets(
                 set,
                 match rays_dir {
                     Some(dir) => rays::read_rays(&dir.join(format!("{scene}.{set}.rays")))?,
-                    None => set.generate(mesh, reference, sizes),
+                    None => set.generate(mesh, reference, sizes)?,
                 },
             ))
         })

@@ -133,9 +133,10 @@ pub fn peak_rss_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
-fn make_rays(host: &HostScene, o: &ScaleOptions) -> Vec<Ray> {
+/// The ray set of a scale run, checked as every generated set is ([`crate::rays::check_rays`]).
+fn make_rays(host: &HostScene, o: &ScaleOptions) -> Result<Vec<Ray>> {
     let camera = crate::rays::Camera::framing(&host.mesh.bounds());
-    match o.ray_kind {
+    let made = match o.ray_kind {
         RaySet::Random => random_rays(&host.mesh.bounds(), o.rays, o.seed),
         RaySet::Diffuse => {
             let primary = crate::rays::primary_rays(&camera, 1024, 1024);
@@ -150,7 +151,8 @@ fn make_rays(host: &HostScene, o: &ScaleOptions) -> Vec<Ray> {
             rays.truncate(o.rays);
             rays
         }
-    }
+    };
+    crate::rays::check_rays(&o.ray_kind.to_string(), &host.mesh.bounds(), made)
 }
 
 /// Runs the sweep; `progress` gets one line per step.
@@ -180,7 +182,7 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
             o.build.max_leaf_size
         ));
         layouts.extend(layout_plans(&name, &host.counts()));
-        let rays = if o.plan_only { vec![] } else { make_rays(&host, o) };
+        let rays = if o.plan_only { vec![] } else { make_rays(&host, o)? };
         let sample: Vec<usize> = if rays.is_empty() {
             vec![]
         } else {

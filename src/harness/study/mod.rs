@@ -401,7 +401,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
         let reference_scene = HostScene::build(&name, &mesh, &BuildOptions::new(4))?;
         let reference = reference_scene.reference();
         let sets: Vec<(RaySet, Vec<crate::rays::Ray>)> =
-            RaySet::ALL.iter().map(|&s| (s, s.generate(&mesh, &reference, &o.sizes()))).collect();
+            RaySet::ALL.iter().map(|&s| Ok((s, s.generate(&mesh, &reference, &o.sizes())?))).collect::<Result<_>>()?;
         let ref_hits: Vec<_> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
 
         let settings = bench_settings(&mesh, (o.width, o.height), o.spp, o.max_depth, None);
