@@ -187,3 +187,112 @@ fn a_stopped_suite_says_what_it_kept() {
     assert!(err.contains("stopped by SIGINT (Ctrl-C)") && err.contains("no part completed"), "{err}");
     assert!(err.contains("stopped before the first part"), "{err}");
 }
+
+impl Running {
+    /// Waits up to `limit` for a stderr line containing `needle` (failing as wait_for_line).
+    fn wait_for_text(&mut self, needle: &str, limit: Duration) {
+        let start = Instant::now();
+        while !self.seen.iter().any(|l| l.contains(needle)) {
+            match self.lines.recv_timeout(Duration::from_millis(100)) {
+                Ok(line) => self.seen.push(line),
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+                Err(mpsc::RecvTimeoutError::Disconnected) => {
+                    panic!("trilab ended before `{needle}`:\n{}", self.seen.join("\n"))
+                }
+            }
+            if start.elapsed() > limit {
+                let _ = self.child.kill();
+                panic!("no `{needle}` within {limit:?}:\n{}", self.seen.join("\n"));
+            }
+        }
+    }
+
+    /// The processes this one started that run now (from /proc: its threads' children).
+    fn children(&self) -> Vec<u32> {
+        let mut out = vec![];
+        let tasks = format!("/proc/{}/task", self.child.id());
+        for t in std::fs::read_dir(tasks).into_iter().flatten().flatten() {
+            let text = std::fs::read_to_string(t.path().join("children")).unwrap_or_default();
+            out.extend(text.split_whitespace().filter_map(|p| p.parse::<u32>().ok()));
+        }
+        out
+    }
+}
+
+/// Whether process `pid` runs (exists and is not a zombie).
+fn alive(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| s.rsplit_once(')').map(|(_, r)| r.split_whitespace().next() != Some("Z")))
+        .unwrap_or(false)
+}
+
+/// Issue 39: SIGTERM to the suite while its profile part runs `trilab bench` per LP_NUM_THREADS
+/// reaches that child too (before, the child ran on after the suite had gone).
+#[test]
+fn a_stopped_suite_stops_the_processes_it_started() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("suite");
+    let mut r = Running::start(&[
+        "suite",
+        "--size",
+        "0",
+        "--parts",
+        "profile",
+        "--no-driver-stats",
+        "--validation",
+        "--out",
+        &s(&out),
+    ]);
+    r.wait_for_text("LP_NUM_THREADS=", Duration::from_secs(400));
+    let start = Instant::now();
+    let kids = loop {
+        let kids = r.children();
+        if !kids.is_empty() {
+            break kids;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "no child process appeared:\n{}", r.seen.join("\n"));
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let (status, err) = r.signal_and_wait(libc::SIGTERM, Duration::from_secs(30));
+    assert_eq!(status.code(), Some(128 + libc::SIGTERM), "{err}");
+    assert!(err.contains("child process(es)"), "the signal was forwarded: {err}");
+    let start = Instant::now();
+    while kids.iter().any(|&k| alive(k)) {
+        assert!(start.elapsed() < Duration::from_secs(20), "children {kids:?} outlived the suite by 20 s:\n{err}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Issue 39: `study` stopped by SIGTERM finishes the (scene, leaf size) group under way, writes
+/// the groups it finished (study.md says it stopped early) and exits 143; before, it died
+/// with nothing written.
+#[test]
+fn a_stopped_study_writes_the_groups_it_finished() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("study");
+    let mut r = Running::start(&[
+        "study",
+        "--preset",
+        "smoke",
+        "--methods",
+        "mt",
+        "--leaf-sizes",
+        "1,2,4,8,16",
+        "--validation",
+        "--out",
+        &s(&out),
+    ]);
+    // The first group's render is done: the signal comes during the first or second group.
+    r.wait_for_line("  bunny leaf 1 ", Duration::from_secs(300));
+    let (status, err) = r.signal_and_wait(libc::SIGTERM, Duration::from_secs(300));
+    assert_eq!(status.code(), Some(128 + libc::SIGTERM), "{err}");
+    assert!(err.contains("finishing the group under way"), "{err}");
+    let md = std::fs::read_to_string(out.join("study.md")).unwrap();
+    assert!(md.contains("Stopped early: stopped before bunny leaf"), "{md}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("study.json")).unwrap()).unwrap();
+    let rows = json["rows"].as_array().unwrap();
+    assert!(!rows.is_empty() && rows.len() < 5, "{} rows: only the finished groups", rows.len());
+    assert!(rows.iter().all(|r| r["leaf_size"] != 16), "the last group never ran");
+}

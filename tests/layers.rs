@@ -16,6 +16,7 @@ const LAYERS: &[&str] = &[
     "env",
     "error",
     "io",
+    "children",
     "memory",
     "report",
     "host",

@@ -1,6 +1,8 @@
 //! `trilab study`.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
+use std::sync::Arc;
 
 use clap::Args;
 use trilab::encoding::Layout;
@@ -8,7 +10,7 @@ use trilab::error::Result;
 use trilab::harness::study::{self, Preset, StudyOptions};
 
 use super::choice::choice;
-use super::{repeat, results_dir, GpuArgs, JsonArg, MethodsArg, SahGroupArg};
+use super::{repeat, results_dir, signals, GpuArgs, JsonArg, MethodsArg, SahGroupArg};
 
 /// The paper's study on this device: scene x leaf size {1,2,3,4,8,16} x method, path-trace
 /// seconds and Mrays/s per ray set, validated; writes study.csv/json/md and plots.
@@ -83,6 +85,25 @@ pub fn run(a: StudyArgs) -> Result<()> {
         let split = o.split();
         eprintln!("study: shard {shard}: {} of {} (scene, leaf size) groups", split.owned(), split.units());
     }
+    // Ctrl-C, SIGTERM or SIGHUP: finish the (scene, leaf size) group under way, write what is
+    // finished, then exit 128 + the signal's number. A second signal ends it at once, its
+    // children (the driver's, none today) with it.
+    let stop = Arc::new(AtomicBool::new(false));
+    let first = Arc::new(AtomicI32::new(0));
+    o.stop = Some(stop.clone());
+    let signal = first.clone();
+    let handler = signals::on_stop(move |sig| {
+        if stop.swap(true, Ordering::SeqCst) {
+            eprintln!("study: {} again: stopping without writing", signals::name(sig));
+            trilab::children::signal_all(sig);
+            signals::exit_now(sig);
+        }
+        signal.store(sig, Ordering::SeqCst);
+        eprintln!("study: {}: finishing the group under way, then writing what is done", signals::name(sig));
+    });
+    if let Err(e) = handler {
+        super::note(&format!("warning: cannot catch Ctrl-C or SIGTERM ({e}); a stopped study will not be written"));
+    }
     let report = study::run(&ctx, &o, |m| eprintln!("  {m}"))?;
     a.json.print(&report);
     let written = study::write(&report, &out)?;
@@ -90,5 +111,11 @@ pub fn run(a: StudyArgs) -> Result<()> {
     for w in written {
         eprintln!("  {}", w.display());
     }
-    Ok(())
+    match first.load(Ordering::SeqCst) {
+        0 => Ok(()),
+        sig => {
+            eprintln!("study: {}", report.stopped.as_deref().unwrap_or("stopped after its last group"));
+            super::exit_interrupted(sig)
+        }
+    }
 }

@@ -65,7 +65,11 @@ pub fn run(a: SuiteArgs) -> Result<()> {
     let k = kept.clone();
     let handler = signals::on_stop(move |signal| {
         let k = k.lock().unwrap_or_else(|e| e.into_inner());
-        eprintln!("suite: stopped by {}; {}", signals::name(signal), k.describe());
+        // The part under way may run trilab again (bench per LP_NUM_THREADS, the driver
+        // statistics): each child's process group gets the signal too.
+        let children = trilab::children::signal_all(signal);
+        let forwarded = if children > 0 { format!(" (and {children} child process(es))") } else { String::new() };
+        eprintln!("suite: stopped by {}{forwarded}; {}", signals::name(signal), k.describe());
         signals::exit_now(signal);
     });
     if let Err(e) = handler {

@@ -552,7 +552,7 @@ fn run_peer(
     if commit {
         cmd.arg("--commit");
     }
-    let out = cmd.output().map_err(|e| Error::io(bin, e))?;
+    let out = crate::children::output(&mut cmd).map_err(|e| Error::io(bin, e))?;
     let stdout = String::from_utf8_lossy(&out.stdout);
     if !out.status.success() {
         return Err(Error::Usage(format!(

@@ -493,7 +493,8 @@ pub fn write_obj(mesh: &Mesh, path: &Path) -> Result<()> {
 /// Runs `cmd` with stdin closed and both pipes drained, killing it past `limit`.
 fn run_with_timeout(mut cmd: Command, limit: Duration) -> std::io::Result<std::process::Output> {
     cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
-    let mut child = cmd.spawn()?;
+    let mut running = crate::children::spawn(&mut cmd)?;
+    let child = running.child();
     let drain = |mut pipe: Box<dyn Read + Send>| {
         std::thread::spawn(move || {
             let mut buf = Vec::new();

@@ -69,7 +69,9 @@ pub fn collect(o: &AbOptions, name: &str, side: &Side, cells: &[CellInfo], dir: 
         cmd.arg("--validation");
     }
     side.apply(&mut cmd);
-    let out = match cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped()).output() {
+    let out = match crate::children::spawn(cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped()))
+        .and_then(crate::children::Running::wait_with_output)
+    {
         Ok(out) => out,
         Err(e) => return none(format!("could not run {} {COMMAND}: {e}", side.exe(&o.exe).display())),
     };

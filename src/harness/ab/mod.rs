@@ -23,7 +23,7 @@ pub mod worker;
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, Command, Stdio};
+use std::process::{ChildStdin, Command, Stdio};
 use std::time::Instant;
 
 use serde::Serialize;
@@ -622,7 +622,7 @@ fn shader_cache(env: &[(String, String)]) -> String {
 /// A running side.
 struct Worker {
     name: &'static str,
-    child: Child,
+    child: crate::children::Running,
     stdin: ChildStdin,
     lines: std::io::Lines<BufReader<std::process::ChildStdout>>,
     stderr: std::thread::JoinHandle<String>,
@@ -640,15 +640,11 @@ impl Worker {
             cmd.arg("--validation");
         }
         side.apply(&mut cmd);
-        let mut child = cmd
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
+        let mut child = crate::children::spawn(cmd.stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()))
             .map_err(|e| Error::io(exe, e))?;
-        let stdin = child.stdin.take().expect("piped");
-        let lines = BufReader::new(child.stdout.take().expect("piped")).lines();
-        let mut err = child.stderr.take().expect("piped");
+        let stdin = child.child().stdin.take().expect("piped");
+        let lines = BufReader::new(child.child().stdout.take().expect("piped")).lines();
+        let mut err = child.child().stderr.take().expect("piped");
         let stderr = std::thread::spawn(move || {
             let mut s = String::new();
             let _ = std::io::Read::read_to_string(&mut err, &mut s);
@@ -660,7 +656,7 @@ impl Worker {
     /// The worker's next message; its failure (or its end) as an error naming the side.
     fn next(&mut self) -> Result<Message> {
         let fail = |w: &mut Worker, what: String| -> Error {
-            let _ = w.child.kill();
+            let _ = w.child.child().kill();
             let _ = w.child.wait();
             Error::Usage(format!("side {}: {what}", w.name))
         };

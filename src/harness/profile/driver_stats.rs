@@ -369,7 +369,7 @@ fn lavapipe_dumps(kernels: &[&'static KernelSource], o: &CollectOptions) -> Resu
     if o.validation {
         cmd.arg("--validation");
     }
-    let output = cmd.output().map_err(|e| Error::io(&o.exe, e))?;
+    let output = crate::children::output(&mut cmd).map_err(|e| Error::io(&o.exe, e))?;
     let stderr = String::from_utf8_lossy(&output.stderr);
     if !output.status.success() {
         let tail: Vec<&str> = stderr.lines().filter(|l| !l.starts_with(' ')).rev().take(8).collect();

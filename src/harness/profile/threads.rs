@@ -47,27 +47,28 @@ pub struct BenchRun<'a> {
 pub fn bench_with_threads(run: &BenchRun, threads: usize) -> Result<Vec<ThreadMeasurement>> {
     let json = run.rays_dir.join(format!("bench-threads-{threads}.json"));
     let methods: Vec<String> = run.methods.iter().map(|m| m.to_string()).collect();
-    let output = Command::new(run.exe)
-        .env("LP_NUM_THREADS", threads.to_string())
-        .arg("bench")
-        .arg("--scenes")
-        .arg(run.scene)
-        .arg("--rays-dir")
-        .arg(run.rays_dir)
-        .arg("--methods")
-        .arg(methods.join(","))
-        .arg("--leaf-size")
-        .arg(run.leaf_size.to_string())
-        .arg("--layouts")
-        .arg(run.layout.to_string())
-        .arg("--repeat")
-        .arg(run.repeat.to_string())
-        .arg("--device")
-        .arg(run.device_index.to_string())
-        .arg("--json-out")
-        .arg(&json)
-        .output()
-        .map_err(|e| Error::io(run.exe, e))?;
+    let output = crate::children::output(
+        Command::new(run.exe)
+            .env("LP_NUM_THREADS", threads.to_string())
+            .arg("bench")
+            .arg("--scenes")
+            .arg(run.scene)
+            .arg("--rays-dir")
+            .arg(run.rays_dir)
+            .arg("--methods")
+            .arg(methods.join(","))
+            .arg("--leaf-size")
+            .arg(run.leaf_size.to_string())
+            .arg("--layouts")
+            .arg(run.layout.to_string())
+            .arg("--repeat")
+            .arg(run.repeat.to_string())
+            .arg("--device")
+            .arg(run.device_index.to_string())
+            .arg("--json-out")
+            .arg(&json),
+    )
+    .map_err(|e| Error::io(run.exe, e))?;
     if !output.status.success() {
         return Err(Error::Usage(format!(
             "LP_NUM_THREADS={threads}: `{} bench` failed ({}): {}",

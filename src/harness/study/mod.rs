@@ -64,6 +64,10 @@ named_enum! {
 
 #[derive(Clone, Debug, Serialize)]
 pub struct StudyOptions {
+    /// Set (by a stop signal) to end the run after the (scene, leaf size) group under way: the
+    /// report then holds the groups finished and says it was stopped ([`StudyReport::stopped`]).
+    #[serde(skip)]
+    pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
     pub preset: Preset,
     pub scenes: Vec<PathBuf>,
     pub leaf_sizes: Vec<u32>,
@@ -119,6 +123,7 @@ impl StudyOptions {
             sah_group: 1,
             seed: 7,
             shard: None,
+            stop: None,
         };
         match preset {
             Preset::Paper => base,
@@ -357,6 +362,10 @@ pub struct StudyReport {
     pub provenance: Provenance,
     pub rows: Vec<StudyRow>,
     pub seconds: f64,
+    /// Why the run ended before its last group ([`StudyOptions::stop`]), with how many groups
+    /// it finished; `None` for a whole run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped: Option<String>,
 }
 
 /// Per-method state of one (scene, leaf size) during the rounds.
@@ -390,7 +399,9 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
     let started = Instant::now();
     let provenance = Provenance::of(ctx);
     let mut rows = vec![];
-    for (scene_index, path) in o.scenes.iter().enumerate() {
+    let mut stopped = None;
+    let mut groups_done = 0usize;
+    'scenes: for (scene_index, path) in o.scenes.iter().enumerate() {
         if !o.split().runs_any(scene_index) {
             continue;
         }
@@ -410,6 +421,15 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
         for (leaf_index, &leaf) in o.leaf_sizes.iter().enumerate() {
             if !o.split().runs(scene_index, leaf_index) {
                 continue;
+            }
+            if o.stop.as_ref().is_some_and(|s| s.load(std::sync::atomic::Ordering::SeqCst)) {
+                let why = format!(
+                    "stopped before {name} leaf {leaf}, after {groups_done} of {} (scene, leaf size) groups",
+                    o.split().owned()
+                );
+                progress(&why);
+                stopped = Some(why);
+                break 'scenes;
             }
             let host =
                 HostScene::build(&name, &mesh, &BuildOptions { sah_group: o.sah_group, ..BuildOptions::new(leaf) })?;
@@ -512,6 +532,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                     provenance: provenance.clone(),
                 });
             }
+            groups_done += 1;
         }
     }
     Ok(StudyReport {
@@ -520,6 +541,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
         provenance,
         rows,
         seconds: started.elapsed().as_secs_f64(),
+        stopped,
     })
 }
 
@@ -730,7 +752,7 @@ pub(crate) mod testing {
             }
         }
         o.scenes = vec![];
-        StudyReport { options: o, scaling: String::new(), provenance: prov, rows, seconds: 0.0 }
+        StudyReport { options: o, scaling: String::new(), provenance: prov, rows, seconds: 0.0, stopped: None }
     }
 }
 

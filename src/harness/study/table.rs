@@ -356,6 +356,9 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
     let p = &report.provenance;
     let mut s = String::new();
     let _ = writeln!(s, "# trilab study ({:?} preset)\n", report.options.preset);
+    if let Some(why) = &report.stopped {
+        let _ = writeln!(s, "**Stopped early: {why}.** The tables hold the groups it finished.\n");
+    }
     let _ = writeln!(s, "- device: {} ({})", p.device, p.driver);
     if let Some(m) = &p.mesa_version {
         let _ = writeln!(s, "- Mesa {m}");
