@@ -12,7 +12,21 @@
 #                                          here: the archive into ROOT/results/<device>/ (ROOT: this
 #                                          checkout), stored as results/ keeps results, then
 #                                          `trilab merge` of lavapipe and that device, whose
-#                                          verdicts fill ROOT/results/README.md's GPU column
+#                                          verdicts fill ROOT/results/README.md's GPU column.
+#                                          The archive is untrusted: all of it is checked before
+#                                          anything is written, and it is refused whole (exit 1,
+#                                          naming each offending entry and why) for anything but
+#                                          regular files and folders under results/<device>/ (and
+#                                          run.log beside results/), for a device name trilab does
+#                                          not write, and when damaged or cut. It is unpacked into
+#                                          ROOT/results/.unpack.XXXXXX/ and each device's folder
+#                                          renamed into place: a failure leaves results/ as it was.
+#                                          A device already under ROOT/results/ (a second unpack,
+#                                          a rerun on the same GPU) is refused, naming the files
+#                                          the archive would overwrite and which git tracks:
+#                                          results are never overwritten; move the folder away
+#                                          first (git mv results/D results/D-before) or unpack
+#                                          into another ROOT.
 #
 # What travels (.travel/, one `carry` path; the tracked tree travels by itself):
 #   trilab            the release binary, stripped (symbols and line tables stay in target/)
@@ -276,22 +290,195 @@ print(f"filled {readme}'s GPU column: {filled} claims from {dev['device']}")
 PY
 }
 
+# The archive is untrusted (it comes back from a machine lent for minutes, and a run stopped at
+# any point may leave it cut): `check_archive check` reads all of it before anything is written
+# and refuses, entry by entry, anything but regular files and folders under results/<device>/
+# (and run.log beside results/): links of either kind, devices, absolute paths, `..`, empty or
+# `.` components, names outside printable ASCII or with a backslash, a device name that is not
+# one trilab writes (DeviceInfo::results_dir: lower-case letters and digits, single `-` between;
+# not merged-*, the merges' folders), a name twice, a path under a name the archive holds as a
+# file or link, over 2 GiB unpacked; a damaged or cut archive (gzip -t, then GNU tar and
+# Python's tarfile must both read it to the end and list the same names); and a device whose
+# results/<device>/ already exists under ROOT (naming the files it would overwrite, and which
+# git tracks). It prints the devices, one a line. `check_archive extract ARCHIVE STAGE` checks
+# again (the file may have changed since) and writes each device's files under STAGE/<device>/,
+# itself: only folders and regular files, created new (O_EXCL, O_NOFOLLOW), so no entry can
+# reach past STAGE.
+check_archive() {
+  python3 - "$@" <<'PY'
+import os, re, shutil, subprocess, sys, tarfile, zlib
+mode, archive, where = sys.argv[1:]
+DEVICE = re.compile(r"[a-z0-9]+(-[a-z0-9]+)*")
+MAX_BYTES = 2 << 30
+
+def fail(what, lines):
+    lines = list(lines)
+    shown = lines[:20] + ([f"... and {len(lines) - 20} more"] if len(lines) > 20 else [])
+    sys.exit("\n  ".join([f"device-run.sh unpack: {archive}: {what}, nothing unpacked:"] + shown))
+
+def damaged(why):
+    fail("damaged or truncated (a cut archive, or not what `run` wrote)", [why])
+
+def kind(m):
+    if m.issym(): return f"a symbolic link (-> {m.linkname!r})"
+    if m.islnk(): return f"a hard link (to {m.linkname!r})"
+    if m.ischr(): return "a character device"
+    if m.isblk(): return "a block device"
+    if m.isfifo(): return "a FIFO"
+    return f"an entry of tar type {m.type!r}"
+
+def norm(name, is_dir):
+    while name.startswith("./"):
+        name = name[2:]
+    return name.rstrip("/") if is_dir else name
+
+# The gzip stream whole (a cut anywhere, even in its 8-byte trailer, fails its length or CRC).
+r = subprocess.run(["gzip", "-t", "--", archive], capture_output=True)
+if r.returncode:
+    damaged(r.stderr.decode(errors="replace").strip() or f"gzip -t exit {r.returncode}")
+r = subprocess.run(["tar", "--quoting-style=literal", "-tzf", archive], capture_output=True)
+if r.returncode:
+    damaged("tar -t: " + r.stderr.decode(errors="replace").strip())
+listed = r.stdout.decode("utf-8", "surrogateescape").split("\n")[:-1]
+try:
+    tf = tarfile.open(archive, "r:gz")
+    members = tf.getmembers()
+except (tarfile.TarError, EOFError, OSError, zlib.error) as e:
+    damaged(f"Python's tarfile: {type(e).__name__}: {e}")
+
+problems, names, seen, not_dirs, devices, total = [], [], set(), {}, [], 0
+for m in members:
+    raw, why = m.name, []
+    name = norm(raw, m.isdir())
+    names.append(name)
+    if m.isdir() and name in ("", "."):
+        continue  # the archive's own top folder
+    if not (m.isreg() or m.isdir()):
+        why.append(f"{kind(m)}: only regular files and folders are unpacked")
+    if any(not " " <= c <= "~" or c == "\\" for c in raw):
+        why.append("a control, non-ASCII or backslash character in its name")
+    parts = name.split("/")
+    if raw.startswith("/"):
+        why.append("an absolute path: it would be written outside results/<device>/")
+    else:
+        if ".." in parts:
+            why.append("a '..' component: it would climb out of results/<device>/")
+        if "" in parts or "." in parts:
+            why.append("an empty or '.' component")
+        if parts[0] == "results" and len(parts) > 1:
+            dev = parts[1]
+            if not DEVICE.fullmatch(dev) or dev.startswith("merged-"):
+                why.append(f"device name {dev!r} is not a folder trilab writes under results/ "
+                           "(lower-case letters and digits, single '-' between, not merged-*)")
+            elif len(parts) == 2 and not m.isdir():
+                why.append("a file where the device's folder belongs")
+            elif dev not in devices:
+                devices.append(dev)
+        elif parts[0] == "results" and not m.isdir():
+            why.append("a file where the results/ folder belongs")
+        elif parts[0] != "results" and not (name == "run.log" and m.isreg()):
+            why.append("outside results/<device>/ (only run.log may sit beside results/)")
+    if name in seen:
+        why.append("a second entry of that name")
+    seen.add(name)
+    if not m.isdir():
+        not_dirs[name] = "a symbolic link" if m.issym() else "a hard link" if m.islnk() else "a file"
+    if m.isreg():
+        total += m.size
+    if why:
+        problems.append(f"{raw!r}: " + "; ".join(why))
+for m, name in zip(members, names):
+    parts = name.split("/")
+    for i in range(1, len(parts)):
+        above = "/".join(parts[:i])
+        if above in not_dirs:
+            problems.append(f"{m.name!r}: under {above!r}, which the archive holds as {not_dirs[above]} "
+                            "(written through a link, it would land wherever the link points)")
+            break
+if total > MAX_BYTES:
+    problems.append(f"{total / 2**30:.1f} GiB unpacked, over the {MAX_BYTES >> 30} GiB an archive of results may hold")
+if problems:
+    fail("refused", problems)
+# GNU tar and Python read the same archive: the same names, in the same order.
+ours = [n for n, m in zip(names, members) if not (m.isdir() and n in ("", "."))]
+theirs = [n for n in (norm(l, True) for l in listed) if n not in ("", ".")]
+if ours != theirs:
+    diff = next((i for i, (a, b) in enumerate(zip(ours, theirs)) if a != b), min(len(ours), len(theirs)))
+    damaged(f"GNU tar and Python's tarfile read it differently (entry {diff}: "
+            f"{theirs[diff:diff + 1]!r} and {ours[diff:diff + 1]!r}; {len(theirs)} and {len(ours)} entries)")
+
+if mode == "check":
+    clashes = []
+    for dev in devices:
+        rel = f"results/{dev}"
+        there = os.path.join(where, rel)
+        if not os.path.lexists(there):
+            continue
+        r = subprocess.run(["git", "-C", where, "ls-files", "-z", "--", rel], capture_output=True)
+        tracked = set(r.stdout.decode(errors="replace").split("\0")) - {""} if r.returncode == 0 else set()
+        existing = [n for n, m in zip(names, members) if m.isreg() and n.startswith(rel + "/")
+                    and os.path.lexists(os.path.join(where, n))]
+        held = sum(len(fs) for _, _, fs in os.walk(there))
+        said = [f"{n} (tracked by git)" if n in tracked else n for n in existing[:10]]
+        more = f", and {len(existing) - 10} more" if len(existing) > 10 else ""
+        clashes.append(
+            f"{rel}: already exists in {where} ({held} files, {len(tracked)} tracked by git); the archive would "
+            f"overwrite {len(existing)} of them" + (": " + ", ".join(said) + more if said else "")
+            + f"; results are never overwritten: move it away first (git mv {rel} {rel}-before) "
+            "or unpack into another ROOT")
+    if clashes:
+        fail("refused", clashes)
+    print("\n".join(devices))
+    sys.exit(0)
+
+# extract: each device's files under STAGE/<device>/, created here, never through a link.
+for m, name in zip(members, names):
+    parts = name.split("/")
+    if parts[0] != "results" or len(parts) < 2:
+        continue  # run.log beside results/, results/ itself (checked: results/<device> is a folder)
+    target = os.path.join(where, *parts[1:])
+    try:
+        if m.isdir():
+            os.makedirs(target, 0o755, exist_ok=True)
+            continue
+        os.makedirs(os.path.dirname(target), 0o755, exist_ok=True)
+        fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o755 if m.mode & 0o111 else 0o644)
+        with os.fdopen(fd, "wb") as out, tf.extractfile(m) as data:
+            shutil.copyfileobj(data, out)
+    except (OSError, tarfile.TarError, EOFError, zlib.error) as e:
+        fail("cannot unpack", [f"{m.name!r}: {type(e).__name__}: {e}"])
+PY
+}
+
 unpack() {
   local archive=${1:?usage: device-run.sh unpack ARCHIVE [ROOT]} dest=${2:-$root}
   [ -f "$archive" ] || { echo "device-run.sh unpack: $archive: no such file" >&2; exit 2; }
-  local tmp
-  tmp=$(mktemp -d)
-  tar -C "$tmp" -xzf "$archive"
-  [ -d "$tmp/results" ] || { echo "device-run.sh unpack: $archive holds no results/ (run.log:)" >&2; cat "$tmp/run.log" >&2; exit 1; }
+  [ -d "$dest" ] || { echo "device-run.sh unpack: $dest: no such folder (the checkout root to unpack into)" >&2; exit 2; }
+  local devices name
+  # 1. The whole archive checked; nothing written yet.
+  devices=$(check_archive check "$archive" "$dest") || exit 1
+  if [ -z "$devices" ]; then
+    echo "device-run.sh unpack: $archive holds no results/<device>/ (run.log:)" >&2
+    tar -xzOf "$archive" run.log >&2 2>/dev/null || echo "(and no run.log)" >&2
+    exit 1
+  fi
+  # 2. Into a staging folder beside the devices' folders (the same file system), then each
+  # device's folder renamed into place whole. A failure until then leaves results/ as it was.
+  # (Globals: the EXIT trap runs after this function has returned.)
+  unpack_made_results=
+  [ -d "$dest/results" ] || unpack_made_results=$dest/results
   mkdir -p "$dest/results"
-  local dev name
-  for dev in "$tmp"/results/*/; do
-    name=$(basename "$dev")
-    if [ -e "$dest/results/$name" ]; then
-      echo "device-run.sh unpack: $dest/results/$name exists; move it away first (results are never overwritten)" >&2
-      exit 1
-    fi
-    mv "$dev" "$dest/results/$name"
+  unpack_stage=$(mktemp -d "$dest/results/.unpack.XXXXXX")
+  trap 'rm -rf "$unpack_stage"; [ -z "$unpack_made_results" ] || rmdir "$unpack_made_results" 2>/dev/null || true' EXIT
+  check_archive extract "$archive" "$unpack_stage" || exit 1
+  while IFS= read -r name; do
+    # -T: onto results/<device> itself, never into a folder of that name made meanwhile.
+    mv -T "$unpack_stage/$name" "$dest/results/$name"
+  done <<< "$devices"
+  rm -rf "$unpack_stage"
+  trap - EXIT
+  # 3. Stored as results/ keeps results; merged with lavapipe where the suite ran.
+  while IFS= read -r name; do
     "$root/scripts/compress-results.sh" "$dest/results/$name" >/dev/null
     echo "unpacked $dest/results/$name"
     local exe=$root/.travel/trilab
@@ -301,8 +488,7 @@ unpack() {
       echo "merged lavapipe and $name: $dest/results/merged-$name/merge.md"
       fill_gpu_column "$dest/results/README.md" "$dest/results/merged-$name/merge.json" "$dest/results/$name/suite"
     fi
-  done
-  rm -rf "$tmp"
+  done <<< "$devices"
 }
 
 case ${1:-} in
