@@ -18,9 +18,14 @@ fn corpus() -> PathBuf {
 
 /// Renders `name` from the corpus at 8x6, 1 spp into `out`: its stderr and JSON, or why not.
 fn try_render(name: &str, out: &Path) -> Result<(String, serde_json::Value), String> {
-    let exr = out.join(name).with_extension("exr");
-    let scene = corpus().join(name);
-    let args = ["render", "--scene", &s(&scene), "--out", &s(&exr), "--width", "8", "--height", "6", "--spp", "1"];
+    try_render_file(&corpus().join(name), out)
+}
+
+/// Renders the scene file `scene` as [`try_render`] renders one from the corpus.
+fn try_render_file(scene: &Path, out: &Path) -> Result<(String, serde_json::Value), String> {
+    let name = scene.file_name().unwrap().to_string_lossy().into_owned();
+    let exr = out.join(&name).with_extension("exr");
+    let args = ["render", "--scene", &s(scene), "--out", &s(&exr), "--width", "8", "--height", "6", "--spp", "1"];
     let (o, _) = run(&[&args[..], &["--quiet"]].concat(), None, &[], 120);
     let e = String::from_utf8_lossy(&o.stderr).into_owned();
     if !o.status.success() || e.contains("validation:") {
@@ -116,5 +121,101 @@ fn what_cannot_be_meant_is_refused_with_file_and_line() {
         let (o, _) = run(&[&args[..], &["--spp", "1", "--quiet"]].concat(), None, &[], 60);
         expect_error(&o, needles);
         assert!(!exr.exists(), "{file}: a refused scene writes no image");
+    }
+}
+
+/// The corpus's reference scene written into `dir` under the same names with every line ended
+/// by the next of `ends` in turn (OBJ and MTL alike), after `edit` changed its lines.
+fn reference_with_line_ends(dir: &Path, ends: &[&str], edit: impl Fn(&str) -> String) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    for name in ["reference.obj", "reference.mtl"] {
+        let text = std::fs::read_to_string(corpus().join(name)).unwrap();
+        let out: String = text.lines().zip(ends.iter().cycle()).map(|(l, end)| edit(l) + end).collect();
+        std::fs::write(dir.join(name), out).unwrap();
+    }
+    dir.join("reference.obj")
+}
+
+/// Blender 2.61 writes an unnamed material as `usemtl ` in the OBJ and `newmtl ` in the MTL (a
+/// space, no name). The faces after that `usemtl` take that material: the reference scene with
+/// its third material unnamed this way renders as the reference (the same material records and
+/// ids), not as the default material would; a warning names each file and line.
+#[test]
+fn blender_2_61_unnamed_material_loads_as_the_reference_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, reference) = render("reference.obj", dir.path());
+    let obj = "# Blender v2.61 (sub 0) OBJ File: ''\n# www.blender.org\nmtllib blender.mtl\no Box01\nv 0 0 0\n\
+               v 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 -0.5\nusemtl Metal1\ns off\nf 1 2 3 4\nusemtl Metal2\n\
+               s off\nf 1 2 5\nusemtl \ns off\nf 2 3 5\n";
+    let mtl = "# Blender MTL File: 'None'\n# Material Count: 3\nnewmtl Metal1\nillum 3\nKs 0.9 0.9 0.9\n\n\
+               newmtl Metal2\nillum 7\nNi 1.5\nTf 0.9 1 0.9\n\nnewmtl \nKd 0.6 0.4 0.2\n";
+    let scene = dir.path().join("blender.obj");
+    std::fs::write(&scene, obj).unwrap();
+    std::fs::write(dir.path().join("blender.mtl"), mtl).unwrap();
+    let (_, json) = render_file(&scene, dir.path());
+    assert_eq!(json["scene_sha256"], reference["scene_sha256"]);
+    let mtl_path = dir.path().join("blender.mtl");
+    assert_eq!(
+        warnings(&json),
+        [
+            format!(
+                "{}:12: newmtl without a material name: it defines the unnamed material, which `usemtl` without a \
+                 name selects",
+                mtl_path.display()
+            ),
+            format!(
+                "{}:16: usemtl without a material name: the faces that follow take the unnamed material (`newmtl` \
+                 without a name, {}:12)",
+                scene.display(),
+                mtl_path.display()
+            ),
+        ]
+    );
+
+    // Without the unnamed material the third face is default grey: another scene.
+    std::fs::write(dir.path().join("blender.mtl"), &mtl[..mtl.find("newmtl \n").unwrap()]).unwrap();
+    let (_, json) = render_file(&scene, dir.path());
+    assert_ne!(json["scene_sha256"], reference["scene_sha256"]);
+    assert!(
+        warnings(&json)[0].contains(
+            "blender.obj:16: usemtl without a material name: the faces that follow take the default material"
+        ),
+        "{:?}",
+        warnings(&json)
+    );
+}
+
+fn render_file(scene: &Path, out: &Path) -> (String, serde_json::Value) {
+    try_render_file(scene, out).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Classic Mac OS ends lines with CR alone. The reference scene with CR line ends, and with
+/// CRLF, CR and LF in turn, renders as the reference; an error in such a file names the line
+/// counted with CR as a line end, in the OBJ and in the MTL.
+#[test]
+fn lone_cr_line_ends_load_as_the_reference_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, reference) = render("reference.obj", dir.path());
+    for (sub, ends) in [("cr", &["\r"][..]), ("mixed", &["\r\n", "\r", "\n"][..])] {
+        let scene = reference_with_line_ends(&dir.path().join(sub), ends, str::to_owned);
+        let (_, json) = render_file(&scene, &dir.path().join(sub));
+        assert_eq!(json["scene_sha256"], reference["scene_sha256"], "{sub}");
+        assert!(warnings(&json).is_empty(), "{sub}: {:?}", warnings(&json));
+    }
+
+    // `v 0 1 0` (OBJ line 7) and `Ni 1.5` (MTL line 6) spoilt in turn.
+    for (sub, ends) in [("cr", &["\r"][..]), ("mixed", &["\r\n", "\r", "\n"][..])] {
+        for (spoil, needles) in [
+            (("v 0 1 0", "v 0 1 x"), ["reference.obj:7: cannot parse vertex position `v 0 1 x`"]),
+            (("Ni 1.5", "Ni high"), ["reference.mtl:6: `Ni` needs a number: `Ni high`"]),
+        ] {
+            let d = dir.path().join(format!("{sub}-bad"));
+            let scene = reference_with_line_ends(&d, ends, |l| if l == spoil.0 { spoil.1.into() } else { l.into() });
+            let exr = d.join("bad.exr");
+            let args = ["render", "--scene", &s(&scene), "--out", &s(&exr), "--width", "8", "--height", "6"];
+            let (o, _) = run(&[&args[..], &["--spp", "1", "--quiet"]].concat(), None, &[], 60);
+            expect_error(&o, &needles);
+            assert!(!exr.exists(), "{sub}: a refused scene writes no image");
+        }
     }
 }

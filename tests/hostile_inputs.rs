@@ -241,3 +241,44 @@ fn rays_the_kernels_cannot_honour_are_refused_at_load() {
         assert!(!Path::new(&out).exists());
     }
 }
+
+/// UTF-16 without a byte-order mark (what `iconv -t UTF-16LE` and .NET's `Encoding.Unicode`
+/// write) was read as UTF-8 with a NUL beside every character and refused as "no triangles"
+/// with a hint. It is refused when the text is decoded, before any parsing, naming the file (the
+/// OBJ or the MTL), the byte order and the `iconv` command that converts it; nothing is written.
+#[test]
+fn utf16_without_a_byte_order_mark_is_refused_naming_file_and_byte_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/exporters");
+    let obj = std::fs::read_to_string(corpus.join("reference.obj")).unwrap().replace('\n', "\r\n");
+    let mtl = std::fs::read_to_string(corpus.join("reference.mtl")).unwrap();
+    let le = |t: &str| t.encode_utf16().flat_map(u16::to_le_bytes).collect::<Vec<u8>>();
+    let be = |t: &str| t.encode_utf16().flat_map(u16::to_be_bytes).collect::<Vec<u8>>();
+    std::fs::write(d.join("reference.mtl"), &mtl).unwrap();
+    std::fs::write(d.join("le.obj"), le(&obj)).unwrap();
+    std::fs::write(d.join("be.obj"), be(&obj)).unwrap();
+    // A UTF-8 OBJ whose MTL is UTF-16 big-endian without the mark.
+    std::fs::write(d.join("m.obj"), obj.replace("reference.mtl", "be.mtl")).unwrap();
+    std::fs::write(d.join("be.mtl"), be(&mtl)).unwrap();
+    for (file, named, order, iconv) in [
+        ("le.obj", "le.obj", "little-endian", "iconv -f UTF-16LE -t UTF-8 le.obj > le.utf8.obj"),
+        ("be.obj", "be.obj", "big-endian", "iconv -f UTF-16BE -t UTF-8 be.obj > be.utf8.obj"),
+        ("m.obj", "be.mtl", "big-endian", "iconv -f UTF-16BE -t UTF-8 be.mtl > be.utf8.mtl"),
+    ] {
+        let exr = d.join(file).with_extension("exr");
+        let args = ["render", "--scene", &s(&d.join(file)), "--out", &s(&exr), "--width", "8", "--height", "6"];
+        let (o, _) = trilab(&[&args[..], &["--spp", "1", "--quiet"]].concat(), 60);
+        let shown = format!("{}: looks like UTF-16 {order} text without a byte-order mark", s(&d.join(named)));
+        let e = expect_error(&o, &[&shown, iconv]);
+        assert!(!e.contains("no triangles"), "{e}");
+        assert!(!exr.exists(), "{file}: a refused scene writes no image");
+    }
+    // The same text with its byte-order mark loads.
+    let mut marked = vec![0xFF, 0xFE];
+    marked.extend(le(&obj));
+    std::fs::write(d.join("marked.obj"), marked).unwrap();
+    let exr = d.join("marked.exr");
+    let args = ["render", "--scene", &s(&d.join("marked.obj")), "--out", &s(&exr), "--width", "8", "--height", "6"];
+    ok(&trilab(&[&args[..], &["--spp", "1", "--quiet"]].concat(), 60).0);
+}

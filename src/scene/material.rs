@@ -156,16 +156,23 @@ impl Material {
     /// onto a BSDF, pushing a warning for everything that is ignored, unsupported or clamped,
     /// and refusing values that cannot be meant, by the rules of the module documentation.
     pub fn from_mtl(m: &tobj::Material, mtl: &Path, lines: &MtlLines, warnings: &mut Vec<String>) -> Result<Material> {
-        let name = super::text::shown(&m.name).into_owned();
+        // The material of a `newmtl` without a name (Blender 2.61) is named "" and called so.
+        let unnamed = m.name == super::text::NO_NAME;
+        let name = if unnamed { String::new() } else { super::text::shown(&m.name).into_owned() };
+        let label = if unnamed {
+            "unnamed material (`newmtl` without a name)".to_owned()
+        } else {
+            format!("material `{name}`")
+        };
         let place = |key: &str| match lines.get(key) {
             Some(line) => format!("{}:{line}", mtl.display()),
             None => mtl.display().to_string(),
         };
         let mut warn = |key: &str, problem: String| {
-            warnings.push(format!("{}: material `{name}`: `{key}` {problem}", place(key)));
+            warnings.push(format!("{}: {label}: `{key}` {problem}", place(key)));
         };
         let refuse = |key: &str, problem: String| {
-            Error::bad_input(mtl, lines.get(key).copied(), format!("material `{}`: `{key}` {problem}", name))
+            Error::bad_input(mtl, lines.get(key).copied(), format!("{label}: `{key}` {problem}"))
         };
         let black = |c: Option<[f32; 3]>| c.is_none_or(|c| c.iter().all(|&x| x == 0.0));
         let mut tf: Option<[f32; 3]> = None;

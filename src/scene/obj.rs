@@ -108,6 +108,8 @@ fn parse_obj(path: &Path, decoded: &Decoded<'_>, mtl_source: &dyn Fn(&Path) -> O
     let mtl_lines: RefCell<Vec<MtlLines>> = RefCell::new(Vec::new());
     // Material libraries that could not be opened, as warnings.
     let missing_mtl: RefCell<Vec<String>> = RefCell::new(Vec::new());
+    // Each MTL file with `newmtl` lines without a name, and their lines.
+    let unnamed_newmtl: RefCell<Vec<(PathBuf, Vec<usize>)>> = RefCell::new(Vec::new());
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = BufReader::new(text.as_bytes());
     // tobj indexes with unchecked integer arithmetic on some hostile inputs; [`check_face_indices`]
@@ -131,8 +133,8 @@ fn parse_obj(path: &Path, decoded: &Decoded<'_>, mtl_source: &dyn Fn(&Path) -> O
                 ));
                 return Ok((Vec::new(), Default::default()));
             };
-            let mtl_text = match text::decode(&full, &bytes, Format::Mtl) {
-                Ok(d) => d.text,
+            let (mtl_text, unnamed) = match text::decode(&full, &bytes, Format::Mtl) {
+                Ok(d) => (d.text, d.unnamed_newmtl),
                 Err(e) => return fail(e, tobj::LoadError::ReadError),
             };
             let mut lines = match check_mtl(&full, &mtl_text) {
@@ -145,6 +147,9 @@ fn parse_obj(path: &Path, decoded: &Decoded<'_>, mtl_source: &dyn Fn(&Path) -> O
                     // One block per `newmtl`, as tobj makes one material per `newmtl`.
                     lines.resize_with(mats.len(), MtlLines::new);
                     mtl_lines.borrow_mut().extend(lines);
+                    if !unnamed.is_empty() {
+                        unnamed_newmtl.borrow_mut().push((full.clone(), unnamed));
+                    }
                     mtl_files.borrow_mut().push((full, mats.len()));
                 }
                 Err(e) => {
@@ -171,15 +176,32 @@ fn parse_obj(path: &Path, decoded: &Decoded<'_>, mtl_source: &dyn Fn(&Path) -> O
     }
     let materials = materials.map_err(|e| Error::bad_input(path, None, format!("material library (mtllib): {e}")))?;
     let mut warnings = missing_mtl.into_inner();
+    let more = |lines: &[usize]| match lines.len() - 1 {
+        0 => String::new(),
+        n => format!(" ({n} more such lines)"),
+    };
+    let unnamed_newmtl = unnamed_newmtl.into_inner();
+    for (mtl, lines) in &unnamed_newmtl {
+        warnings.push(format!(
+            "{}:{}: newmtl without a material name: it defines the unnamed material, which `usemtl` without a \
+             name selects{}",
+            mtl.display(),
+            lines[0],
+            more(lines)
+        ));
+    }
     if let Some(&first) = decoded.unnamed_usemtl.first() {
-        let more = match decoded.unnamed_usemtl.len() - 1 {
-            0 => String::new(),
-            n => format!(" ({n} more such lines)"),
+        // tobj keeps the last definition of a name.
+        let material = match unnamed_newmtl.last() {
+            Some((mtl, lines)) => {
+                format!("the unnamed material (`newmtl` without a name, {}:{})", mtl.display(), lines[lines.len() - 1])
+            }
+            None => "the default material (grey Lambert)".to_owned(),
         };
         warnings.push(format!(
-            "{}:{first}: usemtl without a material name: the faces that follow take the default material \
-             (grey Lambert){more}",
-            path.display()
+            "{}:{first}: usemtl without a material name: the faces that follow take {material}{}",
+            path.display(),
+            more(&decoded.unnamed_usemtl)
         ));
     }
     undefined_materials(path, text, &materials, &mut warnings);
@@ -374,7 +396,8 @@ fn undefined_materials(path: &Path, text: &str, materials: &[tobj::Material], wa
 /// key (tobj says only "material parse error"), and rejects colour lines with fewer than three
 /// values, which tobj 4's `parse_float3` unwraps (a panic on `Kd 1 2`). The rules are tobj's:
 /// colours take three numbers, `Ns`, `Ni` and `d` one, `illum` an integer 0-255, texture maps
-/// and `newmtl` a name. Returns, per `newmtl` block, the line of each key (the last, whose
+/// and `newmtl` a name (the loader's text has one: [`text::decode`] names a bare `newmtl`
+/// [`text::NO_NAME`]). Returns, per `newmtl` block, the line of each key (the last, whose
 /// value tobj keeps), for the value rules of [`Material::from_mtl`].
 pub(super) fn check_mtl(path: &Path, text: &str) -> Result<Vec<MtlLines>> {
     let mut blocks: Vec<MtlLines> = Vec::new();
@@ -647,7 +670,6 @@ mod tests {
             ("newmtl a\nKd 1 x 0\n", 2, "`Kd`"),
             ("newmtl a\nKd 1 1 1\n\nNs high\n", 4, "`Ns`"),
             ("newmtl a\r\nillum two\r\n", 2, "`illum`"),
-            ("newmtl\n", 1, "`newmtl`"),
             ("newmtl a\nmap_Kd\n", 2, "`map_Kd`"),
         ] {
             let e = parse_obj_bytes(Path::new("d/a.obj"), obj, |_| Some(mtl.as_bytes().to_vec()));
@@ -789,11 +811,110 @@ mod tests {
         assert!(e.starts_with("d/n.mtl:2:") && e.contains("`Kd`"), "{e}");
     }
 
+    /// Refused when the text is decoded, before any parsing, naming the file (the OBJ or the MTL)
+    /// and the byte order.
     #[test]
-    fn utf16_without_a_bom_gets_a_hint() {
-        let le: Vec<u8> = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".encode_utf16().flat_map(u16::to_le_bytes).collect();
-        let e = parse_obj_bytes(Path::new("a.obj"), &le, |_| None).unwrap_err().to_string();
-        assert!(e.contains("no triangles") && e.contains("UTF-16 without a byte-order mark"), "{e}");
+    fn utf16_without_a_bom_is_refused_naming_file_and_byte_order() {
+        let text = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n";
+        let le: Vec<u8> = text.encode_utf16().flat_map(u16::to_le_bytes).collect();
+        let be: Vec<u8> = text.encode_utf16().flat_map(u16::to_be_bytes).collect();
+        let e = with_mtl(&le, b"newmtl a\n").unwrap_err().to_string();
+        assert!(e.starts_with("d/a.obj: looks like UTF-16 little-endian text without a byte-order mark"), "{e}");
+        assert!(e.contains("`iconv -f UTF-16LE -t UTF-8 a.obj > a.utf8.obj`"), "{e}");
+        let e = with_mtl(&be, b"newmtl a\n").unwrap_err().to_string();
+        assert!(e.starts_with("d/a.obj: looks like UTF-16 big-endian text") && e.contains("UTF-16BE"), "{e}");
+        let mtl: Vec<u8> = "newmtl a\nKd 1 0 0\n".encode_utf16().flat_map(u16::to_be_bytes).collect();
+        let e = with_mtl(text.as_bytes(), &mtl).unwrap_err().to_string();
+        assert!(e.starts_with("d/m.mtl: looks like UTF-16 big-endian text") && e.contains("m.utf8.mtl"), "{e}");
+    }
+
+    /// Blender 2.61 writes an unnamed material as a bare `usemtl` in the OBJ and a bare `newmtl`
+    /// in the MTL (`newmtl `, with the space): the faces take that material's values, with a
+    /// warning naming each file and line.
+    #[test]
+    fn blender_2_61_unnamed_material_applies_to_faces_after_a_bare_usemtl() {
+        let obj = b"# Blender v2.61 (sub 0) OBJ File: ''\n# www.blender.org\nmtllib m.mtl\no Plane\n\
+                    v 1 0 -1\nv -1 0 -1\nv -1 0 1\nv 1 0 1\nv 0 1 0\nusemtl Red\ns off\nf 1 2 3\n\
+                    usemtl \ns off\nf 1 3 4\nf 4 1 5\nusemtl Red\nf 2 3 5\n";
+        let mtl = b"# Blender MTL File: 'None'\n# Material Count: 2\nnewmtl Red\nNs 96.078431\nKa 0 0 0\n\
+                    Kd 0.4 0 0\nKs 0.5 0.5 0.5\nNi 1\nd 1\nillum 2\n\nnewmtl \nNs 96.078431\nKa 0 0 0\n\
+                    Kd 0.2 0.4 0.6\nKs 0 0 0\nNi 1\nd 1\nillum 2\n";
+        let m = with_mtl(obj, mtl).unwrap();
+        assert_eq!(m.triangles.len(), 4);
+        let mats: Vec<&Material> = m.material_ids.iter().map(|&i| &m.materials[i as usize]).collect();
+        assert_eq!(mats.iter().map(|m| m.name.as_str()).collect::<Vec<_>>(), ["Red", "", "", "Red"]);
+        assert_eq!(mats[0].gpu.diffuse, [0.4, 0.0, 0.0]);
+        assert_eq!(mats[1].kind, super::super::BsdfKind::Lambert);
+        assert_eq!(mats[1].gpu.diffuse, [0.2, 0.4, 0.6]);
+        assert_eq!(m.materials.len(), 2, "no default material: every face has one");
+        assert_eq!(
+            m.warnings,
+            [
+                "d/m.mtl:12: newmtl without a material name: it defines the unnamed material, which `usemtl` \
+                 without a name selects",
+                "d/a.obj:13: usemtl without a material name: the faces that follow take the unnamed material \
+                 (`newmtl` without a name, d/m.mtl:12)",
+            ]
+        );
+
+        // Its values follow the same rules as any material's, in messages that call it unnamed.
+        let e = with_mtl(obj, b"newmtl Red\nnewmtl\nKd -1 0 0\n").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "d/m.mtl:3: unnamed material (`newmtl` without a name): `Kd` -1 0 0: a reflectance cannot be negative"
+        );
+        let m = with_mtl(obj, b"newmtl Red\nnewmtl\nmap_Kd wood.png\n").unwrap();
+        assert!(
+            m.warnings.contains(
+                &"d/m.mtl:3: unnamed material (`newmtl` without a name): `map_Kd` wood.png: textures are not \
+                  supported; ignored"
+                    .to_owned()
+            ),
+            "{:?}",
+            m.warnings
+        );
+        // Without a bare `newmtl`, a bare `usemtl` still takes the default material.
+        let m = with_mtl(obj, b"newmtl Red\nKd 0.4 0 0\n").unwrap();
+        assert_eq!(m.materials[m.material_ids[1] as usize], Material::default());
+        assert!(m.warnings[0]
+            .starts_with("d/a.obj:13: usemtl without a material name: the faces that follow take the default"));
+    }
+
+    /// Classic Mac OS line ends (CR alone) are line ends, in the OBJ and the MTL, alone or mixed
+    /// with LF and CRLF; messages count the lines they end.
+    #[test]
+    fn lone_cr_line_ends_are_line_ends() {
+        let obj = b"mtllib m.mtl\rv 0 0 0\rv 1 0 0\rv 0 1 0\rv 1 1 0\rusemtl a\rf 1 2 3\rf 2 4 3\r";
+        let m = with_mtl(obj, b"newmtl a\rKd 0.1 0.2 0.3\r").unwrap();
+        assert_eq!(m.triangles, [[0, 1, 2], [1, 3, 2]]);
+        assert_eq!(m.material_ids, [0, 0]);
+        assert_eq!(m.materials[0].gpu.diffuse, [0.1, 0.2, 0.3]);
+        assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+
+        let e = with_mtl(obj, b"newmtl a\rKd 1 1 1\r\rNs high\r").unwrap_err().to_string();
+        assert!(e.starts_with("d/m.mtl:4: `Ns` needs a number"), "{e}");
+        let e = with_mtl(obj, b"newmtl a\rKd 1 1 1\rKd -1 0 0\r").unwrap_err().to_string();
+        assert!(e.starts_with("d/m.mtl:3: material `a`: `Kd`"), "{e}");
+        let e = err("v 0 0 0\rv 1 x 0\rv 0 1 0\rf 1 2 3\r");
+        assert!(e.starts_with("test.obj:2: cannot parse vertex position"), "{e}");
+        let e = err("v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\rf 1 2 4\r");
+        assert!(e.starts_with("test.obj:5: face vertex index 4 is out of range"), "{e}");
+        let e = err("v 0 0 0\rv 1 0 0\rv 0 1 0\rv 1 inf 0\rf 1 2 4\r");
+        assert!(e.starts_with("test.obj:4: vertex coordinate is NaN or infinite"), "{e}");
+
+        // Mixed: CRLF, CR, LF, CRLF, a blank line ended by CR, CR, LF.
+        let mixed = "v 0 0 0\r\nv 1 0 0\rv 0 1 0\nv 0 0 1\r\n\rf 1 2 3\rf 1 2 4\n";
+        let m = parse(mixed).unwrap();
+        assert_eq!(m.triangles, [[0, 1, 2], [0, 1, 3]]);
+        let e = err(&format!("{mixed}usemtl x\rf 1 2 9\r\n"));
+        assert!(e.starts_with("test.obj:9: face vertex index 9 is out of range"), "{e}");
+        let m = parse(&format!("{mixed}usemtl x\rf 1 2 3\r\n")).unwrap();
+        assert_eq!(m.warnings.len(), 1, "{:?}", m.warnings);
+        assert!(
+            m.warnings[0].starts_with("test.obj:8: usemtl `x`: no material library defines it"),
+            "{:?}",
+            m.warnings
+        );
     }
 
     #[test]
