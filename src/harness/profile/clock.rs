@@ -14,9 +14,19 @@ pub struct CycleStats {
     pub p99: f64,
     pub min: u32,
     pub max: u32,
-    /// Rays whose count did not fit 32 bits (written as 0xFFFFFFFF).
+    /// Rays whose count did not fit 32 bits ([`SATURATED`]): more than 2^32 ticks between the
+    /// two reads, which a ray of microseconds reaches only when its thread is stopped for
+    /// seconds (a host that paused the process or the VM).
     pub saturated: usize,
+    /// Rays whose clock read lower at the end than at the start ([`STEPPED_BACK`]): a clock that
+    /// is not monotonic across the CPUs a driver thread moves between.
+    pub stepped_back: usize,
 }
+
+/// The kernel's mark of a count beyond 32 bits.
+pub const SATURATED: u32 = u32::MAX;
+/// The kernel's mark of a clock that read lower at the end.
+pub const STEPPED_BACK: u32 = u32::MAX - 1;
 
 /// The `p`-th percentile (0..=100, nearest rank) of sorted values.
 fn percentile(sorted: &[u32], p: f64) -> f64 {
@@ -39,7 +49,8 @@ impl CycleStats {
             p99: percentile(&v, 99.0),
             min: v[0],
             max: v[v.len() - 1],
-            saturated: v.iter().filter(|&&c| c == u32::MAX).count(),
+            saturated: v.iter().filter(|&&c| c == SATURATED).count(),
+            stepped_back: v.iter().filter(|&&c| c == STEPPED_BACK).count(),
         })
     }
 }
@@ -175,7 +186,9 @@ mod tests {
     fn stats_and_scale() {
         let c: Vec<u32> = (1..=100).collect();
         let s = CycleStats::of(&c).unwrap();
-        assert_eq!((s.median, s.p99, s.min, s.max, s.saturated), (50.0, 99.0, 1, 100, 0));
+        assert_eq!((s.median, s.p99, s.min, s.max, s.saturated, s.stepped_back), (50.0, 99.0, 1, 100, 0, 0));
+        let marks = CycleStats::of(&[5, SATURATED, STEPPED_BACK, STEPPED_BACK]).unwrap();
+        assert_eq!((marks.saturated, marks.stepped_back), (1, 2));
         assert!((s.mean - 50.5).abs() < 1e-12);
         let scale = HeatScale::of(&[&c], 1.0, 99.0).unwrap();
         assert_eq!((scale.lo, scale.hi), (1.0, 99.0));

@@ -203,6 +203,7 @@ fn shader_clock(out: &mut String, r: &ProfileReport) {
             "min",
             "max",
             "saturated",
+            "stepped back",
             "hits differing from closest",
         ]);
         for row in &r.shader_clock.rows {
@@ -217,6 +218,7 @@ fn shader_clock(out: &mut String, r: &ProfileReport) {
                 d.ticks.min.to_string(),
                 d.ticks.max.to_string(),
                 d.ticks.saturated.to_string(),
+                d.ticks.stepped_back.to_string(),
                 d.hits_differing_from_closest.to_string(),
             ]);
         }
@@ -226,8 +228,9 @@ fn shader_clock(out: &mut String, r: &ProfileReport) {
             "\nTicks are the driver's shader-clock units (not calibrated here). The clock keeps counting while the \
              thread running a subgroup is descheduled, so max and mean carry such outliers (on a CPU driver, \
              likely preemption by other host work); median and p99 are the robust figures. \
-             `saturated`: rays whose end - start did not fit 32 bits (or the clock read lower at the end), \
-             written as 0xFFFFFFFF and counted in the statistics as such."
+             `saturated`: rays whose end - start did not fit 32 bits (written as 0xFFFFFFFF: the thread was \
+             stopped for seconds); `stepped back`: rays whose clock read lower at the end (0xFFFFFFFE: a clock \
+             not monotonic across CPUs). Both are counted in the statistics as those values."
         );
         if let Some(s) = &r.heat_scale {
             let _ = writeln!(
