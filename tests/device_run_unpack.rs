@@ -8,11 +8,12 @@
 //! `tarfile`, which writes `..`, absolute and link members as given. No GPU, no build of trilab:
 //! the archives hold no `suite/`, so unpack merges nothing.
 
+mod common;
+
 use std::collections::BTreeMap;
-use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::{Command, Output};
+use std::time::Duration;
 
 /// Every subprocess here takes well under a second; past this it has hung.
 const TIMEOUT: Duration = Duration::from_secs(60);
@@ -20,41 +21,7 @@ const TIMEOUT: Duration = Duration::from_secs(60);
 /// `cmd` with `stdin` fed to it and both pipes drained while it runs; panics (after killing it)
 /// past [`TIMEOUT`].
 fn run(cmd: &mut Command, stdin: &[u8], what: &str) -> Output {
-    let mut child = cmd
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot start {what}: {e}"));
-    let input = stdin.to_vec();
-    let mut pipe = child.stdin.take().expect("piped stdin");
-    let feed = std::thread::spawn(move || {
-        // A command that exits without reading its input closes the pipe: not an error here.
-        let _ = pipe.write_all(&input);
-    });
-    let drain = |mut pipe: Box<dyn Read + Send>| {
-        std::thread::spawn(move || {
-            let mut buf = Vec::new();
-            let _ = pipe.read_to_end(&mut buf);
-            buf
-        })
-    };
-    let stdout = drain(Box::new(child.stdout.take().expect("piped stdout")));
-    let stderr = drain(Box::new(child.stderr.take().expect("piped stderr")));
-    let start = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("waiting for a subprocess") {
-            break status;
-        }
-        if start.elapsed() > TIMEOUT {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("{what} did not finish within {TIMEOUT:?}");
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    };
-    feed.join().unwrap();
-    Output { status, stdout: stdout.join().unwrap(), stderr: stderr.join().unwrap() }
+    common::cli::output_within(cmd, Some(stdin), TIMEOUT, what)
 }
 
 /// One member of an archive the test writes.

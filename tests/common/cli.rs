@@ -35,7 +35,26 @@ pub fn run(args: &[&str], cwd: Option<&Path>, env: &[(&str, &str)], timeout_s: u
         cmd.env(k, v);
     }
     let start = Instant::now();
-    let mut child = cmd.spawn().unwrap_or_else(|e| panic!("cannot start trilab {args:?}: {e}"));
+    let out = output_within(&mut cmd, None, Duration::from_secs(timeout_s), &format!("trilab {args:?}"));
+    (out, start.elapsed())
+}
+
+/// Any command, `stdin` fed to it (`None`: closed) and both pipes drained while it runs; panics,
+/// naming `what`, past `limit` (after killing it).
+pub fn output_within(cmd: &mut Command, stdin: Option<&[u8]>, limit: Duration, what: &str) -> Output {
+    cmd.stdin(if stdin.is_some() { Stdio::piped() } else { Stdio::null() })
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let start = Instant::now();
+    let mut child = cmd.spawn().unwrap_or_else(|e| panic!("cannot start {what}: {e}"));
+    let feed = stdin.map(|input| {
+        let input = input.to_vec();
+        let mut pipe = child.stdin.take().expect("piped stdin");
+        // A command that exits without reading its input closes the pipe: not an error here.
+        std::thread::spawn(move || {
+            let _ = std::io::Write::write_all(&mut pipe, &input);
+        })
+    });
     let drain = |mut pipe: Box<dyn Read + Send>| {
         std::thread::spawn(move || {
             let mut buf = Vec::new();
@@ -46,18 +65,20 @@ pub fn run(args: &[&str], cwd: Option<&Path>, env: &[(&str, &str)], timeout_s: u
     let stdout = drain(Box::new(child.stdout.take().expect("piped stdout")));
     let stderr = drain(Box::new(child.stderr.take().expect("piped stderr")));
     let status = loop {
-        if let Some(status) = child.try_wait().expect("waiting for trilab") {
+        if let Some(status) = child.try_wait().expect("waiting for a subprocess") {
             break status;
         }
-        if start.elapsed() > Duration::from_secs(timeout_s) {
+        if start.elapsed() > limit {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("trilab {args:?} did not finish within {timeout_s} s");
+            panic!("{what} did not finish within {limit:?}");
         }
-        std::thread::sleep(Duration::from_millis(20));
+        std::thread::sleep(Duration::from_millis(10));
     };
-    let took = start.elapsed();
-    (Output { status, stdout: stdout.join().unwrap(), stderr: stderr.join().unwrap() }, took)
+    if let Some(f) = feed {
+        f.join().unwrap();
+    }
+    Output { status, stdout: stdout.join().unwrap(), stderr: stderr.join().unwrap() }
 }
 
 /// A command's stderr, as text.
