@@ -10,7 +10,7 @@ use trilab::harness::rayset::{RaySet, RaySetSizes};
 use trilab::named::Named;
 
 use super::choice::choice;
-use super::{scenes_help, GpuArgs, JsonArg, LeafSizeArg};
+use super::{scenes_help, signals, GpuArgs, JsonArg, LeafSizeArg};
 
 /// The workload both sides run, in the bench vocabulary (smaller defaults: many rounds).
 #[derive(Args, Clone)]
@@ -127,16 +127,29 @@ pub struct RoundsArgs {
     /// Stop adding rounds after this many seconds.
     #[arg(long, value_name = "S", default_value_t = 300.0)]
     pub time_cap: f64,
+    /// A side's worker silent this many seconds (setting up, or in one run of one cell) is
+    /// killed and named: the sides could not be compared (exit 2).
+    #[arg(long, value_name = "S", default_value_t = ab::DEFAULT_WORKER_TIMEOUT_S)]
+    pub worker_timeout: f64,
 }
 
 impl RoundsArgs {
-    /// Refuses a target or time cap that is not a positive number, naming the option.
+    /// Refuses a target, time cap or worker timeout that is not a positive number, naming the
+    /// option; then sets the workers' timeout (process-wide: `ab` and `gate` both call this
+    /// before their sides start).
     pub fn check(&self, threshold: f64) -> Result<()> {
-        for (name, v) in [("--target", self.target), ("--threshold", threshold), ("--time-cap", self.time_cap)] {
+        for (name, v) in [
+            ("--target", self.target),
+            ("--threshold", threshold),
+            ("--time-cap", self.time_cap),
+            ("--worker-timeout", self.worker_timeout),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(Error::Usage(format!("{name} {v}: must be a positive number")));
             }
         }
+        // Past a year it is no limit at all; Duration cannot hold every f64.
+        ab::set_worker_timeout(std::time::Duration::from_secs_f64(self.worker_timeout.min(3.2e7)));
         Ok(())
     }
 }
@@ -215,6 +228,33 @@ pub fn run(a: AbArgs) -> Result<()> {
         let files = ["ab.json", "ab.md", trilab::rows::FILE];
         trilab::io::check_output("--out", trilab::io::Output::Dir(dir, &files), &[])?;
     }
+    // Ctrl-C, SIGTERM or SIGHUP: the workers (each in a process group of its own) get the
+    // signal too, then whatever is left of them is killed; say where the run was and what it
+    // had measured, remove the workers' temporary folder and exit 128 + the signal's number.
+    // Nothing is written: the report needs every round.
+    let out = a.out.clone();
+    let handler = signals::on_stop(move |signal| {
+        // Where the run is, before the workers get the signal (their end is no failure now).
+        let at = ab::stop_requested().unwrap_or_else(|| "stopped before the sides started or after the rounds".into());
+        let workers = trilab::children::signal_all(signal);
+        #[cfg(unix)]
+        if workers > 0 {
+            // A worker that ignores the signal (or a script's child) does not outlive `ab`.
+            std::thread::sleep(std::time::Duration::from_millis(300));
+            trilab::children::signal_all(libc::SIGKILL);
+        }
+        ab::remove_temp();
+        let forwarded = if workers > 0 { format!(" (and its {workers} worker(s))") } else { String::new() };
+        let written = match &out {
+            Some(d) => format!("nothing written to {}", d.display()),
+            None => "nothing written".into(),
+        };
+        eprintln!("ab: stopped by {}{forwarded}; {at}; {written}", signals::name(signal));
+        signals::exit_now(signal);
+    });
+    if let Err(e) = handler {
+        super::note(&format!("warning: cannot catch Ctrl-C or SIGTERM ({e}); a stopped run will not say where it was"));
+    }
     let exe = std::env::current_exe().map_err(|e| Error::io(std::path::Path::new("the trilab executable"), e))?;
     let validation = a.gpu.validation || std::env::var("TRILAB_VALIDATION").is_ok_and(|v| v.trim() == "1");
     let o = AbOptions {
@@ -234,6 +274,10 @@ pub fn run(a: AbArgs) -> Result<()> {
     sigpipe(true);
     let report = ab::run(&o, |m| eprintln!("  {m}"));
     sigpipe(false);
+    while ab::stopping() {
+        // The stop handler ends the process: a worker its signal ended is not this run's error.
+        std::thread::park();
+    }
     let report = report?;
     if let Some(dir) = &a.out {
         ab::write(&report, dir)?;

@@ -103,6 +103,25 @@ pub struct BenchArgs {
     gpu: GpuArgs,
 }
 
+/// `--node-orders` as given, each order once, where it was first named (`bench` and `bvh`): a
+/// repeated order would run the same cells again under the same name, however long the list;
+/// a note names the orders given more than once.
+pub fn distinct_node_orders(given: Vec<NodeOrder>) -> Vec<NodeOrder> {
+    let mut once: Vec<NodeOrder> = vec![];
+    let mut repeated: Vec<String> = vec![];
+    for o in given {
+        if !once.contains(&o) {
+            once.push(o);
+        } else if !repeated.contains(&o.to_string()) {
+            repeated.push(o.to_string());
+        }
+    }
+    if !repeated.is_empty() {
+        super::note(&format!("--node-orders: {} given more than once; each order runs once", repeated.join(", ")));
+    }
+    once
+}
+
 /// Whether a driver peer row runs (`--ray-query`, `--ray-tracing-pipeline`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum PeerChoice {
@@ -145,7 +164,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
         layouts: if a.layouts.is_empty() { vec![Layout::Bvh2] } else { a.layouts },
         traversals: if a.traversals.is_empty() { vec![Traversal::WhileIf] } else { a.traversals },
         orders: if a.orders.is_empty() { vec![RayOrder::Given] } else { a.orders },
-        node_orders: if a.node_orders.is_empty() { vec![NodeOrder::Built] } else { a.node_orders },
+        node_orders: if a.node_orders.is_empty() {
+            vec![NodeOrder::Built]
+        } else {
+            distinct_node_orders(a.node_orders)
+        },
         ray_query: a.ray_query.runs(&ctx),
         ray_tracing_pipeline: a.ray_tracing_pipeline.runs(&ctx),
         shard: a.shard,

@@ -49,7 +49,8 @@ pub fn run(a: BvhArgs) -> Result<()> {
     build_bench::check_threads(&a.threads)?;
     // The tree's shape; its leaf size is each of --leaf-sizes in turn.
     let shape = a.shape.options(0);
-    let build = || bvh_stats::run_with_layouts(&a.scene, &a.leaf_sizes, shape, &a.layouts, &a.node_orders);
+    let node_orders = super::bench::distinct_node_orders(a.node_orders.clone());
+    let build = || bvh_stats::run_with_layouts(&a.scene, &a.leaf_sizes, shape, &a.layouts, &node_orders);
     let report = if a.threads.is_empty() {
         build()?
     } else {

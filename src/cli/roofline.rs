@@ -25,6 +25,7 @@ pub struct RooflineArgs {
         value_name = "SIZE,...",
         value_delimiter = ',',
         value_parser = roofline::parse_size,
+        allow_negative_numbers = true,
         default_value = "16K,64K,256K,1M,4M,16M,64M,256M"
     )]
     sizes: Vec<u64>,
@@ -32,16 +33,16 @@ pub struct RooflineArgs {
     #[arg(long, value_name = "A,...", value_parser = choice::<RooflineAccess>(), value_delimiter = ',')]
     access: Vec<RooflineAccess>,
     /// Timed rounds, each running every size and path once, after one warm-up round.
-    #[arg(long, value_name = "N", default_value_t = 5, value_parser = super::repeat)]
+    #[arg(long, value_name = "N", default_value_t = 5, value_parser = super::repeat, allow_negative_numbers = true)]
     rounds: usize,
     /// Invocations per dispatch.
-    #[arg(long, value_name = "N", default_value_t = roofline::DEFAULT_INVOCATIONS)]
+    #[arg(long, value_name = "N", default_value_t = roofline::DEFAULT_INVOCATIONS, allow_negative_numbers = true)]
     invocations: u32,
     /// Dependent node steps per invocation.
-    #[arg(long, value_name = "N", default_value_t = roofline::DEFAULT_STEPS)]
+    #[arg(long, value_name = "N", default_value_t = roofline::DEFAULT_STEPS, allow_negative_numbers = true)]
     steps: u32,
     /// Seed of the node buffers, start nodes and ray state.
-    #[arg(long, value_name = "N", default_value_t = 1)]
+    #[arg(long, value_name = "N", default_value_t = 1, allow_negative_numbers = true)]
     seed: u32,
     /// Directory for roofline.json, roofline.md and rows.jsonl (default: results/<device>/roofline).
     #[arg(long, value_name = "DIR")]
@@ -53,6 +54,21 @@ pub struct RooflineArgs {
 }
 
 pub fn run(a: RooflineArgs) -> Result<()> {
+    // A size or path named twice is measured once (the sweep's cells are named by them): say so.
+    for (option, given) in [
+        ("--sizes", a.sizes.iter().map(|&b| roofline::show_size(b)).collect::<Vec<_>>()),
+        ("--access", a.access.iter().map(|x| x.to_string()).collect()),
+    ] {
+        let mut repeated: Vec<&str> = vec![];
+        for (i, g) in given.iter().enumerate() {
+            if given[..i].contains(g) && !repeated.contains(&g.as_str()) {
+                repeated.push(g);
+            }
+        }
+        if !repeated.is_empty() {
+            super::note(&format!("{option}: {} given more than once; each is measured once", repeated.join(", ")));
+        }
+    }
     let o = RooflineOptions {
         sizes: a.sizes,
         access: if a.access.is_empty() { RooflineAccess::ALL.to_vec() } else { a.access },

@@ -195,6 +195,17 @@ pub struct RooflineReport {
 /// Runs the sweep on `ctx`'s device; `progress` gets a line per stage.
 pub fn run(ctx: &Context, o: &RooflineOptions, mut progress: impl FnMut(&str)) -> Result<RooflineReport> {
     o.check()?;
+    // Each access path once, where it was first named (a repeated one would be two cells of
+    // one name, each timed in half the rounds); sizes are deduplicated below.
+    let mut o = o.clone();
+    let mut seen = vec![];
+    o.access.retain(|a| {
+        !seen.contains(a) && {
+            seen.push(*a);
+            true
+        }
+    });
+    let o = &o;
     let info = ctx.info();
     let most = info.max_compute_workgroup_count[0] as u64 * crate::shared::WORKGROUP_SIZE as u64;
     if o.invocations as u64 > most {
@@ -256,8 +267,9 @@ pub fn run(ctx: &Context, o: &RooflineOptions, mut progress: impl FnMut(&str)) -
         .filter(|&(i, a)| data[i].1.why_not(a).is_none())
         .collect();
     if cells.is_empty() {
+        let what = if data.is_empty() { "every size of --sizes" } else { "every path of --access at every size" };
         return Err(Error::Unsupported(format!(
-            "roofline: nothing to measure on {}: {}",
+            "roofline: nothing to measure on {} ({what} skipped): {}",
             info.name,
             skipped.iter().map(|s| format!("{}: {}", show_size(s.bytes), s.why)).collect::<Vec<_>>().join("; ")
         )));

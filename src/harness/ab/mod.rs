@@ -24,7 +24,9 @@ pub mod worker;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{ChildStdin, Command, Stdio};
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
@@ -619,13 +621,184 @@ fn shader_cache(env: &[(String, String)]) -> String {
     }
 }
 
+/// The longest line a worker may print: a `ready` message of thousands of cells is a few MiB,
+/// and a longer line is not one of its messages (read whole, it would only fill memory).
+pub const MAX_LINE: usize = 16 << 20;
+
+/// How long `ab` waits for one message of a worker by default ([`set_worker_timeout`]).
+pub const DEFAULT_WORKER_TIMEOUT_S: f64 = 600.0;
+
+/// The longest wait for one message of a worker, in ms (process-wide: `ab` and `gate` set it
+/// from `--worker-timeout` before their sides start).
+static WORKER_TIMEOUT_MS: AtomicU64 = AtomicU64::new((DEFAULT_WORKER_TIMEOUT_S * 1e3) as u64);
+
+/// Sets how long a worker may stay silent (setting up, or in one run of one cell, or one round)
+/// before it is killed and named: the run is then exit 2, the sides could not be compared.
+pub fn set_worker_timeout(t: Duration) {
+    WORKER_TIMEOUT_MS.store(t.as_millis().clamp(1, u64::MAX as u128) as u64, Ordering::Relaxed);
+}
+
+fn worker_timeout() -> Duration {
+    Duration::from_millis(WORKER_TIMEOUT_MS.load(Ordering::Relaxed))
+}
+
+/// Where a run is, for a stop handler ([`stop_requested`]): the stage, the rounds done and the
+/// temporary folder the workers write their hits to.
+#[derive(Default)]
+struct Progress {
+    stage: String,
+    rounds: [usize; 2],
+    least: usize,
+    most: usize,
+    temp: Option<PathBuf>,
+}
+
+static PROGRESS: Mutex<Option<Progress>> = Mutex::new(None);
+
+fn progress_state() -> std::sync::MutexGuard<'static, Option<Progress>> {
+    PROGRESS.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn set_stage(stage: String) {
+    if let Some(p) = progress_state().as_mut() {
+        p.stage = stage;
+    }
+}
+
+/// Set once a stop handler has taken over ([`stop_requested`]).
+static STOPPING: AtomicBool = AtomicBool::new(false);
+
+/// For a stop handler, before it signals the workers: marks the run as stopping (a worker that
+/// the signal ends is then no failure to report: [`stopping`]) and says where the run was and
+/// what it had measured. `None` when no `ab` run is under way.
+pub fn stop_requested() -> Option<String> {
+    STOPPING.store(true, Ordering::SeqCst);
+    let state = progress_state();
+    let p = state.as_ref()?;
+    let [a, b] = p.rounds;
+    let done = if a == b { format!("{a} rounds a side") } else { format!("{a} rounds on side A, {b} on side B") };
+    Some(format!(
+        "stopped during {}: {done} done (at least {} were to run, at most {}); no verdict",
+        p.stage, p.least, p.most
+    ))
+}
+
+/// Whether a stop handler has taken over: the caller of [`run`] leaves the exit to it.
+pub fn stopping() -> bool {
+    STOPPING.load(Ordering::SeqCst)
+}
+
+/// For a stop handler, once the workers have ended: removes the run's temporary folder (the
+/// workers' hits), which an exit from the handler would leave behind.
+pub fn remove_temp() {
+    if let Some(t) = progress_state().as_mut().and_then(|p| p.temp.take()) {
+        let _ = std::fs::remove_dir_all(t);
+    }
+}
+
+/// One thing a worker's stdout gave.
+enum Line {
+    Text(String),
+    /// A line past [`MAX_LINE`]: its first bytes.
+    TooLong(String),
+    Unreadable(std::io::Error),
+}
+
+/// The next line of `r` (without its newline), at most `max` bytes; `None` at the end.
+fn read_line(r: &mut impl BufRead, max: usize) -> Option<Line> {
+    let mut acc: Vec<u8> = vec![];
+    loop {
+        let buf = match r.fill_buf() {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Some(Line::Unreadable(e)),
+        };
+        if buf.is_empty() {
+            return (!acc.is_empty()).then(|| Line::Text(String::from_utf8_lossy(&acc).into_owned()));
+        }
+        let (take, end) = match buf.iter().position(|&c| c == b'\n') {
+            Some(i) => (i, true),
+            None => (buf.len(), false),
+        };
+        if acc.len() + take > max {
+            acc.extend_from_slice(&buf[..take.min(QUOTE)]);
+            acc.truncate(QUOTE);
+            return Some(Line::TooLong(String::from_utf8_lossy(&acc).into_owned()));
+        }
+        acc.extend_from_slice(&buf[..take]);
+        r.consume(take + usize::from(end));
+        if end {
+            return Some(Line::Text(String::from_utf8_lossy(&acc).into_owned()));
+        }
+    }
+}
+
+/// Bytes of a worker's line an error quotes.
+const QUOTE: usize = 200;
+
+/// `line` for an error message: at most [`QUOTE`] bytes of it, and its length when longer.
+fn quote(line: &str) -> String {
+    if line.len() <= QUOTE {
+        return format!("`{line}`");
+    }
+    let mut end = QUOTE;
+    while !line.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("`{}`... ({} bytes)", &line[..end], line.len())
+}
+
+/// How a process ended, in words: `was killed by signal 11 (SIGSEGV)`, `ended with exit
+/// status 3`.
+fn ended(status: std::process::ExitStatus) -> String {
+    #[cfg(unix)]
+    if let Some(s) = std::os::unix::process::ExitStatusExt::signal(&status) {
+        let name = match s {
+            libc::SIGSEGV => " (SIGSEGV)",
+            libc::SIGABRT => " (SIGABRT)",
+            libc::SIGKILL => " (SIGKILL)",
+            libc::SIGTERM => " (SIGTERM)",
+            libc::SIGINT => " (SIGINT)",
+            libc::SIGBUS => " (SIGBUS)",
+            libc::SIGILL => " (SIGILL)",
+            libc::SIGFPE => " (SIGFPE)",
+            libc::SIGPIPE => " (SIGPIPE)",
+            _ => "",
+        };
+        return format!("was killed by signal {s}{name}");
+    }
+    match status.code() {
+        Some(c) => format!("ended with exit status {c}"),
+        None => format!("ended ({status})"),
+    }
+}
+
+/// Whether `child` has ended, without reaping it.
+fn exited(child: &mut crate::children::Running) -> bool {
+    #[cfg(unix)]
+    {
+        // SAFETY: waitid(2) with WNOWAIT | WNOHANG only reads the child's state into a zeroed
+        // siginfo_t it is given; si_pid stays 0 while the child runs.
+        unsafe {
+            let mut info: libc::siginfo_t = std::mem::zeroed();
+            let flags = libc::WEXITED | libc::WNOWAIT | libc::WNOHANG;
+            libc::waitid(libc::P_PID, child.id() as libc::id_t, &mut info, flags) != 0 || info.si_pid() != 0
+        }
+    }
+    #[cfg(not(unix))]
+    child.child().try_wait().map_or(true, |s| s.is_some())
+}
+
 /// A running side.
 struct Worker {
     name: &'static str,
-    child: crate::children::Running,
-    stdin: ChildStdin,
-    lines: std::io::Lines<BufReader<std::process::ChildStdout>>,
-    stderr: std::thread::JoinHandle<String>,
+    /// `None` once it has been waited for.
+    child: Option<crate::children::Running>,
+    stdin: Option<ChildStdin>,
+    lines: mpsc::Receiver<Line>,
+    /// Its stderr so far, and a message when the whole of it has been read.
+    stderr: Arc<Mutex<Vec<u8>>>,
+    stderr_done: mpsc::Receiver<()>,
     hits_dir: PathBuf,
 }
 
@@ -641,66 +814,192 @@ impl Worker {
         }
         side.apply(&mut cmd);
         let mut child = crate::children::spawn(cmd.stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()))
-            .map_err(|e| Error::io(exe, e))?;
+            .map_err(|e| Error::Usage(format!("side {name}: cannot run {}: {e}", exe.display())))?;
         let stdin = child.child().stdin.take().expect("piped");
-        let lines = BufReader::new(child.child().stdout.take().expect("piped")).lines();
-        let mut err = child.child().stderr.take().expect("piped");
-        let stderr = std::thread::spawn(move || {
-            let mut s = String::new();
-            let _ = std::io::Read::read_to_string(&mut err, &mut s);
-            s
+        let mut out = BufReader::new(child.child().stdout.take().expect("piped"));
+        let (tx, lines) = mpsc::channel();
+        // The worker's stdout is read on a thread of its own, so a worker that says nothing
+        // (hung) is waited for a bounded time, and then killed.
+        std::thread::spawn(move || {
+            while let Some(line) = read_line(&mut out, MAX_LINE) {
+                let last = !matches!(line, Line::Text(_));
+                if tx.send(line).is_err() || last {
+                    return;
+                }
+            }
         });
-        Ok(Worker { name, child, stdin, lines, stderr, hits_dir })
+        let mut err = child.child().stderr.take().expect("piped");
+        let stderr = Arc::new(Mutex::new(Vec::new()));
+        let (done, stderr_done) = mpsc::channel();
+        let kept = stderr.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 8192];
+            loop {
+                match std::io::Read::read(&mut err, &mut buf) {
+                    Ok(0) => break,
+                    Ok(n) => {
+                        let mut k = kept.lock().unwrap_or_else(|e| e.into_inner());
+                        // The last MiB or two are plenty for the message's tail.
+                        if k.len() > 2 << 20 {
+                            k.drain(..1 << 20);
+                        }
+                        k.extend_from_slice(&buf[..n]);
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(_) => break,
+                }
+            }
+            let _ = done.send(());
+        });
+        Ok(Worker { name, child: Some(child), stdin: Some(stdin), lines, stderr, stderr_done, hits_dir })
     }
 
-    /// The worker's next message; its failure (or its end) as an error naming the side.
-    fn next(&mut self) -> Result<Message> {
-        let fail = |w: &mut Worker, what: String| -> Error {
-            let _ = w.child.child().kill();
-            let _ = w.child.wait();
-            Error::Usage(format!("side {}: {what}", w.name))
-        };
-        match self.lines.next() {
-            Some(Ok(line)) => match serde_json::from_str::<Message>(&line) {
-                Ok(Message::Failed { error }) => Err(fail(self, error)),
-                Ok(m) => Ok(m),
-                Err(e) => Err(fail(self, format!("unreadable worker line ({e}): {line}"))),
-            },
-            _ => {
-                let _ = self.child.wait();
-                Err(Error::Usage(format!("side {}: the worker ended", self.name)))
+    /// Its stderr so far (all of it once it has ended, or after a second's wait).
+    fn stderr_text(&self) -> String {
+        let _ = self.stderr_done.recv_timeout(Duration::from_secs(1));
+        String::from_utf8_lossy(&self.stderr.lock().unwrap_or_else(|e| e.into_inner())).into_owned()
+    }
+
+    /// Kills the worker's process group (the worker and whatever it started), then reaps the
+    /// worker; its status. The group is signalled before the worker is reaped, so its id is
+    /// still this group's.
+    fn kill(&mut self) -> Option<std::process::ExitStatus> {
+        let mut child = self.child.take()?;
+        #[cfg(unix)]
+        // SAFETY: kill(2) with a negative pid signals that process group: the worker's own,
+        // which `children::spawn` made, its leader not yet reaped.
+        unsafe {
+            libc::kill(-(child.id() as libc::pid_t), libc::SIGKILL);
+        }
+        #[cfg(not(unix))]
+        let _ = child.child().kill();
+        child.wait().ok()
+    }
+
+    /// Waits up to `limit` for the worker to end, without reaping it (see [`Worker::kill`]).
+    fn wait_for_exit(&mut self, limit: Duration) -> bool {
+        let start = Instant::now();
+        loop {
+            let Some(child) = self.child.as_mut() else { return true };
+            if exited(child) {
+                return true;
+            }
+            if start.elapsed() > limit {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// Its end, once its stdout or stdin has closed: how it ended (`was killed by signal 11
+    /// (SIGSEGV)`, `ended with exit status 3`), or that it lingered and was killed.
+    fn how_it_ended(&mut self) -> String {
+        let exited = self.wait_for_exit(Duration::from_secs(5));
+        match self.kill() {
+            Some(status) if exited => ended(status),
+            _ => "closed its output but did not end (killed)".into(),
+        }
+    }
+
+    /// An error naming the side, what happened and `when`, with the worker's last stderr lines;
+    /// the worker is killed.
+    fn fail(&mut self, what: &str, when: &str) -> Error {
+        self.kill();
+        Error::Usage(format!("side {}: {what} {when}{}", self.name, tail(&self.stderr_text())))
+    }
+
+    /// The worker's next message (`when`: what it was doing, for an error); its failure, its
+    /// end, a line that is not a message, or silence past the timeout as an error naming the
+    /// side.
+    fn next(&mut self, when: &str) -> Result<Message> {
+        let limit = worker_timeout();
+        match self.lines.recv_timeout(limit) {
+            Ok(Line::Text(line)) => {
+                match serde_json::from_str::<Message>(&line) {
+                    Ok(Message::Failed { error }) => Err(self.fail(&format!("the worker failed ({error})"), when)),
+                    Ok(m) => Ok(m),
+                    Err(e) => Err(self
+                        .fail(&format!("the worker printed what is not an ab message ({e}): {}", quote(&line)), when)),
+                }
+            }
+            Ok(Line::TooLong(start)) => Err(self.fail(
+                &format!(
+                    "the worker printed a line of more than {} MiB (not an ab message), starting `{start}`...",
+                    MAX_LINE >> 20,
+                ),
+                when,
+            )),
+            Ok(Line::Unreadable(e)) => Err(self.fail(&format!("the worker's output could not be read ({e})"), when)),
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                let what =
+                    format!("the worker said nothing for {} (--worker-timeout) and was killed", show_seconds(limit));
+                Err(self.fail(&what, when))
+            }
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                let how = self.how_it_ended();
+                Err(self.fail(&format!("the worker {how}"), when))
             }
         }
     }
 
-    fn send(&mut self, command: &str) -> Result<()> {
-        writeln!(self.stdin, "{command}")
-            .and_then(|_| self.stdin.flush())
-            .map_err(|e| Error::Usage(format!("side {}: the worker stopped reading ({e})", self.name)))
+    fn send(&mut self, command: &str, when: &str) -> Result<()> {
+        let Some(stdin) = self.stdin.as_mut() else {
+            return Err(Error::Usage(format!("side {}: the worker has ended", self.name)));
+        };
+        match writeln!(stdin, "{command}").and_then(|_| stdin.flush()) {
+            Ok(()) => Ok(()),
+            Err(e) => {
+                let how = self.how_it_ended();
+                Err(self.fail(&format!("the worker stopped reading its commands ({e}): it {how}"), when))
+            }
+        }
     }
 
     /// Asks for one run of cell `i` (protocol 2).
-    fn cell(&mut self, i: usize) -> Result<CellRound> {
-        self.send(&format!("cell {i}"))?;
-        match self.next()? {
+    fn cell(&mut self, i: usize, when: &str) -> Result<CellRound> {
+        self.send(&format!("cell {i}"), when)?;
+        match self.next(when)? {
             Message::Round { mut cells } if cells.len() == 1 => Ok(cells.remove(0)),
-            other => Err(Error::Usage(format!("side {}: expected cell {i}'s round, got {other:?}", self.name))),
+            other => Err(self.fail(&format!("expected cell {i}'s round, got {}", quote(&format!("{other:?}"))), when)),
         }
     }
 
     /// Asks for one round.
-    fn round(&mut self) -> Result<Vec<CellRound>> {
-        self.send("round")?;
-        match self.next()? {
+    fn round(&mut self, when: &str) -> Result<Vec<CellRound>> {
+        self.send("round", when)?;
+        match self.next(when)? {
             Message::Round { cells } => Ok(cells),
-            other => Err(Error::Usage(format!("side {}: expected a round, got {other:?}", self.name))),
+            other => Err(self.fail(&format!("expected a round, got {}", quote(&format!("{other:?}"))), when)),
         }
     }
 
+    /// Asks the worker to end and waits for it (killing it past the timeout); its stderr.
     fn finish(mut self) -> String {
-        let _ = self.send("quit");
-        let _ = self.child.wait();
-        self.stderr.join().unwrap_or_default()
+        if let Some(mut stdin) = self.stdin.take() {
+            let _ = writeln!(stdin, "quit").and_then(|_| stdin.flush());
+        }
+        // Reaped, and anything it left in its group ended with it.
+        self.wait_for_exit(worker_timeout());
+        self.kill();
+        self.stderr_text()
+    }
+}
+
+impl Drop for Worker {
+    /// A worker left behind by an error (the other side failed, a refusal) does not outlive it.
+    fn drop(&mut self) {
+        self.stdin.take();
+        self.kill();
+    }
+}
+
+/// `3 s`, `0.5 s`.
+fn show_seconds(d: Duration) -> String {
+    let s = d.as_secs_f64();
+    if s.fract() == 0.0 {
+        format!("{s:.0} s")
+    } else {
+        format!("{s} s")
     }
 }
 
@@ -731,24 +1030,27 @@ struct Ready {
 fn start_side(o: &AbOptions, w: &Workload, name: &'static str, side: &Side, dir: &Path) -> Result<Ready> {
     let cache = shader_cache(&side.env);
     let mut worker = Worker::start(o, w, name, side, dir)?;
-    let ready = match worker.next() {
-        Ok(m) => m,
-        Err(e) => {
-            let err = worker.finish();
-            return Err(Error::Usage(format!("{e}{}", tail(&err))));
-        }
-    };
+    let when = "while it set up (before its first round)";
+    let ready = worker.next(when)?;
     let Message::Ready { protocol, provenance, cells, pipeline_ms, invocations, invocations_note } = ready else {
-        worker.finish();
-        return Err(Error::Usage(format!("side {name}: the worker did not say it was ready")));
+        return Err(worker
+            .fail(&format!("the worker's first message was not `ready` but {}", quote(&format!("{ready:?}"))), when));
     };
     if protocol > worker::PROTOCOL {
-        worker.finish();
-        return Err(Error::Usage(format!(
-            "side {name}: its trilab ({}) speaks ab protocol {protocol}, this one {} (run ab from the newer build)",
-            side.exe(&o.exe).display(),
-            worker::PROTOCOL
-        )));
+        return Err(worker.fail(
+            &format!(
+                "its trilab ({}) speaks ab protocol {protocol}, this one {} (run ab from the newer build)",
+                side.exe(&o.exe).display(),
+                worker::PROTOCOL
+            ),
+            when,
+        ));
+    }
+    if invocations.len() != cells.len() {
+        return Err(worker.fail(
+            &format!("the worker's `ready` names {} cells but {} invocation counts", cells.len(), invocations.len()),
+            when,
+        ));
     }
     let report = SideReport {
         name,
@@ -763,23 +1065,76 @@ fn start_side(o: &AbOptions, w: &Workload, name: &'static str, side: &Side, dir:
     Ok(Ready { worker, cells, report, invocations, invocations_note })
 }
 
+/// Refuses a side's ICD file (`flag`: `--a-icd`) the loader could not use, naming the side, the
+/// file and why, before any side starts: missing, a directory, empty, not JSON, naming no
+/// driver library, or naming one by a path that does not exist (a bare library name is the
+/// loader's to find on the library path).
+fn check_icd(side: &str, flag: &str, icd: &Path) -> Result<()> {
+    let refuse = |why: String| Error::Usage(format!("side {side}: {flag} {}: {why}", icd.display()));
+    let meta = std::fs::metadata(icd).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => refuse("no such file (an ICD JSON naming a driver)".into()),
+        _ => refuse(format!("cannot be read ({e})")),
+    })?;
+    if meta.is_dir() {
+        return Err(refuse("a directory, not an ICD JSON file (an ICD JSON naming a driver)".into()));
+    }
+    let text = std::fs::read(icd).map_err(|e| refuse(format!("cannot be read ({e})")))?;
+    if text.iter().all(u8::is_ascii_whitespace) {
+        return Err(refuse("the file is empty, not an ICD JSON naming a driver".into()));
+    }
+    let json: serde_json::Value = serde_json::from_slice(&text)
+        .map_err(|e| refuse(format!("not JSON ({e}), so not an ICD JSON naming a driver")))?;
+    let Some(library) = json.get("ICD").and_then(|d| d.get("library_path")).and_then(|l| l.as_str()) else {
+        return Err(refuse("names no driver: an ICD JSON has {\"ICD\": {\"library_path\": \"...\", ...}}".into()));
+    };
+    if library.contains('/') {
+        // A relative path is relative to the JSON file, as the loader reads it.
+        let lib = icd.parent().unwrap_or(Path::new(".")).join(library);
+        if !lib.is_file() {
+            return Err(refuse(format!("its driver library {library} does not exist")));
+        }
+    }
+    Ok(())
+}
+
+/// Clears the run's [`Progress`] when the run ends, however it ends.
+struct ProgressGuard;
+
+impl ProgressGuard {
+    fn new(least: usize, most: usize, temp: &Path) -> ProgressGuard {
+        *progress_state() =
+            Some(Progress { stage: "the start".into(), rounds: [0, 0], least, most, temp: Some(temp.to_owned()) });
+        ProgressGuard
+    }
+}
+
+impl Drop for ProgressGuard {
+    fn drop(&mut self) {
+        *progress_state() = None;
+    }
+}
+
 /// Runs the two sides and compares them. An error means they could not be compared (a side
 /// that does not start, a missing ICD file or executable, no cell in common): exit 2.
 pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
-    for (name, side) in [("--a-icd", &o.a), ("--b-icd", &o.b)] {
+    for (name, flag, side) in [("A", "--a-icd", &o.a), ("B", "--b-icd", &o.b)] {
         if let Some(icd) = &side.icd {
-            if !icd.is_file() {
-                return Err(Error::Usage(format!(
-                    "{name} {}: no such file (an ICD JSON naming a driver)",
-                    icd.display()
-                )));
-            }
+            check_icd(name, flag, icd)?;
         }
     }
-    for (name, side) in [("--a-bin", &o.a), ("--b-bin", &o.b)] {
+    for (name, flag, side) in [("A", "--a-bin", &o.a), ("B", "--b-bin", &o.b)] {
         if let Some(exe) = &side.exe {
+            if exe.is_dir() {
+                return Err(Error::Usage(format!(
+                    "side {name}: {flag} {}: a directory, not a trilab executable",
+                    exe.display()
+                )));
+            }
             if !exe.is_file() {
-                return Err(Error::Usage(format!("{name} {}: no such file (a trilab executable)", exe.display())));
+                return Err(Error::Usage(format!(
+                    "side {name}: {flag} {}: no such file (a trilab executable)",
+                    exe.display()
+                )));
             }
         }
     }
@@ -800,20 +1155,15 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     o.workload.sizes.check_memory()?;
     let workload = resolved_workload(&o.workload)?;
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
+    let _progress = ProgressGuard::new(o.rounds, o.max_rounds, tmp.path());
     let start = Instant::now();
     let mut ready = vec![];
     for (name, side) in [("A", &o.a), ("B", &o.b)] {
         progress(&format!("side {name}: starting ({})", side.describe()));
-        let r = match start_side(o, &workload, name, side, tmp.path()) {
-            Ok(r) => r,
-            Err(e) => {
-                for r in ready {
-                    let r: Ready = r;
-                    r.worker.finish();
-                }
-                return Err(e);
-            }
-        };
+        set_stage(format!("side {name}'s start"));
+        // A side that does not start ends the run; the side started before it is dropped,
+        // which ends its worker.
+        let r = start_side(o, &workload, name, side, tmp.path())?;
         progress(&format!(
             "side {name}: {} ready, {} cells, setup {:.1} s (shader cache {})",
             side_label(&r.report),
@@ -830,8 +1180,6 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     // The cells both sides ran, matched by what they are, not by their place in each side's list.
     let matching = match_cells(&cells_a, &cells_b);
     if matching.pairs.is_empty() {
-        wa.finish();
-        wb.finish();
         let labels = |c: &[CellInfo]| c.iter().map(CellInfo::label).collect::<Vec<_>>();
         return Err(Error::Usage(format!(
             "the sides have no cell in common (A: {:?}; B: {:?})",
@@ -872,9 +1220,21 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         s.invalid = s.invalid.max(r.invalid);
     };
     let stopped_by;
+    // What a worker's failure in the rounds says after what happened: when, and what had been
+    // measured (nothing is compared then).
+    let in_round = |round: usize, cell: Option<&CellInfo>, done: [usize; 2]| {
+        let cell = cell.map(|c| format!(", cell `{}`", c.label())).unwrap_or_default();
+        let done = if done[0] == done[1] {
+            format!("{} rounds a side", done[0])
+        } else {
+            format!("{} rounds on side A, {} on side B", done[0], done[1])
+        };
+        format!("in round {}{cell}, after {done}; the sides were not compared", round + 1)
+    };
     'rounds: loop {
         if paired {
             let round = rounds[0];
+            set_stage(format!("round {}", round + 1));
             for k in 0..pairs.len() {
                 // The cell that opens a round rotates, and which side goes first alternates
                 // from cell to cell and from round to round.
@@ -882,7 +1242,7 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
                 let order = if (k + round) % 2 == 0 { [0usize, 1] } else { [1, 0] };
                 for side in order {
                     let (w, i) = if side == 0 { (&mut wa, pairs[p].0) } else { (&mut wb, pairs[p].1) };
-                    let r = w.cell(i)?;
+                    let r = w.cell(i, &in_round(round, Some(&cells_b[pairs[p].1]), rounds))?;
                     record(&mut times, &mut worst, side, p, &r);
                 }
             }
@@ -890,16 +1250,22 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         } else {
             // One balanced block: A B B A.
             for side in [0usize, 1, 1, 0] {
+                set_stage(format!("round {}", rounds[side] + 1));
                 let w = if side == 0 { &mut wa } else { &mut wb };
-                let res = w.round()?;
+                let when = in_round(rounds[side], None, rounds);
+                let res = w.round(&when)?;
                 rounds[side] += 1;
                 for (p, &(ia, ib)) in pairs.iter().enumerate() {
-                    let r = res.get(if side == 0 { ia } else { ib }).ok_or_else(|| {
-                        Error::Usage(format!("side {}: a round answered fewer cells than it said it had", w.name))
-                    })?;
+                    let Some(r) = res.get(if side == 0 { ia } else { ib }) else {
+                        let what = format!("a round answered {} cells, fewer than it said it had", res.len());
+                        return Err(w.fail(&what, &when));
+                    };
                     record(&mut times, &mut worst, side, p, r);
                 }
             }
+        }
+        if let Some(p) = progress_state().as_mut() {
+            p.rounds = rounds;
         }
         let n = rounds[0].min(rounds[1]);
         if n < o.rounds {
@@ -932,6 +1298,7 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     wb.finish();
     let matched_b: Vec<CellInfo> = pairs.iter().map(|&(_, ib)| cells_b[ib].clone()).collect();
     // The compilers' output, after the rounds: its compiles would time them otherwise.
+    set_stage("the driver statistics, after the rounds".into());
     let stats = o.driver_stats.then(|| {
         [("A", &o.a), ("B", &o.b)].map(|(name, side)| {
             progress(&format!("side {name}: driver statistics"));
@@ -946,10 +1313,15 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         let mut b = worst[1][p].clone();
         a.ms = times[0][p].iter().flatten().copied().collect();
         b.ms = times[1][p].iter().flatten().copied().collect();
+        // A worker that did not write a cell's hits (another build's bug, or not trilab) is
+        // named with the file.
+        let recorded = |side: &str, r: Result<_>| {
+            r.map_err(|e| Error::Usage(format!("side {side}: cell `{}`: its first round's output: {e}", c.label())))
+        };
         let rays_differing = match c.kind {
             CellKind::Raycast => crate::rays::differing_hits(
-                &crate::rays::read_hits(&dir_a.join(format!("{ia}.hits")))?,
-                &crate::rays::read_hits(&dir_b.join(format!("{ib}.hits")))?,
+                &recorded("A", crate::rays::read_hits(&dir_a.join(format!("{ia}.hits"))))?,
+                &recorded("B", crate::rays::read_hits(&dir_b.join(format!("{ib}.hits"))))?,
             ),
             CellKind::Pathtrace => {
                 worker::differing_pixels(&dir_a.join(format!("{ia}.image")), &dir_b.join(format!("{ib}.image")))?
