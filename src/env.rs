@@ -43,9 +43,9 @@ pub const ENV_VARS: &[EnvVar] = &[
     },
     EnvVar {
         name: "MESA_SHADER_CACHE_DIR",
-        help: "Mesa's on-disk shader cache; unset while LP_NATIVE_VECTOR_WIDTH is set, trilab sets it to \
-               <XDG_CACHE_HOME or ~/.cache>/trilab/mesa-shader-cache-lp<bits> (lavapipe 25.0.7 reuses image \
-               functions cached at another width: docs/driver-defects.md)",
+        help: "Mesa's on-disk shader cache; while LP_NATIVE_VECTOR_WIDTH is set, trilab uses the folder \
+               mesa-shader-cache-lp<bits> inside it (unset: inside <XDG_CACHE_HOME or ~/.cache>/trilab), as \
+               lavapipe 25.0.7 reuses image functions cached at another width (docs/driver-defects.md)",
     },
     EnvVar {
         name: "VK_DRIVER_FILES",
@@ -64,35 +64,42 @@ pub fn markdown() -> String {
     ENV_VARS.iter().map(|v| format!("- `{}`: {}.\n", v.name, v.help)).collect()
 }
 
-/// Where lavapipe's shader cache goes for SIMD width `bits` when the caller named none: one
-/// folder per width under `cache_home` (XDG_CACHE_HOME, else ~/.cache).
+/// Where lavapipe's shader cache goes for SIMD width `bits`: one folder per width inside `base`
+/// (the caller's MESA_SHADER_CACHE_DIR, else trilab's folder in XDG_CACHE_HOME or ~/.cache).
 ///
 /// lavapipe 25.0.7 stores its precompiled texture and image functions in Mesa's on-disk cache
 /// under a key that leaves out the SIMD width, so a process at 16 lanes finds the 8-lane code a
 /// default run stored and calls it with 16-lane vectors: lanes 8-15 of every imageLoad read
 /// zeros, and a wider callee writes past a narrower caller's return slot
 /// (docs/driver-defects.md; tests/subgroup_probe.rs shows it).
-pub fn lavapipe_cache_dir(cache_home: &std::path::Path, bits: &str) -> std::path::PathBuf {
+pub fn lavapipe_cache_dir(base: &std::path::Path, bits: &str) -> std::path::PathBuf {
     let bits: String = bits.chars().filter(char::is_ascii_alphanumeric).collect();
-    cache_home.join("trilab").join(format!("mesa-shader-cache-lp{bits}"))
+    base.join(format!("mesa-shader-cache-lp{bits}"))
 }
 
-/// Keeps lavapipe's shader cache per SIMD width: where `LP_NATIVE_VECTOR_WIDTH` is set and
-/// neither `MESA_SHADER_CACHE_DIR` nor `MESA_SHADER_CACHE_DISABLE` is, sets
-/// `MESA_SHADER_CACHE_DIR` to [`lavapipe_cache_dir`]. Returns the folder it chose, if any.
+/// Keeps lavapipe's shader cache per SIMD width: where `LP_NATIVE_VECTOR_WIDTH` is set (and
+/// `MESA_SHADER_CACHE_DISABLE` is not), points `MESA_SHADER_CACHE_DIR` at [`lavapipe_cache_dir`]
+/// inside the folder it named (unset: trilab's folder in the user's cache). Inside it, not the
+/// folder itself: a caller at one width (scripts/test-width.sh) that runs trilab at another
+/// (`coop_at_16_lanes`) would otherwise hand the child the first width's cache. Returns the
+/// folder it chose, if any.
 ///
 /// Call it first in `main`, before any thread starts and before the Vulkan loader reads the
 /// environment: it changes the process's environment.
 pub fn keep_lavapipe_cache_per_width() -> Option<std::path::PathBuf> {
     let bits = std::env::var("LP_NATIVE_VECTOR_WIDTH").ok()?;
-    if std::env::var_os("MESA_SHADER_CACHE_DIR").is_some() || std::env::var_os("MESA_SHADER_CACHE_DISABLE").is_some() {
+    if std::env::var_os("MESA_SHADER_CACHE_DISABLE").is_some() {
         return None;
     }
-    let home = std::env::var_os("XDG_CACHE_HOME")
-        .filter(|h| !h.is_empty())
-        .map(std::path::PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| std::path::PathBuf::from(h).join(".cache")))?;
-    let dir = lavapipe_cache_dir(&home, &bits);
+    let base = match std::env::var_os("MESA_SHADER_CACHE_DIR").filter(|d| !d.is_empty()) {
+        Some(d) => std::path::PathBuf::from(d),
+        None => std::env::var_os("XDG_CACHE_HOME")
+            .filter(|h| !h.is_empty())
+            .map(std::path::PathBuf::from)
+            .or_else(|| std::env::var_os("HOME").map(|h| std::path::PathBuf::from(h).join(".cache")))?
+            .join("trilab"),
+    };
+    let dir = lavapipe_cache_dir(&base, &bits);
     std::env::set_var("MESA_SHADER_CACHE_DIR", &dir);
     Some(dir)
 }
@@ -103,14 +110,14 @@ mod tests {
 
     #[test]
     fn each_width_has_its_own_cache_folder() {
-        let home = std::path::Path::new("/c");
-        let a = lavapipe_cache_dir(home, "256");
-        let b = lavapipe_cache_dir(home, "512");
+        let base = std::path::Path::new("/c/trilab");
+        let a = lavapipe_cache_dir(base, "256");
+        let b = lavapipe_cache_dir(base, "512");
         assert_ne!(a, b);
         assert!(a.starts_with("/c/trilab"), "{a:?}");
         // A hostile value cannot leave the folder.
         assert_eq!(
-            lavapipe_cache_dir(home, "../../etc"),
+            lavapipe_cache_dir(base, "../../etc"),
             std::path::PathBuf::from("/c/trilab/mesa-shader-cache-lpetc")
         );
     }

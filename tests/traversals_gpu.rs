@@ -385,8 +385,9 @@ fn traversal_speed_on_the_bunny() {
 /// crashed or ran past two minutes). The kernel was right: lavapipe 25.0.7 reused image
 /// functions its disk cache held from 8-lane runs (docs/driver-defects.md). The default-width
 /// cast below fills the default cache first, so without trilab's cache per width
-/// (`trilab::env::keep_lavapipe_cache_per_width`) this test fails as it did then. (With
-/// MESA_SHADER_CACHE_DIR set in the environment trilab leaves the cache to the caller.)
+/// (`trilab::env::keep_lavapipe_cache_per_width`) this test fails as it did then. Under
+/// scripts/test-width.sh the casts inherit its 4-lane cache folder: trilab takes a folder per
+/// width inside it (it once took the folder itself, and this test failed there).
 #[test]
 fn coop_at_16_lanes() {
     let dir = tempfile::tempdir().unwrap();
