@@ -88,11 +88,6 @@ pub fn signal_all(signal: i32) -> usize {
     }
 }
 
-/// How many listed children run now.
-pub fn count() -> usize {
-    running().len()
-}
-
 #[cfg(all(test, unix))]
 mod tests {
     use super::*;

@@ -14,15 +14,14 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader};
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::Output;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use common::cli::s;
+use common::running::{alive, Running};
 
 /// The cheapest workload: one scene, one method, one ray set of 2000 rays.
 const WORKLOAD: &[&str] =
@@ -125,14 +124,6 @@ fn survivors(marker: &str) -> Vec<u32> {
         }
     }
     live
-}
-
-/// Whether process `pid` runs (exists and is not a zombie).
-fn alive(pid: u32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .ok()
-        .and_then(|s| s.rsplit_once(')').map(|(_, r)| r.split_whitespace().next() != Some("Z")))
-        .unwrap_or(false)
 }
 
 /// Fails unless `o` is exit 2 without a panic and its stderr holds every needle; its stderr.
@@ -355,90 +346,11 @@ fn a_worker_binary_that_is_a_folder_or_missing_is_refused() {
 
 // ---- Stop signals -----------------------------------------------------------------------------
 
-/// A running `ab` whose stderr lines arrive on a channel (and are kept).
-struct Running {
-    child: Child,
-    lines: mpsc::Receiver<String>,
-    seen: Vec<String>,
-}
-
-impl Running {
-    fn start(p: &Place, extra: &[&str]) -> Running {
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_trilab"));
-        cmd.args(WORKLOAD)
-            .args(extra)
-            .current_dir(p.cwd())
-            .env("TRILAB_VALIDATION", "1")
-            .env_remove("TRILAB_SCENES")
-            .env_remove("TRILAB_TEST_LIMITS")
-            .env_remove("TRILAB_INJECT_FAULT")
-            .env_remove("TRILAB_INJECT_SLOWDOWN")
-            .env_remove("GALLIVM_PERF")
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped());
-        for (k, v) in p.env() {
-            cmd.env(k, v);
-        }
-        let mut child = cmd.spawn().unwrap();
-        let (tx, lines) = mpsc::channel();
-        let stderr = child.stderr.take().unwrap();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stderr).lines().map_while(|l| l.ok()) {
-                let _ = tx.send(line);
-            }
-        });
-        Running { child, lines, seen: vec![] }
-    }
-
-    /// Waits up to `limit` for a stderr line containing `needle` (killing `ab` and failing past
-    /// it, or if it ends first).
-    fn wait_for_text(&mut self, needle: &str, limit: Duration) {
-        let start = Instant::now();
-        while !self.seen.iter().any(|l| l.contains(needle)) {
-            match self.lines.recv_timeout(Duration::from_millis(100)) {
-                Ok(line) => self.seen.push(line),
-                Err(mpsc::RecvTimeoutError::Timeout) => {}
-                Err(mpsc::RecvTimeoutError::Disconnected) => {
-                    panic!("ab ended before `{needle}`:\n{}", self.seen.join("\n"))
-                }
-            }
-            if start.elapsed() > limit {
-                let _ = self.child.kill();
-                panic!("no `{needle}` within {limit:?}:\n{}", self.seen.join("\n"));
-            }
-        }
-    }
-
-    /// The processes `ab` started that run now (from /proc: its threads' children).
-    fn children(&self) -> Vec<u32> {
-        let mut out = vec![];
-        let tasks = format!("/proc/{}/task", self.child.id());
-        for t in std::fs::read_dir(tasks).into_iter().flatten().flatten() {
-            let text = std::fs::read_to_string(t.path().join("children")).unwrap_or_default();
-            out.extend(text.split_whitespace().filter_map(|p| p.parse::<u32>().ok()));
-        }
-        out
-    }
-
-    /// Sends `signal`, then waits up to `limit` for the exit; the exit code and all of stderr.
-    fn signal_and_wait(mut self, signal: i32, limit: Duration) -> (Option<i32>, String) {
-        // SAFETY: signals a child this test started and has not reaped.
-        assert_eq!(unsafe { libc::kill(self.child.id() as i32, signal) }, 0);
-        let start = Instant::now();
-        let status = loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                break status;
-            }
-            if start.elapsed() > limit {
-                let _ = self.child.kill();
-                panic!("ab did not stop within {limit:?} of signal {signal}:\n{}", self.seen.join("\n"));
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        };
-        self.seen.extend(self.lines.iter());
-        (status.code(), self.seen.join("\n"))
-    }
+/// `ab` with the test workload and `extra`, in `p`'s folder and environment, running.
+fn start(p: &Place, extra: &[&str]) -> Running {
+    let env = p.env();
+    let env: Vec<(&str, &str)> = env.iter().map(|(k, v)| (*k, v.as_str())).collect();
+    Running::start(common::cli::command(&[WORKLOAD, extra].concat(), Some(&p.cwd()), &env))
 }
 
 /// `ab` stopped by `signal` once its fourth round is done: it says what it had measured, exits
@@ -448,12 +360,13 @@ fn stop_between_rounds(signal: i32, name: &str) {
     let out = p.dir.path().join("out");
     // Rounds until the time cap: the signal comes long before.
     let rounds = ["--rounds", "4", "--max-rounds", "1000000", "--target", "0.0001", "--time-cap", "600"];
-    let mut r = Running::start(&p, &[&rounds[..], &["--out", &s(&out)]].concat());
+    let mut r = start(&p, &[&rounds[..], &["--out", &s(&out)]].concat());
     // The fourth round's line ("  4 rounds a side", not 14): the rounds are under way.
     r.wait_for_text("  4 rounds a side: widest cell interval", Duration::from_secs(120));
     let workers = r.children();
     assert_eq!(workers.len(), 2, "two workers run: {workers:?}");
-    let (code, err) = r.signal_and_wait(signal, Duration::from_secs(30));
+    let (status, err) = r.signal_and_wait(signal, Duration::from_secs(30));
+    let code = status.code();
     assert_eq!(code, Some(128 + signal), "{err}");
     assert!(!err.contains("panicked"), "{err}");
     for needle in [

@@ -6,93 +6,15 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use common::cli::s;
+use common::running::{alive, Running};
 
-/// A running trilab whose stderr lines arrive on a channel (and are kept).
-struct Running {
-    child: Child,
-    lines: mpsc::Receiver<String>,
-    seen: Vec<String>,
-}
-
-impl Running {
-    fn start(args: &[&str]) -> Running {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_trilab"))
-            .args(args)
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .env("TRILAB_VALIDATION", "1")
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let (tx, lines) = mpsc::channel();
-        let stderr = child.stderr.take().unwrap();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stderr).lines().map_while(|l| l.ok()) {
-                let _ = tx.send(line);
-            }
-        });
-        Running { child, lines, seen: vec![] }
-    }
-
-    /// Waits up to `limit` for a stderr line that starts with `prefix` (killing the process and
-    /// failing past it, or if it ends first).
-    fn wait_for_line(&mut self, prefix: &str, limit: Duration) {
-        let start = Instant::now();
-        while !self.seen.iter().any(|l| l.starts_with(prefix)) {
-            match self.lines.recv_timeout(Duration::from_millis(100)) {
-                Ok(line) => self.seen.push(line),
-                Err(mpsc::RecvTimeoutError::Timeout) => {}
-                Err(mpsc::RecvTimeoutError::Disconnected) => {
-                    panic!("trilab ended before `{prefix}`:\n{}", self.seen.join("\n"))
-                }
-            }
-            if start.elapsed() > limit {
-                let _ = self.child.kill();
-                panic!("no `{prefix}` within {limit:?}:\n{}", self.seen.join("\n"));
-            }
-        }
-    }
-
-    /// Waits up to `limit` for a file (failing as above).
-    fn wait_for_file(&mut self, path: &Path, limit: Duration) {
-        let start = Instant::now();
-        while !path.exists() {
-            assert!(self.child.try_wait().unwrap().is_none(), "trilab ended early");
-            if start.elapsed() > limit {
-                let _ = self.child.kill();
-                panic!("no {} within {limit:?}", path.display());
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-
-    /// Sends `signal`, then waits up to `limit` for the exit; the status and all of stderr.
-    fn signal_and_wait(mut self, signal: i32, limit: Duration) -> (ExitStatus, String) {
-        // SAFETY: signals a child this test started and has not reaped.
-        assert_eq!(unsafe { libc::kill(self.child.id() as i32, signal) }, 0);
-        let start = Instant::now();
-        let status = loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                break status;
-            }
-            if start.elapsed() > limit {
-                let _ = self.child.kill();
-                panic!("trilab did not stop within {limit:?} of signal {signal}");
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        // The reader thread ends with the pipe.
-        self.seen.extend(self.lines.iter());
-        (status, self.seen.join("\n"))
-    }
+/// `trilab args` in the source tree, running.
+fn start(args: &[&str]) -> Running {
+    Running::start(common::cli::command(args, None, &[]))
 }
 
 /// Before: SIGTERM ended the render at once (no exit code: killed by the signal), leaving only
@@ -103,7 +25,7 @@ fn sigterm_during_render_saves_the_image_and_exits_143() {
     let exr = dir.path().join("r.exr");
     let json = dir.path().join("r.json");
     let bunny = s(&common::root().join("scenes/bunny.obj"));
-    let mut r = Running::start(&[
+    let mut r = start(&[
         "render",
         "--scene",
         &bunny,
@@ -139,7 +61,7 @@ fn sigterm_during_render_saves_the_image_and_exits_143() {
 }
 
 fn suite(out: &Path) -> Running {
-    Running::start(&[
+    start(&[
         "suite",
         "--size",
         "0",
@@ -188,62 +110,14 @@ fn a_stopped_suite_says_what_it_kept() {
     assert!(err.contains("stopped before the first part"), "{err}");
 }
 
-impl Running {
-    /// Waits up to `limit` for a stderr line containing `needle` (failing as wait_for_line).
-    fn wait_for_text(&mut self, needle: &str, limit: Duration) {
-        let start = Instant::now();
-        while !self.seen.iter().any(|l| l.contains(needle)) {
-            match self.lines.recv_timeout(Duration::from_millis(100)) {
-                Ok(line) => self.seen.push(line),
-                Err(mpsc::RecvTimeoutError::Timeout) => {}
-                Err(mpsc::RecvTimeoutError::Disconnected) => {
-                    panic!("trilab ended before `{needle}`:\n{}", self.seen.join("\n"))
-                }
-            }
-            if start.elapsed() > limit {
-                let _ = self.child.kill();
-                panic!("no `{needle}` within {limit:?}:\n{}", self.seen.join("\n"));
-            }
-        }
-    }
-
-    /// The processes this one started that run now (from /proc: its threads' children).
-    fn children(&self) -> Vec<u32> {
-        let mut out = vec![];
-        let tasks = format!("/proc/{}/task", self.child.id());
-        for t in std::fs::read_dir(tasks).into_iter().flatten().flatten() {
-            let text = std::fs::read_to_string(t.path().join("children")).unwrap_or_default();
-            out.extend(text.split_whitespace().filter_map(|p| p.parse::<u32>().ok()));
-        }
-        out
-    }
-}
-
-/// Whether process `pid` runs (exists and is not a zombie).
-fn alive(pid: u32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .ok()
-        .and_then(|s| s.rsplit_once(')').map(|(_, r)| r.split_whitespace().next() != Some("Z")))
-        .unwrap_or(false)
-}
-
 /// Issue 39: SIGTERM to the suite while its profile part runs `trilab bench` per LP_NUM_THREADS
 /// reaches that child too (before, the child ran on after the suite had gone).
 #[test]
 fn a_stopped_suite_stops_the_processes_it_started() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("suite");
-    let mut r = Running::start(&[
-        "suite",
-        "--size",
-        "0",
-        "--parts",
-        "profile",
-        "--no-driver-stats",
-        "--validation",
-        "--out",
-        &s(&out),
-    ]);
+    let mut r =
+        start(&["suite", "--size", "0", "--parts", "profile", "--no-driver-stats", "--validation", "--out", &s(&out)]);
     r.wait_for_text("LP_NUM_THREADS=", Duration::from_secs(400));
     let start = Instant::now();
     let kids = loop {
@@ -271,7 +145,7 @@ fn a_stopped_suite_stops_the_processes_it_started() {
 fn a_stopped_study_writes_the_groups_it_finished() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("study");
-    let mut r = Running::start(&[
+    let mut r = start(&[
         "study",
         "--preset",
         "smoke",

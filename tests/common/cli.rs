@@ -19,6 +19,15 @@ pub fn trilab(args: &[&str], timeout_s: u64) -> Output {
 /// `trilab args` in `cwd` (default: the source tree) with `env` added; the output and the wall
 /// time. Panics past `timeout_s` seconds, after killing the process.
 pub fn run(args: &[&str], cwd: Option<&Path>, env: &[(&str, &str)], timeout_s: u64) -> (Output, Duration) {
+    let mut cmd = command(args, cwd, env);
+    let start = Instant::now();
+    let out = output_within(&mut cmd, None, Duration::from_secs(timeout_s), &format!("trilab {args:?}"));
+    (out, start.elapsed())
+}
+
+/// `trilab args` as every test runs it: in `cwd` (default: the source tree), the validation layer
+/// on, the variables that change what trilab does cleared, then `env` added.
+pub fn command(args: &[&str], cwd: Option<&Path>, env: &[(&str, &str)]) -> Command {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_trilab"));
     cmd.args(args)
         .current_dir(cwd.unwrap_or(Path::new(env!("CARGO_MANIFEST_DIR"))))
@@ -27,16 +36,11 @@ pub fn run(args: &[&str], cwd: Option<&Path>, env: &[(&str, &str)], timeout_s: u
         .env_remove("TRILAB_TEST_LIMITS")
         .env_remove("TRILAB_INJECT_FAULT")
         .env_remove("TRILAB_INJECT_SLOWDOWN")
-        .env_remove("GALLIVM_PERF")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
+        .env_remove("GALLIVM_PERF");
     for (k, v) in env {
         cmd.env(k, v);
     }
-    let start = Instant::now();
-    let out = output_within(&mut cmd, None, Duration::from_secs(timeout_s), &format!("trilab {args:?}"));
-    (out, start.elapsed())
+    cmd
 }
 
 /// Any command, `stdin` fed to it (`None`: closed) and both pipes drained while it runs; panics,

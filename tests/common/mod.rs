@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod cli;
+pub mod running;
 pub mod unpacked;
 
 use std::path::PathBuf;
