@@ -6,8 +6,8 @@
 
 use std::path::PathBuf;
 
+use trilab::commands::bench::{run, BenchOptions};
 use trilab::gpu::{Context, ContextOptions, Validation};
-use trilab::harness::bench::{run, BenchOptions};
 use trilab::report::Report;
 
 fn main() {

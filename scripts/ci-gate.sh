@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The lavapipe regression gate, the last step of README's test command (and so of CI). It judges
-# the code only on evidence about the code (`trilab gate`, src/harness/gate.rs):
+# the code only on evidence about the code (`trilab gate`, src/commands/gate.rs):
 #
 # - counts and correctness against the committed baseline, results/lavapipe/baseline/ (exact):
 #   the suite at its smoke sizes (`--size 0`) and the SPIR-V counts of every kernel variant,

@@ -1,7 +1,7 @@
 //! The machine a run ran on: its CPU model and what a JIT compiles for on it, the logical CPUs the process may use and the load
 //! average when it was read. On lavapipe the "GPU" is this CPU, so two runs' timings are
 //! comparable only when these agree (or when a calibration measured in each run says how the
-//! hosts differ: `harness::calibration`). Every result row carries it ([`crate::rows::Source`]).
+//! hosts differ: `services::calibration`). Every result row carries it ([`crate::rows::Source`]).
 //! Ground floor: it imports nothing of trilab.
 
 use serde::{Deserialize, Serialize};

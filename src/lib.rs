@@ -16,8 +16,10 @@
 //! - [`conditioning`]: a scene's conditioning and the method it needs (`--method auto`).
 //! - [`pipeline`]: the one scene pipeline, mesh to scene on the device with its kernels.
 //! - [`render`]: the path tracer.
-//! - [`harness`]: everything that measures and reports (bench, study, accuracy, profile, scale,
-//!   ...), with what they share; the CLI (`src/cli/`, in the binary) calls these.
+//! - [`services`]: what the commands share: validation against the reference, ray sets,
+//!   provenance, plots, result folders, shards, peers, the roofline, driver statistics.
+//! - [`commands`]: one room per command (bench, study, accuracy, profile, ab, compare, ...),
+//!   each a library call returning a typed report; the CLI (`src/cli/`, in the binary) calls these.
 
 pub mod env;
 pub mod error;
@@ -42,6 +44,7 @@ pub mod gpu;
 pub mod conditioning;
 pub mod pipeline;
 pub mod render;
-pub mod harness;
+pub mod services;
+pub mod commands;
 
 pub use error::{Error, Result};

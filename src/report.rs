@@ -114,6 +114,17 @@ impl Summary {
     }
 }
 
+/// Whether a part of a report could be measured, and if not, why not (a profile section, the
+/// driver statistics of a device).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    Measured,
+    Unsupported,
+    NotApplicable,
+    Skipped,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

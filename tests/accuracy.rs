@@ -10,9 +10,9 @@
 
 mod common;
 
+use trilab::commands::accuracy::probes::LeakKind;
+use trilab::commands::accuracy::{self, AccuracyOptions, Preset};
 use trilab::encoding::Method;
-use trilab::harness::accuracy::probes::LeakKind;
-use trilab::harness::accuracy::{self, AccuracyOptions, Preset};
 use trilab::rays::offset::{Offset, RECOMMENDED};
 
 /// `rows.jsonl` (what `trilab compare` reads) carries accuracy.csv's figures: per method, leaf
@@ -130,7 +130,7 @@ fn smoke_run_never_hits_degenerate_triangles_and_never_returns_nan() {
     }
     assert_eq!(report.leaks.len(), 3 * 3 * 6 * methods, "mesh x kind x leaf x method");
     assert_eq!(report.errors.len(), 6 * methods);
-    let mut tallies: Vec<(&str, String, &trilab::harness::accuracy::metrics::Tally)> = vec![];
+    let mut tallies: Vec<(&str, String, &trilab::commands::accuracy::metrics::Tally)> = vec![];
     tallies.extend(report.leaks.iter().map(|r| ("leaks", format!("{} {} {:?}", r.method, r.mesh, r.kind), &r.tally)));
     tallies.extend(
         report.false_hits.iter().map(|r| ("false hits", format!("{} {} {}", r.method, r.mesh, r.d_exp), &r.tally)),
@@ -301,7 +301,7 @@ fn watertight_stays_leak_free_on_every_layout() {
             .iter()
             .any(|r| r.layout == l && r.method == Method::Watertight && r.tally.t_ulps.n > 1000));
     }
-    let md = trilab::harness::accuracy::table::markdown(&report, &[]);
+    let md = trilab::commands::accuracy::table::markdown(&report, &[]);
     assert!(md.contains("## Leaks per node layout"), "{md}");
     assert!(md.contains("**watertight stays leak-free on every layout**"), "{md}");
     assert!(md.contains("| mt |") && md.contains("| no |"), "MT is not leak-free: {md}");

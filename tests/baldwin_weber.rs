@@ -8,10 +8,10 @@ mod common;
 use trilab::agreement::{compare_any, compare_closest};
 use trilab::bvh::{BuildOptions, Bvh};
 use trilab::encoding::{BwTriangle, Method, BW_NEVER_HIT};
-use trilab::harness::rayset::{ray_sets, RaySetSizes};
-use trilab::harness::validate::validate_hits;
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
+use trilab::services::rayset::{ray_sets, RaySetSizes};
+use trilab::services::validate::validate_hits;
 
 #[test]
 fn baldwin_weber_agrees_with_the_f64_reference_on_bunny_rays() {

@@ -13,7 +13,7 @@ use std::path::Path;
 use std::process::Output;
 use std::time::{Duration, Instant};
 
-use trilab::harness::accuracy::closed::{icosphere, Placement};
+use trilab::commands::accuracy::closed::{icosphere, Placement};
 use trilab::scene::Mesh;
 
 /// Runs `trilab args` in `cwd` with `env`, killed after `timeout_s`.

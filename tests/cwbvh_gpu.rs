@@ -16,17 +16,17 @@ mod common;
 
 use glam::{DVec3, Vec3};
 use trilab::bvh::{BuildOptions, Bvh};
-use trilab::encoding::{Layout, Method, Raycast};
-use trilab::harness::accuracy::closed::{
+use trilab::commands::accuracy::closed::{
     icosphere, perturbed_sphere, subdivided_cube, winding_number, ClosedMesh, Placement,
 };
-use trilab::harness::accuracy::probes::{leak_rays, LeakKind};
-use trilab::harness::accuracy::rng::Rng;
-use trilab::harness::rayset::{ray_sets, RaySetSizes};
-use trilab::harness::validate::validate_hits;
+use trilab::commands::accuracy::probes::{leak_rays, LeakKind};
+use trilab::commands::accuracy::rng::Rng;
+use trilab::encoding::{Layout, Method, Raycast};
 use trilab::named::Named;
 use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::rays::Ray;
+use trilab::services::rayset::{ray_sets, RaySetSizes};
+use trilab::services::validate::validate_hits;
 
 const SIZES: RaySetSizes = RaySetSizes { width: 96, height: 72, diffuse_per_hit: 2, random_rays: 20_000, seed: 5 };
 

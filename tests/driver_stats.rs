@@ -125,7 +125,7 @@ fn profile_writes_timing_and_driver_statistics_rows() {
         assert_eq!(r.figures["kernel_ms"].class, Class::Timing);
         assert_eq!(r.figures["kernel_ms"].runs, 2);
         assert!(r.figures["kernel_ms"].min <= r.figures["kernel_ms"].max);
-        assert!(r.figures["agreement"].median >= trilab::harness::profile::MIN_AGREEMENT);
+        assert!(r.figures["agreement"].median >= trilab::commands::profile::MIN_AGREEMENT);
         assert_eq!(r.cell["layout"], "bvh2");
     }
     let md = std::fs::read_to_string(dir.path().join("p/profile.md")).unwrap();

@@ -14,11 +14,11 @@ use trilab::bvh::{BuildOptions, Bvh};
 use trilab::encoding::{Method, Raycast};
 use trilab::error::Error;
 use trilab::gpu::{Context, ContextOptions, Validation};
-use trilab::harness::rayset::{ray_sets, RaySetSizes};
-use trilab::harness::validate::validate_hits;
 use trilab::rays::{Hit, Ray};
 use trilab::reference::{intersect, Ray64, RefHit, Reference};
 use trilab::scene::Mesh;
+use trilab::services::rayset::{ray_sets, RaySetSizes};
+use trilab::services::validate::validate_hits;
 
 /// Two hits tie when their f64 t differ by at most this, relative.
 const TIE_REL: f64 = 1e-12;

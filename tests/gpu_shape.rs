@@ -12,7 +12,7 @@ mod common;
 
 use trilab::gpu::context::choose_device;
 use trilab::gpu::{Context, DeviceInfo};
-use trilab::harness::provenance::Provenance;
+use trilab::services::provenance::Provenance;
 
 fn lavapipe() -> DeviceInfo {
     let devices = Context::list_devices().expect("a Vulkan device (lavapipe in CI)");
@@ -80,9 +80,9 @@ fn a_driver_that_is_not_mesa_is_named_by_its_own_name_and_version() {
 /// query is unsupported, instead of failing the bench part.
 #[test]
 fn without_ray_query_the_bench_runs_the_ray_tracing_pipeline_and_notes_the_rest() {
+    use trilab::commands::bench::{self, BenchOptions, Tracer};
     use trilab::gpu::{ContextOptions, Peer};
-    use trilab::harness::bench::{self, BenchOptions, Tracer};
-    use trilab::harness::rayset::RaySetSizes;
+    use trilab::services::rayset::RaySetSizes;
     // Through common::with_gpu_options, which destroys the context before it hands the result
     // back. Until issue 39 this test sent the report first and dropped the context after: when
     // it was the last test to finish, the harness could exit the process while this thread was

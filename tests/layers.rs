@@ -1,6 +1,6 @@
 //! The layering rule of ARCHITECTURE.md, checked on the source tree: the library's top-level
 //! modules form an order (ground floor, scene, rays, bvh, the CPU reference, encoding, gpu,
-//! conditioning, pipeline, path tracer, harnesses), and every module imports only modules before its
+//! conditioning, pipeline, path tracer, services, commands), and every module imports only modules before its
 //! own. Inside a top-level module, no two modules that are not parent and child import each
 //! other, directly or around a longer cycle. The library does not use clap (the command line,
 //! `src/main.rs` and `src/cli/`, is the binary's). Comments are not imports.
@@ -40,8 +40,9 @@ const LAYERS: &[&str] = &[
     "pipeline",
     // The path tracer.
     "render",
-    // Everything that measures and reports.
-    "harness",
+    // What the commands share, then the commands: each in its own room.
+    "services",
+    "commands",
 ];
 
 fn src() -> PathBuf {
@@ -286,7 +287,7 @@ fn the_scan_finds_imports_and_ignores_comments() {
     let me = vec!["gpu".to_owned(), "raycast".to_owned()];
     let text = code(
         "use crate::{pipeline::HostScene, error::Result};\n\
-         // use crate::harness::bench;\n\
+         // use crate::commands::bench;\n\
          let x = crate::render::render(a); // crate::study\n\
          use super::super::analyze::Frontier;\n\
          use super::context::Context;\n\
@@ -298,5 +299,5 @@ fn the_scan_finds_imports_and_ignores_comments() {
     assert!(refs.contains(&"render::render".to_owned()), "{refs:?}");
     assert!(refs.contains(&"analyze".to_owned()), "{refs:?}");
     assert!(refs.contains(&"gpu::context".to_owned()), "{refs:?}");
-    assert!(!refs.iter().any(|r| r.starts_with("harness") || r.starts_with("study")), "{refs:?}");
+    assert!(!refs.iter().any(|r| r.starts_with("commands") || r.starts_with("study")), "{refs:?}");
 }

@@ -19,16 +19,16 @@ mod common;
 use std::path::Path;
 
 use trilab::bvh::BuildOptions;
+use trilab::commands::bench::BenchOptions;
 use trilab::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess};
 use trilab::error::Error;
 use trilab::gpu::RaycastOptions;
-use trilab::harness::bench::BenchOptions;
-use trilab::harness::rayset::{ray_sets, RaySetSizes};
-use trilab::harness::validate::{mrays_summary, validate_hits};
 use trilab::named::Named;
 use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::report::Summary;
 use trilab::scene::{load_obj, Mesh};
+use trilab::services::rayset::{ray_sets, RaySetSizes};
+use trilab::services::validate::{mrays_summary, validate_hits};
 
 /// Test-sized sets: a 120 x 90 image, two diffuse bounces per hit, 30,000 random rays.
 const SIZES: RaySetSizes = RaySetSizes { width: 120, height: 90, diffuse_per_hit: 2, random_rays: 30_000, seed: 7 };

@@ -6,14 +6,14 @@ mod common;
 
 use trilab::agreement::compare_closest;
 use trilab::bvh::{BuildOptions, Bvh};
+use trilab::commands::profile::{self, differing_hits, dispatch_once, sweep, ProfileOptions, Status};
 use trilab::encoding::{Method, Raycast};
 use trilab::gpu::{Context, PipelineOptions, RaycastOptions};
-use trilab::harness::profile::{self, differing_hits, dispatch_once, sweep, ProfileOptions, Status};
-use trilab::harness::rayset::RaySetSizes;
 use trilab::pipeline::{DeviceScene, HostScene, SceneRequest};
 use trilab::rays::{primary_rays, random_rays, Camera, Ray};
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
+use trilab::services::rayset::RaySetSizes;
 use trilab::shared::{SPEC_ID_WORKGROUP_SIZE, WORKGROUP_SIZE};
 
 /// The bunny, its BVH, an uploaded scene for `method`, and `n` random rays.
@@ -92,7 +92,7 @@ fn clock_variant_hits_equal_closest_and_every_ray_gets_ticks() {
             // told apart: a step back is a driver finding and fails; a count beyond 32 bits is
             // possible only when the dispatch itself took a second or more (2^32 ticks at any
             // clock up to 4.3 GHz), and fails in a dispatch faster than that.
-            let stats = trilab::harness::profile::clock::CycleStats::of(&cycles).unwrap();
+            let stats = trilab::commands::profile::clock::CycleStats::of(&cycles).unwrap();
             assert_eq!(stats.stepped_back, 0, "{method}: the shader clock read lower at the end of a ray");
             assert!(
                 stats.saturated == 0 || took >= std::time::Duration::from_secs(1),
@@ -255,8 +255,8 @@ fn profile_reports_unsupported_exactly_where_features_are_absent() {
 #[test]
 fn profile_with_roofline_gives_each_kernel_its_fetches_and_share_of_the_roofline() {
     use trilab::gpu::TraversalSummary;
-    use trilab::harness::rayset::ray_sets;
-    use trilab::harness::roofline::RooflineOptions;
+    use trilab::services::rayset::ray_sets;
+    use trilab::services::roofline::RooflineOptions;
     /// Largest relative difference of the mean counters from the CPU mirror's.
     const MEAN_TOLERANCE: f64 = 0.005;
     let methods = [Method::Mt, Method::QuadUnit];

@@ -6,7 +6,7 @@ fn the_readme_lists_the_registry_s_methods() {
     let (begin, end) = ("<!-- methods: begin -->\n", "<!-- methods: end -->");
     let start = readme.find(begin).expect("README.md has the methods: begin marker") + begin.len();
     let stop = start + readme[start..].find(end).expect("README.md has the methods: end marker");
-    let want = trilab::harness::methods::run().markdown();
+    let want = trilab::commands::methods::run().markdown();
     assert!(want.lines().count() >= 8, "the registry lists every method");
     assert_eq!(
         &readme[start..stop],

@@ -57,16 +57,16 @@ fn every_access_path_walks_exactly_the_cpu_chain() {
 #[test]
 fn rates_at_a_size_come_from_the_two_sizes_around_it() {
     common::with_gpu(300, |ctx| {
-        let o = trilab::harness::roofline::RooflineOptions {
+        let o = trilab::services::roofline::RooflineOptions {
             invocations: 8192,
             steps: 16,
             rounds: 1,
             ..Default::default()
         };
         let bytes = 48 << 10;
-        let rates = trilab::harness::roofline::rates_at(ctx, bytes, &o, |_| {}).unwrap();
+        let rates = trilab::services::roofline::rates_at(ctx, bytes, &o, |_| {}).unwrap();
         assert_eq!(rates.iter().map(|r| r.0).collect::<Vec<_>>(), RooflineAccess::ALL);
-        let around = trilab::harness::roofline::measure_at(ctx, bytes, RooflineAccess::ALL, &o, |_| {}).unwrap();
+        let around = trilab::services::roofline::measure_at(ctx, bytes, RooflineAccess::ALL, &o, |_| {}).unwrap();
         assert_eq!(around.measured.iter().map(|m| m.cell.bytes).collect::<std::collections::BTreeSet<_>>().len(), 2);
         for (access, r) in rates {
             assert!(r > 0.0 && r.is_finite(), "{access}: {r}");

@@ -25,10 +25,10 @@ use trilab::bvh::wide::EMPTY_CHILD;
 use trilab::bvh::{BuildOptions, Bvh4Node, Bvh8Node, WideBvh};
 use trilab::encoding::{Layout, Method, Raycast, Traversal};
 use trilab::error::Error;
-use trilab::harness::rayset::{ray_sets, RaySetSizes};
-use trilab::harness::validate::validate_hits;
 use trilab::kernels::KERNELS;
 use trilab::pipeline::{HostScene, SceneRequest};
+use trilab::services::rayset::{ray_sets, RaySetSizes};
+use trilab::services::validate::validate_hits;
 use trilab::shared::SPEC_ID_WORKGROUP_SIZE;
 use trilab::spirv::reflect::reads_subgroup_lanes;
 

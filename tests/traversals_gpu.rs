@@ -23,14 +23,14 @@
 mod common;
 
 use trilab::bvh::BuildOptions;
+use trilab::commands::bench::BenchOptions;
 use trilab::encoding::{Layout, Method, Raycast, Traversal};
 use trilab::gpu::{RaycastOptions, TraversalCounts};
-use trilab::harness::bench::BenchOptions;
-use trilab::harness::rayset::{ray_sets, RaySetSizes};
-use trilab::harness::validate::{mrays_summary, validate_hits};
 use trilab::named::Named;
 use trilab::pipeline::{HostScene, SceneRequest};
 use trilab::report::Summary;
+use trilab::services::rayset::{ray_sets, RaySetSizes};
+use trilab::services::validate::{mrays_summary, validate_hits};
 
 /// Test-sized sets: an 80 x 60 image, two diffuse bounces per hit, 10,000 random rays.
 const SIZES: RaySetSizes = RaySetSizes { width: 80, height: 60, diffuse_per_hit: 2, random_rays: 10_000, seed: 11 };

@@ -95,7 +95,7 @@ fn every_kernel_family_runs_clean_under_synchronization_validation() {
                 if ctx.enabled().shader_clock && access != SceneAccess::Storage {
                     let k = scene.kernel(ctx, Raycast::Clock).unwrap();
                     let stats = ctx.enabled().pipeline_statistics_query;
-                    let d = trilab::harness::profile::dispatch_once(ctx, &k, &scene, &rays, stats).unwrap();
+                    let d = trilab::commands::profile::dispatch_once(ctx, &k, &scene, &rays, stats).unwrap();
                     assert_eq!(d.cycles.unwrap().len(), rays.len());
                 }
             }

@@ -14,12 +14,12 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 use trilab::agreement::{compare_any, compare_closest};
 use trilab::bvh::{BuildOptions, Bvh};
+use trilab::commands::accuracy::closed::{icosphere, subdivided_cube, winding_number, ClosedMesh, Placement};
 use trilab::encoding::Method;
-use trilab::harness::accuracy::closed::{icosphere, subdivided_cube, winding_number, ClosedMesh, Placement};
-use trilab::harness::validate::validate_hits;
 use trilab::rays::{primary_rays, random_rays, Camera, Hit, Ray};
 use trilab::reference::Reference;
 use trilab::scene::Mesh;
+use trilab::services::validate::validate_hits;
 
 /// The closed shape scaled by `scale` and moved by `offset`, rounded once to f32.
 fn place(shape: &ClosedMesh, scale: f64, offset: DVec3) -> Mesh {

@@ -3,11 +3,11 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use trilab::commands::ab::{self, worker::Workload, AbOptions, Judge, Side};
 use trilab::encoding::{Layout, Method, SceneAccess, Traversal};
 use trilab::error::{Error, Result};
-use trilab::harness::ab::{self, worker::Workload, AbOptions, Judge, Side};
-use trilab::harness::rayset::{RaySet, RaySetSizes};
 use trilab::named::Named;
+use trilab::services::rayset::{RaySet, RaySetSizes};
 
 use super::choice::choice;
 use super::{scenes_help, signals, GpuArgs, JsonArg, LeafSizeArg};

@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use trilab::commands::accuracy::{self, AccuracyOptions, Preset};
 use trilab::encoding::Layout;
 use trilab::error::Result;
-use trilab::harness::accuracy::{self, AccuracyOptions, Preset};
 
 use super::choice::choice;
 use super::{results_dir, scene_help, GpuArgs, JsonArg, MethodsArg};

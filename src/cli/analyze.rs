@@ -33,7 +33,7 @@ pub struct AnalyzeArgs {
 
 pub fn run(a: AnalyzeArgs) -> Result<()> {
     let target = Target { max_leaks_per_million: a.max_leaks_per_million, max_t_ulps: a.max_t_ulps };
-    let report = trilab::harness::analyze::run(&a.scene, target, a.frontier.as_deref(), a.gpu.device.as_deref())?;
+    let report = trilab::commands::analyze::run(&a.scene, target, a.frontier.as_deref(), a.gpu.device.as_deref())?;
     report.warnings.iter().for_each(|w| super::note(w));
     a.json.print(&report);
     Ok(())

@@ -4,12 +4,12 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::bvh::NodeOrder;
+use trilab::commands::bench::{self, BenchOptions, BenchReport};
 use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::Result;
-use trilab::harness::bench::{self, BenchOptions, BenchReport};
-use trilab::harness::peers::TinybvhLayout;
-use trilab::harness::results::Results;
 use trilab::rays::order::RayOrder;
+use trilab::services::peers::TinybvhLayout;
+use trilab::services::results::Results;
 
 use super::choice::choice;
 use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs};
@@ -174,7 +174,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         shard: a.shard,
         roofline: a
             .roofline
-            .then(|| trilab::harness::roofline::RooflineOptions { rounds: a.repeat, ..Default::default() }),
+            .then(|| trilab::services::roofline::RooflineOptions { rounds: a.repeat, ..Default::default() }),
         ..Default::default()
     };
     if let Some(shard) = o.shard {

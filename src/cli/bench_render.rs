@@ -3,10 +3,10 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use trilab::commands::bench_render::{self, RenderBenchOptions, RenderBenchReport};
 use trilab::error::Result;
-use trilab::harness::bench_render::{self, RenderBenchOptions, RenderBenchReport};
-use trilab::harness::results::Results;
 use trilab::render::KernelChoice;
+use trilab::services::results::Results;
 
 use super::choice::choice;
 use super::{repeat, scenes_help, GpuArgs, JsonArg, LeafSizeArg, MethodsArg, ReportOutArgs};

@@ -3,9 +3,9 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use trilab::commands::build_bench::{self, BuildBenchOptions};
 use trilab::encoding::Layout;
 use trilab::error::Result;
-use trilab::harness::build_bench::{self, BuildBenchOptions};
 
 use super::choice::choice;
 use super::{repeat, BuildArgs, JsonArg};

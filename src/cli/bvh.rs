@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::bvh::NodeOrder;
+use trilab::commands::{build_bench, bvh_stats};
 use trilab::encoding::Layout;
 use trilab::error::Result;
-use trilab::harness::{build_bench, bvh_stats};
 
 use super::choice::choice;
 use super::{scene_help, JsonArg, TreeShapeArgs};

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use trilab::commands::compare::{self, TimingRule, DEFAULT_COMMAND_THRESHOLD_PCT, DEFAULT_THRESHOLD_PCT};
 use trilab::error::Result;
-use trilab::harness::compare::{self, TimingRule, DEFAULT_COMMAND_THRESHOLD_PCT, DEFAULT_THRESHOLD_PCT};
 
 use super::JsonArg;
 

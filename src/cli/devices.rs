@@ -13,6 +13,6 @@ pub struct DevicesArgs {
 }
 
 pub fn run(a: DevicesArgs) -> Result<()> {
-    a.json.print(&trilab::harness::devices::run()?);
+    a.json.print(&trilab::commands::devices::run()?);
     Ok(())
 }

@@ -3,12 +3,12 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use trilab::commands::profile::Status;
 use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
-use trilab::harness::profile::driver_stats::{self, CollectOptions, Selection};
-use trilab::harness::profile::Status;
-use trilab::harness::results::Folder;
 use trilab::named::Named;
+use trilab::services::driver_stats::{self, CollectOptions, Selection};
+use trilab::services::results::Folder;
 
 use super::choice::choice;
 use super::{results_dir, GpuArgs, JsonArg, MethodsArg};

@@ -4,9 +4,9 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use trilab::commands::ab::{AbOptions, Judge, Side};
+use trilab::commands::gate::{self, BaseBuild, GateOptions};
 use trilab::error::{Error, Result};
-use trilab::harness::ab::{AbOptions, Judge, Side};
-use trilab::harness::gate::{self, BaseBuild, GateOptions};
 
 use super::ab::{env_pair, sigpipe, RoundsArgs, WorkloadArgs};
 use super::{GpuArgs, JsonArg};
@@ -99,7 +99,7 @@ pub fn run(a: GateArgs) -> Result<()> {
     sigpipe(false);
     let report = report?;
     if let Some(dir) = &a.out {
-        trilab::harness::results::write_folder(dir, &report)?;
+        trilab::services::results::write_folder(dir, &report)?;
         eprintln!("wrote {}", dir.display());
     }
     a.json.print(&report);

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
+use trilab::commands::hits::{self, DiffTolerance};
 use trilab::error::{Error, Result};
-use trilab::harness::hits::{self, DiffTolerance};
 
 use super::{scene_help, BuildArgs, JsonArg};
 

@@ -3,8 +3,8 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use trilab::commands::merge;
 use trilab::error::Result;
-use trilab::harness::merge;
 
 use super::JsonArg;
 

@@ -16,7 +16,7 @@ pub struct MethodsArgs {
 }
 
 pub fn run(a: MethodsArgs) -> Result<()> {
-    let report = trilab::harness::methods::run();
+    let report = trilab::commands::methods::run();
     if a.markdown {
         print!("{}", report.markdown());
     } else {

@@ -43,8 +43,8 @@ use trilab::bvh::{BuildOptions, LeafPolicy};
 use trilab::encoding::Method;
 use trilab::error::{Error, Result};
 use trilab::gpu::{Context, ContextOptions, Validation, ValidationLog};
-use trilab::harness::rayset::RaySetSizes;
 use trilab::report::Report;
+use trilab::services::rayset::RaySetSizes;
 
 use choice::choice;
 

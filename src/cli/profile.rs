@@ -3,12 +3,12 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use trilab::commands::profile::{self, ProfileOptions};
 use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
-use trilab::harness::profile::driver_stats::CollectOptions;
-use trilab::harness::profile::{self, ProfileOptions};
-use trilab::harness::rayset::RaySet;
-use trilab::harness::roofline::RooflineOptions;
+use trilab::services::driver_stats::CollectOptions;
+use trilab::services::rayset::RaySet;
+use trilab::services::roofline::RooflineOptions;
 
 use super::choice::choice;
 use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, LeafSizeArg, MethodsArg, RaySetArgs};
@@ -72,7 +72,7 @@ pub struct ProfileArgs {
 }
 
 pub fn run(a: ProfileArgs) -> Result<()> {
-    trilab::harness::build_bench::check_threads(&a.threads)?;
+    trilab::commands::build_bench::check_threads(&a.threads)?;
     let current_exe = || std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e));
     let exe = if a.no_threads { None } else { Some(current_exe()?) };
     let ctx = a.gpu.context()?;

@@ -3,11 +3,11 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use trilab::commands::raycast::{self, RaycastRequest};
 use trilab::conditioning::MethodChoice;
 use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::Result;
 use trilab::gpu::Peer;
-use trilab::harness::raycast::{self, RaycastRequest};
 
 use super::choice::{choice, method_choice, method_help, traversal_choice};
 use super::{note, repeat, scene_help, BuildArgs, GpuArgs, JsonArg};

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
+use trilab::commands::make_rays::{self, RaysKind};
 use trilab::error::Result;
-use trilab::harness::make_rays::{self, RaysKind};
 
 use super::camera::CameraArg;
 use super::JsonArg;

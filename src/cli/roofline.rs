@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use clap::Args;
 use trilab::error::Result;
 use trilab::gpu::roofline::RooflineAccess;
-use trilab::harness::roofline::{self, RooflineOptions};
 use trilab::named::Named;
+use trilab::services::roofline::{self, RooflineOptions};
 
 use super::choice::choice;
 use super::{GpuArgs, JsonArg};

@@ -3,10 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use trilab::commands::scale::{self, ScaleOptions};
 use trilab::encoding::SceneAccess;
 use trilab::error::Result;
-use trilab::harness::rayset::RaySet;
-use trilab::harness::scale::{self, ScaleOptions};
+use trilab::services::rayset::RaySet;
 
 use super::choice::choice;
 use super::{repeat, results_dir, GpuArgs, JsonArg, LeafSizeArg, MethodsArg};

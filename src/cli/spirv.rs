@@ -32,10 +32,10 @@ pub fn run(a: SpirvArgs) -> Result<()> {
         Some(dir) => {
             trilab::io::check_output("--write", trilab::io::Output::Dir(dir, &[]), &[])?;
             let which = if a.studied { Disassembly::Studied } else { Disassembly::All };
-            let n = trilab::harness::spirv::write(dir, which)?;
+            let n = trilab::commands::spirv::write(dir, which)?;
             println!("wrote {n} files to {}", dir.display());
         }
-        None => a.json.print(&trilab::harness::spirv::counts()),
+        None => a.json.print(&trilab::commands::spirv::counts()),
     }
     Ok(())
 }

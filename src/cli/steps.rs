@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use trilab::commands::steps::{self, StepsRequest};
 use trilab::error::{Error, Result};
-use trilab::harness::steps::{self, StepsRequest};
 
 use super::{scene_help, BuildArgs, GpuArgs, JsonArg, MethodsArg};
 

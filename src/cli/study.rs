@@ -5,9 +5,9 @@ use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::Arc;
 
 use clap::Args;
+use trilab::commands::study::{self, Preset, StudyOptions};
 use trilab::encoding::Layout;
 use trilab::error::Result;
-use trilab::harness::study::{self, Preset, StudyOptions};
 
 use super::choice::choice;
 use super::{repeat, results_dir, signals, GpuArgs, JsonArg, MethodsArg, SahGroupArg};

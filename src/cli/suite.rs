@@ -4,11 +4,11 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 use clap::Args;
+use trilab::commands::suite::{self, Part, SuiteOptions};
 use trilab::encoding::Layout;
 use trilab::error::{Error, Result};
-use trilab::harness::profile::driver_stats::CollectOptions;
-use trilab::harness::suite::{self, Part, SuiteOptions};
 use trilab::named::Named;
+use trilab::services::driver_stats::CollectOptions;
 
 use super::choice::choice;
 use super::{results_dir, signals, GpuArgs, JsonArg};

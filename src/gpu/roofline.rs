@@ -1,7 +1,7 @@
 //! The traversal roofline's kernel (`glsl/roofline.comp`): a pointer chase through 32-byte nodes
 //! shaped like a traversal step, read three ways ([`RooflineAccess`]), timed with GPU
 //! timestamps; the node buffer it walks ([`nodes`]) and the same walk on the CPU
-//! ([`reference`]), which its checksums equal bit for bit. `harness::roofline` sweeps it over
+//! ([`reference`]), which its checksums equal bit for bit. `services::roofline` sweeps it over
 //! working-set sizes (`trilab roofline`).
 
 use std::mem::size_of;

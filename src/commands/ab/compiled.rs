@@ -1,0 +1,187 @@
+//! `trilab ab --driver-stats`: what each side's driver compiled the cells' kernels to, diffed
+//! kernel by kernel (Mesa shader-db's report: only what changed, then totals).
+//!
+//! Each side runs `trilab driver-stats` as a child in that side's environment, after the timed
+//! rounds (its compiles would otherwise time the rounds): lavapipe's machine-code counts from
+//! `GALLIVM_DEBUG=asm`, or the executable statistics of a driver with
+//! `VK_KHR_pipeline_executable_properties`. A driver without either (Debian 12's Mesa 22.3.6)
+//! gives that side's reason instead, and no cell is compared. Only ray-casting kernels are
+//! collected: `driver-stats` dispatches those alone.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use serde::Serialize;
+
+use super::worker::{CellInfo, CellKind};
+use super::{AbOptions, Side};
+use crate::kernels::KERNELS;
+use crate::rows::Row;
+use crate::services::driver_stats::{KernelCell, COMMAND};
+
+/// One figure of one kernel that differs between the sides (every driver statistic is a count
+/// where fewer is better).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StatChange {
+    pub figure: String,
+    pub a: f64,
+    pub b: f64,
+}
+
+/// One side's statistics: its `driver-stats` rows, or why there are none.
+#[derive(Clone, Debug)]
+pub struct SideStats {
+    pub rows: Vec<Row>,
+    /// The driver-stats note, or the reason the side has none.
+    pub note: String,
+}
+
+/// The `driver-stats` cell of a cell's kernel.
+fn kernel_cell(c: &CellInfo) -> Option<KernelCell> {
+    KERNELS.iter().find(|k| k.name == c.kernel).map(KernelCell::of)
+}
+
+/// Runs `trilab driver-stats` in `side`'s environment for the ray-casting cells' kernels,
+/// writing into `dir`; `rows` is empty and `note` says why when the driver has no statistics.
+/// The rows carry the side's `name` (setting `ab_side`, as its bench rows do), so `merge`
+/// keeps both sides' measurements of one kernel apart.
+pub fn collect(o: &AbOptions, name: &str, side: &Side, cells: &[CellInfo], dir: &Path) -> SideStats {
+    let none = |note: String| SideStats { rows: vec![], note };
+    let coords: Vec<KernelCell> =
+        cells.iter().filter(|c| c.kind == CellKind::Raycast).filter_map(kernel_cell).collect();
+    if coords.is_empty() {
+        return none("no ray-casting cell (driver-stats dispatches ray-casting kernels only)".into());
+    }
+    let list = |field: fn(&KernelCell) -> &str| {
+        let mut v: Vec<&str> = coords.iter().map(field).collect();
+        v.sort_unstable();
+        v.dedup();
+        v.join(",")
+    };
+    let mut cmd = Command::new(side.exe(&o.exe));
+    cmd.arg(COMMAND)
+        .args(["--kernels", &list(|c| &c.kernel), "--variants", &list(|c| &c.variant)])
+        .args(["--methods", &list(|c| &c.method), "--layouts", &list(|c| &c.layout)])
+        .arg("--out")
+        .arg(dir);
+    if o.validation {
+        cmd.arg("--validation");
+    }
+    side.apply(&mut cmd);
+    let out = match crate::children::spawn(cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped()))
+        .and_then(crate::children::Running::wait_with_output)
+    {
+        Ok(out) => out,
+        Err(e) => return none(format!("could not run {} {COMMAND}: {e}", side.exe(&o.exe).display())),
+    };
+    if !out.status.success() {
+        let err = String::from_utf8_lossy(&out.stderr);
+        let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("(no message)");
+        let why = last.trim().trim_start_matches("trilab: error: ").trim_start_matches(&format!("{COMMAND}: "));
+        return none(format!("{COMMAND} failed ({}): {why}", out.status));
+    }
+    let note = std::fs::read_to_string(dir.join("driver-stats.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v["note"].as_str().map(str::to_owned))
+        .unwrap_or_default();
+    match crate::rows::read(dir) {
+        Ok(set) => {
+            let mut rows = set.rows;
+            for r in &mut rows {
+                r.source.settings.insert(super::SIDE_SETTING.into(), name.into());
+            }
+            SideStats { rows, note }
+        }
+        Err(e) => none(format!("{COMMAND} wrote no readable rows: {e}")),
+    }
+}
+
+/// The figures of `cell`'s kernel in `rows`, name to value.
+fn figures_of(rows: &[Row], cell: &CellInfo) -> Option<BTreeMap<String, f64>> {
+    let want = kernel_cell(cell)?;
+    let row = rows.iter().find(|r| KernelCell::try_from(&r.cell).as_ref() == Ok(&want))?;
+    Some(row.figures.iter().map(|(n, f)| (n.clone(), f.median)).collect())
+}
+
+/// The figures of `cell`'s kernel that differ between the sides; `None` when a side has no
+/// statistics for it.
+pub fn diff(a: &SideStats, b: &SideStats, cell: &CellInfo) -> Option<Vec<StatChange>> {
+    let (fa, fb) = (figures_of(&a.rows, cell)?, figures_of(&b.rows, cell)?);
+    let names: std::collections::BTreeSet<&String> = fa.keys().chain(fb.keys()).collect();
+    Some(
+        names
+            .into_iter()
+            .filter_map(|n| {
+                let (x, y) = (fa.get(n).copied().unwrap_or(f64::NAN), fb.get(n).copied().unwrap_or(f64::NAN));
+                // A figure only one side reports differs too (NaN on the other).
+                (x != y).then(|| StatChange { figure: n.clone(), a: x, b: y })
+            })
+            .collect(),
+    )
+}
+
+/// `instructions 1234 -> 1250 (+1.3 %)`.
+pub fn describe(changes: &[StatChange]) -> String {
+    changes
+        .iter()
+        .map(|c| {
+            let pct = if c.a != 0.0 && c.a.is_finite() && c.b.is_finite() {
+                format!(" ({:+.1} %)", (c.b / c.a - 1.0) * 100.0)
+            } else {
+                String::new()
+            };
+            let v = |x: f64| if x.is_finite() { format!("{x}") } else { "-".into() };
+            format!("{} {} -> {}{pct}", c.figure, v(c.a), v(c.b))
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rows::{cell, Figure, Source};
+
+    fn info(kernel: &str) -> CellInfo {
+        CellInfo {
+            kind: CellKind::Raycast,
+            scene: "bunny".into(),
+            set: "primary".into(),
+            method: "mt".into(),
+            layout: "bvh2".into(),
+            traversal: "while-if".into(),
+            rays: 10,
+            kernel: kernel.into(),
+            coordinates: Default::default(),
+        }
+    }
+
+    fn row(instructions: f64, spills: Option<f64>) -> Row {
+        let c = cell([("kernel", "raycast"), ("variant", "closest"), ("method", "mt"), ("layout", "bvh2")]);
+        let r = Row::new(COMMAND, c, &Source::default()).with("instructions", Figure::count(instructions, "n"));
+        match spills {
+            Some(s) => r.with("vector_spills", Figure::count(s, "n")),
+            None => r,
+        }
+    }
+
+    #[test]
+    fn only_changed_figures_and_figures_one_side_lacks() {
+        let k =
+            KERNELS.iter().find(|k| k.kernel == "raycast" && k.intersector == "mt" && k.variant == "closest").unwrap();
+        let c = info(k.name);
+        let side = |rows| SideStats { rows, note: String::new() };
+        let same = diff(&side(vec![row(100.0, Some(2.0))]), &side(vec![row(100.0, Some(2.0))]), &c).unwrap();
+        assert!(same.is_empty(), "{same:?}");
+        let d = diff(&side(vec![row(100.0, Some(2.0))]), &side(vec![row(110.0, None)]), &c).unwrap();
+        assert_eq!(d.len(), 2, "{d:?}");
+        assert_eq!(d[0], StatChange { figure: "instructions".into(), a: 100.0, b: 110.0 });
+        assert!(d[1].figure == "vector_spills" && d[1].a == 2.0 && d[1].b.is_nan());
+        assert_eq!(describe(&d[..1]), "instructions 100 -> 110 (+10.0 %)");
+        // A side without statistics, or a kernel it did not compile: nothing to compare.
+        assert!(diff(&side(vec![]), &side(vec![row(1.0, None)]), &c).is_none());
+        assert!(diff(&side(vec![row(1.0, None)]), &side(vec![row(1.0, None)]), &info("raycast.nope")).is_none());
+    }
+}
