@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A lent GPU's 15 minutes, prepared here and spent in one command there (README "On a lent GPU").
+# A lent GPU's 15 minutes, prepared here and spent in one command there (docs/suite-and-device-run.md).
 #
 #   scripts/device-run.sh pack            here: builds what travels into .travel/ (ignored by git),
 #                                          checks the size budget, prints the device tool's

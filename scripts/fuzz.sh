@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs the cargo-fuzz targets in fuzz/ (README "Fuzzing"): each for EXECUTIONS inputs (default
+# Runs the cargo-fuzz targets in fuzz/ (docs/correctness.md, "Fuzzing"): each for EXECUTIONS inputs (default
 # 10^6), starting from the committed seeds in fuzz/corpus/<target>/. New interesting inputs go to
 # fuzz/work/<target>/ (git-ignored), crashing/leaking/slow inputs to fuzz/artifacts/<target>/.
 # A panic, an allocation over 512 MB, a process over 2 GB RSS or an input taking over 10 s is a

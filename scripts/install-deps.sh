@@ -3,7 +3,7 @@
 #   - lavapipe (Mesa's CPU Vulkan driver) from bookworm-backports: Mesa 25.0.7 runs trilab's
 #     kernels about 1.3x faster than bookworm's 22.3.6 (bunny, 160x120 camera, 20k random rays,
 #     8 methods; median per cell 1.36x, 1.02-2.09x, over 36 interleaved runs on a shared 2-core
-#     AMD EPYC: README.md, "On Debian 12's own Mesa"), adds VK_KHR_ray_query, and prints its
+#     AMD EPYC: docs/drivers.md, "On Debian 12's own Mesa"), adds VK_KHR_ray_query, and prints its
 #     machine code under GALLIVM_DEBUG=asm (trilab driver-stats; 22.3.6's release build does not);
 #   - the Vulkan loader and headers, the Khronos validation layers, vulkaninfo, spirv-tools;
 #   - Debian 12's shaderc 2023.2 as static libraries (libshaderc-dev, glslang-dev, spirv-tools):

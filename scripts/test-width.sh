@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The GPU correctness tests once more at another lavapipe SIMD width (README "Test", issue 16
-# item 5): lavapipe runs 8 lanes per subgroup by default and 4 with LP_NATIVE_VECTOR_WIDTH=128,
+# The GPU correctness tests once more at another lavapipe SIMD width (README "Quick start",
+# docs/building.md; issue 16 item 5): lavapipe runs 8 lanes per subgroup by default and 4 with LP_NATIVE_VECTOR_WIDTH=128,
 # and the kernels must give the same answers at each. Every test below compares the kernels'
 # hits (or images) with the CPU f64 reference under the validation layer, as in the main pass.
 # Fails unless the device reports the width's subgroup size: first here, then in every GPU test

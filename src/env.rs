@@ -1,5 +1,6 @@
-//! The environment variables trilab reads, listed once: `trilab --help` prints this list and a
-//! test holds README.md to it. Ground floor: it imports nothing.
+//! The environment variables trilab reads, listed once: `trilab --help` names them, and
+//! docs/commands.md (`trilab man --markdown`, held to it by a test) explains them. Ground floor:
+//! it imports nothing.
 
 /// One environment variable and what it does (one line).
 #[derive(Clone, Copy, Debug)]
@@ -59,7 +60,7 @@ pub fn help_text() -> String {
     ENV_VARS.iter().map(|v| format!("  {:width$}  {}\n", v.name, v.help)).collect()
 }
 
-/// The list as README.md's Markdown (between its `env: begin`/`env: end` markers).
+/// The list as Markdown (docs/commands.md's "Environment variables").
 pub fn markdown() -> String {
     ENV_VARS.iter().map(|v| format!("- `{}`: {}.\n", v.name, v.help)).collect()
 }

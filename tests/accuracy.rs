@@ -1,4 +1,5 @@
-//! `trilab accuracy` on the GPU (under the validation layer): the bounds README.md documents.
+//! `trilab accuracy` on the GPU (under the validation layer): the bounds
+//! docs/study-and-accuracy.md documents.
 //! - zero-area and repeated-vertex triangles are never hit, and no kernel returns a NaN t, u or v
 //!   (misses: t = +inf, u = v = 0) on any probe, extremes included;
 //! - the recommended offset scheme (`offset::RECOMMENDED`) has zero self-hits in >= 10^5

@@ -1,8 +1,8 @@
 //! The command line speaks one vocabulary (issue 14, defects 7, 8, 9 and `--repeat 0` of 6):
 //! every argument has help, old spellings still work as hidden aliases, `--repeat 0` is refused
-//! at parse time everywhere, `--help` lists the methods and the environment variables, shell
-//! completions and man pages come from clap, text reports are readable and narrow, and with
-//! `--json` an error is JSON too. Every run has a wall-clock limit; GPU runs have validation on.
+//! at parse time everywhere, `--help` gives each command one line and names the environment
+//! variables, shell completions, man pages and docs/commands.md come from clap, text reports are
+//! readable and narrow, and with `--json` an error is JSON too. Every run has a wall-clock limit; GPU runs have validation on.
 
 mod common;
 
@@ -254,7 +254,10 @@ fn help_lists_the_methods_the_environment_and_the_formats() {
         "the top line counts the registry's methods:\n{top}"
     );
     for v in trilab::env::ENV_VARS {
-        assert!(top.contains(v.name), "--help lists {}:\n{top}", v.name);
+        assert!(top.contains(v.name), "--help names {}:\n{top}", v.name);
+    }
+    for page in ["docs/formats.md", "docs/commands.md", "docs/README.md"] {
+        assert!(top.contains(page), "--help points at {page}:\n{top}");
     }
     for name in [
         "TRILAB_VALIDATION",
@@ -284,15 +287,48 @@ fn help_lists_the_methods_the_environment_and_the_formats() {
     assert!(ok(&["rays", "--help"], 30).contains("docs/formats.md"));
 }
 
+/// The part of `text` from `heading` to the next heading of its level.
+fn section<'a>(text: &'a str, heading: &str) -> &'a str {
+    let start = text.find(heading).unwrap_or_else(|| panic!("docs/commands.md has {heading:?}")) + heading.len();
+    let end = text[start..].find("\n## ").map_or(text.len(), |e| start + e);
+    &text[start..end]
+}
+
+/// docs/commands.md, the command reference, is what `trilab man --markdown` prints from the clap
+/// tree: every visible command with its help and its options, the options by name, the
+/// environment variables.
 #[test]
-fn the_readme_documents_the_options_and_the_environment() {
-    let readme = std::fs::read_to_string(common::root().join("README.md")).unwrap();
-    let start = readme.find("\n## Options\n").expect("README.md has an Options section");
-    let section = &readme[start..][..readme[start + 1..].find("\n## ").map_or(readme.len() - start, |e| e + 1)];
+fn docs_commands_md_is_the_generated_reference() {
+    let want = ok(&["man", "--markdown"], 30);
+    let have = std::fs::read_to_string(common::root().join("docs/commands.md")).unwrap_or_default();
+    assert!(
+        have == want,
+        "docs/commands.md is stale (or edited by hand): regenerate it with \
+         `cargo run --release -- man --markdown > docs/commands.md`"
+    );
+    for c in leaf_commands(&cli_tree()) {
+        let path = c["command"].as_str().unwrap();
+        assert!(want.contains(&format!("## `{path}`")), "docs/commands.md has a section for {path}");
+        for a in c["args"].as_array().unwrap() {
+            if let (Some(long), false) = (a["long"].as_str(), a["hidden"].as_bool().unwrap()) {
+                assert!(want.contains(&format!("- `--{long}")), "docs/commands.md lists {path} --{long}");
+            }
+        }
+    }
+}
+
+/// The options several commands share are one vocabulary: docs/commands.md lists each by name
+/// with the commands that take it, and its environment section is `src/env.rs`'s list.
+#[test]
+fn the_docs_document_the_options_and_the_environment() {
+    let doc = std::fs::read_to_string(common::root().join("docs/commands.md")).unwrap();
+    let by_name = section(&doc, "\n## Options by name\n");
     for opt in [
         "--scene",
         "--scenes",
+        "--scene-dir",
         "--validation",
+        "--device",
         "--reference",
         "--reference-rays",
         "--leaf-sizes",
@@ -308,19 +344,70 @@ fn the_readme_documents_the_options_and_the_environment() {
         "--out",
         "--json",
         "--repeat",
+        "--shard",
         "--embree",
         "--tinybvh",
         "--tinybvh-layouts",
     ] {
-        assert!(section.contains(&format!("`{opt}")), "README's Options table lists {opt}");
+        assert!(by_name.contains(&format!("\n- `{opt}`: ")), "docs/commands.md's Options by name lists {opt}");
     }
-    for v in trilab::env::ENV_VARS {
-        assert!(readme.contains(&format!("`{}`", v.name)), "README lists {}", v.name);
+    let scene = by_name.lines().find(|l| l.starts_with("- `--scene`: ")).unwrap();
+    for cmd in ["raycast", "render", "hits check", "accuracy"] {
+        assert!(scene.contains(&format!("[`{cmd}`]")), "--scene is taken by {cmd}: {scene}");
     }
-    let (begin, end) = ("<!-- env: begin -->\n", "<!-- env: end -->");
-    let at = readme.find(begin).expect("README.md has the env: begin marker") + begin.len();
-    let stop = at + readme[at..].find(end).expect("README.md has the env: end marker");
-    assert_eq!(&readme[at..stop], trilab::env::markdown(), "README's environment list is src/env.rs's");
+    let env = section(&doc, "\n## Environment variables\n\n");
+    assert_eq!(
+        env.replace("\\<", "<").trim_end(),
+        trilab::env::markdown().trim_end(),
+        "docs/commands.md's environment list is src/env.rs's"
+    );
+    let using = std::fs::read_to_string(common::root().join("docs/using.md")).unwrap();
+    let shared = section(&using, "\n## Options shared by several commands\n");
+    assert!(shared.contains("](commands.md)"), "docs/using.md's shared options point at the reference");
+}
+
+/// `trilab --help` gives each command one line, as cargo and git do, and stays short; the detail
+/// is in `trilab CMD --help`, whose first line is the same summary.
+#[test]
+fn help_gives_each_command_one_line() {
+    let top = ok(&["--help"], 30);
+    let lines = top.lines().count();
+    assert!(lines <= 45, "trilab --help is {lines} lines; keep it under 45:\n{top}");
+    assert!(
+        top.lines().all(|l| l.chars().count() <= 100 || l.contains("--scene-dir")),
+        "lines of at most 100 columns:\n{top}"
+    );
+    let list: Vec<&str> = top.lines().skip_while(|l| *l != "Commands:").skip(1).take_while(|l| !l.is_empty()).collect();
+    let tree = cli_tree();
+    let commands: Vec<&Value> =
+        tree.iter().filter(|c| c["command"].as_str().unwrap().split(' ').count() == 2).collect();
+    assert!(list.len() >= commands.len() && commands.len() > 20, "one line per command:\n{top}");
+    for c in &tree {
+        let path = c["command"].as_str().unwrap();
+        if path == "trilab" || is_help(path) {
+            continue;
+        }
+        let about = c["about"].as_str().unwrap_or("");
+        assert!(!about.is_empty(), "{path} has a one-line summary");
+        assert!(
+            about.chars().count() <= 80 && !about.contains('\n'),
+            "{path}: the summary `trilab --help` lists is one line of at most 80 characters; the detail goes in a \
+             second paragraph of its doc comment (clap shows it under `{path} --help`): {about}"
+        );
+    }
+    for c in commands {
+        let path = c["command"].as_str().unwrap();
+        let name = path.rsplit(' ').next().unwrap();
+        let about = c["about"].as_str().unwrap();
+        assert!(
+            list.iter().any(|l| l.split_whitespace().next() == Some(name) && l.trim_end().ends_with(about)),
+            "trilab --help lists {name} with its summary on one line:\n{top}"
+        );
+    }
+    let compare = ok(&["compare", "--help"], 30);
+    assert!(compare.contains("Exit status: 0 no regression"), "the detail stays in `compare --help`:\n{compare}");
+    let ab = ok(&["ab", "--help"], 30);
+    assert!(ab.contains("as gpu-trace-perf and Mesa's shader-db compare builds"), "and in `ab --help`:\n{ab}");
 }
 
 #[test]

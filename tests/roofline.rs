@@ -209,7 +209,7 @@ fn bench_with_roofline_adds_each_kernels_share_of_it() {
         // A ray that enters the tree visits the root and at least one leaf.
         assert!(r.figures["fetches_per_ray"].median >= 1.0, "{}", r.key());
     }
-    // bvh4 visits fewer nodes than bvh2 on the same rays (16 vs 8 on random rays, README).
+    // bvh4 visits fewer nodes than bvh2 on the same rays (16 vs 8 on random rays, docs/bvh.md).
     let fetches = |layout: &str, set: &str| {
         kernels
             .iter()

@@ -162,6 +162,8 @@ pub fn env_pair(s: &str) -> std::result::Result<(String, String), String> {
     }
 }
 
+/// Two drivers, settings or builds in one run, interleaved: B/A per cell and kernel
+///
 /// Two drivers, driver settings or trilab builds in one run, interleaved: per cell and kernel
 /// B/A kernel time with a 95 % interval, the hits compared ray by ray. Exit 0 pass, 1 hurt
 /// beyond --threshold or correctness worse, 2 the sides could not be compared.

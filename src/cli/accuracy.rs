@@ -10,6 +10,8 @@ use trilab::error::Result;
 use super::choice::choice;
 use super::{results_dir, scene_help, GpuArgs, JsonArg, MethodsArg};
 
+/// Intersection accuracy per method and leaf size: leaks, false hits, errors
+///
 /// Intersection accuracy per method x leaf size: leaks on closed meshes, false hits,
 /// t/barycentric error, self-intersection per offset scheme, extremes, and the speed frontier;
 /// accuracy.csv/json/md and plots.

@@ -8,6 +8,8 @@ use trilab::error::Result;
 
 use super::{scene_help, GpuArgs, JsonArg};
 
+/// A scene's numerical conditioning and the cheapest method that meets a target
+///
 /// A scene's numerical conditioning (coordinate magnitude against edge length, smallest edge,
 /// slivers, distance from the origin) and the cheapest method, offset scheme and placement that
 /// meet an accuracy target on it.

@@ -14,6 +14,8 @@ use trilab::services::results::Results;
 use super::choice::choice;
 use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs};
 
+/// Ray-casting benchmark: every method on three ray sets, validated, beside peers
+///
 /// Ray-casting benchmark: primary, diffuse and random rays, every method, validated against
 /// the f64 reference, optionally beside the Embree and tinybvh peers.
 #[derive(Args)]

@@ -10,6 +10,8 @@ use trilab::error::Result;
 use super::choice::choice;
 use super::{repeat, BuildArgs, JsonArg};
 
+/// BVH build benchmark: seconds, Mtris/s and SAH cost per scene and thread count
+///
 /// BVH build benchmark: seconds, Mtris/s, SAH cost, nodes and depth per scene and thread
 /// count for the parallel and serial binned SAH and the full sweep, optionally beside
 /// Embree 3's builder on the same triangles, and each node layout's conversion time and bytes

@@ -11,6 +11,8 @@ use trilab::error::Result;
 use super::choice::choice;
 use super::{scene_help, JsonArg, TreeShapeArgs};
 
+/// Build the BVH and report its statistics: nodes, depth, SAH cost, EPO, time
+///
 /// Build the BVH and report its statistics (nodes, depth, leaf sizes, SAH cost, end-point
 /// overlap, time).
 #[derive(Args)]

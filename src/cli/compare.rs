@@ -8,6 +8,8 @@ use trilab::error::Result;
 
 use super::JsonArg;
 
+/// Compare two result folders cell by cell: only what changed, then the totals
+///
 /// Two result folders (or rows files) cell by cell, as shader-db compares two driver builds:
 /// every rows.jsonl below BASE and NEW (written by bench, accuracy, spirv --out, build-bench and
 /// every other command that writes results), matched by command and cell; prints only what changed, then the totals.

@@ -4,6 +4,8 @@ use clap::{Args, Command};
 use clap_complete::Shell;
 use trilab::error::Result;
 
+/// Print a shell completion script (bash, zsh, fish, elvish, powershell)
+///
 /// Print a shell completion script to stdout, e.g. `trilab completions bash >
 /// ~/.local/share/bash-completion/completions/trilab`.
 #[derive(Args)]

@@ -13,6 +13,8 @@ use trilab::services::results::Folder;
 use super::choice::choice;
 use super::{results_dir, GpuArgs, JsonArg, MethodsArg};
 
+/// What the driver compiled each kernel to: instructions, spills, helper calls
+///
 /// What the driver compiled each kernel to: on lavapipe, machine instructions, vector spills and
 /// reloads and calls into the texel-fetch helpers, from gallivm's disassembly (this executable
 /// runs itself again with GALLIVM_DEBUG=asm and MESA_SHADER_CACHE_DISABLE=true); on drivers with

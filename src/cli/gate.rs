@@ -11,6 +11,8 @@ use trilab::error::{Error, Result};
 use super::ab::{env_pair, sigpipe, RoundsArgs, WorkloadArgs};
 use super::{GpuArgs, JsonArg};
 
+/// The regression gate: counts and correctness exact, timings by an in-run A/B
+///
 /// The regression gate: counts and correctness against a committed baseline, exact; timings
 /// only by an A/B of the baseline's build against this one in this run (each kernel over its
 /// cells; a failure must repeat). Exit 0 pass, 1 fail, 2 could not gate.

@@ -8,6 +8,8 @@ use trilab::error::{Error, Result};
 
 use super::{scene_help, BuildArgs, JsonArg};
 
+/// Hit files: print one, check one against the f64 reference, or diff two
+///
 /// Hit files (`raycast --out`): print one, check one against the CPU f64 reference, or diff two
 /// (exit status 1 when they differ, as `diff`'s).
 #[derive(Args)]
@@ -18,6 +20,8 @@ pub struct HitsArgs {
 
 #[derive(Subcommand)]
 enum HitsCmd {
+    /// Print a hit file, then its counts of hits and misses
+    ///
     /// Print a hit file: ray index, t, u, v, triangle (or miss), and the counts of hits and misses.
     Show {
         /// The hit file.
@@ -28,6 +32,8 @@ enum HitsCmd {
         #[command(flatten)]
         json: JsonArg,
     },
+    /// Check a hit file against the CPU f64 reference, as `raycast --reference` does
+    ///
     /// Check a hit file against the CPU f64 reference as `raycast --reference` does: agreement,
     /// and the disagreements rounding explains (near an edge or a tie) or does not. Exit status
     /// 1 when any is unexplained or a record is impossible.
@@ -47,6 +53,8 @@ enum HitsCmd {
         #[command(flatten)]
         json: JsonArg,
     },
+    /// Print the rays whose hit changed between two hit files, then the totals
+    ///
     /// Print the rays whose hit changed between two hit files (a different triangle, miss <->
     /// hit, t or u/v beyond the tolerances) and the totals; exit status 1 when any differ.
     Diff {

@@ -8,6 +8,8 @@ use trilab::error::Result;
 
 use super::JsonArg;
 
+/// Join the rows.jsonl of many runners, shards and devices into one report
+///
 /// Joins the rows.jsonl of many runners, shards and devices (every one below each folder) into
 /// one report: a column per device and driver setting, the paper's claims per device, a speed
 /// table per cell, the cells no runner measured; writes merge.md, merge.json and plots with a

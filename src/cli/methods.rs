@@ -5,6 +5,8 @@ use trilab::error::Result;
 
 use super::JsonArg;
 
+/// List the intersection methods and what each needs
+///
 /// The intersection methods: names, titles, GLSL files, triangles per test, what they need.
 #[derive(Args)]
 pub struct MethodsArgs {

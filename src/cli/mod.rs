@@ -410,23 +410,39 @@ pub fn exit(result: Result<()>) -> ExitCode {
     }
 }
 
-/// The top line of `trilab --help`: how many methods there are, from the registry.
+/// The top line of `trilab --help`: how many methods there are, from the registry (`trilab
+/// methods` names them).
 pub fn about() -> String {
     format!(
-        "GPU ray-triangle intersection laboratory: BVH traversal with hand-written Vulkan compute kernels, \
-         one per intersection method ({} methods: {})",
-        Method::ALL.len(),
-        Method::ALL.iter().map(|m| m.name()).collect::<Vec<_>>().join(", ")
+        "GPU ray-triangle intersection laboratory: BVH traversal in Vulkan compute kernels, {} methods",
+        Method::ALL.len()
     )
 }
 
-/// After `trilab --help`'s commands: the environment variables (`trilab::env`, the one list)
-/// and where the file formats are documented.
+/// After `trilab --help`'s one line per command: where the detail is, in a few lines of at most
+/// 100 columns. The environment variables are named (`trilab::env`, the one list) and explained
+/// in docs/commands.md, which `trilab man --markdown` writes.
 pub fn after_help() -> String {
-    format!(
-        "Environment variables:\n{}\nRay and hit files: docs/formats.md. Options shared by several commands: README.md, \"Options\".",
-        trilab::env::help_text()
-    )
+    let mut text = String::from(
+        "`trilab <COMMAND> --help`: what a command does, and its options. `trilab methods`: the methods.\n\
+         Manual: docs/README.md; commands, options, variables: docs/commands.md; files: docs/formats.md.\n\
+         Environment:",
+    );
+    let mut column = text.len() - text.rfind('\n').map_or(0, |n| n + 1);
+    let names: Vec<&str> = trilab::env::ENV_VARS.iter().map(|v| v.name).collect();
+    for (i, name) in names.iter().enumerate() {
+        let word = if i + 1 == names.len() { format!("{name}.") } else { format!("{name},") };
+        if column + 1 + word.len() > 100 {
+            text.push('\n');
+            column = 0;
+        } else {
+            text.push(' ');
+            column += 1;
+        }
+        text += &word;
+        column += word.len();
+    }
+    text
 }
 
 /// Whether the (sub)command the user ran was given `--json`.

@@ -13,6 +13,8 @@ use trilab::services::roofline::RooflineOptions;
 use super::choice::choice;
 use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, LeafSizeArg, MethodsArg, RaySetArgs};
 
+/// Driver-level profile of the ray-casting kernels: timings, statistics, sweeps
+///
 /// Driver-level profile of the ray-casting kernels: timestamps, pipeline statistics,
 /// shader-clock heat maps, executable statistics, subgroup/workgroup-size sweeps,
 /// LP_NUM_THREADS scaling, driver statistics (lavapipe's machine code); profile.md,

@@ -9,6 +9,8 @@ use trilab::error::Result;
 use super::camera::CameraArg;
 use super::JsonArg;
 
+/// Make a ray file (primary, diffuse or random rays) and its JSON sidecar
+///
 /// Make a ray file and its sidecar `<out>.json` (scene hash, generator, settings; docs/formats.md).
 #[derive(Args)]
 pub struct RaysArgs {
@@ -18,6 +20,8 @@ pub struct RaysArgs {
 
 #[derive(Subcommand)]
 enum RaysCmd {
+    /// One ray per pixel through pixel centres, from `render`'s camera
+    ///
     /// One ray per pixel through pixel centres, from the camera `render` uses (`--camera`).
     Primary {
         #[command(flatten)]

@@ -11,6 +11,8 @@ use trilab::services::roofline::{self, RooflineOptions};
 use super::choice::choice;
 use super::{GpuArgs, JsonArg};
 
+/// The device's traversal roofline: dependent node steps/s per working-set size
+///
 /// The device's traversal roofline: node steps per second of a dependent walk through 32-byte
 /// nodes (two 16-byte loads, a slab test, the next index from the loaded words) per working-set
 /// size, from the caches to DRAM, and per way of reading the nodes (texel buffer, storage buffer,

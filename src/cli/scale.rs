@@ -11,6 +11,8 @@ use trilab::services::rayset::RaySet;
 use super::choice::choice;
 use super::{repeat, results_dir, GpuArgs, JsonArg, LeafSizeArg, MethodsArg};
 
+/// Large scenes: GPU memory plan, load, build and upload times, a validated cast
+///
 /// Large scenes: load and BVH-build times, each method's GPU memory plan (bytes per buffer and
 /// per triangle, access path), upload and a timed, validated cast; writes scale.csv/json/md.
 #[derive(Args)]

@@ -8,6 +8,8 @@ use trilab::spirv::Disassembly;
 
 use super::JsonArg;
 
+/// SPIR-V instruction counts of every kernel variant, or their disassembly
+///
 /// SPIR-V instruction counts of every kernel variant (`<kernel>.<method>.<variant>`); `--out
 /// DIR` writes the review files instead: every variant's disassembly and
 /// instruction_counts.csv (`trilab spirv --out spirv --studied` refreshes spirv/, which keeps

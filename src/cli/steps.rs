@@ -8,6 +8,8 @@ use trilab::error::{Error, Result};
 
 use super::{scene_help, BuildArgs, GpuArgs, JsonArg, MethodsArg};
 
+/// Traversal work per ray and what SIMD lock-step costs at each width
+///
 /// Traversal work per ray (CPU mirror of the kernels' loop): steps, triangle tests, and the
 /// iterations SIMD lock-step costs at each width; `--gpu` adds the kernels' own counts.
 #[derive(Args)]

@@ -12,6 +12,8 @@ use trilab::error::Result;
 use super::choice::choice;
 use super::{repeat, results_dir, signals, GpuArgs, JsonArg, MethodsArg, SahGroupArg};
 
+/// The paper's study on this device: scene x leaf size x method, validated
+///
 /// The paper's study on this device: scene x leaf size {1,2,3,4,8,16} x method, path-trace
 /// seconds and Mrays/s per ray set, validated; writes study.csv/json/md and plots.
 #[derive(Args)]

@@ -13,6 +13,8 @@ use trilab::services::driver_stats::CollectOptions;
 use super::choice::choice;
 use super::{results_dir, signals, GpuArgs, JsonArg};
 
+/// What to run once on a new device: every part, scaled to a time budget
+///
 /// What to run once on a new device: the devices, bench (with the peers when given), the
 /// paper's study, accuracy and profile, each scaled to fit the budget, then summary.md (device
 /// and driver, the headline speed table, the claims' verdicts, the speed/accuracy frontier, links
