@@ -108,20 +108,39 @@ fn a_against_a_passes_and_nothing_is_hurt_beyond_the_threshold() {
 
 #[test]
 fn a_planted_slowdown_is_found_in_its_cells_and_fails_the_run() {
-    // Every mt dispatch recorded 8 times on side B: far beyond any host's noise.
-    let (o, r) = ab(&["--rounds", "4", "--max-rounds", "4", "--b-env", "TRILAB_INJECT_SLOWDOWN=.mt.:8"], 120);
+    // Every mt dispatch recorded 8 times on side B: far beyond any host's noise. The verdict is
+    // judged per kernel over its three cells at a 100 % threshold (hurt only when the whole
+    // interval is past 2x): on a host with ten times more work than cores (the soak of issue 40
+    // ran beside four builds), one cell's 95 % interval from 4 rounds has spanned 0.9x-50x and an
+    // unchanged kernel's 1.4x-1.9x, so a per-cell verdict at 5 % judged the host, not the kernel.
+    let (o, r) = ab(
+        &[
+            "--rounds",
+            "4",
+            "--max-rounds",
+            "4",
+            "--judge",
+            "kernels",
+            "--threshold",
+            "1",
+            "--b-env",
+            "TRILAB_INJECT_SLOWDOWN=.mt.:8",
+        ],
+        120,
+    );
     let e = common::cli::stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{e}\n{r}");
-    for (method, verdict) in verdicts(&r) {
-        if method == "mt" {
-            assert_eq!(verdict, "hurt-beyond-threshold", "{r}");
-        } else {
-            assert_ne!(verdict, "hurt-beyond-threshold", "{r}");
-        }
+    let kernels = r["kernels"].as_array().unwrap();
+    assert_eq!(kernels.len(), 2, "{r}");
+    for k in kernels {
+        let hurt = k["verdict"] == "hurt-beyond-threshold";
+        assert_eq!(hurt, k["method"] == "mt", "only the slowed kernel is hurt: {k}");
     }
     for c in r["cells"].as_array().unwrap().iter().filter(|c| c["cell"]["method"] == "mt") {
+        // 8 recorded dispatches for one: the ratio of medians is near 8, and never below 3 (a
+        // recorded dispatch lost) nor past 40 (one counted many more times).
         let ratio = c["ratio"]["ratio"].as_f64().unwrap();
-        assert!((3.0..12.0).contains(&ratio), "every dispatch recorded 8 times: B/A {ratio}: {c}");
+        assert!((3.0..40.0).contains(&ratio), "every dispatch recorded 8 times: B/A {ratio}: {c}");
     }
 }
 
@@ -210,8 +229,22 @@ fn another_build_on_side_a_reads_the_scenes_the_parent_resolved_and_kernels_are_
     let bin = dir.path().join("base/bin/trilab");
     std::fs::create_dir_all(bin.parent().unwrap()).unwrap();
     std::fs::copy(env!("CARGO_BIN_EXE_trilab"), &bin).unwrap();
-    let extra =
-        ["--a-bin", &s(&bin), "--scenes", "cornell", "--rounds", "4", "--max-rounds", "4", "--judge", "kernels"];
+    // The threshold no A/A can cross (as in the A/A test): what is tested is the scenes and the
+    // judging over cells, not this host's noise.
+    let extra = [
+        "--a-bin",
+        &s(&bin),
+        "--scenes",
+        "cornell",
+        "--rounds",
+        "4",
+        "--max-rounds",
+        "4",
+        "--judge",
+        "kernels",
+        "--threshold",
+        "50",
+    ];
     let (o, r) = ab(&extra, 120);
     assert_eq!(o.status.code(), Some(0), "{}\n{r}", common::cli::stderr(&o));
     assert_eq!(r["a"]["exe"], s(&bin), "{}", r["a"]);

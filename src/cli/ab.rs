@@ -1,5 +1,6 @@
 //! `trilab ab`, and the worker each of its sides runs (`trilab __ab-worker`, hidden).
 
+use super::OutArgs;
 use std::path::PathBuf;
 
 use clap::Args;
@@ -174,6 +175,7 @@ pub fn env_pair(s: &str) -> std::result::Result<(String, String), String> {
 /// cell's two sides back to back, which first alternating, each run validated against the f64
 /// reference; the ratio is paired round by round. Prints only what changed, then the totals.
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Folder for ab.json, ab.md, rows.jsonl and each side's rows in a/ and b/ (`compare DIR/a DIR/b` and `merge` read them)")))]
 pub struct AbArgs {
     #[command(flatten)]
     workload: WorkloadArgs,
@@ -211,10 +213,8 @@ pub struct AbArgs {
     /// statistics), printed where they differ; a driver without them is named, not a failure.
     #[arg(long)]
     driver_stats: bool,
-    /// Folder for ab.json, ab.md, rows.jsonl and each side's rows in a/ and b/ (`compare DIR/a
-    /// DIR/b` and `merge` read them).
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -226,15 +226,15 @@ pub fn run(a: AbArgs) -> Result<()> {
     // compared, as `compare` and `diff` say.
     super::error_exit(2);
     a.rounds.check(a.threshold)?;
-    if let Some(dir) = &a.out {
+    if let Some(dir) = &a.out.dir {
         let files = ["ab.json", "ab.md", trilab::rows::FILE];
-        trilab::io::check_output("--out", trilab::io::Output::Dir(dir, &files), &[])?;
+        OutArgs::check(dir, &files, &[])?;
     }
     // Ctrl-C, SIGTERM or SIGHUP: the workers (each in a process group of its own) get the
     // signal too, then whatever is left of them is killed; say where the run was and what it
     // had measured, remove the workers' temporary folder and exit 128 + the signal's number.
     // Nothing is written: the report needs every round.
-    let out = a.out.clone();
+    let out = a.out.dir.clone();
     let handler = signals::on_stop(move |signal| {
         // Where the run is, before the workers get the signal (their end is no failure now).
         let at = ab::stop_requested().unwrap_or_else(|| "stopped before the sides started or after the rounds".into());
@@ -281,7 +281,7 @@ pub fn run(a: AbArgs) -> Result<()> {
         std::thread::park();
     }
     let report = report?;
-    if let Some(dir) = &a.out {
+    if let Some(dir) = &a.out.dir {
         ab::write(&report, dir)?;
         eprintln!("wrote {}", dir.display());
     }

@@ -1,5 +1,7 @@
 //! `trilab accuracy`.
 
+use super::OutArgs;
+use super::ShardArg;
 use std::path::PathBuf;
 
 use clap::Args;
@@ -16,6 +18,8 @@ use super::{results_dir, scene_help, GpuArgs, JsonArg, MethodsArg};
 /// t/barycentric error, self-intersection per offset scheme, extremes, and the speed frontier;
 /// accuracy.csv/json/md and plots.
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Output directory for accuracy.csv/json/md and plots. Default: results/<device>/accuracy/")))]
+#[command(mut_arg("shard", |a| a.help("Run only shard I of N: every N-th (leaf size, layout) group of the leak, false-hit and error sweeps, round-robin (leaf size major); the extremes, self-intersection and frontier run in the shard owning the frontier's group (leaf 4 on bvh2). rows.jsonl names the shard and plans the whole matrix; `trilab merge` joins the shards' folders")))]
 pub struct AccuracyArgs {
     /// full: the whole sweep (about 4 minutes on 2-core lavapipe); smoke: seconds, for CI.
     #[arg(long, value_parser = choice::<Preset>(), default_value_t = Preset::Full)]
@@ -38,15 +42,10 @@ pub struct AccuracyArgs {
         (repeatable); it must be proven closed (every edge shared by exactly two consistently wound \
         triangles), else the run is refused at once with the reason"))]
     scene: Vec<PathBuf>,
-    /// Run only shard I of N: every N-th (leaf size, layout) group of the leak, false-hit and
-    /// error sweeps, round-robin (leaf size major); the extremes, self-intersection and frontier
-    /// run in the shard owning the frontier's group (leaf 4 on bvh2). rows.jsonl names the shard
-    /// and plans the whole matrix; `trilab merge` joins the shards' folders.
-    #[arg(long, value_name = "I/N")]
-    shard: Option<trilab::rows::Shard>,
-    /// Output directory for accuracy.csv/json/md and plots. Default: results/<device>/accuracy/.
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    shard: ShardArg,
+    #[command(flatten)]
+    out: OutArgs,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -75,12 +74,12 @@ pub fn run(a: AccuracyArgs) -> Result<()> {
     }
     // `accuracy::run` loads and proves them closed before any ray is cast (once, not here too).
     o.scenes = a.scene.clone();
-    o.shard = a.shard;
+    o.shard = a.shard.shard;
     o.check_shard()?;
     let ctx = a.gpu.context()?;
-    let out = results_dir(&ctx, a.out.clone(), "accuracy");
+    let out = results_dir(&ctx, a.out.dir.clone(), "accuracy");
     let files = ["accuracy.csv", "frontier.csv", "translation.csv", "accuracy.json", "accuracy.md", trilab::rows::FILE];
-    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &[])?;
+    OutArgs::check(&out, &files, &[])?;
     let t = std::time::Instant::now();
     let report = accuracy::run(&ctx, &o, |m| eprintln!("  [{:5.0} s] {m}", t.elapsed().as_secs_f64()))?;
     a.json.print(&report);

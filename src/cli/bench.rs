@@ -12,6 +12,7 @@ use trilab::services::peers::TinybvhLayout;
 use trilab::services::results::Results;
 
 use super::choice::choice;
+use super::ShardArg;
 use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs};
 
 /// Ray-casting benchmark: every method on three ray sets, validated, beside peers
@@ -19,6 +20,8 @@ use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySet
 /// Ray-casting benchmark: primary, diffuse and random rays, every method, validated against
 /// the f64 reference, optionally beside the Embree and tinybvh peers.
 #[derive(Args)]
+#[command(mut_arg("shard", |a| a.help("Run only shard I of N: every N-th scene, round-robin from scene I (a scene is the unit, so its methods, layouts and peers stay interleaved in one run). rows.jsonl names the shard and plans the whole matrix; `trilab merge` joins the shards' folders")))]
+#[command(mut_arg("out", |a| a.help("Folder for bench.json (the report), bench.md (its tables), rows.jsonl and plots, made when missing")))]
 pub struct BenchArgs {
     #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(scenes_help!(), "; default: bunny"))]
     scenes: Vec<PathBuf>,
@@ -84,11 +87,8 @@ pub struct BenchArgs {
     /// (default: built, the layout's own order).
     #[arg(long, value_name = "O,...", value_parser = choice::<NodeOrder>(), value_delimiter = ',')]
     node_orders: Vec<NodeOrder>,
-    /// Run only shard I of N: every N-th scene, round-robin from scene I (a scene is the unit, so
-    /// its methods, layouts and peers stay interleaved in one run). rows.jsonl names the shard
-    /// and plans the whole matrix; `trilab merge` joins the shards' folders.
-    #[arg(long, value_name = "I/N")]
-    shard: Option<trilab::rows::Shard>,
+    #[command(flatten)]
+    shard: ShardArg,
     /// Also measure the traversal roofline (`trilab roofline`: node steps/s of a dependent
     /// 32-byte-node walk) at each scene's working set (its encoded bytes: nodes, primitives,
     /// slot ids) on the access path its kernels read, and add per kernel its share of it:
@@ -150,7 +150,7 @@ impl PeerChoice {
 pub fn run(a: BenchArgs) -> Result<()> {
     let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
     let (json_out, md_out) = a.out.files(<BenchReport as Results>::STEM, &scenes)?;
-    BenchOptions { scenes: scenes.clone(), shard: a.shard, ..Default::default() }.check_shard()?;
+    BenchOptions { scenes: scenes.clone(), shard: a.shard.shard, ..Default::default() }.check_shard()?;
     let ctx = a.gpu.context()?;
     let o = BenchOptions {
         scenes,
@@ -173,7 +173,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         },
         ray_query: a.ray_query.runs(&ctx),
         ray_tracing_pipeline: a.ray_tracing_pipeline.runs(&ctx),
-        shard: a.shard,
+        shard: a.shard.shard,
         roofline: a
             .roofline
             .then(|| trilab::services::roofline::RooflineOptions { rounds: a.repeat, ..Default::default() }),

@@ -13,6 +13,7 @@ use super::{repeat, scenes_help, GpuArgs, JsonArg, LeafSizeArg, MethodsArg, Repo
 
 /// Path-tracing benchmark: samples/s and rays/s per scene, method and kernel choice.
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Folder for bench.json (the report), bench.md (its tables) and rows.jsonl, made when missing")))]
 pub struct BenchRenderArgs {
     #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(scenes_help!(), "; default: bunny, dragon, buddha"))]
     scenes: Vec<PathBuf>,

@@ -1,5 +1,7 @@
 //! `trilab build-bench`.
 
+use super::OutArgs;
+use super::ShardArg;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
@@ -18,6 +20,8 @@ use super::{repeat, BuildArgs, JsonArg};
 /// per triangle; build.csv, layouts.csv, build.json, build.md.
 #[derive(Args)]
 #[command(mut_arg("sah_group", |a| a.help("Triangles the SAH prices as one test (1: classic; Embree's SAH block size)")))]
+#[command(mut_arg("out", |a| a.help("Directory for build.csv, layouts.csv, build.json and build.md (e.g. results/<host>/build)")))]
+#[command(mut_arg("shard", |a| a.help("Run only shard I of N: every N-th scene, round-robin from scene I. rows.jsonl names the shard and plans the whole matrix; `trilab merge` joins the shards' folders")))]
 pub struct BuildBenchArgs {
     #[arg(long, value_name = "A,B", value_delimiter = ',', required = true, help = super::scenes_help!())]
     scenes: Vec<PathBuf>,
@@ -43,13 +47,10 @@ pub struct BuildBenchArgs {
     /// (`bvh2`, `bvh4`, `bvh8`, ...; default: every layout).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
-    /// Run only shard I of N: every N-th scene, round-robin from scene I. rows.jsonl names the
-    /// shard and plans the whole matrix; `trilab merge` joins the shards' folders.
-    #[arg(long, value_name = "I/N")]
-    shard: Option<trilab::rows::Shard>,
-    /// Directory for build.csv, layouts.csv, build.json and build.md (e.g. results/<host>/build).
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    shard: ShardArg,
+    #[command(flatten)]
+    out: OutArgs,
     #[command(flatten)]
     json: JsonArg,
 }
@@ -65,17 +66,17 @@ pub fn run(a: BuildBenchArgs) -> Result<()> {
         sweep_max_triangles: a.sweep_max,
         embree: a.embree,
         layouts: if a.layouts.is_empty() { d.layouts } else { a.layouts },
-        shard: a.shard,
+        shard: a.shard.shard,
     };
     o.check()?;
     let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
-    if let Some(out) = &a.out {
+    if let Some(out) = &a.out.dir {
         let files = ["build.csv", "layouts.csv", "build.json", "build.md", trilab::rows::FILE];
-        trilab::io::check_output("--out", trilab::io::Output::Dir(out, &files), &inputs)?;
+        OutArgs::check(out, &files, &inputs)?;
     }
     let report = build_bench::run(&o, |m| eprintln!("{m}"))?;
     a.json.print(&report);
-    if let Some(out) = &a.out {
+    if let Some(out) = &a.out.dir {
         report.write(out)?;
         eprintln!("wrote {}/build.{{csv,json,md}} and layouts.csv", out.display());
     }

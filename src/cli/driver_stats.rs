@@ -1,5 +1,6 @@
 //! `trilab driver-stats`.
 
+use super::OutArgs;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
@@ -23,6 +24,7 @@ use super::{results_dir, GpuArgs, JsonArg, MethodsArg};
 /// why, after probing one kernel. driver-stats.md, driver-stats.json and rows.jsonl (for
 /// `trilab compare`).
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Output directory for driver-stats.md, driver-stats.json and rows.jsonl; default results/<device>/driver-stats")))]
 pub struct DriverStatsArgs {
     /// Kernel files, comma-separated: `raycast` (the only one dispatched so far; lavapipe compiles
     /// a shader at its first dispatch).
@@ -39,10 +41,8 @@ pub struct DriverStatsArgs {
     /// Node layouts, comma-separated (default: all).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
-    /// Output directory for driver-stats.md, driver-stats.json and rows.jsonl; default
-    /// results/<device>/driver-stats.
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     /// Also keep each kernel's disassembly as `<DIR>/<kernel>.txt` (lavapipe).
     #[arg(long, value_name = "DIR")]
     asm_dir: Option<PathBuf>,
@@ -73,8 +73,8 @@ pub fn run(a: DriverStatsArgs) -> Result<()> {
         layouts: if a.layouts.is_empty() { Layout::ALL.to_vec() } else { a.layouts.clone() },
     };
     let kernels = selection.kernels()?;
-    let out = results_dir(&ctx, a.out.clone(), "driver-stats");
-    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &FILES), &[])?;
+    let out = results_dir(&ctx, a.out.dir.clone(), "driver-stats");
+    OutArgs::check(&out, &FILES, &[])?;
     if let Some(dir) = &a.asm_dir {
         trilab::io::check_output("--asm-dir", trilab::io::Output::Dir(dir, &[]), &[])?;
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;

@@ -1,6 +1,7 @@
 //! `trilab gate`: the regression gate (scripts/ci-gate.sh builds the base and measures, then
 //! calls it).
 
+use super::OutArgs;
 use std::path::PathBuf;
 
 use clap::Args;
@@ -17,6 +18,7 @@ use super::{GpuArgs, JsonArg};
 /// only by an A/B of the baseline's build against this one in this run (each kernel over its
 /// cells; a failure must repeat). Exit 0 pass, 1 fail, 2 could not gate.
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Folder for gate.md, gate.json, rows.jsonl (the A/B's ratios)")))]
 pub struct GateArgs {
     /// The committed baseline: a folder of `trilab suite` and `trilab spirv --out` rows.
     #[arg(value_name = "BASELINE")]
@@ -52,9 +54,8 @@ pub struct GateArgs {
     /// TRILAB_INJECT_SLOWDOWN=raycast.unit.closest:2` plants a slowdown the gate must catch.
     #[arg(long, value_name = "K=V", value_parser = env_pair)]
     b_env: Vec<(String, String)>,
-    /// Folder for gate.md, gate.json, rows.jsonl (the A/B's ratios).
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -64,9 +65,9 @@ pub struct GateArgs {
 pub fn run(a: GateArgs) -> Result<()> {
     super::error_exit(2);
     a.rounds.check(a.threshold)?;
-    if let Some(dir) = &a.out {
+    if let Some(dir) = &a.out.dir {
         let files = ["gate.json", "gate.md", trilab::rows::FILE];
-        trilab::io::check_output("--out", trilab::io::Output::Dir(dir, &files), &[])?;
+        OutArgs::check(dir, &files, &[])?;
     }
     let base = match (a.base_bin, a.base_commit, a.no_base) {
         (Some(exe), Some(commit), _) => BaseBuild::Built { exe, commit },
@@ -100,7 +101,7 @@ pub fn run(a: GateArgs) -> Result<()> {
     let report = gate::run(&o, |m| eprintln!("  {m}"));
     sigpipe(false);
     let report = report?;
-    if let Some(dir) = &a.out {
+    if let Some(dir) = &a.out.dir {
         trilab::services::results::write_folder(dir, &report)?;
         eprintln!("wrote {}", dir.display());
     }

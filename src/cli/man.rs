@@ -1,8 +1,8 @@
 //! `trilab man`: manual pages, and the Markdown command reference (docs/commands.md), both from
 //! the clap command tree.
 
+use super::OutArgs;
 use std::collections::BTreeSet;
-use std::path::PathBuf;
 
 use clap::{Arg, Args, Command};
 use trilab::error::{Error, Result};
@@ -14,10 +14,10 @@ use trilab::error::{Error, Result};
 /// --markdown, the command reference docs/commands.md instead (every command, its help and its
 /// options, and the environment variables).
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Directory to write every page into (created if needed); default: print trilab.1 to stdout")))]
 pub struct ManArgs {
-    /// Directory to write every page into (created if needed); default: print trilab.1 to stdout.
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     /// Print the Markdown command reference instead (`trilab man --markdown > docs/commands.md`).
     #[arg(long, conflicts_with = "out")]
     markdown: bool,
@@ -251,7 +251,7 @@ pub fn run(a: ManArgs, cmd: Command) -> Result<()> {
         return Ok(());
     }
     let pages = pages(cmd)?;
-    match &a.out {
+    match &a.out.dir {
         None => {
             use std::io::Write;
             let _ = std::io::stdout().write_all(&pages[0].1);

@@ -1,5 +1,6 @@
 //! `trilab merge`.
 
+use super::OutArgs;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
@@ -17,14 +18,13 @@ use super::JsonArg;
 /// Exit status: 0 merged; 2 the merge could not be made (a missing folder, no rows at all, a
 /// malformed line, a cell twice: the file is named), as `compare`'s 2.
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Output folder for merge.md, merge.json and the plots. Without it the report is only printed")))]
 pub struct MergeArgs {
     /// Result folders (searched recursively for rows.jsonl) or rows files.
     #[arg(value_name = "DIR", required = true)]
     dirs: Vec<PathBuf>,
-    /// Output folder for merge.md, merge.json and the plots. Without it the report is only
-    /// printed.
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     #[command(flatten)]
     json: JsonArg,
 }
@@ -32,13 +32,13 @@ pub struct MergeArgs {
 pub fn run(a: MergeArgs) -> Result<()> {
     // Merge has no verdict to give a 1 to: every failure is "could not merge", compare's 2.
     super::error_exit(2);
-    if let Some(out) = &a.out {
+    if let Some(out) = &a.out.dir {
         let inputs: Vec<&Path> = a.dirs.iter().map(PathBuf::as_path).collect();
-        trilab::io::check_output("--out", trilab::io::Output::Dir(out, &merge::FILES), &inputs)?;
+        OutArgs::check(out, &merge::FILES, &inputs)?;
     }
     let report = merge::run(&a.dirs)?;
     a.json.print(&report);
-    if let Some(out) = &a.out {
+    if let Some(out) = &a.out.dir {
         for w in merge::write(&report, out)? {
             eprintln!("  wrote {}", w.display());
         }

@@ -217,13 +217,48 @@ impl MethodsArg {
     }
 }
 
-/// `--out DIR`: where a report goes as `<stem>.json` (the report) and `<stem>.md` (its tables),
-/// or the old spellings `--json-out FILE` and `--md-out FILE` (hidden) for either file alone.
+/// `--out DIR`, the one output option of every command that writes files: the folder its files
+/// go into, checked before any work ([`OutArgs::check`]: not a file, writable, or creatable under
+/// a writable folder; none of its files an input) and made when missing. Each command names
+/// its files and its default in its own help (`#[command(mut_arg("out", ...))]`).
+#[derive(Args, Clone, Debug, Default)]
+pub struct OutArgs {
+    /// Folder for the command's files, made when missing.
+    #[arg(long = "out", id = "out", value_name = "DIR")]
+    pub dir: Option<PathBuf>,
+}
+
+impl OutArgs {
+    /// Checks, before any work, that `dir` can take `files` and that none of them is one of
+    /// `inputs` ([`trilab::io::check_output`]); the folder is made once there is something to
+    /// write ([`OutArgs::make`]).
+    pub fn check(dir: &std::path::Path, files: &[&str], inputs: &[&std::path::Path]) -> Result<()> {
+        trilab::io::check_output("--out", trilab::io::Output::Dir(dir, files), inputs)
+    }
+
+    /// Makes the folder `dir` (and its parents) when missing.
+    pub fn make(dir: &std::path::Path) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+    }
+}
+
+/// `--shard I/N`, the one shard option: run only shard I of N of a command's matrix. Each
+/// command says in its help what its unit of sharding is (`#[command(mut_arg("shard", ...))]`).
+#[derive(Args, Clone, Copy, Debug, Default)]
+pub struct ShardArg {
+    /// Run only shard I of N; rows.jsonl names the shard and plans the whole matrix, and
+    /// `trilab merge` joins the shards' folders.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<trilab::rows::Shard>,
+}
+
+/// `--out DIR` ([`OutArgs`]) for a report written as `<stem>.json` (the report) and `<stem>.md`
+/// (its tables), or the old spellings `--json-out FILE` and `--md-out FILE` (hidden) for either
+/// file alone.
 #[derive(Args, Clone)]
 pub struct ReportOutArgs {
-    /// Directory to write bench.json (the report) and bench.md (its tables) into.
-    #[arg(long, value_name = "DIR")]
-    pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub out: OutArgs,
     /// Old spelling: write the report as JSON to this file (use --out DIR).
     #[arg(long, value_name = "FILE", hide = true)]
     pub json_out: Option<PathBuf>,
@@ -237,32 +272,32 @@ impl ReportOutArgs {
     /// `--md-out` files), each checked before any work: writable, and not one of the `scenes`
     /// (names are resolved to the files they find).
     pub fn files(&self, stem: &str, scenes: &[PathBuf]) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
-        let (json, md) = match &self.out {
+        let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
+        let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
+        let (json, md) = match &self.out.dir {
             Some(dir) => {
-                if dir.is_file() {
-                    return Err(Error::Usage(format!("--out {}: is a file; --out names a directory", dir.display())));
-                }
-                let json = self.json_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.json")));
-                let md = self.md_out.clone().unwrap_or_else(|| dir.join(format!("{stem}.md")));
+                // The folder is checked as a folder (made when missing, once the report is ready);
+                // an old-spelling file given beside it is checked as a file.
+                let (json_name, md_name) = (format!("{stem}.json"), format!("{stem}.md"));
+                OutArgs::check(dir, &[&json_name, &md_name], &inputs)?;
+                let json = self.json_out.clone().unwrap_or_else(|| dir.join(json_name));
+                let md = self.md_out.clone().unwrap_or_else(|| dir.join(md_name));
                 (Some(json), Some(md))
             }
             None => (self.json_out.clone(), self.md_out.clone()),
         };
-        let files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
-        let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
-        for (option, file) in [("--json-out", &json), ("--md-out", &md)] {
-            if let Some(file) = file {
-                let option = if self.out.is_some() { "--out" } else { option };
+        for (option, given) in [("--json-out", &self.json_out), ("--md-out", &self.md_out)] {
+            if let Some(file) = given {
                 trilab::io::check_output(option, trilab::io::Output::File(file), &inputs)?;
             }
         }
         Ok((json, md))
     }
 
-    /// Makes the `--out` directory (if given), once the report is ready to write.
+    /// Makes the `--out` folder (if given) when missing, once the report is ready to write.
     pub fn create_dir(&self) -> Result<()> {
-        match &self.out {
-            Some(dir) => std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e)),
+        match &self.out.dir {
+            Some(dir) => OutArgs::make(dir),
             None => Ok(()),
         }
     }

@@ -1,5 +1,6 @@
 //! `trilab profile`.
 
+use super::OutArgs;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
@@ -25,6 +26,7 @@ use super::{repeat, results_dir, scene_help, GpuArgs, JsonArg, LeafSizeArg, Meth
     mut_arg("diffuse_per_hit", |a| a.default_value("2")),
     mut_arg("random_rays", |a| a.default_value("250000"))
 )]
+#[command(mut_arg("out", |a| a.help("Output directory for profile.md, profile.json and the PNGs; default results/<device>/profile (lavapipe for Mesa's llvmpipe)")))]
 pub struct ProfileArgs {
     #[arg(long, value_name = "S", help = scene_help!())]
     scene: PathBuf,
@@ -36,10 +38,8 @@ pub struct ProfileArgs {
     /// BVH node layout every kernel traverses (`bvh2`, `bvh4`, `bvh8`, ...).
     #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
     layout: Layout,
-    /// Output directory for profile.md, profile.json and the PNGs; default
-    /// results/<device>/profile (lavapipe for Mesa's llvmpipe).
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     #[command(flatten)]
     rays: RaySetArgs,
     /// Timed runs after one warm-up (at least 1); median, min and max are reported.
@@ -104,9 +104,9 @@ pub fn run(a: ProfileArgs) -> Result<()> {
         roofline: a.roofline.then(|| RooflineOptions { rounds: a.repeat, ..Default::default() }),
         ..Default::default()
     };
-    let out = results_dir(&ctx, a.out.clone(), "profile");
+    let out = results_dir(&ctx, a.out.dir.clone(), "profile");
     let files = ["profile.json", "profile.md", trilab::rows::FILE];
-    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &[&a.scene])?;
+    OutArgs::check(&out, &files, &[&a.scene])?;
     o.sizes.require_all()?;
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let report = profile::run(&ctx, &o, Some(&out), |m| eprintln!("  {m}"))?;

@@ -1,6 +1,6 @@
 //! `trilab roofline`.
 
-use std::path::PathBuf;
+use super::OutArgs;
 
 use clap::Args;
 use trilab::error::Result;
@@ -19,6 +19,7 @@ use super::{GpuArgs, JsonArg};
 /// buffer device address); sizes and paths interleaved round by round, medians with min-max of
 /// GPU timestamps, each cell's checksums checked against the CPU's walk first.
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Directory for roofline.json, roofline.md and rows.jsonl (default: results/<device>/roofline)")))]
 pub struct RooflineArgs {
     /// Working-set sizes, comma-separated: powers of two of at least 64 bytes, in bytes or with
     /// K, M, G (binary). Sizes the device cannot hold are skipped, naming why.
@@ -46,9 +47,8 @@ pub struct RooflineArgs {
     /// Seed of the node buffers, start nodes and ray state.
     #[arg(long, value_name = "N", default_value_t = 1, allow_negative_numbers = true)]
     seed: u32,
-    /// Directory for roofline.json, roofline.md and rows.jsonl (default: results/<device>/roofline).
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -81,12 +81,12 @@ pub fn run(a: RooflineArgs) -> Result<()> {
         ..RooflineOptions::default()
     };
     o.check()?;
-    if let Some(out) = &a.out {
-        trilab::io::check_output("--out", trilab::io::Output::Dir(out, &roofline::FILES), &[])?;
+    if let Some(out) = &a.out.dir {
+        OutArgs::check(out, &roofline::FILES, &[])?;
     }
     let ctx = a.gpu.context()?;
-    let out = super::results_dir(&ctx, a.out.clone(), "roofline");
-    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &roofline::FILES), &[])?;
+    let out = super::results_dir(&ctx, a.out.dir.clone(), "roofline");
+    OutArgs::check(&out, &roofline::FILES, &[])?;
     let report = roofline::run(&ctx, &o, |m| eprintln!("  {m}"))?;
     a.json.print(&report);
     report.write(&out)?;

@@ -1,6 +1,7 @@
 //! `trilab scale`.
 
-use std::path::{Path, PathBuf};
+use super::OutArgs;
+use std::path::Path;
 
 use clap::Args;
 use trilab::commands::scale::{self, ScaleOptions};
@@ -16,6 +17,7 @@ use super::{repeat, results_dir, GpuArgs, JsonArg, LeafSizeArg, MethodsArg};
 /// Large scenes: load and BVH-build times, each method's GPU memory plan (bytes per buffer and
 /// per triangle, access path), upload and a timed, validated cast; writes scale.csv/json/md.
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Output directory for scale.csv/json/md; default results/<device>/scale/")))]
 pub struct ScaleArgs {
     #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(super::scenes_help!(),
           "; default: ../shared/scenes/dragon_full_draco11.obj.gz if present, and a 10M-triangle synthetic scene"))]
@@ -50,9 +52,8 @@ pub struct ScaleArgs {
     /// Only the memory plan (bytes per triangle, access path): no upload, no cast.
     #[arg(long)]
     plan_only: bool,
-    /// Output directory for scale.csv/json/md; default results/<device>/scale/.
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -63,10 +64,10 @@ pub struct ScaleArgs {
 pub fn run(a: ScaleArgs) -> Result<()> {
     let scenes = if a.scenes.is_empty() { scale::default_scenes() } else { a.scenes.clone() };
     let ctx = a.gpu.context()?;
-    let out = results_dir(&ctx, a.out.clone(), "scale");
+    let out = results_dir(&ctx, a.out.dir.clone(), "scale");
     let inputs: Vec<&Path> = scenes.iter().map(Path::new).collect();
     let files = ["scale.csv", "scale.json", "scale.md"];
-    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &inputs)?;
+    OutArgs::check(&out, &files, &inputs)?;
     let o = ScaleOptions {
         scenes,
         methods: a.methods.or_device(&ctx),

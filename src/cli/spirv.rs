@@ -1,6 +1,6 @@
 //! `trilab spirv`.
 
-use std::path::PathBuf;
+use super::OutArgs;
 
 use clap::Args;
 use trilab::error::Result;
@@ -15,11 +15,10 @@ use super::JsonArg;
 /// instruction_counts.csv (`trilab spirv --out spirv --studied` refreshes spirv/, which keeps
 /// the studied kernels' disassembly only).
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Directory to write every variant's disassembly and instruction_counts.csv into (stale disassembly there is removed; was `--write`)").alias("write")))]
 pub struct SpirvArgs {
-    /// Directory to write every variant's disassembly and instruction_counts.csv into (stale
-    /// disassembly there is removed; was `--write`).
-    #[arg(long, value_name = "DIR", alias = "write")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     /// With --out: only the disassembly of the kernels a reader studies (what spirv/ keeps:
     /// raycast closest and any on the binary nodes, closest on each wide layout, every
     /// intersector; the ray-query peer); other disassembly in DIR is removed.
@@ -30,9 +29,9 @@ pub struct SpirvArgs {
 }
 
 pub fn run(a: SpirvArgs) -> Result<()> {
-    match &a.out {
+    match &a.out.dir {
         Some(dir) => {
-            trilab::io::check_output("--write", trilab::io::Output::Dir(dir, &[]), &[])?;
+            OutArgs::check(dir, &[], &[])?;
             let which = if a.studied { Disassembly::Studied } else { Disassembly::All };
             let n = trilab::commands::spirv::write(dir, which)?;
             println!("wrote {n} files to {}", dir.display());

@@ -1,5 +1,7 @@
 //! `trilab study`.
 
+use super::OutArgs;
+use super::ShardArg;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::Arc;
@@ -17,6 +19,8 @@ use super::{repeat, results_dir, signals, GpuArgs, JsonArg, MethodsArg, SahGroup
 /// The paper's study on this device: scene x leaf size {1,2,3,4,8,16} x method, path-trace
 /// seconds and Mrays/s per ray set, validated; writes study.csv/json/md and plots.
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Output directory for study.csv/json/md and plots. Default: results/<device>/study/ (lavapipe, or the device name)")))]
+#[command(mut_arg("shard", |a| a.help("Run only shard I of N of the matrix: every N-th (scene, leaf size) group, round-robin from group I, so each leaf size's methods and layouts still run side by side. rows.jsonl names the shard and plans the whole matrix; the report's claims judge this shard's cells only and say so; `trilab merge` joins the shards' folders")))]
 pub struct StudyArgs {
     #[arg(long, value_name = "A,B", value_delimiter = ',', help = concat!(super::scenes_help!(),
           "; default: the preset's (bunny, dragon, buddha; the smoke preset only the bunny)"))]
@@ -25,10 +29,8 @@ pub struct StudyArgs {
     /// smoke: seconds, for CI.
     #[arg(long, value_parser = choice::<Preset>(), default_value_t = Preset::Lavapipe)]
     preset: Preset,
-    /// Output directory for study.csv/json/md and plots. Default: results/<device>/study/
-    /// (lavapipe, or the device name).
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     /// Leaf sizes, comma-separated (default: 1,2,3,4,8,16).
     #[arg(long, value_name = "N,...", value_delimiter = ',')]
     leaf_sizes: Vec<u32>,
@@ -45,12 +47,8 @@ pub struct StudyArgs {
     repeat: Option<usize>,
     #[command(flatten)]
     sah_group: SahGroupArg,
-    /// Run only shard I of N of the matrix: every N-th (scene, leaf size) group, round-robin from
-    /// group I, so each leaf size's methods and layouts still run side by side. rows.jsonl names
-    /// the shard and plans the whole matrix; the report's claims judge this shard's cells only
-    /// and say so; `trilab merge` joins the shards' folders.
-    #[arg(long, value_name = "I/N")]
-    shard: Option<trilab::rows::Shard>,
+    #[command(flatten)]
+    shard: ShardArg,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -75,13 +73,13 @@ pub fn run(a: StudyArgs) -> Result<()> {
         o.repeat = r;
     }
     o.sah_group = a.sah_group.sah_group;
-    o.shard = a.shard;
+    o.shard = a.shard.shard;
     o.check()?;
     let ctx = a.gpu.context()?;
-    let out = results_dir(&ctx, a.out.clone(), "study");
+    let out = results_dir(&ctx, a.out.dir.clone(), "study");
     let inputs: Vec<&Path> = o.scenes.iter().map(PathBuf::as_path).collect();
     let files = ["study.csv", "study.json", "study.md", trilab::rows::FILE];
-    trilab::io::check_output("--out", trilab::io::Output::Dir(&out, &files), &inputs)?;
+    OutArgs::check(&out, &files, &inputs)?;
     eprintln!("study: {}", o.scaling());
     if let Some(shard) = o.shard {
         let split = o.split();

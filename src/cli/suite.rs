@@ -1,5 +1,6 @@
 //! `trilab suite`.
 
+use super::OutArgs;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -20,15 +21,15 @@ use super::{results_dir, signals, GpuArgs, JsonArg};
 /// and driver, the headline speed table, the claims' verdicts, the speed/accuracy frontier, links
 /// to the rest). Every part validates against the f64 reference before it reports.
 #[derive(Args)]
+#[command(mut_arg("out", |a| a.help("Output folder (default: results/<device>/suite/). Each part writes into its own subfolder")))]
 pub struct SuiteArgs {
     /// Wall-clock budget in minutes. A probe measures this device against the reference machine
     /// and each part takes the largest size predicted to fit its share (bench 25 %, study 45 %,
     /// accuracy 18 %, profile 12 %); a part's smallest size always runs.
     #[arg(long, value_name = "N", default_value_t = 30.0)]
     budget_minutes: f64,
-    /// Output folder (default: results/<device>/suite/). Each part writes into its own subfolder.
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutArgs,
     /// The parts to run, comma-separated (default: all).
     #[arg(long, value_name = "P,...", value_parser = choice::<Part>(), value_delimiter = ',')]
     parts: Vec<Part>,
@@ -81,7 +82,7 @@ pub fn run(a: SuiteArgs) -> Result<()> {
     let exe = if a.no_threads { None } else { Some(current_exe()?) };
     let mut o = SuiteOptions {
         budget_minutes: a.budget_minutes,
-        out: a.out.clone().unwrap_or_default(),
+        out: a.out.dir.clone().unwrap_or_default(),
         parts: if a.parts.is_empty() { Part::ALL.to_vec() } else { a.parts.clone() },
         embree: a.embree.clone(),
         tinybvh: a.tinybvh.clone(),
@@ -100,8 +101,8 @@ pub fn run(a: SuiteArgs) -> Result<()> {
             asm_dir: None,
         });
     }
-    o.out = results_dir(&ctx, a.out.clone(), "suite");
-    trilab::io::check_output("--out", trilab::io::Output::Dir(&o.out, &["summary.md", "suite.json"]), &[])?;
+    o.out = results_dir(&ctx, a.out.dir.clone(), "suite");
+    OutArgs::check(&o.out, &["summary.md", "suite.json"], &[])?;
     let report = suite::run(&ctx, &o, &kept, |m| eprintln!("suite: {m}"))?;
     a.json.print(&report);
     let failed: Vec<String> =

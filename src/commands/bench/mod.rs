@@ -11,8 +11,8 @@ mod report;
 mod run;
 
 pub use crate::services::efficiency::RooflineEfficiency;
-pub use plan::{path_of, plan_cells, BenchOptions};
-pub use report::{rows, BenchCell, BenchReport, BenchRow, CellTracer, Tracer};
+pub use plan::{path_of, plan_cells, BenchCell, BenchOptions, CellTracer};
+pub use report::{rows, BenchReport, BenchRow, Tracer};
 pub use run::{for_device, run};
 
 #[cfg(test)]

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::plan::BenchOptions;
+use super::plan::{BenchCell, BenchOptions, CellTracer};
 
 use crate::bvh::NodeOrder;
 use crate::encoding::{AccessPath, Layout, Method, Traversal};
@@ -337,78 +337,6 @@ impl BenchReport {
             ]);
         }
         t
-    }
-}
-
-/// The report as result rows (`rows.jsonl`, what `trilab compare` reads): one row per table
-/// row, cell `scene`, `set`, `rays` and either `method`, `layout`, `leaf` (our kernels) or `peer`
-/// (the driver's ray query, Embree, tinybvh); figures `mrays_per_s` (timing, with min-max over
-/// the rounds), `agreement`, `unexplained`, `invalid` (correctness) and `scene_bytes` (count).
-/// A peer program's `mrays_per_s` is over the same rounds as the kernels' (one trace a round).
-/// One bench cell: what its plan entry and its row are both made from, so the two cannot
-/// spell a coordinate differently. `rays` is measured (a diffuse set's size depends on the
-/// scene's hits): the plan leaves it out, a row carries it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BenchCell {
-    pub scene: String,
-    pub set: RaySet,
-    pub rays: Option<usize>,
-    pub tracer: CellTracer,
-}
-
-/// Who traced a bench cell's rays.
-#[derive(Clone, Debug, PartialEq)]
-pub enum CellTracer {
-    /// One of trilab's kernels; `sah_group` only when it is not 1, the traversal, the node
-    /// order and the ray order only when they are not the defaults (while-if, as built, as
-    /// given). The access path is named only when it is the address path.
-    Method {
-        method: Method,
-        layout: Layout,
-        leaf: u32,
-        sah_group: Option<u32>,
-        traversal: Traversal,
-        node_order: NodeOrder,
-        order: RayOrder,
-        access: AccessPath,
-    },
-    /// A peer, by its name (the driver's ray query, Embree, tinybvh's kernels).
-    Peer(String),
-}
-
-impl BenchCell {
-    /// The cell's coordinates, as `rows.jsonl` names them.
-    pub fn coordinates(&self) -> crate::rows::Cell {
-        let mut c = crate::rows::cell([("scene", self.scene.clone()), ("set", self.set.to_string())]);
-        if let Some(rays) = self.rays {
-            c.insert("rays".into(), rays.to_string());
-        }
-        match &self.tracer {
-            CellTracer::Method { method, layout, leaf, sah_group, traversal, node_order, order, access } => {
-                c.insert("method".into(), method.to_string());
-                c.insert("layout".into(), layout.to_string());
-                c.insert("leaf".into(), leaf.to_string());
-                if let Some(g) = sah_group.filter(|&g| g != 1) {
-                    c.insert("sah_group".into(), g.to_string());
-                }
-                if *traversal != Traversal::default() {
-                    c.insert("traversal".into(), traversal.to_string());
-                }
-                if *node_order != NodeOrder::default() {
-                    c.insert("node_order".into(), node_order.to_string());
-                }
-                if *order != RayOrder::default() {
-                    c.insert("order".into(), order.to_string());
-                }
-                if *access != AccessPath::Texel {
-                    c.insert("access".into(), access.name().into());
-                }
-            }
-            CellTracer::Peer(p) => {
-                c.insert("peer".into(), p.clone());
-            }
-        }
-        c
     }
 }
 
