@@ -27,15 +27,6 @@ fn ab(extra: &[&str], timeout_s: u64) -> (std::process::Output, Value) {
     (o, v)
 }
 
-fn verdicts(report: &Value) -> Vec<(String, String)> {
-    report["cells"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| (c["cell"]["method"].as_str().unwrap().to_owned(), c["verdict"].as_str().unwrap_or("none").to_owned()))
-        .collect()
-}
-
 #[test]
 fn a_against_a_passes_and_nothing_is_hurt_beyond_the_threshold() {
     let dir = tempfile::tempdir().unwrap();
