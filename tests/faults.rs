@@ -202,13 +202,18 @@ fn cli_render_writes_what_it_had_when_the_device_is_lost() {
         &[&base[..], &["--spp", "400", "--submit-ms", "20", "--validation", "--out", &s(&out)]].concat(),
         &[("TRILAB_INJECT_FAULT", "device-lost@3")],
     );
-    let e = expect_failure(&o, &["device lost", "pathtrace.mt.", "pass 3 dispatch 3", "last completed: pathtrace.mt."]);
+    // The third dispatch is lost. Which pass it belongs to depends on the host: `--submit-ms`
+    // sizes dispatches by time, and a loaded host splits a pass in two (the soak of issue 40 saw
+    // "pass 2 dispatch 3 (samples 1..2, pixels 554..768)" after one whole pass), so only the
+    // dispatch is named here, and at least one whole pass is kept.
+    let e =
+        expect_failure(&o, &["device lost", "pathtrace.mt.", " dispatch 3 (samples ", "last completed: pathtrace.mt."]);
     assert!(e.contains("wrote the"), "{e}");
     let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("lost.json")).unwrap()).unwrap();
     assert!(j["failed"].as_str().unwrap().contains("device lost"), "{j}");
     assert_eq!(j["interrupted"], false);
     let spp = j["spp_done"].as_u64().unwrap();
-    assert!((2..400).contains(&spp), "{j}");
+    assert!((1..400).contains(&spp), "{j}");
     assert!(dir.path().join("lost.png").exists());
     let clean = dir.path().join("clean.exr");
     let o = trilab_env(&[&base[..], &["--spp", &spp.to_string(), "--out", &s(&clean)]].concat(), &[]);
