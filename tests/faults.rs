@@ -115,7 +115,7 @@ fn bits(accum: &[[f32; 4]]) -> Vec<u32> {
     accum.iter().flatten().map(|c| c.to_bits()).collect()
 }
 
-/// A 32x24 image is one dispatch per pass: the device is lost in pass 4, and the render hands
+/// A 32x24 image is one dispatch per pass on an idle host: the device is lost in pass 4, and the render hands
 /// back passes 1-3, bit for bit a clean render of that many samples.
 #[test]
 fn render_device_loss_keeps_the_last_whole_pass() {
@@ -126,17 +126,16 @@ fn render_device_loss_keeps_the_last_whole_pass() {
         let e = render_on(ctx, &s1).unwrap_err();
         let (result, during, markers) = render_fault_of(&e);
         assert_eq!(result, Some(vk::Result::ERROR_DEVICE_LOST));
-        assert!(during.starts_with("pathtrace.mt.") && during.contains(" pass 4 dispatch 4 (samples "), "{during}");
-        assert!(
-            markers.contains("last completed: pathtrace.mt.") && markers.contains(" pass 3 dispatch 3 "),
-            "{markers}"
-        );
+        // The fourth dispatch is lost; its pass is the fourth unless a loaded host made
+        // `submit_ms` split a pass (see cli_render_writes_what_it_had_when_the_device_is_lost).
+        assert!(during.starts_with("pathtrace.mt.") && during.contains(" dispatch 4 (samples "), "{during}");
+        assert!(markers.contains("last completed: pathtrace.mt.") && markers.contains(" dispatch 3 "), "{markers}");
         match e {
             RenderFailure::Partial(p) => *p.result,
             other => panic!("expected a partial render: {other:?}"),
         }
     });
-    assert!((3..400).contains(&partial.spp), "spp {}", partial.spp);
+    assert!((1..400).contains(&partial.spp), "spp {}", partial.spp);
     assert_eq!(partial.submits, 3);
     assert!(partial.failed.as_deref().is_some_and(|f| f.contains("device lost")), "{:?}", partial.failed);
     assert_eq!(partial.accum.len(), 32 * 24);
