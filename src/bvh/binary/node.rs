@@ -3,7 +3,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
-use super::Aabb;
+use crate::bvh::Aabb;
 
 /// `min, left_or_first, max, count` (Shumskiy & Parshin, sec. 3: "packed in 32 byte BVH node").
 /// Inner node: `count == 0`, children at `left_or_first` and `left_or_first + 1`.
