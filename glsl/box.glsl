@@ -3,7 +3,7 @@
 // conservative. Traversals hold a `BoxRay` (the TraceRay itself, or its ConservativeRay) made
 // once per ray by box_ray() from the tree's root box, and call hit_box(b, ...) on it; the
 // intersector still gets the TraceRay. Rust twins: traversal.rs (the slab tests step for step),
-// bvh/wide.rs.
+// bvh/slab.rs.
 #ifndef TRILAB_BOX
 #define TRILAB_BOX
 
@@ -14,7 +14,7 @@
 // It is the smallest normal f32 (2^-126), whose reciprocal 2^126 ~ 8.5e37 is still finite: a
 // zero component's slab then ends at |b - o| * 2^126 (inf past |b - o| = 4), not at
 // |b - o| * 1e30, which lost the hits of an axis-parallel ray beyond t ~ 1e30 on a small box
-// (issue 24: a triangle at x = 2^100). Rust's twins: traversal.rs, bvh/wide.rs.
+// (issue 24: a triangle at x = 2^100). Rust's twins: traversal.rs, bvh/slab.rs.
 const float TINY_DIR = 1.17549435e-38;
 // pbrt-v3/v4's conservative slab test: scale the far distance up by 1 + 2*gamma(3) so that
 // rounding never culls a box the ray grazes (Pharr, Jakob & Humphreys, PBR 3rd ed., 3.9.2).

@@ -151,7 +151,7 @@ impl<'a> Reference<'a> {
                     }
                     if let Some((t, u, v)) = intersect(&r, self.mesh.vertices_f64(id as usize)) {
                         // Ties go to the lower id, as in brute_force.
-                        if t < best.t || (t == best.t && id < best.id) {
+                        if crate::bvh::hit::wins(t, id, best.t, best.id) {
                             best = RefHit { t, id, u, v };
                             r.tmax = t;
                             if any {

@@ -2,7 +2,7 @@
 // its step, as every layout gives them to the traversals (layout_interface.glsl). Host side:
 // src/encoding/layout/bvh4.rs.
 //
-// Nodes are src/bvh/wide.rs's `Bvh4Node` (128 bytes, structure of arrays), bound at
+// Nodes are src/bvh/wide/'s `Bvh4Node` (128 bytes, structure of arrays), bound at
 // BINDING_NODES in place of the binary nodes: 8 texels per node, one per field, so node i is
 // texels 8i .. 8i + 7: min_x, min_y, min_z, max_x, max_y, max_z (the four children's box planes,
 // f32 bits), child, count. A child with count 0 is a node index; count > 0 is a leaf of `count`

@@ -2,7 +2,7 @@
 // its step, as every layout gives them to the traversals (layout_interface.glsl). Host side:
 // src/encoding/layout/bvh8.rs.
 //
-// Nodes are src/bvh/wide.rs's `Bvh8Node` (256 bytes, structure of arrays), bound at
+// Nodes are src/bvh/wide/'s `Bvh8Node` (256 bytes, structure of arrays), bound at
 // BINDING_NODES in place of the binary nodes: 16 texels per node, two per field (children 0-3,
 // then 4-7), so node i's field f is texels 16i + 2f and 16i + 2f + 1, fields in the order
 // min_x, min_y, min_z, max_x, max_y, max_z (f32 bits), child, count. A child with count 0 is a

@@ -5,7 +5,7 @@
 // own (LAYOUT_TRACE, layout_interface.glsl): trace() here runs in place of the per-ray while-if
 // loop, with the leaf loop (leaf.glsl), the box test (box.glsl) and the packed leaf entries
 // (LEAF_ENTRY, shared.glsl) every layout uses. Host side: src/encoding/layout/cwbvh.rs; the
-// format, the quantization and the CPU model of this loop: src/bvh/cwbvh.rs (CwNode,
+// format, the quantization and the CPU model of this loop: src/bvh/cwbvh/ (CwNode,
 // CwBvh::trace).
 //
 // Buffer at BINDING_NODES, 16-byte texels: node i is texels 5i .. 5i + 4,

@@ -9,8 +9,7 @@
 //! 2-, 4- and 8-wide trees in either collapse, the compressed tree in any slot order, any node
 //! order (tested here on a constructed tie), and the f64 reference they are checked against with
 //! `==` (`reference::brute_force` keeps the first of equal hits over ascending ids, and
-//! `reference::Reference::trace`, the binary tree's walk, writes this same condition; the
-//! reference is a layer above `bvh`, so it keeps its own line).
+//! `reference::Reference::trace`, the binary tree's walk, calls [`wins`]).
 //!
 //! The GPU kernels do not break ties this way. Their one leaf loop (`glsl/leaf.glsl`,
 //! `intersect_leaf`, used by every layout and traversal; `raycast_coop.comp` reproduces it)
@@ -46,7 +45,14 @@ impl WideHit {
 /// as near and on a lower id (the module docs say why).
 #[inline]
 pub fn closer(t: f64, id: u32, best: &WideHit) -> bool {
-    t < best.t || (t == best.t && id < best.id)
+    wins(t, id, best.t, best.id)
+}
+
+/// The rule itself, for a closest hit held in another type (the f64 reference's `RefHit`): a
+/// hit at `t` on `id` beats one at `best_t` on `best_id`.
+#[inline]
+pub fn wins(t: f64, id: u32, best_t: f64, best_id: u32) -> bool {
+    t < best_t || (t == best_t && id < best_id)
 }
 
 #[cfg(test)]
