@@ -1,0 +1,181 @@
+//! Pass 2 of a comparison: every figure of every matched cell judged by its class (a count
+//! exactly, correctness by direction, a timing against its command's mean change under the
+//! calibrated rule), with the totals, the count sums and what was not judged and why.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use super::judge::{judge, scaled, time_factor, FigureChange, Verdict};
+use super::report::{CountTotal, Totals};
+use super::{CompareOptions, Matched, TimingRule};
+use crate::rows::{self, Cell, Class, Row};
+
+/// What judging every figure of the matched cells gave.
+#[derive(Default)]
+pub(super) struct Judged {
+    pub(super) changes: Vec<FigureChange>,
+    pub(super) counts: BTreeMap<(String, String), CountTotal>,
+    pub(super) regressions: usize,
+    /// Figures that changed class, unit or direction: not compared.
+    pub(super) mismatched: Vec<String>,
+    /// (command, BASE's JIT CPU, NEW's) of counts not judged.
+    pub(super) other_cpus: BTreeSet<(String, String, String)>,
+    /// (command, BASE's GLSL compiler, NEW's) of counts not judged.
+    pub(super) other_compilers: BTreeSet<(String, String, String)>,
+    /// Each timed cell's one verdict under the calibrated rule (for the kernels' groups).
+    pub(super) cell_verdicts: BTreeMap<(String, Cell), Verdict>,
+}
+
+impl Judged {
+    /// What was not judged, and why.
+    pub(super) fn warnings(&self) -> Vec<String> {
+        let mut warnings = vec![];
+        if !self.mismatched.is_empty() {
+            warnings.push(format!(
+                "{} figure(s) changed class, unit or direction and were not compared, e.g. {}",
+                self.mismatched.len(),
+                self.mismatched[0]
+            ));
+        }
+        let name = |c: &String| if c.is_empty() { "not recorded".to_owned() } else { c.clone() };
+        for (command, b_cpu, n_cpu) in &self.other_cpus {
+            warnings.push(format!(
+                "{command}: the driver compiled BASE's kernels for another CPU than NEW's ({} {} / {}): their machine \
+                 code differs by the CPU alone, so its counts are not judged",
+                rows::JIT_CPU,
+                name(b_cpu),
+                name(n_cpu)
+            ));
+        }
+        for (command, b, n) in &self.other_compilers {
+            warnings.push(format!(
+                "{command}: BASE's SPIR-V and NEW's come from different GLSL compilers (BASE: {}; NEW: {}): their \
+                 counts differ by the compiler alone, so they are not judged",
+                name(b),
+                name(n)
+            ));
+        }
+        warnings
+    }
+}
+
+/// Pass 2: every figure of every matched cell judged by its class, counted into `totals`.
+pub(super) fn judge_figures(
+    matched: &[Matched],
+    rule: TimingRule,
+    o: &CompareOptions,
+    log_speed: &BTreeMap<String, (usize, f64)>,
+    totals: &mut Totals,
+) -> Judged {
+    // A command's speed NEW/BASE: the geometric mean over its cells.
+    let geomean = |c: &str| log_speed.get(c).map(|(_, mean_log_factor)| (-mean_log_factor).exp());
+    let mut j = Judged::default();
+    for (k, br, nr) in matched {
+        totals.cells_compared += 1;
+        let names: BTreeSet<&String> = br.figures.keys().chain(nr.figures.keys()).collect();
+        for name in names {
+            let (Some(bf), Some(nf)) = (br.figures.get(name), nr.figures.get(name)) else {
+                totals.figures_only_in_one_side += 1;
+                continue;
+            };
+            if bf.class != nf.class || bf.unit != nf.unit || bf.better != nf.better {
+                j.mismatched.push(format!("{} {name}", br.key()));
+                continue;
+            }
+            if rule == TimingRule::Ignore && bf.class == Class::Timing {
+                totals.timings_not_judged += 1;
+                continue;
+            }
+            // A count is the same code's only where both rows name the same CPU the driver's JIT
+            // compiled for and the same GLSL compiler (rows whose counts depend on neither, such
+            // as bench's bytes and SAH cost, name neither: equal).
+            let setting = |r: &Row, key: &str| r.source.settings.get(key).cloned().unwrap_or_default();
+            if bf.class == Class::Count && setting(br, rows::JIT_CPU) != setting(nr, rows::JIT_CPU) {
+                totals.counts_other_cpu += 1;
+                j.other_cpus.insert((k.0.clone(), setting(br, rows::JIT_CPU), setting(nr, rows::JIT_CPU)));
+                continue;
+            }
+            if bf.class == Class::Count && setting(br, rows::SPIRV_COMPILER) != setting(nr, rows::SPIRV_COMPILER) {
+                totals.counts_other_compiler += 1;
+                j.other_compilers.insert((
+                    k.0.clone(),
+                    setting(br, rows::SPIRV_COMPILER),
+                    setting(nr, rows::SPIRV_COMPILER),
+                ));
+                continue;
+            }
+            totals.figures_compared += 1;
+            let t = if bf.class == Class::Count { o.count_pct() } else { o.threshold_pct };
+            // Under the calibrated rule a timing is judged against its command's mean change.
+            let command_speed = geomean(&k.0).filter(|_| rule == TimingRule::Calibrated && bf.class == Class::Timing);
+            let judged = command_speed.map(|s| scaled(nf, 1.0 / s));
+            let (verdict, relative, beyond, regression) = judge(bf, judged.as_ref().unwrap_or(nf), t);
+            // Under the calibrated rule one timing alone is printed, not failed: on a busy host one
+            // sub-millisecond cell moves by itself far more than a kernel's slowdown (the kernels'
+            // groups below judge that, over all their cells).
+            let regression = regression && judged.is_none();
+            if judged.is_some() && bf.runs >= 2 && nf.runs >= 2 {
+                // A cell is slower (faster) when every timing of it is; one that disagrees with
+                // itself is within spread.
+                let e = j.cell_verdicts.entry((k.0.clone(), k.1.clone())).or_insert(verdict);
+                if *e != verdict {
+                    *e = Verdict::WithinSpread;
+                }
+            }
+            let factor = time_factor(bf, nf);
+            match verdict {
+                Verdict::Faster => totals.faster += 1,
+                Verdict::Slower => totals.slower += 1,
+                Verdict::WithinSpread => totals.within_spread += 1,
+                Verdict::NoSpread => totals.no_spread += 1,
+                Verdict::Better | Verdict::Worse if bf.class == Class::Count => totals.counts_changed += 1,
+                Verdict::Better | Verdict::Worse => totals.correctness_changed += 1,
+                Verdict::Unchanged => {}
+            }
+            if bf.class == Class::Correctness && verdict == Verdict::Worse {
+                totals.correctness_worse += 1;
+            }
+            if bf.class == Class::Timing && beyond {
+                if verdict == Verdict::Faster {
+                    totals.faster_beyond_threshold += 1;
+                } else {
+                    totals.slower_beyond_threshold += 1;
+                }
+            }
+            if bf.class == Class::Count {
+                let t = j.counts.entry((k.0.clone(), name.clone())).or_insert_with(|| CountTotal {
+                    command: k.0.clone(),
+                    figure: name.clone(),
+                    unit: bf.unit.clone(),
+                    base: 0.0,
+                    new: 0.0,
+                    cells: 0,
+                    cells_changed: 0,
+                });
+                t.base += bf.median;
+                t.new += nf.median;
+                t.cells += 1;
+                t.cells_changed += (verdict != Verdict::Unchanged) as usize;
+            }
+            j.regressions += regression as usize;
+            let change = FigureChange {
+                command: k.0.clone(),
+                cell: rows::cell_key("", &k.1).trim_start().to_owned(),
+                figure: name.clone(),
+                class: bf.class,
+                unit: bf.unit.clone(),
+                base: bf.clone(),
+                new: nf.clone(),
+                ratio: (bf.median != 0.0).then(|| nf.median / bf.median),
+                factor,
+                relative_factor: judged.and(relative),
+                verdict,
+                beyond_threshold: beyond,
+                regression,
+            };
+            if change.printed() {
+                j.changes.push(change);
+            }
+        }
+    }
+    j
+}
