@@ -61,14 +61,19 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
+/// Every `.rs` file under `src/`, sorted.
+fn source_files() -> Vec<PathBuf> {
+    let mut files = vec![];
+    rust_files(&src(), &mut files);
+    files.sort();
+    files
+}
+
 /// The library's files (the binary's `main.rs` and `cli/` left out) with their module paths:
 /// `src/gpu/raycast.rs` -> ["gpu", "raycast"], `src/gpu/mod.rs` -> ["gpu"].
 fn library_modules() -> Vec<(PathBuf, Vec<String>)> {
     let root = src();
-    let mut files = vec![];
-    rust_files(&root, &mut files);
-    files.sort();
-    files
+    source_files()
         .into_iter()
         .filter_map(|p| {
             let rel = p.strip_prefix(&root).unwrap().to_owned();
@@ -306,10 +311,7 @@ fn the_scan_finds_imports_and_ignores_comments() {
 /// with its code (comments left out).
 fn every_file() -> Vec<(String, String)> {
     let root = src();
-    let mut files = vec![];
-    rust_files(&root, &mut files);
-    files.sort();
-    files
+    source_files()
         .into_iter()
         .map(|p| {
             let rel = p.strip_prefix(&root).unwrap().to_string_lossy().replace('\\', "/");

@@ -559,7 +559,8 @@ mod tests {
     #[test]
     fn a_call_gets_its_answer_with_the_request_on_stdin_and_the_whole_stderr() {
         let dir = tempfile::tempdir().unwrap();
-        // Echoes the request it read back in its answer's count, and prints a dump on stderr.
+        // Runs only as `__worker` in its environment, reads a dispatch-kernels request and prints
+        // 3000 lines of a dump on stderr before its answer.
         let exe = script(
             dir.path(),
             "w.sh",
