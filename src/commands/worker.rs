@@ -16,7 +16,7 @@ use crate::gpu::Context;
 use crate::report::Status;
 use crate::services::driver_stats::{self, CollectOptions, Selection};
 use crate::services::worker::protocol::DriverStatsRequest;
-use crate::services::worker::{this_exe, Message, Request};
+use crate::services::worker::{say, this_exe, Message, Request};
 
 /// An `ab` side's work: its workload and where its cells' first-round hits go.
 pub struct AbSide<'a> {
@@ -52,11 +52,6 @@ pub fn serve(
         }
     }
     Ok(())
-}
-
-fn say(out: &mut impl Write, m: &Message) -> Result<()> {
-    let line = serde_json::to_string(m).expect("messages serialise");
-    writeln!(out, "{line}").and_then(|_| out.flush()).map_err(|e| Error::io(Path::new("stdout"), e))
 }
 
 /// One request's answer.

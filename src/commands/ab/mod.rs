@@ -77,11 +77,10 @@ impl Side {
     pub fn launch(&self, default: &Path) -> Launch {
         let mut l = Launch::new(self.exe(default));
         if let Some(icd) = &self.icd {
-            let icd = icd.display().to_string();
-            l = l.env("VK_DRIVER_FILES", icd.clone()).env("VK_ICD_FILENAMES", icd);
+            l = l.env("VK_DRIVER_FILES", icd).env("VK_ICD_FILENAMES", icd);
         }
         for (k, v) in &self.env {
-            l = l.env(k.clone(), v.clone());
+            l = l.env(k, v);
         }
         l
     }

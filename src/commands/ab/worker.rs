@@ -135,10 +135,7 @@ impl Workload {
 
 /// Runs the worker: loads `w`, prints `Ready`, then serves `input`'s commands on `output`.
 pub fn serve(ctx: &Context, w: &Workload, hits_dir: &Path, input: impl BufRead, mut output: impl Write) -> Result<()> {
-    let say = |out: &mut dyn Write, m: &Message| -> Result<()> {
-        let line = serde_json::to_string(m).expect("messages serialise");
-        writeln!(out, "{line}").and_then(|_| out.flush()).map_err(|e| Error::io(Path::new("stdout"), e))
-    };
+    let say = |out: &mut dyn Write, m: &Message| crate::services::worker::say(out, m);
     match load_and_serve(ctx, w, hits_dir, input, &mut output, &say) {
         Ok(()) => Ok(()),
         Err(e) => {

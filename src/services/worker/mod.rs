@@ -41,7 +41,7 @@ pub fn this_exe() -> Result<PathBuf> {
 pub struct Launch {
     pub exe: PathBuf,
     /// Variables set for the child only, in order (a later one wins).
-    pub env: Vec<(String, String)>,
+    pub env: Vec<(OsString, OsString)>,
     /// Variables the child does not inherit.
     pub unset: Vec<String>,
     /// `--device N`: the device the child opens (`None`: its own choice).
@@ -70,7 +70,7 @@ impl Launch {
     }
 
     /// Sets `key` to `value` for the child.
-    pub fn env(mut self, key: impl Into<String>, value: impl Into<String>) -> Launch {
+    pub fn env(mut self, key: impl Into<OsString>, value: impl Into<OsString>) -> Launch {
         self.env.push((key.into(), value.into()));
         self
     }
@@ -533,6 +533,12 @@ pub fn call(launch: &Launch, who: impl Into<String>, request: &Request) -> Resul
     Ok(Answered { message, stderr })
 }
 
+/// The child's side: writes `m` as one line on `out` (its stdout) and flushes it.
+pub fn say(out: &mut dyn Write, m: &Message) -> Result<()> {
+    let line = serde_json::to_string(m).expect("messages serialise");
+    writeln!(out, "{line}").and_then(|_| out.flush()).map_err(|e| Error::io(Path::new("stdout"), e))
+}
+
 /// An error for an answer of another kind than `expected`.
 pub fn unexpected(who: &str, expected: &str, got: &Message) -> Error {
     Error::Usage(format!("{who}: expected a `{expected}` answer, got `{}`", got.kind()))
@@ -565,13 +571,13 @@ mod tests {
             dir.path(),
             "w.sh",
             r#"[ "$1" = __worker ] || exit 9
-[ "$MY_SETTING" = on ] || exit 8
+[ "$MY_SETTING" = on ] && [ -z "${HOME+set}" ] || exit 8
 IFS= read -r req
 case "$req" in *dispatch-kernels*) ;; *) exit 7 ;; esac
 for i in $(seq 3000); do echo "  $i: some machine code line that is long enough" >&2; done
 echo '{"message":"dispatched","kernels":2}'"#,
         );
-        let l = Launch { whole_stderr: true, ..launch(&exe).env("MY_SETTING", "on") };
+        let l = Launch { whole_stderr: true, unset: vec!["HOME".into()], ..launch(&exe).env("MY_SETTING", "on") };
         let r =
             call(&l, "the test child", &Request::DispatchKernels { kernels: vec!["a".into(), "b".into()] }).unwrap();
         assert!(matches!(r.message, Message::Dispatched { kernels: 2 }), "{r:?}");
