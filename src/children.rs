@@ -1,8 +1,9 @@
-//! The processes trilab starts and waits for (bench once per LP_NUM_THREADS, the driver
-//! statistics child, the peers, `ab`'s workers, the build benchmark's peers): each in a process
-//! group of its own and listed here while it runs, so that a stop signal trilab catches reaches
-//! them and whatever they started ([`signal_all`]) instead of leaving them running after trilab
-//! has gone. Ground floor: it imports nothing of trilab.
+//! The processes trilab starts and waits for (trilab itself run again in another environment,
+//! through `services::worker`: `ab`'s sides, a bench per LP_NUM_THREADS, the driver statistics'
+//! child; the peers; the build benchmark's peers): each in a process group of its own and listed
+//! here while it runs, so that a stop signal trilab catches reaches them and whatever they
+//! started ([`signal_all`]) instead of leaving them running after trilab has gone. Ground floor:
+//! it imports nothing of trilab.
 //!
 //! A process group of their own also keeps a terminal's Ctrl-C from reaching them directly:
 //! the command that catches it forwards it (`trilab suite`, `study`, `ab`), and one that does

@@ -47,8 +47,8 @@ enum Cmd {
     Hits(cli::hits::HitsArgs),
     Ab(cli::ab::AbArgs),
     Gate(cli::gate::GateArgs),
-    #[command(name = "__ab-worker", hide = true)]
-    AbWorker(cli::ab::AbWorkerArgs),
+    #[command(name = "__worker", alias = "__ab-worker", hide = true)]
+    Worker(cli::ab::WorkerArgs),
 }
 
 /// A closed pipe on stdout (`trilab completions bash | head`) ends the process quietly, as it
@@ -105,7 +105,7 @@ fn main() -> ExitCode {
         Cmd::Hits(a) => cli::hits::run(a),
         Cmd::Ab(a) => cli::ab::run(a),
         Cmd::Gate(a) => cli::gate::run(a),
-        Cmd::AbWorker(a) => cli::ab::run_worker(a),
+        Cmd::Worker(a) => cli::ab::run_worker(a),
     });
     cli::exit(result)
 }

@@ -93,7 +93,7 @@ impl Table {
 }
 
 /// Median, min and max of a sample.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Summary {
     pub median: f64,
     pub min: f64,
@@ -116,7 +116,7 @@ impl Summary {
 
 /// Whether a part of a report could be measured, and if not, why not (a profile section, the
 /// driver statistics of a device).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
     Measured,

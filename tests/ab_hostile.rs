@@ -344,6 +344,50 @@ fn a_worker_binary_that_is_a_folder_or_missing_is_refused() {
     p.assert_clean(&e);
 }
 
+/// The child's side of the worker service: `trilab __worker` answers what is not one of its
+/// requests, and an `ab` side's request, with a typed `failed` message and a failing exit, never a
+/// panic; an `ab` side (`__ab-worker ... --hits-dir`, the name older parents use) reads typed
+/// requests and the words of protocols 1 and 2 alike.
+#[test]
+fn the_worker_answers_what_is_not_its_request_with_a_typed_failure() {
+    let p = Place::new();
+    let worker = |args: &[&str], input: &str| {
+        let env = p.env();
+        let env: Vec<(&str, &str)> = env.iter().map(|(k, v)| (*k, v.as_str())).collect();
+        let mut cmd = common::cli::command(args, Some(&p.cwd()), &env);
+        let o = common::cli::output_within(&mut cmd, Some(input.as_bytes()), Duration::from_secs(120), "the worker");
+        let messages: Vec<serde_json::Value> =
+            String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+        (o, messages)
+    };
+    for (input, needle) in [
+        ("hello\n", "unknown command `hello`"),
+        ("{\"request\": \"bench-threads\"}\n", "is not a request"),
+        ("{\"request\": \"cell\", \"index\": 0}\n", "rounds and cells are an ab side's"),
+    ] {
+        let (o, m) = worker(&["__worker"], input);
+        let e = common::cli::expect_error(&o, &[needle]);
+        assert_eq!(m.len(), 1, "one answer: {m:?}\n{e}");
+        assert_eq!(m[0]["message"], "failed", "{m:?}");
+        assert!(m[0]["error"].as_str().unwrap().contains(needle), "{m:?}");
+    }
+    let hits = p.input("hits");
+    std::fs::create_dir(&hits).unwrap();
+    let hits_arg = s(&hits);
+    let side = [&["__ab-worker"], &WORKLOAD[1..], &["--hits-dir", &hits_arg]].concat();
+    let (o, m) = worker(&side, "round\n{\"request\": \"cell\", \"index\": 0}\ncell 0\n{\"request\": \"quit\"}\n");
+    common::cli::ok(&o);
+    let kinds: Vec<&str> = m.iter().map(|x| x["message"].as_str().unwrap()).collect();
+    assert_eq!(kinds, ["ready", "round", "round", "round"], "{m:?}");
+    assert_eq!(m[0]["protocol"], trilab::services::worker::PROTOCOL, "{m:?}");
+    // A one-shot request is not an ab side's.
+    let (o, m) = worker(&side, "{\"request\": \"dispatch-kernels\", \"kernels\": []}\n");
+    common::cli::expect_error(&o, &["an ab side answers round, cell and quit"]);
+    assert_eq!(m.last().unwrap()["message"], "failed", "{m:?}");
+    std::fs::remove_dir_all(&hits).unwrap();
+    p.assert_clean("the worker");
+}
+
 // ---- Stop signals -----------------------------------------------------------------------------
 
 /// `ab` with the test workload and `extra`, in `p`'s folder and environment, running.

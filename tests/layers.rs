@@ -61,14 +61,19 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
+/// Every `.rs` file under `src/`, sorted.
+fn source_files() -> Vec<PathBuf> {
+    let mut files = vec![];
+    rust_files(&src(), &mut files);
+    files.sort();
+    files
+}
+
 /// The library's files (the binary's `main.rs` and `cli/` left out) with their module paths:
 /// `src/gpu/raycast.rs` -> ["gpu", "raycast"], `src/gpu/mod.rs` -> ["gpu"].
 fn library_modules() -> Vec<(PathBuf, Vec<String>)> {
     let root = src();
-    let mut files = vec![];
-    rust_files(&root, &mut files);
-    files.sort();
-    files
+    source_files()
         .into_iter()
         .filter_map(|p| {
             let rel = p.strip_prefix(&root).unwrap().to_owned();
@@ -300,4 +305,85 @@ fn the_scan_finds_imports_and_ignores_comments() {
     assert!(refs.contains(&"analyze".to_owned()), "{refs:?}");
     assert!(refs.contains(&"gpu::context".to_owned()), "{refs:?}");
     assert!(!refs.iter().any(|r| r.starts_with("commands") || r.starts_with("study")), "{refs:?}");
+}
+
+/// Every `.rs` file under `src/` (the command line's too), as `dir/file.rs` relative to `src/`,
+/// with its code (comments left out).
+fn every_file() -> Vec<(String, String)> {
+    let root = src();
+    source_files()
+        .into_iter()
+        .map(|p| {
+            let rel = p.strip_prefix(&root).unwrap().to_string_lossy().replace('\\', "/");
+            (rel, code(&std::fs::read_to_string(&p).unwrap()))
+        })
+        .collect()
+}
+
+/// Running trilab again, in another environment, is one service's (`services::worker`): it alone
+/// finds this executable to run and starts it, and what comes back is typed. Any other module
+/// that starts a process runs another program, named here with it; and JSON is read into an
+/// untyped `serde_json::Value` only where it is not our own output read back (or is written).
+#[test]
+fn only_the_worker_service_runs_trilab_again() {
+    let files = every_file();
+    let mut wrong = vec![];
+    // Who may find the running executable: the worker service (to run it), and the scene
+    // finder (scenes beside it; it runs nothing).
+    let finds_exe = ["services/worker/mod.rs", "scene/find.rs"];
+    // Who may start a process, and what it starts.
+    let starts = [
+        ("services/worker/mod.rs", "trilab itself, in another environment"),
+        ("children.rs", "the ground floor every child is started through"),
+        ("services/peers.rs", "the peer programs (Embree, tinybvh)"),
+        ("commands/build_bench.rs", "the build benchmark's peer programs, and dpkg-query"),
+        ("services/provenance.rs", "git, for the commit"),
+    ];
+    // Who may hold JSON untyped, and why it is not our output read back untyped.
+    let untyped = [
+        ("report.rs", "writes reports as pretty JSON through it"),
+        ("rows.rs", "checks a rows file's schema before reading the line typed"),
+        ("rays/sidecar.rs", "a ray file's free-form settings"),
+        ("commands/make_rays.rs", "writes those settings"),
+        ("commands/merge/mod.rs", "its tests read merge.json"),
+        ("commands/ab/mod.rs", "the Vulkan loader's ICD file; another build's provenance, carried as it wrote it"),
+        ("services/worker/protocol.rs", "another build's provenance in `ready`, read through ProvenanceFields"),
+        ("cli/dump.rs", "prints clap's command tree as JSON"),
+    ];
+    let mut seen = BTreeSet::new();
+    for (file, text) in &files {
+        if text.contains("current_exe") {
+            seen.insert("current_exe");
+            if !finds_exe.contains(&file.as_str()) {
+                wrong.push(format!("{file}: finds the running trilab (std::env::current_exe): use services::worker"));
+            }
+        }
+        let spawns = ["process::Command", "Command::new(", "children::spawn", "children::output", "fn spawn("]
+            .iter()
+            .any(|p| text.contains(p));
+        if spawns {
+            seen.insert("spawn");
+            if !starts.iter().any(|(f, _)| f == file) {
+                wrong.push(format!(
+                    "{file}: starts a process: trilab again goes through services::worker; another program is \
+                     listed in this test with what it is"
+                ));
+            }
+        }
+        if text.contains("serde_json::Value") || (text.contains("serde_json::{") && text.contains("Value")) {
+            seen.insert("value");
+            if !untyped.iter().any(|(f, _)| f == file) {
+                wrong.push(format!(
+                    "{file}: holds JSON as serde_json::Value: read our own output as the typed messages of \
+                     services::worker::protocol"
+                ));
+            }
+        }
+    }
+    assert_eq!(seen.len(), 3, "the scan found {seen:?}: it is broken");
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+    // Each listed module still does what it is listed for (a stale entry is an open door).
+    for (file, why) in starts.iter().chain(&untyped) {
+        assert!(files.iter().any(|(f, _)| f == file), "{file} ({why}) is listed but does not exist");
+    }
 }

@@ -1,4 +1,5 @@
-//! `trilab ab`, and the worker each of its sides runs (`trilab __ab-worker`, hidden).
+//! `trilab ab`, and the worker each of its sides runs (`trilab __worker`, hidden, by its older
+//! name `__ab-worker`), which also answers the other one-shot requests of the worker service.
 
 use super::OutArgs;
 use std::path::PathBuf;
@@ -257,7 +258,7 @@ pub fn run(a: AbArgs) -> Result<()> {
     if let Err(e) = handler {
         super::note(&format!("warning: cannot catch Ctrl-C or SIGTERM ({e}); a stopped run will not say where it was"));
     }
-    let exe = std::env::current_exe().map_err(|e| Error::io(std::path::Path::new("the trilab executable"), e))?;
+    let exe = trilab::services::worker::this_exe()?;
     let validation = a.gpu.validation || std::env::var("TRILAB_VALIDATION").is_ok_and(|v| v.trim() == "1");
     let o = AbOptions {
         workload: a.workload.workload(),
@@ -311,20 +312,23 @@ pub fn sigpipe(ignore: bool) {
 #[cfg(not(unix))]
 pub fn sigpipe(_ignore: bool) {}
 
-/// One side of `trilab ab` (run by it, not by hand).
+/// The worker service's child (run by trilab, not by hand): one-shot requests on stdin, or with
+/// --hits-dir one side of `trilab ab`.
 #[derive(Args)]
-pub struct AbWorkerArgs {
+pub struct WorkerArgs {
     #[command(flatten)]
     workload: WorkloadArgs,
-    /// Where each cell's first-round hits go.
+    /// Where each cell's first-round hits go: an `ab` side, serving this workload.
     #[arg(long, value_name = "DIR")]
-    hits_dir: PathBuf,
+    hits_dir: Option<PathBuf>,
     #[command(flatten)]
     gpu: GpuArgs,
 }
 
-pub fn run_worker(a: AbWorkerArgs) -> Result<()> {
+pub fn run_worker(a: WorkerArgs) -> Result<()> {
     let ctx = a.gpu.context()?;
+    let workload = a.workload.workload();
+    let side = a.hits_dir.as_deref().map(|hits_dir| trilab::commands::worker::AbSide { workload: &workload, hits_dir });
     let stdin = std::io::stdin();
-    ab::worker::serve(&ctx, &a.workload.workload(), &a.hits_dir, stdin.lock(), std::io::stdout().lock())
+    trilab::commands::worker::serve(&ctx, a.gpu.validation, side, stdin.lock(), std::io::stdout().lock())
 }

@@ -1,7 +1,7 @@
 //! `trilab driver-stats`.
 
 use super::OutArgs;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::Args;
 use trilab::commands::profile::Status;
@@ -46,10 +46,6 @@ pub struct DriverStatsArgs {
     /// Also keep each kernel's disassembly as `<DIR>/<kernel>.txt` (lavapipe).
     #[arg(long, value_name = "DIR")]
     asm_dir: Option<PathBuf>,
-    /// Internal: the child this command runs under GALLIVM_DEBUG=asm creates these kernels'
-    /// pipelines between marker lines on stderr.
-    #[arg(long, value_name = "NAMES", hide = true)]
-    emit_for_parent: Option<String>,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -59,12 +55,7 @@ pub struct DriverStatsArgs {
 const FILES: [&str; 3] = ["driver-stats.json", "driver-stats.md", trilab::rows::FILE];
 
 pub fn run(a: DriverStatsArgs) -> Result<()> {
-    if let Some(names) = &a.emit_for_parent {
-        let ctx = a.gpu.context()?;
-        let names: Vec<String> = names.split(',').map(str::to_owned).collect();
-        return driver_stats::emit_for_parent(&ctx, &names);
-    }
-    let exe = std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e))?;
+    let exe = trilab::services::worker::this_exe()?;
     let ctx = a.gpu.context()?;
     let selection = Selection {
         kernels: a.kernels.clone(),

@@ -74,7 +74,7 @@ pub fn run(a: GateArgs) -> Result<()> {
         (_, _, Some(why)) => BaseBuild::Missing { why },
         _ => return Err(Error::Usage("give --base-bin FILE --base-commit C, or --no-base WHY".into())),
     };
-    let exe = std::env::current_exe().map_err(|e| Error::io(std::path::Path::new("the trilab executable"), e))?;
+    let exe = trilab::services::worker::this_exe()?;
     let validation = a.gpu.validation || std::env::var("TRILAB_VALIDATION").is_ok_and(|v| v.trim() == "1");
     let defaults = gate::default_workload(a.workload.workload().sizes, a.workload.workload().build);
     let o = GateOptions {

@@ -1,7 +1,7 @@
 //! `trilab profile`.
 
 use super::OutArgs;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::Args;
 use trilab::commands::profile::{self, ProfileOptions};
@@ -75,14 +75,14 @@ pub struct ProfileArgs {
 
 pub fn run(a: ProfileArgs) -> Result<()> {
     trilab::commands::build_bench::check_threads(&a.threads)?;
-    let current_exe = || std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e));
-    let exe = if a.no_threads { None } else { Some(current_exe()?) };
+    let this_exe = trilab::services::worker::this_exe;
+    let exe = if a.no_threads { None } else { Some(this_exe()?) };
     let ctx = a.gpu.context()?;
     let driver_stats = if a.no_driver_stats {
         None
     } else {
         Some(CollectOptions {
-            exe: current_exe()?,
+            exe: this_exe()?,
             device_index: ctx.info().index,
             validation: a.gpu.validation,
             asm_dir: None,

@@ -1,7 +1,7 @@
 //! `trilab suite`.
 
 use super::OutArgs;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 use clap::Args;
@@ -78,8 +78,8 @@ pub fn run(a: SuiteArgs) -> Result<()> {
     if let Err(e) = handler {
         super::note(&format!("warning: cannot catch Ctrl-C or SIGTERM ({e}); a stopped run will not say what it kept"));
     }
-    let current_exe = || std::env::current_exe().map_err(|e| Error::io(Path::new("the trilab executable"), e));
-    let exe = if a.no_threads { None } else { Some(current_exe()?) };
+    let this_exe = trilab::services::worker::this_exe;
+    let exe = if a.no_threads { None } else { Some(this_exe()?) };
     let mut o = SuiteOptions {
         budget_minutes: a.budget_minutes,
         out: a.out.dir.clone().unwrap_or_default(),
@@ -95,7 +95,7 @@ pub fn run(a: SuiteArgs) -> Result<()> {
     let ctx = a.gpu.context()?;
     if !a.no_driver_stats {
         o.driver_stats = Some(CollectOptions {
-            exe: current_exe()?,
+            exe: this_exe()?,
             device_index: ctx.info().index,
             validation: a.gpu.validation,
             asm_dir: None,

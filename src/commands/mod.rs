@@ -2,7 +2,8 @@
 //! report, which the CLI (`src/cli/`) prints (text, or the struct as JSON) and writes. What
 //! commands share lives below them in [`crate::services`]. A command that needs another's work
 //! calls its typed options and report (the suite runs bench, study, accuracy and profile), never
-//! a spelled command line; work that must run in a fresh process goes through `ab`'s worker ([`ab::worker`]).
+//! a spelled command line; work that must run in a fresh process (another environment) goes
+//! through the worker service ([`crate::services::worker`]), whose requests [`worker`] serves.
 
 pub mod ab;
 pub mod accuracy;
@@ -25,3 +26,4 @@ pub mod spirv;
 pub mod steps;
 pub mod study;
 pub mod suite;
+pub mod worker;

@@ -3,7 +3,8 @@
 //! where a run ran ([`provenance`]), the host's calibration ([`calibration`]), plots
 //! ([`plots`]), result folders ([`results`]), shards ([`shard`]), the CPU peers ([`peers`],
 //! [`peer_report`]), timing renders ([`render_measure`]), the traversal roofline ([`roofline`]) and efficiency against it
-//! ([`efficiency`]), and driver-level statistics of compiled kernels ([`driver_stats`]).
+//! ([`efficiency`]), driver-level statistics of compiled kernels ([`driver_stats`]), and running
+//! trilab again in another environment, with typed requests and answers ([`worker`]).
 //!
 //! A service never imports a command (`tests/layers.rs`).
 
@@ -20,3 +21,4 @@ pub mod results;
 pub mod roofline;
 pub mod shard;
 pub mod validate;
+pub mod worker;

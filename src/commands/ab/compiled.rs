@@ -1,24 +1,30 @@
 //! `trilab ab --driver-stats`: what each side's driver compiled the cells' kernels to, diffed
 //! kernel by kernel (Mesa shader-db's report: only what changed, then totals).
 //!
-//! Each side runs `trilab driver-stats` as a child in that side's environment, after the timed
-//! rounds (its compiles would otherwise time the rounds): lavapipe's machine-code counts from
-//! `GALLIVM_DEBUG=asm`, or the executable statistics of a driver with
+//! Each side's worker ([`crate::services::worker`], in that side's environment, after the timed
+//! rounds: its compiles would otherwise time the rounds) is asked for the driver statistics of
+//! the cells' kernels, and answers with `driver-stats`' rows: lavapipe's machine-code counts
+//! from `GALLIVM_DEBUG=asm`, or the executable statistics of a driver with
 //! `VK_KHR_pipeline_executable_properties`. A driver without either (Debian 12's Mesa 22.3.6)
 //! gives that side's reason instead, and no cell is compared. Only ray-casting kernels are
-//! collected: `driver-stats` dispatches those alone.
+//! collected: `driver-stats` dispatches those alone. A build older than the typed requests
+//! (ab protocol 2) runs its own `trilab driver-stats` command instead.
 
 use std::collections::BTreeMap;
+use std::ffi::OsString;
 use std::path::Path;
-use std::process::{Command, Stdio};
 
 use serde::Serialize;
 
 use super::worker::{CellInfo, CellKind};
 use super::{AbOptions, Side};
+use crate::encoding::{Layout, Method};
 use crate::kernels::KERNELS;
+use crate::report::Status;
 use crate::rows::Row;
 use crate::services::driver_stats::{KernelCell, COMMAND};
+use crate::services::worker::protocol::{DriverStatsRequest, PROTOCOL_TYPED};
+use crate::services::worker::{self, Message, Request};
 
 /// One figure of one kernel that differs between the sides (every driver statistic is a count
 /// where fewer is better).
@@ -42,11 +48,11 @@ fn kernel_cell(c: &CellInfo) -> Option<KernelCell> {
     KERNELS.iter().find(|k| k.name == c.kernel).map(KernelCell::of)
 }
 
-/// Runs `trilab driver-stats` in `side`'s environment for the ray-casting cells' kernels,
-/// writing into `dir`; `rows` is empty and `note` says why when the driver has no statistics.
-/// The rows carry the side's `name` (setting `ab_side`, as its bench rows do), so `merge`
-/// keeps both sides' measurements of one kernel apart.
-pub fn collect(o: &AbOptions, name: &str, side: &Side, cells: &[CellInfo], dir: &Path) -> SideStats {
+/// Asks `side`'s worker (ab protocol `protocol`) for the driver statistics of the ray-casting
+/// cells' kernels; `rows` is empty and `note` says why when the driver has none. The rows carry
+/// the side's `name` (setting `ab_side`, as its bench rows do), so `merge` keeps both sides'
+/// measurements of one kernel apart. `dir`: where an older build writes its files.
+pub fn collect(o: &AbOptions, name: &str, side: &Side, protocol: u32, cells: &[CellInfo], dir: &Path) -> SideStats {
     let none = |note: String| SideStats { rows: vec![], note };
     let coords: Vec<KernelCell> =
         cells.iter().filter(|c| c.kind == CellKind::Raycast).filter_map(kernel_cell).collect();
@@ -54,48 +60,78 @@ pub fn collect(o: &AbOptions, name: &str, side: &Side, cells: &[CellInfo], dir: 
         return none("no ray-casting cell (driver-stats dispatches ray-casting kernels only)".into());
     }
     let list = |field: fn(&KernelCell) -> &str| {
-        let mut v: Vec<&str> = coords.iter().map(field).collect();
+        let mut v: Vec<String> = coords.iter().map(|c| field(c).to_owned()).collect();
         v.sort_unstable();
         v.dedup();
-        v.join(",")
+        v
     };
-    let mut cmd = Command::new(side.exe(&o.exe));
-    cmd.arg(COMMAND)
-        .args(["--kernels", &list(|c| &c.kernel), "--variants", &list(|c| &c.variant)])
-        .args(["--methods", &list(|c| &c.method), "--layouts", &list(|c| &c.layout)])
-        .arg("--out")
-        .arg(dir);
-    if o.validation {
-        cmd.arg("--validation");
+    let methods: Result<Vec<Method>, String> = list(|c| &c.method).iter().map(|n| n.parse()).collect();
+    let layouts: Result<Vec<Layout>, String> = list(|c| &c.layout).iter().map(|n| n.parse()).collect();
+    let (methods, layouts) = match (methods, layouts) {
+        (Ok(m), Ok(l)) => (m, l),
+        (Err(e), _) | (_, Err(e)) => return none(format!("a cell's kernel names no method or layout: {e}")),
+    };
+    let request = DriverStatsRequest { kernels: list(|c| &c.kernel), variants: list(|c| &c.variant), methods, layouts };
+    let launch = side.launch(&o.exe).validation(o.validation);
+    let (mut rows, note) = if protocol < PROTOCOL_TYPED {
+        match older_build(&launch, &request, dir) {
+            Ok(got) => got,
+            Err(note) => return none(note),
+        }
+    } else {
+        let who = format!("side {name}");
+        match worker::call(&launch, &who, &Request::DriverStats(request)).map(|a| a.message) {
+            Ok(Message::DriverStats { status: Status::Measured, note, rows }) => (rows, note),
+            Ok(Message::DriverStats { note, .. }) => return none(format!("{COMMAND}: {note}")),
+            Ok(other) => return none(worker::unexpected(&who, "driver-stats", &other).to_string()),
+            Err(e) => return none(format!("{COMMAND} failed: {e}")),
+        }
+    };
+    for r in &mut rows {
+        r.source.settings.insert(super::SIDE_SETTING.into(), name.into());
     }
-    side.apply(&mut cmd);
-    let out = match crate::children::spawn(cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped()))
-        .and_then(crate::children::Running::wait_with_output)
-    {
-        Ok(out) => out,
-        Err(e) => return none(format!("could not run {} {COMMAND}: {e}", side.exe(&o.exe).display())),
-    };
+    SideStats { rows, note }
+}
+
+/// A build older than the typed requests: its own `trilab driver-stats` command, writing into
+/// `dir`; its rows and note, or why there are none.
+fn older_build(
+    launch: &worker::Launch,
+    r: &DriverStatsRequest,
+    dir: &Path,
+) -> std::result::Result<(Vec<Row>, String), String> {
+    let join = |v: Vec<String>| v.join(",");
+    let mut args: Vec<OsString> = vec![COMMAND.into()];
+    for (flag, v) in [
+        ("--kernels", r.kernels.join(",")),
+        ("--variants", r.variants.join(",")),
+        ("--methods", join(r.methods.iter().map(ToString::to_string).collect())),
+        ("--layouts", join(r.layouts.iter().map(ToString::to_string).collect())),
+    ] {
+        args.extend([flag.into(), v.into()]);
+    }
+    args.extend([OsString::from("--out"), dir.into()]);
+    let out =
+        launch.run_command(&args).map_err(|e| format!("could not run {} {COMMAND}: {e}", launch.exe.display()))?;
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
         let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("(no message)");
         let why = last.trim().trim_start_matches("trilab: error: ").trim_start_matches(&format!("{COMMAND}: "));
-        return none(format!("{COMMAND} failed ({}): {why}", out.status));
+        return Err(format!("{COMMAND} failed ({}): {why}", out.status));
+    }
+    /// The one field of its `driver-stats.json` read here.
+    #[derive(serde::Deserialize)]
+    struct Note {
+        #[serde(default)]
+        note: String,
     }
     let note = std::fs::read_to_string(dir.join("driver-stats.json"))
         .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        .and_then(|v| v["note"].as_str().map(str::to_owned))
+        .and_then(|t| serde_json::from_str::<Note>(&t).ok())
+        .map(|n| n.note)
         .unwrap_or_default();
-    match crate::rows::read(dir) {
-        Ok(set) => {
-            let mut rows = set.rows;
-            for r in &mut rows {
-                r.source.settings.insert(super::SIDE_SETTING.into(), name.into());
-            }
-            SideStats { rows, note }
-        }
-        Err(e) => none(format!("{COMMAND} wrote no readable rows: {e}")),
-    }
+    let set = crate::rows::read(dir).map_err(|e| format!("{COMMAND} wrote no readable rows: {e}"))?;
+    Ok((set.rows, note))
 }
 
 /// The figures of `cell`'s kernel in `rows`, name to value.

@@ -21,12 +21,11 @@ pub mod compiled;
 pub mod interval;
 pub mod worker;
 
-use std::io::{BufRead, BufReader, Write};
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::process::{ChildStdin, Command, Stdio};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{mpsc, Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
 
 use serde::Serialize;
 
@@ -35,9 +34,11 @@ use crate::named::named_enum;
 use crate::report::{Report, Table};
 use crate::rows::{cell, Better, Class, Figure, Row, Source};
 use crate::services::results::Folder;
+use crate::services::worker::protocol::{ProvenanceFields, SESSION_COMMAND};
+use crate::services::worker::{quote, Launch, Session};
 use compiled::StatChange;
 use interval::{Ratio, Verdict};
-use worker::{CellInfo, CellKind, CellRound, Message, Workload};
+use worker::{CellInfo, CellKind, CellRound, Message, Request, Workload};
 
 /// One side: the trilab build it runs, the driver the loader is given and the environment it
 /// runs in.
@@ -71,14 +72,17 @@ impl Side {
         self.exe.as_deref().unwrap_or(default)
     }
 
-    /// Gives `cmd` this side's driver and environment.
-    pub fn apply(&self, cmd: &mut Command) {
+    /// This side's executable (its own, or `default`: the running trilab) in its driver and
+    /// environment.
+    pub fn launch(&self, default: &Path) -> Launch {
+        let mut l = Launch::new(self.exe(default));
         if let Some(icd) = &self.icd {
-            cmd.env("VK_DRIVER_FILES", icd).env("VK_ICD_FILENAMES", icd);
+            l = l.env("VK_DRIVER_FILES", icd).env("VK_ICD_FILENAMES", icd);
         }
         for (k, v) in &self.env {
-            cmd.env(k, v);
+            l = l.env(k, v);
         }
+        l
     }
 }
 
@@ -384,9 +388,8 @@ impl AbReport {
 }
 
 fn side_label(s: &SideReport) -> String {
-    let p = &s.provenance;
-    let field = |k: &str| p.get(k).and_then(|v| v.as_str()).unwrap_or("?").to_owned();
-    format!("{} on {}", field("driver"), field("device"))
+    let p = ProvenanceFields::of(&s.provenance);
+    format!("{} on {}", p.driver.as_deref().unwrap_or("?"), p.device.as_deref().unwrap_or("?"))
 }
 
 /// No plan: the cells are what both sides ran.
@@ -586,18 +589,16 @@ pub fn rows(r: &AbReport) -> Vec<Row> {
 }
 
 fn source_of(side: &SideReport) -> Source {
-    let p = &side.provenance;
-    let s = |k: &str| p.get(k).and_then(|v| v.as_str()).unwrap_or_default().to_owned();
-    let mut settings: std::collections::BTreeMap<String, String> =
-        p.get("settings").and_then(|v| serde_json::from_value(v.clone()).ok()).unwrap_or_default();
+    let p = ProvenanceFields::of(&side.provenance);
+    let mut settings = p.settings;
     settings.insert(SIDE_SETTING.into(), side.name.into());
     Source {
-        device: s("device"),
-        driver: s("driver"),
-        commit: s("commit"),
-        date: s("date"),
+        device: p.device.unwrap_or_default(),
+        driver: p.driver.unwrap_or_default(),
+        commit: p.commit.unwrap_or_default(),
+        date: p.date.unwrap_or_default(),
         settings,
-        host: p.get("host").and_then(|v| serde_json::from_value(v.clone()).ok()),
+        host: p.host,
     }
 }
 
@@ -621,26 +622,10 @@ fn shader_cache(env: &[(String, String)]) -> String {
     }
 }
 
-/// The longest line a worker may print: a `ready` message of thousands of cells is a few MiB,
-/// and a longer line is not one of its messages (read whole, it would only fill memory).
-pub const MAX_LINE: usize = 16 << 20;
+pub use crate::services::worker::{set_session_timeout as set_worker_timeout, MAX_LINE};
 
 /// How long `ab` waits for one message of a worker by default ([`set_worker_timeout`]).
-pub const DEFAULT_WORKER_TIMEOUT_S: f64 = 600.0;
-
-/// The longest wait for one message of a worker, in ms (process-wide: `ab` and `gate` set it
-/// from `--worker-timeout` before their sides start).
-static WORKER_TIMEOUT_MS: AtomicU64 = AtomicU64::new((DEFAULT_WORKER_TIMEOUT_S * 1e3) as u64);
-
-/// Sets how long a worker may stay silent (setting up, or in one run of one cell, or one round)
-/// before it is killed and named: the run is then exit 2, the sides could not be compared.
-pub fn set_worker_timeout(t: Duration) {
-    WORKER_TIMEOUT_MS.store(t.as_millis().clamp(1, u64::MAX as u128) as u64, Ordering::Relaxed);
-}
-
-fn worker_timeout() -> Duration {
-    Duration::from_millis(WORKER_TIMEOUT_MS.load(Ordering::Relaxed))
-}
+pub const DEFAULT_WORKER_TIMEOUT_S: f64 = crate::services::worker::DEFAULT_TIMEOUT_S;
 
 /// Where a run is, for a stop handler ([`stop_requested`]): the stage, the rounds done and the
 /// temporary folder the workers write their hits to.
@@ -696,109 +681,10 @@ pub fn remove_temp() {
     }
 }
 
-/// One thing a worker's stdout gave.
-enum Line {
-    Text(String),
-    /// A line past [`MAX_LINE`]: its first bytes.
-    TooLong(String),
-    Unreadable(std::io::Error),
-}
-
-/// The next line of `r` (without its newline), at most `max` bytes; `None` at the end.
-fn read_line(r: &mut impl BufRead, max: usize) -> Option<Line> {
-    let mut acc: Vec<u8> = vec![];
-    loop {
-        let buf = match r.fill_buf() {
-            Ok(b) => b,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-            Err(e) => return Some(Line::Unreadable(e)),
-        };
-        if buf.is_empty() {
-            return (!acc.is_empty()).then(|| Line::Text(String::from_utf8_lossy(&acc).into_owned()));
-        }
-        let (take, end) = match buf.iter().position(|&c| c == b'\n') {
-            Some(i) => (i, true),
-            None => (buf.len(), false),
-        };
-        if acc.len() + take > max {
-            acc.extend_from_slice(&buf[..take.min(QUOTE)]);
-            acc.truncate(QUOTE);
-            return Some(Line::TooLong(String::from_utf8_lossy(&acc).into_owned()));
-        }
-        acc.extend_from_slice(&buf[..take]);
-        r.consume(take + usize::from(end));
-        if end {
-            return Some(Line::Text(String::from_utf8_lossy(&acc).into_owned()));
-        }
-    }
-}
-
-/// Bytes of a worker's line an error quotes.
-const QUOTE: usize = 200;
-
-/// `line` for an error message: at most [`QUOTE`] bytes of it, and its length when longer.
-fn quote(line: &str) -> String {
-    if line.len() <= QUOTE {
-        return format!("`{line}`");
-    }
-    let mut end = QUOTE;
-    while !line.is_char_boundary(end) {
-        end -= 1;
-    }
-    format!("`{}`... ({} bytes)", &line[..end], line.len())
-}
-
-/// How a process ended, in words: `was killed by signal 11 (SIGSEGV)`, `ended with exit
-/// status 3`.
-fn ended(status: std::process::ExitStatus) -> String {
-    #[cfg(unix)]
-    if let Some(s) = std::os::unix::process::ExitStatusExt::signal(&status) {
-        let name = match s {
-            libc::SIGSEGV => " (SIGSEGV)",
-            libc::SIGABRT => " (SIGABRT)",
-            libc::SIGKILL => " (SIGKILL)",
-            libc::SIGTERM => " (SIGTERM)",
-            libc::SIGINT => " (SIGINT)",
-            libc::SIGBUS => " (SIGBUS)",
-            libc::SIGILL => " (SIGILL)",
-            libc::SIGFPE => " (SIGFPE)",
-            libc::SIGPIPE => " (SIGPIPE)",
-            _ => "",
-        };
-        return format!("was killed by signal {s}{name}");
-    }
-    match status.code() {
-        Some(c) => format!("ended with exit status {c}"),
-        None => format!("ended ({status})"),
-    }
-}
-
-/// Whether `child` has ended, without reaping it.
-fn exited(child: &mut crate::children::Running) -> bool {
-    #[cfg(unix)]
-    {
-        // SAFETY: waitid(2) with WNOWAIT | WNOHANG only reads the child's state into a zeroed
-        // siginfo_t it is given; si_pid stays 0 while the child runs.
-        unsafe {
-            let mut info: libc::siginfo_t = std::mem::zeroed();
-            let flags = libc::WEXITED | libc::WNOWAIT | libc::WNOHANG;
-            libc::waitid(libc::P_PID, child.id() as libc::id_t, &mut info, flags) != 0 || info.si_pid() != 0
-        }
-    }
-    #[cfg(not(unix))]
-    child.child().try_wait().map_or(true, |s| s.is_some())
-}
-
-/// A running side.
+/// A running side: its worker ([`worker`], a session of the worker service) and the folder
+/// its cells' first-round hits go to.
 struct Worker {
-    name: &'static str,
-    /// `None` once it has been waited for.
-    child: Option<crate::children::Running>,
-    stdin: Option<ChildStdin>,
-    lines: mpsc::Receiver<Line>,
-    /// Its stderr so far, and a message when the whole of it has been read.
-    stderr: Arc<Mutex<Vec<u8>>>,
-    stderr_done: mpsc::Receiver<()>,
+    session: Session,
     hits_dir: PathBuf,
 }
 
@@ -806,159 +692,28 @@ impl Worker {
     fn start(o: &AbOptions, w: &Workload, name: &'static str, side: &Side, dir: &Path) -> Result<Worker> {
         let hits_dir = dir.join(name);
         std::fs::create_dir_all(&hits_dir).map_err(|e| Error::io(&hits_dir, e))?;
-        let exe = side.exe(&o.exe);
-        let mut cmd = Command::new(exe);
-        cmd.arg("__ab-worker").args(w.args()).arg("--hits-dir").arg(&hits_dir);
-        if o.validation {
-            cmd.arg("--validation");
-        }
-        side.apply(&mut cmd);
-        let mut child = crate::children::spawn(cmd.stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()))
-            .map_err(|e| Error::Usage(format!("side {name}: cannot run {}: {e}", exe.display())))?;
-        let stdin = child.child().stdin.take().expect("piped");
-        let mut out = BufReader::new(child.child().stdout.take().expect("piped"));
-        let (tx, lines) = mpsc::channel();
-        // The worker's stdout is read on a thread of its own, so a worker that says nothing
-        // (hung) is waited for a bounded time, and then killed.
-        std::thread::spawn(move || {
-            while let Some(line) = read_line(&mut out, MAX_LINE) {
-                let last = !matches!(line, Line::Text(_));
-                if tx.send(line).is_err() || last {
-                    return;
-                }
-            }
-        });
-        let mut err = child.child().stderr.take().expect("piped");
-        let stderr = Arc::new(Mutex::new(Vec::new()));
-        let (done, stderr_done) = mpsc::channel();
-        let kept = stderr.clone();
-        std::thread::spawn(move || {
-            let mut buf = [0u8; 8192];
-            loop {
-                match std::io::Read::read(&mut err, &mut buf) {
-                    Ok(0) => break,
-                    Ok(n) => {
-                        let mut k = kept.lock().unwrap_or_else(|e| e.into_inner());
-                        // The last MiB or two are plenty for the message's tail.
-                        if k.len() > 2 << 20 {
-                            k.drain(..1 << 20);
-                        }
-                        k.extend_from_slice(&buf[..n]);
-                    }
-                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                    Err(_) => break,
-                }
-            }
-            let _ = done.send(());
-        });
-        Ok(Worker { name, child: Some(child), stdin: Some(stdin), lines, stderr, stderr_done, hits_dir })
-    }
-
-    /// Its stderr so far (all of it once it has ended, or after a second's wait).
-    fn stderr_text(&self) -> String {
-        let _ = self.stderr_done.recv_timeout(Duration::from_secs(1));
-        String::from_utf8_lossy(&self.stderr.lock().unwrap_or_else(|e| e.into_inner())).into_owned()
-    }
-
-    /// Kills the worker's process group (the worker and whatever it started), then reaps the
-    /// worker; its status. The group is signalled before the worker is reaped, so its id is
-    /// still this group's.
-    fn kill(&mut self) -> Option<std::process::ExitStatus> {
-        let mut child = self.child.take()?;
-        #[cfg(unix)]
-        // SAFETY: kill(2) with a negative pid signals that process group: the worker's own,
-        // which `children::spawn` made, its leader not yet reaped.
-        unsafe {
-            libc::kill(-(child.id() as libc::pid_t), libc::SIGKILL);
-        }
-        #[cfg(not(unix))]
-        let _ = child.child().kill();
-        child.wait().ok()
-    }
-
-    /// Waits up to `limit` for the worker to end, without reaping it (see [`Worker::kill`]).
-    fn wait_for_exit(&mut self, limit: Duration) -> bool {
-        let start = Instant::now();
-        loop {
-            let Some(child) = self.child.as_mut() else { return true };
-            if exited(child) {
-                return true;
-            }
-            if start.elapsed() > limit {
-                return false;
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-    }
-
-    /// Its end, once its stdout or stdin has closed: how it ended (`was killed by signal 11
-    /// (SIGSEGV)`, `ended with exit status 3`), or that it lingered and was killed.
-    fn how_it_ended(&mut self) -> String {
-        let exited = self.wait_for_exit(Duration::from_secs(5));
-        match self.kill() {
-            Some(status) if exited => ended(status),
-            _ => "closed its output but did not end (killed)".into(),
-        }
-    }
-
-    /// An error naming the side, what happened and `when`, with the worker's last stderr lines;
-    /// the worker is killed.
-    fn fail(&mut self, what: &str, when: &str) -> Error {
-        self.kill();
-        Error::Usage(format!("side {}: {what} {when}{}", self.name, tail(&self.stderr_text())))
-    }
-
-    /// The worker's next message (`when`: what it was doing, for an error); its failure, its
-    /// end, a line that is not a message, or silence past the timeout as an error naming the
-    /// side.
-    fn next(&mut self, when: &str) -> Result<Message> {
-        let limit = worker_timeout();
-        match self.lines.recv_timeout(limit) {
-            Ok(Line::Text(line)) => {
-                match serde_json::from_str::<Message>(&line) {
-                    Ok(Message::Failed { error }) => Err(self.fail(&format!("the worker failed ({error})"), when)),
-                    Ok(m) => Ok(m),
-                    Err(e) => Err(self
-                        .fail(&format!("the worker printed what is not an ab message ({e}): {}", quote(&line)), when)),
-                }
-            }
-            Ok(Line::TooLong(start)) => Err(self.fail(
-                &format!(
-                    "the worker printed a line of more than {} MiB (not an ab message), starting `{start}`...",
-                    MAX_LINE >> 20,
-                ),
-                when,
-            )),
-            Ok(Line::Unreadable(e)) => Err(self.fail(&format!("the worker's output could not be read ({e})"), when)),
-            Err(mpsc::RecvTimeoutError::Timeout) => {
-                let what =
-                    format!("the worker said nothing for {} (--worker-timeout) and was killed", show_seconds(limit));
-                Err(self.fail(&what, when))
-            }
-            Err(mpsc::RecvTimeoutError::Disconnected) => {
-                let how = self.how_it_ended();
-                Err(self.fail(&format!("the worker {how}"), when))
-            }
-        }
-    }
-
-    fn send(&mut self, command: &str, when: &str) -> Result<()> {
-        let Some(stdin) = self.stdin.as_mut() else {
-            return Err(Error::Usage(format!("side {}: the worker has ended", self.name)));
+        let mut args: Vec<OsString> = vec![SESSION_COMMAND.into()];
+        args.extend(w.args().into_iter().map(OsString::from));
+        args.extend([OsString::from("--hits-dir"), hits_dir.clone().into()]);
+        let launch = Launch {
+            timeout: Some(crate::services::worker::session_timeout()),
+            ..side.launch(&o.exe).validation(o.validation)
         };
-        match writeln!(stdin, "{command}").and_then(|_| stdin.flush()) {
-            Ok(()) => Ok(()),
-            Err(e) => {
-                let how = self.how_it_ended();
-                Err(self.fail(&format!("the worker stopped reading its commands ({e}): it {how}"), when))
-            }
-        }
+        let session = Session::start(&launch, format!("side {name}"), &args)?.speaking("an ab message");
+        Ok(Worker { session, hits_dir })
+    }
+
+    fn fail(&mut self, what: &str, when: &str) -> Error {
+        self.session.fail(what, when)
+    }
+
+    fn next(&mut self, when: &str) -> Result<Message> {
+        self.session.next(when)
     }
 
     /// Asks for one run of cell `i` (protocol 2).
     fn cell(&mut self, i: usize, when: &str) -> Result<CellRound> {
-        self.send(&format!("cell {i}"), when)?;
-        match self.next(when)? {
+        match self.session.ask(&Request::Cell { index: i }, when)? {
             Message::Round { mut cells } if cells.len() == 1 => Ok(cells.remove(0)),
             other => Err(self.fail(&format!("expected cell {i}'s round, got {}", quote(&format!("{other:?}"))), when)),
         }
@@ -966,40 +721,15 @@ impl Worker {
 
     /// Asks for one round.
     fn round(&mut self, when: &str) -> Result<Vec<CellRound>> {
-        self.send("round", when)?;
-        match self.next(when)? {
+        match self.session.ask(&Request::Round, when)? {
             Message::Round { cells } => Ok(cells),
             other => Err(self.fail(&format!("expected a round, got {}", quote(&format!("{other:?}"))), when)),
         }
     }
 
     /// Asks the worker to end and waits for it (killing it past the timeout); its stderr.
-    fn finish(mut self) -> String {
-        if let Some(mut stdin) = self.stdin.take() {
-            let _ = writeln!(stdin, "quit").and_then(|_| stdin.flush());
-        }
-        // Reaped, and anything it left in its group ended with it.
-        self.wait_for_exit(worker_timeout());
-        self.kill();
-        self.stderr_text()
-    }
-}
-
-impl Drop for Worker {
-    /// A worker left behind by an error (the other side failed, a refusal) does not outlive it.
-    fn drop(&mut self) {
-        self.stdin.take();
-        self.kill();
-    }
-}
-
-/// `3 s`, `0.5 s`.
-fn show_seconds(d: Duration) -> String {
-    let s = d.as_secs_f64();
-    if s.fract() == 0.0 {
-        format!("{s:.0} s")
-    } else {
-        format!("{s} s")
+    fn finish(self) -> String {
+        self.session.finish()
     }
 }
 
@@ -1052,6 +782,8 @@ fn start_side(o: &AbOptions, w: &Workload, name: &'static str, side: &Side, dir:
             when,
         ));
     }
+    // Its requests from now on in the words of its protocol (an older build's: `cell N`).
+    worker.session.speaks_protocol(protocol);
     let report = SideReport {
         name,
         given: side.clone(),
@@ -1302,7 +1034,8 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     let stats = o.driver_stats.then(|| {
         [("A", &o.a), ("B", &o.b)].map(|(name, side)| {
             progress(&format!("side {name}: driver statistics"));
-            compiled::collect(o, name, side, &matched_b, &tmp.path().join(format!("driver-stats-{name}")))
+            let protocol = if name == "A" { report_a.protocol } else { report_b.protocol };
+            compiled::collect(o, name, side, protocol, &matched_b, &tmp.path().join(format!("driver-stats-{name}")))
         })
     });
     let mut out = vec![];
@@ -1486,16 +1219,6 @@ fn kernel_ratio(times: &[Vec<Vec<Option<f64>>>; 2], members: &[usize], paired: b
     let per_round =
         |side: usize| -> Vec<f64> { (0..rounds(side)).filter_map(|r| log_mean(side, r).map(f64::exp)).collect() };
     Ratio::welch(&per_round(0), &per_round(1), LEVEL)
-}
-
-/// The last lines of a worker's stderr, for an error message.
-fn tail(stderr: &str) -> String {
-    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
-    if lines.is_empty() {
-        String::new()
-    } else {
-        format!("\n{}", lines[lines.len().saturating_sub(8)..].join("\n"))
-    }
 }
 
 /// Writes `ab.json`, `ab.md` (the text report) and `rows.jsonl` (the `ab` rows) into `dir`,

@@ -3,17 +3,16 @@
 //! warm-up of every cell) and then times one round of every cell each time the parent asks.
 //! A driver is loaded once per process, so each side needs its own.
 //!
-//! The protocol is JSON lines: the worker prints [`Message::Ready`] (its protocol version,
-//! provenance and cells), then reads one command a line on stdin and answers it with
-//! [`Message::Round`]: `round` times every cell once, `cell N` (protocol 2) times cell N once;
-//! `quit` ends it. Any failure is [`Message::Failed`] and the end of the process. Each cell's
+//! The protocol is the worker service's ([`crate::services::worker::protocol`], JSON lines): the
+//! worker prints [`Message::Ready`] (its protocol version, provenance and cells), then reads one
+//! [`Request`] a line on stdin and answers it with [`Message::Round`]: `round` times every cell
+//! once, `cell` (protocol 2) times one cell once; `quit` ends it (the words of protocols 1 and 2
+//! are read too). Any failure is [`Message::Failed`] and the end of the process. Each cell's
 //! first timed run writes its hits to `<hits_dir>/<cell index>.hits` (a path-trace cell its
 //! image), so the parent can compare the sides ray by ray.
 
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
-
-use serde::{Deserialize, Serialize};
 
 use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
@@ -31,6 +30,9 @@ use crate::services::provenance::Provenance;
 use crate::services::rayset::{ray_sets, RaySet, RaySetSizes};
 use crate::services::render_measure::{bench_settings, check_image_mean, summarise_renders};
 use crate::services::validate::MIN_AGREEMENT;
+pub use crate::services::worker::protocol::{
+    while_if, CellInfo, CellKey, CellKind, CellRound, Message, Request, PROTOCOL, PROTOCOL_CELL,
+};
 
 /// What both sides run: bench cells (scenes x ray sets x methods x layouts). The parent gives
 /// it to each worker as command-line options ([`Workload::args`]), in the bench vocabulary.
@@ -55,145 +57,10 @@ pub struct Workload {
     pub pipeline_stats: bool,
 }
 
-/// The version of the protocol below. A worker of another build answers with its own
-/// ([`Message::Ready`]); the parent takes every version up to its own that shares these
-/// messages, so a build can be timed against an older one (`ab --a-bin`). Version 1 (no
-/// `protocol` field) had no traversal axis (its cells are all while-if) and timed whole rounds
-/// only; version 2 adds `cell N`, so the parent can run the two sides' runs of one cell back to
-/// back.
-pub const PROTOCOL: u32 = 2;
-
-/// The first protocol with the `cell N` command (one cell timed at a time).
-pub const PROTOCOL_CELL: u32 = 2;
-
 /// A path-trace cell's samples per pixel.
 pub const PATHTRACE_SPP: u32 = 1;
 /// A path-trace cell's longest path.
 pub const PATHTRACE_DEPTH: u32 = 4;
-
-/// What a cell runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum CellKind {
-    /// The closest-hit ray-casting kernel over a ray set.
-    Raycast,
-    /// The path tracer's kernel rendering the scene's image.
-    Pathtrace,
-}
-
-/// One cell, as the worker names it.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct CellInfo {
-    pub kind: CellKind,
-    pub scene: String,
-    /// The ray set; `pathtrace` for a path-trace cell.
-    pub set: String,
-    pub method: String,
-    pub layout: String,
-    /// The traversal (`while-if` for a path-trace cell, and from a version 1 worker).
-    #[serde(default = "while_if")]
-    pub traversal: String,
-    /// Rays cast; a path-trace cell's samples (pixels x samples per pixel).
-    pub rays: usize,
-    /// The kernel that ran (`raycast.mt.closest`), for the driver statistics.
-    pub kernel: String,
-    /// Its cell in each side's rows, made here where the values are typed: bench's
-    /// ([`BenchCell`]), or for a path-trace cell bench-render's.
-    pub coordinates: crate::rows::Cell,
-}
-
-fn while_if() -> String {
-    Traversal::WhileIf.to_string()
-}
-
-impl CellInfo {
-    /// `bunny primary mt bvh2` (and the traversal when it is not while-if).
-    pub fn label(&self) -> String {
-        let mut s = format!("{} {} {} {}", self.scene, self.set, self.method, self.layout);
-        if self.traversal != while_if() {
-            s = format!("{s} {}", self.traversal);
-        }
-        s
-    }
-
-    /// What names a cell on both sides, whichever build each side runs: its kind, scene, set,
-    /// method, layout and traversal (not its kernel's name, nor its rows' coordinates, which a
-    /// build may spell differently).
-    pub fn key(&self) -> CellKey {
-        CellKey {
-            kind: self.kind,
-            scene: self.scene.clone(),
-            set: self.set.clone(),
-            method: self.method.clone(),
-            layout: self.layout.clone(),
-            traversal: self.traversal.clone(),
-        }
-    }
-
-    /// The kernel a cell times, as `ab` groups cells: its kind, method, layout and traversal
-    /// (`raycast mt bvh2`, `pathtrace mt bvh2`).
-    pub fn kernel_label(&self) -> String {
-        let kind = match self.kind {
-            CellKind::Raycast => "raycast",
-            CellKind::Pathtrace => "pathtrace",
-        };
-        let mut s = format!("{kind} {} {}", self.method, self.layout);
-        if self.traversal != while_if() {
-            s = format!("{s} {}", self.traversal);
-        }
-        s
-    }
-}
-
-/// A cell's identity across builds ([`CellInfo::key`]).
-#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
-pub struct CellKey {
-    pub kind: CellKind,
-    pub scene: String,
-    pub set: String,
-    pub method: String,
-    pub layout: String,
-    pub traversal: String,
-}
-
-/// A round's result for one cell.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct CellRound {
-    /// Kernel time, ms; `None` when the round did not validate (then it does not count).
-    pub ms: Option<f64>,
-    pub agree: usize,
-    pub unexplained: usize,
-    pub invalid: usize,
-}
-
-/// What a worker prints, one JSON object a line.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(tag = "message", rename_all = "kebab-case")]
-pub enum Message {
-    /// `provenance` is the worker's [`Provenance`], as JSON.
-    Ready {
-        /// [`PROTOCOL`]; absent (1) from the first version.
-        #[serde(default = "first_protocol")]
-        protocol: u32,
-        provenance: serde_json::Value,
-        cells: Vec<CellInfo>,
-        pipeline_ms: f64,
-        /// Per cell, its compute-shader invocations when asked for and measured.
-        invocations: Vec<Option<u64>>,
-        /// Why there are no invocations counts, when they were asked for and are none.
-        invocations_note: Option<String>,
-    },
-    Round {
-        cells: Vec<CellRound>,
-    },
-    Failed {
-        error: String,
-    },
-}
-
-fn first_protocol() -> u32 {
-    1
-}
 
 /// A ray set, its rays and the reference's hits.
 type SetRays = (RaySet, Vec<Ray>, Vec<RefHit>);
@@ -225,7 +92,8 @@ enum Job<'a> {
 }
 
 impl Workload {
-    /// The options that give this workload to `trilab __ab-worker` (and name it in reports).
+    /// The options that give this workload to `trilab __ab-worker` (every build's worker reads
+    /// them; they also name it in reports).
     pub fn args(&self) -> Vec<String> {
         let join = |v: Vec<String>| v.join(",");
         let mut a = vec![
@@ -267,10 +135,7 @@ impl Workload {
 
 /// Runs the worker: loads `w`, prints `Ready`, then serves `input`'s commands on `output`.
 pub fn serve(ctx: &Context, w: &Workload, hits_dir: &Path, input: impl BufRead, mut output: impl Write) -> Result<()> {
-    let say = |out: &mut dyn Write, m: &Message| -> Result<()> {
-        let line = serde_json::to_string(m).expect("messages serialise");
-        writeln!(out, "{line}").and_then(|_| out.flush()).map_err(|e| Error::io(Path::new("stdout"), e))
-    };
+    let say = |out: &mut dyn Write, m: &Message| crate::services::worker::say(out, m);
     match load_and_serve(ctx, w, hits_dir, input, &mut output, &say) {
         Ok(()) => Ok(()),
         Err(e) => {
@@ -472,30 +337,31 @@ fn load_and_serve(
     let mut round = 0usize;
     for line in input.lines() {
         let line = line.map_err(|e| Error::io(Path::new("stdin"), e))?;
-        let command = line.trim();
-        if command == "round" {
-            let mut results = vec![None; cells.len()];
-            // The cell that opens a round rotates, as in every interleaved harness.
-            for k in 0..cells.len() {
-                let i = (k + round) % cells.len();
-                results[i] = Some(time_cell(i)?);
+        match Request::parse(&line).map_err(|e| Error::Usage(format!("ab worker: {e}")))? {
+            Request::Round => {
+                let mut results = vec![None; cells.len()];
+                // The cell that opens a round rotates, as in every interleaved harness.
+                for k in 0..cells.len() {
+                    let i = (k + round) % cells.len();
+                    results[i] = Some(time_cell(i)?);
+                }
+                round += 1;
+                let cells = results.into_iter().map(|r| r.expect("every cell ran")).collect();
+                say(output, &Message::Round { cells })?;
             }
-            round += 1;
-            let cells = results.into_iter().map(|r| r.expect("every cell ran")).collect();
-            say(output, &Message::Round { cells })?;
-        } else if let Some(i) = command.strip_prefix("cell ") {
-            // One cell (protocol 2): the parent times the two sides' runs of a cell back to
-            // back, so the moment's load on the host is the same for both.
-            let i: usize =
-                i.trim().parse().ok().filter(|&i| i < cells.len()).ok_or_else(|| {
-                    Error::Usage(format!("ab worker: `{command}`: not one of the {} cells", cells.len()))
-                })?;
-            let r = time_cell(i)?;
-            say(output, &Message::Round { cells: vec![r] })?;
-        } else if matches!(command, "quit" | "") {
-            return Ok(());
-        } else {
-            return Err(Error::Usage(format!("ab worker: unknown command `{command}`")));
+            Request::Cell { index: i } => {
+                // One cell (protocol 2): the parent times the two sides' runs of a cell back to
+                // back, so the moment's load on the host is the same for both.
+                if i >= cells.len() {
+                    return Err(Error::Usage(format!("ab worker: cell {i}: not one of the {} cells", cells.len())));
+                }
+                let r = time_cell(i)?;
+                say(output, &Message::Round { cells: vec![r] })?;
+            }
+            Request::Quit => return Ok(()),
+            other => {
+                return Err(Error::Usage(format!("ab worker: an ab side answers round, cell and quit, not {other:?}")))
+            }
         }
     }
     Ok(())

@@ -1,15 +1,18 @@
 //! LP_NUM_THREADS scaling on lavapipe. lavapipe reads `LP_NUM_THREADS` when the instance is
-//! created, so each thread count runs `trilab bench` (this executable) as a subprocess on the
-//! same ray files, with a JSON report; bench validates every result before it reports a speed.
+//! created, so each thread count is a worker ([`crate::services::worker`]: this executable run
+//! again with `LP_NUM_THREADS` set) asked for a bench of the same ray files; bench validates
+//! every result before it reports a speed, and the worker answers with its measurements.
 
 use std::path::Path;
-use std::process::Command;
 
-use serde::Serialize;
-
+use crate::commands::bench::{self, BenchOptions};
 use crate::encoding::Method;
 use crate::error::{Error, Result};
-use crate::report::Summary;
+use crate::gpu::Context;
+use crate::services::worker::protocol::BenchThreads;
+use crate::services::worker::{self, Launch, Message, Request};
+
+pub use crate::services::worker::protocol::ThreadMeasurement;
 
 /// Thread counts 1, 2, ... up to the host's cores.
 pub fn default_counts() -> Vec<usize> {
@@ -17,19 +20,7 @@ pub fn default_counts() -> Vec<usize> {
     (1..=cores).collect()
 }
 
-/// One (threads, method, ray set) measurement from a bench subprocess.
-#[derive(Clone, Debug, Serialize)]
-pub struct ThreadMeasurement {
-    pub threads: usize,
-    pub method: String,
-    pub ray_set: String,
-    pub rays: usize,
-    pub kernel_ms: Summary,
-    pub mrays_per_s: f64,
-    pub agreement: f64,
-}
-
-/// Arguments of one bench subprocess.
+/// What each thread count's bench runs.
 pub struct BenchRun<'a> {
     pub exe: &'a Path,
     pub scene: &'a Path,
@@ -43,68 +34,58 @@ pub struct BenchRun<'a> {
     pub device_index: usize,
 }
 
-/// Runs bench with `LP_NUM_THREADS=threads` and returns its rows.
+/// Runs the bench in a worker with `LP_NUM_THREADS=threads` and returns its rows.
 pub fn bench_with_threads(run: &BenchRun, threads: usize) -> Result<Vec<ThreadMeasurement>> {
-    let json = run.rays_dir.join(format!("bench-threads-{threads}.json"));
-    let methods: Vec<String> = run.methods.iter().map(|m| m.to_string()).collect();
-    let output = crate::children::output(
-        Command::new(run.exe)
-            .env("LP_NUM_THREADS", threads.to_string())
-            .arg("bench")
-            .arg("--scenes")
-            .arg(run.scene)
-            .arg("--rays-dir")
-            .arg(run.rays_dir)
-            .arg("--methods")
-            .arg(methods.join(","))
-            .arg("--leaf-size")
-            .arg(run.leaf_size.to_string())
-            .arg("--layouts")
-            .arg(run.layout.to_string())
-            .arg("--repeat")
-            .arg(run.repeat.to_string())
-            .arg("--device")
-            .arg(run.device_index.to_string())
-            .arg("--json-out")
-            .arg(&json),
-    )
-    .map_err(|e| Error::io(run.exe, e))?;
-    if !output.status.success() {
-        return Err(Error::Usage(format!(
-            "LP_NUM_THREADS={threads}: `{} bench` failed ({}): {}",
-            run.exe.display(),
-            output.status,
-            String::from_utf8_lossy(&output.stderr).trim()
-        )));
+    let request = Request::BenchThreads(BenchThreads {
+        threads,
+        scene: run.scene.to_owned(),
+        rays_dir: run.rays_dir.to_owned(),
+        methods: run.methods.to_vec(),
+        leaf_size: run.leaf_size,
+        layout: run.layout,
+        repeat: run.repeat,
+    });
+    let launch = Launch::new(run.exe).env("LP_NUM_THREADS", threads.to_string()).device(run.device_index);
+    let who = format!("LP_NUM_THREADS={threads}");
+    match worker::call(&launch, &who, &request)?.message {
+        Message::Measured { measurements } => Ok(measurements),
+        other => Err(worker::unexpected(&who, "measured", &other)),
     }
-    let text = std::fs::read_to_string(&json).map_err(|e| Error::io(&json, e))?;
-    let report: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| Error::Usage(format!("{}: {e}", json.display())))?;
-    let seen = report["lp_num_threads"].as_str().and_then(|s| s.parse::<usize>().ok());
-    if seen != Some(threads) {
-        return Err(Error::Usage(format!("bench subprocess reports LP_NUM_THREADS {seen:?}, wanted {threads}")));
+}
+
+/// The worker's side of [`bench_with_threads`]: the bench `trilab bench --scenes S --rays-dir D
+/// --methods M --leaf-size N --layouts L --repeat R` runs (the driver's peers as its `auto`
+/// runs them: not on a CPU device), after checking that the driver loaded here read the
+/// `LP_NUM_THREADS` the parent set.
+pub fn measure(ctx: &Context, r: &BenchThreads) -> Result<Vec<ThreadMeasurement>> {
+    let cpu = ctx.capabilities().is_cpu();
+    let o = BenchOptions {
+        scenes: vec![r.scene.clone()],
+        methods: r.methods.clone(),
+        build: crate::bvh::BuildOptions::new(r.leaf_size),
+        repeat: r.repeat,
+        rays_dir: Some(r.rays_dir.clone()),
+        layouts: vec![r.layout],
+        ray_query: !cpu,
+        ray_tracing_pipeline: !cpu,
+        ..Default::default()
+    };
+    let report = bench::run(ctx, &o, |m| eprintln!("  {m}"))?;
+    let seen = report.provenance.lp_num_threads.as_deref().and_then(|s| s.parse::<usize>().ok());
+    if seen != Some(r.threads) {
+        return Err(Error::Usage(format!("the bench reports LP_NUM_THREADS {seen:?}, wanted {}", r.threads)));
     }
-    let bad = || Error::Usage(format!("{}: unexpected bench report layout", json.display()));
-    let rows = report["rows"].as_array().ok_or_else(bad)?;
-    rows.iter()
-        .map(|r| {
-            let f = |k: &str| r[k].as_f64().ok_or_else(bad);
-            let ms = &r["kernel_ms"];
-            let m = |k: &str| ms[k].as_f64().ok_or_else(bad);
-            Ok(ThreadMeasurement {
-                threads,
-                method: r["method"].as_str().ok_or_else(bad)?.to_owned(),
-                ray_set: r["ray_set"].as_str().ok_or_else(bad)?.to_owned(),
-                rays: r["rays"].as_u64().ok_or_else(bad)? as usize,
-                kernel_ms: Summary {
-                    median: m("median")?,
-                    min: m("min")?,
-                    max: m("max")?,
-                    runs: ms["runs"].as_u64().ok_or_else(bad)? as usize,
-                },
-                mrays_per_s: f("mrays_per_s")?,
-                agreement: f("agreement")?,
-            })
+    Ok(report
+        .rows
+        .iter()
+        .map(|row| ThreadMeasurement {
+            threads: r.threads,
+            method: row.method.to_string(),
+            ray_set: row.ray_set.to_string(),
+            rays: row.rays,
+            kernel_ms: row.kernel_ms,
+            mrays_per_s: row.mrays_per_s,
+            agreement: row.agreement,
         })
-        .collect()
+        .collect())
 }

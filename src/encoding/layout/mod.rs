@@ -201,6 +201,13 @@ impl serde::Serialize for Layout {
     }
 }
 
+impl<'de> serde::Deserialize<'de> for Layout {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Layout, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
 /// A wide tree's node buffer: the binary nodes collapsed with [`crate::bvh::Collapse::Sah`], in
 /// `order`.
 pub(super) fn wide_nodes<const N: usize>(

@@ -12,10 +12,10 @@
 //!   every function it JIT-compiles prints its LLVM name and the disassembly of the machine code
 //!   in memory to stderr ([`lavapipe_asm`] reads it). The flag is read once, when the
 //!   driver loads, so this process cannot turn it on for itself: [`collect`] runs this
-//!   executable again (`trilab driver-stats --emit-for-parent`, hidden) with
-//!   `GALLIVM_DEBUG=asm` set, and that child dispatches each kernel once, on a small scene,
-//!   between marker lines on stderr ([`emit_for_parent`]): lavapipe compiles a compute shader's
-//!   variant at its first dispatch, not when the pipeline is created.
+//!   executable again (a worker, [`crate::services::worker`]) with `GALLIVM_DEBUG=asm` set and
+//!   asks it to dispatch each kernel once, on a small scene, between marker lines on stderr
+//!   ([`emit_for_parent`]): lavapipe compiles a compute shader's variant at its first dispatch,
+//!   not when the pipeline is created.
 //! - `MESA_SHADER_CACHE_DISABLE=true` is needed as well, and the child sets it: llvmpipe keeps
 //!   the compiled object code of each variant in Mesa's disk cache
 //!   (`~/.cache/mesa_shader_cache_db`, compressed entries of a database file) and, on a hit,
@@ -41,7 +41,6 @@ pub mod lavapipe_asm;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use serde::Serialize;
 
@@ -56,6 +55,7 @@ use crate::report::Status;
 use crate::rows::{cell, Figure, Row};
 use crate::scene::load_obj;
 use crate::services::provenance::Provenance;
+use crate::services::worker::{self, Launch, Message, Request};
 use lavapipe_asm::KernelAsm;
 
 /// The command name on every row of driver statistics, whether `trilab driver-stats` or
@@ -220,7 +220,7 @@ pub struct DriverStatsReport {
 /// How [`collect`] runs.
 #[derive(Clone, Debug)]
 pub struct CollectOptions {
-    /// This executable (the child it runs is `exe driver-stats --emit-for-parent ...`).
+    /// This executable (the worker it runs under `GALLIVM_DEBUG=asm`).
     pub exe: PathBuf,
     /// `--device` for the child: the index of the context's device.
     pub device_index: usize,
@@ -359,32 +359,26 @@ fn snake(s: &str) -> String {
     out.trim_end_matches('_').to_owned()
 }
 
-/// Runs the child and returns each kernel's part of its stderr, in `kernels`' order.
+/// Runs the child (a worker, [`crate::services::worker`], with `GALLIVM_DEBUG=asm` and
+/// `MESA_SHADER_CACHE_DISABLE=true`) and returns each kernel's part of its stderr, in
+/// `kernels`' order.
 fn lavapipe_dumps(kernels: &[&'static KernelSource], o: &CollectOptions) -> Result<Vec<String>> {
     let names: Vec<&str> = kernels.iter().map(|k| k.name).collect();
-    let mut cmd = Command::new(&o.exe);
-    cmd.env("GALLIVM_DEBUG", "asm")
-        .env("MESA_SHADER_CACHE_DISABLE", "true")
-        .arg("driver-stats")
-        .arg("--emit-for-parent")
-        .arg(names.join(","))
-        .arg("--device")
-        .arg(o.device_index.to_string());
-    if o.validation {
-        cmd.arg("--validation");
+    let launch = Launch {
+        whole_stderr: true,
+        ..Launch::new(&o.exe)
+            .env("GALLIVM_DEBUG", "asm")
+            .env("MESA_SHADER_CACHE_DISABLE", "true")
+            .device(o.device_index)
+            .validation(o.validation)
+    };
+    let who = "the driver-statistics child (GALLIVM_DEBUG=asm)";
+    let request = Request::DispatchKernels { kernels: names.iter().map(|&n| n.to_owned()).collect() };
+    let answered = worker::call(&launch, who, &request)?;
+    match answered.message {
+        Message::Dispatched { .. } => split_dump(&answered.stderr, &names),
+        other => Err(worker::unexpected(who, "dispatched", &other)),
     }
-    let output = crate::children::output(&mut cmd).map_err(|e| Error::io(&o.exe, e))?;
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    if !output.status.success() {
-        let tail: Vec<&str> = stderr.lines().filter(|l| !l.starts_with(' ')).rev().take(8).collect();
-        return Err(Error::Usage(format!(
-            "`{} driver-stats --emit-for-parent` failed ({}): {}",
-            o.exe.display(),
-            output.status,
-            tail.into_iter().rev().collect::<Vec<_>>().join(" | ")
-        )));
-    }
-    split_dump(&stderr, &names)
 }
 
 /// Each kernel's text between its begin and end markers.
@@ -428,7 +422,7 @@ fn raycast_request(k: &KernelSource) -> Result<SceneRequest> {
     Ok(SceneRequest::new(key.method).layout(key.layout).access(key.access.requested()).traversal(key.traversal))
 }
 
-/// The child's side (`--emit-for-parent`, under GALLIVM_DEBUG=asm): dispatches each named
+/// The child's side (a worker's `dispatch-kernels` request, under GALLIVM_DEBUG=asm): dispatches each named
 /// kernel once on a small scene between marker lines on stderr, where gallivm prints its
 /// disassembly. lavapipe compiles a compute shader at its first dispatch, not when the pipeline
 /// is created (checked: creating the pipeline alone printed no `cs_variant`). The hits are
@@ -439,10 +433,7 @@ pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
     let kernels: Vec<&'static KernelSource> = names
         .iter()
         .map(|n| {
-            KERNELS
-                .iter()
-                .find(|k| k.name == n)
-                .ok_or_else(|| Error::Usage(format!("--emit-for-parent: no kernel {n}")))
+            KERNELS.iter().find(|k| k.name == n).ok_or_else(|| Error::Usage(format!("dispatch-kernels: no kernel {n}")))
         })
         .collect::<Result<_>>()?;
     let requests: Vec<SceneRequest> = kernels.iter().map(|k| raycast_request(k)).collect::<Result<_>>()?;
