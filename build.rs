@@ -45,9 +45,12 @@ use std::path::{Component, Path, PathBuf};
 /// instruction counts are comparable between kernels and across commits.
 const OPT_LEVEL: shaderc::OptimizationLevel = shaderc::OptimizationLevel::Performance;
 
-/// The default layout, `glsl/layout/bvh2.glsl` (the binary nodes): the variants without a layout
-/// suffix compile with it.
-const BINARY_LAYOUT: &str = "bvh2";
+/// Each axis's default (`src/defaults.rs`, the library's `trilab::defaults`): the variants
+/// without a layout suffix compile with the default layout, `defaults::LAYOUT` (the binary nodes,
+/// `glsl/layout/<LAYOUT>.glsl`).
+#[path = "src/defaults.rs"]
+#[allow(dead_code)]
+mod defaults;
 
 #[derive(Clone)]
 struct Variant {
@@ -75,6 +78,7 @@ fn main() {
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").unwrap());
 
     println!("cargo:rerun-if-changed={}", glsl_dir.display());
+    println!("cargo:rerun-if-changed={}", manifest.join("src/defaults.rs").display());
     let mut all_files = Vec::new();
     collect_files(&glsl_dir, &mut all_files);
     all_files.sort();
@@ -108,7 +112,7 @@ fn main() {
             .filter(|p| p.parent() == Some(glsl_dir.join("layout").as_path()))
             .filter(|p| p.extension().is_some_and(|e| e == "glsl"))
             .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
-            .filter(|l| l != BINARY_LAYOUT)
+            .filter(|l| l != defaults::LAYOUT)
             .collect();
         l.sort();
         l
@@ -185,7 +189,7 @@ fn main() {
                     j.kernel,
                     j.method,
                     j.variant.name,
-                    j.variant.layout.as_deref().unwrap_or(BINARY_LAYOUT),
+                    j.variant.layout.as_deref().unwrap_or(defaults::LAYOUT),
                     file.display().to_string()
                 )
                 .unwrap();
@@ -499,7 +503,7 @@ fn resolve_include(
     } else if requested == "layout.glsl" {
         match layout {
             Some(l) => PathBuf::from("layout").join(format!("{l}.glsl")),
-            None => PathBuf::from("layout").join(format!("{BINARY_LAYOUT}.glsl")),
+            None => PathBuf::from("layout").join(format!("{}.glsl", defaults::LAYOUT)),
         }
     } else {
         PathBuf::from(requested)

@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 const LAYERS: &[&str] = &[
     // Ground floor: errors, output, named values, the constants shared with GLSL, the kernel
     // registry and SPIR-V.
+    "defaults",
     "env",
     "error",
     "io",

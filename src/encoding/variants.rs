@@ -246,15 +246,16 @@ impl Method {
         RaycastKey { method: self, kind, access, layout, traversal }.source()
     }
 
-    /// The while-if ray-casting kernel computing `kind` over a scene read through `access` with
-    /// its nodes in `layout`.
+    /// The ray-casting kernel of the default traversal (while-if) computing `kind` over a scene
+    /// read through `access` with its nodes in `layout`.
     pub fn layout_kernel(self, kind: Raycast, access: AccessPath, layout: Layout) -> Result<&'static KernelSource> {
-        self.traversal_kernel(kind, access, layout, Traversal::WhileIf)
+        self.traversal_kernel(kind, access, layout, Traversal::DEFAULT)
     }
 
-    /// The ray-casting kernel computing `kind` over a scene read through `access` (binary nodes).
+    /// The ray-casting kernel computing `kind` over a scene read through `access` (the default
+    /// layout: binary nodes).
     pub fn raycast_kernel(self, kind: Raycast, access: AccessPath) -> &'static KernelSource {
-        self.layout_kernel(kind, access, Layout::Bvh2).unwrap_or_else(|e| panic!("{e}"))
+        self.layout_kernel(kind, access, Layout::DEFAULT).unwrap_or_else(|e| panic!("{e}"))
     }
 
     /// The layout probe (`glsl/probe.comp`): copies nodes, primitives and slot ids out through the

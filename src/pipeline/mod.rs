@@ -54,14 +54,14 @@ pub struct SceneRequest {
     /// A reader of the scene without the address path (the path tracer), and why: the plan takes
     /// texel or storage buffers, and a "does not fit" error says what helps that reader.
     pub without_address: Option<&'static str>,
-    /// The node layout the kernels read ([`Layout::Bvh2`] unless asked): a wide layout binds its
+    /// The node layout the kernels read ([`Layout::DEFAULT`] unless asked): a wide layout binds its
     /// nodes, made from the encoding's binary nodes, where the binary ones would be; every
     /// kernel exists for every layout (`encoding::layout`).
     pub layout: Layout,
-    /// How the ray-casting kernels walk the tree ([`Traversal::WhileIf`] unless asked; the
+    /// How the ray-casting kernels walk the tree ([`Traversal::DEFAULT`] unless asked; the
     /// others have kernels for some layouts, kinds and paths only: `Method::traversal_kernel`).
     pub traversal: Traversal,
-    /// Where the layout's nodes sit in its node buffer ([`NodeOrder::Built`] unless asked:
+    /// Where the layout's nodes sit in its node buffer ([`NodeOrder::DEFAULT`] unless asked:
     /// `bvh::order`); every layout, kernel and traversal reads any order.
     pub node_order: NodeOrder,
 }
@@ -77,11 +77,11 @@ impl SceneRequest {
     pub fn new(method: impl Into<MethodChoice>) -> SceneRequest {
         SceneRequest {
             method: method.into(),
-            access: SceneAccess::Auto,
+            access: SceneAccess::DEFAULT,
             without_address: None,
-            layout: Layout::Bvh2,
-            traversal: Traversal::WhileIf,
-            node_order: NodeOrder::Built,
+            layout: Layout::DEFAULT,
+            traversal: Traversal::DEFAULT,
+            node_order: NodeOrder::DEFAULT,
         }
     }
 
