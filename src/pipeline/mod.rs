@@ -379,22 +379,21 @@ impl DeviceScene {
         cast_rays(ctx, kernel, &resources, rays, opts)
     }
 
-    /// Fails unless `kernel` is one of this scene's ray-casting kernels (its method, its path).
-    pub fn check_kernel(&self, kernel: &Kernel) -> Result<()> {
-        let key = crate::kernels::KERNELS.iter().find(|k| k.name == kernel.name).and_then(RaycastKey::of);
-        if key.is_some_and(|k| {
-            (k.method, k.access, k.layout, k.traversal) == (self.method, self.access, self.layout, self.traversal)
-        }) {
-            return Ok(());
-        }
-        Err(Error::Usage(format!(
+    /// The key of `kernel` when it is one of this scene's ray-casting kernels (its method, path,
+    /// layout and traversal; any kind), else an error.
+    pub fn check_kernel(&self, kernel: &Kernel) -> Result<RaycastKey> {
+        let scene = (self.method, self.access, self.layout, self.traversal);
+        let key = RaycastKey::of(kernel.source).filter(|k| (k.method, k.access, k.layout, k.traversal) == scene);
+        key.ok_or_else(|| {
+            Error::Usage(format!(
             "kernel {} cannot read scene `{}` ({} on the {} path, {} layout)",
             kernel.name,
             self.name,
             self.method,
             self.access.name(),
             self.layout
-        )))
+        ))
+        })
     }
 }
 

@@ -155,14 +155,6 @@ impl Layout {
         self.spec().title
     }
 
-    /// The suffix of this layout's kernel variants (`""` for the binary nodes, `_bvh4`, ...).
-    pub fn variant_suffix(self) -> String {
-        match self.spec().build {
-            None => String::new(),
-            Some(_) => format!("_{}", self.name()),
-        }
-    }
-
     /// The node buffer for `binary` (the encoding's nodes), `None` for the binary layout.
     pub fn nodes(self, binary: &[BvhNode], o: &BuildOptions) -> Result<Option<LayoutNodes>, String> {
         self.nodes_in(binary, o, NodeOrder::Built)
@@ -329,8 +321,6 @@ mod tests {
             assert!(!l.help().is_empty() && !l.title().is_empty(), "{l}");
         }
         assert!("bvh3".parse::<Layout>().unwrap_err().contains("bvh2"));
-        assert_eq!(Layout::Bvh2.variant_suffix(), "");
-        assert_eq!(Layout::Bvh4.variant_suffix(), "_bvh4");
     }
 
     /// The memory plan's bound holds every built node buffer, over leaf sizes and tree shapes
