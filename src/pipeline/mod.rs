@@ -386,13 +386,13 @@ impl DeviceScene {
         let key = RaycastKey::of(kernel.source).filter(|k| (k.method, k.access, k.layout, k.traversal) == scene);
         key.ok_or_else(|| {
             Error::Usage(format!(
-            "kernel {} cannot read scene `{}` ({} on the {} path, {} layout)",
-            kernel.name,
-            self.name,
-            self.method,
-            self.access.name(),
-            self.layout
-        ))
+                "kernel {} cannot read scene `{}` ({} on the {} path, {} layout)",
+                kernel.name,
+                self.name,
+                self.method,
+                self.access.name(),
+                self.layout
+            ))
         })
     }
 }
