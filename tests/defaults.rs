@@ -7,6 +7,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
+use common::source::{rust_files, without_comment};
 use serde_json::Value;
 use trilab::bvh::LeafPolicy;
 use trilab::defaults;
@@ -96,17 +97,6 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            rust_files(&p, out);
-        } else if p.extension().is_some_and(|x| x == "rs") {
-            out.push(p);
-        }
-    }
-}
-
 /// A file's code outside its test modules (from the first `#[cfg(test)]` on), without comments
 /// (the rest of a line after `//` outside a string literal), as (line number, line).
 fn code_lines(path: &Path) -> Vec<(usize, String)> {
@@ -116,18 +106,7 @@ fn code_lines(path: &Path) -> Vec<(usize, String)> {
         if line.trim_start().starts_with("#[cfg(test)]") {
             break;
         }
-        let (mut in_str, mut prev, mut cut) = (false, ' ', line.len());
-        for (i, c) in line.char_indices() {
-            if c == '"' && prev != '\\' {
-                in_str = !in_str;
-            }
-            if !in_str && c == '/' && prev == '/' {
-                cut = i - 1;
-                break;
-            }
-            prev = c;
-        }
-        out.push((n + 1, line[..cut].to_owned()));
+        out.push((n + 1, without_comment(line).to_owned()));
     }
     out
 }

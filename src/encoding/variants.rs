@@ -99,29 +99,39 @@ impl KernelKey {
     pub fn source(self) -> Option<&'static KernelSource> {
         by_key().get(&self).copied()
     }
+
+    /// Every key the registry holds that `pick` takes, sorted.
+    fn all<K: Ord>(pick: fn(KernelKey) -> Option<K>) -> Vec<K> {
+        let mut keys: Vec<K> = KEYS.iter().flatten().filter_map(|&k| pick(k)).collect();
+        keys.sort();
+        keys
+    }
+
+    fn raycast(self) -> Option<RaycastKey> {
+        match self {
+            KernelKey::Raycast(key) => Some(key),
+            _ => None,
+        }
+    }
+
+    fn pathtrace(self) -> Option<PathtraceKey> {
+        match self {
+            KernelKey::Pathtrace(key) => Some(key),
+            _ => None,
+        }
+    }
 }
 
 impl RaycastKey {
     /// The key of a registry entry; `None` for a kernel that is not ray casting (the path
     /// tracer, the probes).
     pub fn of(k: &KernelSource) -> Option<RaycastKey> {
-        match KernelKey::of(k)? {
-            KernelKey::Raycast(key) => Some(key),
-            _ => None,
-        }
+        KernelKey::of(k)?.raycast()
     }
 
     /// Every ray-casting key the registry holds, sorted: the support matrix.
     pub fn all() -> Vec<RaycastKey> {
-        let mut keys: Vec<RaycastKey> = KEYS
-            .iter()
-            .filter_map(|k| match k {
-                Some(KernelKey::Raycast(key)) => Some(*key),
-                _ => None,
-            })
-            .collect();
-        keys.sort();
-        keys
+        KernelKey::all(KernelKey::raycast)
     }
 
     /// The kernel of this key, or an error saying what this traversal has instead.
@@ -210,23 +220,12 @@ pub struct PathtraceKey {
 impl PathtraceKey {
     /// The key of a registry entry; `None` for a kernel that is not the path tracer.
     pub fn of(k: &KernelSource) -> Option<PathtraceKey> {
-        match KernelKey::of(k)? {
-            KernelKey::Pathtrace(key) => Some(key),
-            _ => None,
-        }
+        KernelKey::of(k)?.pathtrace()
     }
 
     /// Every path-tracing key the registry holds, sorted.
     pub fn all() -> Vec<PathtraceKey> {
-        let mut keys: Vec<PathtraceKey> = KEYS
-            .iter()
-            .filter_map(|k| match k {
-                Some(KernelKey::Pathtrace(key)) => Some(*key),
-                _ => None,
-            })
-            .collect();
-        keys.sort();
-        keys
+        KernelKey::all(KernelKey::pathtrace)
     }
 
     /// The kernel of this key, or an error naming the key.
