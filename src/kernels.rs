@@ -3,14 +3,20 @@
 //! method's command-line name (`raycast.quad-mt.closest` from `glsl/intersect/quad_mt.glsl`),
 //! and what each intersector's GLSL states about itself.
 //!
-//! This is the ground floor: it knows kernels by the names the GLSL gives them. The typed ways to
-//! pick one live with what they are for: a method's ray-casting kernels in `encoding::variants`
-//! (`Method::raycast_kernel`, by kind, access path, layout and traversal), the path tracer's in
-//! `render`, the ray-query peer's in `gpu::rayquery`.
+//! This is the ground floor: it holds the kernels in build.rs's order, each with its place
+//! ([`KernelSource::id`]) and the names the GLSL gives it (for display). Each kernel's typed key
+//! (method, kind, access path, layout, traversal; the path tracer's BSDFs) is emitted by build.rs
+//! beside this table, in the same order, into `encoding::variants` (`KernelKey`), where the
+//! kernels are asked for by it: nothing reads a key back out of a name. The kernels without a
+//! key (the ray-query peer, the roofline, the probes without an intersector) are found by kernel
+//! file and variant ([`find`]).
 
 /// One compiled kernel variant.
 #[derive(Debug)]
 pub struct KernelSource {
+    /// Its place in [`KERNELS`] (`KERNELS[k.id]` is `k`): where build.rs put its typed key in
+    /// `encoding::variants`.
+    pub id: usize,
     /// `<kernel>.<method>.<variant>`, the method by its command-line name (the intersector's
     /// stem with `-` for `_`); also the file name under `spirv/`.
     pub name: &'static str,
@@ -122,7 +128,8 @@ mod tests {
 
     #[test]
     fn every_module_is_spirv_and_every_kernel_with_an_intersector_has_each_one() {
-        for k in KERNELS {
+        for (i, k) in KERNELS.iter().enumerate() {
+            assert_eq!(k.id, i, "{}: its id is its place", k.name);
             assert_eq!(k.spirv().len() % 4, 0, "{}", k.name);
             assert_eq!(k.words()[0], 0x0723_0203, "{}: SPIR-V magic", k.name);
             assert_eq!(k.name, format!("{}.{}.{}", k.kernel, k.intersector.replace('_', "-"), k.variant));

@@ -3,7 +3,7 @@
 //! Data flows one way, and so do imports: every module imports only modules listed before it
 //! here (`tests/layers.rs` checks it; `ARCHITECTURE.md` explains the layers).
 //!
-//! - Ground floor: the environment variables read ([`env`]), [`error`], atomic output ([`io`]), the processes trilab starts ([`children`]), tables and summaries ([`report`]), the host CPU a run ran on ([`host`]), the result rows `compare` and `merge` read ([`rows`]), named
+//! - Ground floor: each axis's default ([`defaults`]), the environment variables read ([`env`]), [`error`], atomic output ([`io`]), the processes trilab starts ([`children`]), tables and summaries ([`report`]), the host CPU a run ran on ([`host`]), the result rows `compare` and `merge` read ([`rows`]), named
 //!   option values ([`named`]), the constants shared with GLSL ([`shared`]), the kernel registry
 //!   ([`kernels`]) and SPIR-V counts, reflection and capabilities ([`spirv`]).
 //! - [`scene`]: OBJ/MTL and synthetic meshes; [`rays`]: ray and hit files, cameras, ray sets,
@@ -21,6 +21,7 @@
 //! - [`commands`]: one room per command (bench, study, accuracy, profile, ab, compare, ...),
 //!   each a library call returning a typed report; the CLI (`src/cli/`, in the binary) calls these.
 
+pub mod defaults;
 pub mod env;
 pub mod error;
 pub mod io;

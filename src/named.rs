@@ -31,9 +31,9 @@ pub trait Named: Copy + Sized + 'static {
 }
 
 /// Defines an enum whose variants carry their names (`Variant = "name"`, or
-/// `Variant = "name" (default)` for the `#[default]` one) and whose doc comments are their help;
-/// implements [`Named`], `Display` (the name) and `FromStr` (by name, `$what` naming the set in
-/// errors).
+/// `Variant = "name" (default)` for the `#[default]` one, also the type's `DEFAULT`: the one
+/// place its default is spelled) and whose doc comments are their help; implements [`Named`],
+/// `Display` (the name) and `FromStr` (by name, `$what` naming the set in errors).
 macro_rules! named_enum {
     (
         $(#[$meta:meta])*
@@ -69,6 +69,13 @@ macro_rules! named_enum {
             }
         }
 
+        $($(
+            impl $ty {
+                #[doc = concat!("The ", $what, " taken when none is asked for (marked `(", stringify!($dflt), ")` where the values are listed).")]
+                pub const DEFAULT: $ty = $ty::$variant;
+            }
+        )?)+
+
         impl std::fmt::Display for $ty {
             fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
                 f.write_str($crate::named::Named::name(*self))
@@ -86,6 +93,24 @@ macro_rules! named_enum {
 }
 
 pub(crate) use named_enum;
+
+/// Whether `a` and `b` are the same string, in a `const` context (`str`'s `==` is not const):
+/// the compile-time lookups of a default by its name (`Layout::named`, `Method::named`:
+/// `crate::defaults`).
+pub const fn same(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
 
 #[cfg(test)]
 mod tests {
@@ -112,5 +137,8 @@ mod tests {
         assert_eq!("triangle".parse::<Shape>(), Err("shape `triangle`: expected one of circle, square-ish".into()));
         assert_eq!(Shape::names(), "circle, square-ish");
         assert_eq!(Shape::default(), Shape::Circle);
+        assert_eq!(Shape::DEFAULT, Shape::Circle);
+        let same = crate::named::same;
+        assert!(same("bvh2", "bvh2") && !same("bvh2", "bvh4") && !same("bvh", "bvh2"));
     }
 }

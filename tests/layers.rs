@@ -5,14 +5,19 @@
 //! other, directly or around a longer cycle. The library does not use clap (the command line,
 //! `src/main.rs` and `src/cli/`, is the binary's). Comments are not imports.
 
+mod common;
+
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+
+use common::source::{rust_files, without_comment};
 
 /// The library's top-level modules, lowest layer first: each may import only those before it.
 /// ARCHITECTURE.md explains the layers; `src/lib.rs` declares the modules in this order.
 const LAYERS: &[&str] = &[
     // Ground floor: errors, output, named values, the constants shared with GLSL, the kernel
     // registry and SPIR-V.
+    "defaults",
     "env",
     "error",
     "io",
@@ -49,18 +54,6 @@ fn src() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src")
 }
 
-/// Every `.rs` file under `dir`.
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            rust_files(&p, out);
-        } else if p.extension().is_some_and(|x| x == "rs") {
-            out.push(p);
-        }
-    }
-}
-
 /// Every `.rs` file under `src/`, sorted.
 fn source_files() -> Vec<PathBuf> {
     let mut files = vec![];
@@ -94,25 +87,7 @@ fn library_modules() -> Vec<(PathBuf, Vec<String>)> {
 /// The code of a file without comments (line comments, and the rest of a line after `//`
 /// outside a string literal).
 fn code(text: &str) -> String {
-    let mut out = String::new();
-    for line in text.lines() {
-        let mut in_str = false;
-        let mut prev = ' ';
-        let mut cut = line.len();
-        for (i, c) in line.char_indices() {
-            if c == '"' && prev != '\\' {
-                in_str = !in_str;
-            }
-            if !in_str && c == '/' && prev == '/' {
-                cut = i - 1;
-                break;
-            }
-            prev = c;
-        }
-        out.push_str(&line[..cut]);
-        out.push('\n');
-    }
-    out
+    text.lines().flat_map(|line| [without_comment(line), "\n"]).collect()
 }
 
 /// Module paths a file refers to: `crate::a::b::...` (also `crate::{a, b::c}`) and

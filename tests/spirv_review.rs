@@ -22,7 +22,7 @@ fn committed_spirv_matches_the_kernels() {
          committed review is Debian 12's static shaderc (scripts/install-deps.sh installs libshaderc-dev \
          glslang-dev spirv-tools, and build.rs links them); `{REFRESH}` only where the compiler is meant to change"
     );
-    let expected = trilab::spirv::review_files(trilab::spirv::Disassembly::Studied);
+    let expected = trilab::spirv::review_files(&trilab::encoding::variants::studied());
     let mut stale = vec![];
     for (name, text) in &expected {
         match std::fs::read_to_string(dir.join(name)) {
@@ -34,7 +34,7 @@ fn committed_spirv_matches_the_kernels() {
     for e in std::fs::read_dir(&dir).into_iter().flatten().flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
         if name.ends_with(".spvasm") && !expected.iter().any(|(n, _)| *n == name) {
-            stale.push(format!("{name} is not a studied kernel's (trilab::spirv::studied)"));
+            stale.push(format!("{name} is not a studied kernel's (trilab::encoding::variants::studied)"));
         }
     }
     assert!(stale.is_empty(), "spirv/ is out of date ({}); refresh it with `{REFRESH}` and commit", stale.join(", "));

@@ -45,16 +45,16 @@ pub struct WorkloadArgs {
     #[arg(long, value_name = "N", default_value_t = 20_000)]
     random_rays: usize,
     /// Seed of the ray sets (both sides trace the same rays).
-    #[arg(long, value_name = "N", default_value_t = 7)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::SEED)]
     seed: u64,
     #[command(flatten)]
     leaf: LeafSizeArg,
     /// How the kernels read the scene: `auto` uses texel buffers when every buffer fits one
     /// binding, else buffer device addresses.
-    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
+    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::DEFAULT)]
     scene_access: SceneAccess,
     /// Most rays per dispatch.
-    #[arg(long, value_name = "N", default_value_t = 1 << 20)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::BATCH_RAYS)]
     batch_rays: usize,
     /// Add a path-trace cell per scene, method and layout: the path tracer's kernel rendering the
     /// scene at --width x --height, 1 sample a pixel, paths of at most 4 bounces; validated as
@@ -94,8 +94,8 @@ impl WorkloadArgs {
         Workload {
             scenes: if self.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { self.scenes.clone() },
             methods: if self.methods.is_empty() { Method::ALL.to_vec() } else { self.methods.clone() },
-            layouts: if self.layouts.is_empty() { vec![Layout::Bvh2] } else { self.layouts.clone() },
-            traversals: if self.traversals.is_empty() { vec![Traversal::WhileIf] } else { self.traversals.clone() },
+            layouts: if self.layouts.is_empty() { vec![Layout::DEFAULT] } else { self.layouts.clone() },
+            traversals: if self.traversals.is_empty() { vec![Traversal::DEFAULT] } else { self.traversals.clone() },
             sets: if self.sets.is_empty() { RaySet::ALL.to_vec() } else { self.sets.clone() },
             sizes: RaySetSizes {
                 width: self.width,

@@ -31,7 +31,7 @@ pub struct BenchArgs {
     #[command(flatten)]
     bvh: BuildArgs,
     /// Timed runs per ray set and method after one warm-up (at least 1; median, min, max).
-    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::REPEAT, value_parser = repeat)]
     repeat: usize,
     #[command(flatten)]
     rays: RaySetArgs,
@@ -65,7 +65,7 @@ pub struct BenchArgs {
     /// How the kernels read the scenes: `auto` uses texel buffers when every buffer fits one
     /// binding, else buffer device addresses (`trilab scale` reports which); several,
     /// comma-separated (`texel,address`), are timed side by side.
-    #[arg(long, value_name = "A,...", value_parser = choice::<SceneAccess>(), value_delimiter = ',', default_value = "auto")]
+    #[arg(long, value_name = "A,...", value_parser = choice::<SceneAccess>(), value_delimiter = ',', default_values_t = [SceneAccess::DEFAULT])]
     scene_access: Vec<SceneAccess>,
     /// BVH node layouts, comma-separated (`bvh2`, `bvh4`, `bvh8`, ...): every method is timed on
     /// each, side by side in one run (default: bvh2).
@@ -163,11 +163,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
         tinybvh: a.tinybvh,
         tinybvh_layouts: a.tinybvh_layouts,
         scene_access: a.scene_access,
-        layouts: if a.layouts.is_empty() { vec![Layout::Bvh2] } else { a.layouts },
-        traversals: if a.traversals.is_empty() { vec![Traversal::WhileIf] } else { a.traversals },
-        orders: if a.orders.is_empty() { vec![RayOrder::Given] } else { a.orders },
+        layouts: if a.layouts.is_empty() { vec![Layout::DEFAULT] } else { a.layouts },
+        traversals: if a.traversals.is_empty() { vec![Traversal::DEFAULT] } else { a.traversals },
+        orders: if a.orders.is_empty() { vec![RayOrder::DEFAULT] } else { a.orders },
         node_orders: if a.node_orders.is_empty() {
-            vec![NodeOrder::Built]
+            vec![NodeOrder::DEFAULT]
         } else {
             distinct_node_orders(a.node_orders)
         },

@@ -32,7 +32,7 @@ pub struct BuildBenchArgs {
     #[arg(long, value_name = "N,...", value_delimiter = ',')]
     threads: Vec<usize>,
     /// Timed runs after one warm-up (at least 1).
-    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::REPEAT, value_parser = repeat)]
     repeat: usize,
     /// Leave out the single-threaded reference loop.
     #[arg(long)]

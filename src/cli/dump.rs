@@ -21,6 +21,7 @@ fn dump(cmd: &Command, path: &str) -> Vec<serde_json::Value> {
             "help": a.get_help().map(|s| s.to_string()),
             "value_names": a.get_value_names().map(|v| v.iter().map(|s| s.as_str().to_owned()).collect::<Vec<_>>()),
             "takes_value": a.get_action().takes_values(),
+            "defaults": a.get_default_values().iter().map(|v| v.to_string_lossy().into_owned()).collect::<Vec<_>>(),
             "global": a.is_global_set(),
         })).collect::<Vec<_>>(),
     })];

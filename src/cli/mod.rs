@@ -122,7 +122,7 @@ impl BuildArgs {
 #[derive(Args, Clone, Copy)]
 pub struct LeafSizeArg {
     /// Max triangles per BVH leaf (1..=16; the paper studies 1, 2, 3, 4, 8, 16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::LEAF_SIZE)]
     pub leaf_size: u32,
 }
 
@@ -138,7 +138,7 @@ impl LeafSizeArg {
 pub struct TreeShapeArgs {
     /// `fill`: nodes with <= leaf-size triangles become leaves (the paper's); `sah`: the SAH
     /// decides and leaf-size is only a cap.
-    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::Fill)]
+    #[arg(long, value_parser = choice::<LeafPolicy>(), default_value_t = LeafPolicy::DEFAULT)]
     pub leaf_policy: LeafPolicy,
     #[command(flatten)]
     pub sah_group: SahGroupArg,

@@ -36,14 +36,14 @@ pub struct ProfileArgs {
     #[command(flatten)]
     leaf: LeafSizeArg,
     /// BVH node layout every kernel traverses (`bvh2`, `bvh4`, `bvh8`, ...).
-    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
+    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::DEFAULT)]
     layout: Layout,
     #[command(flatten)]
     out: OutArgs,
     #[command(flatten)]
     rays: RaySetArgs,
     /// Timed runs after one warm-up (at least 1); median, min and max are reported.
-    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::REPEAT, value_parser = repeat)]
     repeat: usize,
     /// The ray set the subgroup- and workgroup-size sweeps time.
     #[arg(long, value_parser = choice::<RaySet>(), default_value_t = RaySet::Random)]

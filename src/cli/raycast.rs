@@ -23,7 +23,7 @@ pub struct RaycastArgs {
     /// Hit file to write (16-byte hits, docs/formats.md).
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
-    #[arg(long, value_name = "M", default_value = "mt", value_parser = method_choice(), hide_possible_values = true,
+    #[arg(long, value_name = "M", default_value = trilab::defaults::METHOD, value_parser = method_choice(), hide_possible_values = true,
           help = method_help("Intersection method:"))]
     method: MethodChoice,
     /// Translate the scene to its bounding-box centre, and the ray origins with it, in f64
@@ -45,21 +45,21 @@ pub struct RaycastArgs {
     any_hit: bool,
     /// How the kernels read the scene: `auto` plans its GPU memory and uses texel buffers when
     /// every buffer fits one binding, else buffer device addresses (the JSON says which).
-    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
+    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::DEFAULT)]
     scene_access: SceneAccess,
     /// BVH node layout: `bvh2` (the paper's binary tree) or a wide one (`trilab methods` lists
     /// them); every kernel exists for every layout.
-    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
+    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::DEFAULT)]
     layout: Layout,
     /// How the kernel walks the tree; each value lists the layouts, access paths and kinds it has
     /// kernels for (from the compiled variants).
-    #[arg(long, value_parser = traversal_choice(), default_value_t = Traversal::WhileIf)]
+    #[arg(long, value_parser = traversal_choice(), default_value_t = Traversal::DEFAULT)]
     traversal: Traversal,
     /// Timed runs after one warm-up (at least 1); the median is reported.
-    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::REPEAT, value_parser = repeat)]
     repeat: usize,
     /// Most rays per dispatch (each dispatch is its own submit).
-    #[arg(long, value_name = "N", default_value_t = 1 << 20)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::BATCH_RAYS)]
     batch_rays: usize,
     /// Also check every hit against the f64 reference and report agreement (was `--validate`).
     #[arg(long, alias = "validate")]

@@ -29,10 +29,10 @@ enum RaysCmd {
         #[command(flatten)]
         camera: CameraArg,
         /// Image width in pixels.
-        #[arg(long, value_name = "W", default_value_t = 800)]
+        #[arg(long, value_name = "W", default_value_t = trilab::defaults::WIDTH)]
         width: u32,
         /// Image height in pixels.
-        #[arg(long, value_name = "H", default_value_t = 600)]
+        #[arg(long, value_name = "H", default_value_t = trilab::defaults::HEIGHT)]
         height: u32,
     },
     /// Cosine-distributed bounces off the primary hits (hits from the f64 reference).
@@ -42,16 +42,16 @@ enum RaysCmd {
         #[command(flatten)]
         camera: CameraArg,
         /// Width in pixels of the primary image whose hits bounce.
-        #[arg(long, value_name = "W", default_value_t = 800)]
+        #[arg(long, value_name = "W", default_value_t = trilab::defaults::WIDTH)]
         width: u32,
         /// Height in pixels of the primary image whose hits bounce.
-        #[arg(long, value_name = "H", default_value_t = 600)]
+        #[arg(long, value_name = "H", default_value_t = trilab::defaults::HEIGHT)]
         height: u32,
         /// Rays per primary hit (was `--per-hit`).
-        #[arg(long, value_name = "N", default_value_t = 8, alias = "per-hit")]
+        #[arg(long, value_name = "N", default_value_t = trilab::defaults::DIFFUSE_PER_HIT, alias = "per-hit")]
         diffuse_per_hit: u32,
         /// Random seed.
-        #[arg(long, value_name = "N", default_value_t = 7)]
+        #[arg(long, value_name = "N", default_value_t = trilab::defaults::SEED)]
         seed: u64,
     },
     /// Rays from a sphere around the scene towards random points in its box.
@@ -59,10 +59,10 @@ enum RaysCmd {
         #[command(flatten)]
         common: RaysCommon,
         /// How many rays (was `--count`).
-        #[arg(long, value_name = "N", default_value_t = 1_000_000, alias = "count")]
+        #[arg(long, value_name = "N", default_value_t = trilab::defaults::RANDOM_RAYS, alias = "count")]
         random_rays: usize,
         /// Random seed.
-        #[arg(long, value_name = "N", default_value_t = 7)]
+        #[arg(long, value_name = "N", default_value_t = trilab::defaults::SEED)]
         seed: u64,
     },
 }

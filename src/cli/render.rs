@@ -21,11 +21,11 @@ use super::{note, scene_help, signals, BuildArgs, GpuArgs, JsonArg};
 pub struct RenderArgs {
     #[arg(long, value_name = "S", help = scene_help!())]
     scene: PathBuf,
-    #[arg(long, value_name = "M", default_value = "mt", value_parser = method_choice(), hide_possible_values = true,
+    #[arg(long, value_name = "M", default_value = trilab::defaults::METHOD, value_parser = method_choice(), hide_possible_values = true,
           help = method_help("Intersection method:"))]
     method: MethodChoice,
     /// BVH node layout the path tracer traverses (`trilab methods` lists them).
-    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::Bvh2)]
+    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::DEFAULT)]
     layout: Layout,
     #[command(flatten)]
     bvh: BuildArgs,

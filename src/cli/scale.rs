@@ -28,26 +28,26 @@ pub struct ScaleArgs {
     #[command(flatten)]
     leaf: LeafSizeArg,
     /// Rays cast per scene and method (was `--rays`).
-    #[arg(long, value_name = "N", default_value_t = 1_000_000, alias = "rays")]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::RANDOM_RAYS, alias = "rays")]
     ray_count: usize,
     /// The ray set cast (was `--ray-kind`).
     #[arg(long, value_parser = choice::<RaySet>(), default_value_t = RaySet::Random, alias = "ray-kind")]
     ray_set: RaySet,
     /// Timed runs after one warm-up (at least 1; median, min, max reported).
-    #[arg(long, value_name = "N", default_value_t = 5, value_parser = repeat)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::REPEAT, value_parser = repeat)]
     repeat: usize,
     /// Hits checked against the f64 reference, evenly spaced over the ray set (was `--validate`).
     #[arg(long, value_name = "N", default_value_t = 20_000, alias = "validate")]
     reference_rays: usize,
     /// How the kernels read the scenes: `auto` uses texel buffers when every buffer fits one
     /// binding, else buffer device addresses.
-    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::Auto)]
+    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::DEFAULT)]
     scene_access: SceneAccess,
     /// Most rays per dispatch (each dispatch is its own submit).
-    #[arg(long, value_name = "N", default_value_t = 1 << 20)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::BATCH_RAYS)]
     batch_rays: usize,
     /// Seed of the ray set.
-    #[arg(long, value_name = "N", default_value_t = 7)]
+    #[arg(long, value_name = "N", default_value_t = trilab::defaults::SEED)]
     seed: u64,
     /// Only the memory plan (bytes per triangle, access path): no upload, no cast.
     #[arg(long)]

@@ -37,7 +37,7 @@ impl Default for RenderBenchOptions {
             scenes: vec![],
             methods: Method::ALL.to_vec(),
             kernels: vec![KernelChoice::Specialised],
-            build: BuildOptions::new(4),
+            build: BuildOptions::new(crate::defaults::LEAF_SIZE),
             width: 200,
             height: 150,
             spp: 16,

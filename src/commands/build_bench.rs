@@ -58,9 +58,9 @@ impl Default for BuildBenchOptions {
     fn default() -> Self {
         BuildBenchOptions {
             scenes: vec![],
-            build: BuildOptions::new(4),
+            build: BuildOptions::new(crate::defaults::LEAF_SIZE),
             threads: vec![std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)],
-            repeat: 5,
+            repeat: crate::defaults::REPEAT,
             serial: true,
             sweep_max_triangles: 300_000,
             embree: None,

@@ -77,12 +77,12 @@ pub fn default_workload(sizes: crate::services::rayset::RaySetSizes, build: crat
         scenes: vec![PathBuf::from("bunny")],
         methods: Method::ALL.to_vec(),
         layouts: Layout::ALL.to_vec(),
-        traversals: vec![Traversal::WhileIf],
+        traversals: vec![Traversal::DEFAULT],
         sets: RaySet::ALL.to_vec(),
         sizes,
         build,
-        scene_access: crate::encoding::SceneAccess::Auto,
-        batch_rays: 1 << 20,
+        scene_access: crate::encoding::SceneAccess::DEFAULT,
+        batch_rays: crate::defaults::BATCH_RAYS,
         pathtrace: false,
         pipeline_stats: false,
     }
@@ -138,7 +138,7 @@ fn workload_of(w: &Workload, kernels: &[&AbKernel]) -> Workload {
     w.traversals.retain(|t| kernels.iter().any(|k| k.traversal == t.name()));
     w.pathtrace = w.pathtrace && kernels.iter().any(|k| k.kind == CellKind::Pathtrace);
     if w.traversals.is_empty() {
-        w.traversals = vec![Traversal::WhileIf];
+        w.traversals = vec![Traversal::DEFAULT];
     }
     w
 }

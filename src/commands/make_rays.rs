@@ -122,7 +122,11 @@ pub fn run(scene: &Path, out: &Path, kind: RaysKind) -> Result<RaysReport> {
         }
         RaysKind::Diffuse { camera, width, height, per_hit, seed } => {
             let primary = rays::primary_rays(&camera.camera(&mesh.bounds())?, width, height);
-            let host = HostScene::build(crate::scene::scene_name(scene), &mesh, &BuildOptions::new(4))?;
+            let host = HostScene::build(
+                crate::scene::scene_name(scene),
+                &mesh,
+                &BuildOptions::new(crate::defaults::LEAF_SIZE),
+            )?;
             RaySet::diffuse_from(&mesh, &host.reference(), &primary, per_hit, seed)
         }
         RaysKind::Random { count, seed } => rays::random_rays(&mesh.bounds(), count, seed),

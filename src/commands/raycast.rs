@@ -327,7 +327,7 @@ fn trace_ours(
     let result = scene.cast(ctx, kind, rays, opts)?;
     let mut tracer =
         format!("{} leaf size {} ({}), {}", scene.method, req.build.max_leaf_size, req.build.leaf_policy, req.layout);
-    if req.traversal != Traversal::WhileIf {
+    if req.traversal != Traversal::DEFAULT {
         tracer.push_str(&format!(", {} traversal", req.traversal));
     }
     Ok(Traced {

@@ -40,7 +40,7 @@ pub fn counts() -> SpirvReport {
 /// Returns how many files were written.
 pub fn write(dir: &Path, which: Disassembly) -> Result<usize> {
     let mut folder = crate::services::results::Folder::create(dir)?;
-    let files = crate::spirv::review_files(which);
+    let files = crate::spirv::review_files(&crate::encoding::variants::disassembled(which));
     let keep: Vec<&String> = files.iter().map(|(n, _)| n).collect();
     for e in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
@@ -140,7 +140,7 @@ mod tests {
     #[test]
     fn rows_carry_the_review_files_counts() {
         let rows = super::rows(&super::counts());
-        let files = crate::spirv::review_files(crate::spirv::Disassembly::Studied);
+        let files = crate::spirv::review_files(&crate::encoding::variants::studied());
         let csv = &files.iter().find(|(n, _)| n == "instruction_counts.csv").expect("counts file").1;
         let mut lines = csv.lines();
         let header: Vec<&str> = lines.next().unwrap().split(',').collect();

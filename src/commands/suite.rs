@@ -671,7 +671,7 @@ fn bench_section(r: &bench::BenchReport, link: &str) -> String {
             || r.rows.iter().filter(|x| x.scene == scene && x.ray_set == set && matches!(x.method, Tracer::Method(_)));
         let Some(best) = ours().max_by(|a, b| a.mrays_per_s.total_cmp(&b.mrays_per_s)) else { continue };
         let mt = ours()
-            .find(|x| x.method == Tracer::Method(Method::Mt) && x.layout.unwrap_or(Layout::Bvh2) == Layout::Bvh2)
+            .find(|x| x.method == Tracer::Method(Method::Mt) && x.layout.unwrap_or(Layout::DEFAULT) == Layout::DEFAULT)
             .map(|x| format!("{:.2}", x.mrays_per_s))
             .unwrap_or_else(|| "-".into());
         let layout = best.layout.map(|l| format!(" {l}")).unwrap_or_default();

@@ -88,6 +88,17 @@ macro_rules! registry {
                     $(Method::$variant => &$module::INTERSECTOR),+
                 }
             }
+
+            /// The method named `name`, at compile time (for constants: an unknown name does
+            /// not compile).
+            const fn named(name: &str) -> Method {
+                $(
+                    if crate::named::same(name, $module::INTERSECTOR.name) {
+                        return Method::$variant;
+                    }
+                )+
+                panic!("crate::defaults::METHOD names no method")
+            }
         }
     };
 }
@@ -110,6 +121,9 @@ pub use quad_unit::QuadUnit;
 pub use unit::{unit_transform, UnitTriangle};
 
 impl Method {
+    /// The method taken when none is asked for: [`crate::defaults::METHOD`].
+    pub const DEFAULT: Method = Method::named(crate::defaults::METHOD);
+
     /// The paper's four (Shumskiy & Parshin): what `trilab study` compares by default.
     pub fn paper() -> Vec<Method> {
         Method::ALL.into_iter().filter(|m| m.intersector().in_paper).collect()

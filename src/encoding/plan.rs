@@ -250,7 +250,7 @@ impl MemoryPlan {
             BufferPlan::new("slot ids", BINDING_SLOT_IDS, Texel::R32Uint, slot_ids, 4),
         ];
         buffers.extend((method.intersector().plan)(c));
-        MemoryPlan { method, layout: Layout::Bvh2, counts: *c, buffers }
+        MemoryPlan { method, layout: Layout::DEFAULT, counts: *c, buffers }
     }
 
     /// This plan with `layout`'s node buffer in place of the binary nodes, priced by the
@@ -290,7 +290,7 @@ impl MemoryPlan {
             slots: scene.slot_ids.len() as u64,
             ..Default::default()
         };
-        MemoryPlan { method: scene.method, layout: Layout::Bvh2, counts, buffers }
+        MemoryPlan { method: scene.method, layout: Layout::DEFAULT, counts, buffers }
     }
 
     pub fn for_bvh(method: Method, mesh: &Mesh, bvh: &Bvh) -> MemoryPlan {

@@ -15,6 +15,8 @@ use crate::spirv::required_features;
 /// A compute pipeline with its layouts; destroyed on drop.
 pub struct Kernel {
     device: Arc<Device>,
+    /// The registry's kernel it was made from (`encoding::variants::KernelKey::of` gives its key).
+    pub source: &'static KernelSource,
     pub name: &'static str,
     pub layout: KernelLayout,
     module: vk::ShaderModule,
@@ -84,18 +86,18 @@ impl Context {
     }
 
     /// A new pipeline for `src` (not shared: [`Context::kernel`] is the usual way).
-    pub fn create_kernel(&self, src: &KernelSource) -> Result<Kernel> {
+    pub fn create_kernel(&self, src: &'static KernelSource) -> Result<Kernel> {
         self.create_kernel_specialized(src, &[])
     }
 
     /// A pipeline with specialisation constants set: `(constant_id, 32-bit value)` pairs.
-    pub fn create_kernel_specialized(&self, src: &KernelSource, constants: &[(u32, u32)]) -> Result<Kernel> {
+    pub fn create_kernel_specialized(&self, src: &'static KernelSource, constants: &[(u32, u32)]) -> Result<Kernel> {
         self.create_kernel_with(src, &PipelineOptions { constants, ..Default::default() })
     }
 
     /// A pipeline with the profiling options of [`PipelineOptions`]; the caller checks that
     /// the device enabled what they need (`Context::enabled`).
-    pub fn create_kernel_with(&self, src: &KernelSource, options: &PipelineOptions) -> Result<Kernel> {
+    pub fn create_kernel_with(&self, src: &'static KernelSource, options: &PipelineOptions) -> Result<Kernel> {
         let constants = options.constants;
         let words = src.words();
         self.check_capabilities(src.name, &words)?;
@@ -177,6 +179,7 @@ impl Context {
         let (module, set_layout, pipeline_layout, pipeline) = objects.release();
         Ok(Kernel {
             device: self.device.clone(),
+            source: src,
             name: src.name,
             layout,
             module,

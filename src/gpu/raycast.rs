@@ -38,7 +38,7 @@ pub struct RaycastOptions {
 
 impl Default for RaycastOptions {
     fn default() -> Self {
-        RaycastOptions { warmup: 1, repeat: 1, batch_rays: 1 << 20 }
+        RaycastOptions { warmup: 1, repeat: 1, batch_rays: crate::defaults::BATCH_RAYS }
     }
 }
 

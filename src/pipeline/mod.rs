@@ -54,14 +54,14 @@ pub struct SceneRequest {
     /// A reader of the scene without the address path (the path tracer), and why: the plan takes
     /// texel or storage buffers, and a "does not fit" error says what helps that reader.
     pub without_address: Option<&'static str>,
-    /// The node layout the kernels read ([`Layout::Bvh2`] unless asked): a wide layout binds its
+    /// The node layout the kernels read ([`Layout::DEFAULT`] unless asked): a wide layout binds its
     /// nodes, made from the encoding's binary nodes, where the binary ones would be; every
     /// kernel exists for every layout (`encoding::layout`).
     pub layout: Layout,
-    /// How the ray-casting kernels walk the tree ([`Traversal::WhileIf`] unless asked; the
+    /// How the ray-casting kernels walk the tree ([`Traversal::DEFAULT`] unless asked; the
     /// others have kernels for some layouts, kinds and paths only: `Method::traversal_kernel`).
     pub traversal: Traversal,
-    /// Where the layout's nodes sit in its node buffer ([`NodeOrder::Built`] unless asked:
+    /// Where the layout's nodes sit in its node buffer ([`NodeOrder::DEFAULT`] unless asked:
     /// `bvh::order`); every layout, kernel and traversal reads any order.
     pub node_order: NodeOrder,
 }
@@ -77,11 +77,11 @@ impl SceneRequest {
     pub fn new(method: impl Into<MethodChoice>) -> SceneRequest {
         SceneRequest {
             method: method.into(),
-            access: SceneAccess::Auto,
+            access: SceneAccess::DEFAULT,
             without_address: None,
-            layout: Layout::Bvh2,
-            traversal: Traversal::WhileIf,
-            node_order: NodeOrder::Built,
+            layout: Layout::DEFAULT,
+            traversal: Traversal::DEFAULT,
+            node_order: NodeOrder::DEFAULT,
         }
     }
 
@@ -379,22 +379,21 @@ impl DeviceScene {
         cast_rays(ctx, kernel, &resources, rays, opts)
     }
 
-    /// Fails unless `kernel` is one of this scene's ray-casting kernels (its method, its path).
-    pub fn check_kernel(&self, kernel: &Kernel) -> Result<()> {
-        let key = crate::kernels::KERNELS.iter().find(|k| k.name == kernel.name).and_then(RaycastKey::of);
-        if key.is_some_and(|k| {
-            (k.method, k.access, k.layout, k.traversal) == (self.method, self.access, self.layout, self.traversal)
-        }) {
-            return Ok(());
-        }
-        Err(Error::Usage(format!(
-            "kernel {} cannot read scene `{}` ({} on the {} path, {} layout)",
-            kernel.name,
-            self.name,
-            self.method,
-            self.access.name(),
-            self.layout
-        )))
+    /// The key of `kernel` when it is one of this scene's ray-casting kernels (its method, path,
+    /// layout and traversal; any kind), else an error.
+    pub fn check_kernel(&self, kernel: &Kernel) -> Result<RaycastKey> {
+        let scene = (self.method, self.access, self.layout, self.traversal);
+        let key = RaycastKey::of(kernel.source).filter(|k| (k.method, k.access, k.layout, k.traversal) == scene);
+        key.ok_or_else(|| {
+            Error::Usage(format!(
+                "kernel {} cannot read scene `{}` ({} on the {} path, {} layout)",
+                kernel.name,
+                self.name,
+                self.method,
+                self.access.name(),
+                self.layout
+            ))
+        })
     }
 }
 

@@ -148,7 +148,7 @@ pub struct PathtraceKernel {
 impl PathtraceKernel {
     /// The kernel for `method` and a scene whose materials use the BSDFs in `mask`.
     pub fn choose(method: Method, mask: u32, choice: KernelChoice) -> PathtraceKernel {
-        Self::choose_on(method, Layout::Bvh2, mask, choice)
+        Self::choose_on(method, Layout::DEFAULT, mask, choice)
     }
 
     /// [`PathtraceKernel::choose`] for a scene whose nodes are in `layout`: the single-BSDF

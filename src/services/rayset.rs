@@ -43,7 +43,14 @@ pub struct RaySetSizes {
 /// `trilab bench`'s sets: an 800 x 600 camera, 8 bounces per hit, a million random rays, seed 7.
 impl Default for RaySetSizes {
     fn default() -> Self {
-        RaySetSizes { width: 800, height: 600, diffuse_per_hit: 8, random_rays: 1_000_000, seed: 7 }
+        use crate::defaults::{DIFFUSE_PER_HIT, HEIGHT, RANDOM_RAYS, SEED, WIDTH};
+        RaySetSizes {
+            width: WIDTH,
+            height: HEIGHT,
+            diffuse_per_hit: DIFFUSE_PER_HIT,
+            random_rays: RANDOM_RAYS,
+            seed: SEED,
+        }
     }
 }
 

@@ -1,8 +1,8 @@
 //! SPIR-V as a review surface: instruction counts per opcode class, disassembly, reflection.
 //!
 //! `spirv/` in the repository holds a row of `spirv/instruction_counts.csv` for every kernel
-//! variant, and the disassembly of the kernels a reader studies ([`studied`]: the paper's
-//! study kernels and the layouts study's); `tests/spirv_review.rs` regenerates both and fails
+//! variant, and the disassembly of the kernels a reader studies (`encoding::variants::studied`,
+//! from the kernels' keys: the paper's study kernels and the layouts study's); `tests/spirv_review.rs` regenerates both and fails
 //! when the committed files differ (`trilab spirv --out spirv --studied` refreshes them).
 //! `trilab spirv --out DIR` writes every variant's disassembly: the other 400-odd modules are
 //! 20 MiB of text that the tree, which travels to lent GPUs under a size limit, does not carry.
@@ -55,36 +55,22 @@ pub fn counts_csv() -> String {
     s
 }
 
-/// The `raycast` variants whose disassembly `spirv/` keeps: closest and any hit on the binary
-/// nodes (the paper's study, every intersector) and closest hit on each wide layout (`study
-/// --layouts`).
-pub const STUDIED_RAYCAST_VARIANTS: [&str; 5] = ["closest", "any", "closest_bvh4", "closest_bvh8", "closest_cwbvh"];
-
-/// Whether `k` is a kernel a reader studies, whose disassembly `spirv/` keeps: a
-/// [`STUDIED_RAYCAST_VARIANTS`] variant of `raycast`, or the ray-query peer.
-pub fn studied(k: &KernelSource) -> bool {
-    match k.kernel {
-        "raycast" => STUDIED_RAYCAST_VARIANTS.contains(&k.variant),
-        "rayquery" => true,
-        _ => false,
-    }
-}
-
-/// Which kernels' disassembly a review folder holds.
+/// Which kernels' disassembly a review folder holds (`encoding::variants::disassembled` lists
+/// them, from the kernels' keys).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Disassembly {
-    /// Those of [`studied`] (what `spirv/` keeps).
+    /// The kernels a reader studies (`encoding::variants::studied`: what `spirv/` keeps).
     Studied,
     /// Every variant's.
     All,
 }
 
 /// Every file a review folder holds: (file name, contents): `instruction_counts.csv` (every
-/// variant), [`COMPILER_FILE`] and the disassembly of `which` kernels. `spirv/` holds [`Disassembly::Studied`].
-pub fn review_files(which: Disassembly) -> Vec<(String, String)> {
-    let mut files: Vec<(String, String)> = KERNELS
+/// variant), [`COMPILER_FILE`] and the disassembly of the `disassembled` kernels. `spirv/` holds
+/// those of [`Disassembly::Studied`].
+pub fn review_files(disassembled: &[&KernelSource]) -> Vec<(String, String)> {
+    let mut files: Vec<(String, String)> = disassembled
         .iter()
-        .filter(|k| which == Disassembly::All || studied(k))
         .map(|k| {
             let text =
                 disassemble(&k.words()).unwrap_or_else(|e| panic!("embedded kernel {} is malformed: {e}", k.name));

@@ -3,6 +3,7 @@
 
 pub mod cli;
 pub mod running;
+pub mod source;
 pub mod unpacked;
 
 use std::path::PathBuf;

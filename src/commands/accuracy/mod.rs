@@ -122,7 +122,7 @@ impl AccuracyOptions {
             preset,
             methods: Method::ALL.to_vec(),
             leaf_sizes: crate::bvh::PAPER_LEAF_SIZES.to_vec(),
-            layouts: vec![Layout::Bvh2],
+            layouts: vec![Layout::DEFAULT],
             leak_rays: 400_000,
             origins: 64,
             fine_meshes: true,
@@ -131,12 +131,12 @@ impl AccuracyOptions {
             schemes: Offset::ALL.to_vec(),
             self_scales: (-8..=8).collect(),
             extreme_rays: 100_000,
-            bench_width: 800,
-            bench_height: 600,
+            bench_width: crate::defaults::WIDTH,
+            bench_height: crate::defaults::HEIGHT,
             repeat: 3,
             real_scenes: vec![PathBuf::from("bunny")],
             scenes: vec![],
-            seed: 7,
+            seed: crate::defaults::SEED,
             shard: None,
         };
         match preset {
@@ -163,8 +163,8 @@ impl AccuracyOptions {
 impl AccuracyOptions {
     /// The layout of the frontier (and its leaf size [`FIXED_LEAF`]): `bvh2` when measured.
     pub fn frontier_layout(&self) -> Layout {
-        if self.layouts.contains(&Layout::Bvh2) || self.layouts.is_empty() {
-            Layout::Bvh2
+        if self.layouts.contains(&Layout::DEFAULT) || self.layouts.is_empty() {
+            Layout::DEFAULT
         } else {
             self.layouts[0]
         }
@@ -444,7 +444,8 @@ fn cast(
     rays: &[Ray],
 ) -> Result<(Vec<Hit>, usize)> {
     let scene = host.upload(ctx, &SceneRequest::new(t.method).layout(layout))?;
-    let res = scene.cast(ctx, Raycast::Closest, rays, &RaycastOptions { warmup: 0, repeat: 1, batch_rays: 1 << 20 })?;
+    let res =
+        scene.cast(ctx, Raycast::Closest, rays, &RaycastOptions { warmup: 0, repeat: 1, ..Default::default() })?;
     Ok((res.hits, scene.unrepresentable.len()))
 }
 
@@ -744,7 +745,7 @@ fn leaks_and_false_hits(
                     }
                 };
                 errors[pos].tally.add(&rays[..leak_count], &hits[..leak_count], &ref_hits[..leak_count], true, &[]);
-                let on = if layout == Layout::Bvh2 { String::new() } else { format!(" on {layout}") };
+                let on = if layout == Layout::DEFAULT { String::new() } else { format!(" on {layout}") };
                 progress(&format!("{} leaf {leaf} {}{on}: {leaks} leaks in {leak_count} rays", scene.name, t.method));
             }
         }
@@ -792,7 +793,7 @@ fn self_intersection(
     let near = 1e-4 * 2.0 * scale;
     let mut rows = Vec::new();
     for t in tracers {
-        let (hits, _) = cast(ctx, t, &host, Layout::Bvh2, &primary)?;
+        let (hits, _) = cast(ctx, t, &host, Layout::DEFAULT, &primary)?;
         let mut points = Vec::with_capacity(n);
         for (i, (r, h)) in primary.iter().zip(&hits).enumerate() {
             if points.len() == n {
@@ -818,7 +819,7 @@ fn self_intersection(
                     tmax: f32::INFINITY,
                 })
                 .collect();
-            let (sec, _) = cast(ctx, t, &host, Layout::Bvh2, &rays)?;
+            let (sec, _) = cast(ctx, t, &host, Layout::DEFAULT, &rays)?;
             let mut row = SelfHitRow {
                 method: t.method,
                 leaf_size: FIXED_LEAF,
@@ -863,7 +864,7 @@ fn extreme_case(
     let ref_hits = host.reference().trace_all(rays, false);
     let cond = crate::conditioning::Conditioning::of(mesh);
     for t in tracers {
-        let (hits, unrepresentable) = cast(ctx, t, &host, Layout::Bvh2, rays)?;
+        let (hits, unrepresentable) = cast(ctx, t, &host, Layout::DEFAULT, rays)?;
         report.extremes.push(ExtremeRow {
             kind: kind.into(),
             param: param.clone(),
@@ -964,10 +965,10 @@ fn frontier(
     let rays = RaySet::diffuse_from(&mesh, &reference, &primary, 1, o.seed);
     let ref_hits = reference.trace_all(&rays, false);
     report.frontier_rays = rays.len();
-    let layout = if o.layouts.contains(&Layout::Bvh2) { Layout::Bvh2 } else { o.layouts[0] };
+    let layout = if o.layouts.contains(&Layout::DEFAULT) { Layout::DEFAULT } else { o.layouts[0] };
     for t in tracers {
         let scene = host.upload(ctx, &SceneRequest::new(t.method).layout(layout))?;
-        let opts = RaycastOptions { warmup: 1, repeat: o.repeat.max(1), batch_rays: 1 << 20 };
+        let opts = RaycastOptions { warmup: 1, repeat: o.repeat.max(1), ..Default::default() };
         let (speed, note) = match measure_rays(ctx, &scene, &mesh, &rays, &ref_hits, &opts) {
             Ok(m) => (Some(m.mrays_per_s), None),
             Err(e) => (None, Some(e.to_string())),

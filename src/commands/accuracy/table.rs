@@ -57,7 +57,7 @@ fn from_tally(section: &str, case: &str, param: String, method: Method, leaf: u3
         param,
         method: method.to_string(),
         leaf_size: leaf,
-        layout: Layout::Bvh2.to_string(),
+        layout: Layout::DEFAULT.to_string(),
         rays: t.rays,
         reference_hits: Some(t.reference_hits),
         gpu_hits: Some(t.gpu_hits),
@@ -120,7 +120,7 @@ pub fn csv(report: &AccuracyReport) -> Result<String> {
             param: format!("scale=1e{}", r.scale_exp),
             method: r.method.to_string(),
             leaf_size: r.leaf_size,
-            layout: Layout::Bvh2.to_string(),
+            layout: Layout::DEFAULT.to_string(),
             rays: r.rays,
             nan: Some(r.nan),
             self_hits: Some(r.self_hits),
@@ -186,7 +186,7 @@ fn methods(report: &AccuracyReport) -> Vec<Method> {
 /// The layouts of the leak study, in the order asked.
 fn layouts(report: &AccuracyReport) -> Vec<Layout> {
     if report.options.layouts.is_empty() {
-        vec![Layout::Bvh2]
+        vec![Layout::DEFAULT]
     } else {
         report.options.layouts.clone()
     }
@@ -194,7 +194,7 @@ fn layouts(report: &AccuracyReport) -> Vec<Layout> {
 
 /// Whether the tables name layouts (a layout other than bvh2 was measured).
 pub fn names_layouts(report: &AccuracyReport) -> bool {
-    layouts(report) != [Layout::Bvh2]
+    layouts(report) != [Layout::DEFAULT]
 }
 
 /// (method, leaf size, layout) rows of the leak study's tables, method by method.
@@ -602,9 +602,10 @@ pub fn markdown(report: &AccuracyReport, plots: &[Plot]) -> String {
         let _ = writeln!(
             s,
             "Node layouts: {} for the leaks, false hits and errors (each method on each); the extremes and the \
-             self-intersection study on `bvh2`, the frontier on `{}`.\n",
+             self-intersection study on `{}`, the frontier on `{}`.\n",
             ls.join(", "),
-            report.frontier.first().map_or(Layout::Bvh2, |f| f.layout)
+            Layout::DEFAULT,
+            report.frontier.first().map_or(Layout::DEFAULT, |f| f.layout)
         );
     }
     for (m, why) in &report.unsupported {

@@ -88,7 +88,7 @@ pub struct BenchRow {
 
 /// Whether a row's node order is the built one (or it has none): not written.
 pub(super) fn built_order(o: &Option<NodeOrder>) -> bool {
-    o.is_none_or(|o| o == NodeOrder::Built)
+    o.is_none_or(|o| o == NodeOrder::DEFAULT)
 }
 
 /// A kernel's name: the method, then its layout (where given and not bvh2: progress lines; the
@@ -103,7 +103,7 @@ pub(super) fn kernel_label(
     access: AccessPath,
 ) -> String {
     let mut s = method.to_string();
-    if let Some(l) = layout.filter(|&l| l != Layout::Bvh2) {
+    if let Some(l) = layout.filter(|&l| l != Layout::DEFAULT) {
         s += &format!(" {l}");
     }
     if traversal != Traversal::default() {
@@ -348,7 +348,7 @@ pub fn rows(report: &BenchReport) -> Vec<crate::rows::Row> {
         let tracer = match r.method {
             Tracer::Method(m) => CellTracer::Method {
                 method: m,
-                layout: r.layout.unwrap_or(Layout::Bvh2),
+                layout: r.layout.unwrap_or(Layout::DEFAULT),
                 leaf: r.leaf_size.unwrap_or(report.leaf_size),
                 sah_group: r.sah_group,
                 traversal: r.traversal.unwrap_or_default(),
@@ -436,10 +436,10 @@ pub(super) fn row(
         sah_group: o.map(|o| o.build.sah_group),
         scene_bytes: footprint.0,
         scene_access: footprint.1,
-        layout: o.map(|_| Layout::Bvh2),
-        traversal: o.map(|_| Traversal::WhileIf),
-        order: o.map(|_| RayOrder::Given),
-        node_order: o.map(|_| NodeOrder::Built),
+        layout: o.map(|_| Layout::DEFAULT),
+        traversal: o.map(|_| Traversal::DEFAULT),
+        order: o.map(|_| RayOrder::DEFAULT),
+        node_order: o.map(|_| NodeOrder::DEFAULT),
         reorder_ms: None,
         kernel_ms: ms,
         mrays_per_s: mr.median,

@@ -463,7 +463,7 @@ impl MergeReport {
         for c in self.claims.iter().flat_map(|d| &d.claims) {
             push(&mut keys, (c.id, c.layout));
         }
-        let layouts = keys.iter().any(|k| k.1 != Layout::Bvh2);
+        let layouts = keys.iter().any(|k| k.1 != Layout::DEFAULT);
         for (id, layout) in keys {
             let mut row = vec![if layouts { format!("({id}) on {layout}") } else { format!("({id})") }];
             for d in &self.devices {
@@ -561,7 +561,7 @@ impl MergeReport {
                 };
                 let _ = writeln!(s, "{} study cells, {} timed round(s){partial}.\n", d.measured, d.repeat);
                 for c in &d.claims {
-                    let on = if c.layout == Layout::Bvh2 { String::new() } else { format!(" on {}", c.layout) };
+                    let on = if c.layout == Layout::DEFAULT { String::new() } else { format!(" on {}", c.layout) };
                     let _ = writeln!(s, "- **({}){on} {}: {}.** {}.", c.id, c.statement, c.verdict.label(), c.summary);
                 }
                 s.push('\n');

@@ -118,7 +118,8 @@ fn time_vs_leaf(report: &MergeReport, t: &Times, scene: &str, layout: Layout, pa
         let all: Vec<Vec<(u32, f64, f64, f64)>> = (0..devices).map(|d| series(m, d)).collect();
         let ymax = all.iter().flatten().map(|p| p.3).fold(1.0, f64::max) * 1.05;
         let ymin = all.iter().flatten().map(|p| p.2).fold(1.0, f64::min) * 0.95;
-        let caption = if layout == Layout::Bvh2 { format!("{scene}, {m}") } else { format!("{scene}, {layout}, {m}") };
+        let caption =
+            if layout == Layout::DEFAULT { format!("{scene}, {m}") } else { format!("{scene}, {layout}, {m}") };
         let mut chart =
             leaf_size_chart(area, &caption, &leaves, ymin..ymax, "time / device's fastest leaf (min-max)", what)?;
         for (d, pts) in all.iter().enumerate() {
@@ -150,7 +151,7 @@ fn methods_vs_mt(report: &MergeReport, t: &Times, path: &Path) -> Result<()> {
         let values: Vec<Vec<Option<f64>>> =
             methods.iter().map(|&m| (0..devices).map(|d| rel(m, d)).collect()).collect();
         let ymax = values.iter().flatten().flatten().copied().fold(1.0, f64::max) * 1.15;
-        let caption = if layout == Layout::Bvh2 {
+        let caption = if layout == Layout::DEFAULT {
             format!("{scene}: time / MT")
         } else {
             format!("{scene}, {layout}: time / MT")
@@ -177,14 +178,14 @@ pub fn all(report: &MergeReport, dir: &Path) -> Result<Vec<Plot>> {
         return Ok(out);
     }
     for (scene, layout) in t.panels() {
-        let name = if layout == Layout::Bvh2 {
+        let name = if layout == Layout::DEFAULT {
             format!("merge-time-vs-leaf-{}.png", file_part(scene))
         } else {
             format!("merge-time-vs-leaf-{}-{}.png", file_part(scene), file_part(layout.name()))
         };
         let path = dir.join(name);
         time_vs_leaf(report, &t, scene, layout, &path)?;
-        let on = if layout == Layout::Bvh2 { String::new() } else { format!(" on {layout}") };
+        let on = if layout == Layout::DEFAULT { String::new() } else { format!(" on {layout}") };
         out.push(Plot {
             title: format!(
                 "{scene}{on}: render time against leaf size, per device (1 = the device's fastest leaf size)"

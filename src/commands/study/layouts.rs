@@ -94,8 +94,8 @@ pub struct BestLeaf {
 /// The layout every other is compared with: bvh2 when measured, else the first.
 pub fn reference(report: &StudyReport) -> Layout {
     let ls = layouts_of(report);
-    if ls.contains(&Layout::Bvh2) {
-        Layout::Bvh2
+    if ls.contains(&Layout::DEFAULT) {
+        Layout::DEFAULT
     } else {
         ls[0]
     }

@@ -110,18 +110,18 @@ impl StudyOptions {
             leaf_sizes: PAPER_LEAF_SIZES.to_vec(),
             // The paper's four; `--methods` adds the others (watertight, Baldwin-Weber, f64).
             methods: Method::paper(),
-            layouts: vec![Layout::Bvh2],
+            layouts: vec![Layout::DEFAULT],
             width: 800,
             height: 600,
             spp: 500,
             max_depth: 16,
-            ray_width: 800,
-            ray_height: 600,
-            diffuse_per_hit: 8,
-            random_rays: 1_000_000,
-            repeat: 5,
+            ray_width: crate::defaults::WIDTH,
+            ray_height: crate::defaults::HEIGHT,
+            diffuse_per_hit: crate::defaults::DIFFUSE_PER_HIT,
+            random_rays: crate::defaults::RANDOM_RAYS,
+            repeat: crate::defaults::REPEAT,
             sah_group: 1,
-            seed: 7,
+            seed: crate::defaults::SEED,
             shard: None,
             stop: None,
         };
@@ -271,7 +271,7 @@ impl TryFrom<&result_rows::Cell> for StudyCell {
         let method = get("method")?.parse::<Method>().map_err(|e| bad("method", e))?;
         let layout = match c.get("layout") {
             Some(l) => l.parse::<Layout>().map_err(|e| bad("layout", e))?,
-            None => Layout::Bvh2,
+            None => Layout::DEFAULT,
         };
         Ok(StudyCell { scene: get("scene")?.clone(), leaf, method, layout })
     }
@@ -348,7 +348,7 @@ impl StudyRow {
 
 /// `method`, or `method layout` on a layout other than the binary one.
 pub fn label(method: Method, layout: Layout) -> String {
-    if layout == Layout::Bvh2 {
+    if layout == Layout::DEFAULT {
         method.to_string()
     } else {
         format!("{method} {layout}")
@@ -409,7 +409,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
         let name = crate::scene::scene_name(path);
         progress(&format!("{name}: {} triangles; ray sets and f64 reference", mesh.triangle_count()));
         // Ray sets and their reference hits, once per scene (they do not depend on the BVH).
-        let reference_scene = HostScene::build(&name, &mesh, &BuildOptions::new(4))?;
+        let reference_scene = HostScene::build(&name, &mesh, &BuildOptions::new(crate::defaults::LEAF_SIZE))?;
         let reference = reference_scene.reference();
         let sets: Vec<(RaySet, Vec<crate::rays::Ray>)> =
             RaySet::ALL.iter().map(|&s| Ok((s, s.generate(&mesh, &reference, &o.sizes())?))).collect::<Result<_>>()?;
@@ -559,7 +559,7 @@ pub fn scenes(report: &StudyReport) -> Vec<String> {
 /// The report's layouts, in the order asked (bvh2 alone for a report without any).
 pub fn layouts_of(report: &StudyReport) -> Vec<Layout> {
     if report.options.layouts.is_empty() {
-        vec![Layout::Bvh2]
+        vec![Layout::DEFAULT]
     } else {
         report.options.layouts.clone()
     }
@@ -568,7 +568,7 @@ pub fn layouts_of(report: &StudyReport) -> Vec<Layout> {
 /// Whether the report has a layout other than the paper's binary tree: then its tables and
 /// plots name the layout of every figure.
 pub fn names_layouts(report: &StudyReport) -> bool {
-    layouts_of(report) != [Layout::Bvh2]
+    layouts_of(report) != [Layout::DEFAULT]
 }
 
 /// The cell (scene, leaf size, method, layout), if measured.

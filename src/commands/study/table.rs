@@ -388,7 +388,7 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
             s.push('\n');
         }
     } else {
-        s += &paper_table(report, Layout::Bvh2).to_markdown();
+        s += &paper_table(report, Layout::DEFAULT).to_markdown();
     }
     let _ = writeln!(s, "\n## Ray sets: Mrays/s, median (min-max)\n");
     s += &rays_table(report).to_markdown();

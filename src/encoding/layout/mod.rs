@@ -91,13 +91,12 @@ pub struct LayoutSpec {
 }
 
 /// One line per layout: `Variant => module`. Generates the modules, [`Layout`] and its lookup
-/// of each layout's [`LayoutSpec`]; the first is the default.
+/// of each layout's [`LayoutSpec`]. The default is named in `crate::defaults` ([`Layout::DEFAULT`]).
 macro_rules! layouts {
     ($first:ident => $first_module:ident $(, $variant:ident => $module:ident)* $(,)?) => {
         /// How the BVH's nodes are laid out for the kernels: one per line of the registry.
-        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
         pub enum Layout {
-            #[default]
             $first,
             $($variant),*
         }
@@ -109,6 +108,20 @@ macro_rules! layouts {
                     Layout::$first => &$first_module::LAYOUT,
                     $(Layout::$variant => &$module::LAYOUT),*
                 }
+            }
+
+            /// The layout named `name`, at compile time (for constants: an unknown name does not
+            /// compile).
+            const fn named(name: &str) -> Layout {
+                if crate::named::same(name, $first_module::LAYOUT.name) {
+                    return Layout::$first;
+                }
+                $(
+                    if crate::named::same(name, $module::LAYOUT.name) {
+                        return Layout::$variant;
+                    }
+                )*
+                panic!("crate::defaults::LAYOUT names no layout")
             }
         }
 
@@ -134,17 +147,12 @@ layouts! {
 }
 
 impl Layout {
+    /// The layout taken when none is asked for: [`crate::defaults::LAYOUT`], the binary nodes.
+    pub const DEFAULT: Layout = Layout::named(crate::defaults::LAYOUT);
+
     /// The column title.
     pub fn title(self) -> &'static str {
         self.spec().title
-    }
-
-    /// The suffix of this layout's kernel variants (`""` for the binary nodes, `_bvh4`, ...).
-    pub fn variant_suffix(self) -> String {
-        match self.spec().build {
-            None => String::new(),
-            Some(_) => format!("_{}", self.name()),
-        }
     }
 
     /// The node buffer for `binary` (the encoding's nodes), `None` for the binary layout.
@@ -178,6 +186,12 @@ impl Layout {
             bytes: std::mem::size_of_val(nodes.as_slice()),
             locality: NodeTree::binary(&nodes).locality(),
         })
+    }
+}
+
+impl Default for Layout {
+    fn default() -> Layout {
+        Layout::DEFAULT
     }
 }
 
@@ -308,13 +322,12 @@ mod tests {
     #[test]
     fn names_parse_and_the_binary_layout_is_the_default() {
         assert_eq!(Layout::default(), Layout::Bvh2);
+        assert_eq!(Layout::DEFAULT, Layout::Bvh2);
         for &l in Layout::ALL {
             assert_eq!(l.name().parse::<Layout>(), Ok(l));
             assert!(!l.help().is_empty() && !l.title().is_empty(), "{l}");
         }
         assert!("bvh3".parse::<Layout>().unwrap_err().contains("bvh2"));
-        assert_eq!(Layout::Bvh2.variant_suffix(), "");
-        assert_eq!(Layout::Bvh4.variant_suffix(), "_bvh4");
     }
 
     /// The memory plan's bound holds every built node buffer, over leaf sizes and tree shapes

@@ -438,7 +438,7 @@ pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
         .collect::<Result<_>>()?;
     let requests: Vec<SceneRequest> = kernels.iter().map(|k| raycast_request(k)).collect::<Result<_>>()?;
     let mesh = load_obj(Path::new(CHILD_SCENE))?;
-    let host = HostScene::build(CHILD_SCENE, &mesh, &BuildOptions::new(4))?;
+    let host = HostScene::build(CHILD_SCENE, &mesh, &BuildOptions::new(crate::defaults::LEAF_SIZE))?;
     let rays = crate::rays::random_rays(&mesh.bounds(), CHILD_RAYS, 1);
     let reference = host.reference().trace_all(&rays, false);
     let marker =
