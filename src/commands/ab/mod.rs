@@ -849,41 +849,7 @@ impl Drop for ProgressGuard {
 /// Runs the two sides and compares them. An error means they could not be compared (a side
 /// that does not start, a missing ICD file or executable, no cell in common): exit 2.
 pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
-    for (name, flag, side) in [("A", "--a-icd", &o.a), ("B", "--b-icd", &o.b)] {
-        if let Some(icd) = &side.icd {
-            check_icd(name, flag, icd)?;
-        }
-    }
-    for (name, flag, side) in [("A", "--a-bin", &o.a), ("B", "--b-bin", &o.b)] {
-        if let Some(exe) = &side.exe {
-            if exe.is_dir() {
-                return Err(Error::Usage(format!(
-                    "side {name}: {flag} {}: a directory, not a trilab executable",
-                    exe.display()
-                )));
-            }
-            if !exe.is_file() {
-                return Err(Error::Usage(format!(
-                    "side {name}: {flag} {}: no such file (a trilab executable)",
-                    exe.display()
-                )));
-            }
-        }
-    }
-    if o.rounds < 2 || o.max_rounds < o.rounds {
-        return Err(Error::Usage(format!(
-            "--rounds {} --max-rounds {}: at least 2 rounds a side, and no more than the maximum",
-            o.rounds, o.max_rounds
-        )));
-    }
-    if o.max_rounds < interval::MIN_JUDGED_ROUNDS {
-        progress(&format!(
-            "warning: --max-rounds {}: fewer than {} rounds a side, so time is shown but not judged \
-             (hits and correctness still are)",
-            o.max_rounds,
-            interval::MIN_JUDGED_ROUNDS
-        ));
-    }
+    check_options(o, &mut progress)?;
     o.workload.sizes.check_memory()?;
     let workload = resolved_workload(&o.workload)?;
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
@@ -1038,43 +1004,8 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
             compiled::collect(o, name, side, protocol, &matched_b, &tmp.path().join(format!("driver-stats-{name}")))
         })
     });
-    let mut out = vec![];
-    for (p, &(ia, ib)) in pairs.iter().enumerate() {
-        let c = cells_b[ib].clone();
-        let ratio = cell_ratio(&times, p, paired);
-        let mut a = worst[0][p].clone();
-        let mut b = worst[1][p].clone();
-        a.ms = times[0][p].iter().flatten().copied().collect();
-        b.ms = times[1][p].iter().flatten().copied().collect();
-        // A worker that did not write a cell's hits (another build's bug, or not trilab) is
-        // named with the file.
-        let recorded = |side: &str, r: Result<_>| {
-            r.map_err(|e| Error::Usage(format!("side {side}: cell `{}`: its first round's output: {e}", c.label())))
-        };
-        let rays_differing = match c.kind {
-            CellKind::Raycast => crate::rays::differing_hits(
-                &recorded("A", crate::rays::read_hits(&dir_a.join(format!("{ia}.hits"))))?,
-                &recorded("B", crate::rays::read_hits(&dir_b.join(format!("{ib}.hits"))))?,
-            ),
-            CellKind::Pathtrace => {
-                worker::differing_pixels(&dir_a.join(format!("{ia}.image")), &dir_b.join(format!("{ib}.image")))?
-            }
-        };
-        let compiled = stats.as_ref().and_then(|[sa, sb]| compiled::diff(sa, sb, &c));
-        let invocations = o.workload.pipeline_stats.then(|| [inv_a.get(ia).copied().flatten(), inv_b[ib]]);
-        let correctness_worse = b.agree < a.agree || b.unexplained > a.unexplained || b.invalid > a.invalid;
-        out.push(AbCell {
-            cell: c,
-            a,
-            b,
-            verdict: ratio.map(|r| r.verdict(o.threshold)),
-            ratio,
-            rays_differing,
-            correctness_worse,
-            compiled,
-            invocations,
-        });
-    }
+    let out =
+        judged_cells(o, pairs, &cells_b, &times, &worst, paired, [&dir_a, &dir_b], stats.as_ref(), [&inv_a, &inv_b])?;
     let kernels = groups
         .iter()
         .map(|g| {
@@ -1117,6 +1048,102 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         pipeline_stats: o.workload.pipeline_stats.then_some([note_a, note_b]),
         driver_stats_rows: stats.map(|s| s.map(|x| x.rows)).unwrap_or_default(),
     })
+}
+
+/// The options checked before any side starts: each side's ICD file and executable, and the
+/// rounds (a warning when too few to judge time).
+fn check_options(o: &AbOptions, progress: &mut impl FnMut(&str)) -> Result<()> {
+    for (name, flag, side) in [("A", "--a-icd", &o.a), ("B", "--b-icd", &o.b)] {
+        if let Some(icd) = &side.icd {
+            check_icd(name, flag, icd)?;
+        }
+    }
+    for (name, flag, side) in [("A", "--a-bin", &o.a), ("B", "--b-bin", &o.b)] {
+        if let Some(exe) = &side.exe {
+            if exe.is_dir() {
+                return Err(Error::Usage(format!(
+                    "side {name}: {flag} {}: a directory, not a trilab executable",
+                    exe.display()
+                )));
+            }
+            if !exe.is_file() {
+                return Err(Error::Usage(format!(
+                    "side {name}: {flag} {}: no such file (a trilab executable)",
+                    exe.display()
+                )));
+            }
+        }
+    }
+    if o.rounds < 2 || o.max_rounds < o.rounds {
+        return Err(Error::Usage(format!(
+            "--rounds {} --max-rounds {}: at least 2 rounds a side, and no more than the maximum",
+            o.rounds, o.max_rounds
+        )));
+    }
+    if o.max_rounds < interval::MIN_JUDGED_ROUNDS {
+        progress(&format!(
+            "warning: --max-rounds {}: fewer than {} rounds a side, so time is shown but not judged \
+             (hits and correctness still are)",
+            o.max_rounds,
+            interval::MIN_JUDGED_ROUNDS
+        ));
+    }
+    Ok(())
+}
+
+/// Each matched cell's two sides after the rounds: their validated times, worst correctness,
+/// the rays (or pixels) whose answers differ, the compiled-code changes and invocations, and the
+/// cell's verdict.
+#[allow(clippy::too_many_arguments)]
+fn judged_cells(
+    o: &AbOptions,
+    pairs: &[(usize, usize)],
+    cells_b: &[CellInfo],
+    times: &[Vec<Vec<Option<f64>>>; 2],
+    worst: &[Vec<SideCell>; 2],
+    paired: bool,
+    [dir_a, dir_b]: [&Path; 2],
+    stats: Option<&[compiled::SideStats; 2]>,
+    [inv_a, inv_b]: [&[Option<u64>]; 2],
+) -> Result<Vec<AbCell>> {
+    let mut out = vec![];
+    for (p, &(ia, ib)) in pairs.iter().enumerate() {
+        let c = cells_b[ib].clone();
+        let ratio = cell_ratio(times, p, paired);
+        let mut a = worst[0][p].clone();
+        let mut b = worst[1][p].clone();
+        a.ms = times[0][p].iter().flatten().copied().collect();
+        b.ms = times[1][p].iter().flatten().copied().collect();
+        // A worker that did not write a cell's hits (another build's bug, or not trilab) is
+        // named with the file.
+        let recorded = |side: &str, r: Result<_>| {
+            r.map_err(|e| Error::Usage(format!("side {side}: cell `{}`: its first round's output: {e}", c.label())))
+        };
+        let rays_differing = match c.kind {
+            CellKind::Raycast => crate::rays::differing_hits(
+                &recorded("A", crate::rays::read_hits(&dir_a.join(format!("{ia}.hits"))))?,
+                &recorded("B", crate::rays::read_hits(&dir_b.join(format!("{ib}.hits"))))?,
+            ),
+            CellKind::Pathtrace => {
+                worker::differing_pixels(&dir_a.join(format!("{ia}.image")), &dir_b.join(format!("{ib}.image")))?
+            }
+        };
+        let compiled = stats.as_ref().and_then(|[sa, sb]| compiled::diff(sa, sb, &c));
+        let invocations = o.workload.pipeline_stats.then(|| [inv_a.get(ia).copied().flatten(), inv_b[ib]]);
+        let correctness_worse = b.agree < a.agree || b.unexplained > a.unexplained || b.invalid > a.invalid;
+        out.push(AbCell {
+            cell: c,
+            a,
+            b,
+            verdict: ratio.map(|r| r.verdict(o.threshold)),
+            ratio,
+            rays_differing,
+            correctness_worse,
+            compiled,
+            invocations,
+        });
+    }
+    Ok(out)
 }
 
 /// How the two sides' cells pair up.
