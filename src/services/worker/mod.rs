@@ -468,8 +468,17 @@ impl Session {
         match writeln!(stdin, "{line}").and_then(|_| stdin.flush()) {
             Ok(()) => Ok(()),
             Err(e) => {
+                // A worker that ended between two requests fails the write (a broken pipe) or the
+                // next read, whichever comes first: both say the same, that it ended and how
+                // (the soak of issue 40 saw the write lose that race). One that is still running
+                // stopped reading its commands.
+                let exited = self.wait_for_exit(Duration::from_secs(5));
                 let how = self.how_it_ended();
-                Err(self.fail(&format!("the worker stopped reading its commands ({e}): it {how}"), when))
+                let what = match exited {
+                    true => format!("the worker {how}"),
+                    false => format!("the worker stopped reading its commands ({e}): it {how}"),
+                };
+                Err(self.fail(&what, when))
             }
         }
     }
