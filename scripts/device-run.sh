@@ -220,6 +220,25 @@ run() {
     say "roofline skipped: $(left) s left is too short a run"
   fi
 
+  # Every traversal on every layout, bench-validated against the f64 reference before it reports:
+  # the subgroup-cooperative kernel at the GPU's own subgroup width (32 on NVIDIA), which
+  # lavapipe (4-16 lanes) and the CPU lane model cannot show on real hardware. Skipped in a run
+  # under 4 minutes (the rehearsal); at most 90 s. Its folder joins the device's after the suite.
+  local trav_s=90
+  if [ "$(left)" -ge 240 ]; then
+    say "trilab bench --traversals (every traversal and layout, bunny and dragon; at most $trav_s s)"
+    rc=0
+    (cd "$work" && timeout -s INT -k 10 "$trav_s" "$exe" bench --scene-dir "$root/scenes" \
+      --scenes bunny,dragon --methods mt,quad-unit,watertight --repeat 5 \
+      --traversals while-if,while-while,coop,persistent --layouts bvh2,bvh4,bvh8,cwbvh \
+      --out "$work/extra/traversals" >> "$log" 2>&1) || rc=$?
+    case $rc in
+      0) say "traversals bench completed" ;;
+      124 | 130 | 137) say "traversals bench stopped after $trav_s s" ;;
+      *) say "traversals bench exit $rc (see above)" ;;
+    esac
+  fi
+
   # The suite's budget: what is left but a minute (the archive, a part that overruns its
   # prediction); the suite scales every part to it from its own probe of this device, and a
   # hard stop 30 s before the deadline keeps the whole inside the device tool's 10 minutes.
@@ -238,7 +257,9 @@ run() {
   esac
   local dev
   for dev in "$work"/results/*/; do
-    [ -d "$dev" ] && cp "$log" "$dev/run.log"
+    [ -d "$dev" ] || continue
+    [ -d "$work/extra/traversals" ] && cp -r "$work/extra/traversals" "$dev/traversals"
+    cp "$log" "$dev/run.log"
   done
   say "done in $(( $(date +%s) - start )) s; archive $archive"
   return 0
