@@ -16,7 +16,10 @@
 #     tests/stock_mesa.rs can check trilab on the driver a user without backports has;
 #   - Google's SwiftShader (Vulkan on the CPU with its own JIT, not Mesa) unpacked from
 #     chromium-common, not installed, under ~/.cache/trilab/swiftshader by
-#     scripts/swiftshader.sh (a 32 MB download, once), for tests/swiftshader.rs.
+#     scripts/swiftshader.sh (a 32 MB download, once), for tests/swiftshader.rs;
+#   - LunarG's GFXReconstruct 0.9.18 (capture layer and gfxrecon-replay) unpacked from Debian 12's
+#     gfxreconstruct, not installed, under ~/.cache/trilab/gfxreconstruct by
+#     scripts/gfxreconstruct.sh (a 5 MB download, once), for `trilab repro` and tests/repro.rs.
 # Safe to run repeatedly; needs root (or sudo) for apt; the stock driver is unpacked as the
 # calling user.
 set -euo pipefail
@@ -24,12 +27,14 @@ set -euo pipefail
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
+# liblz4-1 and libzstd1: GFXReconstruct's tools and layer link them.
 # pocl-opencl-icd and the OpenCL headers: the device run's rehearsal (tests/device_run.rs) builds
 # tinybvh's peer with OpenCL and runs its kernels on PoCL beside lavapipe, as a lent GPU runs
 # them on its own OpenCL beside its Vulkan driver.
 base_pkgs=(libvulkan1 libvulkan-dev vulkan-validationlayers vulkan-tools spirv-tools libshaderc-dev glslang-dev
   cmake python3 g++ pkg-config procps
-  pocl-opencl-icd ocl-icd-opencl-dev opencl-headers)
+  pocl-opencl-icd ocl-icd-opencl-dev opencl-headers
+  liblz4-1 libzstd1)
 missing=()
 for p in "${base_pkgs[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
@@ -50,6 +55,9 @@ unpacked_drivers() {
   script="$(dirname "$0")/swiftshader.sh"
   "$script" --quiet >/dev/null 2>&1 || { $SUDO apt-get update -qq && "$script" --quiet >/dev/null; }
   echo "install-deps: SwiftShader for tests/swiftshader.rs: $("$script" --quiet)"
+  script="$(dirname "$0")/gfxreconstruct.sh"
+  "$script" --quiet >/dev/null 2>&1 || { $SUDO apt-get update -qq && "$script" --quiet >/dev/null; }
+  echo "install-deps: GFXReconstruct for trilab repro: $("$script" --quiet)"
 }
 
 if [ ${#missing[@]} -eq 0 ] && [ $need_mesa -eq 0 ]; then

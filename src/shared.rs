@@ -28,14 +28,18 @@ pub const LEAF_ENTRY_MAX_COUNT: u32 = (1 << LEAF_ENTRY_COUNT_BITS) - 1;
 /// Firsts a packed entry holds: `0..LEAF_ENTRY_FIRST_LIMIT`.
 pub const LEAF_ENTRY_FIRST_LIMIT: u64 = 1 << (32 - LEAF_ENTRY_COUNT_BITS);
 
-/// How the kernels read a scene buffer: as texels of this format (`glsl/types.glsl`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// How the kernels read a scene buffer: as texels of this format (`glsl/types.glsl`); named by
+/// the GLSL image format in files (a repro's `cell.json`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Texel {
     /// 16 bytes, four u32 (`rgba32ui`).
+    #[serde(rename = "rgba32ui")]
     Rgba32Uint,
     /// 16 bytes, four f32 (`rgba32f`).
+    #[serde(rename = "rgba32f")]
     Rgba32Float,
     /// 4 bytes, one u32 (`r32ui`).
+    #[serde(rename = "r32ui")]
     R32Uint,
 }
 

@@ -321,12 +321,25 @@ pub struct WorkerArgs {
     /// Where each cell's first-round hits go: an `ab` side, serving this workload.
     #[arg(long, value_name = "DIR")]
     hits_dir: Option<PathBuf>,
+    /// The repro in this folder is what the worker dispatches (`trilab repro`'s capture): its
+    /// context enables only what that kernel needs.
+    #[arg(long, value_name = "DIR", conflicts_with = "hits_dir")]
+    repro: Option<PathBuf>,
     #[command(flatten)]
     gpu: GpuArgs,
 }
 
 pub fn run_worker(a: WorkerArgs) -> Result<()> {
-    let ctx = a.gpu.context()?;
+    let ctx = match &a.repro {
+        Some(dir) => {
+            let r = trilab::commands::repro::Repro::read(dir)?;
+            let ctx =
+                trilab::commands::repro::replay::context(r.kernel, a.gpu.device.clone(), a.gpu.validation_choice())?;
+            GpuArgs::watch(&ctx);
+            ctx
+        }
+        None => a.gpu.context()?,
+    };
     let workload = a.workload.workload();
     let side = a.hits_dir.as_deref().map(|hits_dir| trilab::commands::worker::AbSide { workload: &workload, hits_dir });
     let stdin = std::io::stdin();

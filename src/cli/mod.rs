@@ -24,6 +24,7 @@ pub mod methods;
 pub mod profile;
 pub mod raycast;
 pub mod rays;
+pub mod repro;
 pub mod render;
 pub mod roofline;
 pub mod scale;
@@ -88,13 +89,26 @@ pub struct GpuArgs {
 static VALIDATION_LOG: OnceLock<Arc<ValidationLog>> = OnceLock::new();
 
 impl GpuArgs {
-    /// The device's context, with the validation layer when asked for.
-    pub fn context(&self) -> Result<Context> {
-        let mut o = ContextOptions { device: self.device.clone(), ..Default::default() };
+    /// The validation layer as `--validation` or `TRILAB_VALIDATION` ask (else the build's
+    /// default).
+    pub fn validation_choice(&self) -> Validation {
         let env = std::env::var("TRILAB_VALIDATION").unwrap_or_default();
         if self.validation || !matches!(env.trim(), "" | "0" | "off" | "false") {
-            o.validation = Validation::Required;
+            Validation::Required
+        } else {
+            ContextOptions::default().validation
         }
+    }
+
+    /// Registers the validation log of a context made elsewhere (a repro's), checked before exit.
+    pub fn watch(ctx: &Context) {
+        let _ = VALIDATION_LOG.set(ctx.validation_log());
+    }
+
+    /// The device's context, with the validation layer when asked for.
+    pub fn context(&self) -> Result<Context> {
+        let o =
+            ContextOptions { device: self.device.clone(), validation: self.validation_choice(), ..Default::default() };
         let ctx = Context::new(&o)?;
         let _ = VALIDATION_LOG.set(ctx.validation_log());
         Ok(ctx)

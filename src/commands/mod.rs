@@ -20,6 +20,7 @@ pub mod merge;
 pub mod methods;
 pub mod profile;
 pub mod raycast;
+pub mod repro;
 pub mod compare;
 pub mod scale;
 pub mod spirv;

@@ -367,7 +367,7 @@ fn trace_peer(
 }
 
 /// The f64 reference's verdict on `result`'s hits.
-fn validate(host: &HostScene, rays: &[Ray], result: &RaycastResult, any_hit: bool) -> Validation {
+pub fn validate(host: &HostScene, rays: &[Ray], result: &RaycastResult, any_hit: bool) -> Validation {
     let reference = host.reference().trace_all(rays, false);
     if any_hit {
         let closest: Vec<_> = reference.iter().map(|h| h.to_hit()).collect();

@@ -10,7 +10,7 @@
 use std::io::{BufRead, Write};
 use std::path::Path;
 
-use crate::commands::{ab, profile};
+use crate::commands::{ab, profile, repro};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::report::Status;
@@ -63,6 +63,12 @@ fn answer(ctx: &Context, validation: bool, r: Request) -> Result<Message> {
             Ok(Message::Dispatched { kernels: kernels.len() })
         }
         Request::DriverStats(d) => driver_statistics(ctx, validation, d),
+        Request::ReproDispatch { dir, hits } => {
+            let repro = repro::Repro::read(&dir)?;
+            let got = repro::replay::dispatch(ctx, &repro)?;
+            crate::rays::write_hits(&hits, &got)?;
+            Ok(Message::ReproDispatched { rays: got.len() })
+        }
         Request::Round | Request::Cell { .. } => Err(Error::Usage(
             "worker: rounds and cells are an ab side's (`__ab-worker WORKLOAD --hits-dir DIR`)".into(),
         )),

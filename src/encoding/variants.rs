@@ -36,7 +36,7 @@ named_enum! {
 
 named_enum! {
     /// How a ray-casting kernel walks the tree (issue 15: traversals measured side by side).
-    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
     #[serde(rename_all = "kebab-case")]
     pub enum Traversal: "traversal" {
         /// One ray per invocation, stack-based while-if, nearest child first (glsl/traversal/while_if.glsl,

@@ -53,6 +53,19 @@ pub struct ContextOptions {
     /// (`encoding::DeviceLimits::with_overrides`): every memory plan on this context is checked
     /// against them. `Context::new` reads the variable when this is `None`.
     pub test_limits: Option<String>,
+    /// Enable only what one kernel needs (`trilab repro`: a capture whose `vkCreateDevice`
+    /// replays on any device that can run the kernel): none of the optional features above but
+    /// those in [`Needs`]; `None` enables every one the device has.
+    pub only: Option<Needs>,
+}
+
+/// What one kernel needs of a device beyond Vulkan 1.2's core: the features its SPIR-V
+/// capabilities name, and full subgroups (`computeFullSubgroups`) for a kernel that hands work
+/// to lanes by index ([`crate::spirv::reflect::reads_subgroup_lanes`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Needs {
+    pub features: Vec<Feature>,
+    pub full_subgroups: bool,
 }
 
 impl Default for ContextOptions {
@@ -66,6 +79,7 @@ impl Default for ContextOptions {
             shader_float64: true,
             inject_fault: None,
             test_limits: None,
+            only: None,
         }
     }
 }
@@ -151,6 +165,25 @@ impl EnabledFeatures {
     /// (`gpu::AccelStructure`), which both ray query and the ray tracing pipeline trace.
     pub fn acceleration_structure(&self) -> bool {
         self.ray_query || self.ray_tracing_pipeline
+    }
+
+    /// Of these, only what `needs` asks for (the rest off, as on a device without them).
+    pub fn only(self, needs: &Needs) -> EnabledFeatures {
+        let wants = |f: Feature| needs.features.contains(&f);
+        let ray_query = self.ray_query && wants(Feature::RayQuery);
+        let ray_tracing_pipeline = self.ray_tracing_pipeline && wants(Feature::RayTracingPipeline);
+        EnabledFeatures {
+            pipeline_statistics_query: false,
+            shader_clock: self.shader_clock && wants(Feature::ShaderSubgroupClock),
+            subgroup_size_control: self.subgroup_size_control && needs.full_subgroups,
+            pipeline_executable_properties: false,
+            ray_query,
+            ray_tracing_pipeline,
+            shader_float64: self.shader_float64 && wants(Feature::ShaderFloat64),
+            shader_int64: self.shader_int64 && wants(Feature::ShaderInt64),
+            buffer_device_address: self.buffer_device_address
+                && (wants(Feature::BufferDeviceAddress) || ray_query || ray_tracing_pipeline),
+        }
     }
 
     pub fn for_device(info: &DeviceInfo) -> EnabledFeatures {
@@ -531,6 +564,9 @@ fn create_device(
     enabled.ray_query &= options.ray_query;
     enabled.ray_tracing_pipeline &= options.ray_tracing_pipeline;
     enabled.shader_float64 &= options.shader_float64;
+    if let Some(needs) = &options.only {
+        enabled = enabled.only(needs);
+    }
     let mut ext_names: Vec<*const std::ffi::c_char> = Vec::new();
     let core = vk::PhysicalDeviceFeatures::default()
         .pipeline_statistics_query(enabled.pipeline_statistics_query)

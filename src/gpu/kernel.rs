@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use ash::vk;
 
-use super::context::{Context, Device};
+use super::context::{Context, Device, Needs};
 use crate::error::{Error, Result, VkContext};
 use crate::kernels::KernelSource;
 use crate::spirv::reflect::{reads_subgroup_lanes, reflect, KernelLayout};
@@ -234,6 +234,17 @@ impl Context {
     pub(crate) fn check_capabilities(&self, kernel: &str, words: &[u32]) -> Result<()> {
         let needs = required_features(words).map_err(|m| Error::Spirv { kernel: kernel.into(), message: m })?;
         Ok(self.capabilities().requirements(kernel, &needs)?)
+    }
+}
+
+impl Needs {
+    /// What the module `words` (kernel `name`) needs of a device: the features its capabilities
+    /// name, and full subgroups when it hands work to lanes by index.
+    pub fn of(name: &str, words: &[u32]) -> Result<Needs> {
+        let spirv = |m: String| Error::Spirv { kernel: name.into(), message: m };
+        let features = required_features(words).map_err(spirv)?.iter().map(|r| r.feature).collect();
+        let full_subgroups = reads_subgroup_lanes(words).map_err(spirv)?;
+        Ok(Needs { features, full_subgroups })
     }
 }
 

@@ -46,7 +46,7 @@ pub mod traversal_stats;
 pub use accel::{AccelStats, AccelStructure};
 pub use buffer::{Buffer, TexelBuffer};
 pub use capabilities::{Capabilities, DriverKind, Statistic, Unsupported};
-pub use context::{Context, ContextOptions, EnabledFeatures, Validation, ValidationLog};
+pub use context::{Context, ContextOptions, EnabledFeatures, Needs, Validation, ValidationLog};
 pub use descriptors::Resource;
 pub use device_info::{DeviceInfo, RayTracingPipelineProperties};
 pub use kernel::{Kernel, PipelineOptions};

@@ -32,6 +32,7 @@ use crate::kernels::KernelSource;
 use crate::reference::Reference;
 use crate::scene::Mesh;
 
+pub use upload::HostBinding;
 use upload::SceneBuffers;
 
 /// A mesh and its BVH, on the host: what every method's encoding of it starts from.
@@ -241,13 +242,7 @@ impl<'m> ScenePlan<'_, 'm> {
         reader: Option<&'static KernelSource>,
         inspect: impl FnOnce(&EncodedScene),
     ) -> Result<DeviceScene> {
-        let mut encoded = self.method.encode(self.host.mesh, &self.host.bvh);
-        inspect(&encoded);
-        if self.layout.spec().build.is_none() {
-            // The binary layout's nodes are the encoding's own.
-            self.node_order.reorder_binary(&mut encoded.nodes).map_err(|e| self.refused(e))?;
-        }
-        let wide = self.layout_nodes(&encoded)?;
+        let (encoded, wide) = self.encode(inspect)?;
         let buffers = SceneBuffers::upload(ctx, &encoded, self.access, reader, wide.as_ref().map(|w| &w.bytes[..]))?;
         Ok(DeviceScene {
             name: self.host.name.clone(),
@@ -267,6 +262,41 @@ impl<'m> ScenePlan<'_, 'm> {
 }
 
 impl ScenePlan<'_, '_> {
+    /// The scene's buffers as its kernels bind them, kept on the host: what
+    /// [`ScenePlan::upload`] uploads (`trilab repro` writes them to files). Not on the address
+    /// path, whose buffers hold device addresses.
+    pub fn host_bindings(&self) -> Result<Vec<HostBinding>> {
+        if self.access == AccessPath::Address {
+            return Err(Error::Usage(format!(
+                "scene `{}`: the address path's buffers hold this device's addresses and cannot be kept on the host",
+                self.host.name
+            )));
+        }
+        let (encoded, wide) = self.encode(|_| ())?;
+        Ok(upload::bound(&encoded, wide.as_ref().map(|w| &w.bytes[..]))
+            .into_iter()
+            .map(|b| HostBinding {
+                name: b.name.to_owned(),
+                binding: b.binding,
+                texel: b.texel,
+                bytes: b.bytes.to_vec(),
+            })
+            .collect())
+    }
+
+    /// The encoding (handed to `inspect` first) and, for a wide layout, its node buffer, as
+    /// they are uploaded.
+    fn encode(&self, inspect: impl FnOnce(&EncodedScene)) -> Result<(EncodedScene, Option<LayoutNodes>)> {
+        let mut encoded = self.method.encode(self.host.mesh, &self.host.bvh);
+        inspect(&encoded);
+        if self.layout.spec().build.is_none() {
+            // The binary layout's nodes are the encoding's own.
+            self.node_order.reorder_binary(&mut encoded.nodes).map_err(|e| self.refused(e))?;
+        }
+        let wide = self.layout_nodes(&encoded)?;
+        Ok((encoded, wide))
+    }
+
     /// The error for a node buffer this layout cannot make in this order.
     fn refused(&self, e: String) -> Error {
         let order = match self.node_order {
@@ -304,6 +334,21 @@ impl ScenePlan<'_, '_> {
             )));
         }
         Ok(Some(built))
+    }
+}
+
+/// Scene buffers kept on the host ([`ScenePlan::host_bindings`]), uploaded again for `access`
+/// (texel or storage): what a repro's dispatch binds.
+pub struct BoundScene(SceneBuffers);
+
+impl BoundScene {
+    pub fn upload(ctx: &Context, access: AccessPath, bindings: &[HostBinding]) -> Result<BoundScene> {
+        Ok(BoundScene(SceneBuffers::upload_host(ctx, access, bindings)?))
+    }
+
+    /// The bindings, for a descriptor set.
+    pub fn resources(&self) -> impl Iterator<Item = (u32, Resource<'_>)> {
+        self.0.resources()
     }
 }
 

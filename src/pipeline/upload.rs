@@ -9,7 +9,7 @@ use crate::encoding::{AccessPath, EncodedScene, SceneBufferRef};
 use crate::error::{Error, Result};
 use crate::gpu::{Buffer, Context, Resource, TexelBuffer};
 use crate::kernels::KernelSource;
-use crate::shared::BINDING_NODES;
+use crate::shared::{Texel, BINDING_NODES};
 
 /// One scene buffer as the kernels reach it.
 enum SceneBinding {
@@ -44,38 +44,20 @@ impl SceneBuffers {
             }
             None => None,
         };
-        let upload = |SceneBufferRef { name, binding, texel, bytes }: SceneBufferRef| -> Result<(u32, SceneBinding)> {
-            let b = match access {
-                AccessPath::Texel => SceneBinding::Texels(ctx.upload_texels(name, bytes, texel)?),
-                AccessPath::Address => {
-                    let (data, address) = ctx.upload_addressed(name, bytes)?;
-                    // `uniform <name>Address { Scene.. <name>; }` (std140): the 8-byte address.
-                    let pointer = ctx.upload(
-                        &format!("{name} (address)"),
-                        &address.to_le_bytes(),
-                        vk::BufferUsageFlags::UNIFORM_BUFFER,
-                    )?;
-                    SceneBinding::Address { data, pointer }
-                }
-                AccessPath::Storage => {
-                    // A binding cannot be empty: an empty buffer gets one zero texel, as on the
-                    // texel path.
-                    let one = vec![0u8; texel.size()];
-                    let bytes = if bytes.is_empty() { &one[..] } else { bytes };
-                    SceneBinding::Storage(ctx.upload(name, bytes, vk::BufferUsageFlags::STORAGE_BUFFER)?)
-                }
-            };
-            Ok((binding, b))
-        };
-        let buffers = scene
-            .buffers()
+        let buffers = bound(scene, nodes)
             .into_iter()
-            .map(|b| match nodes {
-                Some(bytes) if b.binding == BINDING_NODES => SceneBufferRef { bytes, ..b },
-                _ => b,
-            })
             .filter(|b| read.as_ref().is_none_or(|r| r.contains_key(&b.binding)))
-            .map(upload)
+            .map(|b| Ok((b.binding, upload_one(ctx, access, b.name, b.texel, b.bytes)?)))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(SceneBuffers(buffers))
+    }
+
+    /// Uploads buffers kept on the host ([`HostBinding`]s: a repro's), as [`SceneBuffers::upload`]
+    /// would have uploaded the encoding they were taken from.
+    pub(super) fn upload_host(ctx: &Context, access: AccessPath, bindings: &[HostBinding]) -> Result<SceneBuffers> {
+        let buffers = bindings
+            .iter()
+            .map(|b| Ok((b.binding, upload_one(ctx, access, &b.name, b.texel, &b.bytes)?)))
             .collect::<Result<Vec<_>>>()?;
         Ok(SceneBuffers(buffers))
     }
@@ -103,4 +85,50 @@ impl SceneBuffers {
             )
         })
     }
+}
+
+/// One buffer of a scene, on the host, where a kernel binds it: what [`SceneBuffers::upload`]
+/// uploads, kept (`trilab repro` writes these to files and uploads them again elsewhere).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HostBinding {
+    pub name: String,
+    pub binding: u32,
+    /// How the kernel reads its elements on the texel path (also the storage path's element
+    /// size: an empty buffer is bound as one zero element).
+    pub texel: Texel,
+    pub bytes: Vec<u8>,
+}
+
+/// The buffers of `scene` where its kernels bind them; with `nodes`, those bytes (a wide layout's
+/// nodes) at `BINDING_NODES` instead of the binary nodes.
+pub(super) fn bound<'a>(scene: &'a EncodedScene, nodes: Option<&'a [u8]>) -> Vec<SceneBufferRef<'a>> {
+    scene
+        .buffers()
+        .into_iter()
+        .map(|b| match nodes {
+            Some(bytes) if b.binding == BINDING_NODES => SceneBufferRef { bytes, ..b },
+            _ => b,
+        })
+        .collect()
+}
+
+/// Uploads one scene buffer for `access`.
+fn upload_one(ctx: &Context, access: AccessPath, name: &str, texel: Texel, bytes: &[u8]) -> Result<SceneBinding> {
+    Ok(match access {
+        AccessPath::Texel => SceneBinding::Texels(ctx.upload_texels(name, bytes, texel)?),
+        AccessPath::Address => {
+            let (data, address) = ctx.upload_addressed(name, bytes)?;
+            // `uniform <name>Address { Scene.. <name>; }` (std140): the 8-byte address.
+            let pointer =
+                ctx.upload(&format!("{name} (address)"), &address.to_le_bytes(), vk::BufferUsageFlags::UNIFORM_BUFFER)?;
+            SceneBinding::Address { data, pointer }
+        }
+        AccessPath::Storage => {
+            // A binding cannot be empty: an empty buffer gets one zero texel, as on the texel
+            // path.
+            let one = vec![0u8; texel.size()];
+            let bytes = if bytes.is_empty() { &one[..] } else { bytes };
+            SceneBinding::Storage(ctx.upload(name, bytes, vk::BufferUsageFlags::STORAGE_BUFFER)?)
+        }
+    })
 }

@@ -44,6 +44,8 @@ pub struct Launch {
     pub env: Vec<(OsString, OsString)>,
     /// Variables the child does not inherit.
     pub unset: Vec<String>,
+    /// Options after the command (`__worker --repro DIR`: the worker's context is a repro's).
+    pub args: Vec<OsString>,
     /// `--device N`: the device the child opens (`None`: its own choice).
     pub device: Option<usize>,
     /// `--validation`: the child loads the validation layer.
@@ -62,6 +64,7 @@ impl Launch {
             exe: exe.into(),
             env: vec![],
             unset: vec![],
+            args: vec![],
             device: None,
             validation: false,
             timeout: None,
@@ -88,7 +91,7 @@ impl Launch {
     /// `exe args...` with the environment, the device and the validation layer.
     fn command(&self, args: &[OsString]) -> Command {
         let mut cmd = Command::new(&self.exe);
-        cmd.args(args);
+        cmd.args(args).args(&self.args);
         if let Some(d) = self.device {
             cmd.arg("--device").arg(d.to_string());
         }

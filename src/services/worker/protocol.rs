@@ -61,6 +61,10 @@ pub enum Request {
     /// An `ab` side's driver statistics of these kernels, in that side's environment
     /// ([`Message::DriverStats`]).
     DriverStats(DriverStatsRequest),
+    /// `trilab repro`'s capture: the repro in `dir` dispatched once by a worker whose context is
+    /// that repro's (`__worker --repro DIR`, under GFXReconstruct's layer), its hits written to
+    /// `hits` ([`Message::ReproDispatched`]).
+    ReproDispatch { dir: PathBuf, hits: PathBuf },
 }
 
 impl Request {
@@ -258,6 +262,8 @@ pub enum Message {
     /// A [`DriverStatsRequest`]'s statistics: whether the driver has them, how they were
     /// obtained or why there are none, and the `driver-stats` rows.
     DriverStats { status: Status, note: String, rows: Vec<Row> },
+    /// A [`Request::ReproDispatch`] ran: `rays` hits were written.
+    ReproDispatched { rays: usize },
     /// The request failed; the worker ends.
     Failed { error: String },
 }
@@ -275,6 +281,7 @@ impl Message {
             Message::Measured { .. } => "measured",
             Message::Dispatched { .. } => "dispatched",
             Message::DriverStats { .. } => "driver-stats",
+            Message::ReproDispatched { .. } => "repro-dispatched",
             Message::Failed { .. } => "failed",
         }
     }
