@@ -211,3 +211,57 @@ fn an_existing_folder_and_the_address_path_are_refused_before_work() {
     let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().flatten().map(|e| e.file_name()).collect();
     assert_eq!(left.len(), 3, "{left:?}"); // p.rays, its sidecar, exists/
 }
+
+#[test]
+fn ab_makes_each_changed_cell_a_repro_of_both_sides_each_in_its_own_driver() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("repros");
+    let b_icd = STOCK_MESA.env().into_iter().find(|(k, _)| k == "VK_DRIVER_FILES").unwrap().1;
+    let args = [
+        "ab",
+        "--methods",
+        "mt,unit",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--random-rays",
+        "2000",
+        "--threshold",
+        "1",
+        "--judge",
+        "kernels",
+        "--b-icd",
+        &b_icd,
+        "--b-env",
+        "TRILAB_INJECT_SLOWDOWN=.mt.:8",
+        "--repro",
+        &s(&dir),
+        "--json",
+    ];
+    let (o, _) = run(&args, None, &[], 300);
+    // The planted slowdown fails the run (exit 1), and the repros are made all the same.
+    assert_eq!(o.status.code(), Some(1), "{}", common::cli::stderr(&o));
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let repros = r["repros"].as_array().unwrap();
+    // The three cells that moved most (at most three are made): mt's, 8 times slower on B on top
+    // of whatever 22.3.6 itself changes, which unit's cells show alone.
+    let mut cells: Vec<&str> = repros.iter().map(|x| x["cell"].as_str().unwrap()).collect();
+    cells.sort();
+    assert_eq!(cells, ["bunny diffuse mt bvh2", "bunny primary mt bvh2", "bunny random mt bvh2"], "{r}");
+    for x in repros {
+        let cell_dir = PathBuf::from(x["dir"].as_str().unwrap());
+        assert!(cell_dir.starts_with(&dir), "{x}");
+        assert_eq!(x["hits"]["identical"], x["hits"]["rays"], "the two drivers' hits: {x}");
+        for (side, driver) in [("a", "Mesa 25"), ("b", "Mesa 22.3.6")] {
+            let m = manifest(&cell_dir.join(side));
+            assert!(m["made"]["driver"].as_str().unwrap().contains(driver), "side {side}: {m}");
+            assert_eq!(m["capture"]["differing"], 0, "side {side}: {m}");
+        }
+        let readme = std::fs::read_to_string(cell_dir.join("README.md")).unwrap();
+        assert!(readme.contains("verdict HURT beyond threshold"), "{readme}");
+    }
+    // A folder that exists is refused before any side starts.
+    let (o, _) = run(&["ab", "--methods", "mt", "--repro", &s(&dir)], None, &[], 60);
+    expect_error(&o, &["--repro", "exists"]);
+}

@@ -214,6 +214,11 @@ pub struct AbArgs {
     /// statistics), printed where they differ; a driver without them is named, not a failure.
     #[arg(long)]
     driver_stats: bool,
+    /// After the rounds, make each changed ray-casting cell (at most 3, the most changed first)
+    /// into a repro of both sides under this new folder: `trilab repro`'s folder made by each
+    /// side's own build in its own driver environment, and a README of what differs.
+    #[arg(long, value_name = "DIR")]
+    repro: Option<PathBuf>,
     #[command(flatten)]
     out: OutArgs,
     #[command(flatten)]
@@ -273,6 +278,7 @@ pub fn run(a: AbArgs) -> Result<()> {
         judge: a.judge,
         validation,
         driver_stats: a.driver_stats,
+        repro: a.repro,
     };
     sigpipe(true);
     let report = ab::run(&o, |m| eprintln!("  {m}"));

@@ -94,6 +94,7 @@ pub fn run(a: GateArgs) -> Result<()> {
             judge: Judge::Kernels,
             validation,
             driver_stats: false,
+            repro: None,
         },
         repeat_failures: !a.no_repeat,
     };

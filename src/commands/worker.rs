@@ -69,6 +69,23 @@ fn answer(ctx: &Context, validation: bool, r: Request) -> Result<Message> {
             crate::rays::write_hits(&hits, &got)?;
             Ok(Message::ReproDispatched { rays: got.len() })
         }
+        Request::MakeRepro(spec) => {
+            let req = repro::ReproRequest {
+                scene: spec.scene,
+                rays: spec.rays,
+                first: None,
+                method: spec.method.into(),
+                layout: spec.layout,
+                traversal: spec.traversal,
+                access: spec.access,
+                build: crate::bvh::BuildOptions::new(spec.leaf_size),
+                any_hit: false,
+                capture: repro::CaptureChoice::Auto,
+                out: spec.out,
+            };
+            let made = repro::make(ctx, &req, |l| eprintln!("trilab: {l}"))?;
+            Ok(Message::ReproMade { summary: made.summary() })
+        }
         Request::Round | Request::Cell { .. } => Err(Error::Usage(
             "worker: rounds and cells are an ab side's (`__ab-worker WORKLOAD --hits-dir DIR`)".into(),
         )),

@@ -117,7 +117,7 @@ impl DeviceLimits {
 
 named_enum! {
     /// How `--scene-access` asks the kernels to read the scene.
-    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
     #[serde(rename_all = "kebab-case")]
     pub enum SceneAccess: "scene access" {
         /// Texel buffers when every scene buffer fits one binding, else device addresses where

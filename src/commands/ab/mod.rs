@@ -19,6 +19,7 @@
 
 pub mod compiled;
 pub mod interval;
+pub mod repro;
 pub mod worker;
 
 use std::ffi::OsString;
@@ -110,6 +111,9 @@ pub struct AbOptions {
     pub validation: bool,
     /// After the rounds, each side's driver statistics of the ray-casting kernels, diffed.
     pub driver_stats: bool,
+    /// After the rounds, the changed ray-casting cells made into repros of both sides here
+    /// ([`repro`]; a new folder).
+    pub repro: Option<PathBuf>,
 }
 
 named_enum! {
@@ -259,6 +263,9 @@ pub struct AbReport {
     /// Each side's driver-stats rows (written to `a/` and `b/` beside the bench rows).
     #[serde(skip)]
     pub driver_stats_rows: [Vec<Row>; 2],
+    /// With `--repro`: the changed cells made into repros of both sides.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub repros: Vec<repro::AbRepro>,
 }
 
 impl AbReport {
@@ -486,6 +493,12 @@ impl Report for AbReport {
         s += &self.kernels_text();
         s += &self.compiled_text();
         s += &self.invocations_text();
+        for r in &self.repros {
+            s += &format!("\nrepro of `{}`: {}\n  A: {}\n  B: {}\n", r.cell, r.dir.display(), r.sides[0], r.sides[1]);
+            if let Some(d) = &r.hits {
+                s += &format!("  B's hits against A's: {}\n", d.verdict());
+            }
+        }
         let (helped, hurt, same, none) = self.totals();
         s += &format!(
             "\ntotals: {helped} helped, {hurt} hurt, {same} no change{}; geometric mean B/A {}\n",
@@ -1026,6 +1039,13 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     let (mut a, mut b) = (report_a, report_b);
     a.rounds = rounds[0];
     b.rounds = rounds[1];
+    let repros = match &o.repro {
+        Some(dir) => {
+            set_stage("the repros, after the rounds".into());
+            repro::make(o, &workload, &out, dir, &mut progress)?
+        }
+        None => vec![],
+    };
     Ok(AbReport {
         a,
         b,
@@ -1047,12 +1067,16 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         driver_stats: stats.as_ref().map(|s| s.clone().map(|x| x.note)),
         pipeline_stats: o.workload.pipeline_stats.then_some([note_a, note_b]),
         driver_stats_rows: stats.map(|s| s.map(|x| x.rows)).unwrap_or_default(),
+        repros,
     })
 }
 
 /// The options checked before any side starts: each side's ICD file and executable, and the
 /// rounds (a warning when too few to judge time).
 fn check_options(o: &AbOptions, progress: &mut impl FnMut(&str)) -> Result<()> {
+    if let Some(dir) = &o.repro {
+        repro::check(dir)?;
+    }
     for (name, flag, side) in [("A", "--a-icd", &o.a), ("B", "--b-icd", &o.b)] {
         if let Some(icd) = &side.icd {
             check_icd(name, flag, icd)?;

@@ -75,6 +75,27 @@ pub struct MadeReport {
     pub features: Vec<String>,
 }
 
+impl MadeReport {
+    /// One line: the kernel, the device's verdict, the capture.
+    pub fn summary(&self) -> String {
+        let capture = match (&self.capture.file, self.capture.differing) {
+            (Some(f), Some(0)) => {
+                format!("capture {:.2} MB, its dispatch gave the expected hits", f.bytes as f64 / 1e6)
+            }
+            (Some(f), Some(n)) => format!("capture {:.2} MB, its dispatch gave {n} other hits", f.bytes as f64 / 1e6),
+            (Some(f), None) => format!("capture {:.2} MB", f.bytes as f64 / 1e6),
+            (None, _) => format!("no capture ({})", self.capture.note),
+        };
+        format!(
+            "{}: {} rays, {} hit, {} with the f64 reference; {capture}",
+            self.kernel,
+            self.rays,
+            self.hits,
+            verdict(self.passes)
+        )
+    }
+}
+
 impl Report for MadeReport {
     fn to_text(&self) -> String {
         let mut s = format!(

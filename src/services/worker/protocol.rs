@@ -15,7 +15,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use crate::encoding::{Layout, Method, Traversal};
+use crate::encoding::{Layout, Method, SceneAccess, Traversal};
 use crate::report::{Status, Summary};
 use crate::rows::Row;
 
@@ -65,6 +65,22 @@ pub enum Request {
     /// that repro's (`__worker --repro DIR`, under GFXReconstruct's layer), its hits written to
     /// `hits` ([`Message::ReproDispatched`]).
     ReproDispatch { dir: PathBuf, hits: PathBuf },
+    /// `ab --repro`: a repro of one cell made by a side's worker, with its build and in its
+    /// environment ([`Message::ReproMade`]).
+    MakeRepro(ReproSpec),
+}
+
+/// The cell a [`Request::MakeRepro`] makes a repro of (what `trilab repro` is given), and where.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReproSpec {
+    pub scene: PathBuf,
+    pub rays: PathBuf,
+    pub method: Method,
+    pub layout: Layout,
+    pub traversal: Traversal,
+    pub access: SceneAccess,
+    pub leaf_size: u32,
+    pub out: PathBuf,
 }
 
 impl Request {
@@ -264,6 +280,8 @@ pub enum Message {
     DriverStats { status: Status, note: String, rows: Vec<Row> },
     /// A [`Request::ReproDispatch`] ran: `rays` hits were written.
     ReproDispatched { rays: usize },
+    /// A [`Request::MakeRepro`]'s repro was made: its one-line summary.
+    ReproMade { summary: String },
     /// The request failed; the worker ends.
     Failed { error: String },
 }
@@ -282,6 +300,7 @@ impl Message {
             Message::Dispatched { .. } => "dispatched",
             Message::DriverStats { .. } => "driver-stats",
             Message::ReproDispatched { .. } => "repro-dispatched",
+            Message::ReproMade { .. } => "repro-made",
             Message::Failed { .. } => "failed",
         }
     }
