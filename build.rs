@@ -242,6 +242,39 @@ fn main() {
     fs::write(out_dir.join("kernels.rs"), registry).unwrap();
     fs::write(out_dir.join("kernel_keys.rs"), keys).unwrap();
     ray_tracing_stages(&compiler, &glsl_dir, &out_dir, &all_files);
+    readback_layer(&manifest, &out_dir);
+}
+
+/// `trilab repro --check --gfxrecon`'s Vulkan layer (`src/commands/repro/readback_layer.c`),
+/// built with the system's C compiler into `$OUT_DIR/libtrilab_readback.so` and embedded. Where
+/// it cannot be built (no C compiler, no Vulkan headers: libvulkan-dev) the file is empty and
+/// the check says so; the rest of trilab does not need it.
+fn readback_layer(manifest: &Path, out_dir: &Path) {
+    let src = manifest.join("src/commands/repro/readback_layer.c");
+    println!("cargo:rerun-if-changed={}", src.display());
+    println!("cargo:rerun-if-env-changed=CC");
+    let out = out_dir.join("libtrilab_readback.so");
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let built = std::process::Command::new(&cc)
+        .args(["-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", "-o"])
+        .arg(&out)
+        .arg(&src)
+        .arg("-lpthread")
+        .output();
+    match built {
+        Ok(o) if o.status.success() => {}
+        Ok(o) => {
+            println!(
+                "cargo:warning=the repro read-back layer was not built ({cc}: {}); `repro --check --gfxrecon` will say so",
+                String::from_utf8_lossy(&o.stderr).lines().next().unwrap_or("failed")
+            );
+            fs::write(&out, b"").unwrap();
+        }
+        Err(e) => {
+            println!("cargo:warning=the repro read-back layer was not built (no C compiler `{cc}`: {e})");
+            fs::write(&out, b"").unwrap();
+        }
+    }
 }
 
 /// A kernel variant's name, `<kernel>.<method>.<variant>` with the method's command-line name

@@ -101,6 +101,9 @@ fn a_repro_made_on_lavapipe_replays_and_checks_the_same_on_three_drivers() {
         assert_eq!((d["rays"].as_u64(), d["identical"].as_u64()), (Some(rays), Some(rays)), "{driver}: {r}");
         let replay = &r["gfxrecon_replay"];
         assert_eq!(replay["success"], true, "{driver}: gfxrecon-replay: {replay}");
+        // The hits gfxrecon-replay's own dispatch read back (trilab's read-back layer under it).
+        let g = &r["gfxrecon_differences"];
+        assert_eq!((g["rays"].as_u64(), g["identical"].as_u64()), (Some(rays), Some(rays)), "{driver}: {r}");
         assert!(!replay["output"].as_str().unwrap().contains("FATAL"), "{driver}: {replay}");
     }
 }
@@ -108,7 +111,7 @@ fn a_repro_made_on_lavapipe_replays_and_checks_the_same_on_three_drivers() {
 #[test]
 fn a_changed_hit_is_named_ray_by_ray_and_fails_the_check() {
     let tmp = tempfile::tempdir().unwrap();
-    let dir = make(tmp.path(), "repro", false, &[]);
+    let dir = make(tmp.path(), "repro", true, &[]);
     let path = dir.join("expected.hits");
     let mut bytes = std::fs::read(&path).unwrap();
     // The first two rays that hit: one given another triangle, one a t one ulp further.
@@ -127,6 +130,17 @@ fn a_changed_hit_is_named_ray_by_ray_and_fails_the_check() {
     assert!(out.contains("2 of 384 rays differ: 1 hit another triangle"), "{out}");
     assert!(out.contains("1 hit the same triangle at another t, u or v (t up to 1 ulps apart)"), "{out}");
     assert!(out.contains(&format!("ray {a:>7}:")) && out.contains(&format!("ray {b:>7}:")), "{out}");
+    // gfxrecon-replay's dispatch finds the same two rays changed.
+    let o = trilab(&["repro", "--check", &s(&dir), "--gfxrecon", "--json"], 300);
+    expect_error(&o, &["2 of 384 rays differ"]);
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    for d in [&r["differences"], &r["gfxrecon_differences"]] {
+        assert_eq!(
+            (d["identical"].as_u64(), d["different_hit"].as_u64(), d["same_triangle"].as_u64()),
+            (Some(382), Some(1), Some(1)),
+            "{r}"
+        );
+    }
 }
 
 #[test]

@@ -103,18 +103,72 @@ impl Gfxrecon {
     }
 
     /// `gfxrecon-replay` of `capture` on the loader's device `gpu` (`None`: its first), with
-    /// the drivers this process's environment names; its exit status and output.
-    pub fn replay(&self, capture: &Path, gpu: Option<usize>) -> Result<Replayed> {
+    /// the drivers this process's environment names, under trilab's read-back layer
+    /// (`readback_layer.c`), which keeps the `hits_bytes` the replayed dispatch read back; its
+    /// exit status, output and those bytes' hits.
+    pub fn replay(&self, capture: &Path, gpu: Option<usize>, hits_bytes: u64) -> Result<Replayed> {
+        let layer = ReadbackLayer::write()?;
+        let kept = layer.dir.path().join("readback.hits");
         let mut cmd = std::process::Command::new(self.replay_exe());
         if let Some(i) = gpu {
             cmd.arg("--gpu").arg(i.to_string());
         }
-        cmd.arg(capture);
-        // The capture layer must not record the replay.
-        cmd.env_remove("VK_INSTANCE_LAYERS");
+        cmd.arg(capture)
+            .env("VK_LAYER_PATH", layer.dir.path())
+            .env("VK_INSTANCE_LAYERS", READBACK_LAYER)
+            .env("TRILAB_READBACK_FILE", &kept)
+            .env("TRILAB_READBACK_BYTES", hits_bytes.to_string())
+            .env("TRILAB_READBACK_USAGE", READBACK_USAGE.to_string());
         let out = crate::children::output(&mut cmd).map_err(|e| Error::io(&self.replay_exe(), e))?;
         let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
-        Ok(Replayed { success: out.status.success(), status: out.status.to_string(), output: text })
+        let hits = match std::fs::read(&kept) {
+            Ok(bytes) => Some(crate::rays::parse_hits(&kept, &bytes)?),
+            Err(_) => None,
+        };
+        Ok(Replayed { success: out.status.success(), status: out.status.to_string(), output: text, hits })
+    }
+}
+
+/// The read-back layer's name (its manifest, written beside the library).
+pub const READBACK_LAYER: &str = "VK_LAYER_TRILAB_readback";
+/// The usage of the buffer trilab reads results back through (`Context::download`):
+/// `VK_BUFFER_USAGE_TRANSFER_DST_BIT` alone.
+const READBACK_USAGE: u32 = ash::vk::BufferUsageFlags::TRANSFER_DST.as_raw();
+
+/// `src/commands/repro/readback_layer.c`, built by build.rs (empty where it could not be).
+static READBACK_LIBRARY: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/libtrilab_readback.so"));
+
+/// The layer's library and manifest written to a temporary folder (for `VK_LAYER_PATH`).
+struct ReadbackLayer {
+    dir: tempfile::TempDir,
+}
+
+impl ReadbackLayer {
+    fn write() -> Result<ReadbackLayer> {
+        if READBACK_LIBRARY.is_empty() {
+            return Err(Error::Unsupported(
+                "this trilab was built without its read-back layer (build.rs needs a C compiler and the Vulkan \
+                 headers: libvulkan-dev, which install-deps.sh installs)"
+                    .into(),
+            ));
+        }
+        let dir = tempfile::tempdir().map_err(|e| Error::io(Path::new("a temporary folder"), e))?;
+        let lib = dir.path().join("libtrilab_readback.so");
+        std::fs::write(&lib, READBACK_LIBRARY).map_err(|e| Error::io(&lib, e))?;
+        let manifest = serde_json::json!({
+            "file_format_version": "1.1.2",
+            "layer": {
+                "name": READBACK_LAYER,
+                "type": "GLOBAL",
+                "library_path": lib,
+                "api_version": "1.3.0",
+                "implementation_version": "1",
+                "description": "trilab: keeps the hits a replayed dispatch reads back",
+            }
+        });
+        let json = dir.path().join("VkLayer_trilab_readback.json");
+        std::fs::write(&json, manifest.to_string()).map_err(|e| Error::io(&json, e))?;
+        Ok(ReadbackLayer { dir })
     }
 }
 
@@ -124,6 +178,9 @@ pub struct Replayed {
     pub success: bool,
     pub status: String,
     pub output: String,
+    /// The hits the replayed dispatch read back (`None`: the layer kept none).
+    #[serde(skip)]
+    pub hits: Option<Vec<crate::rays::Hit>>,
 }
 
 impl Replayed {

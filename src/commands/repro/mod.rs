@@ -332,6 +332,8 @@ pub struct CheckReport {
     pub differences: Differences,
     /// `gfxrecon-replay` of the capture on this driver, when asked for.
     pub gfxrecon_replay: Option<gfxrecon::Replayed>,
+    /// The hits `gfxrecon-replay`'s dispatch read back, against the expected ones.
+    pub gfxrecon_differences: Option<Differences>,
 }
 
 impl CheckReport {
@@ -370,6 +372,10 @@ impl Report for CheckReport {
                 r.status,
                 tail.join("\n  ")
             );
+            match &self.gfxrecon_differences {
+                Some(d) => s += &format!("gfxrecon-replay's hits: {}", d.to_text()),
+                None => s += "gfxrecon-replay's hits: none read back\n",
+            }
         }
         s
     }
@@ -401,9 +407,14 @@ pub fn check(ctx: &Context, repro: &Repro, gfxrecon: bool) -> Result<CheckReport
     let differences = Differences::of(repro.manifest.cell.query, &repro.expected, &got);
     let info = ctx.info();
     let gfxrecon_replay = match replay_tool {
-        Some((g, capture)) => Some(g.replay(&capture, Some(info.index))?),
+        Some((g, capture)) => Some(g.replay(&capture, Some(info.index), repro.expected.len() as u64 * 16)?),
         None => None,
     };
+    let gfxrecon_differences = gfxrecon_replay
+        .as_ref()
+        .and_then(|r| r.hits.as_ref())
+        .filter(|h| h.len() == repro.expected.len())
+        .map(|h| Differences::of(repro.manifest.cell.query, &repro.expected, h));
     Ok(CheckReport {
         dir: dir.clone(),
         kernel: repro.kernel.name.to_owned(),
@@ -412,5 +423,6 @@ pub fn check(ctx: &Context, repro: &Repro, gfxrecon: bool) -> Result<CheckReport
         driver: info.driver_label(),
         differences,
         gfxrecon_replay,
+        gfxrecon_differences,
     })
 }
