@@ -45,6 +45,8 @@ travel=$root/.travel
 BUDGET_MIB=56
 ARCHIVE_MAX=$((16 * 1024 * 1024))
 LAYOUTS=bvh2,bvh4,cwbvh
+# The repros' scene: 2,000 triangles, a repro of 0.4 MB (docs/repro.md).
+REPRO_SCENE=synth:soup:2000
 
 mib() { awk -v b="$1" 'BEGIN { printf "%.2f", b / 1048576 }'; }
 bytes_of() { if [ -e "$1" ]; then du -sb --apparent-size "$1" | cut -f1; else echo 0; fi; }
@@ -87,6 +89,22 @@ pack() {
     echo "device-run.sh pack: no tinybvh source (../shared/peers/tinybvh or TRILAB_TINYBVH_SRC): the run has no peer" >&2
   fi
 
+  # GFXReconstruct's replay and capture layer (scripts/gfxreconstruct.sh; 6 MB, 2.5 compressed)
+  # and a repro made here on lavapipe (issue 41): there, the repro is checked on the GPU's driver
+  # (trilab's dispatch and gfxrecon-replay's, hits ray by ray), and one made there comes back.
+  rm -rf "$travel/repro-here" "$travel/gfxreconstruct.tar.gz"
+  local g=${TRILAB_GFXRECON:-$HOME/.cache/trilab/gfxreconstruct}
+  if [ -x "$g/bin/gfxrecon-replay" ]; then
+    tar -C "$g" -czf "$travel/gfxreconstruct.tar.gz" bin/gfxrecon-replay lib layer version
+    local rays=$travel/repro-rays.tmp
+    "$CARGO_TARGET_DIR/release/trilab" rays primary --scene "$REPRO_SCENE" --width 32 --height 32 --out "$rays" >/dev/null
+    TRILAB_GFXRECON=$g "$CARGO_TARGET_DIR/release/trilab" repro --scene "$REPRO_SCENE" --rays "$rays" \
+      --capture required --out "$travel/repro-here" >/dev/null
+    rm -f "$rays" "$rays.json"
+  else
+    echo "device-run.sh pack: no GFXReconstruct ($g; scripts/gfxreconstruct.sh): the run makes no repro" >&2
+  fi
+
   local commit
   commit=$(git rev-parse --short=12 HEAD)
   [ -z "$(git status --porcelain --untracked-files=no)" ] || commit="$commit-dirty"
@@ -106,6 +124,7 @@ pack() {
     printf '  .travel/trilab (stripped)     %7s\n' "$(mib "$(bytes_of "$travel/trilab")")"
     printf '  .travel/debs (loaders)        %7s\n' "$(mib "$(bytes_of "$travel/debs")")"
     printf '  .travel/peers (tinybvh)       %7s\n' "$(mib "$(bytes_of "$travel/peers")")"
+    printf '  .travel/gfxreconstruct, repro %7s\n' "$(mib $(( $(bytes_of "$travel/gfxreconstruct.tar.gz") + $(bytes_of "$travel/repro-here") )))"
     printf '  total                         %7s  (budget %s, device tool limit 64)\n' "$(mib "$total")" "$BUDGET_MIB"
   } | tee "$travel/SIZES"
   if [ "$total" -gt $((BUDGET_MIB * 1024 * 1024)) ]; then
@@ -188,6 +207,7 @@ run() {
     say "trilab devices failed: no usable Vulkan device (see above); nothing else can run"
     exit 1
   fi
+  repro_step
   local peer=() peer_exe=$travel/peers/tinybvh/tinybvh_rays
   if [ -x "$peer_exe" ]; then
     export TINYBVH_CL_DIR=$travel/peers/tinybvh/tinybvh_cl
@@ -259,10 +279,43 @@ run() {
   for dev in "$work"/results/*/; do
     [ -d "$dev" ] || continue
     [ -d "$work/extra/traversals" ] && cp -r "$work/extra/traversals" "$dev/traversals"
+    [ -d "$work/extra/repro" ] && cp -r "$work/extra/repro" "$dev/repro"
     cp "$log" "$dev/run.log"
   done
   say "done in $(( $(date +%s) - start )) s; archive $archive"
   return 0
+}
+
+# The repro made where `pack` ran, checked on this driver (trilab's dispatch of its files, and
+# gfxrecon-replay's of its capture, hits ray by ray), and one made here, which `unpack` brings
+# into results/<device>/repro/ to be checked on the CPU drivers. Seconds; a failure is logged.
+repro_step() {
+  [ -f "$travel/gfxreconstruct.tar.gz" ] || { say "no GFXReconstruct packed: no repro"; return 0; }
+  local g=$work/gfxreconstruct
+  mkdir -p "$g" "$work/extra/repro"
+  tar -C "$g" -xzf "$travel/gfxreconstruct.tar.gz"
+  sed -i "s|\"library_path\": *\"[^\"]*\"|\"library_path\": \"$g/lib/libVkLayer_gfxreconstruct.so\"|" \
+    "$g/layer/VkLayer_gfxreconstruct.json"
+  export TRILAB_GFXRECON=$g
+  local rc=0
+  say "trilab repro --check (the repro made on $(jq_field "$travel/repro-here/cell.json" made.driver))"
+  (cd "$work" && timeout -k 5 60 "$exe" repro --check "$travel/repro-here" --gfxrecon --json \
+    > "$work/extra/repro/check-of-packed.json" 2>> "$log") || rc=$?
+  say "repro check exit $rc"
+  rc=0
+  (cd "$work" && timeout -k 5 60 "$exe" rays primary --scene "$REPRO_SCENE" --width 32 --height 32 \
+    --out "$work/repro.rays" >> "$log" 2>&1 &&
+    timeout -k 5 60 "$exe" repro --scene "$REPRO_SCENE" --rays "$work/repro.rays" --capture required \
+      --out "$work/extra/repro/made-here" >> "$log" 2>&1) || rc=$?
+  say "repro made here: exit $rc"
+}
+
+# A field of a JSON file (dotted path), or `unknown`.
+jq_field() {
+  python3 -c 'import json,sys
+v=json.load(open(sys.argv[1]))
+for k in sys.argv[2].split("."): v=v[k]
+print(v)' "$1" "$2" 2>/dev/null || echo unknown
 }
 
 # --- unpack -----------------------------------------------------------------------------------

@@ -44,6 +44,13 @@ fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
+/// `trilab repro --check DIR`, validated, killed past two minutes.
+fn repro_check(dir: &Path) -> Output {
+    let mut c = Command::new("timeout");
+    c.args(["-k", "5", "120", env!("CARGO_BIN_EXE_trilab"), "repro", "--check"]).arg(dir);
+    c.env("TRILAB_VALIDATION", "1").output().expect("timeout(1) runs trilab")
+}
+
 /// Packs once per test process (the tests share `.travel/`).
 fn packed() -> String {
     static PACK: Mutex<Option<String>> = Mutex::new(None);
@@ -161,6 +168,17 @@ fn the_rehearsal_runs_end_to_end_and_unpacks() {
     let o = script(&["unpack", archive.to_str().unwrap(), checkout.to_str().unwrap()], &[], Duration::from_secs(120));
     let said = text(&o);
     assert!(o.status.success(), "unpack failed:\n{said}");
+    // The repro step (issue 41): the packed repro checked on this driver, both dispatches the
+    // same; one made here comes back whole, and checks the same here.
+    let repro = checkout.join("results/lavapipe/repro");
+    let check: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(repro.join("check-of-packed.json")).unwrap()).unwrap();
+    for d in [&check["differences"], &check["gfxrecon_differences"]] {
+        assert!(d["rays"].as_u64() == Some(1024) && d["identical"] == d["rays"], "{check}");
+    }
+    let made = repro.join("made-here");
+    let o = repro_check(&made);
+    assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("same: all 1024 rays"), "{}", text(&o));
     let suite = checkout.join("results/lavapipe/suite");
     let md = std::fs::read_to_string(suite.join("summary.md")).unwrap();
     // Three layouts in the study and the bench; tinybvh's OpenCL kernels (PoCL here, the GPU's

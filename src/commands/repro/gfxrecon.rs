@@ -113,7 +113,10 @@ impl Gfxrecon {
         if let Some(i) = gpu {
             cmd.arg("--gpu").arg(i.to_string());
         }
-        cmd.arg(capture)
+        // Memory types matched by what they offer, not by index: a capture made on another
+        // driver names that driver's types (harmless on the same driver).
+        cmd.args(["-m", "remap"])
+            .arg(capture)
             .env("VK_LAYER_PATH", layer.dir.path())
             .env("VK_INSTANCE_LAYERS", READBACK_LAYER)
             .env("TRILAB_READBACK_FILE", &kept)
