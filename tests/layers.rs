@@ -313,6 +313,7 @@ fn only_the_worker_service_runs_trilab_again() {
         ("services/peers.rs", "the peer programs (Embree, tinybvh)"),
         ("commands/build_bench.rs", "the build benchmark's peer programs, and dpkg-query"),
         ("services/provenance.rs", "git, for the commit"),
+        ("commands/repro/gfxrecon.rs", "GFXReconstruct's gfxrecon-replay, under trilab's read-back layer"),
     ];
     // Who may hold JSON untyped, and why it is not our output read back untyped.
     let untyped = [
@@ -324,6 +325,7 @@ fn only_the_worker_service_runs_trilab_again() {
         ("commands/ab/mod.rs", "the Vulkan loader's ICD file; another build's provenance, carried as it wrote it"),
         ("services/worker/protocol.rs", "another build's provenance in `ready`, read through ProvenanceFields"),
         ("cli/dump.rs", "prints clap's command tree as JSON"),
+        ("commands/repro/folder.rs", "checks a repro manifest's format before reading it typed"),
     ];
     let mut seen = BTreeSet::new();
     for (file, text) in &files {

@@ -4,12 +4,11 @@ use std::path::PathBuf;
 
 use clap::Args;
 use trilab::commands::repro::{self, CaptureChoice, ReproRequest};
-use trilab::conditioning::MethodChoice;
-use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::{Error, Result};
 
-use super::choice::{choice, method_choice, method_help, traversal_choice};
-use super::{note, scene_help, BuildArgs, GpuArgs, JsonArg, OutArgs};
+use super::choice::choice;
+use super::raycast::KernelArgs;
+use super::{note, scene_help, GpuArgs, JsonArg, OutArgs};
 
 /// One cell for a driver team: capture, SPIR-V, buffers, rays, hits; or check one
 ///
@@ -37,28 +36,14 @@ pub struct ReproArgs {
     /// Only the first N rays of the file (a repro small enough to attach to a bug report).
     #[arg(long, value_name = "N")]
     first: Option<usize>,
-    #[arg(long, value_name = "M", default_value = trilab::defaults::METHOD, value_parser = method_choice(), hide_possible_values = true,
-          help = method_help("Intersection method:"))]
-    method: MethodChoice,
+    /// The kernel and tree, as `raycast` takes them; the access path must be `texel` or
+    /// `storage` (the address path's device addresses do not replay on another device), or
+    /// `auto` where it picks one of them.
     #[command(flatten)]
-    bvh: BuildArgs,
-    /// Occlusion query: any hit in [tmin, tmax] instead of the closest.
-    #[arg(long)]
-    any_hit: bool,
-    /// How the kernel reads the scene: `texel` or `storage` (the address path's device addresses
-    /// do not replay on another device); `auto` as raycast plans it, refused if it picks addresses.
-    #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::DEFAULT)]
-    scene_access: SceneAccess,
-    /// BVH node layout (`trilab methods` lists them).
-    #[arg(long, value_parser = choice::<Layout>(), default_value_t = Layout::DEFAULT)]
-    layout: Layout,
-    /// How the kernel walks the tree.
-    #[arg(long, value_parser = traversal_choice(), default_value_t = Traversal::DEFAULT)]
-    traversal: Traversal,
-    /// `auto`: capture with GFXReconstruct where scripts/gfxreconstruct.sh (or TRILAB_GFXRECON) put
-    /// it, else say why not; `required`: fail without it; `off`: no capture.
-    #[arg(long, value_name = "WHEN", default_value = "auto", value_parser = ["auto", "required", "off"])]
-    capture: String,
+    kernel: KernelArgs,
+    /// Capture the dispatch with GFXReconstruct:
+    #[arg(long, value_parser = choice::<CaptureChoice>(), default_value_t = CaptureChoice::DEFAULT)]
+    capture: CaptureChoice,
     #[command(flatten)]
     out: OutArgs,
     #[command(flatten)]
@@ -81,17 +66,13 @@ pub fn run(a: ReproArgs) -> Result<()> {
         scene: a.scene.ok_or_else(|| missing("--scene"))?,
         rays: a.rays.ok_or_else(|| missing("--rays"))?,
         first: a.first,
-        method: a.method,
-        layout: a.layout,
-        traversal: a.traversal,
-        access: a.scene_access,
-        build: a.bvh.options(),
-        any_hit: a.any_hit,
-        capture: match a.capture.as_str() {
-            "required" => CaptureChoice::Required,
-            "off" => CaptureChoice::Off,
-            _ => CaptureChoice::Auto,
-        },
+        method: a.kernel.method,
+        layout: a.kernel.layout,
+        traversal: a.kernel.traversal,
+        access: a.kernel.scene_access,
+        build: a.kernel.bvh.options(),
+        any_hit: a.kernel.any_hit,
+        capture: a.capture,
         out: a.out.dir.ok_or_else(|| missing("--out"))?,
     };
     let report = repro::make(&a.gpu.context()?, &req, note)?;

@@ -22,6 +22,7 @@ use crate::conditioning::MethodChoice;
 use crate::encoding::{AccessPath, Layout, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, RaycastOptions};
+use crate::named::named_enum;
 use crate::pipeline::{HostScene, SceneRequest};
 use crate::rays;
 use crate::report::Report;
@@ -32,14 +33,18 @@ pub use compare::Differences;
 pub use folder::{Query, Repro};
 pub use gfxrecon::Gfxrecon;
 
-/// Whether to capture the dispatch with GFXReconstruct.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum CaptureChoice {
-    /// Where GFXReconstruct is found; without it the folder says why there is no capture.
-    Auto,
-    /// Fail when it is not found or the capture fails.
-    Required,
-    Off,
+named_enum! {
+    /// Whether `trilab repro` captures the dispatch with GFXReconstruct.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum CaptureChoice: "capture" {
+        /// where GFXReconstruct is found (scripts/gfxreconstruct.sh, or TRILAB_GFXRECON); without it the folder says why there is no capture
+        Auto = "auto" (default),
+        /// fail without GFXReconstruct, or when the capture fails
+        Required = "required",
+        /// no capture
+        Off = "off",
+    }
 }
 
 /// What to make a repro of.
