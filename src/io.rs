@@ -191,6 +191,12 @@ fn probe_writable(dir: &Path) -> std::io::Result<()> {
     tempfile::Builder::new().prefix(".trilab-probe-").tempfile_in(dir).map(drop).map_err(plain)
 }
 
+/// Whether two paths name the same file (after resolving links and `..`; either may not exist
+/// yet): two outputs of one command that would overwrite each other.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    resolve(a) == resolve(b)
+}
+
 /// Refuses an output path that names one of the inputs (after resolving links and `..`).
 pub fn ensure_not_input(output: &Path, inputs: &[&Path]) -> Result<()> {
     let out = resolve(output);

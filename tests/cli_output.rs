@@ -1,7 +1,7 @@
 //! One output option for every command that writes files: `--out DIR` is declared once
-//! (`OutArgs` in src/cli/mod.rs, each command naming its files in its help), and so is
-//! `--shard I/N` (`ShardArg`); every command makes its `--out` folder when it is missing, and
-//! refuses a file given as the folder before any work.
+//! (`OutArgs` in src/cli/mod.rs, each command naming its files in its help), and so are
+//! `--shard I/N` (`ShardArg`) and `--trace FILE` (`TraceArg`); every command makes its `--out`
+//! folder when it is missing, and refuses a file given as the folder before any work.
 
 mod common;
 
@@ -25,19 +25,20 @@ fn out_and_shard_are_declared_once() {
             let declares = |field: &str| {
                 l.starts_with(&format!("{field}: Option<")) || l.starts_with(&format!("pub {field}: Option<"))
             };
-            if declares("out") || declares("shard") || l.contains("json_out: Option<") {
+            if declares("out") || declares("shard") || declares("trace") || l.contains("json_out: Option<") {
                 own.push(format!("{}:{}: {l}", path.display(), n + 1));
             }
         }
     }
     assert!(
         own.is_empty(),
-        "declare --out through OutArgs/ReportOutArgs and --shard through ShardArg:\n{}",
+        "declare --out through OutArgs/ReportOutArgs, --shard through ShardArg and --trace through TraceArg:\n{}",
         own.join("\n")
     );
     let text = std::fs::read_to_string(dir.join("mod.rs")).unwrap();
     assert_eq!(text.matches("pub struct OutArgs").count(), 1);
     assert_eq!(text.matches("pub struct ShardArg").count(), 1);
+    assert_eq!(text.matches("pub struct TraceArg").count(), 1);
 }
 
 /// Every command that writes a folder of files makes `--out` when it is missing, parents too.

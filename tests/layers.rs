@@ -21,6 +21,7 @@ const LAYERS: &[&str] = &[
     "env",
     "error",
     "io",
+    "trace",
     "children",
     "memory",
     "report",

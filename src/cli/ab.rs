@@ -12,7 +12,7 @@ use trilab::named::Named;
 use trilab::services::rayset::{RaySet, RaySetSizes};
 
 use super::choice::choice;
-use super::{scenes_help, signals, GpuArgs, JsonArg, LeafSizeArg};
+use super::{scenes_help, signals, GpuArgs, JsonArg, LeafSizeArg, TraceArg};
 
 /// The workload both sides run, in the bench vocabulary (smaller defaults: many rounds).
 #[derive(Args, Clone)]
@@ -222,6 +222,8 @@ pub struct AbArgs {
     #[command(flatten)]
     out: OutArgs,
     #[command(flatten)]
+    trace: TraceArg,
+    #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
@@ -232,10 +234,32 @@ pub fn run(a: AbArgs) -> Result<()> {
     // compared, as `compare` and `diff` say.
     super::error_exit(2);
     a.rounds.check(a.threshold)?;
+    let files = ["ab.json", "ab.md", trilab::rows::FILE];
     if let Some(dir) = &a.out.dir {
-        let files = ["ab.json", "ab.md", trilab::rows::FILE];
         OutArgs::check(dir, &files, &[])?;
     }
+    // The trace is none of the sides' programs or drivers, and none of ab's own files.
+    let sides = [&a.a_bin, &a.b_bin, &a.a_icd, &a.b_icd];
+    let inputs: Vec<&std::path::Path> = sides.into_iter().flatten().map(PathBuf::as_path).collect();
+    let outputs: Vec<PathBuf> = a.out.dir.iter().flat_map(|d| files.map(|f| d.join(f))).collect();
+    a.trace.check(&inputs, &outputs)?;
+    let trace = a.trace.clone();
+    let run = trace.start("ab");
+    let result = compare_sides(a);
+    let written = trace.finish(run, &result);
+    let code = result?;
+    written?;
+    if code != 0 {
+        use std::io::Write;
+        let _ = std::io::stdout().flush();
+        std::process::exit(code.into());
+    }
+    Ok(())
+}
+
+/// The two sides run and compared, and the report written (`--trace`'s run span covers it):
+/// the exit status its verdict asks for.
+fn compare_sides(a: AbArgs) -> Result<u8> {
     // Ctrl-C, SIGTERM or SIGHUP: the workers (each in a process group of its own) get the
     // signal too, then whatever is left of them is killed; say where the run was and what it
     // had measured, remove the workers' temporary folder and exit 128 + the signal's number.
@@ -288,18 +312,13 @@ pub fn run(a: AbArgs) -> Result<()> {
         std::thread::park();
     }
     let report = report?;
+    let _span = trilab::trace::span("report", "report writing");
     if let Some(dir) = &a.out.dir {
         ab::write(&report, dir)?;
         eprintln!("wrote {}", dir.display());
     }
     a.json.print(&report);
-    let code = report.exit_code();
-    if code != 0 {
-        use std::io::Write;
-        let _ = std::io::stdout().flush();
-        std::process::exit(code.into());
-    }
-    Ok(())
+    Ok(report.exit_code())
 }
 
 /// Sets SIGPIPE's disposition: `ignore` while `ab` writes commands to its workers' stdin (a

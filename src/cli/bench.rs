@@ -13,7 +13,7 @@ use trilab::services::results::Results;
 
 use super::choice::choice;
 use super::ShardArg;
-use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs};
+use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs, TraceArg};
 
 /// Ray-casting benchmark: every method on three ray sets, validated, beside peers
 ///
@@ -100,6 +100,8 @@ pub struct BenchArgs {
     #[command(flatten)]
     out: ReportOutArgs,
     #[command(flatten)]
+    trace: TraceArg,
+    #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
@@ -151,7 +153,30 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
     let (json_out, md_out) = a.out.files(<BenchReport as Results>::STEM, &scenes)?;
     BenchOptions { scenes: scenes.clone(), shard: a.shard.shard, ..Default::default() }.check_shard()?;
-    let ctx = a.gpu.context()?;
+    // The trace is neither an input (a scene, a peer program) nor one of the report's files.
+    let scene_files = scenes.iter().map(|s| trilab::scene::resolve(s).map(|f| f.path)).collect::<Result<Vec<_>>>()?;
+    let mut inputs: Vec<&std::path::Path> = scene_files.iter().map(PathBuf::as_path).collect();
+    inputs.extend(a.embree.as_deref().into_iter().chain(a.tinybvh.as_deref()));
+    let mut outputs: Vec<PathBuf> = json_out.iter().chain(&md_out).cloned().collect();
+    outputs.extend(a.out.out.dir.iter().map(|d| d.join(trilab::rows::FILE)));
+    a.trace.check(&inputs, &outputs)?;
+    let trace = a.trace.clone();
+    let run = trace.start("bench");
+    let result = measure(a, (json_out, md_out));
+    let written = trace.finish(run, &result);
+    result?;
+    written
+}
+
+/// The bench itself, and its report written (`--trace`'s run span covers it all).
+fn measure(a: BenchArgs, files: (Option<PathBuf>, Option<PathBuf>)) -> Result<()> {
+    let (json_out, md_out) = files;
+    let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
+    let ctx = {
+        let _span = trilab::trace::span("device", "device context");
+        a.gpu.context()?
+    };
+    TraceArg::device(&ctx);
     let o = BenchOptions {
         scenes,
         methods: a.methods.or_device(&ctx),
@@ -184,6 +209,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         eprintln!("bench: shard {shard}: {owned} of {} scene(s)", o.scenes.len());
     }
     let report = bench::run(&ctx, &o, |m| eprintln!("  {m}"))?;
+    let _span = trilab::trace::span("report", "report writing");
     a.json.print(&report);
     a.out.create_dir()?;
     report.write(json_out.as_deref(), md_out.as_deref())

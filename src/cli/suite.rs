@@ -12,7 +12,7 @@ use trilab::named::Named;
 use trilab::services::driver_stats::CollectOptions;
 
 use super::choice::choice;
-use super::{results_dir, signals, GpuArgs, JsonArg};
+use super::{results_dir, signals, GpuArgs, JsonArg, TraceArg};
 
 /// What to run once on a new device: every part, scaled to a time budget
 ///
@@ -56,16 +56,26 @@ pub struct SuiteArgs {
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
     #[command(flatten)]
+    trace: TraceArg,
+    #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
     gpu: GpuArgs,
 }
 
 pub fn run(a: SuiteArgs) -> Result<()> {
-    // Ctrl-C, SIGTERM or SIGHUP: say what the run leaves in its folder, then exit 128 + the
-    // signal's number at once (the part under way cannot stop half-way and be kept).
+    // The trace is neither a peer program nor one of the suite's own files.
+    let inputs: Vec<&std::path::Path> = a.embree.as_deref().into_iter().chain(a.tinybvh.as_deref()).collect();
+    let own = ["summary.md", "suite.json", "devices.txt", "devices.json"];
+    let outputs: Vec<PathBuf> = a.out.dir.iter().flat_map(|d| own.map(|f| d.join(f))).collect();
+    a.trace.check(&inputs, &outputs)?;
+    let run = a.trace.start("suite");
+    // Ctrl-C, SIGTERM or SIGHUP: say what the run leaves in its folder (and write the trace as
+    // far as it got), then exit 128 + the signal's number at once (the part under way cannot
+    // stop half-way and be kept).
     let kept = Arc::new(Mutex::new(suite::Kept::default()));
     let k = kept.clone();
+    let trace_file = a.trace.file.clone();
     let handler = signals::on_stop(move |signal| {
         let k = k.lock().unwrap_or_else(|e| e.into_inner());
         // The part under way may run trilab again (bench per LP_NUM_THREADS, the driver
@@ -73,11 +83,26 @@ pub fn run(a: SuiteArgs) -> Result<()> {
         let children = trilab::children::signal_all(signal);
         let forwarded = if children > 0 { format!(" (and {children} child process(es))") } else { String::new() };
         eprintln!("suite: stopped by {}{forwarded}; {}", signals::name(signal), k.describe());
+        if let Some(file) = &trace_file {
+            // The spans still open (the run, the part under way) end here, marked unfinished.
+            match TraceArg::write(file) {
+                Ok(w) => eprintln!("suite: trace of the run so far: {w} in {}", file.display()),
+                Err(e) => eprintln!("suite: the trace was not written: {e}"),
+            }
+        }
         signals::exit_now(signal);
     });
     if let Err(e) = handler {
         super::note(&format!("warning: cannot catch Ctrl-C or SIGTERM ({e}); a stopped run will not say what it kept"));
     }
+    let result = run_suite(&a, &kept);
+    let written = a.trace.finish(run, &result);
+    result?;
+    written
+}
+
+/// The suite itself, after the signal handler is in place.
+fn run_suite(a: &SuiteArgs, kept: &Mutex<suite::Kept>) -> Result<()> {
     let this_exe = trilab::services::worker::this_exe;
     let exe = if a.no_threads { None } else { Some(this_exe()?) };
     let mut o = SuiteOptions {
@@ -92,7 +117,11 @@ pub fn run(a: SuiteArgs) -> Result<()> {
         layouts: a.layouts.clone(),
     };
     suite::check(&o)?;
-    let ctx = a.gpu.context()?;
+    let ctx = {
+        let _span = trilab::trace::span("device", "device context");
+        a.gpu.context()?
+    };
+    TraceArg::device(&ctx);
     if !a.no_driver_stats {
         o.driver_stats = Some(CollectOptions {
             exe: this_exe()?,
@@ -103,7 +132,7 @@ pub fn run(a: SuiteArgs) -> Result<()> {
     }
     o.out = results_dir(&ctx, a.out.dir.clone(), "suite");
     OutArgs::check(&o.out, &["summary.md", "suite.json"], &[])?;
-    let report = suite::run(&ctx, &o, &kept, |m| eprintln!("suite: {m}"))?;
+    let report = suite::run(&ctx, &o, kept, |m| eprintln!("suite: {m}"))?;
     a.json.print(&report);
     let failed: Vec<String> =
         report.parts.iter().filter_map(|p| p.failed.as_ref().map(|why| format!("{}: {why}", p.part))).collect();

@@ -324,18 +324,28 @@ pub fn cast_rays_with(
     let mut kernel_ms = Vec::new();
     let mut wall_ms = Vec::new();
     let runs = opts.warmup + opts.repeat.max(1);
+    let tracing = crate::trace::on();
     for run in 0..runs {
         let t0 = Instant::now();
         for (&cmd, what) in dispatch.cmds.iter().zip(&what) {
             ctx.submit_and_wait(cmd, what)?;
         }
         let wall = t0.elapsed().as_secs_f64() * 1e3;
-        if run < opts.warmup {
+        let warm_up = run < opts.warmup;
+        // A warm-up run's timestamps are read only for the trace.
+        let batch_ms = match timestamps && (!warm_up || tracing) {
+            true => Some(queries.read_ms()?),
+            false => None,
+        };
+        if tracing {
+            trace_run(kernel.name(), t0, wall, batch_ms.as_deref(), run, warm_up);
+        }
+        if warm_up {
             continue;
         }
         wall_ms.push(wall);
-        if timestamps {
-            kernel_ms.push(queries.read_ms()?.iter().sum());
+        if let Some(ms) = batch_ms {
+            kernel_ms.push(ms.iter().sum());
         }
     }
     let mut downloads = Vec::new();
@@ -349,6 +359,47 @@ pub fn cast_rays_with(
         .get(1)
         .map(|b| b.chunks_exact(std::mem::size_of::<TraversalCounts>()).map(bytemuck::pod_read_unaligned).collect());
     Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches, traversal })
+}
+
+/// The labels a dispatch's name in the trace is made of, in this order (the pipeline's, then the
+/// caller's); the args carry every label.
+const NAME_LABELS: [&str; 7] = ["method", "layout", "traversal", "access", "scene", "set", "round"];
+
+/// One run of a cast on the trace's GPU track: placed at the host time of its first submit
+/// (`at`), lasting its batches' GPU time (`batch_ms`, from the timestamps), or the host's wall
+/// time where the device has no timestamps; named by the calling thread's labels (the method,
+/// layout, traversal and access path `pipeline::DeviceScene` sets, the scene, ray set and round
+/// the caller sets), else by the kernel.
+fn trace_run(kernel: &str, at: Instant, wall_ms: f64, batch_ms: Option<&[f64]>, run: usize, warm_up: bool) {
+    use crate::trace::Arg;
+    let labels = crate::trace::current_labels();
+    let parts: Vec<String> = NAME_LABELS
+        .iter()
+        .filter_map(|&k| {
+            let v = labels.iter().rev().find(|(l, _)| *l == k)?;
+            Some(if k == "round" { format!("round {}", v.1) } else { v.1.to_string() })
+        })
+        .collect();
+    let name = if labels.iter().any(|(k, _)| *k == "method") { parts.join(" ") } else { kernel.to_owned() };
+    let (dur, clock) = match batch_ms {
+        Some(b) => (b.iter().sum(), "GPU timestamps"),
+        None => (wall_ms, "host wall time of the submits and waits (no GPU timestamps)"),
+    };
+    let mut args: Vec<(&str, Arg)> = vec![
+        ("kernel", kernel.into()),
+        ("duration", clock.into()),
+        ("placement", "host clock at the first submit".into()),
+        ("wall_ms", wall_ms.into()),
+        ("cast_run", run.into()),
+        ("cast_warm_up", warm_up.into()),
+    ];
+    if let Some(b) = batch_ms {
+        args.push(("batches", b.len().into()));
+        if b.len() > 1 {
+            args.push(("batch_ms", b.to_vec().into()));
+        }
+    }
+    crate::trace::complete(crate::trace::GPU, "dispatch", &name, at, dur, args);
 }
 
 /// Most rays per submit such that one submit takes about `target_ms`: times one untimed run

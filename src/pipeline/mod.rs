@@ -242,8 +242,19 @@ impl<'m> ScenePlan<'_, 'm> {
         reader: Option<&'static KernelSource>,
         inspect: impl FnOnce(&EncodedScene),
     ) -> Result<DeviceScene> {
+        let span = crate::trace::span_with("upload", || format!("scene to device: {} {}", self.method, self.layout));
+        if span.records() {
+            span.arg("scene", self.host.name.clone());
+            span.arg("access", self.access.name());
+            span.arg("node_order", self.node_order.to_string());
+        }
+        let encode = crate::trace::span("upload", "encode");
         let (encoded, wide) = self.encode(inspect)?;
+        drop(encode);
+        let copy = crate::trace::span("upload", "buffers to device");
         let buffers = SceneBuffers::upload(ctx, &encoded, self.access, reader, wide.as_ref().map(|w| &w.bytes[..]))?;
+        drop(copy);
+        span.arg("bytes", buffers.bytes());
         Ok(DeviceScene {
             name: self.host.name.clone(),
             method: self.method,
@@ -421,6 +432,16 @@ impl DeviceScene {
     ) -> Result<RaycastResult> {
         self.check_kernel(kernel)?;
         let resources: Vec<(u32, Resource)> = self.resources().collect();
+        // What the dispatches of this cast are, for the trace's GPU track.
+        let _labels = crate::trace::labels(|| {
+            vec![
+                ("method", self.method.to_string().into()),
+                ("layout", self.layout.to_string().into()),
+                ("traversal", self.traversal.to_string().into()),
+                ("access", self.access.name().into()),
+                ("node_order", self.node_order.to_string().into()),
+            ]
+        });
         cast_rays(ctx, kernel, &resources, rays, opts)
     }
 

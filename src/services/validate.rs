@@ -110,6 +110,13 @@ pub trait RoundJob {
 /// error names the job (its index).
 pub fn rounds(jobs: &mut [&mut dyn RoundJob], warmup: usize, repeat: usize) -> std::result::Result<(), (usize, Error)> {
     for round in 0..warmup + repeat.max(1) {
+        // The trace's round: a span on the host, and labels on every dispatch in it.
+        let warm_up = round < warmup;
+        let _span = crate::trace::span_with("round", || match warm_up {
+            true => format!("round {} (warm-up)", round + 1),
+            false => format!("round {}", round + 1),
+        });
+        let _labels = crate::trace::labels(|| vec![("round", (round + 1).into()), ("warm_up", warm_up.into())]);
         for k in 0..jobs.len() {
             let i = (k + round) % jobs.len();
             jobs[i].run_once(round >= warmup).map_err(|e| (i, e))?;
@@ -147,6 +154,11 @@ impl<'a> KernelRound<'a> {
 impl RoundJob for KernelRound<'_> {
     fn run_once(&mut self, timed: bool) -> Result<()> {
         let j = self.job;
+        let _span = crate::trace::span_with("cast", || {
+            let s = j.scene;
+            format!("cast {} {} {} {} ({} order)", s.method, s.layout, s.traversal, s.access.name(), j.order)
+        })
+        .with("rays", j.rays.len());
         let t = std::time::Instant::now();
         let order = j.order.permutation(j.rays);
         let permuted = order.as_ref().map(|o| order::permute(o, j.rays));
@@ -157,7 +169,9 @@ impl RoundJob for KernelRound<'_> {
             res.hits = order::unpermute(o, &res.hits);
             host_ms += t.elapsed().as_secs_f64() * 1e3;
         }
+        let validate = crate::trace::span("validate", "validate against the f64 reference");
         let agreement = validate_hits(self.mesh, j.rays, &res.hits, j.ref_hits)?;
+        drop(validate);
         if timed {
             self.times.push(res.time_ms()?.median + host_ms);
             self.reorder.push(host_ms);

@@ -874,7 +874,14 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         set_stage(format!("side {name}'s start"));
         // A side that does not start ends the run; the side started before it is dropped,
         // which ends its worker.
+        let starting = crate::trace::span_on(side_track(name), "ab", "start: worker setup");
         let r = start_side(o, &workload, name, side, tmp.path())?;
+        if starting.records() {
+            starting.arg("setup_ms", r.report.setup_ms);
+            starting.arg("cells", r.cells.len());
+            starting.arg("side", side.describe());
+        }
+        drop(starting);
         progress(&format!(
             "side {name}: {} ready, {} cells, setup {:.1} s (shader cache {})",
             side_label(&r.report),
@@ -946,14 +953,17 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         if paired {
             let round = rounds[0];
             set_stage(format!("round {}", round + 1));
+            let _round_span = crate::trace::span_with("round", || format!("round {}", round + 1));
             for k in 0..pairs.len() {
                 // The cell that opens a round rotates, and which side goes first alternates
                 // from cell to cell and from round to round.
                 let p = (k + round) % pairs.len();
                 let order = if (k + round) % 2 == 0 { [0usize, 1] } else { [1, 0] };
-                for side in order {
+                for (nth, side) in order.into_iter().enumerate() {
                     let (w, i) = if side == 0 { (&mut wa, pairs[p].0) } else { (&mut wb, pairs[p].1) };
+                    let span = trace_side_cell(side, &cells_b[pairs[p].1], round, nth == 0);
                     let r = w.cell(i, &in_round(round, Some(&cells_b[pairs[p].1]), rounds))?;
+                    trace_answer(&span, &r);
                     record(&mut times, &mut worst, side, p, &r);
                 }
             }
@@ -964,7 +974,11 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
                 set_stage(format!("round {}", rounds[side] + 1));
                 let w = if side == 0 { &mut wa } else { &mut wb };
                 let when = in_round(rounds[side], None, rounds);
+                let span = crate::trace::span_on(side_track(["A", "B"][side]), "ab", "whole round")
+                    .with("round", rounds[side] + 1)
+                    .with("side", ["A", "B"][side]);
                 let res = w.round(&when)?;
+                drop(span);
                 rounds[side] += 1;
                 for (p, &(ia, ib)) in pairs.iter().enumerate() {
                     let Some(r) = res.get(if side == 0 { ia } else { ib }) else {
@@ -1005,20 +1019,25 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         }
     }
     let (dir_a, dir_b) = (wa.hits_dir.clone(), wb.hits_dir.clone());
+    let ending = crate::trace::span("ab", "the workers end");
     wa.finish();
     wb.finish();
+    drop(ending);
     let matched_b: Vec<CellInfo> = pairs.iter().map(|&(_, ib)| cells_b[ib].clone()).collect();
     // The compilers' output, after the rounds: its compiles would time them otherwise.
     set_stage("the driver statistics, after the rounds".into());
     let stats = o.driver_stats.then(|| {
         [("A", &o.a), ("B", &o.b)].map(|(name, side)| {
+            let _span = crate::trace::span_on(side_track(name), "ab", "driver statistics");
             progress(&format!("side {name}: driver statistics"));
             let protocol = if name == "A" { report_a.protocol } else { report_b.protocol };
             compiled::collect(o, name, side, protocol, &matched_b, &tmp.path().join(format!("driver-stats-{name}")))
         })
     });
+    let judging = crate::trace::span("ab", "cells judged (hits compared ray by ray)");
     let out =
         judged_cells(o, pairs, &cells_b, &times, &worst, paired, [&dir_a, &dir_b], stats.as_ref(), [&inv_a, &inv_b])?;
+    drop(judging);
     let kernels = groups
         .iter()
         .map(|g| {
@@ -1069,6 +1088,44 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
         driver_stats_rows: stats.map(|s| s.map(|x| x.rows)).unwrap_or_default(),
         repros,
     })
+}
+
+/// The trace's track of side `name` ("A" or "B").
+fn side_track(name: &str) -> &'static str {
+    if name == "A" {
+        "side A"
+    } else {
+        "side B"
+    }
+}
+
+/// One side's run of one cell in a paired round, as a span on that side's track of the trace
+/// (`side`: 0 for A): the cell, the round (from 1) and whether the side went first.
+fn trace_side_cell(side: usize, cell: &CellInfo, round: usize, first: bool) -> crate::trace::Span {
+    let name = ["A", "B"][side];
+    if !crate::trace::on() {
+        return crate::trace::span("ab", "");
+    }
+    let span = crate::trace::span_on(side_track(name), "ab", format!("{name}: {}", cell.label()));
+    if span.records() {
+        span.arg("side", name);
+        span.arg("cell", cell.label());
+        span.arg("round", round + 1);
+        span.arg("first_in_pair", first);
+    }
+    span
+}
+
+/// What the side's worker answered for the cell, in its span's args.
+fn trace_answer(span: &crate::trace::Span, r: &CellRound) {
+    if !span.records() {
+        return;
+    }
+    match r.ms {
+        Some(ms) => span.arg("kernel_ms", ms),
+        None => span.arg("validated", false),
+    }
+    span.arg("agree", r.agree);
 }
 
 /// The options checked before any side starts: each side's ICD file and executable, and the

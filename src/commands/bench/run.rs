@@ -24,6 +24,7 @@ use crate::services::provenance::Provenance;
 use crate::services::rayset::{ray_sets, RaySet};
 use crate::services::roofline::RooflineReport;
 use crate::services::validate::{interleaved_with, mrays_summary, Job, RoundJob};
+use crate::trace;
 
 /// The driver's peers get batches of about this long per submit.
 const PEER_SUBMIT_MS: f64 = 500.0;
@@ -69,7 +70,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
     };
     o.check_shard()?;
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
+    let checking = trace::span("peer", "peers: check the programs");
     let programs = peer_programs(o, tmp.path(), &mut report, &mut progress)?;
+    drop(checking);
     let driver = driver_tracers(ctx, o, &mut report, &mut progress)?;
     let peer_names: Vec<String> = programs.iter().map(|p| p.kind.to_string()).collect();
     let driver_peers: Vec<Peer> = driver.iter().map(PeerTracer::peer).collect();
@@ -83,6 +86,8 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             continue;
         }
         let name = crate::scene::scene_name(scene_path);
+        let _scene_span = trace::span_with("scene", || format!("scene {name}"));
+        let _scene_label = trace::labels(|| vec![("scene", name.clone().into())]);
         let mesh = load_obj(scene_path)?;
         // The peers read the scene as we loaded it (same triangles, same ids, any scene spec).
         let scene_obj = tmp.path().join(format!("scene{scene_index}.obj"));
@@ -93,7 +98,9 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let t = Instant::now();
         let host = HostScene::build(&name, &mesh, &o.build)?;
         let reference = host.reference();
+        let making = trace::span("rays", "ray sets");
         let mut sets = ray_sets(&mesh, &name, &reference, &o.sizes, o.rays_dir.as_deref())?;
+        drop(making);
         // An empty set has no speed: it is skipped with a note, and the other sets still run.
         sets.retain(|(set, rays)| {
             if rays.is_empty() {
@@ -104,9 +111,12 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             !rays.is_empty()
         });
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
+        let uploading = trace::span("upload", "upload every kernel's scene");
         let scenes = upload_kernels(ctx, o, &host, &name, &mut report, &mut progress)?;
+        drop(uploading);
         let accel = match driver.is_empty() {
             false => {
+                let _span = trace::span("peer", "driver acceleration structure");
                 let a = AccelStructure::build(ctx, &mesh)?;
                 progress(&accel_line(&name, &a.stats));
                 report.accel.push((name.clone(), a.stats));
@@ -114,17 +124,26 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             }
             true => None,
         };
+        let compiling = trace::span("pipeline", "pipelines");
         let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
+        drop(compiling);
         // The roofline at every scene's bytes on its access path, before any timing.
         let roofline = match &o.roofline {
-            Some(ro) => Some(efficiency::scene_roofline(ctx, &scenes, ro, &mut progress)?),
+            Some(ro) => {
+                let _span = trace::span("roofline", "traversal roofline");
+                Some(efficiency::scene_roofline(ctx, &scenes, ro, &mut progress)?)
+            }
             None => None,
         };
         // Every set's reference before any timing: the f64 traversal fills every core (and
         // rayon's threads linger), which would slow whichever kernel ran next.
+        let referencing = trace::span("reference", "f64 reference of every set");
         let ref_hits: Vec<Vec<RefHit>> = sets.iter().map(|(_, rays)| reference.trace_all(rays, false)).collect();
+        drop(referencing);
         for ((set, rays), ref_hits) in sets.iter().zip(&ref_hits) {
             let set = *set;
+            let _set_span = trace::span_with("set", || format!("{name} {set}")).with("rays", rays.len());
+            let _set_label = trace::labels(|| vec![("set", set.to_string().into())]);
             // The peer programs run in the same rounds, each once a round beside every kernel.
             let rays_file = tmp.path().join(format!("scene{scene_index}.{set}.rays"));
             if !programs.is_empty() {
@@ -136,6 +155,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             let (best, results) =
                 kernel_rows(ctx, o, &on, &kernels, &programs, &peer_set, tmp.path(), &mut report, &mut progress)?;
             if let Some(accel) = &accel {
+                let _span = trace::span("peer", "driver peers");
                 driver_rows(ctx, o, &on, &driver, accel, &mut report, &mut progress)?;
             }
             if !programs.is_empty() {
@@ -285,12 +305,14 @@ fn kernel_rows(
         .map(|(i, p)| PeerRound::new(p, peer_set, tmp.join(format!("peer{i}.hits"))))
         .collect();
     let mut others: Vec<&mut dyn RoundJob> = peer_rounds.iter_mut().map(|p| p as &mut dyn RoundJob).collect();
+    let rounds = trace::span("rounds", "interleaved rounds").with("kernels", jobs.len()).with("peers", others.len());
     let measured = interleaved_with(ctx, mesh, &jobs, &mut others, o.warmup, o.repeat, o.batch_rays).map_err(
         |(i, e)| match jobs.get(i) {
             Some(j) => Error::Usage(format!("{name} {set} {}: {e}", label(j.scene, j.order))),
             None => Error::Usage(format!("{name} {set}: {e}")),
         },
     )?;
+    drop(rounds);
     drop(others);
     let results: Vec<PeerResult> = peer_rounds.into_iter().map(PeerRound::finish).collect();
     // Each kernel's traversal counts on this set, cast once however many ray orders it ran
@@ -327,7 +349,10 @@ fn kernel_rows(
                 k.scenes.iter().position(|s| kernel(s) == kernel(scene)).expect("a job's scene is one of the scenes");
             let c = match &counts[i] {
                 Some(c) => c,
-                None => counts[i].insert(efficiency::fetch_counts(ctx, &k.scenes[i], rays, o.batch_rays)?),
+                None => {
+                    let _span = trace::span("roofline", "traversal counts (stats kernel)");
+                    counts[i].insert(efficiency::fetch_counts(ctx, &k.scenes[i], rays, o.batch_rays)?)
+                }
             };
             // The lanes a subgroup's rays keep busy depend on which rays share it: the
             // order the kernel got them in (the sort is deterministic).
