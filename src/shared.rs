@@ -44,6 +44,15 @@ pub enum Texel {
 }
 
 impl Texel {
+    /// The GLSL image format (`rgba32ui`), as files name it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Texel::Rgba32Uint => "rgba32ui",
+            Texel::Rgba32Float => "rgba32f",
+            Texel::R32Uint => "r32ui",
+        }
+    }
+
     pub fn size(self) -> usize {
         match self {
             Texel::Rgba32Uint | Texel::Rgba32Float => 16,

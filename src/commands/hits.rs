@@ -239,6 +239,11 @@ pub struct DiffTolerance {
     pub uv: f64,
 }
 
+impl DiffTolerance {
+    /// Bit for bit.
+    pub const EXACT: DiffTolerance = DiffTolerance { t: 0.0, uv: 0.0 };
+}
+
 /// One ray whose hit changed.
 #[derive(Clone, Debug, Serialize)]
 pub struct Change {
@@ -271,8 +276,10 @@ impl DiffReport {
     }
 }
 
-/// What changed between two records, if anything beyond `tol`.
-fn change(a: &Hit, b: &Hit, tol: &DiffTolerance) -> Option<&'static str> {
+/// What changed between two records, if anything beyond `tol` ("triangle", "miss -> hit",
+/// "hit -> miss", "t", "u/v"); two misses are the same miss. With a zero tolerance, any
+/// difference in t, u or v of a hit on the same triangle (`repro --check`'s rule).
+pub fn change(a: &Hit, b: &Hit, tol: &DiffTolerance) -> Option<&'static str> {
     if bytemuck::bytes_of(a) == bytemuck::bytes_of(b) {
         return None;
     }

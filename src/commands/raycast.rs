@@ -72,13 +72,16 @@ impl Validation {
     /// The verdict as `reference:` lines of the text report.
     pub fn to_text(&self) -> String {
         let verdict = if self.passes() { "agrees" } else { "DISAGREES" };
+        format!("reference: {verdict} with the f64 reference: {}\n", self.summary())
+    }
+
+    /// What the reference found, without the verdict.
+    pub fn summary(&self) -> String {
         match self {
-            Validation::Closest { summary, .. } => {
-                format!("reference: {verdict} with the f64 reference: {summary}\n")
-            }
+            Validation::Closest { summary, .. } => summary.clone(),
             Validation::Any { any_hit_status_mismatches, bogus, .. } => format!(
-                "reference: {verdict} with the f64 reference: {any_hit_status_mismatches} rays hit where the \
-                 reference misses or miss where it hits; {bogus} hits are not real intersections\n"
+                "{any_hit_status_mismatches} rays hit where the reference misses or miss where it hits; {bogus} hits \
+                 are not real intersections"
             ),
         }
     }

@@ -21,7 +21,7 @@ use crate::commands::raycast;
 use crate::conditioning::MethodChoice;
 use crate::encoding::{AccessPath, Layout, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
-use crate::gpu::{Context, RaycastOptions};
+use crate::gpu::Context;
 use crate::named::named_enum;
 use crate::pipeline::{HostScene, SceneRequest};
 use crate::rays;
@@ -179,10 +179,9 @@ pub fn make(ctx: &Context, req: &ReproRequest, mut note: impl FnMut(&str)) -> Re
     let bindings = plan.host_bindings()?;
     let (method, access, layout, traversal) = (plan.method, plan.access, plan.layout, plan.traversal);
 
-    // The expected hits: this device, every ray in one dispatch as the replay does it.
-    let scene = plan.upload(ctx)?;
-    let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: rays.len() };
-    let result = scene.cast(ctx, kind, &rays, &opts)?;
+    // The expected hits: this device, from the buffers the folder keeps, every ray in one
+    // dispatch, as the replay casts them.
+    let result = replay::cast(ctx, source, access, &bindings, &rays)?;
     let validation = raycast::validate(&host, &rays, &result, req.any_hit);
     let hits = result.hits.iter().filter(|h| h.is_hit()).count();
     if !validation.passes() {
@@ -239,7 +238,7 @@ pub fn make(ctx: &Context, req: &ReproRequest, mut note: impl FnMut(&str)) -> Re
         expected: folder::Expected {
             data: staged.write(folder::EXPECTED, bytemuck::cast_slice(&result.hits))?,
             hits,
-            validation: validation_line(&validation),
+            validation: validation.summary(),
             passes: validation.passes(),
         },
         capture: folder::Capture { file: None, note: String::new(), differing: None },
@@ -294,13 +293,6 @@ fn address_refused() -> Error {
          device; a repro uses the texel or the storage path"
             .into(),
     )
-}
-
-/// The f64 reference's verdict as one line.
-fn validation_line(v: &raycast::Validation) -> String {
-    let text = v.to_text();
-    let line = text.trim_end().trim_start_matches("reference: ");
-    line.split_once("f64 reference: ").map(|(_, rest)| rest).unwrap_or(line).to_owned()
 }
 
 fn write_manifest(dir: &Path, m: &folder::Manifest) -> Result<()> {

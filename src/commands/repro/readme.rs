@@ -86,7 +86,7 @@ pub fn text(m: &Manifest) -> String {
             b.binding,
             b.name,
             b.data.bytes,
-            texel_name(b.texel),
+            b.texel.name(),
             match c.access.name() {
                 "storage" => "a storage buffer",
                 _ => "a storage texel buffer",
@@ -111,12 +111,4 @@ pub fn text(m: &Manifest) -> String {
         crate::shared::BINDING_NODES
     );
     s
-}
-
-fn texel_name(t: crate::shared::Texel) -> &'static str {
-    match t {
-        crate::shared::Texel::Rgba32Uint => "rgba32ui",
-        crate::shared::Texel::Rgba32Float => "rgba32f",
-        crate::shared::Texel::R32Uint => "r32ui",
-    }
 }

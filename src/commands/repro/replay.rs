@@ -3,11 +3,12 @@
 //! read back. The same code runs under the capture layer when a repro is made (so the capture
 //! holds exactly this) and in `trilab repro --check`.
 
+use crate::encoding::AccessPath;
 use crate::error::Result;
-use crate::gpu::{cast_rays, Context, ContextOptions, Needs, RaycastOptions, Validation};
+use crate::gpu::{cast_rays, Context, ContextOptions, Needs, RaycastOptions, RaycastResult, Validation};
 use crate::kernels::KernelSource;
-use crate::pipeline::BoundScene;
-use crate::rays::Hit;
+use crate::pipeline::{BoundScene, HostBinding};
+use crate::rays::{Hit, Ray};
 
 use super::folder::Repro;
 
@@ -24,11 +25,22 @@ pub fn context(kernel: &KernelSource, device: Option<String>, validation: Valida
 
 /// The repro's rays through its kernel over its buffers, once; their hits.
 pub fn dispatch(ctx: &Context, repro: &Repro) -> Result<Vec<Hit>> {
-    let cell = &repro.manifest.cell;
-    ctx.capabilities().traversal(cell.traversal)?;
-    let kernel = ctx.kernel(repro.kernel)?;
-    let scene = BoundScene::upload(ctx, cell.access, &repro.bindings)?;
+    ctx.capabilities().traversal(repro.manifest.cell.traversal)?;
+    Ok(cast(ctx, repro.kernel, repro.manifest.cell.access, &repro.bindings, &repro.rays)?.hits)
+}
+
+/// `rays` through `kernel` over `bindings` uploaded for `access`: every ray in one dispatch
+/// (as many as the device's dispatch limits allow), no warm-up.
+pub fn cast(
+    ctx: &Context,
+    kernel: &'static KernelSource,
+    access: AccessPath,
+    bindings: &[HostBinding],
+    rays: &[Ray],
+) -> Result<RaycastResult> {
+    let kernel = ctx.kernel(kernel)?;
+    let scene = BoundScene::upload(ctx, access, bindings)?;
     let resources: Vec<_> = scene.resources().collect();
-    let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: repro.rays.len() };
-    Ok(cast_rays(ctx, &kernel, &resources, &repro.rays, &opts)?.hits)
+    let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: rays.len() };
+    cast_rays(ctx, &kernel, &resources, rays, &opts)
 }
