@@ -279,3 +279,72 @@ fn ab_makes_each_changed_cell_a_repro_of_both_sides_each_in_its_own_driver() {
     let (o, _) = run(&["ab", "--methods", "mt", "--repro", &s(&dir)], None, &[], 60);
     expect_error(&o, &["--repro", "exists"]);
 }
+
+/// `compare BASE NEW --repro DIR`: a changed bench cell of ours becomes a repro made here, its
+/// rays made from the run's bench.json, and the README says which side this device is. One bench
+/// run is both sides; NEW's copy has one cell's agreement worsened and names another driver, so
+/// the change and the sides are known, whatever the timings did (not judged here).
+#[test]
+fn compare_makes_a_changed_bench_cell_a_repro_here_naming_the_side_this_device_is() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (base, new, dir) = (tmp.path().join("base"), tmp.path().join("new"), tmp.path().join("repros"));
+    let bench = ["bench", "--scenes", "bunny", "--methods", "mt,unit", "--width", "32", "--height", "24"];
+    let mut args = bench.to_vec();
+    args.extend(["--random-rays", "2000", "--repeat", "2", "--out", s(&base).leak()]);
+    ok(&trilab(&args, 300));
+    std::fs::create_dir(&new).unwrap();
+    std::fs::copy(base.join("bench.json"), new.join("bench.json")).unwrap();
+    let rows = std::fs::read_to_string(base.join("rows.jsonl")).unwrap();
+    let mut planted = 0;
+    let rows: Vec<String> = rows
+        .lines()
+        .map(|l| {
+            let mut r: Value = serde_json::from_str(l).unwrap();
+            if r["type"] == "row" {
+                r["source"]["driver"] = "Mesa 22.3.6 (elsewhere)".into();
+                if r["cell"]["method"] == "unit" && r["cell"]["set"] == "diffuse" {
+                    for k in ["median", "min", "max"] {
+                        r["figures"]["agreement"][k] = 0.99.into();
+                    }
+                    planted += 1;
+                }
+            }
+            r.to_string()
+        })
+        .collect();
+    assert_eq!(planted, 1);
+    std::fs::write(new.join("rows.jsonl"), rows.join("\n") + "\n").unwrap();
+    let compare = |dir: &Path| {
+        run(&["compare", &s(&base), &s(&new), "--timings", "ignore", "--repro", &s(dir), "--json"], None, &[], 300).0
+    };
+    let o = compare(&dir);
+    assert_eq!(o.status.code(), Some(1), "the worse agreement fails: {}", common::cli::stderr(&o));
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let repros = r["repros"].as_array().unwrap();
+    assert_eq!(repros.len(), 1, "{r}");
+    let x = &repros[0];
+    assert_eq!(x["cell"], "layout=bvh2 leaf=4 method=unit rays=1560 scene=bunny set=diffuse", "{x}");
+    let cell_dir = PathBuf::from(x["dir"].as_str().unwrap());
+    assert_eq!(cell_dir, dir.join("bunny-diffuse-unit-bvh2-leaf4"));
+    assert!(x["this_device"].as_str().unwrap().starts_with("BASE's device and driver"), "{x}");
+    assert!(x["this_device"].as_str().unwrap().contains("NEW ran on llvmpipe"), "{x}");
+    let m = manifest(&cell_dir);
+    assert_eq!(m["rays"]["bytes"], 1560 * 32, "the run's diffuse set, made again: {m}");
+    assert!(m["made"]["driver"].as_str().unwrap().contains("Mesa 25"), "{m}");
+    let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();
+    assert!(readme.contains("agreement: 1 fraction -> 0.9900 fraction (worse)"), "{readme}");
+    // The folder replays here as made.
+    let c = check(&cell_dir, &[]);
+    assert_eq!(c["differences"]["identical"], 1560, "{c}");
+    // A folder that exists is refused before anything is compared.
+    let o = compare(&dir);
+    expect_error(&o, &["--repro", "exists"]);
+    // A run whose bench.json records no recipe: the cell is not made, and says why by file.
+    let mut json: Value = serde_json::from_str(&std::fs::read_to_string(new.join("bench.json")).unwrap()).unwrap();
+    json.as_object_mut().unwrap().remove("recipe");
+    std::fs::write(new.join("bench.json"), json.to_string()).unwrap();
+    let o = compare(&tmp.path().join("again"));
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let made = r["repros"][0]["made"].as_str().unwrap();
+    assert!(made.starts_with("not made:") && made.contains("bench.json") && made.contains("no recipe"), "{made}");
+}

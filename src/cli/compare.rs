@@ -6,7 +6,7 @@ use clap::Args;
 use trilab::commands::compare::{self, TimingRule, DEFAULT_COMMAND_THRESHOLD_PCT, DEFAULT_THRESHOLD_PCT};
 use trilab::error::Result;
 
-use super::JsonArg;
+use super::{note, GpuArgs, JsonArg};
 
 /// Compare two result folders cell by cell: only what changed, then the totals
 ///
@@ -44,8 +44,16 @@ pub struct CompareArgs {
     /// fail when slower by more than this percentage.
     #[arg(long, value_name = "PCT", default_value_t = DEFAULT_COMMAND_THRESHOLD_PCT)]
     command_threshold: f64,
+    /// After comparing, make the changed bench cells of trilab's kernels (at most 3: correctness
+    /// changes, then the timings that moved most) into repros in this new folder, on this device
+    /// with this build (`trilab repro`'s folders, rays made from each run's bench.json); its
+    /// README says which side's device and driver this one is.
+    #[arg(long, value_name = "DIR")]
+    repro: Option<PathBuf>,
     #[command(flatten)]
     json: JsonArg,
+    #[command(flatten)]
+    gpu: GpuArgs,
 }
 
 pub fn run(a: CompareArgs) -> Result<()> {
@@ -56,7 +64,13 @@ pub fn run(a: CompareArgs) -> Result<()> {
         command_threshold_pct: a.command_threshold,
         timings: a.timings,
     };
-    let report = compare::run(&a.base, &a.new, &options)?;
+    if let Some(dir) = &a.repro {
+        trilab::commands::repro::refuse_existing("--repro", dir)?;
+    }
+    let mut report = compare::run(&a.base, &a.new, &options)?;
+    if let Some(dir) = &a.repro {
+        report.repros = compare::repro::make(|| a.gpu.context(), &report, dir, note)?;
+    }
     a.json.print(&report);
     if report.exit_code() != 0 {
         // As `diff`: 1 means "a regression", not a failure to compare (that is 2).

@@ -78,7 +78,7 @@ fn answer(ctx: &Context, validation: bool, r: Request) -> Result<Message> {
                 layout: spec.layout,
                 traversal: spec.traversal,
                 access: spec.access,
-                build: crate::bvh::BuildOptions::new(spec.leaf_size),
+                build: spec.build,
                 any_hit: false,
                 capture: repro::CaptureChoice::Auto,
                 out: spec.out,

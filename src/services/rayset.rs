@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::memory::{self, Need};
@@ -29,7 +29,7 @@ named_enum! {
 }
 
 /// How large the sets are.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RaySetSizes {
     /// Primary rays: a `width` x `height` image.
     pub width: u32,
@@ -160,16 +160,22 @@ pub fn ray_sets(
     sizes: &RaySetSizes,
     rays_dir: Option<&Path>,
 ) -> Result<Vec<(RaySet, Vec<Ray>)>> {
-    RaySet::ALL
-        .iter()
-        .map(|&set| {
-            Ok((
-                set,
-                match rays_dir {
-                    Some(dir) => rays::read_rays(&dir.join(format!("{scene}.{set}.rays")))?,
-                    None => set.generate(mesh, reference, sizes)?,
-                },
-            ))
-        })
-        .collect()
+    RaySet::ALL.iter().map(|&set| Ok((set, set.rays(mesh, scene, reference, sizes, rays_dir)?))).collect()
+}
+
+impl RaySet {
+    /// This set for `mesh` as [`ray_sets`] makes it: generated, or read from `rays_dir`.
+    pub fn rays(
+        self,
+        mesh: &Mesh,
+        scene: &str,
+        reference: &Reference,
+        sizes: &RaySetSizes,
+        rays_dir: Option<&Path>,
+    ) -> Result<Vec<Ray>> {
+        match rays_dir {
+            Some(dir) => rays::read_rays(&dir.join(format!("{scene}.{self}.rays"))),
+            None => self.generate(mesh, reference, sizes),
+        }
+    }
 }

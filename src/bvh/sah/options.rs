@@ -13,7 +13,7 @@ pub const MAX_LEAF_SIZE: u32 = 16;
 /// The triangles per leaf Shumskiy & Parshin study (their Tables 1-4).
 pub const PAPER_LEAF_SIZES: [u32; 6] = [1, 2, 3, 4, 8, 16];
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Builder {
     /// Binned SAH with this many bins per axis.
     Binned { bins: u32 },
@@ -38,7 +38,7 @@ impl std::fmt::Display for Builder {
 
 named_enum! {
     /// When a node becomes a leaf.
-    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
     #[serde(rename_all = "kebab-case")]
     pub enum LeafPolicy: "leaf policy" {
         /// The paper's: a node with at most `max_leaf_size` triangles is a leaf, so leaves hold
@@ -51,7 +51,7 @@ named_enum! {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BuildOptions {
     /// Most triangles in one leaf (1..=16).
     pub max_leaf_size: u32,

@@ -1132,7 +1132,7 @@ fn trace_answer(span: &crate::trace::Span, r: &CellRound) {
 /// rounds (a warning when too few to judge time).
 fn check_options(o: &AbOptions, progress: &mut impl FnMut(&str)) -> Result<()> {
     if let Some(dir) = &o.repro {
-        repro::check(dir)?;
+        crate::commands::repro::refuse_existing("--repro", dir)?;
     }
     for (name, flag, side) in [("A", "--a-icd", &o.a), ("B", "--b-icd", &o.b)] {
         if let Some(icd) = &side.icd {

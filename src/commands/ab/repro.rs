@@ -13,12 +13,10 @@ use serde::Serialize;
 
 use super::worker::{CellKind, Workload};
 use super::{AbCell, AbOptions, Side};
-use crate::commands::repro::{Differences, Query};
+use crate::commands::repro::{CellRays, Differences, Query};
 use crate::error::{Error, Result};
-use crate::pipeline::HostScene;
 use crate::rays;
-use crate::scene::{load_obj, scene_name};
-use crate::services::rayset::RaySet;
+use crate::scene::scene_name;
 use crate::services::worker::protocol::ReproSpec;
 use crate::services::worker::{self, Message, Request};
 
@@ -34,17 +32,6 @@ pub struct AbRepro {
     pub sides: [String; 2],
     /// Side B's expected hits against side A's, ray by ray (when both were made).
     pub hits: Option<Differences>,
-}
-
-/// Refuses an existing `dir` (before any side starts).
-pub fn check(dir: &Path) -> Result<()> {
-    if dir.exists() {
-        return Err(Error::Usage(format!(
-            "--repro {}: exists; the repros go into a new folder (nothing is overwritten)",
-            dir.display()
-        )));
-    }
-    Ok(())
 }
 
 /// The changed ray-casting cells, most changed first (rays whose hits differ, then how far the
@@ -84,19 +71,16 @@ pub fn make(
             .iter()
             .find(|s| scene_name(s) == info.scene)
             .ok_or_else(|| Error::Usage(format!("--repro: cell `{label}`: its scene is not in the workload")))?;
-        let set: RaySet = info.set.parse().map_err(Error::Usage)?;
-        let mesh = load_obj(scene)?;
-        let host = HostScene::build(scene_name(scene), &mesh, &workload.build)?;
         let ray_file = tmp.path().join(format!("{}.rays", folder_name(&label)));
-        let generated = set.generate(&mesh, &host.reference(), &workload.sizes)?;
-        if generated.len() != info.rays {
-            return Err(Error::Usage(format!(
-                "--repro: cell `{label}`: {} rays generated here, {} in the cell (the sides generate another set)",
-                generated.len(),
-                info.rays
-            )));
-        }
-        rays::write_rays(&ray_file, &generated)?;
+        let cell_rays = CellRays {
+            scene,
+            set: info.set.parse().map_err(Error::Usage)?,
+            build: &workload.build,
+            sizes: &workload.sizes,
+            rays_dir: None,
+            rays: info.rays,
+        };
+        cell_rays.write(&label, &ray_file)?;
         let spec = |out: PathBuf| -> Result<ReproSpec> {
             Ok(ReproSpec {
                 scene: scene.clone(),
@@ -105,7 +89,7 @@ pub fn make(
                 layout: info.layout.parse().map_err(Error::Usage)?,
                 traversal: info.traversal.parse().map_err(Error::Usage)?,
                 access: workload.scene_access,
-                leaf_size: workload.build.max_leaf_size,
+                build: workload.build,
                 out,
             })
         };

@@ -11,7 +11,7 @@ mod report;
 mod run;
 
 pub use crate::services::efficiency::RooflineEfficiency;
-pub use plan::{path_of, plan_cells, BenchCell, BenchOptions, CellTracer};
+pub use plan::{path_of, plan_cells, BenchCell, BenchOptions, BenchRecipe, CellTracer};
 pub use report::{rows, BenchReport, BenchRow, Tracer};
 pub use run::{for_device, run};
 
@@ -105,6 +105,61 @@ mod tests {
         assert!(!peer.contains_key("method") && !peer.contains_key("leaf"));
     }
 
+    /// A row's coordinates parse back into the cell they came from, whatever coordinates it has;
+    /// what no bench cell has is refused by name.
+    #[test]
+    fn a_bench_cell_parses_back_from_its_coordinates() {
+        let tracers = [
+            CellTracer::Peer("tinybvh cpu-bvh8".into()),
+            CellTracer::Method {
+                method: Method::QuadUnit,
+                layout: Layout::Cwbvh,
+                leaf: 8,
+                sah_group: Some(4),
+                traversal: Traversal::WhileWhile,
+                node_order: NodeOrder::Treelets,
+                order: RayOrder::OctantOrigin,
+                access: AccessPath::Storage,
+            },
+            CellTracer::Method {
+                method: Method::Mt,
+                layout: Layout::Bvh2,
+                leaf: 4,
+                sah_group: None,
+                traversal: Traversal::default(),
+                node_order: NodeOrder::default(),
+                order: RayOrder::default(),
+                access: AccessPath::Texel,
+            },
+        ];
+        for tracer in tracers {
+            for rays in [None, Some(19_200)] {
+                let cell = BenchCell { scene: "bunny".into(), set: RaySet::Random, rays, tracer: tracer.clone() };
+                assert_eq!(BenchCell::parse(&cell.coordinates()), Ok(cell.clone()), "{:?}", cell.coordinates());
+            }
+        }
+        let good = crate::rows::cell([
+            ("scene", "bunny"),
+            ("set", "primary"),
+            ("method", "mt"),
+            ("layout", "bvh2"),
+            ("leaf", "4"),
+        ]);
+        assert!(BenchCell::parse(&good).is_ok());
+        let with = |k: &str, v: &str| {
+            let mut c = good.clone();
+            c.insert(k.into(), v.into());
+            BenchCell::parse(&c).unwrap_err()
+        };
+        assert!(with("layout", "bvh3").contains("layout"), "{}", with("layout", "bvh3"));
+        assert!(with("colour", "red").contains("`colour` is no bench coordinate"));
+        assert!(with("access", "teleport").contains("access=teleport"));
+        assert!(with("leaf", "four").contains("leaf=four"));
+        let mut no_set = good.clone();
+        no_set.remove("set");
+        assert_eq!(BenchCell::parse(&no_set).unwrap_err(), "no `set`");
+    }
+
     /// A report as `run` would make it: two kernel rows, the two driver peers, an Embree peer.
     fn report() -> BenchReport {
         let provenance = Provenance {
@@ -173,6 +228,7 @@ mod tests {
         BenchReport {
             provenance,
             leaf_size: 4,
+            recipe: BenchOptions::default().recipe(),
             repeat: 5,
             rows,
             peers,

@@ -233,6 +233,24 @@ impl BenchOptions {
     }
 }
 
+/// What a bench run made its trees and rays from, written into `bench.json` (`recipe`) so that
+/// one of its cells can be made again elsewhere (`compare --repro`): the scenes are the run's
+/// own list, these are the rest.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BenchRecipe {
+    pub build: BuildOptions,
+    pub sizes: RaySetSizes,
+    /// The folder the sets were read from (`--rays-dir`), or `None`: generated from `sizes`.
+    pub rays_dir: Option<PathBuf>,
+}
+
+impl BenchOptions {
+    /// What this run makes its trees and rays from.
+    pub fn recipe(&self) -> BenchRecipe {
+        BenchRecipe { build: self.build, sizes: self.sizes, rays_dir: self.rays_dir.clone() }
+    }
+}
+
 /// The report as result rows (`rows.jsonl`, what `trilab compare` reads): one row per table
 /// row, cell `scene`, `set`, `rays` and either `method`, `layout`, `leaf` (our kernels) or `peer`
 /// (the driver's ray query, Embree, tinybvh); figures `mrays_per_s` (timing, with min-max over
@@ -270,6 +288,59 @@ pub enum CellTracer {
 }
 
 impl BenchCell {
+    /// The cell whose [`coordinates`](BenchCell::coordinates) are `c`, or what in them no bench
+    /// cell has (an unknown coordinate, a value that does not parse).
+    pub fn parse(c: &crate::rows::Cell) -> std::result::Result<BenchCell, String> {
+        use std::str::FromStr;
+        let get = |k: &str| c.get(k).ok_or_else(|| format!("no `{k}`"));
+        fn value<T: FromStr>(k: &str, v: &str) -> std::result::Result<T, String> {
+            v.parse().map_err(|_| format!("`{k}={v}` does not parse"))
+        }
+        let known = [
+            "scene",
+            "set",
+            "rays",
+            "method",
+            "layout",
+            "leaf",
+            "sah_group",
+            "traversal",
+            "node_order",
+            "order",
+            "access",
+            "peer",
+        ];
+        if let Some(k) = c.keys().find(|k| !known.contains(&k.as_str())) {
+            return Err(format!("`{k}` is no bench coordinate"));
+        }
+        let set = get("set")?;
+        let set = set.parse::<RaySet>().map_err(|e| format!("`set={set}`: {e}"))?;
+        let rays = c.get("rays").map(|r| value::<usize>("rays", r)).transpose()?;
+        let tracer = match c.get("peer") {
+            Some(p) => CellTracer::Peer(p.clone()),
+            None => {
+                let opt = |k: &str| c.get(k).map(String::as_str);
+                let access = match opt("access") {
+                    None => AccessPath::Texel,
+                    Some(a) => {
+                        *AccessPath::ALL.iter().find(|p| p.name() == a).ok_or(format!("`access={a}` does not parse"))?
+                    }
+                };
+                CellTracer::Method {
+                    method: get("method")?.parse().map_err(|e| format!("`method`: {e}"))?,
+                    layout: get("layout")?.parse().map_err(|e| format!("`layout`: {e}"))?,
+                    leaf: value("leaf", get("leaf")?)?,
+                    sah_group: opt("sah_group").map(|g| value("sah_group", g)).transpose()?,
+                    traversal: opt("traversal").map_or(Ok(Traversal::default()), |t| value("traversal", t))?,
+                    node_order: opt("node_order").map_or(Ok(NodeOrder::default()), |n| value("node_order", n))?,
+                    order: opt("order").map_or(Ok(RayOrder::default()), |o| value("order", o))?,
+                    access,
+                }
+            }
+        };
+        Ok(BenchCell { scene: get("scene")?.clone(), set, rays, tracer })
+    }
+
     /// The cell's coordinates, as `rows.jsonl` names them.
     pub fn coordinates(&self) -> crate::rows::Cell {
         let mut c = crate::rows::cell([("scene", self.scene.clone()), ("set", self.set.to_string())]);

@@ -135,6 +135,8 @@ pub struct BenchReport {
     #[serde(flatten)]
     pub provenance: Provenance,
     pub leaf_size: u32,
+    /// What the trees and rays were made from (with the provenance's scenes).
+    pub recipe: super::plan::BenchRecipe,
     /// Timed runs per measurement (after one warm-up).
     pub repeat: usize,
     pub rows: Vec<BenchRow>,

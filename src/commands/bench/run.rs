@@ -59,6 +59,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
     let mut report = BenchReport {
         provenance: Provenance::of(ctx),
         leaf_size: o.build.max_leaf_size,
+        recipe: o.recipe(),
         repeat: o.repeat,
         rows: vec![],
         peers: vec![],

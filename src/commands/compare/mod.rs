@@ -43,6 +43,7 @@ use crate::services::calibration;
 mod figures;
 mod judge;
 mod report;
+pub mod repro;
 mod timing;
 
 use figures::judge_figures;
@@ -299,6 +300,7 @@ pub fn compare_with(
         warnings,
         regressions,
         passed: regressions == 0,
+        repros: vec![],
     })
 }
 

@@ -72,6 +72,9 @@ pub struct CompareReport {
     pub regressions: usize,
     /// No regression: exit status 0.
     pub passed: bool,
+    /// With `--repro`: the changed bench cells made into repros here.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub repros: Vec<super::repro::CompareRepro>,
 }
 
 /// A figure's value: whole numbers as they are, others to four significant digits.
@@ -388,6 +391,15 @@ impl Report for CompareReport {
                 self.thresholds()
             )
         };
+        for r in &self.repros {
+            s += &format!(
+                "\nrepro of `{}`: {}\n  {}\n  this device: {}\n",
+                r.cell,
+                r.dir.display(),
+                r.made,
+                r.this_device
+            );
+        }
         s
     }
 }

@@ -6,6 +6,7 @@
 //! replays the dispatch from the folder's files on the device in front of it and compares its
 //! hits with the expected ones ray by ray.
 
+mod cell;
 pub mod compare;
 pub mod folder;
 pub mod gfxrecon;
@@ -29,6 +30,7 @@ use crate::report::Report;
 use crate::scene::load_obj;
 use crate::services::provenance::Provenance;
 
+pub use cell::CellRays;
 pub use compare::Differences;
 pub use folder::{Query, Repro};
 pub use gfxrecon::Gfxrecon;
@@ -139,6 +141,18 @@ fn verdict(passes: bool) -> &'static str {
     } else {
         "DISAGREES"
     }
+}
+
+/// Refuses an existing `dir` given as `option` (`--repro`), before any work: repros go into a
+/// new folder, nothing is overwritten.
+pub fn refuse_existing(option: &str, dir: &Path) -> Result<()> {
+    if dir.exists() {
+        return Err(Error::Usage(format!(
+            "{option} {}: exists; the repros go into a new folder (nothing is overwritten)",
+            dir.display()
+        )));
+    }
+    Ok(())
 }
 
 /// Makes the repro: casts the cell here (the expected hits, validated), writes the folder, and

@@ -79,7 +79,7 @@ pub struct ReproSpec {
     pub layout: Layout,
     pub traversal: Traversal,
     pub access: SceneAccess,
-    pub leaf_size: u32,
+    pub build: crate::bvh::BuildOptions,
     pub out: PathBuf,
 }
 
