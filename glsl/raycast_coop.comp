@@ -31,7 +31,8 @@
 // Layouts: every layout that gives its children to a lane (layout_interface.glsl): the binary
 // nodes (`closest`, `stats`: layout_child, the root box tested first) and the structure-of-arrays
 // `bvh4`, `bvh8` (their texels loaded spread over the lanes, each field where layout_field_texel
-// says); not cwbvh, whose traversal is its own.
+// says), and qbvh4 (layout_child: a lane decodes its child's quantized box); not cwbvh, whose
+// traversal is its own.
 // Closest hit only (no any-hit kernel). Needs subgroup basic, vote, arithmetic, ballot and
 // shuffle operations and a subgroup of at least 4 lanes (the host checks both).
 //

@@ -15,7 +15,7 @@
 // pop, as traversal/while_if.glsl), so the hits equal theirs ray for ray; only the loop around it
 // differs. Every layout that gives a step runs here (`closest`: the binary nodes, whose root box
 // is tested when a ray starts, so a ray that misses it is written at once and the next one
-// fetched; `closest_bvh4`, `closest_bvh8`); not cwbvh, whose traversal is its own. Closest hit
+// fetched; `closest_bvh4`, `closest_bvh8`, `closest_qbvh4`); not cwbvh, whose traversal is its own. Closest hit
 // only, texel path.
 #extension GL_GOOGLE_include_directive : require
 

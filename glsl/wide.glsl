@@ -5,15 +5,13 @@
 // count > 0 a leaf of `count` units from `child`; child == EMPTY_CHILD marks an empty slot, and
 // empty slots come last. Node 0 is the root; its box is not stored (the union of its children's).
 //
-// Here: loading four children's fields (wide_load), testing one child (wide_test), the root
-// (layout_root) and the swap the layouts' sorting networks are made of (WIDE_SWAP_IF_LESS).
+// Here: loading four children's fields (wide_load), testing one child (wide_test) and the root
+// (layout_root); the empty-slot marker and the sorting networks' swap are wide_step.glsl's.
 #ifndef TRILAB_WIDE
 #define TRILAB_WIDE
 
 #include "layout_interface.glsl"
-
-// bvh::EMPTY_CHILD.
-const uint EMPTY_CHILD = 0xFFFFFFFFu;
+#include "wide_step.glsl"
 
 // Four children's fields: children 4 quad .. 4 quad + 3 of a node.
 struct WideQuad {
@@ -42,18 +40,8 @@ WideQuad wide_load(uint node, uint quad) {
 // an empty slot's inverted box (+inf, -inf) would be hit: the slot's child word is checked
 // instead (empty slots are never tested).
 float wide_test(BoxRay b, WideQuad q, uint k, float tmax, float miss, inout uint hits, out uint entry) {
-    float t = miss;
-    entry = 0u;
-    if (q.kid[k] != EMPTY_CHILD) {
-        COUNT_BOXES(1u);
-        float tn;
-        if (hit_box(b, vec3(q.mnx[k], q.mny[k], q.mnz[k]), vec3(q.mxx[k], q.mxy[k], q.mxz[k]), tmax, tn)) {
-            entry = LEAF_ENTRY(q.kid[k], q.cnt[k]);
-            hits += 1u;
-            t = tn;
-        }
-    }
-    return t;
+    WIDE_TEST_CHILD(q.kid[k] != EMPTY_CHILD, vec3(q.mnx[k], q.mny[k], q.mnz[k]), vec3(q.mxx[k], q.mxy[k], q.mxz[k]),
+                    LEAF_ENTRY(q.kid[k], q.cnt[k]))
 }
 
 // Node 0, an inner node; the tree's box (only for the conservative test) is the union of its
@@ -76,16 +64,5 @@ LayoutRoot layout_root() {
 #endif
     return root;
 }
-
-// Sorting-network comparator over (t<i>, e<i>) locals: swaps pairs a and b when t<a> < t<b>.
-#define WIDE_SWAP_IF_LESS(a, b)                                                                \
-    if (t##a < t##b) {                                                                         \
-        float ts = t##a;                                                                       \
-        t##a = t##b;                                                                           \
-        t##b = ts;                                                                             \
-        uint es = e##a;                                                                        \
-        e##a = e##b;                                                                           \
-        e##b = es;                                                                             \
-    }
 
 #endif

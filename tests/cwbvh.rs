@@ -164,7 +164,7 @@ fn check_every_plane(cw: &CwBvh, w8: &WideBvh<8>) -> usize {
             let cs = slots[at.unwrap_or_else(|| panic!("node {ci}: wide slot {ws} has no compressed slot"))];
             let truth = w.child_box(ws);
             if !truth.is_empty() {
-                check_contains(c, cs, &truth).unwrap_or_else(|e| panic!("node {ci} slot {cs}: {e}"));
+                check_contains(&c.grid(), c.planes(cs), &truth).unwrap_or_else(|e| panic!("node {ci} slot {cs}: {e}"));
             }
             planes += 6;
             if c.is_inner(cs) {

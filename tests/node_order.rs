@@ -12,6 +12,7 @@ mod common;
 
 use std::path::Path;
 
+use trilab::bvh::qbvh4::{QNode4, Qbvh4};
 use trilab::bvh::{BuildOptions, Bvh, CwBvh, NodeOrder, NodeTree, WideBvh, WideHit, WideSteps};
 use trilab::named::Named;
 use trilab::rays::{diffuse_rays, primary_rays, random_rays, Camera, Ray};
@@ -71,6 +72,8 @@ fn every_node_order_of_every_layout_walks_every_ray_as_the_built_order() {
         let walk4 = walk(&rays, &mesh, |r, a, f| w4.trace(r, a, f));
         let walk8 = walk(&rays, &mesh, |r, a, f| w8.trace(r, a, f));
         let walkc = walk(&rays, &mesh, |r, a, f| cw.trace(r, a, f));
+        let q4 = Qbvh4::quantize(&w4).unwrap().decoded();
+        let walkq = walk(&rays, &mesh, |r, a, f| q4.trace(r, a, f));
         for &order in NodeOrder::ALL {
             let what = format!("{name} leaf {leaf} {order}");
             // bvh2: the f64 reference and the kernels' while-if mirror on the reordered nodes.
@@ -90,6 +93,12 @@ fn every_node_order_of_every_layout_walks_every_ray_as_the_built_order() {
             order.reorder_wide(&mut o8.nodes, &bounds).unwrap();
             o8.validate(&bvh, &mesh).unwrap_or_else(|e| panic!("{what} bvh8: {e}"));
             assert!(walk(&rays, &mesh, |r, a, f| o8.trace(r, a, f)) == walk8, "{what} bvh8: hits or walk differ");
+            // qbvh4: bvh4's nodes reordered at its node size, then quantized.
+            let mut oq = w4.clone();
+            order.reorder_wide_as(&mut oq.nodes, &bounds, std::mem::size_of::<QNode4>()).unwrap();
+            let oq = Qbvh4::quantize(&oq).unwrap();
+            let dq = oq.decoded();
+            assert!(walk(&rays, &mesh, |r, a, f| dq.trace(r, a, f)) == walkq, "{what} qbvh4: hits or walk differ");
             // cwbvh.
             let mut oc = cw.clone();
             order.reorder_cwbvh(&mut oc).unwrap();

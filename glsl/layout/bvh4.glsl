@@ -33,9 +33,6 @@ uint layout_field_texel(uint f, uint ch) {
 #include "wide.glsl"
 #include "stack.glsl"
 
-// -FLT_MAX: below every entry distance (tnear >= the ray's tmin), so misses sort after every hit.
-const float NO_HIT = -3.40282347e38;
-
 bool layout_visit(BoxRay b, float tmax, uint node, out uint next) {
     WideQuad q = wide_load(node, 0u);
     uint hits = 0u;
@@ -44,31 +41,7 @@ bool layout_visit(BoxRay b, float tmax, uint node, out uint next) {
     float t1 = wide_test(b, q, 1u, tmax, NO_HIT, hits, e1);
     float t2 = wide_test(b, q, 2u, tmax, NO_HIT, hits, e2);
     float t3 = wide_test(b, q, 3u, tmax, NO_HIT, hits, e3);
-    next = 0u;
-    if (hits > 0u) {
-        // Far to near; the misses (NO_HIT) end up last.
-        WIDE_SWAP_IF_LESS(0, 1)
-        WIDE_SWAP_IF_LESS(2, 3)
-        WIDE_SWAP_IF_LESS(0, 2)
-        WIDE_SWAP_IF_LESS(1, 3)
-        WIDE_SWAP_IF_LESS(1, 2)
-        if (hits == 1u) {
-            next = e0;
-        } else {
-            stack_push(e0, t0);
-            if (hits == 2u) {
-                next = e1;
-            } else {
-                stack_push(e1, t1);
-                if (hits == 3u) {
-                    next = e2;
-                } else {
-                    stack_push(e2, t2);
-                    next = e3;
-                }
-            }
-        }
-    }
+    WIDE4_ORDER_AND_PUSH(next)
     return hits > 0u;
 }
 

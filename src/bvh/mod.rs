@@ -11,6 +11,9 @@
 //!   their SAH cost, invariants and CPU traversal (issue 15 groundwork).
 //! - [`cwbvh`]: the 8-wide tree compressed into Ylitie et al.'s 80-byte nodes (quantized
 //!   child boxes, octant-ordered slots), its invariants and its hit-mask traversal on the CPU.
+//! - [`qbvh4`]: the 4-wide tree with its child boxes quantized as cwbvh's (64-byte nodes), its
+//!   invariants and its CPU model (bvh4's walk over the decoded boxes); [`quantize`]: the grid
+//!   arithmetic both quantized layouts share.
 //! - [`order`]: the tree's node order in memory (as built, depth first, breadth first, treelets),
 //!   applied to any layout's node array by renaming child indices, and the locality of a
 //!   descent (issue 27).
@@ -28,6 +31,8 @@ pub mod cwbvh;
 pub mod epo;
 pub mod hit;
 pub mod order;
+pub mod qbvh4;
+pub mod quantize;
 pub mod sah;
 pub mod slab;
 #[cfg(test)]

@@ -30,7 +30,7 @@ pub struct BvhArgs {
     /// time does.
     #[arg(long, value_name = "N,...", value_delimiter = ',')]
     threads: Vec<usize>,
-    /// Node layouts, comma-separated (`bvh2`, `bvh4`, `bvh8`, `cwbvh`): per leaf size, each
+    /// Node layouts, comma-separated (`bvh2`, `bvh4`, `bvh8`, `cwbvh`, `qbvh4`): per leaf size, each
     /// layout of the binned tree with its nodes and bytes per triangle (the node buffer, and the
     /// node buffer plus each method's leaf bytes), and per node order the locality of a descent
     /// (default with --node-orders: every layout; without either, no layout table).

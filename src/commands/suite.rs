@@ -160,7 +160,7 @@ pub fn ladder(part: Part) -> Vec<Size> {
             },
             Size {
                 name: "bunny, dragon, buddha, 800x600 camera, 8 diffuse per hit, 1M random rays, 5 rounds, \
-                       layouts bvh2, bvh4, bvh8, cwbvh",
+                       layouts bvh2, bvh4, bvh8, cwbvh, qbvh4",
                 reference_s: 900.0,
                 measured: false,
                 options: PartOptions::Bench(Box::new(bench::BenchOptions {

@@ -338,9 +338,9 @@ mod tests {
             }
         }
         // The other traversals: while-while on the binary nodes (closest, any, stats), the
-        // cooperative kernel on bvh2, bvh4 and bvh8 (closest, stats; it reads their node formats
-        // through layout_interface.glsl, and cwbvh's traversal is its own); persistent threads on the
-        // same three layouts (closest); texel path only.
+        // cooperative kernel on every layout that gives a step, all but cwbvh (closest, stats; it
+        // reads their node formats through layout_interface.glsl, and cwbvh's traversal is its
+        // own); persistent threads on the same layouts (closest); texel path only.
         for m in Method::ALL {
             for &layout in Layout::ALL {
                 for &kind in Raycast::ALL {
@@ -348,13 +348,8 @@ mod tests {
                         let k = m.traversal_kernel(kind, AccessPath::Texel, layout, t);
                         let expected = match t {
                             Traversal::WhileWhile => layout == Layout::Bvh2 && kind != Raycast::Clock,
-                            Traversal::Persistent => {
-                                matches!(layout, Layout::Bvh2 | Layout::Bvh4 | Layout::Bvh8) && kind == Raycast::Closest
-                            }
-                            _ => {
-                                matches!(kind, Raycast::Closest | Raycast::Stats)
-                                    && matches!(layout, Layout::Bvh2 | Layout::Bvh4 | Layout::Bvh8)
-                            }
+                            Traversal::Persistent => layout != Layout::Cwbvh && kind == Raycast::Closest,
+                            _ => matches!(kind, Raycast::Closest | Raycast::Stats) && layout != Layout::Cwbvh,
                         };
                         assert_eq!(k.is_ok(), expected, "{m} {layout} {kind} {t}");
                         if let Ok(k) = k {
@@ -402,11 +397,11 @@ mod tests {
         assert_eq!(studied.len(), Method::ALL.len() * (Layout::ALL.len() + 1) + 2);
         assert!(studied.iter().filter_map(|k| RaycastKey::of(k)).all(|k| k.traversal == Traversal::WhileIf));
         assert_eq!(studied.iter().filter(|k| k.kernel == "rayquery").count(), 2);
-        assert_eq!(support(Traversal::Persistent), "bvh2, bvh4, bvh8; texel path; closest");
+        assert_eq!(support(Traversal::Persistent), "bvh2, bvh4, bvh8, qbvh4; texel path; closest");
         assert_eq!(support(Traversal::WhileWhile), "bvh2; texel path; closest, any, stats");
         assert_eq!(
             support(Traversal::WhileIf),
-            "bvh2, bvh4, bvh8, cwbvh; texel, address, storage paths; closest, any, stats, clock"
+            "bvh2, bvh4, bvh8, cwbvh, qbvh4; texel, address, storage paths; closest, any, stats, clock"
         );
     }
 }

@@ -7,9 +7,9 @@ use std::time::Instant;
 use bytemuck::Zeroable;
 use glam::Vec3;
 
-use super::quantize::{axis_grid, quantize_axis};
 use super::slots::{assign_slots, slot_costs};
 use super::{CwBvh, CwNode, SlotOrder, CW_NODE_WORDS, INNER_BIT0, META_PRESENT};
+use crate::bvh::quantize::quantize_boxes;
 use crate::bvh::{Aabb, BuildOptions, Bvh, BvhNode, Collapse, WideBvh, WideNode};
 use crate::shared::{self, LEAF_ENTRY_FIRST_LIMIT, LEAF_ENTRY_MAX_COUNT};
 
@@ -42,34 +42,11 @@ impl Kid {
 /// Quantizes `kids` (in their slots) against the grid of their union; fills `p`, `e` and the
 /// planes of `node`.
 fn quantize_node(node: &mut CwNode, kids: &[(usize, Kid)]) -> Result<(), String> {
-    let mut union = Aabb::EMPTY;
-    for (_, k) in kids {
-        let b = k.bounds();
-        if !b.is_empty() {
-            union.grow(&b);
-        }
-    }
-    if union.is_empty() {
-        // Only padding leaves (an all-degenerate scene): any grid; boxes at its origin.
-        union = Aabb { min: Vec3::ZERO, max: Vec3::ZERO };
-    }
-    for k in 0..3 {
-        let (p, e) = axis_grid(union.min[k], union.max[k])
-            .ok_or_else(|| format!("a node box [{}, {}] on axis {k} has no grid", union.min[k], union.max[k]))?;
-        node.p[k] = p;
-        node.e[k] = e;
-    }
-    for &(s, kid) in kids {
-        let b = kid.bounds();
-        let (mut lo, mut hi) = ([0u8; 3], [0u8; 3]);
-        if !b.is_empty() {
-            for k in 0..3 {
-                (lo[k], hi[k]) = quantize_axis(node.p[k], node.e[k], b.min[k], b.max[k]).ok_or_else(|| {
-                    format!("child box [{}, {}] on axis {k} does not fit its parent's grid", b.min[k], b.max[k])
-                })?;
-            }
-        }
-        node.set_q(s, lo, hi);
+    let boxes: Vec<Aabb> = kids.iter().map(|(_, k)| k.bounds()).collect();
+    let (grid, planes) = quantize_boxes(&boxes)?;
+    (node.p, node.e) = (grid.p, grid.e);
+    for (&(s, _), &q) in kids.iter().zip(&planes) {
+        node.set_q(s, q);
     }
     Ok(())
 }

@@ -88,25 +88,24 @@
 //! # Files
 //!
 //! The node, the tree and the kernel's buffer are here; the grid arithmetic ([`decode_plane`],
-//! [`axis_grid`], [`quantize_axis`], [`check_contains`]) is in `quantize.rs`, the octant slot
+//! [`axis_grid`], [`quantize_axis`], [`check_contains`]) is `bvh::quantize`'s (shared with qbvh4), the octant slot
 //! order ([`SlotOrder`]) in `slots.rs`, the build ([`CwBvh::build_with`]) in `compress.rs`, sizes
 //! and costs ([`CwStats`]) in `stats.rs`, the CPU traversal in `trace.rs`, the invariants in
 //! `validate.rs`. The leaf loop, the slab test, the hit and its tie-break rule are every
 //! layout's (`bvh::walk`, [`bvh::slab`](crate::bvh::slab), [`bvh::hit`](crate::bvh::hit)).
 
 use bytemuck::{Pod, Zeroable};
-use glam::Vec3;
 
 use super::{Aabb, PAD_SLOT};
 
 mod compress;
-mod quantize;
 mod slots;
 mod stats;
 mod trace;
 mod validate;
 
-pub use quantize::{axis_grid, check_contains, decode_plane, quantize_axis, scale_of};
+pub use crate::bvh::quantize::{axis_grid, check_contains, decode_plane, quantize_axis, scale_of, Q_MAX};
+use crate::bvh::quantize::{Grid, Planes};
 pub use slots::SlotOrder;
 pub use stats::CwStats;
 
@@ -123,8 +122,6 @@ pub const META_EMPTY: u8 = 0;
 pub const META_PRESENT: u8 = 0b001 << 5;
 /// Bit of slot 0 in a node group's hit mask (inner children's `meta` low bits are `24 + s`).
 pub const INNER_BIT0: u32 = 24;
-/// Largest grid coordinate.
-pub const Q_MAX: u8 = 255;
 
 /// One compressed 8-wide node (see the module docs for the fields).
 #[repr(C)]
@@ -184,15 +181,19 @@ impl CwNode {
         self.imask >> s & 1 == 1
     }
 
+    /// The node's grid.
+    pub fn grid(&self) -> Grid {
+        Grid { p: self.p, e: self.e }
+    }
+
+    /// Child `s`'s planes on the grid.
+    pub fn planes(&self, s: usize) -> Planes {
+        ([self.q_lo_x[s], self.q_lo_y[s], self.q_lo_z[s]], [self.q_hi_x[s], self.q_hi_y[s], self.q_hi_z[s]])
+    }
+
     /// Child `s`'s box as the kernel decodes it (without flushing).
     pub fn child_box(&self, s: usize) -> Aabb {
-        let lo = [self.q_lo_x[s], self.q_lo_y[s], self.q_lo_z[s]];
-        let hi = [self.q_hi_x[s], self.q_hi_y[s], self.q_hi_z[s]];
-        let d = |k: usize, q: u8| decode_plane(self.p[k], self.e[k], q)[0];
-        Aabb {
-            min: Vec3::new(d(0, lo[0]), d(1, lo[1]), d(2, lo[2])),
-            max: Vec3::new(d(0, hi[0]), d(1, hi[1]), d(2, hi[2])),
-        }
+        self.grid().decode(self.planes(s))
     }
 
     /// Node index of inner slot `s`.
@@ -200,7 +201,7 @@ impl CwNode {
         self.child_base + (self.imask as u32 & ((1u32 << s) - 1)).count_ones()
     }
 
-    fn set_q(&mut self, s: usize, lo: [u8; 3], hi: [u8; 3]) {
+    fn set_q(&mut self, s: usize, (lo, hi): Planes) {
         [self.q_lo_x[s], self.q_lo_y[s], self.q_lo_z[s]] = lo;
         [self.q_hi_x[s], self.q_hi_y[s], self.q_hi_z[s]] = hi;
     }
@@ -233,9 +234,7 @@ impl CwBvh {
     /// The root node's whole grid, `p` to `p + 255 scale` per axis (f32, as the kernel would
     /// compute it): contains every box in the tree.
     pub fn root_grid(&self) -> Aabb {
-        let r = &self.nodes[0];
-        let hi: [f32; 3] = std::array::from_fn(|k| decode_plane(r.p[k], r.e[k], Q_MAX)[0]);
-        Aabb { min: Vec3::from_array(r.p), max: Vec3::from_array(hi) }
+        self.nodes[0].grid().extent()
     }
 
     /// Triangles in the hierarchy (padding not counted); 0 without `prim_ids`.

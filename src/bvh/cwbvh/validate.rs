@@ -1,8 +1,8 @@
 //! A compressed tree's invariants ([`CwBvh::validate`]), against the binary tree it was built
 //! from.
 
-use super::quantize::check_contains;
 use super::{CwBvh, CW_WIDTH, INNER_BIT0, META_EMPTY};
+use crate::bvh::quantize::check_contains;
 use crate::bvh::validate::{all_reached, built_from, Leaves};
 use crate::bvh::{Aabb, Bvh, PAD_SLOT};
 use crate::scene::Mesh;
@@ -100,7 +100,7 @@ impl CwBvh {
                     tri_box(leaf_entry_first(e), leaf_entry_count(e))?
                 };
                 if !truth.is_empty() {
-                    check_contains(n, s, &truth).map_err(|e| format!("node {i} slot {s}: {e}"))?;
+                    check_contains(&n.grid(), n.planes(s), &truth).map_err(|e| format!("node {i} slot {s}: {e}"))?;
                     all.grow(&truth);
                 }
             }

@@ -41,7 +41,7 @@
 //! 4 KiB, a page: on a CPU driver (lavapipe) a page is what a TLB entry and the L2 streamer's
 //! prefetch cover, and a treelet of one 64-byte line would hold one bvh2 child pair, which every
 //! order already keeps together. A page holds 128 bvh2 nodes (64 pairs, six to seven levels of a
-//! balanced binary tree), 32 bvh4 nodes, 16 bvh8 nodes or 51 cwbvh nodes. Treelets are not
+//! balanced binary tree), 32 bvh4 nodes, 16 bvh8 nodes, 64 qbvh4 nodes or 51 cwbvh nodes. Treelets are not
 //! padded to page boundaries (the buffer keeps its bytes), so a full treelet usually spans two
 //! pages.
 //!
@@ -116,10 +116,23 @@ impl NodeOrder {
 
     /// Wide nodes (`bounds`: the root's box) in this order: every inner slot's index renamed.
     pub fn reorder_wide<const N: usize>(self, nodes: &mut Vec<WideNode<N>>, bounds: &Aabb) -> Result<(), String> {
+        self.reorder_wide_as(nodes, bounds, std::mem::size_of::<WideNode<N>>())
+    }
+
+    /// The same for a layout that stores the wide tree in `node_bytes` per node (qbvh4's
+    /// quantized nodes: treelets count its bytes, not the wide node's).
+    pub fn reorder_wide_as<const N: usize>(
+        self,
+        nodes: &mut Vec<WideNode<N>>,
+        bounds: &Aabb,
+        node_bytes: usize,
+    ) -> Result<(), String> {
         if self == NodeOrder::Built {
             return Ok(());
         }
-        let Some(new) = NodeTree::wide(nodes, bounds)?.permutation(self)? else { return Ok(()) };
+        let mut tree = NodeTree::wide(nodes, bounds)?;
+        tree.node_bytes = node_bytes;
+        let Some(new) = tree.permutation(self)? else { return Ok(()) };
         *nodes = permute(nodes, &new, |n| {
             for s in 0..n.children() {
                 if !n.is_leaf(s) {

@@ -22,6 +22,7 @@ mod bvh2;
 mod bvh4;
 mod bvh8;
 mod cwbvh;
+mod qbvh4;
 
 use crate::bvh::{Aabb, BuildOptions, BvhNode, Locality, NodeOrder, NodeTree};
 use crate::named::Named;
@@ -144,6 +145,7 @@ layouts! {
     Bvh4 => bvh4,
     Bvh8 => bvh8,
     Cwbvh => cwbvh,
+    Qbvh4 => qbvh4,
 }
 
 impl Layout {
@@ -283,6 +285,7 @@ mod tests {
     /// locality read back from the buffer equal to the one of the tree it was made from.
     #[test]
     fn footprints_read_the_built_buffers() {
+        use crate::bvh::qbvh4::Qbvh4;
         use crate::bvh::{CwBvh, SlotOrder, WideBvh};
         let bvh = Bvh::build(&grid(2000), &BuildOptions::new(4));
         let bounds = bvh.nodes[0].aabb();
@@ -309,6 +312,14 @@ mod tests {
                         let mut cw = CwBvh::build_with(&bvh, SlotOrder::Greedy).unwrap();
                         order.reorder_cwbvh(&mut cw).unwrap();
                         (cw.nodes.len(), NodeTree::cwbvh(&cw.nodes, &cw.bounds).locality())
+                    }
+                    Layout::Qbvh4 => {
+                        let mut w = WideBvh::<4>::collapse(&bvh);
+                        order.reorder_wide_as(&mut w.nodes, &bounds, 64).unwrap();
+                        let d = Qbvh4::quantize(&w).unwrap().decoded();
+                        let mut t = NodeTree::wide(&d.nodes, &bounds).unwrap();
+                        t.node_bytes = 64;
+                        (d.nodes.len(), t.locality())
                     }
                 };
                 assert_eq!((f.nodes, f.locality), want, "{l} {order}");

@@ -1,10 +1,42 @@
-//! The grid arithmetic of the compressed nodes: a node's grid per axis ([`axis_grid`]), a
-//! child's planes on it rounded outwards and checked in the kernel's f32 decode
-//! ([`quantize_axis`], [`decode_plane`]), and the check that a decoded box contains a true one
-//! ([`check_contains`]). The module docs of [`super`] say why the check is needed.
+//! The grid arithmetic of the quantized layouts (cwbvh's 8-wide nodes, qbvh4's 4-wide ones): a
+//! node's grid per axis ([`axis_grid`]), a child's planes on it rounded outwards and checked in
+//! the kernel's f32 decode ([`quantize_axis`], [`decode_plane`]), a node's children quantized
+//! on the grid of their union ([`quantize_boxes`]), and the check that a decoded box contains a
+//! true one ([`check_contains`]). The module docs of [`crate::bvh::cwbvh`] say why the check is
+//! needed.
 
-use super::{CwNode, Q_MAX};
+use glam::Vec3;
+
 use crate::bvh::Aabb;
+
+/// Largest grid coordinate.
+pub const Q_MAX: u8 = 255;
+
+/// A node's grid: origin `p` and biased exponent `e` (scale `2^(e - 127)`) per axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Grid {
+    pub p: [f32; 3],
+    pub e: [u8; 3],
+}
+
+/// One child's planes on its node's grid: `(q_lo, q_hi)`, per axis.
+pub type Planes = ([u8; 3], [u8; 3]);
+
+impl Grid {
+    /// The box of `planes` as the kernel decodes it (without flushing).
+    pub fn decode(&self, (lo, hi): Planes) -> Aabb {
+        let d = |k: usize, q: u8| decode_plane(self.p[k], self.e[k], q)[0];
+        Aabb {
+            min: Vec3::new(d(0, lo[0]), d(1, lo[1]), d(2, lo[2])),
+            max: Vec3::new(d(0, hi[0]), d(1, hi[1]), d(2, hi[2])),
+        }
+    }
+
+    /// The whole grid, `p` to `p + 255 scale` per axis (f32, as the kernel would compute it).
+    pub fn extent(&self) -> Aabb {
+        self.decode(([0; 3], [Q_MAX; 3]))
+    }
+}
 
 /// The scale `2^(e - 127)` of biased exponent `e` (1..=254), as the kernel makes it
 /// (`uintBitsToFloat(e << 23)`).
@@ -93,24 +125,48 @@ pub fn quantize_axis(p: f32, e: u8, lo: f32, hi: f32) -> Option<(u8, u8)> {
     Some((ql, qh))
 }
 
-/// Whether child `s`'s decoded box (both decode variants) contains `truth`, plane by plane.
-pub fn check_contains(n: &CwNode, s: usize, truth: &Aabb) -> Result<(), String> {
-    let lo = [n.q_lo_x[s], n.q_lo_y[s], n.q_lo_z[s]];
-    let hi = [n.q_hi_x[s], n.q_hi_y[s], n.q_hi_z[s]];
+/// `boxes` (a node's children) quantized on the grid of their union: the grid and each box's
+/// planes, rounded outwards ([`quantize_axis`]). An empty box (a padding-only leaf) gets planes
+/// 0; a node of only empty boxes (an all-degenerate scene) a grid at the origin.
+pub fn quantize_boxes(boxes: &[Aabb]) -> Result<(Grid, Vec<Planes>), String> {
+    let mut union = Aabb::EMPTY;
+    for b in boxes.iter().filter(|b| !b.is_empty()) {
+        union.grow(b);
+    }
+    if union.is_empty() {
+        union = Aabb { min: Vec3::ZERO, max: Vec3::ZERO };
+    }
+    let mut grid = Grid { p: [0.0; 3], e: [0; 3] };
     for k in 0..3 {
-        if !lo_ok(n.p[k], n.e[k], lo[k], truth.min[k]) {
-            return Err(format!(
-                "decoded min {:?} > {} on axis {k}",
-                decode_plane(n.p[k], n.e[k], lo[k]),
-                truth.min[k]
-            ));
+        (grid.p[k], grid.e[k]) = axis_grid(union.min[k], union.max[k])
+            .ok_or_else(|| format!("a node box [{}, {}] on axis {k} has no grid", union.min[k], union.max[k]))?;
+    }
+    let planes = boxes
+        .iter()
+        .map(|b| {
+            let (mut lo, mut hi) = ([0u8; 3], [0u8; 3]);
+            if !b.is_empty() {
+                for k in 0..3 {
+                    (lo[k], hi[k]) = quantize_axis(grid.p[k], grid.e[k], b.min[k], b.max[k]).ok_or_else(|| {
+                        format!("child box [{}, {}] on axis {k} does not fit its parent's grid", b.min[k], b.max[k])
+                    })?;
+                }
+            }
+            Ok((lo, hi))
+        })
+        .collect::<Result<_, String>>()?;
+    Ok((grid, planes))
+}
+
+/// Whether the box of `planes` on `grid` (both decode variants) contains `truth`, plane by plane.
+pub fn check_contains(grid: &Grid, (lo, hi): Planes, truth: &Aabb) -> Result<(), String> {
+    let Grid { p, e } = grid;
+    for k in 0..3 {
+        if !lo_ok(p[k], e[k], lo[k], truth.min[k]) {
+            return Err(format!("decoded min {:?} > {} on axis {k}", decode_plane(p[k], e[k], lo[k]), truth.min[k]));
         }
-        if !hi_ok(n.p[k], n.e[k], hi[k], truth.max[k]) {
-            return Err(format!(
-                "decoded max {:?} < {} on axis {k}",
-                decode_plane(n.p[k], n.e[k], hi[k]),
-                truth.max[k]
-            ));
+        if !hi_ok(p[k], e[k], hi[k], truth.max[k]) {
+            return Err(format!("decoded max {:?} < {} on axis {k}", decode_plane(p[k], e[k], hi[k]), truth.max[k]));
         }
     }
     Ok(())
