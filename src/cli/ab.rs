@@ -25,6 +25,9 @@ pub struct WorkloadArgs {
     /// Node layouts, comma-separated (default: bvh2).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
+    /// A side's worker runs this layout in place of the cells' (what `ab --b-layout` gives side B).
+    #[arg(long, value_name = "L", value_parser = choice::<Layout>(), hide = true)]
+    runs_layout: Option<Layout>,
     /// Traversals, comma-separated (default: while-if); a layout without a kernel for one is
     /// left out of it.
     #[arg(long, value_name = "T,...", value_parser = choice::<Traversal>(), value_delimiter = ',')]
@@ -109,6 +112,7 @@ impl WorkloadArgs {
             batch_rays: self.batch_rays,
             pathtrace: self.pathtrace,
             pipeline_stats: self.pipeline_stats,
+            runs_layout: self.runs_layout,
         }
     }
 }
@@ -200,6 +204,10 @@ pub struct AbArgs {
     /// A variable set for side B only (repeatable).
     #[arg(long, value_name = "K=V", value_parser = env_pair)]
     b_env: Vec<(String, String)>,
+    /// Side B runs this node layout where side A runs --layouts' one layout: two kernels of one
+    /// build side by side (`--layouts bvh4 --b-layout qbvh4`), each cell named by A's layout.
+    #[arg(long, value_name = "L", value_parser = choice::<Layout>())]
+    b_layout: Option<Layout>,
     #[command(flatten)]
     rounds: RoundsArgs,
     /// Exit 1 when a cell's (or kernel's, by --judge) whole interval is slower than this many
@@ -291,8 +299,8 @@ fn compare_sides(a: AbArgs) -> Result<u8> {
     let validation = a.gpu.validation || std::env::var("TRILAB_VALIDATION").is_ok_and(|v| v.trim() == "1");
     let o = AbOptions {
         workload: a.workload.workload(),
-        a: Side { exe: a.a_bin, icd: a.a_icd, env: a.a_env },
-        b: Side { exe: a.b_bin, icd: a.b_icd, env: a.b_env },
+        a: Side { exe: a.a_bin, icd: a.a_icd, env: a.a_env, layout: None },
+        b: Side { exe: a.b_bin, icd: a.b_icd, env: a.b_env, layout: a.b_layout },
         exe,
         rounds: a.rounds.rounds,
         max_rounds: a.rounds.max_rounds,

@@ -83,8 +83,8 @@ pub fn run(a: GateArgs) -> Result<()> {
         base,
         ab: AbOptions {
             workload: a.workload.workload_or(defaults),
-            a: Side { exe: None, icd: None, env: a.a_env },
-            b: Side { exe: None, icd: None, env: a.b_env },
+            a: Side { exe: None, icd: None, env: a.a_env, layout: None },
+            b: Side { exe: None, icd: None, env: a.b_env, layout: None },
             exe,
             rounds: a.rounds.rounds,
             max_rounds: a.rounds.max_rounds,

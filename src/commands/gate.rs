@@ -85,6 +85,7 @@ pub fn default_workload(sizes: crate::services::rayset::RaySetSizes, build: crat
         batch_rays: crate::defaults::BATCH_RAYS,
         pathtrace: false,
         pipeline_stats: false,
+        runs_layout: None,
     }
 }
 

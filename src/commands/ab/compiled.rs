@@ -141,10 +141,10 @@ fn figures_of(rows: &[Row], cell: &CellInfo) -> Option<BTreeMap<String, f64>> {
     Some(row.figures.iter().map(|(n, f)| (n.clone(), f.median)).collect())
 }
 
-/// The figures of `cell`'s kernel that differ between the sides; `None` when a side has no
-/// statistics for it.
-pub fn diff(a: &SideStats, b: &SideStats, cell: &CellInfo) -> Option<Vec<StatChange>> {
-    let (fa, fb) = (figures_of(&a.rows, cell)?, figures_of(&b.rows, cell)?);
+/// The figures of a cell's kernel that differ between the sides (each side's cell: with
+/// `--b-layout` the two ran different kernels); `None` when a side has no statistics for it.
+pub fn diff([a, b]: [&SideStats; 2], [cell_a, cell_b]: [&CellInfo; 2]) -> Option<Vec<StatChange>> {
+    let (fa, fb) = (figures_of(&a.rows, cell_a)?, figures_of(&b.rows, cell_b)?);
     let names: std::collections::BTreeSet<&String> = fa.keys().chain(fb.keys()).collect();
     Some(
         names
@@ -209,15 +209,19 @@ mod tests {
             KERNELS.iter().find(|k| k.kernel == "raycast" && k.intersector == "mt" && k.variant == "closest").unwrap();
         let c = info(k.name);
         let side = |rows| SideStats { rows, note: String::new() };
-        let same = diff(&side(vec![row(100.0, Some(2.0))]), &side(vec![row(100.0, Some(2.0))]), &c).unwrap();
+        let same = diff([&side(vec![row(100.0, Some(2.0))]), &side(vec![row(100.0, Some(2.0))])], [&c, &c]).unwrap();
         assert!(same.is_empty(), "{same:?}");
-        let d = diff(&side(vec![row(100.0, Some(2.0))]), &side(vec![row(110.0, None)]), &c).unwrap();
+        let d = diff([&side(vec![row(100.0, Some(2.0))]), &side(vec![row(110.0, None)])], [&c, &c]).unwrap();
         assert_eq!(d.len(), 2, "{d:?}");
         assert_eq!(d[0], StatChange { figure: "instructions".into(), a: 100.0, b: 110.0 });
         assert!(d[1].figure == "vector_spills" && d[1].a == 2.0 && d[1].b.is_nan());
         assert_eq!(describe(&d[..1]), "instructions 100 -> 110 (+10.0 %)");
         // A side without statistics, or a kernel it did not compile: nothing to compare.
-        assert!(diff(&side(vec![]), &side(vec![row(1.0, None)]), &c).is_none());
-        assert!(diff(&side(vec![row(1.0, None)]), &side(vec![row(1.0, None)]), &info("raycast.nope")).is_none());
+        assert!(diff([&side(vec![]), &side(vec![row(1.0, None)])], [&c, &c]).is_none());
+        assert!(diff(
+            [&side(vec![row(1.0, None)]), &side(vec![row(1.0, None)])],
+            [&info("raycast.nope"), &info("raycast.nope")]
+        )
+        .is_none());
     }
 }

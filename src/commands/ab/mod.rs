@@ -30,6 +30,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::encoding::Layout;
 use crate::error::{Error, Result};
 use crate::named::named_enum;
 use crate::report::{Report, Table};
@@ -53,6 +54,8 @@ pub struct Side {
     pub icd: Option<PathBuf>,
     /// Variables set for this side only, in order.
     pub env: Vec<(String, String)>,
+    /// The node layout this side runs in place of the workload's one layout (`--b-layout`).
+    pub layout: Option<Layout>,
 }
 
 impl Side {
@@ -61,6 +64,7 @@ impl Side {
         let mut parts: Vec<String> = self.exe.iter().map(|p| format!("bin={}", p.display())).collect();
         parts.extend(self.icd.iter().map(|p| format!("VK_DRIVER_FILES={}", p.display())));
         parts.extend(self.env.iter().map(|(k, v)| format!("{k}={v}")));
+        parts.extend(self.layout.iter().map(|l| format!("layout={l}")));
         if parts.is_empty() {
             "trilab's own environment".into()
         } else {
@@ -706,6 +710,7 @@ impl Worker {
         let hits_dir = dir.join(name);
         std::fs::create_dir_all(&hits_dir).map_err(|e| Error::io(&hits_dir, e))?;
         let mut args: Vec<OsString> = vec![SESSION_COMMAND.into()];
+        let w = Workload { runs_layout: side.layout, ..w.clone() };
         args.extend(w.args().into_iter().map(OsString::from));
         args.extend([OsString::from("--hits-dir"), hits_dir.clone().into()]);
         let launch = Launch {
@@ -1023,7 +1028,9 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     wa.finish();
     wb.finish();
     drop(ending);
-    let matched_b: Vec<CellInfo> = pairs.iter().map(|&(_, ib)| cells_b[ib].clone()).collect();
+    // Each side's matched cells: with --b-layout, B's name the kernel B ran.
+    let matched =
+        [0, 1].map(|s| pairs.iter().map(|&(ia, ib)| [&cells_a[ia], &cells_b[ib]][s].clone()).collect::<Vec<_>>());
     // The compilers' output, after the rounds: its compiles would time them otherwise.
     set_stage("the driver statistics, after the rounds".into());
     let stats = o.driver_stats.then(|| {
@@ -1031,12 +1038,22 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
             let _span = crate::trace::span_on(side_track(name), "ab", "driver statistics");
             progress(&format!("side {name}: driver statistics"));
             let protocol = if name == "A" { report_a.protocol } else { report_b.protocol };
-            compiled::collect(o, name, side, protocol, &matched_b, &tmp.path().join(format!("driver-stats-{name}")))
+            let cells = &matched[usize::from(name == "B")];
+            compiled::collect(o, name, side, protocol, cells, &tmp.path().join(format!("driver-stats-{name}")))
         })
     });
     let judging = crate::trace::span("ab", "cells judged (hits compared ray by ray)");
-    let out =
-        judged_cells(o, pairs, &cells_b, &times, &worst, paired, [&dir_a, &dir_b], stats.as_ref(), [&inv_a, &inv_b])?;
+    let out = judged_cells(
+        o,
+        pairs,
+        [&cells_a, &cells_b],
+        &times,
+        &worst,
+        paired,
+        [&dir_a, &dir_b],
+        stats.as_ref(),
+        [&inv_a, &inv_b],
+    )?;
     drop(judging);
     let kernels = groups
         .iter()
@@ -1134,6 +1151,14 @@ fn check_options(o: &AbOptions, progress: &mut impl FnMut(&str)) -> Result<()> {
     if let Some(dir) = &o.repro {
         crate::commands::repro::refuse_existing("--repro", dir)?;
     }
+    if let Some(l) = o.b.layout {
+        if o.workload.layouts.len() != 1 || o.workload.pathtrace {
+            return Err(Error::Usage(format!(
+                "--b-layout {l}: side B runs it in place of side A's one layout; give --layouts one layout \
+                 (and no --pathtrace)"
+            )));
+        }
+    }
     for (name, flag, side) in [("A", "--a-icd", &o.a), ("B", "--b-icd", &o.b)] {
         if let Some(icd) = &side.icd {
             check_icd(name, flag, icd)?;
@@ -1179,7 +1204,7 @@ fn check_options(o: &AbOptions, progress: &mut impl FnMut(&str)) -> Result<()> {
 fn judged_cells(
     o: &AbOptions,
     pairs: &[(usize, usize)],
-    cells_b: &[CellInfo],
+    [cells_a, cells_b]: [&[CellInfo]; 2],
     times: &[Vec<Vec<Option<f64>>>; 2],
     worst: &[Vec<SideCell>; 2],
     paired: bool,
@@ -1209,7 +1234,7 @@ fn judged_cells(
                 worker::differing_pixels(&dir_a.join(format!("{ia}.image")), &dir_b.join(format!("{ib}.image")))?
             }
         };
-        let compiled = stats.as_ref().and_then(|[sa, sb]| compiled::diff(sa, sb, &c));
+        let compiled = stats.as_ref().and_then(|[sa, sb]| compiled::diff([sa, sb], [&cells_a[ia], &c]));
         let invocations = o.workload.pipeline_stats.then(|| [inv_a.get(ia).copied().flatten(), inv_b[ib]]);
         let correctness_worse = b.agree < a.agree || b.unexplained > a.unexplained || b.invalid > a.invalid;
         out.push(AbCell {

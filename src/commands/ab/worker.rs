@@ -55,6 +55,10 @@ pub struct Workload {
     /// Count each ray-casting cell's compute-shader invocations once, with a pipeline-statistics
     /// query (where the device has `pipelineStatisticsQuery`).
     pub pipeline_stats: bool,
+    /// The layout this side runs in every cell in place of the cell's (`ab --b-layout`: two
+    /// kernels of one build side by side); its cells keep the workload's layout as their name,
+    /// so they pair with the other side's, and name the kernel they ran.
+    pub runs_layout: Option<Layout>,
 }
 
 /// A path-trace cell's samples per pixel.
@@ -129,6 +133,10 @@ impl Workload {
                 a.push(flag.into());
             }
         }
+        if let Some(l) = self.runs_layout {
+            a.push("--runs-layout".into());
+            a.push(l.to_string());
+        }
         a
     }
 }
@@ -178,29 +186,32 @@ fn load_and_serve(
         );
     }
     let t = std::time::Instant::now();
-    let mut scenes: Vec<(usize, DeviceScene)> = vec![];
+    // Each scene with the layout its cells are named by (the workload's; `runs_layout` may run another).
+    let mut scenes: Vec<(usize, (Layout, DeviceScene))> = vec![];
     for (i, host) in hosts.iter().enumerate() {
         for &m in &w.methods {
             for &l in &w.layouts {
                 for &tr in &w.traversals {
                     // A traversal a layout has no kernel for is left out (bench's rule); `auto`
                     // is checked as the texel path, as bench checks it.
-                    if m.traversal_kernel(Raycast::Closest, path_of(w.scene_access), l, tr).is_err() {
+                    let run = w.runs_layout.unwrap_or(l);
+                    let has = |l| m.traversal_kernel(Raycast::Closest, path_of(w.scene_access), l, tr).is_ok();
+                    if !has(l) || !has(run) {
                         continue;
                     }
-                    let request = SceneRequest::new(m).access(w.scene_access).layout(l).traversal(tr);
-                    scenes.push((i, host.upload(ctx, &request)?));
+                    let request = SceneRequest::new(m).access(w.scene_access).layout(run).traversal(tr);
+                    scenes.push((i, (l, host.upload(ctx, &request)?)));
                 }
             }
         }
     }
     let mut cells = vec![];
-    for (i, scene) in &scenes {
+    for (i, (named, scene)) in &scenes {
         let kernel = scene.kernel(ctx, Raycast::Closest)?;
         for (set, rays, ref_hits) in &sets[*i] {
             let tracer = CellTracer::Method {
                 method: scene.method,
-                layout: scene.layout,
+                layout: *named,
                 leaf: w.build.max_leaf_size,
                 sah_group: None,
                 traversal: scene.traversal,
@@ -214,7 +225,7 @@ fn load_and_serve(
                 scene: hosts[*i].name.clone(),
                 set: set.to_string(),
                 method: scene.method.to_string(),
-                layout: scene.layout.to_string(),
+                layout: named.to_string(),
                 traversal: scene.traversal.to_string(),
                 rays: rays.len(),
                 kernel: kernel.name.to_string(),
@@ -231,7 +242,7 @@ fn load_and_serve(
             let mut scene_mean = None;
             for &m in &w.methods {
                 for &l in &w.layouts {
-                    let request = SceneRequest::new(m).access(w.scene_access).layout(l);
+                    let request = SceneRequest::new(m).access(w.scene_access).layout(w.runs_layout.unwrap_or(l));
                     let target =
                         RenderTarget::new(ctx, host, request, KernelChoice::Specialised, settings.pixels(), false)?;
                     // The warm-up render: pipelines compiled, and the scene's image mean.
