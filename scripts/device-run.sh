@@ -6,7 +6,7 @@
 #                                          `carry` list and the one command to give it
 #   scripts/device-run.sh run [MINUTES]   there (and here, as CI's rehearsal on lavapipe): loaders,
 #                                          `trilab devices`, `trilab roofline`, `trilab suite` with
-#                                          the tinybvh peer and three layouts, everything in one
+#                                          the tinybvh peer and four layouts, everything in one
 #                                          archive under $OUT
 #   scripts/device-run.sh unpack ARCHIVE [ROOT]
 #                                          here: the archive into ROOT/results/<device>/ (ROOT: this
@@ -44,7 +44,7 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 travel=$root/.travel
 BUDGET_MIB=56
 ARCHIVE_MAX=$((16 * 1024 * 1024))
-LAYOUTS=bvh2,bvh4,cwbvh
+LAYOUTS=bvh2,bvh4,qbvh4,cwbvh
 # The repros' scene: 2,000 triangles, a repro of 0.4 MB (docs/repro.md).
 REPRO_SCENE=synth:soup:2000
 
@@ -250,7 +250,7 @@ run() {
     rc=0
     (cd "$work" && timeout -s INT -k 10 "$trav_s" "$exe" bench --scene-dir "$root/scenes" \
       --scenes bunny,dragon --methods mt,quad-unit,watertight --repeat 5 \
-      --traversals while-if,while-while,coop,persistent --layouts bvh2,bvh4,bvh8,cwbvh \
+      --traversals while-if,while-while,coop,persistent --layouts bvh2,bvh4,qbvh4,bvh8,cwbvh \
       --out "$work/extra/traversals" >> "$log" 2>&1) || rc=$?
     case $rc in
       0) say "traversals bench completed" ;;

@@ -181,9 +181,9 @@ fn the_rehearsal_runs_end_to_end_and_unpacks() {
     assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("same: all 1024 rays"), "{}", text(&o));
     let suite = checkout.join("results/lavapipe/suite");
     let md = std::fs::read_to_string(suite.join("summary.md")).unwrap();
-    // Three layouts in the study and the bench; tinybvh's OpenCL kernels (PoCL here, the GPU's
-    // own OpenCL there) beside trilab's, validated.
-    for layout in ["bvh2", "bvh4", "cwbvh"] {
+    // Four layouts in the study and the bench (qbvh4, issue 42, among them); tinybvh's OpenCL
+    // kernels (PoCL here, the GPU's own OpenCL there) beside trilab's, validated.
+    for layout in ["bvh2", "bvh4", "qbvh4", "cwbvh"] {
         assert!(md.contains(layout), "summary.md does not mention {layout}:\n{md}");
     }
     // tinybvh's OpenCL layouts ran, or the bench says why not: on an AMD host PoCL's device is
