@@ -144,6 +144,15 @@ fn workload_of(w: &Workload, kernels: &[&AbKernel]) -> Workload {
     w
 }
 
+/// The layouts the baseline's build has kernels of: those of the registry's kernels its `spirv`
+/// rows name (empty where it has no SPIR-V rows).
+fn base_layouts(rows: &[crate::rows::Row]) -> Vec<Layout> {
+    let names: std::collections::BTreeSet<&str> =
+        rows.iter().filter(|r| r.command == "spirv").filter_map(|r| r.cell.get("kernel")).map(String::as_str).collect();
+    let has = |l: Layout| crate::kernels::KERNELS.iter().any(|k| k.layout == l.name() && names.contains(k.name));
+    Layout::ALL.iter().copied().filter(|&l| has(l)).collect()
+}
+
 /// Runs the gate: counts and correctness against the baseline, then the timings' A/B.
 pub fn run(o: &GateOptions, mut progress: impl FnMut(&str)) -> Result<GateReport> {
     let compare_options =
@@ -164,7 +173,22 @@ pub fn run(o: &GateOptions, mut progress: impl FnMut(&str)) -> Result<GateReport
             a.exe = Some(exe.clone());
             // The base build names its own commit in its provenance, not the checkout's.
             a.env.insert(0, ("TRILAB_COMMIT".to_owned(), commit.clone()));
-            let options = AbOptions { a, judge: Judge::Kernels, ..o.ab.clone() };
+            // A layout added since the base build is not timed: that build cannot run it (its
+            // counts are new cells of the comparison above).
+            let mut workload = o.ab.workload.clone();
+            let known = base_layouts(&crate::rows::read(&o.baseline)?.rows);
+            if !known.is_empty() {
+                let (kept, new): (Vec<Layout>, Vec<Layout>) = workload.layouts.iter().partition(|l| known.contains(l));
+                if !new.is_empty() {
+                    let names: Vec<String> = new.iter().map(Layout::to_string).collect();
+                    progress(&format!(
+                        "timings: {} not timed: the base build ({commit}) has no kernel of it (its baseline's SPIR-V rows name none)",
+                        names.join(", ")
+                    ));
+                }
+                workload.layouts = kept;
+            }
+            let options = AbOptions { a, judge: Judge::Kernels, workload, ..o.ab.clone() };
             progress(&format!("timings: the base build ({commit}) against this one, interleaved"));
             let first = ab::run(&options, &mut progress)?;
             let hurt: Vec<&AbKernel> = first.kernels_hurt();
@@ -269,5 +293,33 @@ impl crate::services::results::Results for GateReport {
             Timings::Judged { ab, .. } => Some(ab::rows(ab)),
             Timings::NotJudged { .. } => None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rows::{cell, Figure, Row, Source};
+
+    fn spirv_row(kernel: &str) -> Row {
+        Row::new("spirv", cell([("kernel", kernel)]), &Source::default())
+            .with("spirv_instructions", Figure::count(1.0, "instructions"))
+    }
+
+    /// A baseline whose build had kernels of bvh2 and cwbvh only: those are its layouts, in the
+    /// registry's order; rows of other commands and unknown kernels name none.
+    #[test]
+    fn the_base_builds_layouts_are_those_its_spirv_rows_name() {
+        let rows = vec![
+            spirv_row("raycast.mt.closest"),
+            spirv_row("raycast.mt.closest_cwbvh"),
+            spirv_row("raycast.nope.closest_bvh8"),
+            Row::new("bench", cell([("layout", "bvh4")]), &Source::default()),
+        ];
+        assert_eq!(base_layouts(&rows), [Layout::Bvh2, Layout::Cwbvh]);
+        assert!(base_layouts(&[]).is_empty());
+        // Every kernel of the registry named: every layout.
+        let all: Vec<Row> = crate::kernels::KERNELS.iter().map(|k| spirv_row(k.name)).collect();
+        assert_eq!(base_layouts(&all), Layout::ALL);
     }
 }
