@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use super::worker::{CellKind, Workload};
 use super::{AbCell, AbOptions, Side};
-use crate::commands::repro::{CellRays, Differences, Query};
+use crate::commands::repro::{folder_name, CellRays, Differences, Query};
 use crate::error::{Error, Result};
 use crate::rays;
 use crate::scene::scene_name;
@@ -124,11 +124,6 @@ fn side_repro(o: &AbOptions, side: &Side, name: &str, spec: ReproSpec) -> Result
         Message::Failed { error } => Err(Error::Usage(error)),
         m => Err(worker::unexpected(&format!("side {name}'s repro"), "repro-made", &m)),
     }
-}
-
-/// `bunny primary mt bvh2` as `bunny-primary-mt-bvh2`.
-fn folder_name(label: &str) -> String {
-    label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '-' }).collect()
 }
 
 fn readme_text(o: &AbOptions, c: &AbCell, r: &AbRepro) -> String {

@@ -14,6 +14,7 @@
 //! DIR/<scene>-<set>-<method>-<layout>[-...]/       the cell's repro
 //! ```
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -21,7 +22,6 @@ use serde::{Deserialize, Serialize};
 use super::{CompareReport, FigureChange};
 use crate::commands::bench::{BenchCell, BenchRecipe, CellTracer};
 use crate::commands::repro::{self, CaptureChoice, CellRays, ReproRequest};
-use crate::encoding::{AccessPath, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::rows::{self, Class, Row};
@@ -77,16 +77,19 @@ fn chosen(changes: &[FigureChange]) -> Vec<&FigureChange> {
     out
 }
 
-/// The row of `cell` (as the changes name it) in a side's files, with its file.
-fn find_row(files: &[PathBuf], cell: &str) -> Result<Option<(Row, PathBuf)>> {
+/// A side's bench rows of the `wanted` cells (as the changes name them), each with its file:
+/// the side's files read once.
+fn bench_rows(files: &[PathBuf], wanted: &[&str]) -> Result<BTreeMap<String, (Row, PathBuf)>> {
+    let mut out = BTreeMap::new();
     for f in files {
-        for r in rows::read_file(f)?.rows {
-            if r.command == BENCH && rows::cell_key("", &r.cell).trim_start() == cell {
-                return Ok(Some((r, f.clone())));
+        for r in rows::read_file(f)?.rows.into_iter().filter(|r| r.command == BENCH) {
+            let key = rows::cell_key("", &r.cell).trim_start().to_owned();
+            if wanted.contains(&key.as_str()) {
+                out.insert(key, (r, f.clone()));
             }
         }
     }
-    Ok(None)
+    Ok(out)
 }
 
 /// Which side's device and driver `here` is.
@@ -112,7 +115,7 @@ fn folder_name(cell: &BenchCell) -> String {
             parts.push(if k == "leaf" { format!("leaf{v}") } else { v.clone() });
         }
     }
-    parts.join("-").chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '-' }).collect()
+    repro::folder_name(&parts.join("-"))
 }
 
 /// Makes the repros of `report`'s changed bench cells under `dir` (a new folder) on the device
@@ -134,9 +137,12 @@ pub fn make(
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let here = Provenance::of(ctx);
     let mut made = vec![];
+    let wanted: Vec<&str> = chosen.iter().map(|c| c.cell.as_str()).collect();
+    let mut base_rows = bench_rows(&report.base.files, &wanted)?;
+    let mut new_rows = bench_rows(&report.new.files, &wanted)?;
     for change in chosen {
-        let base = find_row(&report.base.files, &change.cell)?;
-        let new = find_row(&report.new.files, &change.cell)?;
+        let base = base_rows.remove(&change.cell);
+        let new = new_rows.remove(&change.cell);
         let this_device = this_device(&here, base.as_ref().map(|b| &b.0), new.as_ref().map(|n| &n.0));
         let (row, file) =
             new.or(base).ok_or_else(|| Error::Usage(format!("--repro: `{}` is in no rows file", change.cell)))?;
@@ -212,11 +218,7 @@ fn one(ctx: &Context, row: &Row, file: &Path, dir: &Path, tmp: &Path, r: &mut Co
         method: method.into(),
         layout,
         traversal,
-        access: match access {
-            AccessPath::Texel => SceneAccess::Texel,
-            AccessPath::Storage => SceneAccess::Storage,
-            AccessPath::Address => SceneAccess::Address,
-        },
+        access: access.requested(),
         build,
         any_hit: false,
         capture: CaptureChoice::Auto,

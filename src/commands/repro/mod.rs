@@ -143,6 +143,12 @@ fn verdict(passes: bool) -> &'static str {
     }
 }
 
+/// A cell's label (`bunny primary mt bvh2`) as the name of its repro's folder: letters, digits
+/// and dashes, every other character a dash (`bunny-primary-mt-bvh2`).
+pub fn folder_name(label: &str) -> String {
+    label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '-' }).collect()
+}
+
 /// Refuses an existing `dir` given as `option` (`--repro`), before any work: repros go into a
 /// new folder, nothing is overwritten.
 pub fn refuse_existing(option: &str, dir: &Path) -> Result<()> {
