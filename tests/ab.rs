@@ -113,7 +113,7 @@ fn a_planted_slowdown_is_found_in_its_cells_and_fails_the_run() {
             "--judge",
             "kernels",
             "--threshold",
-            "1",
+            "100",
             "--b-env",
             "TRILAB_INJECT_SLOWDOWN=.mt.:8",
         ],
