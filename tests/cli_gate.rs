@@ -86,7 +86,11 @@ fn a_planted_slowdown_of_one_kernel_on_side_b_fails_naming_that_kernel() {
     let ab = &r["timings"]["ab"];
     for k in ab["kernels"].as_array().unwrap() {
         if k["method"] == "mt" {
-            assert_ne!(k["verdict"], "hurt-beyond-threshold", "{k}");
+            // Timed and judged. Its first A/B's verdict is not held here: one A/B of an unchanged
+            // kernel on a busy CI host can cross 10 % (ab.rs's planted test failed so at 1 %), and
+            // the gate's repeat is there for that; `failed_kernels` above holds that mt did not
+            // fail the gate.
+            assert!(k["ratio"]["ratio"].as_f64().is_some(), "{k}");
         } else {
             let ratio = k["ratio"]["ratio"].as_f64().unwrap();
             assert!((1.3..4.0).contains(&ratio), "the unit kernel does twice its work: B/A {ratio}: {k}");
@@ -287,4 +291,62 @@ fn the_script_finds_the_base_build_or_says_why_there_is_none() {
     git(dir.path(), &["clone", "-q", "--depth", "1", &url, &s(&shallow)]);
     let said = which_base(&shallow, &first);
     assert!(said.contains("not in this shallow clone") && said.contains("--unshallow"), "{said}");
+}
+
+/// A layout added since the base build: its kernels are new cells of the counts, and the A/B
+/// leaves it out (the base build's worker would refuse it), naming it in the report and the
+/// verdict. The base build here is this one, its baseline a copy whose SPIR-V rows name no
+/// qbvh4 kernel, as a build from before qbvh4 measured it.
+#[test]
+fn a_layout_the_base_build_lacks_is_named_and_left_out_of_the_timings() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = dir.path().join("base");
+    for sub in ["bench", "spirv"] {
+        let rows = std::fs::read_to_string(measured().join(sub).join("rows.jsonl")).unwrap();
+        let kept: String =
+            rows.lines().filter(|l| sub == "bench" || !l.contains("_qbvh4")).map(|l| format!("{l}\n")).collect();
+        assert!(sub == "bench" || kept.len() < rows.len(), "the measured SPIR-V rows name qbvh4 kernels");
+        std::fs::create_dir_all(base.join(sub)).unwrap();
+        std::fs::write(base.join(sub).join("rows.jsonl"), kept).unwrap();
+    }
+    let out = dir.path().join("gate");
+    let exe = env!("CARGO_BIN_EXE_trilab");
+    let args = [
+        "gate",
+        &s(&base),
+        &s(measured()),
+        "--base-bin",
+        exe,
+        "--base-commit",
+        "before-qbvh4",
+        "--methods",
+        "unit",
+        "--layouts",
+        "bvh2,qbvh4",
+        "--random-rays",
+        "8000",
+        "--rounds",
+        "4",
+        "--threshold",
+        "50",
+        "--out",
+        &s(&out),
+        "--json",
+    ];
+    let (o, _) = {
+        let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+        run(&args, None, &[], 600)
+    };
+    let e = common::cli::stderr(&o);
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|x| panic!("{x}: {e}"));
+    assert_eq!(r["timings"]["layouts_not_timed"], serde_json::json!(["qbvh4"]), "{r}");
+    let kernels: Vec<&str> =
+        r["timings"]["ab"]["kernels"].as_array().unwrap().iter().map(|k| k["layout"].as_str().unwrap()).collect();
+    assert_eq!(kernels, ["bvh2"], "only bvh2 is timed: {r}");
+    // Its counts are there all the same: new cells, not failures.
+    assert_eq!(r["counts"]["passed"], true, "{r}");
+    let md = std::fs::read_to_string(out.join("gate.md")).unwrap();
+    assert!(md.contains("not timed: qbvh4 (the base build, before-qbvh4, has no kernel of it"), "{md}");
+    assert!(md.contains("every kernel but qbvh4's") || md.contains("gate: FAIL"), "{md}");
+    assert!(e.contains("timings: qbvh4 not timed"), "{e}");
 }

@@ -146,10 +146,23 @@ fn a_changed_hit_is_named_ray_by_ray_and_fails_the_check() {
 #[test]
 fn a_kernel_that_needs_full_subgroups_gets_them_and_nothing_else() {
     let tmp = tempfile::tempdir().unwrap();
-    let dir = make(tmp.path(), "coop", true, &["--traversal", "coop", "--layout", "bvh4"]);
+    let tree = ["--leaf-policy", "sah", "--sah-group", "4"];
+    let dir = make(tmp.path(), "coop", true, &[&["--traversal", "coop", "--layout", "bvh4"][..], &tree].concat());
     let m = manifest(&dir);
     assert_eq!(m["kernel"]["full_subgroups"], true, "{m}");
     assert_eq!(m["cell"]["traversal"], "coop");
+    // The tree's build options, all of them, so trilab can build the same tree again.
+    assert_eq!((m["cell"]["leaf_policy"].as_str(), m["cell"]["sah_group"].as_u64()), (Some("sah"), Some(4)), "{m}");
+    let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();
+    assert!(readme.contains("sah leaves, SAH priced in groups of 4"), "{readme}");
+    let r = check(&dir, &[]);
+    assert_eq!(r["differences"]["identical"], r["differences"]["rays"], "{r}");
+    // A folder made before the build options were recorded (leaf size alone) still checks.
+    let mut old = m.clone();
+    for k in ["leaf_policy", "sah_group", "builder"] {
+        old["cell"].as_object_mut().unwrap().remove(k);
+    }
+    std::fs::write(dir.join("cell.json"), old.to_string()).unwrap();
     let r = check(&dir, &[]);
     assert_eq!(r["differences"]["identical"], r["differences"]["rays"], "{r}");
 }

@@ -106,6 +106,9 @@ pub enum Timings {
         failed: Vec<String>,
         /// Hurt in the first A/B but not in the repeat: the host, not the code.
         did_not_repeat: Vec<String>,
+        /// The workload's layouts the base build has no kernel of (added since): not timed,
+        /// their counts are new cells of the comparison.
+        layouts_not_timed: Vec<String>,
     },
 }
 
@@ -177,13 +180,14 @@ pub fn run(o: &GateOptions, mut progress: impl FnMut(&str)) -> Result<GateReport
             // counts are new cells of the comparison above).
             let mut workload = o.ab.workload.clone();
             let known = base_layouts(&crate::rows::read(&o.baseline)?.rows);
+            let mut layouts_not_timed = vec![];
             if !known.is_empty() {
                 let (kept, new): (Vec<Layout>, Vec<Layout>) = workload.layouts.iter().partition(|l| known.contains(l));
+                layouts_not_timed = new.iter().map(Layout::to_string).collect();
                 if !new.is_empty() {
-                    let names: Vec<String> = new.iter().map(Layout::to_string).collect();
                     progress(&format!(
-                        "timings: {} not timed: the base build ({commit}) has no kernel of it (its baseline's SPIR-V rows name none)",
-                        names.join(", ")
+                        "timings: {} not timed: the base build ({commit}) has no kernel of it",
+                        layouts_not_timed.join(", ")
                     ));
                 }
                 workload.layouts = kept;
@@ -230,7 +234,14 @@ pub fn run(o: &GateOptions, mut progress: impl FnMut(&str)) -> Result<GateReport
                     no_interval.join(", ")
                 ));
             }
-            Timings::Judged { base_commit: commit.clone(), ab: Box::new(first), repeat, failed, did_not_repeat }
+            Timings::Judged {
+                base_commit: commit.clone(),
+                ab: Box::new(first),
+                repeat,
+                failed,
+                did_not_repeat,
+                layouts_not_timed,
+            }
         }
     };
     Ok(GateReport { counts, timings, failures })
@@ -247,7 +258,13 @@ impl Report for GateReport {
             Timings::NotJudged { why } => {
                 s += &format!("not judged: {why}. The gate judged counts and correctness alone.\n");
             }
-            Timings::Judged { ab, repeat, failed, did_not_repeat, .. } => {
+            Timings::Judged { ab, repeat, failed, did_not_repeat, layouts_not_timed, base_commit } => {
+                if !layouts_not_timed.is_empty() {
+                    s += &format!(
+                        "not timed: {} (the base build, {base_commit}, has no kernel of it: its baseline's SPIR-V rows name none; its counts are new cells above)\n\n",
+                        layouts_not_timed.join(", ")
+                    );
+                }
                 s += &ab.to_text();
                 if let Some(r) = repeat {
                     s += "\n-- the kernels hurt beyond the threshold, timed again --\n\n";
@@ -269,8 +286,13 @@ impl Report for GateReport {
             s += &format!(
                 "gate: pass ({})\n",
                 match &self.timings {
-                    Timings::NotJudged { .. } => "counts and correctness; timings not judged",
-                    Timings::Judged { .. } => "counts, correctness, and every kernel's timing against the base build",
+                    Timings::NotJudged { .. } => "counts and correctness; timings not judged".to_owned(),
+                    Timings::Judged { layouts_not_timed, .. } if layouts_not_timed.is_empty() =>
+                        "counts, correctness, and every kernel's timing against the base build".to_owned(),
+                    Timings::Judged { layouts_not_timed, .. } => format!(
+                        "counts, correctness, and the timing against the base build of every kernel but {}'s",
+                        layouts_not_timed.join(", ")
+                    ),
                 }
             );
         } else {

@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::bvh::{Builder, LeafPolicy};
 use crate::encoding::{AccessPath, Layout, Method, Traversal};
 use crate::error::{Error, Result};
 use crate::kernels::{KernelSource, KERNELS};
@@ -71,8 +72,20 @@ pub struct Cell {
     pub traversal: Traversal,
     pub access: AccessPath,
     pub leaf_size: u32,
+    /// The rest of the tree's build options, so `trilab` can build the same tree again (a
+    /// folder from before they were recorded reads the defaults).
+    #[serde(default)]
+    pub leaf_policy: LeafPolicy,
+    #[serde(default = "one")]
+    pub sah_group: u32,
+    #[serde(default)]
+    pub builder: Builder,
     /// `closest` or `any` (an occlusion query: only hit or miss counts).
     pub query: Query,
+}
+
+fn one() -> u32 {
+    1
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

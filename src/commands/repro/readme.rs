@@ -11,7 +11,7 @@ pub fn text(m: &Manifest) -> String {
         "# trilab repro: `{}` on {}\n\n\
          One compute dispatch of trilab's ray tracing kernel `{}`: {} rays cast through a BVH of the \
          `{}` scene ({} triangles; {} intersection, {} node layout, {} traversal, {} access path, leaf \
-         size {}), {} query. Made with {} ({}, {}) on {} ({}).\n\n",
+         size {}, {} leaves, SAH priced in groups of {}, {}), {} query. Made with {} ({}, {}) on {} ({}).\n\n",
         k.name,
         m.made.device,
         k.name,
@@ -23,6 +23,9 @@ pub fn text(m: &Manifest) -> String {
         c.traversal,
         c.access.name(),
         c.leaf_size,
+        c.leaf_policy,
+        c.sah_group,
+        c.builder,
         match c.query {
             Query::Closest => "closest-hit",
             Query::Any => "any-hit (occlusion)",
