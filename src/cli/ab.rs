@@ -205,7 +205,8 @@ pub struct AbArgs {
     #[arg(long, value_name = "K=V", value_parser = env_pair)]
     b_env: Vec<(String, String)>,
     /// Side B runs this node layout where side A runs --layouts' one layout: two kernels of one
-    /// build side by side (`--layouts bvh4 --b-layout qbvh4`), each cell named by A's layout.
+    /// build side by side (`--layouts bvh4 --b-layout qbvh4`), each cell named by A's layout
+    /// (with --pathtrace, B's path tracer runs it too).
     #[arg(long, value_name = "L", value_parser = choice::<Layout>())]
     b_layout: Option<Layout>,
     #[command(flatten)]

@@ -1152,10 +1152,9 @@ fn check_options(o: &AbOptions, progress: &mut impl FnMut(&str)) -> Result<()> {
         crate::commands::repro::refuse_existing("--repro", dir)?;
     }
     if let Some(l) = o.b.layout {
-        if o.workload.layouts.len() != 1 || o.workload.pathtrace {
+        if o.workload.layouts.len() != 1 {
             return Err(Error::Usage(format!(
-                "--b-layout {l}: side B runs it in place of side A's one layout; give --layouts one layout \
-                 (and no --pathtrace)"
+                "--b-layout {l}: side B runs it in place of side A's one layout; give --layouts one layout"
             )));
         }
     }
