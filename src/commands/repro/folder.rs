@@ -76,7 +76,7 @@ pub struct Cell {
     /// folder from before they were recorded reads the defaults).
     #[serde(default)]
     pub leaf_policy: LeafPolicy,
-    #[serde(default = "one")]
+    #[serde(default = "classic_sah_group")]
     pub sah_group: u32,
     #[serde(default)]
     pub builder: Builder,
@@ -84,8 +84,9 @@ pub struct Cell {
     pub query: Query,
 }
 
-fn one() -> u32 {
-    1
+/// What a folder without `sah_group` was built with: the builder's classic SAH.
+fn classic_sah_group() -> u32 {
+    crate::bvh::BuildOptions::new(1).sah_group
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
