@@ -12,8 +12,10 @@
 #        one that exists and holds other things (no debs/ or .stock-mesa in it) is refused.
 #   --deb FILE: unpack this mesa-vulkan-drivers .deb (read, never changed) instead of asking apt
 #        for bookworm's: no download for the driver itself (its version is the .deb's).
-# Writes DIR/lvp_icd.json, DIR/env (the variables to set, KEY=VALUE lines; tests/stock_mesa.rs
-# reads it), DIR/version (the Debian package version), DIR/root/ (the unpacked packages); prints
+# Writes DIR/lvp_icd.json, DIR/radv_icd.json (the same package's RADV, for `trilab driver-stats
+# --targets ... --mesa stock`: AMD's compiler as Mesa 22.3.6 has it, through RADV's null device),
+# DIR/env (the variables to set, KEY=VALUE lines; tests/stock_mesa.rs reads it), DIR/version (the
+# Debian package version), DIR/root/ (the unpacked packages); prints
 # the variables as one line to put before a command:
 #   env $(cat ~/.cache/trilab/stock-mesa/env) trilab devices
 # Exit 0 when DIR is ready, 1 when it cannot be made (the message says why), 2 on bad arguments.
@@ -100,7 +102,7 @@ unresolved() {
 }
 
 # Already complete: check it still resolves and print it.
-if [ -f "$dir/env" ] && [ -f "$dir/lvp_icd.json" ] && [ -f "$dir/version" ]; then
+if [ -f "$dir/env" ] && [ -f "$dir/lvp_icd.json" ] && [ -f "$dir/radv_icd.json" ] && [ -f "$dir/version" ]; then
   lib=$(sed -n 's/.*"library_path": *"\([^"]*\)".*/\1/p' "$dir/lvp_icd.json")
   extra=$(sed -n 's/^LD_LIBRARY_PATH=//p' "$dir/env")
   if [ -f "$lib" ] && [ -z "$(unresolved "$lib" "$extra")" ] &&
@@ -126,7 +128,7 @@ fi
 mkdir -p "$dir/debs" 2>/dev/null || die "cannot make $dir/debs (is $dir writable?)"
 touch "$dir/.stock-mesa"
 # What a failed run leaves half made is removed; what was complete before stays.
-trap 'rm -rf "$dir/root.new" "$dir/lvp_icd.json.tmp" "$dir/env.tmp"' EXIT
+trap 'rm -rf "$dir/root.new" "$dir/lvp_icd.json.tmp" "$dir/radv_icd.json.tmp" "$dir/env.tmp"' EXIT
 rm -rf "$dir/root.new"
 mkdir -p "$dir/root.new"
 fetch() { # package -> the .deb's path
@@ -164,6 +166,9 @@ if [ -n "$deb_given" ]; then unpack "$deb" "given by --deb: it is left as it is"
 lib=$(find "$dir/root.new" -name libvulkan_lvp.so -print -quit)
 icd=$(find "$dir/root.new/usr/share/vulkan/icd.d" -name 'lvp_icd*.json' -print -quit 2>/dev/null || true)
 [ -n "$lib" ] && [ -n "$icd" ] || die "$(basename "$deb") holds no libvulkan_lvp.so or lvp_icd*.json"
+radv_lib=$(find "$dir/root.new" -name libvulkan_radeon.so -print -quit)
+radv_icd=$(find "$dir/root.new/usr/share/vulkan/icd.d" -name 'radeon_icd*.json' -print -quit 2>/dev/null || true)
+[ -n "$radv_lib" ] && [ -n "$radv_icd" ] || die "$(basename "$deb") holds no libvulkan_radeon.so or radeon_icd*.json"
 libdir=$(dirname "$lib")
 
 # Libraries the old driver needs that this machine lacks: unpack their bookworm packages too
@@ -186,9 +191,13 @@ rm -rf "$dir/root"
 mv "$dir/root.new" "$dir/root"
 lib=${lib/$dir\/root.new/$dir/root}
 icd=${icd/$dir\/root.new/$dir/root}
+radv_lib=${radv_lib/$dir\/root.new/$dir/root}
+radv_icd=${radv_icd/$dir\/root.new/$dir/root}
 [ -z "$extra" ] || extra=${extra/$dir\/root.new/$dir/root}
 sed "s|\"library_path\": *\"[^\"]*\"|\"library_path\": \"$lib\"|" "$icd" >"$dir/lvp_icd.json.tmp"
 mv "$dir/lvp_icd.json.tmp" "$dir/lvp_icd.json"
+sed "s|\"library_path\": *\"[^\"]*\"|\"library_path\": \"$radv_lib\"|" "$radv_icd" >"$dir/radv_icd.json.tmp"
+mv "$dir/radv_icd.json.tmp" "$dir/radv_icd.json"
 {
   echo "VK_DRIVER_FILES=$dir/lvp_icd.json"
   [ -z "$extra" ] || echo "LD_LIBRARY_PATH=$extra"

@@ -79,6 +79,12 @@ impl Figure {
         Figure::exact(value, unit, Better::Lower, Class::Count)
     }
 
+    /// An exact count better the other way, or either way: a compiler's statistic such as the
+    /// subgroups a SIMD holds (higher is better).
+    pub fn count_toward(value: f64, unit: &str, better: Better) -> Figure {
+        Figure::exact(value, unit, better, Class::Count)
+    }
+
     /// A correctness figure, such as agreement (higher is better) or leaks (lower is better).
     pub fn correctness(value: f64, unit: &str, better: Better) -> Figure {
         Figure::exact(value, unit, better, Class::Correctness)
@@ -105,6 +111,12 @@ pub const JIT_CPU: &str = "jit_cpu";
 /// driver makes of them) are the same code's only when two rows name the same compiler;
 /// `trilab compare` does not judge counts whose rows name different ones.
 pub const SPIRV_COMPILER: &str = "spirv_compiler";
+
+/// The setting naming the driver build that compiled the row's kernels (its `driverInfo`, such
+/// as `Mesa 25.0.7-2~bpo12+1`, with the LLVM it uses): another build of the same driver compiles
+/// other code, so `trilab compare` (and the gate) do not judge the counts of rows whose
+/// `driver_build` differ, and say so.
+pub const DRIVER_BUILD: &str = "driver_build";
 
 /// Where a row was measured: enough to tell runners, devices and driver settings apart.
 #[derive(Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
@@ -155,12 +167,28 @@ pub struct Row {
     pub command: String,
     pub cell: Cell,
     pub figures: BTreeMap<String, Figure>,
+    /// What identifies the cell's result rather than measures it (a compiled kernel's hash), as
+    /// text: compared as changed or unchanged, never as better or worse.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub identities: BTreeMap<String, String>,
     pub source: Source,
 }
 
 impl Row {
     pub fn new(command: &str, cell: Cell, source: &Source) -> Row {
-        Row { command: command.into(), cell, figures: BTreeMap::new(), source: source.clone() }
+        Row {
+            command: command.into(),
+            cell,
+            figures: BTreeMap::new(),
+            identities: BTreeMap::new(),
+            source: source.clone(),
+        }
+    }
+
+    /// With an identity (a hash): see [`Row::identities`].
+    pub fn with_identity(mut self, name: &str, value: &str) -> Row {
+        self.identities.insert(name.into(), value.into());
+        self
     }
 
     pub fn with(mut self, name: &str, f: Figure) -> Row {

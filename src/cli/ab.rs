@@ -372,7 +372,11 @@ pub fn run_worker(a: WorkerArgs) -> Result<()> {
             GpuArgs::watch(&ctx);
             ctx
         }
-        None => a.gpu.context()?,
+        // An ab side runs its cells; a one-shot worker may be asked only to compile (a GPU
+        // target's driver statistics, on a device that only compiles), and refuses the requests
+        // that dispatch on such a device (commands::worker).
+        None if a.hits_dir.is_some() => a.gpu.context()?,
+        None => a.gpu.compile_context()?,
     };
     let workload = a.workload.workload();
     let side = a.hits_dir.as_deref().map(|hits_dir| trilab::commands::worker::AbSide { workload: &workload, hits_dir });

@@ -63,6 +63,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         count_threshold_pct: a.count_threshold,
         command_threshold_pct: a.command_threshold,
         timings: a.timings,
+        counts_across_driver_builds: true,
     };
     if let Some(dir) = &a.repro {
         trilab::commands::repro::refuse_existing("--repro", dir)?;

@@ -43,7 +43,7 @@ use clap::Args;
 use trilab::bvh::{BuildOptions, LeafPolicy};
 use trilab::encoding::Method;
 use trilab::error::{Error, Result};
-use trilab::gpu::{Context, ContextOptions, Validation, ValidationLog};
+use trilab::gpu::{Context, ContextOptions, Purpose, Validation, ValidationLog};
 use trilab::report::Report;
 use trilab::services::rayset::RaySetSizes;
 
@@ -105,10 +105,25 @@ impl GpuArgs {
         let _ = VALIDATION_LOG.set(ctx.validation_log());
     }
 
-    /// The device's context, with the validation layer when asked for.
+    /// The device's context, with the validation layer when asked for, for a command that runs
+    /// kernels: a device that only compiles is refused here, before any work.
     pub fn context(&self) -> Result<Context> {
-        let o =
-            ContextOptions { device: self.device.clone(), validation: self.validation_choice(), ..Default::default() };
+        self.context_for(Purpose::Run)
+    }
+
+    /// The device's context for a command that only compiles (`driver-stats`): a compile-only
+    /// device (RADV's null device) is taken too.
+    pub fn compile_context(&self) -> Result<Context> {
+        self.context_for(Purpose::Compile)
+    }
+
+    fn context_for(&self, purpose: Purpose) -> Result<Context> {
+        let o = ContextOptions {
+            device: self.device.clone(),
+            validation: self.validation_choice(),
+            purpose,
+            ..Default::default()
+        };
         let ctx = Context::new(&o)?;
         let _ = VALIDATION_LOG.set(ctx.validation_log());
         Ok(ctx)

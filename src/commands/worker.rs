@@ -54,8 +54,30 @@ pub fn serve(
     Ok(())
 }
 
+/// The refusal of a request that dispatches, on a device that only compiles (the worker of a GPU
+/// target is made on one): before any work, naming the device.
+fn runs(ctx: &Context, what: &str) -> Result<()> {
+    match &ctx.info().execution {
+        crate::gpu::Execution::Runs => Ok(()),
+        crate::gpu::Execution::CompilesOnly { why } => Err(Error::Unsupported(format!(
+            "worker: {what} runs kernels, and {} compiles only ({why})",
+            ctx.info().name
+        ))),
+    }
+}
+
 /// One request's answer.
 fn answer(ctx: &Context, validation: bool, r: Request) -> Result<Message> {
+    let dispatches = match &r {
+        Request::BenchThreads(_) => Some("a bench"),
+        Request::DispatchKernels { .. } => Some("dispatching kernels"),
+        Request::ReproDispatch { .. } => Some("a repro's dispatch"),
+        Request::MakeRepro(_) => Some("making a repro"),
+        _ => None,
+    };
+    if let Some(what) = dispatches {
+        runs(ctx, what)?;
+    }
     match r {
         Request::BenchThreads(b) => Ok(Message::Measured { measurements: profile::threads::measure(ctx, &b)? }),
         Request::DispatchKernels { kernels } => {
@@ -85,6 +107,9 @@ fn answer(ctx: &Context, validation: bool, r: Request) -> Result<Message> {
             };
             let made = repro::make(ctx, &req, |l| eprintln!("trilab: {l}"))?;
             Ok(Message::ReproMade { summary: made.summary() })
+        }
+        Request::CompileKernels(c) => {
+            Ok(Message::Compiled(driver_stats::compile::compile_kernels(ctx, &c.kernels, c.subgroup_size)?))
         }
         Request::Round | Request::Cell { .. } => Err(Error::Usage(
             "worker: rounds and cells are an ab side's (`__ab-worker WORKLOAD --hits-dir DIR`)".into(),

@@ -57,6 +57,21 @@ pub struct ContextOptions {
     /// replays on any device that can run the kernel): none of the optional features above but
     /// those in [`Needs`]; `None` enables every one the device has.
     pub only: Option<Needs>,
+    /// What the command will do with the device: run kernels (the default), or only compile
+    /// them, which a compile-only device ([`super::device_info::Execution::CompilesOnly`])
+    /// allows.
+    pub purpose: Purpose,
+}
+
+/// What a command does with its device.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Purpose {
+    /// It runs kernels: a device that only compiles is refused when the context is made,
+    /// before any work.
+    #[default]
+    Run,
+    /// It creates pipelines and reads what the driver made of them, and submits nothing.
+    Compile,
 }
 
 /// What one kernel needs of a device beyond Vulkan 1.2's core: the features its SPIR-V
@@ -80,6 +95,7 @@ impl Default for ContextOptions {
             inject_fault: None,
             test_limits: None,
             only: None,
+            purpose: Purpose::Run,
         }
     }
 }
@@ -224,9 +240,13 @@ impl Drop for Device {
     fn drop(&mut self) {
         // SAFETY: every object created from this device holds an Arc<Device>, so none is alive
         // now; we wait for the queue to drain, then destroy in reverse order of creation:
-        // command pool, allocator memory, device, debug messenger, instance.
+        // command pool, allocator memory, device, debug messenger, instance. A device that only
+        // compiles was never submitted to, and waiting on it would crash in its driver (RADV's
+        // null winsys implements no wait).
         unsafe {
-            let _ = self.raw.device_wait_idle();
+            if self.info.execution.runs() {
+                let _ = self.raw.device_wait_idle();
+            }
             self.raw.destroy_command_pool(*self.command_pool.get_mut().unwrap(), None);
             if let Ok(a) = self.allocator.get_mut() {
                 self.markers.destroy(&self.raw, a);
@@ -283,6 +303,14 @@ impl Context {
             physicals.iter().enumerate().map(|(i, &pd)| unsafe { device_info::query(instance, pd, i) }).collect();
         let chosen = choose_device(&infos, options.device.as_deref())?;
         let info = infos[chosen].clone();
+        if let (Purpose::Run, super::device_info::Execution::CompilesOnly { why }) = (options.purpose, &info.execution)
+        {
+            return Err(Error::Unsupported(format!(
+                "device [{chosen}] {} compiles only ({why}): this command runs kernels, so it cannot use it; \
+                 `trilab driver-stats` compiles every kernel there and reports the driver's statistics",
+                info.name
+            )));
+        }
         let physical = physicals[chosen];
         let queue_family = info.compute_queue_family.expect("usable device has a compute queue");
 
@@ -662,7 +690,8 @@ fn create_pool_and_allocator(
 }
 
 /// Picks the device: by `--device` (index or name/driver substring), else discrete GPU >
-/// integrated > virtual > CPU > other, lowest index first.
+/// integrated > virtual > CPU > other, lowest index first, every device that runs kernels before
+/// any that only compiles.
 pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize> {
     let list = || {
         infos.iter().map(|d| format!("  [{}] {} ({})", d.index, d.name, d.driver_name)).collect::<Vec<_>>().join("\n")
@@ -698,12 +727,16 @@ pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize
             None => Err(Error::NoDevice(format!("no device matches `{w}`; devices:\n{}", list()))),
         };
     }
-    let rank = |d: &DeviceInfo| match d.device_type.as_str() {
-        "DISCRETE_GPU" => 0,
-        "INTEGRATED_GPU" => 1,
-        "VIRTUAL_GPU" => 2,
-        "CPU" => 3,
-        _ => 4,
+    // A device that only compiles comes after every device that runs.
+    let rank = |d: &DeviceInfo| {
+        let kind = match d.device_type.as_str() {
+            "DISCRETE_GPU" => 0,
+            "INTEGRATED_GPU" => 1,
+            "VIRTUAL_GPU" => 2,
+            "CPU" => 3,
+            _ => 4,
+        };
+        (!d.execution.runs(), kind)
     };
     infos.iter().filter(|d| d.usable).min_by_key(|d| (rank(d), d.index)).map(|d| d.index).ok_or_else(|| {
         Error::NoDevice(format!("no usable Vulkan 1.2 device with a compute queue; devices:\n{}", list()))

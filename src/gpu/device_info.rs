@@ -96,6 +96,45 @@ pub struct DeviceInfo {
     pub usable: bool,
     /// Why the device cannot be used, if it cannot.
     pub unusable_reason: Option<String>,
+    /// Whether the device runs what it compiles ([`Execution`]).
+    pub execution: Execution,
+}
+
+/// Whether a device runs kernels, or only compiles them.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum Execution {
+    /// It compiles and runs: every command may use it.
+    Runs,
+    /// It creates pipelines and reports what its compiler made of them, and executes nothing:
+    /// any submission or wait would crash in the driver. Only commands that compile use it
+    /// (`trilab driver-stats`, `trilab devices`); every other refuses it before any work.
+    CompilesOnly {
+        /// Why, in words.
+        why: String,
+    },
+}
+
+impl Execution {
+    /// What a device of this name and driver does. The one compile-only device known is Mesa's
+    /// RADV on its null winsys: `RADV_FORCE_FAMILY=<chip>` with no AMD GPU present makes a
+    /// device named "Null hardware (RADV <CHIP>)" whose compiler is the real one (ACO, or LLVM
+    /// under `RADV_DEBUG=llvm`) and whose command submission is not implemented
+    /// (vkDeviceWaitIdle jumps to a null function: issue 50).
+    pub fn of(name: &str, driver_id: &str) -> Execution {
+        if driver_id == "MESA_RADV" && name.starts_with("Null hardware") {
+            return Execution::CompilesOnly {
+                why: "RADV's null device (RADV_FORCE_FAMILY without the GPU): it compiles for the chip with the \
+                      real compiler and reports its statistics, but has no hardware to run on"
+                    .into(),
+            };
+        }
+        Execution::Runs
+    }
+
+    pub fn runs(&self) -> bool {
+        matches!(self, Execution::Runs)
+    }
 }
 
 fn cstr(bytes: &[std::ffi::c_char]) -> String {
@@ -282,6 +321,7 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         compute_queue_family: compute_family,
         usable: unusable_reason.is_none(),
         unusable_reason,
+        execution: Execution::of(&cstr(&base.device_name), &format!("{:?}", v12.driver_id)),
     }
 }
 
@@ -321,6 +361,9 @@ impl DeviceInfo {
         let _ = writeln!(s, "[{}] {} ({}, Vulkan {})", self.index, self.name, self.device_type, self.api_version);
         if let Some(r) = &self.unusable_reason {
             let _ = writeln!(s, "    not usable: {r}");
+        }
+        if let Execution::CompilesOnly { why } = &self.execution {
+            let _ = writeln!(s, "    compiles only:            {why}");
         }
         let _ =
             writeln!(s, "    driver:                   {} ({}) {}", self.driver_name, self.driver_id, self.driver_info);
@@ -407,5 +450,14 @@ mod tests {
     fn mesa_version_is_parsed() {
         assert_eq!(super::mesa_version("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)").as_deref(), Some("25.0.7"));
         assert_eq!(super::mesa_version("535.104.05"), None);
+    }
+
+    #[test]
+    fn radv_null_hardware_compiles_only() {
+        use super::Execution;
+        assert!(!Execution::of("Null hardware (RADV NAVI31)", "MESA_RADV").runs());
+        assert!(!Execution::of("Null hardware (RADV PITCAIRN (LLVM 15.0.6))", "MESA_RADV").runs());
+        assert!(Execution::of("AMD Radeon RX 7900 XTX (RADV NAVI31)", "MESA_RADV").runs());
+        assert!(Execution::of("llvmpipe (LLVM 15.0.6, 256 bits)", "MESA_LLVMPIPE").runs());
     }
 }

@@ -2,10 +2,15 @@
 //!
 //! - [`accel`]: the driver's acceleration structures (BLAS + TLAS) for ray query and the ray
 //!   tracing pipeline.
+//! - [`amd`]: AMD chips as Mesa's RADV knows them, and the occupancy (subgroups per SIMD) its
+//!   compiler's statistics report, with the cliffs one more register would cost.
 //! - [`capabilities`]: one home for what a device can run ([`Capabilities`]: per kernel, method,
 //!   access path, traversal, driver peer and statistic, each "no" with its reason).
 //! - [`context`]: instance, device, queue, allocator, validation log, teardown.
-//! - [`device_info`]: what a device and its driver offer (`trilab devices`).
+//! - [`device_info`]: what a device and its driver offer (`trilab devices`), and whether it runs
+//!   kernels or only compiles them.
+//! - [`executable`]: what the driver's compiler reports about a pipeline
+//!   (`VK_KHR_pipeline_executable_properties`), typed: unit, direction, or identity.
 //! - [`buffer`]: named buffers and texel buffers, uploads, downloads, one-shot submits.
 //! - [`descriptors`]: descriptor sets checked against the kernel's reflected bindings.
 //! - [`kernel`]: compute pipelines built from SPIR-V reflection.
@@ -25,12 +30,14 @@
 //! - `timestamps`: timestamp query pairs read back as milliseconds.
 
 pub mod accel;
+pub mod amd;
 pub mod buffer;
 pub mod capabilities;
 pub mod commands;
 pub mod context;
 pub mod descriptors;
 pub mod device_info;
+pub mod executable;
 pub mod kernel;
 pub mod limits;
 pub mod markers;
@@ -46,9 +53,9 @@ pub mod traversal_stats;
 pub use accel::{AccelStats, AccelStructure};
 pub use buffer::{Buffer, TexelBuffer};
 pub use capabilities::{Capabilities, DriverKind, Statistic, Unsupported};
-pub use context::{Context, ContextOptions, EnabledFeatures, Needs, Validation, ValidationLog};
+pub use context::{Context, ContextOptions, EnabledFeatures, Needs, Purpose, Validation, ValidationLog};
 pub use descriptors::Resource;
-pub use device_info::{DeviceInfo, RayTracingPipelineProperties};
+pub use device_info::{DeviceInfo, Execution, RayTracingPipelineProperties};
 pub use kernel::{Kernel, PipelineOptions};
 pub use markers::{Fault, FaultKind};
 pub use peer::{Peer, PeerTracer};

@@ -65,6 +65,27 @@ impl Provenance {
     }
 }
 
+impl Provenance {
+    /// Where a run that opened no device itself ran (its workers each had one: `driver-stats
+    /// --targets`), now, on this host: `device` and `driver` say what those were.
+    pub fn without_device(device: &str, driver: &str) -> Provenance {
+        Provenance {
+            device: device.into(),
+            driver: driver.into(),
+            mesa_version: None,
+            commit: commit(),
+            date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+            host: crate::host::Host::current(),
+            lp_num_threads: None,
+            timed_on_gpu: false,
+            settings: Default::default(),
+            scenes: vec![],
+            spirv_compiler: crate::kernels::SPIRV_COMPILER,
+            driver_package: None,
+        }
+    }
+}
+
 /// The `version` file beside the one ICD file `VK_DRIVER_FILES` names, if there is exactly one and
 /// it has such a file (see [`Provenance::driver_package`]).
 fn driver_package() -> Option<String> {

@@ -26,13 +26,32 @@ use crate::services::driver_stats::{KernelCell, COMMAND};
 use crate::services::worker::protocol::{DriverStatsRequest, PROTOCOL_TYPED};
 use crate::services::worker::{self, Message, Request};
 
-/// One figure of one kernel that differs between the sides (every driver statistic is a count
-/// where fewer is better).
+/// One figure of one kernel that differs between the sides, and which way it is better (fewer
+/// instructions; more subgroups per SIMD).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct StatChange {
     pub figure: String,
     pub a: f64,
     pub b: f64,
+    pub better: crate::rows::Better,
+}
+
+impl StatChange {
+    /// B is better than A by the figure's direction.
+    pub fn helped(&self) -> bool {
+        match self.better {
+            crate::rows::Better::Lower => self.b < self.a,
+            crate::rows::Better::Higher => self.b > self.a,
+        }
+    }
+
+    /// B is worse than A by the figure's direction.
+    pub fn hurt(&self) -> bool {
+        match self.better {
+            crate::rows::Better::Lower => self.b > self.a,
+            crate::rows::Better::Higher => self.b < self.a,
+        }
+    }
 }
 
 /// One side's statistics: its `driver-stats` rows, or why there are none.
@@ -134,11 +153,11 @@ fn older_build(
     Ok((set.rows, note))
 }
 
-/// The figures of `cell`'s kernel in `rows`, name to value.
-fn figures_of(rows: &[Row], cell: &CellInfo) -> Option<BTreeMap<String, f64>> {
+/// The figures of `cell`'s kernel in `rows`, name to value and direction.
+fn figures_of(rows: &[Row], cell: &CellInfo) -> Option<BTreeMap<String, (f64, crate::rows::Better)>> {
     let want = kernel_cell(cell)?;
     let row = rows.iter().find(|r| KernelCell::try_from(&r.cell).as_ref() == Ok(&want))?;
-    Some(row.figures.iter().map(|(n, f)| (n.clone(), f.median)).collect())
+    Some(row.figures.iter().map(|(n, f)| (n.clone(), (f.median, f.better))).collect())
 }
 
 /// The figures of a cell's kernel that differ between the sides (each side's cell: with
@@ -150,9 +169,10 @@ pub fn diff([a, b]: [&SideStats; 2], [cell_a, cell_b]: [&CellInfo; 2]) -> Option
         names
             .into_iter()
             .filter_map(|n| {
-                let (x, y) = (fa.get(n).copied().unwrap_or(f64::NAN), fb.get(n).copied().unwrap_or(f64::NAN));
+                let (x, y) = (fa.get(n).map_or(f64::NAN, |f| f.0), fb.get(n).map_or(f64::NAN, |f| f.0));
+                let better = fa.get(n).or(fb.get(n)).map_or(crate::rows::Better::Lower, |f| f.1);
                 // A figure only one side reports differs too (NaN on the other).
-                (x != y).then(|| StatChange { figure: n.clone(), a: x, b: y })
+                (x != y).then(|| StatChange { figure: n.clone(), a: x, b: y, better })
             })
             .collect(),
     )
@@ -213,7 +233,11 @@ mod tests {
         assert!(same.is_empty(), "{same:?}");
         let d = diff([&side(vec![row(100.0, Some(2.0))]), &side(vec![row(110.0, None)])], [&c, &c]).unwrap();
         assert_eq!(d.len(), 2, "{d:?}");
-        assert_eq!(d[0], StatChange { figure: "instructions".into(), a: 100.0, b: 110.0 });
+        assert_eq!(
+            d[0],
+            StatChange { figure: "instructions".into(), a: 100.0, b: 110.0, better: crate::rows::Better::Lower }
+        );
+        assert!(d[0].hurt() && !d[0].helped());
         assert!(d[1].figure == "vector_spills" && d[1].a == 2.0 && d[1].b.is_nan());
         assert_eq!(describe(&d[..1]), "instructions 100 -> 110 (+10.0 %)");
         // A side without statistics, or a kernel it did not compile: nothing to compare.

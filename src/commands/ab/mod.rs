@@ -343,7 +343,8 @@ impl AbReport {
     }
 
     /// Kernels whose driver statistics changed (each once, however many cells ran it), then
-    /// totals per figure: kernels helped (fewer) and hurt (more).
+    /// totals per figure: kernels helped and hurt, by each figure's direction (fewer
+    /// instructions, more subgroups per SIMD).
     fn compiled_text(&self) -> String {
         let Some(notes) = &self.driver_stats else { return String::new() };
         let mut s = String::from("\ncompiled code (driver statistics; kernels that changed):\n");
@@ -365,9 +366,9 @@ impl AbReport {
         let mut per_figure: std::collections::BTreeMap<&str, (usize, usize)> = Default::default();
         for ch in changed.iter().flat_map(|(_, ch)| ch.iter()) {
             let e = per_figure.entry(&ch.figure).or_default();
-            if ch.b < ch.a {
+            if ch.helped() {
                 e.0 += 1;
-            } else if ch.b > ch.a {
+            } else if ch.hurt() {
                 e.1 += 1;
             }
         }

@@ -5,7 +5,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use super::judge::{judge, scaled, time_factor, FigureChange, Verdict};
-use super::report::{CountTotal, Totals};
+use super::report::{CountTotal, IdentityTotal, Totals};
 use super::{CompareOptions, Matched, TimingRule};
 use crate::rows::{self, Cell, Class, Row};
 
@@ -21,6 +21,12 @@ pub(super) struct Judged {
     pub(super) other_cpus: BTreeSet<(String, String, String)>,
     /// (command, BASE's GLSL compiler, NEW's) of counts not judged.
     pub(super) other_compilers: BTreeSet<(String, String, String)>,
+    /// (command, BASE's driver build, NEW's) of counts compiled by different driver builds:
+    /// judged (`compare`: the changes are the drivers') or not (the gate).
+    pub(super) other_drivers: BTreeSet<(String, String, String)>,
+    pub(super) judged_across_drivers: bool,
+    /// Identities (hashes) per command and name: in how many cells, changed in how many.
+    pub(super) identities: BTreeMap<(String, String), IdentityTotal>,
     /// Each timed cell's one verdict under the calibrated rule (for the kernels' groups).
     pub(super) cell_verdicts: BTreeMap<(String, Cell), Verdict>,
 }
@@ -46,6 +52,23 @@ impl Judged {
                 name(n_cpu)
             ));
         }
+        for (command, b, n) in &self.other_drivers {
+            warnings.push(if self.judged_across_drivers {
+                format!(
+                    "{command}: BASE's kernels and NEW's were compiled by different driver builds (BASE: {}; NEW: {}): \
+                     the count changes below are the drivers' (and the code's, if it changed too)",
+                    name(b),
+                    name(n)
+                )
+            } else {
+                format!(
+                    "{command}: BASE's kernels and NEW's were compiled by different driver builds (BASE: {}; NEW: {}): \
+                     their counts differ by the driver alone, so they are not judged",
+                    name(b),
+                    name(n)
+                )
+            });
+        }
         for (command, b, n) in &self.other_compilers {
             warnings.push(format!(
                 "{command}: BASE's SPIR-V and NEW's come from different GLSL compilers (BASE: {}; NEW: {}): their \
@@ -68,9 +91,20 @@ pub(super) fn judge_figures(
 ) -> Judged {
     // A command's speed NEW/BASE: the geometric mean over its cells.
     let geomean = |c: &str| log_speed.get(c).map(|(_, mean_log_factor)| (-mean_log_factor).exp());
-    let mut j = Judged::default();
+    let mut j = Judged { judged_across_drivers: o.counts_across_driver_builds, ..Judged::default() };
     for (k, br, nr) in matched {
         totals.cells_compared += 1;
+        for (name, bv) in &br.identities {
+            let Some(nv) = nr.identities.get(name) else { continue };
+            let t = j.identities.entry((k.0.clone(), name.clone())).or_insert_with(|| IdentityTotal {
+                command: k.0.clone(),
+                identity: name.clone(),
+                cells: 0,
+                cells_changed: 0,
+            });
+            t.cells += 1;
+            t.cells_changed += (bv != nv) as usize;
+        }
         let names: BTreeSet<&String> = br.figures.keys().chain(nr.figures.keys()).collect();
         for name in names {
             let (Some(bf), Some(nf)) = (br.figures.get(name), nr.figures.get(name)) else {
@@ -102,6 +136,14 @@ pub(super) fn judge_figures(
                     setting(nr, rows::SPIRV_COMPILER),
                 ));
                 continue;
+            }
+            let (b_driver, n_driver) = (setting(br, rows::DRIVER_BUILD), setting(nr, rows::DRIVER_BUILD));
+            if bf.class == Class::Count && b_driver != n_driver {
+                j.other_drivers.insert((k.0.clone(), b_driver, n_driver));
+                if !o.counts_across_driver_builds {
+                    totals.counts_other_driver += 1;
+                    continue;
+                }
             }
             totals.figures_compared += 1;
             let t = if bf.class == Class::Count { o.count_pct() } else { o.threshold_pct };
@@ -146,15 +188,26 @@ pub(super) fn judge_figures(
                     command: k.0.clone(),
                     figure: name.clone(),
                     unit: bf.unit.clone(),
+                    better: bf.better,
                     base: 0.0,
                     new: 0.0,
                     cells: 0,
                     cells_changed: 0,
+                    base_affected: 0.0,
+                    new_affected: 0.0,
+                    cells_better: 0,
+                    cells_worse: 0,
                 });
                 t.base += bf.median;
                 t.new += nf.median;
                 t.cells += 1;
-                t.cells_changed += (verdict != Verdict::Unchanged) as usize;
+                if verdict != Verdict::Unchanged {
+                    t.cells_changed += 1;
+                    t.base_affected += bf.median;
+                    t.new_affected += nf.median;
+                    t.cells_better += (verdict == Verdict::Better) as usize;
+                    t.cells_worse += (verdict == Verdict::Worse) as usize;
+                }
             }
             j.regressions += regression as usize;
             let change = FigureChange {

@@ -90,6 +90,11 @@ pub struct CompareOptions {
     /// The calibrated rule's command-wide threshold.
     pub command_threshold_pct: f64,
     pub timings: TimingRule,
+    /// Judge the counts of rows that different driver builds compiled ([`rows::DRIVER_BUILD`]):
+    /// `compare` does (comparing two Mesa builds is what it is for, and it says the changes are
+    /// the drivers'); the gate does not, since another build on the CI host says nothing about
+    /// the code.
+    pub counts_across_driver_builds: bool,
 }
 
 impl Default for CompareOptions {
@@ -99,6 +104,7 @@ impl Default for CompareOptions {
             count_threshold_pct: None,
             command_threshold_pct: DEFAULT_COMMAND_THRESHOLD_PCT,
             timings: TimingRule::Auto,
+            counts_across_driver_builds: true,
         }
     }
 }
@@ -196,10 +202,12 @@ pub fn load(path: &Path) -> Result<(Side, Vec<Row>)> {
 
 /// `device (driver), commit C, K=V ...` (the host is named apart, with what its JIT compiles
 /// for: [`rows::JIT_CPU`] is the host's, not a setting of the run; [`rows::SPIRV_COMPILER`] is
-/// the build's, named where counts are not judged for it).
+/// the build's, named where counts are not judged for it; [`rows::DRIVER_BUILD`] is the driver's,
+/// already named).
 fn source_label(s: &rows::Source) -> String {
     let mut label = format!("{} ({}), commit {}", s.device, s.driver, s.commit);
-    for (k, v) in s.settings.iter().filter(|(k, _)| k.as_str() != rows::JIT_CPU && k.as_str() != rows::SPIRV_COMPILER) {
+    let hidden = [rows::JIT_CPU, rows::SPIRV_COMPILER, rows::DRIVER_BUILD];
+    for (k, v) in s.settings.iter().filter(|(k, _)| !hidden.contains(&k.as_str())) {
         label.push_str(&format!(", {k}={v}"));
     }
     label
@@ -297,6 +305,7 @@ pub fn compare_with(
         totals,
         speed,
         counts: figures.counts.into_values().collect(),
+        identities: figures.identities.into_values().collect(),
         warnings,
         regressions,
         passed: regressions == 0,
@@ -320,9 +329,14 @@ fn source_warnings(base: &Side, base_rows: &[&Row], new: &Side, new_rows: &[&Row
         ));
     }
     for (side, name, rows) in [(base, "BASE", base_rows), (new, "NEW", new_rows)] {
-        let mut by_command: BTreeMap<&str, BTreeSet<String>> = BTreeMap::new();
+        // Rows of GPU targets name their chip in the cell: each chip's device is its own.
+        let mut by_command: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
         for r in rows.iter() {
-            by_command.entry(r.command.as_str()).or_default().insert(source_label(&r.source));
+            let command = match r.cell.get("chip") {
+                Some(chip) => format!("{} ({chip})", r.command),
+                None => r.command.clone(),
+            };
+            by_command.entry(command).or_default().insert(source_label(&r.source));
         }
         for (command, sources) in by_command.iter().filter(|(_, s)| s.len() > 1) {
             warnings.push(format!(
@@ -470,7 +484,14 @@ mod tests {
         assert_eq!(r.changes[0].verdict, Verdict::Worse);
         let total = r.counts.iter().find(|c| c.figure == "spirv_instructions").unwrap();
         assert_eq!((total.base, total.new, total.cells, total.cells_changed), (1100.0, 1101.0, 2, 1));
-        assert!(r.to_text().contains("1100 -> 1101 instructions (+0.09 %), 1 of 2 cells changed"), "{}", r.to_text());
+        assert!(
+            r.to_text().contains(
+                "spirv_instructions: 1100 -> 1101 instructions (+0.09 %; lower is better); 1 of 2 cells changed, 0 better, \
+                 1 worse: 500 -> 501 (+0.20 %)"
+            ),
+            "{}",
+            r.to_text()
+        );
         // At a threshold below 0.2 % the same +1 fails.
         assert_eq!(run(&new, 0.1).exit_code(), 1);
     }
@@ -577,6 +598,7 @@ mod tests {
             count_threshold_pct: Some(0.0),
             command_threshold_pct: 30.0,
             timings,
+            counts_across_driver_builds: false,
         };
         compare_with(side(base, "base"), base, side(new, "new"), new, &o)
     }
@@ -794,5 +816,77 @@ mod tests {
         assert_eq!((unit.cells_slower, unit.verdict, unit.regression), (1, Verdict::WithinSpread, false), "{unit:?}");
         assert!(unit.low > 1.0, "its interval alone would have called it slower: {unit:?}");
         assert!(r.passed, "{}", r.to_text());
+    }
+
+    /// A compiled kernel's statistics as RADV gives them, typed: VGPRs fewer-is-better,
+    /// subgroups per SIMD more-is-better, the hash an identity; compiled by `driver`.
+    fn compiled(vgprs: f64, subgroups: f64, hash: &str, driver: &str) -> Vec<Row> {
+        let mut s = source("aaa");
+        s.settings.insert(rows::DRIVER_BUILD.into(), driver.into());
+        vec![Row::new("driver-stats", cell([("kernel", "raycast"), ("method", "mt"), ("chip", "navi21")]), &s)
+            .with("vgprs", Figure::count(vgprs, "registers"))
+            .with("subgroups_per_simd", Figure::count_toward(subgroups, "subgroups", Better::Higher))
+            .with_identity("hash", hash)]
+    }
+
+    /// Issue 50: Mesa 25.0.7 gives a kernel fewer VGPRs and more subgroups per SIMD than 22.3.6;
+    /// the rise in occupancy is better, not a regression, and the changed hash is an identity
+    /// that changed, judged neither way.
+    #[test]
+    fn more_subgroups_per_simd_is_better_and_a_hash_is_only_changed() {
+        let (b, n) = (compiled(48.0, 20.0, "0x1", "radv Mesa 22.3.6"), compiled(40.0, 24.0, "0x2", "radv Mesa 25.0.7"));
+        let r = compare(side(&b, "base"), &b, side(&n, "new"), &n, 10.0);
+        let verdict = |f: &str| r.changes.iter().find(|c| c.figure == f).map(|c| (c.verdict, c.regression));
+        assert_eq!(verdict("subgroups_per_simd"), Some((Verdict::Better, false)), "{}", r.to_text());
+        assert_eq!(verdict("vgprs"), Some((Verdict::Better, false)));
+        assert_eq!(verdict("hash"), None, "a hash is no figure: {}", r.to_text());
+        assert!(r.passed, "{}", r.to_text());
+        let id = r.identities.iter().find(|i| i.identity == "hash").unwrap();
+        assert_eq!((id.cells, id.cells_changed), (1, 1));
+        let text = r.to_text();
+        assert!(
+            text.contains("driver-stats hash: changed in 1 of 1 cells (an identity: not better or worse)"),
+            "{text}"
+        );
+        assert!(text.contains("subgroups_per_simd: 20 -> 24 subgroups (+20.00 %; higher is better)"), "{text}");
+        assert!(
+            r.warnings.iter().any(|w| w.contains("different driver builds") && w.contains("are the drivers'")),
+            "{:?}",
+            r.warnings
+        );
+        // The other way round, fewer subgroups per SIMD is worse, and beyond 10 % a regression.
+        let r = compare(side(&n, "base"), &n, side(&b, "new"), &b, 10.0);
+        let c = r.changes.iter().find(|c| c.figure == "subgroups_per_simd").unwrap();
+        assert_eq!((c.verdict, c.regression), (Verdict::Worse, true), "{}", r.to_text());
+        // An unchanged hash is an unchanged identity.
+        let same = compiled(48.0, 20.0, "0x1", "radv Mesa 22.3.6");
+        let r = compare(side(&b, "base"), &b, side(&same, "new"), &same, 10.0);
+        assert_eq!(r.identities[0].cells_changed, 0);
+        assert!(r.changes.is_empty() && r.passed);
+    }
+
+    /// The gate's rule: counts of another driver build are not judged, and it says so.
+    #[test]
+    fn the_gate_does_not_judge_counts_of_another_driver_build() {
+        let (b, n) = (compiled(40.0, 24.0, "0x1", "radv Mesa 25.0.7"), compiled(48.0, 20.0, "0x2", "radv Mesa 25.1.0"));
+        let o = CompareOptions {
+            count_threshold_pct: Some(0.0),
+            timings: TimingRule::Ignore,
+            counts_across_driver_builds: false,
+            ..CompareOptions::default()
+        };
+        let r = compare_with(side(&b, "base"), &b, side(&n, "new"), &n, &o).unwrap();
+        assert!(r.passed && r.changes.is_empty(), "{}", r.to_text());
+        assert_eq!(r.totals.counts_other_driver, 2);
+        assert!(
+            r.warnings.iter().any(|w| w.contains("differ by the driver alone, so they are not judged")),
+            "{:?}",
+            r.warnings
+        );
+        assert!(r.to_text().contains("counts of different driver builds, not judged: 2"), "{}", r.to_text());
+        // The same build: judged exactly, and the worse VGPRs fail.
+        let n = compiled(48.0, 20.0, "0x2", "radv Mesa 25.0.7");
+        let r = compare_with(side(&b, "base"), &b, side(&n, "new"), &n, &o).unwrap();
+        assert!(!r.passed, "{}", r.to_text());
     }
 }

@@ -8,16 +8,75 @@ use super::{Side, TimingRule, LIST_MAX};
 use crate::report::{Report, Table};
 use crate::rows::{Class, Figure};
 
-/// A count figure summed over every matched cell of a command.
+/// A count figure summed over every matched cell of a command, and over the cells where it
+/// changed (fossil-db's "totals from affected shaders").
 #[derive(Clone, Debug, Serialize)]
 pub struct CountTotal {
     pub command: String,
     pub figure: String,
     pub unit: String,
+    /// Which way is better (more subgroups per SIMD, fewer instructions).
+    pub better: crate::rows::Better,
     pub base: f64,
     pub new: f64,
     pub cells: usize,
     pub cells_changed: usize,
+    /// The sums over the cells where the figure changed.
+    pub base_affected: f64,
+    pub new_affected: f64,
+    pub cells_better: usize,
+    pub cells_worse: usize,
+}
+
+/// An identity (a compiled kernel's hash) over the matched cells of a command: compared as
+/// changed or unchanged, never as better or worse.
+#[derive(Clone, Debug, Serialize)]
+pub struct IdentityTotal {
+    pub command: String,
+    pub identity: String,
+    pub cells: usize,
+    pub cells_changed: usize,
+}
+
+/// The count totals, per command, as fossil-db reports them: each figure over every cell in both
+/// sides, then over the cells where it changed, with how many got better and worse (by the
+/// figure's own direction).
+fn count_totals(counts: &[CountTotal]) -> String {
+    let mut s = String::new();
+    let mut commands: Vec<&str> = counts.iter().map(|c| c.command.as_str()).collect();
+    commands.dedup();
+    for command in commands {
+        let of: Vec<&CountTotal> = counts.iter().filter(|c| c.command == command).collect();
+        let cells = of.iter().map(|c| c.cells).max().unwrap_or(0);
+        let affected = of.iter().map(|c| c.cells_changed).max().unwrap_or(0);
+        s += &format!("{command} totals ({cells} cells in both; {affected} with a change in one figure at least):\n");
+        for c in of.iter().filter(|c| c.cells_changed > 0) {
+            let way = match c.better {
+                crate::rows::Better::Lower => "lower is better",
+                crate::rows::Better::Higher => "higher is better",
+            };
+            s += &format!(
+                "  {}: {} -> {} {} ({}; {way}); {} of {} cells changed, {} better, {} worse: {} -> {} ({})\n",
+                c.figure,
+                value(c.base),
+                value(c.new),
+                c.unit,
+                pct(c.base, c.new),
+                c.cells_changed,
+                c.cells,
+                c.cells_better,
+                c.cells_worse,
+                value(c.base_affected),
+                value(c.new_affected),
+                pct(c.base_affected, c.new_affected)
+            );
+        }
+        let unchanged: Vec<&str> = of.iter().filter(|c| c.cells_changed == 0).map(|c| c.figure.as_str()).collect();
+        if !unchanged.is_empty() {
+            s += &format!("  unchanged in every cell: {}\n", unchanged.join(", "));
+        }
+    }
+    s
 }
 
 /// The counts of what was compared.
@@ -45,6 +104,9 @@ pub struct Totals {
     /// Counts not judged because the two sides' SPIR-V came from different GLSL compilers
     /// ([`rows::SPIRV_COMPILER`], or one side does not name its compiler).
     pub counts_other_compiler: usize,
+    /// Counts not judged because different driver builds compiled them ([`rows::DRIVER_BUILD`];
+    /// the gate's rule: `compare` judges them and says so).
+    pub counts_other_driver: usize,
     /// Timing figures of matched cells left unjudged by the `ignore` rule.
     pub timings_not_judged: usize,
 }
@@ -68,6 +130,8 @@ pub struct CompareReport {
     pub totals: Totals,
     pub speed: Vec<CommandSpeed>,
     pub counts: Vec<CountTotal>,
+    /// Identities (hashes) per command: in how many cells they changed.
+    pub identities: Vec<IdentityTotal>,
     pub warnings: Vec<String>,
     pub regressions: usize,
     /// No regression: exit status 0.
@@ -358,17 +422,11 @@ impl Report for CompareReport {
                 }
             }
         }
-        for c in &self.counts {
+        s += &count_totals(&self.counts);
+        for i in &self.identities {
             s += &format!(
-                "{} {}: {} -> {} {} ({}), {} of {} cells changed\n",
-                c.command,
-                c.figure,
-                value(c.base),
-                value(c.new),
-                c.unit,
-                pct(c.base, c.new),
-                c.cells_changed,
-                c.cells
+                "{} {}: changed in {} of {} cells (an identity: not better or worse)\n",
+                i.command, i.identity, i.cells_changed, i.cells
             );
         }
         s += &format!("correctness: {} figures changed, {} worse\n", t.correctness_changed, t.correctness_worse);
@@ -380,6 +438,9 @@ impl Report for CompareReport {
         }
         if t.counts_other_compiler > 0 {
             s += &format!("counts of different GLSL compilers, not judged: {}\n", t.counts_other_compiler);
+        }
+        if t.counts_other_driver > 0 {
+            s += &format!("counts of different driver builds, not judged: {}\n", t.counts_other_driver);
         }
         s += &if self.passed {
             format!("verdict: pass (no regression beyond {}, no correctness worse)\n", self.thresholds())

@@ -329,8 +329,10 @@ fn driver_statistics(out: &mut String, r: &ProfileReport) {
         *out += &crate::services::driver_stats::table(ks).to_markdown();
         *out += crate::services::driver_stats::LEGEND;
     }
-    for k in ks.iter().filter(|k| !k.executable.is_empty()) {
-        let stats: Vec<String> = k.executable.iter().map(|(n, v)| format!("{n} {v}")).collect();
-        let _ = writeln!(out, "- {}: {}", k.name, stats.join(", "));
+    let compiled: Vec<&crate::services::driver_stats::KernelStats> =
+        ks.iter().filter(|k| !k.statistics.is_empty()).collect();
+    if !compiled.is_empty() {
+        *out += &crate::services::driver_stats::report::compiled_table(&compiled).to_markdown();
+        *out += crate::services::driver_stats::report::COMPILED_LEGEND;
     }
 }

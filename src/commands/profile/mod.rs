@@ -45,14 +45,15 @@ use crate::services::roofline::RooflineReport;
 use crate::services::validate::{interleaved, mrays_per_s as mrays, mrays_summary, Interleaved, Job};
 use crate::shared::SPEC_ID_WORKGROUP_SIZE;
 
+pub use crate::gpu::executable::ExecutableStatistic;
 pub use crate::services::driver_stats::dispatch::{dispatch_once, SingleDispatch};
-pub use crate::services::driver_stats::executable::ExecutableStatistic;
 pub use clock::{CycleStats, HeatScale};
 pub use threads::ThreadMeasurement;
 
+use crate::gpu::executable;
 pub use crate::rays::differing_hits;
 pub use crate::report::Status;
-use crate::services::driver_stats::{self, executable};
+use crate::services::driver_stats;
 /// Fraction of rays that must agree with the f64 reference (as `trilab bench` requires).
 pub use crate::services::validate::MIN_AGREEMENT;
 
@@ -751,6 +752,7 @@ pub fn rows(r: &ProfileReport) -> Vec<crate::rows::Row> {
         status: r.driver_statistics.status,
         note: r.driver_statistics.note.clone(),
         kernels: r.driver_statistics.rows.clone(),
+        targets: vec![],
     };
     out.extend(driver_stats::rows(&ds));
     out

@@ -31,13 +31,19 @@
 //!   `PROFILE` builds; LLVM's own options (`-print-after-all`, the assembly printer's
 //!   `Spill`/`Reload` comments) cannot be passed to a built Mesa through the environment.
 //!
-//! Where the device is not lavapipe: the statistics the driver reports through
-//! `VK_KHR_pipeline_executable_properties` if it offers the extension (untested here, as in
-//! `trilab profile`), else "not available on this driver" and no figures.
+//! Where the device is not lavapipe: the statistics the driver's compiler reports through
+//! `VK_KHR_pipeline_executable_properties` ([`compile`]; RADV and NVIDIA offer it), typed
+//! ([`crate::gpu::executable`]: unit, direction, or identity), else "not available on this
+//! driver" and no figures. [`target`] compiles every kernel for many GPU targets at once (chip x
+//! compiler x subgroup size x Mesa build) through RADV's null device, one worker per target;
+//! [`report`] writes what they compiled as tables people read, with the occupancy cliffs of
+//! each kernel ([`crate::gpu::amd`]).
 
+pub mod compile;
 pub mod dispatch;
-pub mod executable;
 pub mod lavapipe_asm;
+pub mod report;
+pub mod target;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -47,7 +53,8 @@ use serde::Serialize;
 use crate::bvh::BuildOptions;
 use crate::encoding::{Layout, Method, RaycastKey};
 use crate::error::{Error, Result};
-use crate::gpu::{Context, PipelineOptions, RaycastOptions, Statistic};
+use crate::gpu::executable::CompilerStatistic;
+use crate::gpu::{Context, RaycastOptions, Statistic};
 use crate::kernels::{KernelSource, KERNELS};
 use crate::named::Named;
 use crate::pipeline::{HostScene, SceneRequest};
@@ -56,7 +63,9 @@ use crate::rows::{cell, Figure, Row};
 use crate::scene::load_obj;
 use crate::services::provenance::Provenance;
 use crate::services::worker::{self, Launch, Message, Request};
+use compile::CompiledFor;
 use lavapipe_asm::KernelAsm;
+use target::GpuTarget;
 
 /// The command name on every row of driver statistics, whether `trilab driver-stats` or
 /// `trilab profile` wrote them: the figures depend on the kernel and the driver only, so a
@@ -97,13 +106,30 @@ pub fn base_variant(k: &KernelSource) -> &'static str {
     k.variant.strip_suffix(&format!("_{}", k.layout)).unwrap_or(k.variant)
 }
 
+/// `--kernels all` / `--variants all`: every kernel file, or every variant.
+pub const ALL: &str = "all";
+
 impl Selection {
+    /// Every kernel of the registry: every kernel file, variant, method and layout (what a
+    /// compiler that needs no dispatch can compile: `driver-stats --targets`).
+    pub fn everything() -> Selection {
+        Selection {
+            kernels: vec![ALL.into()],
+            variants: vec![ALL.into()],
+            methods: Method::ALL.to_vec(),
+            layouts: Layout::ALL.to_vec(),
+        }
+    }
+
     /// The registry's variants it names, in the registry's order; an error naming what matched
-    /// nothing.
+    /// nothing. A kernel that traces no rays (`none`: the probes, the roofline, the driver's
+    /// ray query) has no method, and only `--kernels` and `--variants` choose it.
     pub fn kernels(&self) -> Result<Vec<&'static KernelSource>> {
         let methods: Vec<String> = self.methods.iter().map(|m| m.to_string()).collect();
         let layouts: Vec<String> = self.layouts.iter().map(|l| l.to_string()).collect();
-        for k in &self.kernels {
+        let all_kernels = self.kernels.iter().any(|k| k == ALL);
+        let all_variants = self.variants.iter().any(|v| v == ALL);
+        for k in self.kernels.iter().filter(|k| *k != ALL) {
             if !KERNELS.iter().any(|s| s.kernel == k) {
                 let mut known: Vec<&str> = KERNELS.iter().map(|s| s.kernel).collect();
                 known.dedup();
@@ -114,9 +140,9 @@ impl Selection {
             .iter()
             .filter(|s| {
                 let c = KernelCell::of(s);
-                self.kernels.contains(&c.kernel)
-                    && self.variants.contains(&c.variant)
-                    && methods.contains(&c.method)
+                (all_kernels || self.kernels.contains(&c.kernel))
+                    && (all_variants || self.variants.contains(&c.variant))
+                    && (s.intersector == "none" || methods.contains(&c.method))
                     && layouts.contains(&c.layout)
             })
             .collect();
@@ -191,14 +217,40 @@ pub struct KernelStats {
     /// lavapipe: the counts from its machine code.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lavapipe: Option<KernelAsm>,
-    /// Other drivers: the executable statistics they report, name to value (numbers only).
-    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub executable: BTreeMap<String, f64>,
+    /// Other drivers: the statistics their compiler reports, typed
+    /// ([`crate::gpu::executable`]); in the JSON as a map of name to value (the rows carry each
+    /// one's unit and direction).
+    #[serde(skip_serializing_if = "Vec::is_empty", serialize_with = "statistic_values")]
+    pub statistics: Vec<CompilerStatistic>,
+    /// Where those statistics were compiled (chip, compiler, subgroup size).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compiled: Option<CompiledFor>,
+}
+
+/// `statistics` as `{"vgprs": 48, "hash": "0x..."}`: a run of many targets writes hundreds of
+/// thousands of them.
+fn statistic_values<S: serde::Serializer>(stats: &[CompilerStatistic], s: S) -> std::result::Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut m = s.serialize_map(Some(stats.len()))?;
+    for st in stats {
+        m.serialize_entry(&st.name, &st.value)?;
+    }
+    m.end()
 }
 
 impl KernelStats {
     fn of(k: &KernelSource) -> KernelStats {
-        KernelStats { name: k.name.into(), cell: KernelCell::of(k), lavapipe: None, executable: BTreeMap::new() }
+        KernelStats { name: k.name.into(), cell: KernelCell::of(k), lavapipe: None, statistics: vec![], compiled: None }
+    }
+
+    /// The statistic named `name` (`vgprs`), as a number.
+    pub fn statistic(&self, name: &str) -> Option<f64> {
+        self.statistics.iter().find(|s| s.name == name).and_then(|s| s.number())
+    }
+
+    /// The registry's kernel of this name.
+    pub fn source(&self) -> Option<&'static KernelSource> {
+        KERNELS.iter().find(|k| k.name == self.name)
     }
 
     /// Vector reloads: moves from stack slots and other instructions reading them.
@@ -214,7 +266,39 @@ pub struct DriverStatsReport {
     pub status: Status,
     /// How the figures were obtained, or why there are none.
     pub note: String,
+    /// This device's kernels.
     pub kernels: Vec<KernelStats>,
+    /// `--targets`: each GPU target's (then `kernels` is empty).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub targets: Vec<TargetStats>,
+}
+
+/// One GPU target's compiled kernels (`driver-stats --targets`).
+#[derive(Clone, Debug, Serialize)]
+pub struct TargetStats {
+    /// `navi31:aco:64@installed`.
+    pub target: String,
+    pub compiled_for: CompiledFor,
+    /// Which Mesa build was asked for (`installed`, `stock`, an ICD file).
+    pub mesa_build: String,
+    /// The worker's device and driver, and the driver's `driverInfo` (the build that compiled).
+    pub device: String,
+    pub driver: String,
+    pub driver_info: String,
+    pub mesa_version: Option<String>,
+    pub status: Status,
+    /// Why the target has no kernels (its worker failed), or how they were compiled.
+    pub note: String,
+    pub kernels: Vec<KernelStats>,
+    /// Kernels the target cannot compile, with why (a feature the chip lacks).
+    pub refused: Vec<Refused>,
+}
+
+/// A kernel a target did not compile, and why.
+#[derive(Clone, Debug, Serialize)]
+pub struct Refused {
+    pub kernel: String,
+    pub why: String,
 }
 
 /// How [`collect`] runs.
@@ -251,6 +335,7 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
                 status: Status::Unsupported,
                 note: no_asm_note(&info.name, info.mesa_version.as_deref()),
                 kernels: vec![],
+                targets: vec![],
             });
         }
         if kernels.len() > 1 {
@@ -277,19 +362,27 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
             status: Status::Measured,
             note: LAVAPIPE_NOTE.into(),
             kernels: out,
+            targets: vec![],
         });
     }
     if ctx.enabled().pipeline_executable_properties {
         let mut out = vec![];
-        for k in kernels {
-            let kernel =
-                ctx.create_kernel_with(k, &PipelineOptions { capture_statistics: true, ..Default::default() })?;
-            let stats = executable::executable_statistics(ctx, &kernel)?;
-            out.push(KernelStats { executable: executable_figures(&stats), ..KernelStats::of(k) });
+        let mut refused = vec![];
+        for &k in kernels {
+            match compile::compile_one(ctx, k, None)? {
+                Ok((wave, statistics)) => out.push(KernelStats {
+                    statistics,
+                    compiled: Some(CompiledFor::of(&info.name, wave)),
+                    ..KernelStats::of(k)
+                }),
+                Err(why) => refused.push(format!("{}: {why}", k.name)),
+            }
         }
-        let note = "VK_KHR_pipeline_executable_properties: the driver's own statistics per executable (untested here: \
-                    lavapipe lacks the extension)";
-        return Ok(DriverStatsReport { provenance, status: Status::Measured, note: note.into(), kernels: out });
+        let mut note = EXECUTABLE_NOTE.to_owned();
+        if !refused.is_empty() {
+            note.push_str(&format!("; not compiled here: {}", refused.join("; ")));
+        }
+        return Ok(DriverStatsReport { provenance, status: Status::Measured, note, kernels: out, targets: vec![] });
     }
     Ok(DriverStatsReport {
         provenance,
@@ -308,7 +401,109 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
             )
         },
         kernels: vec![],
+        targets: vec![],
     })
+}
+
+/// The note of the compiler's own statistics.
+pub const EXECUTABLE_NOTE: &str = "VK_KHR_pipeline_executable_properties: the driver's compiler's own statistics, \
+     each kernel's pipeline created once with CAPTURE_STATISTICS (nothing dispatched), typed by the driver's \
+     descriptions of them";
+
+/// How [`collect_targets`] runs.
+#[derive(Clone, Debug)]
+pub struct TargetOptions {
+    /// This executable (each target's worker).
+    pub exe: PathBuf,
+    pub validation: bool,
+    /// The longest a target's worker may take.
+    pub timeout: std::time::Duration,
+    /// Targets compiled at once (each in its own worker).
+    pub jobs: usize,
+}
+
+/// Every kernel of `kernels` compiled on every target, each target in its own worker, `jobs` at
+/// a time: a target whose worker fails is kept with the reason (its note) and the others go on;
+/// `progress` hears of each target as it ends.
+pub fn collect_targets(
+    targets: &[GpuTarget],
+    kernels: &[&'static KernelSource],
+    o: &TargetOptions,
+    progress: &(dyn Fn(&TargetStats) + Sync),
+) -> Vec<TargetStats> {
+    let names: Vec<String> = kernels.iter().map(|k| k.name.to_owned()).collect();
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results: std::sync::Mutex<Vec<Option<TargetStats>>> = std::sync::Mutex::new(vec![None; targets.len()]);
+    std::thread::scope(|scope| {
+        for _ in 0..o.jobs.clamp(1, targets.len().max(1)) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                let Some(t) = targets.get(i) else { break };
+                let stats = target_stats(t, t.compile(&o.exe, &names, o.validation, o.timeout));
+                progress(&stats);
+                results.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(stats);
+            });
+        }
+    });
+    results.into_inner().unwrap_or_else(|e| e.into_inner()).into_iter().flatten().collect()
+}
+
+/// The report of a `--targets` run: no device of its own (each target's worker had one).
+pub fn targets_report(targets: Vec<TargetStats>) -> DriverStatsReport {
+    let mut drivers: Vec<String> = targets.iter().filter(|t| !t.driver.is_empty()).map(|t| t.driver.clone()).collect();
+    drivers.sort();
+    drivers.dedup();
+    DriverStatsReport {
+        provenance: Provenance::without_device("RADV's null device (GPU targets)", &drivers.join("; ")),
+        status: Status::Measured,
+        note: format!(
+            "{EXECUTABLE_NOTE}; each GPU target compiled by RADV's null device (RADV_FORCE_FAMILY=<chip>, RADV_DEBUG=llvm \
+             for LLVM, requiredSubgroupSize for the subgroup size) in a worker of its own"
+        ),
+        kernels: vec![],
+        targets,
+    }
+}
+
+/// A target's section of the report, from what its worker answered.
+fn target_stats(t: &GpuTarget, got: Result<crate::services::worker::protocol::CompiledKernels>) -> TargetStats {
+    let mut s = TargetStats {
+        target: t.to_string(),
+        compiled_for: CompiledFor { chip: Some(t.chip), compiler: Some(t.compiler), wave: t.wave },
+        mesa_build: t.mesa.to_string(),
+        device: String::new(),
+        driver: String::new(),
+        driver_info: String::new(),
+        mesa_version: None,
+        status: Status::Measured,
+        note: EXECUTABLE_NOTE.into(),
+        kernels: vec![],
+        refused: vec![],
+    };
+    match got {
+        Err(e) => {
+            s.status = Status::Unsupported;
+            s.note = e.to_string();
+        }
+        Ok(c) => {
+            s.device = c.device;
+            s.driver = c.driver;
+            s.driver_info = c.driver_info;
+            s.mesa_version = c.mesa_version;
+            for k in c.kernels {
+                let Some(src) = KERNELS.iter().find(|s| s.name == k.name) else { continue };
+                match k.refused {
+                    Some(why) => s.refused.push(Refused { kernel: k.name, why }),
+                    None => s.kernels.push(KernelStats {
+                        statistics: k.statistics,
+                        compiled: Some(CompiledFor { wave: k.subgroup_size, ..s.compiled_for.clone() }),
+                        ..KernelStats::of(src)
+                    }),
+                }
+            }
+        }
+    }
+    s
 }
 
 /// Whether a kernel's part of the child's stderr holds any machine code: with GALLIVM_DEBUG read,
@@ -334,29 +529,6 @@ pub fn no_asm_note(device: &str, mesa_version: Option<&str>) -> String {
          texel-fetch helpers (this release build reads no GALLIVM_DEBUG; older gallivm read it in debug builds only, \
          Mesa 25.0.7 from bookworm-backports reads it), and offers no VK_KHR_pipeline_executable_properties"
     )
-}
-
-/// The numeric statistics of a pipeline's executables as figures named
-/// `<executable index>_<statistic in snake case>` ("0_register_count"); booleans and text are
-/// left out (a row's figures are numbers).
-pub fn executable_figures(stats: &[executable::ExecutableStatistic]) -> BTreeMap<String, f64> {
-    stats
-        .iter()
-        .filter_map(|st| st.value.parse::<f64>().ok().map(|v| (format!("{}_{}", st.executable, snake(&st.name)), v)))
-        .collect()
-}
-
-/// `Instruction Count` -> `instruction_count`.
-fn snake(s: &str) -> String {
-    let mut out = String::new();
-    for c in s.chars() {
-        if c.is_ascii_alphanumeric() {
-            out.push(c.to_ascii_lowercase());
-        } else if !out.ends_with('_') && !out.is_empty() {
-            out.push('_');
-        }
-    }
-    out.trim_end_matches('_').to_owned()
 }
 
 /// Runs the child (a worker, [`crate::services::worker`], with `GALLIVM_DEBUG=asm` and
@@ -470,41 +642,70 @@ pub fn emit_for_parent(ctx: &Context, names: &[String]) -> Result<()> {
     Ok(())
 }
 
-/// One row per kernel (command [`COMMAND`]; cell kernel, variant, method, layout; every figure
-/// a count).
+/// One row per kernel (command [`COMMAND`]; cell kernel, variant, method, layout, and where the
+/// compiler's statistics were compiled: chip, compiler, wave), for this device and for each GPU
+/// target. lavapipe's figures are counts; the compiler's statistics are figures with their unit
+/// and direction, their hashes identities. Every row names the driver build that compiled it
+/// ([`crate::rows::DRIVER_BUILD`]), which `compare` requires to agree before it judges counts.
 pub fn rows(r: &DriverStatsReport) -> Vec<Row> {
     let mut source = r.provenance.source();
     // The driver compiles the SPIR-V: another GLSL compiler's modules give other machine code.
     source.settings.insert(crate::rows::SPIRV_COMPILER.into(), crate::kernels::SPIRV_COMPILER.into());
+    source.settings.insert(crate::rows::DRIVER_BUILD.into(), r.provenance.driver.clone());
     if r.kernels.iter().any(|k| k.lavapipe.is_some()) {
         // lavapipe's machine code is LLVM's for this host's CPU: another CPU compiles other code.
         source.settings.insert(crate::rows::JIT_CPU.into(), r.provenance.host.cpu_id.clone());
     }
-    r.kernels
-        .iter()
-        .map(|k| {
-            let mut row = Row::new(COMMAND, k.cell.coordinates(), &source);
-            if let Some(a) = &k.lavapipe {
-                let t = &a.total;
-                for (name, v, unit) in [
-                    ("instructions", t.instructions, "instructions"),
-                    ("vector_spills", t.vector_spills, "stores"),
-                    ("vector_reloads", KernelStats::vector_reloads(a), "loads"),
-                    ("stack_stores", t.stack_stores, "stores"),
-                    ("mask_spills", t.mask_spills, "stores"),
-                    ("calls", t.calls, "calls"),
-                    ("helper_calls", a.helper_calls, "calls"),
-                    ("stack_bytes", t.stack_bytes, "bytes"),
-                ] {
-                    row = row.with(name, Figure::count(v as f64, unit));
-                }
-            }
-            for (name, v) in &k.executable {
-                row = row.with(name, Figure::count(*v, "count"));
-            }
-            row
-        })
-        .collect()
+    if r.kernels.iter().any(|k| k.compiled.is_some()) {
+        // Each kernel says the subgroup size it was compiled at (its `wave`): the device's
+        // default, which a driver variable may override, says nothing about it.
+        source.settings.remove("subgroup_size");
+    }
+    let mut out: Vec<Row> = r.kernels.iter().map(|k| kernel_row(k, &source)).collect();
+    for t in r.targets.iter().filter(|t| t.status == Status::Measured) {
+        let mut s = crate::rows::Source {
+            device: t.device.clone(),
+            driver: t.driver.clone(),
+            settings: Default::default(),
+            host: None,
+            ..r.provenance.source()
+        };
+        s.settings.insert(crate::rows::SPIRV_COMPILER.into(), crate::kernels::SPIRV_COMPILER.into());
+        s.settings.insert(crate::rows::DRIVER_BUILD.into(), t.driver.clone());
+        out.extend(t.kernels.iter().map(|k| kernel_row(k, &s)));
+    }
+    out
+}
+
+/// One kernel's row.
+fn kernel_row(k: &KernelStats, source: &crate::rows::Source) -> Row {
+    let mut cell = k.cell.coordinates();
+    if let Some(c) = &k.compiled {
+        cell.extend(c.coordinates().into_iter().map(|(k, v)| (k.to_owned(), v)));
+    }
+    let mut row = Row::new(COMMAND, cell, source);
+    if let Some(a) = &k.lavapipe {
+        let t = &a.total;
+        for (name, v, unit) in [
+            ("instructions", t.instructions, "instructions"),
+            ("vector_spills", t.vector_spills, "stores"),
+            ("vector_reloads", KernelStats::vector_reloads(a), "loads"),
+            ("stack_stores", t.stack_stores, "stores"),
+            ("mask_spills", t.mask_spills, "stores"),
+            ("calls", t.calls, "calls"),
+            ("helper_calls", a.helper_calls, "calls"),
+            ("stack_bytes", t.stack_bytes, "bytes"),
+        ] {
+            row = row.with(name, Figure::count(v as f64, unit));
+        }
+    }
+    for st in &k.statistics {
+        row = match st.figure() {
+            Some(f) => row.with(&st.name, f),
+            None => row.with_identity(&st.name, &st.text()),
+        };
+    }
+    row
 }
 
 /// The table of lavapipe's figures per kernel.
@@ -561,18 +762,36 @@ impl crate::services::results::Results for DriverStatsReport {
     fn rows(&self) -> Option<Vec<Row>> {
         Some(rows(self))
     }
+
+    /// `driver-stats.csv`, where the compiler reported statistics: every kernel of every
+    /// target.
+    fn files(&self) -> Result<Vec<(&'static str, String)>> {
+        if self.kernels.iter().all(|k| k.statistics.is_empty()) && self.targets.is_empty() {
+            return Ok(vec![]);
+        }
+        Ok(vec![("driver-stats.csv", report::csv(self)?)])
+    }
 }
 
 impl crate::report::Report for DriverStatsReport {
     fn to_text(&self) -> String {
         let p = &self.provenance;
+        // A compiled kernel names the subgroup size it was compiled at; the device's default
+        // says nothing of it.
+        let compiled = self.kernels.iter().any(|k| k.compiled.is_some());
+        let settings: Vec<String> = p
+            .settings
+            .iter()
+            .filter(|(k, _)| !(compiled && *k == "subgroup_size"))
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
         let mut out = format!(
-            "# Driver statistics: {} ({})\n\n- **driver**: {}{}\n- **settings**: {}\n- **commit**: {}, {}\n- **how**: {}\n\n",
+            "# Driver statistics: {} ({})\n\n- **driver**: {}{}\n{}- **commit**: {}, {}\n- **how**: {}\n\n",
             p.device,
             p.driver,
             p.mesa_version.as_deref().map(|m| format!("Mesa {m}")).unwrap_or_else(|| p.driver.clone()),
             if self.status == Status::Measured { "" } else { " (no figures)" },
-            p.settings.iter().map(|(k, v)| format!("{k}={v}")).collect::<Vec<_>>().join(", "),
+            if settings.is_empty() { String::new() } else { format!("- **settings**: {}\n", settings.join(", ")) },
             p.commit,
             p.date,
             self.note
@@ -581,47 +800,85 @@ impl crate::report::Report for DriverStatsReport {
             out.push_str(&table(&self.kernels).to_markdown());
             out.push_str(LEGEND);
         }
-        for k in self.kernels.iter().filter(|k| !k.executable.is_empty()) {
-            out.push_str(&format!("\n{}: ", k.name));
-            out.push_str(&k.executable.iter().map(|(n, v)| format!("{n} {v}")).collect::<Vec<_>>().join(", "));
+        let compiled: Vec<&KernelStats> = self.kernels.iter().filter(|k| !k.statistics.is_empty()).collect();
+        if !compiled.is_empty() {
+            let waves: std::collections::BTreeSet<String> =
+                compiled.iter().filter_map(|k| k.compiled.as_ref().map(|c| c.label())).collect();
+            out.push_str(&format!("Compiled for: {}\n\n", waves.into_iter().collect::<Vec<_>>().join(", ")));
+            out.push_str(&report::compiled_table(&compiled).to_markdown());
+            out.push_str(report::COMPILED_LEGEND);
+        }
+        if !self.targets.is_empty() {
+            out.push_str(&targets_text(&self.targets));
         }
         out
     }
+}
+
+/// The GPU targets' part of the report: a summary row per target, then each target's table and
+/// its cliffs.
+fn targets_text(targets: &[TargetStats]) -> String {
+    let mut out = String::from("## GPU targets\n\n");
+    out.push_str(&report::targets_table(targets).to_markdown());
+    out.push_str(
+        "\nat one subgroup: kernels of which a SIMD holds one subgroup (RDNA's count of wave64 reads 2); on a cliff: \
+         kernels one more VGPR would cost a subgroup per SIMD. driver-stats.csv lists every kernel of every target.\n",
+    );
+    for t in targets {
+        out.push_str(&format!("\n### {}\n\n", t.target));
+        if t.status != Status::Measured {
+            out.push_str(&format!("Not compiled: {}\n", t.note));
+            continue;
+        }
+        out.push_str(&format!("{} on {} ({} kernels", t.driver, t.device, t.kernels.len()));
+        if !t.refused.is_empty() {
+            out.push_str(&format!("; {} not compiled: ", t.refused.len()));
+            let mut whys: BTreeMap<&str, usize> = BTreeMap::new();
+            for r in &t.refused {
+                *whys.entry(r.why.as_str()).or_default() += 1;
+            }
+            out.push_str(&whys.iter().map(|(w, n)| format!("{n} as {w}")).collect::<Vec<_>>().join("; "));
+        }
+        out.push_str(").\n\n");
+        let m = report::Summary::of(&t.kernels, t.refused.len());
+        if m.model_disagrees > 0 {
+            out.push_str(&format!(
+                "The occupancy model gives another subgroups-per-SIMD figure than the driver for {} kernels (shown as \
+                 `reported (model m)`): their cliffs are not to be trusted.\n\n",
+                m.model_disagrees
+            ));
+        }
+        if !m.on_cliff.is_empty() {
+            out.push_str(&format!(
+                "On a cliff ({}): {}\n\n",
+                m.on_cliff.len(),
+                m.on_cliff.iter().take(40).cloned().collect::<Vec<_>>().join(", ")
+            ));
+            if m.on_cliff.len() > 40 {
+                out.push_str(&format!(
+                    "... and {} more (driver-stats.csv, vgprs_to_lose_one = 1)\n\n",
+                    m.on_cliff.len() - 40
+                ));
+            }
+        }
+        let (listed, cut) = report::tabled(&t.kernels);
+        if cut {
+            out.push_str(&format!(
+                "The closest-hit ray-casting kernels ({} of {}; driver-stats.csv has all):\n\n",
+                listed.len(),
+                t.kernels.len()
+            ));
+        }
+        out.push_str(&report::compiled_table(&listed).to_markdown());
+    }
+    out.push_str(report::COMPILED_LEGEND);
+    out
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::encoding::{SceneAccess, Traversal};
-
-    /// What a driver with `VK_KHR_pipeline_executable_properties` reports (lavapipe does not:
-    /// these are the statistics an NVIDIA driver names), as figures: numbers kept per
-    /// executable, booleans left out, names in snake case.
-    #[test]
-    fn executable_statistics_become_figures_per_executable() {
-        let st = |executable: u32, name: &str, value: &str| super::executable::ExecutableStatistic {
-            executable,
-            executable_name: "Compute Shader".into(),
-            executable_description: String::new(),
-            subgroup_size: 32,
-            name: name.into(),
-            description: String::new(),
-            value: value.into(),
-        };
-        let f = executable_figures(&[
-            st(0, "Register Count", "96"),
-            st(0, "Spill Count", "0"),
-            st(0, "Uses Shared Memory", "true"),
-            st(1, "Register Count", "40"),
-            st(1, "Occupancy", "0.75"),
-        ]);
-        let want: BTreeMap<String, f64> =
-            [("0_register_count", 96.0), ("0_spill_count", 0.0), ("1_occupancy", 0.75), ("1_register_count", 40.0)]
-                .into_iter()
-                .map(|(k, v)| (k.to_owned(), v))
-                .collect();
-        assert_eq!(f, want);
-    }
 
     #[test]
     fn the_dump_splits_at_the_markers() {
@@ -689,11 +946,5 @@ mod tests {
 
     fn kernels_named(names: &[&str]) -> Vec<&'static KernelSource> {
         names.iter().map(|n| KERNELS.iter().find(|k| k.name == *n).unwrap()).collect()
-    }
-
-    #[test]
-    fn snake_case_statistic_names() {
-        assert_eq!(snake("Instruction Count"), "instruction_count");
-        assert_eq!(snake("SGPRs (spilled)"), "sgprs_spilled");
     }
 }

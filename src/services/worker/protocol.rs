@@ -68,6 +68,44 @@ pub enum Request {
     /// `ab --repro`: a repro of one cell made by a side's worker, with its build and in its
     /// environment ([`Message::ReproMade`]).
     MakeRepro(ReproSpec),
+    /// A GPU target's worker (`driver-stats --targets`): compile each named kernel once and give
+    /// what the driver made of it ([`Message::Compiled`]). Nothing is dispatched, so a device
+    /// that only compiles (RADV's null device) answers it.
+    CompileKernels(CompileRequest),
+}
+
+/// Which kernels a [`Request::CompileKernels`] compiles, and at which subgroup size.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CompileRequest {
+    /// Registry names (`raycast.mt.closest`).
+    pub kernels: Vec<String>,
+    /// The pipeline's `requiredSubgroupSize` (`None`: the driver's choice).
+    #[serde(default)]
+    pub subgroup_size: Option<u32>,
+}
+
+/// What a [`Request::CompileKernels`] compiled: the worker's device and driver, and each kernel's
+/// statistics or why it could not be compiled there.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CompiledKernels {
+    pub device: String,
+    /// The driver as a label (`radv, Mesa 25.0.7`).
+    pub driver: String,
+    /// The driver's `driverInfo` (`Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)`): which build compiled.
+    pub driver_info: String,
+    pub mesa_version: Option<String>,
+    pub kernels: Vec<CompiledKernel>,
+}
+
+/// One kernel a target's worker compiled, or refused.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CompiledKernel {
+    pub name: String,
+    /// The subgroup size the driver compiled it at (its executable's).
+    pub subgroup_size: u32,
+    pub statistics: Vec<crate::gpu::executable::CompilerStatistic>,
+    /// Why it was not compiled (a feature the device lacks); then no statistics.
+    pub refused: Option<String>,
 }
 
 /// The cell a [`Request::MakeRepro`] makes a repro of (what `trilab repro` is given), and where.
@@ -282,6 +320,8 @@ pub enum Message {
     ReproDispatched { rays: usize },
     /// A [`Request::MakeRepro`]'s repro was made: its one-line summary.
     ReproMade { summary: String },
+    /// A [`Request::CompileKernels`]'s kernels.
+    Compiled(CompiledKernels),
     /// The request failed; the worker ends.
     Failed { error: String },
 }
@@ -301,6 +341,7 @@ impl Message {
             Message::DriverStats { .. } => "driver-stats",
             Message::ReproDispatched { .. } => "repro-dispatched",
             Message::ReproMade { .. } => "repro-made",
+            Message::Compiled(_) => "compiled",
             Message::Failed { .. } => "failed",
         }
     }

@@ -1,0 +1,363 @@
+//! GPU targets: every kernel compiled for real GPUs on a machine without one, through Mesa's
+//! RADV on its null device (`RADV_FORCE_FAMILY=<chip>`), the way Mesa's shader-db and
+//! fossil-db compare compilers without hardware.
+//!
+//! A target is a chip ([`Chip`]) x a compiler (ACO, RADV's own, or LLVM's AMDGPU backend under
+//! `RADV_DEBUG=llvm`) x a subgroup size (64, or 32 on RDNA, set through the pipeline's
+//! `requiredSubgroupSize`, not a driver variable) x a Mesa build (the installed one, Debian 12's
+//! own unpacked by `scripts/stock-mesa.sh`, or any RADV ICD file). A driver reads its
+//! environment once, when it loads, so each target runs in a worker of its own
+//! ([`crate::services::worker`]) with the environment that makes the target, and answers one
+//! [`Request::CompileKernels`]: each kernel compiled once, with its statistics
+//! ([`super::statistic`]) or the reason it cannot be compiled there. A worker that dies (a chip
+//! this Mesa build does not know aborts in RADV) fails its target, named, and the others go on.
+
+use std::ffi::OsString;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::gpu::amd::Chip;
+use crate::services::worker::protocol::{CompileRequest, CompiledKernels};
+use crate::services::worker::{self, Launch, Message, Request};
+
+/// The compiler RADV uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Compiler {
+    /// ACO, RADV's own compiler (the default).
+    Aco,
+    /// LLVM's AMDGPU backend (`RADV_DEBUG=llvm`).
+    Llvm,
+}
+
+impl Compiler {
+    pub const ALL: [Compiler; 2] = [Compiler::Aco, Compiler::Llvm];
+
+    /// The compiler a RADV device compiles with: its name says `(LLVM x.y.z)` under
+    /// `RADV_DEBUG=llvm`.
+    pub fn of_device_name(device: &str) -> Compiler {
+        if device.contains("(LLVM ") {
+            Compiler::Llvm
+        } else {
+            Compiler::Aco
+        }
+    }
+}
+
+impl fmt::Display for Compiler {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Compiler::Aco => "aco",
+            Compiler::Llvm => "llvm",
+        })
+    }
+}
+
+impl FromStr for Compiler {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Compiler, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "aco" => Ok(Compiler::Aco),
+            "llvm" => Ok(Compiler::Llvm),
+            _ => Err(format!("no compiler `{s}` (aco or llvm)")),
+        }
+    }
+}
+
+/// Which Mesa's RADV compiles.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum MesaBuild {
+    /// The system's (`mesa-vulkan-drivers`; 25.0.7 from bookworm-backports where
+    /// `install-deps.sh` installed it).
+    Installed,
+    /// Debian 12's own (22.3.6), unpacked beside it by `scripts/stock-mesa.sh`.
+    Stock,
+    /// A RADV ICD file (a Mesa build of one's own).
+    Icd(PathBuf),
+}
+
+impl fmt::Display for MesaBuild {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            MesaBuild::Installed => f.write_str("installed"),
+            MesaBuild::Stock => f.write_str("stock"),
+            MesaBuild::Icd(p) => write!(f, "{}", p.display()),
+        }
+    }
+}
+
+impl FromStr for MesaBuild {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<MesaBuild, String> {
+        match s {
+            "installed" => Ok(MesaBuild::Installed),
+            "stock" => Ok(MesaBuild::Stock),
+            p if p.ends_with(".json") => Ok(MesaBuild::Icd(PathBuf::from(p))),
+            _ => Err(format!("no Mesa build `{s}` (installed, stock, or a RADV ICD file, *.json)")),
+        }
+    }
+}
+
+/// The folders the Vulkan loader reads ICD files from, where a distribution installs them.
+const ICD_DIRS: &[&str] = &["/usr/share/vulkan/icd.d", "/etc/vulkan/icd.d", "/usr/local/share/vulkan/icd.d"];
+
+impl MesaBuild {
+    /// The ICD file that loads this build's RADV, and the variables it needs beside
+    /// `VK_DRIVER_FILES` (an unpacked build's `LD_LIBRARY_PATH`); an error naming what is missing
+    /// and how to get it.
+    pub fn icd(&self) -> Result<(PathBuf, Vec<(String, String)>)> {
+        match self {
+            MesaBuild::Installed => {
+                for dir in ICD_DIRS {
+                    let Ok(entries) = std::fs::read_dir(dir) else { continue };
+                    let mut found: Vec<PathBuf> = entries
+                        .filter_map(|e| e.ok().map(|e| e.path()))
+                        .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with("radeon_icd")))
+                        .collect();
+                    found.sort();
+                    if let Some(p) = found.into_iter().next() {
+                        return Ok((p, vec![]));
+                    }
+                }
+                Err(Error::Unsupported(format!(
+                    "no RADV installed: no radeon_icd*.json in {} (Debian's mesa-vulkan-drivers ships it; \
+                     scripts/install-deps.sh installs it)",
+                    ICD_DIRS.join(", ")
+                )))
+            }
+            MesaBuild::Stock => {
+                let dir = std::env::var_os("TRILAB_STOCK_MESA")
+                    .map(PathBuf::from)
+                    .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/trilab/stock-mesa")))
+                    .unwrap_or_default();
+                let icd = dir.join("radv_icd.json");
+                if !icd.is_file() {
+                    return Err(Error::Unsupported(format!(
+                        "{}: no such file: Debian 12's own Mesa is not unpacked with its RADV (run \
+                         scripts/stock-mesa.sh)",
+                        icd.display()
+                    )));
+                }
+                let env = std::fs::read_to_string(dir.join("env")).unwrap_or_default();
+                let extra = env
+                    .lines()
+                    .filter_map(|l| l.split_once('='))
+                    .filter(|(k, _)| *k == "LD_LIBRARY_PATH")
+                    .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                    .collect();
+                Ok((icd, extra))
+            }
+            MesaBuild::Icd(p) => {
+                if p.is_file() {
+                    Ok((p.clone(), vec![]))
+                } else {
+                    Err(Error::bad_input(p, None, "no such ICD file"))
+                }
+            }
+        }
+    }
+}
+
+/// One target: a chip, a compiler, a subgroup size and a Mesa build.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct GpuTarget {
+    pub chip: Chip,
+    pub compiler: Compiler,
+    /// The subgroup size every kernel is compiled at (64, or 32 on RDNA).
+    pub wave: u32,
+    pub mesa: MesaBuild,
+}
+
+impl fmt::Display for GpuTarget {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}:{}@{}", self.chip, self.compiler, self.wave, self.mesa)
+    }
+}
+
+/// The chips `--targets default` compiles for: the paper's HD 7850 (pitcairn, GCN 1), then one
+/// chip of each later generation: Polaris (GCN 4), Vega (GCN 5), RDNA 2, RDNA 3, RDNA 4.
+pub const DEFAULT_CHIPS: [&str; 6] = ["pitcairn", "polaris10", "vega10", "navi21", "navi31", "gfx1201"];
+
+/// Reads `--targets`: comma-separated `CHIP[:COMPILER[:WAVE]]` (a part left out is every
+/// compiler, or every subgroup size the chip allows), or `default` ([`DEFAULT_CHIPS`], every
+/// compiler and size), crossed with each Mesa build. An error names the part that is wrong
+/// (an unknown chip, wave32 on GCN) before any work starts.
+pub fn parse_targets(spec: &str, mesa: &[MesaBuild]) -> std::result::Result<Vec<GpuTarget>, String> {
+    let mut out = vec![];
+    let items: Vec<String> = spec
+        .split(',')
+        .map(|s| s.trim().to_owned())
+        .filter(|s| !s.is_empty())
+        .flat_map(|s| if s == "default" { DEFAULT_CHIPS.iter().map(|c| c.to_string()).collect() } else { vec![s] })
+        .collect();
+    if items.is_empty() {
+        return Err("--targets: no target given".into());
+    }
+    for m in mesa {
+        for item in &items {
+            let mut parts = item.split(':');
+            let chip: Chip = parts.next().unwrap_or_default().parse().map_err(|e| format!("--targets {item}: {e}"))?;
+            let compilers = match parts.next() {
+                None | Some("") => Compiler::ALL.to_vec(),
+                Some(c) => vec![c.parse::<Compiler>().map_err(|e| format!("--targets {item}: {e}"))?],
+            };
+            let waves = match parts.next() {
+                None | Some("") => chip.subgroup_sizes().to_vec(),
+                Some(w) => {
+                    let w: u32 = w
+                        .trim_start_matches("wave")
+                        .parse()
+                        .map_err(|_| format!("--targets {item}: subgroup size `{w}` is not a number"))?;
+                    if !chip.subgroup_sizes().contains(&w) {
+                        return Err(format!(
+                            "--targets {item}: {chip} ({}) compiles compute kernels at {} lanes only",
+                            chip.gfx.architecture(),
+                            chip.subgroup_sizes().iter().map(|s| s.to_string()).collect::<Vec<_>>().join(" or ")
+                        ));
+                    }
+                    vec![w]
+                }
+            };
+            if let Some(rest) = parts.next() {
+                return Err(format!("--targets {item}: `{rest}` after CHIP:COMPILER:WAVE"));
+            }
+            for &compiler in &compilers {
+                for &wave in &waves {
+                    let t = GpuTarget { chip, compiler, wave, mesa: m.clone() };
+                    if !out.contains(&t) {
+                        out.push(t);
+                    }
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+impl GpuTarget {
+    /// The worker that compiles for this target: this executable with the environment that
+    /// makes the target (the RADV ICD, the chip, the compiler, no shader cache, none of the
+    /// driver's own switches that would change the code).
+    pub fn launch(&self, exe: &Path, validation: bool, timeout: Duration) -> Result<Launch> {
+        let (icd, extra) = self.mesa.icd()?;
+        let mut l = Launch::new(exe).validation(validation);
+        l.timeout = Some(timeout);
+        l.unset = ["VK_ICD_FILENAMES", "VK_ADD_DRIVER_FILES", "RADV_DEBUG", "RADV_PERFTEST", "ACO_DEBUG", "AMD_DEBUG"]
+            .map(String::from)
+            .to_vec();
+        let mut l = l
+            .env("VK_DRIVER_FILES", icd.as_os_str())
+            .env("RADV_FORCE_FAMILY", self.chip.name)
+            .env("MESA_SHADER_CACHE_DISABLE", "true");
+        if self.compiler == Compiler::Llvm {
+            l = l.env("RADV_DEBUG", "llvm");
+        }
+        for (k, v) in extra {
+            l = l.env(OsString::from(k), OsString::from(v));
+        }
+        Ok(l)
+    }
+
+    /// Compiles `kernels` (registry names) on this target in its worker: what the driver made of
+    /// each, or why it could not. The worker's device must be RADV's null device for this chip
+    /// and compiler, or the target fails naming what it got.
+    pub fn compile(
+        &self,
+        exe: &Path,
+        kernels: &[String],
+        validation: bool,
+        timeout: Duration,
+    ) -> Result<CompiledKernels> {
+        let launch = self.launch(exe, validation, timeout)?;
+        let who = format!("the worker of target {self}");
+        let request =
+            Request::CompileKernels(CompileRequest { kernels: kernels.to_vec(), subgroup_size: Some(self.wave) });
+        let answered = worker::call(&launch, &who, &request).map_err(|e| self.explain(e))?;
+        let stderr = answered.stderr;
+        let got = match answered.message {
+            Message::Compiled(c) => c,
+            other => return Err(worker::unexpected(&who, "compiled", &other)),
+        };
+        let chip = Chip::of_device_name(&got.device);
+        let compiler = Compiler::of_device_name(&got.device);
+        if chip != Some(self.chip) || compiler != self.compiler {
+            return Err(Error::Unsupported(format!(
+                "target {self}: the worker's device is `{}` ({}), not RADV's null device for {} with {}{}",
+                got.device,
+                got.driver,
+                self.chip,
+                self.compiler,
+                if stderr.trim().is_empty() { String::new() } else { format!(" (its stderr: {})", stderr.trim()) }
+            )));
+        }
+        Ok(got)
+    }
+
+    /// A worker's failure, with what it means where that is known: RADV aborts on a chip its
+    /// Mesa build does not know ("radv: Unknown family").
+    fn explain(&self, e: Error) -> Error {
+        let text = e.to_string();
+        if text.contains("Unknown family") {
+            return Error::Unsupported(format!(
+                "target {self}: this Mesa build's RADV does not know the chip {} (it printed \"Unknown family\" and \
+                 aborted)",
+                self.chip
+            ));
+        }
+        e
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(ts: &[GpuTarget]) -> Vec<String> {
+        ts.iter().map(|t| t.to_string()).collect()
+    }
+
+    #[test]
+    fn targets_expand_to_every_compiler_and_size_a_chip_allows() {
+        let t = parse_targets("pitcairn", &[MesaBuild::Installed]).unwrap();
+        assert_eq!(names(&t), ["pitcairn:aco:64@installed", "pitcairn:llvm:64@installed"]);
+        let t = parse_targets("navi31:aco", &[MesaBuild::Installed, MesaBuild::Stock]).unwrap();
+        assert_eq!(
+            names(&t),
+            ["navi31:aco:32@installed", "navi31:aco:64@installed", "navi31:aco:32@stock", "navi31:aco:64@stock"]
+        );
+        let t = parse_targets("navi21:llvm:wave32, navi21:llvm:32", &[MesaBuild::Installed]).unwrap();
+        assert_eq!(names(&t), ["navi21:llvm:32@installed"]);
+        // The default set: 3 GCN chips x 2 compilers + 3 RDNA chips x 2 compilers x 2 sizes.
+        let t = parse_targets("default", &[MesaBuild::Installed]).unwrap();
+        assert_eq!(t.len(), 3 * 2 + 3 * 2 * 2);
+        assert_eq!(t[0].chip.name, "pitcairn");
+    }
+
+    #[test]
+    fn a_wrong_target_is_named_before_any_work() {
+        let e = parse_targets("pitcairn:aco:32", &[MesaBuild::Installed]).unwrap_err();
+        assert!(e.contains("pitcairn (GCN 1) compiles compute kernels at 64 lanes only"), "{e}");
+        let e = parse_targets("navi99", &[MesaBuild::Installed]).unwrap_err();
+        assert!(e.contains("--targets navi99: no chip `navi99`"), "{e}");
+        let e = parse_targets("navi31:gcc", &[MesaBuild::Installed]).unwrap_err();
+        assert!(e.contains("no compiler `gcc`"), "{e}");
+        let e = parse_targets("navi31:aco:64:x", &[MesaBuild::Installed]).unwrap_err();
+        assert!(e.contains("`x` after"), "{e}");
+        assert!(parse_targets(" , ", &[MesaBuild::Installed]).is_err());
+        assert!("nope".parse::<MesaBuild>().unwrap_err().contains("installed, stock"));
+        assert_eq!("x/radv.json".parse::<MesaBuild>().unwrap(), MesaBuild::Icd("x/radv.json".into()));
+    }
+
+    #[test]
+    fn the_compiler_is_read_from_the_device_name() {
+        assert_eq!(Compiler::of_device_name("Null hardware (RADV NAVI31 (LLVM 15.0.6))"), Compiler::Llvm);
+        assert_eq!(Compiler::of_device_name("Null hardware (RADV NAVI31)"), Compiler::Aco);
+    }
+}
