@@ -3,10 +3,14 @@
 # the code only on evidence about the code (`trilab gate`, src/commands/gate.rs):
 #
 # - counts and correctness against the committed baseline, results/lavapipe/baseline/ (exact):
-#   the suite at its smoke sizes (`--size 0`) and the SPIR-V counts of every kernel variant,
-#   measured here and compared with `trilab compare --timings ignore --count-threshold 0`:
-#   SPIR-V instructions, scene bytes, SAH cost, EPO, lavapipe's machine code where the baseline's
-#   host compiled for the same CPU; agreement with the f64 reference, leaks, NaN hits;
+#   the suite at its smoke sizes (`--size 0`), the SPIR-V counts of every kernel variant and what
+#   AMD's compiler makes of the studied kernels on two real GPUs without one (RADV's null device:
+#   pitcairn, the paper's HD 7850, and navi31, ACO, wave64: VGPRs, SGPRs, spills, scratch,
+#   subgroups per SIMD, instructions), measured here and compared with `trilab compare --timings
+#   ignore --count-threshold 0`: SPIR-V instructions, scene bytes, SAH cost, EPO, lavapipe's
+#   machine code where the baseline's host compiled for the same CPU, RADV's statistics where
+#   this Mesa is the baseline's (another Mesa build's are not judged, and the gate says so);
+#   agreement with the f64 reference, leaks, NaN hits;
 # - timings only inside this run: `trilab ab` of the build the baseline was measured at (side A,
 #   built here from the baseline's commit in a git worktree, its dependencies taken from this
 #   build's target folder, so only the trilab crate compiles; cached by commit in
@@ -100,13 +104,23 @@ build_base() {
   echo "ci-gate: built the base ($base_commit) in $((SECONDS - start)) s, kept in $cache/$base_commit/" >&2
 }
 
-# The suite's smoke sizes and the SPIR-V counts (only the rows: the disassembly stays behind).
+# The GPU targets whose compiled statistics the baseline holds (RADV's null device).
+radv_targets=pitcairn:aco:64,navi31:aco:64
+
+# The suite's smoke sizes, the SPIR-V counts and the studied kernels compiled for the RADV
+# targets (only the rows: the disassembly and the reports stay behind).
 measure() {
-  local dest=$1
+  local dest=$1 name
+  name=$(basename "$dest")
   "$trilab" suite --size 0 --no-threads --out "$dest" > "$out/suite.txt"
   "$trilab" spirv --out "$out/spirv" > /dev/null
   mkdir -p "$dest/spirv"
   cp "$out/spirv/rows.jsonl" "$dest/spirv/rows.jsonl"
+  local start=$SECONDS
+  "$trilab" driver-stats --targets "$radv_targets" --kernels studied --out "$out/radv-$name" > /dev/null
+  mkdir -p "$dest/radv"
+  cp "$out/radv-$name/rows.jsonl" "$dest/radv/rows.jsonl"
+  echo "ci-gate: the studied kernels compiled for $radv_targets in $((SECONDS - start)) s" >&2
 }
 
 if [ "${1:-}" = "--which-base" ]; then

@@ -68,6 +68,27 @@ fn smoke_study_writes_the_full_matrix_validated() {
     ] {
         assert!(md.contains(needle), "study.md lacks `{needle}`");
     }
+    // The card's question on GPUs: the study's kernels compiled for the paper's HD 7850 and today's
+    // chips (RADV's null device, issue 50), and the model's bounds beside Table 4's 0.827.
+    for needle in [
+        "## The paper's question on GPUs: what AMD's compiler makes of the methods",
+        "| pitcairn (Radeon HD 7850 (the paper's Table 4)) | GCN 1 | ray casting |",
+        "| gfx1201 (Radeon RX 9070 XT) | RDNA 4 | path tracing |",
+        "### A model of claim (c) from the compiled code",
+        "| 0.827 |",
+        "- **pitcairn (GCN 1), path tracing**: Quad unit",
+    ] {
+        assert!(md.contains(needle), "study.md lacks `{needle}`");
+    }
+    let model = json["compiled"]["model"].as_array().unwrap();
+    assert_eq!(model.len(), 5 * 2, "five chips x (path tracing, ray casting)");
+    for m in model {
+        let f = |k: &str| m[k].as_f64().unwrap();
+        // MT fetches its triangles through an index: more dependent rounds per ray than Quad unit.
+        assert!(f("mt_rounds") > f("quad_rounds") && f("quad_rounds") > 0.0, "{m}");
+        assert!((f("latency_bound") - f("hidden") * f("mt_subgroups") / f("quad_subgroups")).abs() < 1e-9, "{m}");
+        assert!(f("mt_vgprs") > 0.0 && f("quad_vgprs") > 0.0, "{m}");
+    }
     for png in ["study-time-vs-leaf.png", "study-mrays-per-set.png", "study-instructions-vs-time.png"] {
         let img = image::open(out.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
         assert!(img.width() >= 500 && img.height() >= 400, "{png} is {}x{}", img.width(), img.height());

@@ -35,8 +35,9 @@ use super::{results_dir, GpuArgs, JsonArg, MethodsArg};
 #[derive(Args)]
 #[command(mut_arg("out", |a| a.help("Output directory for driver-stats.md, driver-stats.json, driver-stats.csv and rows.jsonl; default results/<device>/driver-stats, with --targets results/radv/driver-stats")))]
 pub struct DriverStatsArgs {
-    /// Kernel files, comma-separated (`raycast`, `pathtrace`, `raycast_coop`, `rayquery`, ...), or
-    /// `all`. Default: `raycast` on lavapipe (whose statistics need a dispatch, and only
+    /// Kernel files, comma-separated (`raycast`, `pathtrace`, `raycast_coop`, `rayquery`, ...),
+    /// `all`, or `studied` (each method's closest- and any-hit kernels on bvh2, closest-hit on
+    /// the other layouts, and the ray-query peer, whatever --variants says). Default: `raycast` on lavapipe (whose statistics need a dispatch, and only
     /// `raycast` kernels are dispatched), `all` where the compiler reports them.
     #[arg(long, value_name = "K,...", value_delimiter = ',')]
     kernels: Vec<String>,

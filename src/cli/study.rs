@@ -49,6 +49,11 @@ pub struct StudyArgs {
     sah_group: SahGroupArg,
     #[command(flatten)]
     shard: ShardArg,
+    /// Leave out the section that compiles the study's kernels for AMD GPUs (pitcairn, the
+    /// paper's HD 7850, then polaris10, navi21, navi31, gfx1201) through RADV's null device and
+    /// bounds claim (c) by their occupancy.
+    #[arg(long)]
+    no_compiled: bool,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -74,6 +79,12 @@ pub fn run(a: StudyArgs) -> Result<()> {
     }
     o.sah_group = a.sah_group.sah_group;
     o.shard = a.shard.shard;
+    if !a.no_compiled {
+        o.compiled = Some(study::compiled::CompiledOptions {
+            exe: trilab::services::worker::this_exe()?,
+            validation: a.gpu.validation_choice() == trilab::gpu::Validation::Required,
+        });
+    }
     o.check()?;
     let ctx = a.gpu.context()?;
     let out = results_dir(&ctx, a.out.dir.clone(), "study");

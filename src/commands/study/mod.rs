@@ -22,6 +22,7 @@
 //! joins the shards.
 
 pub mod claims;
+pub mod compiled;
 pub mod layouts;
 pub mod plots;
 pub mod table;
@@ -93,6 +94,10 @@ pub struct StudyOptions {
     /// Run only this shard's (scene, leaf size) groups of the matrix ([`StudyOptions::split`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub shard: Option<Shard>,
+    /// Also compile the study's kernels for AMD GPUs through RADV's null device and bound claim
+    /// (c) by their occupancy ([`compiled`]); `None`: no such section.
+    #[serde(skip)]
+    pub compiled: Option<compiled::CompiledOptions>,
 }
 
 /// A `--scenes` entry: a scene's name (`bunny`, found from any folder by
@@ -124,6 +129,7 @@ impl StudyOptions {
             seed: crate::defaults::SEED,
             shard: None,
             stop: None,
+            compiled: None,
         };
         match preset {
             Preset::Paper => base,
@@ -366,6 +372,10 @@ pub struct StudyReport {
     /// it finished; `None` for a whole run.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stopped: Option<String>,
+    /// What AMD's compiler made of the study's kernels, and the model of claim (c) from it
+    /// ([`StudyOptions::compiled`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compiled: Option<compiled::CompiledSection>,
 }
 
 /// Per-method state of one (scene, leaf size) during the rounds.
@@ -551,14 +561,21 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
             groups_done += 1;
         }
     }
-    Ok(StudyReport {
+    let mut report = StudyReport {
         options: o.clone(),
         scaling: o.scaling(),
         provenance,
         rows,
-        seconds: started.elapsed().as_secs_f64(),
+        seconds: 0.0,
         stopped,
-    })
+        compiled: None,
+    };
+    if let Some(c) = &o.compiled {
+        progress("compiling the study's kernels for AMD GPUs (RADV's null device)");
+        report.compiled = Some(compiled::section(&report, c));
+    }
+    report.seconds = started.elapsed().as_secs_f64();
+    Ok(report)
 }
 
 /// The report's scenes, in the order they were run.
@@ -768,7 +785,15 @@ pub(crate) mod testing {
             }
         }
         o.scenes = vec![];
-        StudyReport { options: o, scaling: String::new(), provenance: prov, rows, seconds: 0.0, stopped: None }
+        StudyReport {
+            options: o,
+            scaling: String::new(),
+            provenance: prov,
+            rows,
+            seconds: 0.0,
+            stopped: None,
+            compiled: None,
+        }
     }
 }
 

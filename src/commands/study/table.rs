@@ -409,6 +409,7 @@ pub fn markdown(report: &StudyReport, plots: &[Plot]) -> String {
          and its render time relative to Möller-Trumbore's (geometric mean over scenes; < 1 is faster).\n"
     );
     s += &spirv_table(report).to_markdown();
+    s += &super::compiled::markdown(report);
     let _ = writeln!(s, "\n## The paper's claims on this device\n");
     s += &claims::markdown(report);
     if names_layouts(report) {

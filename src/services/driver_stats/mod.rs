@@ -109,6 +109,11 @@ pub fn base_variant(k: &KernelSource) -> &'static str {
 /// `--kernels all` / `--variants all`: every kernel file, or every variant.
 pub const ALL: &str = "all";
 
+/// `--kernels studied`: the kernels a reader studies ([`crate::encoding::variants::studied`]:
+/// every method's closest- and any-hit kernels on the default layout, closest-hit on the others,
+/// the ray-query peer), whatever `--variants` says.
+pub const STUDIED: &str = "studied";
+
 impl Selection {
     /// Every kernel of the registry: every kernel file, variant, method and layout (what a
     /// compiler that needs no dispatch can compile: `driver-stats --targets`).
@@ -129,7 +134,9 @@ impl Selection {
         let layouts: Vec<String> = self.layouts.iter().map(|l| l.to_string()).collect();
         let all_kernels = self.kernels.iter().any(|k| k == ALL);
         let all_variants = self.variants.iter().any(|v| v == ALL);
-        for k in self.kernels.iter().filter(|k| *k != ALL) {
+        let studied = crate::encoding::variants::studied();
+        let studied_too = self.kernels.iter().any(|k| k == STUDIED);
+        for k in self.kernels.iter().filter(|k| *k != ALL && *k != STUDIED) {
             if !KERNELS.iter().any(|s| s.kernel == k) {
                 let mut known: Vec<&str> = KERNELS.iter().map(|s| s.kernel).collect();
                 known.dedup();
@@ -140,8 +147,9 @@ impl Selection {
             .iter()
             .filter(|s| {
                 let c = KernelCell::of(s);
-                (all_kernels || self.kernels.contains(&c.kernel))
-                    && (all_variants || self.variants.contains(&c.variant))
+                let chosen = (all_kernels || self.kernels.contains(&c.kernel))
+                    && (all_variants || self.variants.contains(&c.variant));
+                (chosen || (studied_too && studied.iter().any(|k| k.id == s.id)))
                     && (s.intersector == "none" || methods.contains(&c.method))
                     && layouts.contains(&c.layout)
             })
@@ -906,6 +914,23 @@ mod tests {
         assert!(printed_code("sample:\n  0:\tretq\n"));
         let note = no_asm_note("llvmpipe (LLVM 15.0.6, 256 bits)", Some("22.3.6"));
         assert!(note.contains("Mesa 22.3.6") && note.contains("GALLIVM_DEBUG"), "{note}");
+    }
+
+    #[test]
+    fn all_is_every_kernel_and_studied_the_studied_ones() {
+        assert_eq!(Selection::everything().kernels().unwrap().len(), KERNELS.len());
+        let studied = Selection { kernels: vec![STUDIED.into()], methods: vec![Method::Mt], ..Selection::everything() };
+        let names: Vec<&str> = studied.kernels().unwrap().iter().map(|k| k.name).collect();
+        // mt: closest and any-hit on bvh2, closest-hit on the four other layouts; the ray-query
+        // peer, which has no method.
+        assert_eq!(names.len(), 2 + (Layout::ALL.len() - 1) + 2, "{names:?}");
+        assert!(names.contains(&"raycast.mt.any") && names.contains(&"raycast.mt.closest_qbvh4"), "{names:?}");
+        assert!(names.contains(&"rayquery.none.closest") && !names.contains(&"raycast.mt.any_bvh4"), "{names:?}");
+        // A method filter keeps the kernels with no method (the probes, the roofline).
+        let mt = Selection { methods: vec![Method::Mt], ..Selection::everything() }.kernels().unwrap();
+        assert!(
+            mt.iter().any(|k| k.kernel == "roofline") && mt.iter().all(|k| ["mt", "none"].contains(&k.intersector))
+        );
     }
 
     #[test]
