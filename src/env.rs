@@ -36,6 +36,11 @@ pub const ENV_VARS: &[EnvVar] = &[
                sensitivity)",
     },
     EnvVar { name: "TRILAB_TEST_LIMITS", help: "lower device limits for tests, e.g. max_texel_buffer_elements=4096" },
+    EnvVar {
+        name: "TRILAB_STOCK_MESA",
+        help: "where scripts/stock-mesa.sh unpacked Debian 12's own Mesa (default ~/.cache/trilab/stock-mesa): \
+               `driver-stats --targets ... --mesa stock` compiles with its RADV (radv_icd.json there)",
+    },
     EnvVar { name: "LP_NUM_THREADS", help: "lavapipe: rasterizer/compute threads (0: run on the calling thread)" },
     EnvVar {
         name: "LP_NATIVE_VECTOR_WIDTH",

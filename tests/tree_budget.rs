@@ -6,13 +6,15 @@
 //! Counted: the size in bytes of every file `git ls-files` lists, as it is in the working tree
 //! (what the device tool copies), summed. Budget: [`TREE_BUDGET_MIB`] MiB (20.3 MiB at issue 23:
 //! scenes 8.9, results 6.4, spirv 1.2, the rest source and docs; 24.08 MiB when the manual moved
-//! to docs/ with the generated command reference, docs/commands.md, 0.1 MiB).
+//! to docs/ with the generated command reference, docs/commands.md, 0.1 MiB; 25.0 MiB before issue
+//! 50, which raised it to 26 for results/radv/ and its code and tests: the pack then measured
+//! about 54 MiB, the stripped binary 20.2 MiB and ../shared 7.3 MiB of it).
 
 use std::path::Path;
 use std::process::Command;
 
 /// The tracked tree's budget in MiB (2^20 bytes).
-const TREE_BUDGET_MIB: u64 = 25;
+const TREE_BUDGET_MIB: u64 = 26;
 
 /// Results files of these kinds above this size are stored gzip-compressed
 /// (`scripts/compress-results.sh`, results/README.md "How results are stored").

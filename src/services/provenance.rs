@@ -101,8 +101,18 @@ fn driver_package() -> Option<String> {
 
 /// Environment variables of the drivers that change what a run measures: a row records them so
 /// that `compare` and `merge` can tell two runs of one device apart.
-pub const SETTINGS: &[&str] =
-    &["LP_NATIVE_VECTOR_WIDTH", "LP_NUM_THREADS", "LP_PERF", "GALLIVM_PERF", "MESA_SHADER_CACHE_DISABLE"];
+pub const SETTINGS: &[&str] = &[
+    "LP_NATIVE_VECTOR_WIDTH",
+    "LP_NUM_THREADS",
+    "LP_PERF",
+    "GALLIVM_PERF",
+    "MESA_SHADER_CACHE_DISABLE",
+    // RADV's and ACO's switches change the code its compiler makes (RADV_DEBUG=llvm: another
+    // compiler; RADV_PERFTEST=cswave32: another subgroup size).
+    "RADV_DEBUG",
+    "RADV_PERFTEST",
+    "ACO_DEBUG",
+];
 
 impl Provenance {
     /// Where a result row was measured ([`crate::rows::Source`]).

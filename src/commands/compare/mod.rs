@@ -329,12 +329,14 @@ fn source_warnings(base: &Side, base_rows: &[&Row], new: &Side, new_rows: &[&Row
         ));
     }
     for (side, name, rows) in [(base, "BASE", base_rows), (new, "NEW", new_rows)] {
-        // Rows of GPU targets name their chip in the cell: each chip's device is its own.
+        // Rows of GPU targets name their chip and compiler in the cell: each one's device (RADV
+        // names LLVM in it) and driver are its own.
         let mut by_command: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
         for r in rows.iter() {
-            let command = match r.cell.get("chip") {
-                Some(chip) => format!("{} ({chip})", r.command),
-                None => r.command.clone(),
+            let command = match (r.cell.get("chip"), r.cell.get("compiler")) {
+                (Some(chip), Some(compiler)) => format!("{} ({chip}, {compiler})", r.command),
+                (Some(chip), None) => format!("{} ({chip})", r.command),
+                _ => r.command.clone(),
             };
             by_command.entry(command).or_default().insert(source_label(&r.source));
         }

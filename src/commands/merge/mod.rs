@@ -85,6 +85,30 @@ pub struct SpeedRow {
     pub per_device: Vec<Option<Figure>>,
 }
 
+/// One cell's headline count (a compiler's subgroups per SIMD, VGPRs, instructions) per device,
+/// and which devices are best by the figure's own direction (more subgroups per SIMD, fewer
+/// VGPRs): where the devices are two builds of one driver, which build compiled it better.
+#[derive(Clone, Debug, Serialize)]
+pub struct CountRow {
+    pub command: String,
+    pub cell: Cell,
+    pub figure: String,
+    /// One entry per device, in [`MergeReport::devices`]' order.
+    pub per_device: Vec<Option<Figure>>,
+    /// The devices (their labels) with the best value; empty where all that have it are equal.
+    pub best: Vec<String>,
+}
+
+/// The count a command's rows are compared by across devices, where they carry no timing:
+/// `subgroups_per_simd` (a compiler's occupancy), else `vgprs`, `instructions`,
+/// `spirv_instructions`.
+pub fn headline_count<'a>(rows: impl IntoIterator<Item = &'a Row> + Clone) -> Option<String> {
+    ["subgroups_per_simd", "vgprs", "instructions", "spirv_instructions"]
+        .into_iter()
+        .find(|name| rows.clone().into_iter().any(|r| r.figures.get(*name).is_some_and(|f| f.class == Class::Count)))
+        .map(String::from)
+}
+
 /// The worst value of one correctness figure over one device's rows of one command.
 #[derive(Clone, Debug, Serialize)]
 pub struct Worst {
@@ -118,6 +142,8 @@ pub struct MergeReport {
     pub devices: Vec<Device>,
     pub claims: Vec<DeviceClaims>,
     pub speed: Vec<SpeedRow>,
+    /// Commands without a timing: their headline count per cell measured by two devices or more.
+    pub counts: Vec<CountRow>,
     pub correctness: Vec<Worst>,
     pub missing: Vec<Missing>,
 }
@@ -238,6 +264,7 @@ pub fn merge(
         }
     }
     let mut speed = vec![];
+    let mut counts = vec![];
     let mut correctness = vec![];
     let mut missing = vec![];
     for command in &commands {
@@ -268,6 +295,32 @@ pub fn merge(
                 })
                 .copied()
         };
+        let count = headline(mine.iter().copied()).is_none().then(|| headline_count(mine.iter().copied())).flatten();
+        if let Some(figure) = count {
+            for cell in &cells {
+                let per_device: Vec<Option<Figure>> =
+                    labels.iter().map(|l| find(l, cell).and_then(|r| r.figures.get(&figure).cloned())).collect();
+                let have: Vec<(&String, &Figure)> =
+                    labels.iter().zip(&per_device).filter_map(|(l, f)| Some((l, f.as_ref()?))).collect();
+                if have.len() < 2 {
+                    continue;
+                }
+                let key = |f: &Figure| if f.better == rows::Better::Higher { f.median } else { -f.median };
+                let top = have.iter().map(|(_, f)| key(f)).fold(f64::NEG_INFINITY, f64::max);
+                let best: Vec<String> = if have.iter().all(|(_, f)| key(f) == top) {
+                    vec![]
+                } else {
+                    have.iter().filter(|(_, f)| key(f) == top).map(|(l, _)| (*l).clone()).collect()
+                };
+                counts.push(CountRow {
+                    command: command.clone(),
+                    cell: cell.clone(),
+                    figure: figure.clone(),
+                    per_device,
+                    best,
+                });
+            }
+        }
         if let Some(figure) = headline(mine.iter().copied()) {
             for cell in &cells {
                 let per_device: Vec<Option<Figure>> =
@@ -331,7 +384,7 @@ pub fn merge(
             }
         }
     }
-    Ok(MergeReport { inputs, files, devices, claims, speed, correctness, missing })
+    Ok(MergeReport { inputs, files, devices, claims, speed, counts, correctness, missing })
 }
 
 fn device(label: &str, rows: &[(Row, PathBuf)], plans: &[(Plan, PathBuf)]) -> Device {
@@ -571,6 +624,59 @@ impl MergeReport {
         for (command, figure, t) in self.speed_tables() {
             let _ = writeln!(s, "## Speed per cell: `{command}`, `{figure}`\n");
             let _ = writeln!(s, "Median (min-max over the timed rounds) per device.\n");
+            s += &t.to_markdown();
+            s.push('\n');
+        }
+
+        let mut commands: Vec<(&str, &str)> = vec![];
+        for c in &self.counts {
+            push(&mut commands, (c.command.as_str(), c.figure.as_str()));
+        }
+        for (command, figure) in commands {
+            let of: Vec<&CountRow> = self.counts.iter().filter(|c| c.command == command).collect();
+            let better = of.iter().flat_map(|c| c.per_device.iter().flatten()).next().map(|f| f.better);
+            let way = if better == Some(rows::Better::Higher) { "higher" } else { "lower" };
+            let _ = writeln!(s, "## Counts per cell: `{command}`, `{figure}`\n");
+            // Columns by their plot series' short names (D1, D2, ...: the Devices table names them).
+            let series = series_names(&self.devices);
+            let short = |label: &str| {
+                self.devices
+                    .iter()
+                    .position(|d| d.label == label)
+                    .map_or(label.to_owned(), |i| series[i].split(':').next().unwrap_or(&series[i]).to_owned())
+            };
+            let mut wins: BTreeMap<String, usize> = BTreeMap::new();
+            for c in &of {
+                for b in &c.best {
+                    *wins.entry(short(b)).or_default() += 1;
+                }
+            }
+            let equal = of.iter().filter(|c| c.best.is_empty()).count();
+            let _ = writeln!(
+                s,
+                "The cells two devices or more measured (columns D1, D2, ... as the Devices table names them); {way} is \
+                 better. Best: {}; equal in {equal} of {} cells.\n",
+                if wins.is_empty() {
+                    "none".to_owned()
+                } else {
+                    wins.iter().map(|(d, n)| format!("{d} in {n}")).collect::<Vec<_>>().join(", ")
+                },
+                of.len()
+            );
+            let headers = std::iter::once("cell".to_owned())
+                .chain(self.devices.iter().map(|d| short(&d.label)))
+                .chain(["best".to_owned()]);
+            let mut t = Table::new(headers);
+            for c in &of {
+                let mut row = vec![cell_label(&c.cell)];
+                row.extend(c.per_device.iter().map(|f| f.as_ref().map_or("-".into(), |f| sig(f.median))));
+                row.push(if c.best.is_empty() {
+                    "equal".into()
+                } else {
+                    c.best.iter().map(|b| short(b)).collect::<Vec<_>>().join(", ")
+                });
+                t.row(row);
+            }
             s += &t.to_markdown();
             s.push('\n');
         }
@@ -964,5 +1070,40 @@ mod tests {
             cell_label(&rows::cell([("layout", "bvh2"), ("leaf", "4"), ("scene", "bunny"), ("x", "1")])),
             "scene=bunny leaf=4 layout=bvh2 x=1"
         );
+    }
+
+    /// Two Mesa builds' driver statistics of one chip merged (issue 50): each cell's subgroups
+    /// per SIMD side by side, the best by the figure's direction (higher), equal cells said.
+    #[test]
+    fn counts_of_two_driver_builds_name_the_better_by_direction() {
+        let row = |build: &str, method: &str, subgroups: f64, vgprs: f64| {
+            let mut src =
+                Source { device: "Null hardware (RADV NAVI21)".into(), driver: "radv".into(), ..Source::default() };
+            src.settings.insert(rows::DRIVER_BUILD.into(), build.into());
+            let c = rows::cell([("kernel", "raycast"), ("method", method), ("chip", "navi21")]);
+            (
+                Row::new("driver-stats", c, &src)
+                    .with("subgroups_per_simd", Figure::count_toward(subgroups, "subgroups", rows::Better::Higher))
+                    .with("vgprs", Figure::count(vgprs, "registers")),
+                PathBuf::from(format!("{build}/rows.jsonl")),
+            )
+        };
+        let rows = vec![
+            row("22.3.6", "mt", 20.0, 48.0),
+            row("22.3.6", "quad-unit", 12.0, 80.0),
+            row("25.0.7", "mt", 24.0, 40.0),
+            row("25.0.7", "quad-unit", 12.0, 80.0),
+        ];
+        let r = merge(vec![], vec![], rows, vec![]).unwrap();
+        assert_eq!(r.counts.len(), 2, "{:?}", r.counts);
+        assert!(r.counts.iter().all(|c| c.figure == "subgroups_per_simd"));
+        let mt = r.counts.iter().find(|c| c.cell.get("method").map(String::as_str) == Some("mt")).unwrap();
+        assert_eq!(mt.best.len(), 1);
+        assert!(mt.best[0].contains("25.0.7"), "{:?}", mt.best);
+        let q = r.counts.iter().find(|c| c.cell.get("method").map(String::as_str) == Some("quad-unit")).unwrap();
+        assert!(q.best.is_empty(), "equal: {:?}", q.best);
+        let md = r.markdown(&[]);
+        assert!(md.contains("## Counts per cell: `driver-stats`, `subgroups_per_simd`"), "{md}");
+        assert!(md.contains("higher is better. Best: D2 in 1; equal in 1 of 2 cells."), "{md}");
     }
 }

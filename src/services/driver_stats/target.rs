@@ -301,7 +301,9 @@ impl GpuTarget {
     }
 
     /// A worker's failure, with what it means where that is known: RADV aborts on a chip its
-    /// Mesa build does not know ("radv: Unknown family").
+    /// Mesa build does not know ("radv: Unknown family"), and on a chip the LLVM it was built
+    /// with has no backend for (Mesa 25.0.7 on LLVM 15 and gfx1201: "LLVM doesn't support
+    /// gfx1201, bailing out").
     fn explain(&self, e: Error) -> Error {
         let text = e.to_string();
         if text.contains("Unknown family") {
@@ -309,6 +311,13 @@ impl GpuTarget {
                 "target {self}: this Mesa build's RADV does not know the chip {} (it printed \"Unknown family\" and \
                  aborted)",
                 self.chip
+            ));
+        }
+        if text.contains("LLVM doesn't support") {
+            return Error::Unsupported(format!(
+                "target {self}: the LLVM this Mesa build's RADV uses has no backend for {} (it printed \"LLVM doesn't \
+                 support {}, bailing out\" and aborted); ACO compiles for it",
+                self.chip, self.chip
             ));
         }
         e
