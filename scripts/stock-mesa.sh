@@ -102,7 +102,11 @@ unresolved() {
 }
 
 # Already complete: check it still resolves and print it.
-if [ -f "$dir/env" ] && [ -f "$dir/lvp_icd.json" ] && [ -f "$dir/radv_icd.json" ] && [ -f "$dir/version" ]; then
+# (An unpack made before radv_icd.json was written, of a package that has RADV, is unpacked again.)
+radv_written() {
+  [ -f "$dir/radv_icd.json" ] || [ -z "$(find "$dir/root" -name libvulkan_radeon.so -print -quit 2>/dev/null)" ]
+}
+if [ -f "$dir/env" ] && [ -f "$dir/lvp_icd.json" ] && [ -f "$dir/version" ] && radv_written; then
   lib=$(sed -n 's/.*"library_path": *"\([^"]*\)".*/\1/p' "$dir/lvp_icd.json")
   extra=$(sed -n 's/^LD_LIBRARY_PATH=//p' "$dir/env")
   if [ -f "$lib" ] && [ -z "$(unresolved "$lib" "$extra")" ] &&
@@ -166,9 +170,9 @@ if [ -n "$deb_given" ]; then unpack "$deb" "given by --deb: it is left as it is"
 lib=$(find "$dir/root.new" -name libvulkan_lvp.so -print -quit)
 icd=$(find "$dir/root.new/usr/share/vulkan/icd.d" -name 'lvp_icd*.json' -print -quit 2>/dev/null || true)
 [ -n "$lib" ] && [ -n "$icd" ] || die "$(basename "$deb") holds no libvulkan_lvp.so or lvp_icd*.json"
+# The package's RADV, where it has one (Debian's does).
 radv_lib=$(find "$dir/root.new" -name libvulkan_radeon.so -print -quit)
 radv_icd=$(find "$dir/root.new/usr/share/vulkan/icd.d" -name 'radeon_icd*.json' -print -quit 2>/dev/null || true)
-[ -n "$radv_lib" ] && [ -n "$radv_icd" ] || die "$(basename "$deb") holds no libvulkan_radeon.so or radeon_icd*.json"
 libdir=$(dirname "$lib")
 
 # Libraries the old driver needs that this machine lacks: unpack their bookworm packages too
@@ -196,8 +200,13 @@ radv_icd=${radv_icd/$dir\/root.new/$dir/root}
 [ -z "$extra" ] || extra=${extra/$dir\/root.new/$dir/root}
 sed "s|\"library_path\": *\"[^\"]*\"|\"library_path\": \"$lib\"|" "$icd" >"$dir/lvp_icd.json.tmp"
 mv "$dir/lvp_icd.json.tmp" "$dir/lvp_icd.json"
-sed "s|\"library_path\": *\"[^\"]*\"|\"library_path\": \"$radv_lib\"|" "$radv_icd" >"$dir/radv_icd.json.tmp"
-mv "$dir/radv_icd.json.tmp" "$dir/radv_icd.json"
+if [ -n "$radv_lib" ] && [ -n "$radv_icd" ]; then
+  sed "s|\"library_path\": *\"[^\"]*\"|\"library_path\": \"$radv_lib\"|" "$radv_icd" >"$dir/radv_icd.json.tmp"
+  mv "$dir/radv_icd.json.tmp" "$dir/radv_icd.json"
+else
+  rm -f "$dir/radv_icd.json"
+  say "$(basename "$deb") has no RADV (libvulkan_radeon.so): no radv_icd.json, so no --mesa stock targets"
+fi
 {
   echo "VK_DRIVER_FILES=$dir/lvp_icd.json"
   [ -z "$extra" ] || echo "LD_LIBRARY_PATH=$extra"

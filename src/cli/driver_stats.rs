@@ -16,7 +16,7 @@ use trilab::services::results::Folder;
 use super::choice::choice;
 use super::{results_dir, GpuArgs, JsonArg, MethodsArg};
 
-/// What the driver compiled each kernel to: registers, occupancy, spills, instructions
+/// What the driver compiled each kernel to: registers, occupancy, spills, code
 ///
 /// What the driver compiled each kernel to: on lavapipe, machine instructions, vector spills and
 /// reloads and calls into the texel-fetch helpers, from gallivm's disassembly (this executable
