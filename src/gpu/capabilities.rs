@@ -136,6 +136,16 @@ impl<'a> Capabilities<'a> {
         DriverKind::of(self.info)
     }
 
+    /// The device runs kernels at all: a device that only compiles (RADV's null device,
+    /// [`super::Execution::CompilesOnly`]) answers no, with why; every command that dispatches
+    /// asks this (through the context it makes) before any work.
+    pub fn runs(&self) -> Result<(), Unsupported> {
+        match &self.info.execution {
+            super::Execution::Runs => Ok(()),
+            super::Execution::CompilesOnly { why } => self.no("running kernels", format!("it compiles only ({why})")),
+        }
+    }
+
     /// The device is a CPU (`VK_PHYSICAL_DEVICE_TYPE_CPU`: lavapipe, SwiftShader): `auto`
     /// choices that are slow on a CPU (the driver peers) stay off.
     pub fn is_cpu(&self) -> bool {
@@ -319,6 +329,7 @@ impl<'a> Capabilities<'a> {
     pub fn table(&self) -> Vec<(String, Option<String>)> {
         let mut out = vec![];
         let mut push = |what: String, r: Result<(), Unsupported>| out.push((what, r.err().map(|u| u.why)));
+        push("kernels".into(), self.runs());
         for m in Method::ALL {
             push(format!("method {m}"), self.method(m));
         }

@@ -303,13 +303,17 @@ impl Context {
             physicals.iter().enumerate().map(|(i, &pd)| unsafe { device_info::query(instance, pd, i) }).collect();
         let chosen = choose_device(&infos, options.device.as_deref())?;
         let info = infos[chosen].clone();
-        if let (Purpose::Run, super::device_info::Execution::CompilesOnly { why }) = (options.purpose, &info.execution)
-        {
-            return Err(Error::Unsupported(format!(
-                "device [{chosen}] {} compiles only ({why}): this command runs kernels, so it cannot use it; \
-                 `trilab driver-stats` compiles every kernel there and reports the driver's statistics",
-                info.name
-            )));
+        // A command that runs kernels asks the device's capabilities whether it runs any, before
+        // the device is even created (a device that only compiles would crash at its first wait).
+        if options.purpose == Purpose::Run {
+            let features = EnabledFeatures::for_device(&info);
+            if let Err(u) = super::Capabilities::new(&info, &features).runs() {
+                return Err(Error::Unsupported(format!(
+                    "device [{chosen}] {}: {}: this command runs kernels, so it cannot use it; `trilab driver-stats` \
+                     compiles every kernel there and reports the driver's statistics",
+                    u.device, u.why
+                )));
+            }
         }
         let physical = physicals[chosen];
         let queue_family = info.compute_queue_family.expect("usable device has a compute queue");

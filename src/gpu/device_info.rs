@@ -362,9 +362,6 @@ impl DeviceInfo {
         if let Some(r) = &self.unusable_reason {
             let _ = writeln!(s, "    not usable: {r}");
         }
-        if let Execution::CompilesOnly { why } = &self.execution {
-            let _ = writeln!(s, "    compiles only:            {why}");
-        }
         let _ =
             writeln!(s, "    driver:                   {} ({}) {}", self.driver_name, self.driver_id, self.driver_info);
         let _ = writeln!(s, "    subgroup size:            {}", self.subgroup_size);
