@@ -297,7 +297,7 @@ fn compare_sides(a: AbArgs) -> Result<u8> {
         super::note(&format!("warning: cannot catch Ctrl-C or SIGTERM ({e}); a stopped run will not say where it was"));
     }
     let exe = trilab::services::worker::this_exe()?;
-    let validation = a.gpu.validation || std::env::var("TRILAB_VALIDATION").is_ok_and(|v| v.trim() == "1");
+    let validation = a.gpu.validation_required();
     let o = AbOptions {
         workload: a.workload.workload(),
         a: Side { exe: a.a_bin, icd: a.a_icd, env: a.a_env, layout: None },

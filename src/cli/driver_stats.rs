@@ -147,7 +147,7 @@ fn run_targets(a: DriverStatsArgs) -> Result<()> {
     eprintln!("  {} kernel variants x {} targets, {jobs} at a time", kernels.len(), targets.len());
     let o = TargetOptions {
         exe,
-        validation: a.gpu.validation_choice() == trilab::gpu::Validation::Required,
+        validation: a.gpu.validation_required(),
         timeout: std::time::Duration::from_secs(1800),
         jobs,
     };

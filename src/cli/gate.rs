@@ -75,7 +75,7 @@ pub fn run(a: GateArgs) -> Result<()> {
         _ => return Err(Error::Usage("give --base-bin FILE --base-commit C, or --no-base WHY".into())),
     };
     let exe = trilab::services::worker::this_exe()?;
-    let validation = a.gpu.validation || std::env::var("TRILAB_VALIDATION").is_ok_and(|v| v.trim() == "1");
+    let validation = a.gpu.validation_required();
     let defaults = gate::default_workload(a.workload.workload().sizes, a.workload.workload().build);
     let o = GateOptions {
         baseline: a.baseline,

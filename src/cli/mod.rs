@@ -100,6 +100,12 @@ impl GpuArgs {
         }
     }
 
+    /// Whether the validation layer is asked for (`--validation` or `TRILAB_VALIDATION`): what a
+    /// command passes on to the trilab workers it starts.
+    pub fn validation_required(&self) -> bool {
+        self.validation_choice() == Validation::Required
+    }
+
     /// Registers the validation log of a context made elsewhere (a repro's), checked before exit.
     pub fn watch(ctx: &Context) {
         let _ = VALIDATION_LOG.set(ctx.validation_log());

@@ -82,7 +82,7 @@ pub fn run(a: StudyArgs) -> Result<()> {
     if !a.no_compiled {
         o.compiled = Some(study::compiled::CompiledOptions {
             exe: trilab::services::worker::this_exe()?,
-            validation: a.gpu.validation_choice() == trilab::gpu::Validation::Required,
+            validation: a.gpu.validation_required(),
         });
     }
     o.check()?;

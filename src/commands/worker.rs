@@ -57,13 +57,7 @@ pub fn serve(
 /// The refusal of a request that dispatches, on a device that only compiles (the worker of a GPU
 /// target is made on one): before any work, naming the device.
 fn runs(ctx: &Context, what: &str) -> Result<()> {
-    match &ctx.info().execution {
-        crate::gpu::Execution::Runs => Ok(()),
-        crate::gpu::Execution::CompilesOnly { why } => Err(Error::Unsupported(format!(
-            "worker: {what} runs kernels, and {} compiles only ({why})",
-            ctx.info().name
-        ))),
-    }
+    ctx.capabilities().runs().map_err(|u| Error::Unsupported(format!("worker: {what} runs kernels, and {u}")))
 }
 
 /// One request's answer.

@@ -281,8 +281,8 @@ impl Context {
     pub(crate) fn submit_and_wait(&self, cmd: vk::CommandBuffer, what: &str) -> Result<()> {
         // A device that only compiles has no queue to run on (its driver would crash): every
         // submission stops here, the last guard behind the refusal when the context is made.
-        if let super::device_info::Execution::CompilesOnly { why } = &self.device.info.execution {
-            return Err(Error::Unsupported(format!("{what}: {} compiles only ({why})", self.device.info.name)));
+        if let Err(u) = self.capabilities().runs() {
+            return Err(Error::Unsupported(format!("{what}: {u}")));
         }
         let d = &self.device.raw;
         // SAFETY: valid device; the fence is destroyed below after it is no longer in use.

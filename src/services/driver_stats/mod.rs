@@ -374,20 +374,11 @@ pub fn collect(ctx: &Context, kernels: &[&'static KernelSource], o: &CollectOpti
         });
     }
     if ctx.enabled().pipeline_executable_properties {
-        let mut out = vec![];
-        let mut refused = vec![];
-        for &k in kernels {
-            match compile::compile_one(ctx, k, None)? {
-                Ok((wave, statistics)) => out.push(KernelStats {
-                    statistics,
-                    compiled: Some(CompiledFor::of(&info.name, wave)),
-                    ..KernelStats::of(k)
-                }),
-                Err(why) => refused.push(format!("{}: {why}", k.name)),
-            }
-        }
+        let names: Vec<String> = kernels.iter().map(|k| k.name.to_owned()).collect();
+        let (out, refused) = compiled_kernels(compile::compile_kernels(ctx, &names, None)?);
         let mut note = EXECUTABLE_NOTE.to_owned();
         if !refused.is_empty() {
+            let refused: Vec<String> = refused.iter().map(|r| format!("{}: {}", r.kernel, r.why)).collect();
             note.push_str(&format!("; not compiled here: {}", refused.join("; ")));
         }
         return Ok(DriverStatsReport { provenance, status: Status::Measured, note, kernels: out, targets: vec![] });
@@ -473,6 +464,25 @@ pub fn targets_report(targets: Vec<TargetStats>) -> DriverStatsReport {
     }
 }
 
+/// A compile's answer (a target worker's, or this device's) as the report's kernels and the
+/// kernels refused, each compiled kernel with where it was compiled (the chip and compiler its
+/// device names, the subgroup size its executable reports).
+fn compiled_kernels(c: crate::services::worker::protocol::CompiledKernels) -> (Vec<KernelStats>, Vec<Refused>) {
+    let (mut kernels, mut refused) = (vec![], vec![]);
+    for k in c.kernels {
+        let Some(src) = KERNELS.iter().find(|s| s.name == k.name) else { continue };
+        match k.refused {
+            Some(why) => refused.push(Refused { kernel: k.name, why }),
+            None => kernels.push(KernelStats {
+                statistics: k.statistics,
+                compiled: Some(CompiledFor::of(&c.device, k.subgroup_size)),
+                ..KernelStats::of(src)
+            }),
+        }
+    }
+    (kernels, refused)
+}
+
 /// A target's section of the report, from what its worker answered.
 fn target_stats(t: &GpuTarget, got: Result<crate::services::worker::protocol::CompiledKernels>) -> TargetStats {
     let mut s = TargetStats {
@@ -494,21 +504,11 @@ fn target_stats(t: &GpuTarget, got: Result<crate::services::worker::protocol::Co
             s.note = e.to_string();
         }
         Ok(c) => {
-            s.device = c.device;
-            s.driver = c.driver;
-            s.driver_info = c.driver_info;
-            s.mesa_version = c.mesa_version;
-            for k in c.kernels {
-                let Some(src) = KERNELS.iter().find(|s| s.name == k.name) else { continue };
-                match k.refused {
-                    Some(why) => s.refused.push(Refused { kernel: k.name, why }),
-                    None => s.kernels.push(KernelStats {
-                        statistics: k.statistics,
-                        compiled: Some(CompiledFor { wave: k.subgroup_size, ..s.compiled_for.clone() }),
-                        ..KernelStats::of(src)
-                    }),
-                }
-            }
+            s.device.clone_from(&c.device);
+            s.driver.clone_from(&c.driver);
+            s.driver_info.clone_from(&c.driver_info);
+            s.mesa_version.clone_from(&c.mesa_version);
+            (s.kernels, s.refused) = compiled_kernels(c);
         }
     }
     s

@@ -30,15 +30,21 @@ pub fn occupancy(k: &KernelStats) -> Option<(Occupancy, Option<u32>)> {
     let compiled = k.compiled.as_ref()?;
     let chip = compiled.chip?;
     let stat = |n: &str| k.statistic(n).map(|v| v as u32);
-    let workgroup = k
-        .source()
-        .and_then(|s| crate::spirv::reflect::reflect(s.name, &s.words()).ok())
-        .map_or(64, |l| l.local_size.0 * l.local_size.1 * l.local_size.2);
+    let lds_bytes = stat(names::LDS).unwrap_or(0);
+    // The workgroup's size matters only to a kernel with LDS: its SPIR-V is reflected then only
+    // (a table of every kernel of every target asks this tens of thousands of times).
+    let workgroup = if lds_bytes == 0 {
+        0
+    } else {
+        k.source()
+            .and_then(|s| crate::spirv::reflect::reflect(s.name, &s.words()).ok())
+            .map_or(64, |l| l.local_size.0 * l.local_size.1 * l.local_size.2)
+    };
     let r = Resources {
         wave: compiled.wave,
         vgprs: stat(names::VGPRS)?,
         sgprs: stat(names::SGPRS).unwrap_or(0),
-        lds_bytes: stat(names::LDS).unwrap_or(0),
+        lds_bytes,
         workgroup,
     };
     Some((Occupancy::of(chip, &r), stat(names::SUBGROUPS)))
