@@ -48,10 +48,18 @@ pub const ENV_VARS: &[EnvVar] = &[
                cache per width (below)",
     },
     EnvVar {
+        name: "GALLIUM_OVERRIDE_CPU_CAPS",
+        help: "lavapipe: compile for a smaller CPU (Mesa's values nosse, sse, sse2, sse3, ssse3, sse4.1, avx; each \
+               removes one feature and all that need it: avx removes AVX-512, sse4.1 AVX and AVX2); `trilab devices` \
+               and every report's provenance name the features it compiles for; trilab then keeps lavapipe's shader \
+               cache per setting (below)",
+    },
+    EnvVar {
         name: "MESA_SHADER_CACHE_DIR",
-        help: "Mesa's on-disk shader cache; while LP_NATIVE_VECTOR_WIDTH is set, trilab uses the folder \
-               mesa-shader-cache-lp<bits> inside it (unset: inside <XDG_CACHE_HOME or ~/.cache>/trilab), as \
-               lavapipe 25.0.7 reuses image functions cached at another width (docs/driver-defects.md)",
+        help: "Mesa's on-disk shader cache; while LP_NATIVE_VECTOR_WIDTH or GALLIUM_OVERRIDE_CPU_CAPS is set, trilab \
+               uses the folder mesa-shader-cache[-lp<bits>][-<caps>] inside it (unset: inside <XDG_CACHE_HOME or \
+               ~/.cache>/trilab), as lavapipe 25.0.7 reuses image functions cached at another width \
+               (docs/driver-defects.md)",
     },
     EnvVar {
         name: "VK_DRIVER_FILES",
@@ -70,31 +78,42 @@ pub fn markdown() -> String {
     ENV_VARS.iter().map(|v| format!("- `{}`: {}.\n", v.name, v.help)).collect()
 }
 
-/// Where lavapipe's shader cache goes for SIMD width `bits`: one folder per width inside `base`
-/// (the caller's MESA_SHADER_CACHE_DIR, else trilab's folder in XDG_CACHE_HOME or ~/.cache).
+/// Where lavapipe's shader cache goes for SIMD width `bits` and CPU features `caps` (each as set
+/// in `LP_NATIVE_VECTOR_WIDTH` and `GALLIUM_OVERRIDE_CPU_CAPS`, `None` where unset): one folder
+/// per setting inside `base` (the caller's MESA_SHADER_CACHE_DIR, else trilab's folder in
+/// XDG_CACHE_HOME or ~/.cache).
 ///
 /// lavapipe 25.0.7 stores its precompiled texture and image functions in Mesa's on-disk cache
 /// under a key that leaves out the SIMD width, so a process at 16 lanes finds the 8-lane code a
 /// default run stored and calls it with 16-lane vectors: lanes 8-15 of every imageLoad read
-/// zeros, and a wider callee writes past a narrower caller's return slot
-/// (docs/driver-defects.md; tests/subgroup_probe.rs shows it).
-pub fn lavapipe_cache_dir(base: &std::path::Path, bits: &str) -> std::path::PathBuf {
-    let bits: String = bits.chars().filter(char::is_ascii_alphanumeric).collect();
-    base.join(format!("mesa-shader-cache-lp{bits}"))
+/// wrong values, or the process crashes, depending on the CPU (docs/driver-defects.md). The CPU
+/// override changes the width too (`sse4.1` gives 128 bits), so it keys the folder as well.
+pub fn lavapipe_cache_dir(base: &std::path::Path, bits: Option<&str>, caps: Option<&str>) -> std::path::PathBuf {
+    // A value only names a folder: nothing in it can leave `base`.
+    let clean = |v: &str, keep: &dyn Fn(char) -> bool| v.chars().filter(|&c| keep(c)).collect::<String>();
+    let mut name = "mesa-shader-cache".to_owned();
+    if let Some(bits) = bits {
+        name += &format!("-lp{}", clean(bits, &|c| c.is_ascii_alphanumeric()));
+    }
+    if let Some(caps) = caps {
+        name += &format!("-{}", clean(caps, &|c| c.is_ascii_alphanumeric() || c == '.').replace("..", ""));
+    }
+    base.join(name)
 }
 
-/// Keeps lavapipe's shader cache per SIMD width: where `LP_NATIVE_VECTOR_WIDTH` is set (and
-/// `MESA_SHADER_CACHE_DISABLE` is not), points `MESA_SHADER_CACHE_DIR` at [`lavapipe_cache_dir`]
-/// inside the folder it named (unset: trilab's folder in the user's cache). Inside it, not the
-/// folder itself: a caller at one width (scripts/test-width.sh) that runs trilab at another
-/// (`coop_at_16_lanes`) would otherwise hand the child the first width's cache. Returns the
-/// folder it chose, if any.
+/// Keeps lavapipe's shader cache per code-generation setting: where `LP_NATIVE_VECTOR_WIDTH` or
+/// `GALLIUM_OVERRIDE_CPU_CAPS` is set (and `MESA_SHADER_CACHE_DISABLE` is not), points
+/// `MESA_SHADER_CACHE_DIR` at [`lavapipe_cache_dir`] inside the folder it named (unset: trilab's
+/// folder in the user's cache). Inside it, not the folder itself: a caller at one width
+/// (scripts/test-width.sh) that runs trilab at another (`coop_at_16_lanes`) would otherwise hand
+/// the child the first width's cache. Returns the folder it chose, if any.
 ///
 /// Call it first in `main`, before any thread starts and before the Vulkan loader reads the
 /// environment: it changes the process's environment.
-pub fn keep_lavapipe_cache_per_width() -> Option<std::path::PathBuf> {
-    let bits = std::env::var("LP_NATIVE_VECTOR_WIDTH").ok()?;
-    if std::env::var_os("MESA_SHADER_CACHE_DISABLE").is_some() {
+pub fn keep_lavapipe_cache_per_target() -> Option<std::path::PathBuf> {
+    let bits = std::env::var("LP_NATIVE_VECTOR_WIDTH").ok().filter(|v| !v.is_empty());
+    let caps = std::env::var("GALLIUM_OVERRIDE_CPU_CAPS").ok().filter(|v| !v.is_empty());
+    if (bits.is_none() && caps.is_none()) || std::env::var_os("MESA_SHADER_CACHE_DISABLE").is_some() {
         return None;
     }
     let base = match std::env::var_os("MESA_SHADER_CACHE_DIR").filter(|d| !d.is_empty()) {
@@ -105,7 +124,7 @@ pub fn keep_lavapipe_cache_per_width() -> Option<std::path::PathBuf> {
             .or_else(|| std::env::var_os("HOME").map(|h| std::path::PathBuf::from(h).join(".cache")))?
             .join("trilab"),
     };
-    let dir = lavapipe_cache_dir(&base, &bits);
+    let dir = lavapipe_cache_dir(&base, bits.as_deref(), caps.as_deref());
     std::env::set_var("MESA_SHADER_CACHE_DIR", &dir);
     Some(dir)
 }
@@ -115,16 +134,24 @@ mod tests {
     use super::*;
 
     #[test]
-    fn each_width_has_its_own_cache_folder() {
+    fn each_width_and_cpu_setting_has_its_own_cache_folder() {
         let base = std::path::Path::new("/c/trilab");
-        let a = lavapipe_cache_dir(base, "256");
-        let b = lavapipe_cache_dir(base, "512");
-        assert_ne!(a, b);
-        assert!(a.starts_with("/c/trilab"), "{a:?}");
+        let folders = [
+            lavapipe_cache_dir(base, Some("256"), None),
+            lavapipe_cache_dir(base, Some("512"), None),
+            lavapipe_cache_dir(base, Some("512"), Some("avx")),
+            lavapipe_cache_dir(base, None, Some("avx")),
+            lavapipe_cache_dir(base, None, Some("sse4.1")),
+        ];
+        for (i, a) in folders.iter().enumerate() {
+            assert!(a.starts_with("/c/trilab") && a.parent() == Some(base), "{a:?}");
+            assert!(folders[i + 1..].iter().all(|b| b != a), "{a:?} twice in {folders:?}");
+        }
+        assert_eq!(folders[2], std::path::PathBuf::from("/c/trilab/mesa-shader-cache-lp512-avx"));
         // A hostile value cannot leave the folder.
         assert_eq!(
-            lavapipe_cache_dir(base, "../../etc"),
-            std::path::PathBuf::from("/c/trilab/mesa-shader-cache-lpetc")
+            lavapipe_cache_dir(base, Some("../../etc"), Some("../..")),
+            std::path::PathBuf::from("/c/trilab/mesa-shader-cache-lpetc-")
         );
     }
 }

@@ -68,7 +68,7 @@ fn main() -> ExitCode {
     #[cfg(unix)]
     default_sigpipe();
     // Before any thread and before the Vulkan loader reads the environment.
-    trilab::env::keep_lavapipe_cache_per_width();
+    trilab::env::keep_lavapipe_cache_per_target();
     let matches = match Cli::command().try_get_matches() {
         Ok(m) => m,
         Err(e) => return cli::exit_parse_error(e),

@@ -197,9 +197,14 @@ fn driver_statistics_invocations_and_a_path_trace_on_request() {
     let md = std::fs::read_to_string(merged.join("merge.md")).unwrap();
     assert!(md.contains("ab_side=A") && md.contains("ab_side=B") && md.contains("bench-render"), "{md}");
 
-    // B compiles for 128-bit vectors: the same kernels, other machine code, named per kernel.
+    // B compiles for another SIMD width than A: the same kernels, other machine code, named per
+    // kernel. 128 bits, or 256 where A already runs 4 lanes (a CPU without AVX, or the matrix's
+    // GALLIUM_OVERRIDE_CPU_CAPS=sse4.1): the test holds what the width changes, on any host.
+    let devices = common::cli::trilab(&["devices", "--json"], 60);
+    let lanes = serde_json::from_slice::<Value>(&devices.stdout).unwrap()[0]["subgroup_size"].as_u64().unwrap();
+    let b_width = format!("LP_NATIVE_VECTOR_WIDTH={}", if lanes == 4 { 256 } else { 128 });
     let out = dir.path().join("width");
-    let (o, r) = ab(&[&optional[..], &["--b-env", "LP_NATIVE_VECTOR_WIDTH=128", "--out", &s(&out)]].concat(), 180);
+    let (o, r) = ab(&[&optional[..], &["--b-env", &b_width, "--out", &s(&out)]].concat(), 180);
     assert!(matches!(o.status.code(), Some(0 | 1)), "{}\n{r}", common::cli::stderr(&o));
     let changed: Vec<&Value> = r["cells"]
         .as_array()

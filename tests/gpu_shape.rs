@@ -37,6 +37,7 @@ fn h100(index: usize) -> DeviceInfo {
     d.mesa_version = None;
     d.subgroup_size = 32;
     d.subgroup_size_control = Some((32, 32));
+    d.compiles_for = None;
     d
 }
 

@@ -24,8 +24,10 @@ fn the_readme_lists_the_registry_s_methods() {
 }
 
 /// CI runs what the README tells a person to run: `.ci/run`'s last line is the README's test
-/// command, which ends with the second pass at lavapipe's other width (scripts/test-width.sh)
-/// and the regression gate against the committed baseline (scripts/ci-gate.sh).
+/// command, which ends with the test matrix (scripts/test-matrix.sh): the suite with
+/// --no-fail-fast, the passes at lavapipe's other widths and for a smaller CPU
+/// (scripts/test-width.sh), and the regression gate against the committed baseline
+/// (scripts/ci-gate.sh).
 #[test]
 fn ci_runs_the_readme_s_test_command() {
     let root = root();
@@ -34,11 +36,20 @@ fn ci_runs_the_readme_s_test_command() {
     let intro = "Run the tests (the same command CI runs, through `.ci/run`):\n\n";
     let at = readme.find(intro).expect("README.md has the Test paragraph") + intro.len();
     let command = readme[at..].lines().next().unwrap().trim();
-    assert!(command.starts_with("./scripts/install-deps.sh") && command.contains("cargo test --release"), "{command}");
     assert!(
-        command.ends_with("./scripts/test-width.sh 128 && ./scripts/ci-gate.sh"),
-        "the second width pass and the regression gate are part of the command: {command}"
+        command.starts_with("./scripts/install-deps.sh") && command.ends_with("./scripts/test-matrix.sh"),
+        "{command}"
     );
+    let matrix = std::fs::read_to_string(root.join("scripts/test-matrix.sh")).unwrap();
+    for pass in [
+        "pass suite cargo test --release --no-fail-fast",
+        "pass lp128 ./scripts/test-width.sh 128",
+        "./scripts/test-width.sh 256 \"$small\"",
+        "./scripts/test-width.sh 512 \"$small\"",
+        "pass gate ./scripts/ci-gate.sh",
+    ] {
+        assert!(matrix.contains(pass), "scripts/test-matrix.sh runs `{pass}`");
+    }
     assert!(root.join("results/lavapipe/baseline/summary.md").is_file(), "the gate's baseline is committed");
     let last = ci.lines().rev().find(|l| !l.trim().is_empty()).unwrap().trim();
     assert_eq!(last, command, ".ci/run's last line must be README.md's test command");

@@ -7,7 +7,8 @@
 //! The driver defect it found (docs/driver-defects.md): lavapipe 25.0.7 keeps its precompiled
 //! image functions in Mesa's on-disk shader cache under a key without the SIMD width, so a
 //! 16-lane process reusing a cache an 8-lane one filled reads zeros in lanes 8-15 of every
-//! `imageLoad`. Each width here gets a cache of its own; the last test shows the defect.
+//! `imageLoad` on one CPU and crashes on another. Each width here gets a cache of its own; the
+//! last test shows the defect and accepts every way it shows.
 mod common;
 
 use common::with_gpu;
@@ -155,21 +156,26 @@ fn reads_texels(what: &str) -> bool {
     what.starts_with("imageLoad")
 }
 
-/// Fails on every failure, except, where `TRILAB_PROBE_STALE_CACHE` is set (the defect test
-/// below), texel reads in lanes past 8: those it counts and prints as
-/// `stale image functions: N texel reads wrong`.
+/// Fails on every failure, except where `TRILAB_PROBE_STALE_CACHE` is set (the defect test
+/// below): there any wrong answer is what the defect may do, so it counts them and prints
+/// `stale image functions: N texel reads wrong in lanes 8 and up, M other answers wrong`.
 fn judge(size: u32, lanes: &[Lane], failures: &[(&str, String, usize)]) {
-    let tolerate = std::env::var_os("TRILAB_PROBE_STALE_CACHE").is_some();
-    let (stale, others): (Vec<_>, Vec<_>) =
-        failures.iter().partition(|(what, _, i)| tolerate && reads_texels(what) && lanes[*i].lane >= 8);
-    if !stale.is_empty() {
-        println!("stale image functions: {} texel reads wrong", stale.len());
+    if std::env::var_os("TRILAB_PROBE_STALE_CACHE").is_some() {
+        let high_texels = failures.iter().filter(|(what, _, i)| reads_texels(what) && lanes[*i].lane >= 8).count();
+        println!(
+            "stale image functions: {high_texels} texel reads wrong in lanes 8 and up, {} other answers wrong",
+            failures.len() - high_texels
+        );
+        for (w, m, _) in failures.iter().filter(|(what, _, i)| !(reads_texels(what) && lanes[*i].lane >= 8)).take(4) {
+            println!("  {w}: {m}");
+        }
+        return;
     }
     assert!(
-        others.is_empty(),
+        failures.is_empty(),
         "{} answers are wrong at {size} lanes (first 12):\n{}",
-        others.len(),
-        others.iter().take(12).map(|(w, m, _)| format!("{w}: {m}")).collect::<Vec<_>>().join("\n")
+        failures.len(),
+        failures.iter().take(12).map(|(w, m, _)| format!("{w}: {m}")).collect::<Vec<_>>().join("\n")
     );
 }
 
@@ -187,9 +193,22 @@ fn subgroup_operations_answer_as_the_lane_numbers_say() {
     println!("subgroup probe: {size} lanes answer as expected");
 }
 
+/// A child of this test binary running the test above.
+struct Child {
+    status: std::process::ExitStatus,
+    out: String,
+}
+
+impl Child {
+    /// It ran the probe to the end with every answer right (outside the defect test's mode).
+    fn passed(&self, lanes: u32) -> bool {
+        self.status.success() && self.out.contains(&format!("subgroup probe: {lanes} lanes answer as expected"))
+    }
+}
+
 /// Runs the test above in a child of this test binary at lavapipe width `bits` with Mesa's shader
-/// cache in `cache`; returns whether it passed, and its output.
-fn at_width(bits: u32, cache: &std::path::Path, stale_cache: bool) -> (bool, String) {
+/// cache in `cache`, within two minutes.
+fn at_width(bits: u32, cache: &std::path::Path, stale_cache: bool) -> Child {
     let mut c = std::process::Command::new(std::env::current_exe().unwrap());
     c.args(["subgroup_operations_answer_as_the_lane_numbers_say", "--exact", "--nocapture", "--test-threads=1"])
         .env("LP_NATIVE_VECTOR_WIDTH", bits.to_string())
@@ -199,10 +218,10 @@ fn at_width(bits: u32, cache: &std::path::Path, stale_cache: bool) -> (bool, Str
     if stale_cache {
         c.env("TRILAB_PROBE_STALE_CACHE", "1");
     }
-    let o = c.output().unwrap();
+    let what = format!("the subgroup probe at LP_NATIVE_VECTOR_WIDTH={bits}");
+    let o = common::cli::output_within(&mut c, None, std::time::Duration::from_secs(120), &what);
     let out = format!("{}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
-    let lanes = bits / 32;
-    (o.status.success() && out.contains(&format!("subgroup probe: {lanes} lanes answer as expected")), out)
+    Child { status: o.status, out }
 }
 
 fn on_lavapipe() -> bool {
@@ -216,7 +235,8 @@ fn on_lavapipe() -> bool {
 }
 
 /// On lavapipe, the probe once per SIMD width it offers (LP_NATIVE_VECTOR_WIDTH 128, 256, 512:
-/// 4, 8 and 16 lanes), each in a child process with a shader cache of its own.
+/// 4, 8 and 16 lanes), each in a child process with a shader cache of its own: every answer
+/// right in every lane. This is what trilab relies on (it keeps a cache per width itself).
 #[test]
 fn subgroup_operations_at_every_lavapipe_width() {
     if !on_lavapipe() {
@@ -224,26 +244,77 @@ fn subgroup_operations_at_every_lavapipe_width() {
     }
     for bits in [128, 256, 512] {
         let cache = tempfile::tempdir().unwrap();
-        let (ok, out) = at_width(bits, cache.path(), false);
-        assert!(ok, "LP_NATIVE_VECTOR_WIDTH={bits} ({} lanes):\n{out}", bits / 32);
+        let child = at_width(bits, cache.path(), false);
+        assert!(child.passed(bits / 32), "LP_NATIVE_VECTOR_WIDTH={bits} ({} lanes):\n{}", bits / 32, child.out);
+    }
+}
+
+/// How a 16-lane run that reused an 8-lane run's cache went: the symptom of the lavapipe defect
+/// (docs/driver-defects.md), which differs from CPU to CPU.
+#[derive(Debug)]
+enum Symptom {
+    /// Every answer right: Mesa has fixed it (or this CPU hides it).
+    None,
+    /// Wrong answers, counted: on Zen 4 (AVX-512) texel reads in lanes 8-15 read zeros.
+    WrongValues(String),
+    /// The child died of a signal: on Zen 3 (AVX2) it is SIGSEGV inside lavapipe.
+    Crashed(String),
+    /// The child ended with an error (a panic naming what refused).
+    Refused(String),
+}
+
+impl std::fmt::Display for Symptom {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Symptom::None => write!(f, "no wrong answer (fixed in this Mesa, or hidden on this CPU)"),
+            Symptom::WrongValues(what) => write!(f, "wrong values: {what}"),
+            Symptom::Crashed(how) => write!(f, "the child crashed: {how}"),
+            Symptom::Refused(why) => write!(f, "the child failed: {why}"),
+        }
+    }
+}
+
+impl Symptom {
+    fn of(child: &Child) -> Symptom {
+        use std::os::unix::process::ExitStatusExt;
+        if let Some(sig) = child.status.signal() {
+            return Symptom::Crashed(format!("signal {sig}{}", if sig == libc::SIGSEGV { " (SIGSEGV)" } else { "" }));
+        }
+        // The test harness reports a panic in the test, or a child of its own killed by a signal,
+        // as a failure; its message is in the output.
+        if let Some(line) = child.out.lines().find(|l| l.starts_with("stale image functions:")) {
+            let all_right = line.contains(": 0 texel reads wrong") && line.contains(", 0 other answers wrong");
+            if child.status.success() {
+                return if all_right { Symptom::None } else { Symptom::WrongValues(line.to_owned()) };
+            }
+        }
+        let why =
+            child.out.lines().find(|l| l.contains("panicked at") || l.contains("signal")).unwrap_or("").to_owned();
+        Symptom::Refused(format!("{} {why}", child.status))
     }
 }
 
 /// The lavapipe defect behind the 16-lane failures of the cooperative traversal (issue 39;
 /// docs/driver-defects.md): with one shader cache for both, a run at 8 lanes stores its image
-/// functions and a run at 16 lanes reuses them. Shown, not required: the 16-lane run may read
-/// wrong texels only in lanes 8 and up (any other wrong answer fails), and the figure is
-/// printed; with a cache of its own (the test above, and trilab's own runs) it reads none.
+/// functions and a run at 16 lanes reuses them. Shown, not required: how it shows depends on
+/// the CPU (wrong texels on Zen 4, SIGSEGV on Zen 3: issue 51), so every symptom is accepted
+/// and named in the output. What must hold: the 8-lane run that fills the cache is right, the
+/// 16-lane run ends within its time, and is not refused for running at another width than asked
+/// (the setting, not the defect).
 #[test]
-fn lavapipe_image_functions_cached_at_8_lanes_misread_at_16() {
+fn lavapipe_image_functions_cached_at_8_lanes_reused_at_16() {
     if !on_lavapipe() {
         return;
     }
     let cache = tempfile::tempdir().unwrap();
-    let (ok, out) = at_width(256, cache.path(), false);
-    assert!(ok, "8 lanes, fresh cache:\n{out}");
-    let (ok, out) = at_width(512, cache.path(), true);
-    assert!(ok, "16 lanes after 8 in one cache: wrong beyond texel reads in lanes 8-15:\n{out}");
-    let stale = out.lines().find(|l| l.starts_with("stale image functions:"));
-    println!("16 lanes with the 8-lane run's cache: {}", stale.unwrap_or("no texel read wrong (fixed in this Mesa?)"));
+    let first = at_width(256, cache.path(), false);
+    assert!(first.passed(8), "8 lanes, fresh cache:\n{}", first.out);
+    let second = at_width(512, cache.path(), true);
+    assert!(
+        !second.out.contains("TRILAB_EXPECT_SUBGROUP_SIZE=16:"),
+        "LP_NATIVE_VECTOR_WIDTH=512 did not give 16 lanes:\n{}",
+        second.out
+    );
+    let symptom = Symptom::of(&second);
+    println!("16 lanes with the 8-lane run's cache: {symptom}");
 }

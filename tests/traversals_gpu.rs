@@ -387,7 +387,7 @@ fn traversal_speed_on_the_bunny() {
 /// crashed or ran past two minutes). The kernel was right: lavapipe 25.0.7 reused image
 /// functions its disk cache held from 8-lane runs (docs/driver-defects.md). The default-width
 /// cast below fills the default cache first, so without trilab's cache per width
-/// (`trilab::env::keep_lavapipe_cache_per_width`) this test fails as it did then. Under
+/// (`trilab::env::keep_lavapipe_cache_per_target`) this test fails as it did then. Under
 /// scripts/test-width.sh the casts inherit its 4-lane cache folder: trilab takes a folder per
 /// width inside it (it once took the folder itself, and this test failed there).
 #[test]

@@ -98,6 +98,10 @@ pub struct DeviceInfo {
     pub unusable_reason: Option<String>,
     /// Whether the device runs what it compiles ([`Execution`]).
     pub execution: Execution,
+    /// On lavapipe: the CPU features its JIT compiles for (this host, less what
+    /// `GALLIUM_OVERRIDE_CPU_CAPS` removes); `None` on other drivers.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compiles_for: Option<super::LavapipeCpu>,
 }
 
 /// Whether a device runs kernels, or only compiles them.
@@ -322,6 +326,8 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         usable: unusable_reason.is_none(),
         unusable_reason,
         execution: Execution::of(&cstr(&base.device_name), &format!("{:?}", v12.driver_id)),
+        // lavapipe's JIT compiles for this CPU as Mesa sees it (gpu::lavapipe_cpu).
+        compiles_for: (v12.driver_id == vk::DriverId::MESA_LLVMPIPE).then(super::LavapipeCpu::current).flatten(),
     }
 }
 
@@ -364,6 +370,9 @@ impl DeviceInfo {
         }
         let _ =
             writeln!(s, "    driver:                   {} ({}) {}", self.driver_name, self.driver_id, self.driver_info);
+        if let Some(cpu) = &self.compiles_for {
+            let _ = writeln!(s, "    compiles for (CPU):       {}", cpu.summary());
+        }
         let _ = writeln!(s, "    subgroup size:            {}", self.subgroup_size);
         let _ = writeln!(
             s,

@@ -39,6 +39,7 @@ pub mod descriptors;
 pub mod device_info;
 pub mod executable;
 pub mod kernel;
+pub mod lavapipe_cpu;
 pub mod limits;
 pub mod markers;
 pub mod peer;
@@ -57,6 +58,7 @@ pub use context::{Context, ContextOptions, EnabledFeatures, Needs, Purpose, Vali
 pub use descriptors::Resource;
 pub use device_info::{DeviceInfo, Execution, RayTracingPipelineProperties};
 pub use kernel::{Kernel, PipelineOptions};
+pub use lavapipe_cpu::LavapipeCpu;
 pub use markers::{Fault, FaultKind};
 pub use peer::{Peer, PeerTracer};
 pub use raycast::{cast_rays, cast_rays_with, RayDispatch, RaycastOptions, RaycastResult, PERSISTENT_WORKGROUPS};

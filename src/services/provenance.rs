@@ -35,6 +35,10 @@ pub struct Provenance {
     /// Chromium release that ships it is what names its build.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub driver_package: Option<String>,
+    /// On lavapipe: the CPU features its JIT compiled for ([`crate::gpu::LavapipeCpu`]): the
+    /// host's, less what `GALLIUM_OVERRIDE_CPU_CAPS` removed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compiles_for: Option<crate::gpu::LavapipeCpu>,
 }
 
 impl Provenance {
@@ -61,6 +65,7 @@ impl Provenance {
             scenes: crate::scene::find::resolved_scenes(),
             spirv_compiler: crate::kernels::SPIRV_COMPILER,
             driver_package: driver_package(),
+            compiles_for: info.compiles_for.clone(),
         }
     }
 }
@@ -82,6 +87,7 @@ impl Provenance {
             scenes: vec![],
             spirv_compiler: crate::kernels::SPIRV_COMPILER,
             driver_package: None,
+            compiles_for: None,
         }
     }
 }
@@ -103,6 +109,8 @@ fn driver_package() -> Option<String> {
 /// that `compare` and `merge` can tell two runs of one device apart.
 pub const SETTINGS: &[&str] = &[
     "LP_NATIVE_VECTOR_WIDTH",
+    // What lavapipe compiles for (gpu::lavapipe_cpu): `avx` makes an AVX-512 host's code a Zen 3's.
+    "GALLIUM_OVERRIDE_CPU_CAPS",
     "LP_NUM_THREADS",
     "LP_PERF",
     "GALLIVM_PERF",

@@ -565,6 +565,7 @@ mod tests {
             scenes: vec![],
             spirv_compiler: "test compiler",
             driver_package: None,
+            compiles_for: None,
         };
         RooflineReport {
             provenance,

@@ -42,15 +42,18 @@ pub fn with_gpu_options<T: Send + 'static>(
 ) -> T {
     // lavapipe 25.0.7 reuses image functions its disk cache holds from another SIMD width
     // (docs/driver-defects.md): a test process at a chosen width keeps its own cache. The trilab
-    // executable sees to it itself (trilab::env::keep_lavapipe_cache_per_width); a test binary
+    // executable sees to it itself (trilab::env::keep_lavapipe_cache_per_target); a test binary
     // is multi-threaded from its start and cannot, so whoever sets the width names the cache.
-    if let Ok(bits) = std::env::var("LP_NATIVE_VECTOR_WIDTH") {
-        assert!(
-            std::env::var_os("MESA_SHADER_CACHE_DIR").is_some()
-                || std::env::var_os("MESA_SHADER_CACHE_DISABLE").is_some(),
-            "LP_NATIVE_VECTOR_WIDTH={bits} without MESA_SHADER_CACHE_DIR: lavapipe would reuse image functions \
-             cached at another width (set a cache folder per width, as scripts/test-width.sh does)"
-        );
+    // The same for the CPU lavapipe compiles for (GALLIUM_OVERRIDE_CPU_CAPS=sse4.1 changes the width too).
+    for setting in ["LP_NATIVE_VECTOR_WIDTH", "GALLIUM_OVERRIDE_CPU_CAPS"] {
+        if let Ok(value) = std::env::var(setting) {
+            assert!(
+                std::env::var_os("MESA_SHADER_CACHE_DIR").is_some()
+                    || std::env::var_os("MESA_SHADER_CACHE_DISABLE").is_some(),
+                "{setting}={value} without MESA_SHADER_CACHE_DIR: lavapipe would reuse image functions cached at \
+                 another width (set a cache folder per setting, as scripts/test-width.sh does)"
+            );
+        }
     }
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {

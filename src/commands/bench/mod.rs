@@ -175,6 +175,7 @@ mod tests {
             scenes: vec![],
             spirv_compiler: "test compiler",
             driver_package: None,
+            compiles_for: None,
         };
         let row = |method: Tracer, layout: Option<Layout>, ms: Summary, agreement: f64| {
             let mr = crate::services::validate::mrays_summary(48_000, ms);

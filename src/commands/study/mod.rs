@@ -745,6 +745,7 @@ pub(crate) mod testing {
             scenes: vec![],
             spirv_compiler: "test compiler",
             driver_package: None,
+            compiles_for: None,
         };
         let mut rows = vec![];
         for sc in scenes {
