@@ -91,10 +91,21 @@ def main():
         "mtl_extreme": "newmtl a\nKd 1e38 -1 nan\nNs 1e38\nNi -1e38\nnewmtl b\nillum 99999999999\n"
                        "newmtl c\ntrilab_bsdf phong exponent=1e300\n",
         "mtl_short_colour": "newmtl a\nKd 1 2\n",
+        # The spec's forms (docs/obj-mtl.md): one-number and xyz colours, spectral, -halo, maps
+        # with options and spaces, PBR keys.
+        "mtl_spec_forms": "newmtl a\nKd 0.5\nKs xyz 0.2 0.3 0.1\nKa spectral x.rfl\nd -halo 0.5\n"
+                          "map_Kd -o 1 1 1 -bm 2 my tex.png\nmap_Ks\nrefl -type sphere s.png\nPr 0.2\n"
+                          "newmtl b\nKe xyz 0 1 0\nTf 0.5 # grey\nillum 7\nnewmtl c\nKd spectral x.rfl 2\n",
     }
     for i, (name, mtl) in enumerate(mtls.items()):
         obj_case(name, i, use, mtl)
     obj_case("mtl_missing", 0, use)
+    # Statements trilab ignores with a warning, a polyline tobj alone made a face of, vertex
+    # colours on some vertices only, and an `mtllib` line of several names.
+    obj_case("obj_ignored_statements", 0x21,
+             "mtllib x.mtl my\\ m.mtl\nv 0 0 0 1 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nl 1 2 3 4\np 1 2\nf 1 2\n"
+             "cstype bspline\ncurv 0 1 1 2\ncall x.obj\ncsh ls\nvw 0 0 1\nt crease 1 2\nusemtl a\nf 1 2 3\n",
+             "newmtl a\nKd 0.2\n")
 
     ray = lambda o, tmin, d, tmax: struct.pack("<8f", *o, tmin, *d, tmax)
     good = ray((0, 0, 0), 0, (0, 0, 1), math.inf)

@@ -146,17 +146,20 @@ fn huge_indices_fail_fast_without_allocating_for_them() {
     }
 }
 
-/// tobj 4 unwraps a colour with fewer than three values (`Kd 1 2` panicked): now a `BadInput`
-/// naming the MTL file and line.
+/// tobj 4 unwraps a colour with fewer than three values (`Kd 1 2` panicked): none or two are
+/// a `BadInput` naming the MTL file and line; one is the spec's grey (g and b equal r), which
+/// reaches tobj written out as three.
 #[test]
 fn short_mtl_colour_is_an_error_not_a_panic() {
     let text = "mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
-    for key in ["Ka", "Kd", "Ks", "Ke"] {
-        for values in ["", " 1", " 1 2"] {
+    for key in ["Ka", "Kd", "Ks", "Ke", "Tf"] {
+        for (values, problem) in [("", "needs a colour"), (" 1 2", "takes one number or three")] {
             let mtl = format!("newmtl a\n{key}{values}\n");
             let e = obj(text, Some(&mtl)).unwrap_err().to_string();
-            assert!(e.starts_with("m.mtl:2:") && e.contains(&format!("`{key}` needs three numbers")), "{e}");
+            assert!(e.starts_with("m.mtl:2:") && e.contains(&format!("`{key}` {problem}")), "{e}");
         }
+        let m = obj(text, Some(&format!("newmtl a\n{key} 0.5\n"))).unwrap();
+        assert_eq!(m.materials.len(), 1, "{key} 0.5");
     }
     let m = obj(text, Some("newmtl a\nKd 0.5 0.5 0.5\n")).unwrap();
     assert_eq!(m.materials.len(), 1);

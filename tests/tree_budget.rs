@@ -8,13 +8,15 @@
 //! scenes 8.9, results 6.4, spirv 1.2, the rest source and docs; 24.08 MiB when the manual moved
 //! to docs/ with the generated command reference, docs/commands.md, 0.1 MiB; 25.0 MiB before issue
 //! 50, which raised it to 26 for results/radv/ and its code and tests: the pack then measured
-//! about 54 MiB, the stripped binary 20.2 MiB and ../shared 7.3 MiB of it).
+//! about 54 MiB, the stripped binary 20.2 MiB and ../shared 7.3 MiB of it; 26.06 MiB when issue
+//! 51 added tinyobjloader's test models, tests/data/tinyobjloader/, 0.11 MiB, a second public
+//! OBJ/MTL corpus, with the OBJ/MTL statement table and its tests, and raised it to 27).
 
 use std::path::Path;
 use std::process::Command;
 
 /// The tracked tree's budget in MiB (2^20 bytes).
-const TREE_BUDGET_MIB: u64 = 26;
+const TREE_BUDGET_MIB: u64 = 27;
 
 /// Results files of these kinds above this size are stored gzip-compressed
 /// (`scripts/compress-results.sh`, results/README.md "How results are stored").

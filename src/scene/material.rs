@@ -20,9 +20,11 @@
 //! radians), `ior=` (glass). Example: `trilab_bsdf ashikhmin-shirley nu=200 nv=20`.
 //!
 //! Anything else that changes appearance gets a warning naming the MTL file, the line, the
-//! material and the key, and is ignored: textures (`map_*`, `bump`), partial transparency (`d`
-//! or `Tr` below 1 on an opaque BSDF), `illum 10`, unknown keys and unknown `trilab_bsdf`
-//! parameters.
+//! material and the key, and is ignored: textures (`map_*`, `bump`, `disp`, `decal`, `refl`,
+//! `norm`, with any options), partial transparency (`d` or `Tr` below 1 on an opaque BSDF),
+//! `illum 10`, the PBR extension's keys, unknown keys and unknown `trilab_bsdf` parameters.
+//! Colours reach [`Material::from_mtl`] as three numbers: `super::mtl` writes out the spec's
+//! one-number and `xyz` forms before tobj reads them (docs/obj-mtl.md lists every statement).
 //!
 //! ## Values
 //!
@@ -157,13 +159,9 @@ impl Material {
     /// and refusing values that cannot be meant, by the rules of the module documentation.
     pub fn from_mtl(m: &tobj::Material, mtl: &Path, lines: &MtlLines, warnings: &mut Vec<String>) -> Result<Material> {
         // The material of a `newmtl` without a name (Blender 2.61) is named "" and called so.
-        let unnamed = m.name == super::text::NO_NAME;
-        let name = if unnamed { String::new() } else { super::text::shown(&m.name).into_owned() };
-        let label = if unnamed {
-            "unnamed material (`newmtl` without a name)".to_owned()
-        } else {
-            format!("material `{name}`")
-        };
+        let name =
+            if m.name == super::text::NO_NAME { String::new() } else { super::text::shown(&m.name).into_owned() };
+        let label = label(&m.name);
         let place = |key: &str| match lines.get(key) {
             Some(line) => format!("{}:{line}", mtl.display()),
             None => mtl.display().to_string(),
@@ -198,6 +196,16 @@ impl Material {
                     Ok(t) => tr = Some(t),
                     Err(_) => warn("Tr", format!("`{v}` is not a number; ignored")),
                 },
+                other if is_texture_statement(other) => {
+                    warn(other, format!("{}: textures are not supported; ignored", super::text::shown(v)))
+                }
+                // tinyobjloader reads `Kt` as `Tf`; the spec has no `Kt`.
+                "Kt" => {
+                    warn("Kt", "is not an MTL statement (tinyobjloader reads it as `Tf`; write `Tf`); ignored".into())
+                }
+                pbr @ ("Pr" | "Pm" | "Ps" | "Pc" | "Pcr" | "aniso" | "anisor") => {
+                    warn(pbr, "(a PBR extension) is not supported; ignored".into())
+                }
                 other => warn(other, "is not supported; ignored".into()),
             }
         }
@@ -352,6 +360,24 @@ impl Material {
         }
         Ok(Material { name, kind, gpu })
     }
+}
+
+/// How messages call the material named `name` as tobj holds it: the material of a `newmtl`
+/// without a name is called unnamed.
+pub(super) fn label(name: &str) -> String {
+    if name == super::text::NO_NAME {
+        "unnamed material (`newmtl` without a name)".to_owned()
+    } else {
+        format!("material `{}`", super::text::shown(name))
+    }
+}
+
+/// Whether an MTL statement names a texture (or sets how textures are read: `map_aat`): the
+/// spec's `map_*`, `bump`, `disp`, `decal` and `refl`, and the PBR extension's `norm` and
+/// `map_*` keys. Trilab renders no textures, so each is ignored with a warning, whatever
+/// options and file name it holds.
+pub(super) fn is_texture_statement(key: &str) -> bool {
+    key.starts_with("map_") || matches!(key, "bump" | "disp" | "decal" | "refl" | "norm")
 }
 
 /// The most emitted radiance (`Ke`, per channel): at any sample count the image's f32 sums of

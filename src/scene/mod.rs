@@ -5,8 +5,11 @@
 
 mod aabb;
 pub mod find;
+mod library;
 mod material;
+mod mtl;
 mod obj;
+mod obj_statements;
 mod text;
 pub mod synthetic;
 

@@ -3,12 +3,15 @@
 //! tobj reports what went wrong but not where; when it fails, [`locate`] re-reads the file
 //! with the same rules to find the first offending line.
 
+use std::borrow::Cow;
 use std::cell::RefCell;
 use std::fs::File;
 use std::io::{BufReader, Read};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use super::library::Libraries;
 use super::material::MtlLines;
+use super::obj_statements;
 use super::text::{self, Decoded, Format};
 use super::{Material, Mesh};
 use crate::error::{Error, Result};
@@ -26,9 +29,10 @@ fn max_scene_bytes() -> u64 {
 /// Loads a scene: an OBJ file (and the MTL files it names, relative to its directory), the same
 /// gzip-compressed (a name ending in `.gz`, read through a decompressing reader), or a synthetic
 /// scene (`synth:<kind>:<triangles>`, see [`super::synthetic`]). Polygons are fan-triangulated;
-/// points and lines are ignored. Errors: missing or unreadable file, corrupt gzip, text over
-/// the size limit, unparsable line, face index out of range, NaN/Inf coordinate, no triangles,
-/// missing or malformed MTL.
+/// points, lines and the other statements trilab does not draw are ignored with a warning
+/// ([`super::obj_statements`]; docs/obj-mtl.md lists every statement). Errors: missing or
+/// unreadable file, corrupt gzip, text over the size limit, unparsable line, face index out of
+/// range, NaN/Inf coordinate, no triangles, malformed MTL.
 ///
 /// `path` may also be a scene's name (`bunny`), found as [`super::find`] says; the mesh's
 /// `source` is then the file read.
@@ -106,90 +110,131 @@ pub fn parse_obj_bytes(path: &Path, obj: &[u8], mtl: impl Fn(&Path) -> Option<Ve
 }
 
 fn parse_obj(path: &Path, decoded: &Decoded<'_>, mtl_source: &dyn Fn(&Path) -> Option<Vec<u8>>) -> Result<Mesh> {
-    let text: &str = &decoded.text;
-    let dir = path.parent().map(Path::to_owned).unwrap_or_default();
-    // The first MTL problem, already as the error to report.
-    let mtl_failure: RefCell<Option<Error>> = RefCell::new(None);
-    // Each MTL file read, with how many materials it gave (tobj appends them in this order).
-    let mtl_files: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
-    // The line of each key of each material, in the order tobj appends the materials.
-    let mtl_lines: RefCell<Vec<MtlLines>> = RefCell::new(Vec::new());
-    // Material libraries that could not be opened, as warnings.
-    let missing_mtl: RefCell<Vec<String>> = RefCell::new(Vec::new());
-    // Each MTL file with `newmtl` lines without a name, and their lines.
-    let unnamed_newmtl: RefCell<Vec<(PathBuf, Vec<usize>)>> = RefCell::new(Vec::new());
+    let survey = obj_statements::survey(&decoded.text);
+    let text: Cow<'_, str> = if survey.has_polylines() {
+        obj_statements::without_polylines(&decoded.text)
+    } else {
+        Cow::Borrowed(&decoded.text)
+    };
+    let read = read_obj(path, &text, mtl_source)?;
+    let libraries = &read.libraries;
+    let mut warnings = libraries.warnings.clone();
+    unnamed_material_warnings(path, decoded, libraries, &mut warnings);
+    undefined_materials(path, &text, &read.materials, &mut warnings);
+    let no_lines = MtlLines::new();
+    let materials: Vec<Material> = read
+        .materials
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            Material::from_mtl(m, &libraries.file_of(i), libraries.lines.get(i).unwrap_or(&no_lines), &mut warnings)
+        })
+        .collect::<Result<_>>()?;
+    let mut mesh = triangles(path, &text, &read.models, materials)?;
+    warnings.extend(survey.warnings(path));
+    let has = |f: fn(&tobj::Mesh) -> bool| read.models.iter().any(|m| f(&m.mesh));
+    if has(|m| !m.normals.is_empty()) {
+        warnings.push(format!(
+            "{}: vertex normals (`vn`) are ignored: shading uses each triangle's geometric normal",
+            path.display()
+        ));
+    }
+    if has(|m| !m.texcoords.is_empty()) {
+        warnings
+            .push(format!("{}: texture coordinates (`vt`) are ignored: textures are not supported", path.display()));
+    }
+    if read.colours_dropped || has(|m| !m.vertex_color.is_empty()) {
+        warnings.push(format!(
+            "{}: vertex colours (`v x y z r g b`) are ignored: surfaces take their material's colours",
+            path.display()
+        ));
+    }
+    mesh.warnings = warnings;
+    mesh.mtl_files = read.libraries.files.into_iter().map(|(f, _)| f).collect();
+
+    if mesh.positions.iter().flatten().any(|c| !c.is_finite()) {
+        return Err(locate_non_finite(path, &text));
+    }
+    if mesh.triangles.is_empty() {
+        // UTF-16 without a byte-order mark reads as text with a NUL after every ASCII character.
+        let hint = if text.contains('\0') {
+            " (the text holds NUL bytes: UTF-16 without a byte-order mark? Save it as UTF-8, or as UTF-16 with one)"
+        } else {
+            ""
+        };
+        return Err(Error::bad_input(
+            path,
+            None,
+            format!("contains no triangles (no `f` lines with 3 or more vertices{}){hint}", survey.undrawn_geometry()),
+        ));
+    }
+    Ok(mesh)
+}
+
+/// What tobj read of an OBJ and its material libraries.
+struct Loaded<'a> {
+    models: Vec<tobj::Model>,
+    materials: Vec<tobj::Material>,
+    libraries: Libraries<'a>,
+    /// Whether the text tobj read had its vertex colours dropped
+    /// ([`obj_statements::without_vertex_colours`]).
+    colours_dropped: bool,
+}
+
+/// tobj over `text`, with its errors located ("file:line: problem"). A file that colours some
+/// vertices and not others, which tobj cannot pair with their colours, is read again without
+/// its colours, which trilab does not use.
+fn read_obj<'a>(path: &'a Path, text: &str, mtl_source: &'a dyn Fn(&Path) -> Option<Vec<u8>>) -> Result<Loaded<'a>> {
+    match run_tobj(path, text, mtl_source)? {
+        Ok(read) => Ok(read),
+        Err(tobj::LoadError::FaceColorOutOfBounds) => {
+            let text = obj_statements::without_vertex_colours(text);
+            let mut read = run_tobj(path, &text, mtl_source)?.map_err(|e| locate(path, &text, Some(e)))?;
+            read.colours_dropped = true;
+            Ok(read)
+        }
+        Err(e) => Err(locate(path, text, Some(e))),
+    }
+}
+
+/// tobj over `text`: `Ok(Err(e))` when tobj failed with `e`, for the caller to locate; `Err`
+/// for a material library that could not be read, or a panic in tobj.
+fn run_tobj<'a>(
+    path: &'a Path,
+    text: &str,
+    mtl_source: &'a dyn Fn(&Path) -> Option<Vec<u8>>,
+) -> Result<std::result::Result<Loaded<'a>, tobj::LoadError>> {
+    let libraries = RefCell::new(Libraries::new(path, mtl_source));
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = BufReader::new(text.as_bytes());
     // tobj indexes with unchecked integer arithmetic on some hostile inputs; [`check_face_indices`]
-    // and [`check_mtl`] reject those first (the fuzz targets, whose panic hook aborts, check that).
+    // and the MTL check reject those first (the fuzz targets, whose panic hook aborts, check that).
     // Any panic left is contained and reported as bad input rather than crashing the tool.
     let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        tobj::load_obj_buf(&mut reader, &options, |mtl| {
-            let full = dir.join(mtl.to_str().map_or_else(|| mtl.to_owned(), text::file_name));
-            let fail = |e: Error, kind: tobj::LoadError| {
-                mtl_failure.borrow_mut().get_or_insert(e);
-                Err(kind)
-            };
-            let Some(bytes) = mtl_source(&full) else {
-                // Geometry needs no materials: a warning, and the default material for the
-                // triangles that name this library's materials.
-                missing_mtl.borrow_mut().push(format!(
-                    "{}: material library named by {} (mtllib) cannot be opened: its materials are \
-                     replaced by the default material (grey Lambert)",
-                    full.display(),
-                    path.display()
-                ));
-                return Ok((Vec::new(), Default::default()));
-            };
-            let (mtl_text, unnamed) = match text::decode(&full, &bytes, Format::Mtl) {
-                Ok(d) => (d.text, d.unnamed_newmtl),
-                Err(e) => return fail(e, tobj::LoadError::ReadError),
-            };
-            let mut lines = match check_mtl(&full, &mtl_text) {
-                Ok(lines) => lines,
-                Err(e) => return fail(e, tobj::LoadError::MaterialParseError),
-            };
-            let result = tobj::load_mtl_buf(&mut mtl_text.as_bytes());
-            match &result {
-                Ok((mats, _)) => {
-                    // One block per `newmtl`, as tobj makes one material per `newmtl`.
-                    lines.resize_with(mats.len(), MtlLines::new);
-                    mtl_lines.borrow_mut().extend(lines);
-                    if !unnamed.is_empty() {
-                        unnamed_newmtl.borrow_mut().push((full.clone(), unnamed));
-                    }
-                    mtl_files.borrow_mut().push((full, mats.len()));
-                }
-                Err(e) => {
-                    let e = Error::bad_input(
-                        &full,
-                        None,
-                        format!("material library named by {} (mtllib): {e}", path.display()),
-                    );
-                    mtl_failure.borrow_mut().get_or_insert(e);
-                }
-            }
-            result
-        })
+        tobj::load_obj_buf(&mut reader, &options, |names| libraries.borrow_mut().load(names))
     }));
+    let mut libraries = libraries.into_inner();
     let (models, materials) = match loaded {
         Ok(Ok(m)) => m,
-        Ok(Err(e)) => return Err(locate(path, text, Some(e))),
+        Ok(Err(e)) => return Ok(Err(e)),
         Err(_) => return Err(locate(path, text, None)),
     };
-
     // tobj keeps going past a library it could not read when another gave materials.
-    if let Some(e) = mtl_failure.into_inner() {
+    if let Some(e) = libraries.failure.take() {
         return Err(e);
     }
     let materials = materials.map_err(|e| Error::bad_input(path, None, format!("material library (mtllib): {e}")))?;
-    let mut warnings = missing_mtl.into_inner();
+    Ok(Ok(Loaded { models, materials, libraries, colours_dropped: false }))
+}
+
+/// Warns about `newmtl` and `usemtl` lines without a name (docs/formats.md, "OBJ and MTL text").
+fn unnamed_material_warnings(path: &Path, decoded: &Decoded<'_>, libraries: &Libraries, warnings: &mut Vec<String>) {
     let more = |lines: &[usize]| match lines.len() - 1 {
         0 => String::new(),
         n => format!(" ({n} more such lines)"),
     };
-    let unnamed_newmtl = unnamed_newmtl.into_inner();
-    for (mtl, lines) in &unnamed_newmtl {
+    let unnamed_newmtl = &libraries.unnamed_newmtl;
+    for (mtl, lines) in unnamed_newmtl {
         warnings.push(format!(
             "{}:{}: newmtl without a material name: it defines the unnamed material, which `usemtl` without a \
              name selects{}",
@@ -212,35 +257,16 @@ fn parse_obj(path: &Path, decoded: &Decoded<'_>, mtl_source: &dyn Fn(&Path) -> O
             more(&decoded.unnamed_usemtl)
         ));
     }
-    undefined_materials(path, text, &materials, &mut warnings);
-    let files = mtl_files.into_inner();
-    let file_of = |i: usize| {
-        let mut end = 0;
-        for (f, n) in &files {
-            end += n;
-            if i < end {
-                return f.clone();
-            }
-        }
-        PathBuf::from("<mtllib>")
-    };
-    let lines = mtl_lines.into_inner();
-    let no_lines = MtlLines::new();
-    let mut materials: Vec<Material> = materials
-        .iter()
-        .enumerate()
-        .map(|(i, m)| Material::from_mtl(m, &file_of(i), lines.get(i).unwrap_or(&no_lines), &mut warnings))
-        .collect::<Result<_>>()?;
+}
+
+/// The mesh of tobj's models, in file order, with `materials` and the default material for
+/// triangles without one (or when there are no materials at all).
+fn triangles(path: &Path, text: &str, models: &[tobj::Model], mut materials: Vec<Material>) -> Result<Mesh> {
     let default_material = materials.len() as u32;
     let mut need_default = false;
-
     let mut mesh = Mesh { source: path.to_owned(), ..Default::default() };
-    let mut has_normals = false;
-    let mut has_texcoords = false;
     for model in models {
-        let m = model.mesh;
-        has_normals |= !m.normals.is_empty();
-        has_texcoords |= !m.texcoords.is_empty();
+        let m = &model.mesh;
         let base = mesh.positions.len() as u32;
         let nverts = m.positions.len() / 3;
         mesh.positions.extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
@@ -263,35 +289,6 @@ fn parse_obj(path: &Path, decoded: &Decoded<'_>, mtl_source: &dyn Fn(&Path) -> O
         materials.push(Material::default());
     }
     mesh.materials = materials;
-    if has_normals {
-        warnings.push(format!(
-            "{}: vertex normals (`vn`) are ignored: shading uses each triangle's geometric normal",
-            path.display()
-        ));
-    }
-    if has_texcoords {
-        warnings
-            .push(format!("{}: texture coordinates (`vt`) are ignored: textures are not supported", path.display()));
-    }
-    mesh.warnings = warnings;
-    mesh.mtl_files = files.into_iter().map(|(f, _)| f).collect();
-
-    if mesh.positions.iter().flatten().any(|c| !c.is_finite()) {
-        return Err(locate_non_finite(path, text));
-    }
-    if mesh.triangles.is_empty() {
-        // UTF-16 without a byte-order mark reads as text with a NUL after every ASCII character.
-        let hint = if text.contains('\0') {
-            " (the text holds NUL bytes: UTF-16 without a byte-order mark? Save it as UTF-8, or as UTF-16 with one)"
-        } else {
-            ""
-        };
-        return Err(Error::bad_input(
-            path,
-            None,
-            format!("contains no triangles (no `f` lines with 3 or more vertices){hint}"),
-        ));
-    }
     Ok(mesh)
 }
 
@@ -398,56 +395,6 @@ fn undefined_materials(path: &Path, text: &str, materials: &[tobj::Material], wa
             text::shown(name)
         ));
     }
-}
-
-/// Checks every MTL line tobj parses strictly, so a malformed one is named by file, line and
-/// key (tobj says only "material parse error"), and rejects colour lines with fewer than three
-/// values, which tobj 4's `parse_float3` unwraps (a panic on `Kd 1 2`). The rules are tobj's:
-/// colours take three numbers, `Ns`, `Ni` and `d` one, `illum` an integer 0-255, texture maps
-/// and `newmtl` a name (the loader's text has one: [`text::decode`] names a bare `newmtl`
-/// [`text::NO_NAME`]). Returns, per `newmtl` block, the line of each key (the last, whose
-/// value tobj keeps), for the value rules of [`Material::from_mtl`].
-pub(super) fn check_mtl(path: &Path, text: &str) -> Result<Vec<MtlLines>> {
-    let mut blocks: Vec<MtlLines> = Vec::new();
-    for (n, line) in text.lines().enumerate() {
-        let mut words = line.split_whitespace();
-        let Some(key) = words.next() else { continue };
-        let args: Vec<&str> = words.collect();
-        let number = |w: &&str| w.parse::<f32>().is_ok();
-        let problem = match key {
-            "Ka" | "Kd" | "Ks" | "Ke" if args.len() < 3 || !args[..3].iter().all(number) => {
-                Some("needs three numbers (r g b)")
-            }
-            "Ns" | "Ni" | "d" if !args.first().is_some_and(number) => Some("needs a number"),
-            "illum" if args.first().is_none_or(|w| w.parse::<u8>().is_err()) => {
-                Some("needs an illumination model number (0-10)")
-            }
-            "newmtl" | "map_Ka" | "map_Kd" | "map_Ks" | "map_Bump" | "map_bump" | "map_Ns" | "map_ns" | "map_NS"
-            | "bump" | "map_d"
-                if args.is_empty() =>
-            {
-                Some("needs a name")
-            }
-            _ => None,
-        };
-        if let Some(what) = problem {
-            let shown = text::shown(line.trim());
-            return Err(Error::bad_input(path, Some(n + 1), format!("`{key}` {what}: `{shown}`")));
-        }
-        if key == "newmtl" {
-            blocks.push(MtlLines::new());
-        }
-        // tobj files `map_bump`, `bump` and the `map_ns` spellings under one name each.
-        let key = match key {
-            "map_bump" | "bump" => "map_Bump",
-            "map_ns" | "map_NS" => "map_Ns",
-            k => k,
-        };
-        if let Some(block) = blocks.last_mut() {
-            block.insert(key.to_owned(), n + 1);
-        }
-    }
-    Ok(blocks)
 }
 
 /// Finds the first line that breaks tobj's rules, to turn its error into "file:line: problem".
@@ -630,13 +577,19 @@ mod tests {
         assert_eq!(parse(&format!("{tri}f 1/9 2/9 3/9\n")).unwrap().triangles.len(), 1);
     }
 
-    /// tobj 4 unwraps an MTL colour of fewer than three values (`Kd 1 2` panicked).
+    /// tobj 4 unwraps an MTL colour of fewer than three values (`Kd 1 2` panicked): two
+    /// values are refused (the spec allows one or three), and one is read as the spec says.
     #[test]
     fn short_mtl_colour_is_bad_input() {
-        let obj = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let obj = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n";
         let e = parse_obj_bytes(Path::new("d/a.obj"), obj, |_| Some(b"newmtl a\n\nKd 1 2\n".to_vec()));
         let e = e.unwrap_err().to_string();
-        assert!(e.starts_with("d/m.mtl:3:") && e.contains("`Kd` needs three numbers"), "{e}");
+        assert_eq!(
+            e,
+            "d/m.mtl:3: `Kd` takes one number or three (r [g b]; the spec allows no other count), not two: `Kd 1 2`"
+        );
+        let m = parse_obj_bytes(Path::new("d/a.obj"), obj, |_| Some(b"newmtl a\n\nKd 0.25\n".to_vec())).unwrap();
+        assert_eq!(m.materials[0].gpu.diffuse, [0.25; 3]);
     }
 
     #[test]
@@ -678,7 +631,8 @@ mod tests {
             ("newmtl a\nKd 1 x 0\n", 2, "`Kd`"),
             ("newmtl a\nKd 1 1 1\n\nNs high\n", 4, "`Ns`"),
             ("newmtl a\r\nillum two\r\n", 2, "`illum`"),
-            ("newmtl a\nmap_Kd\n", 2, "`map_Kd`"),
+            ("newmtl a\nKs 1 2\n", 2, "`Ks`"),
+            ("newmtl a\nKe\n", 2, "`Ke` needs a colour"),
         ] {
             let e = parse_obj_bytes(Path::new("d/a.obj"), obj, |_| Some(mtl.as_bytes().to_vec()));
             let e = e.unwrap_err().to_string();
@@ -940,143 +894,5 @@ mod tests {
             assert_eq!(m.materials[0].kind, super::super::BsdfKind::Mirror);
             assert_eq!(m.mtl_files, [mtl]);
         }
-    }
-}
-
-/// The material rules of `material.rs`, read through this loader's MTL check (here, not beside
-/// them: `material` cannot import `obj`, which imports it).
-#[cfg(test)]
-mod material_tests {
-    use std::path::Path;
-
-    use crate::error::Result;
-    use crate::scene::material::*;
-
-    /// The materials of an MTL text read as the loader reads it, or the first error.
-    fn load(text: &str) -> Result<(Vec<Material>, Vec<String>)> {
-        let path = Path::new("x.mtl");
-        let lines = super::check_mtl(path, text)?;
-        let (mats, _) = tobj::load_mtl_buf(&mut text.as_bytes()).unwrap();
-        assert_eq!(lines.len(), mats.len());
-        let mut warnings = vec![];
-        let m = mats
-            .iter()
-            .zip(&lines)
-            .map(|(m, l)| Material::from_mtl(m, path, l, &mut warnings))
-            .collect::<Result<_>>()?;
-        Ok((m, warnings))
-    }
-
-    fn mtl(text: &str) -> (Vec<Material>, Vec<String>) {
-        load(text).unwrap()
-    }
-
-    #[test]
-    fn illum_models_map_to_bsdfs() {
-        let (m, w) = mtl(
-            "newmtl a\nKd 0.5 0.5 0.5\nillum 2\nKs 0 0 0\nnewmtl b\nKd 0.5 0.4 0.3\nKs 0.2 0.2 0.2\nNs 40\nillum 2\n\
-             newmtl c\nillum 3\nnewmtl d\nillum 7\nNi 1.33\nTf 0.9 1 1\nnewmtl e\nKd 1 1 1\nKe 4 4 4\n",
-        );
-        assert!(w.is_empty(), "{w:?}");
-        assert_eq!(
-            m.iter().map(|m| m.kind).collect::<Vec<_>>(),
-            vec![BsdfKind::Lambert, BsdfKind::BlinnPhong, BsdfKind::Mirror, BsdfKind::Glass, BsdfKind::Lambert]
-        );
-        assert_eq!(m[1].gpu.exponent, 40.0);
-        assert_eq!(m[1].gpu.specular, [0.2; 3]);
-        assert_eq!(m[2].gpu.specular, [1.0; 3]);
-        assert_eq!((m[3].gpu.ior, m[3].gpu.diffuse), (1.33, [0.9, 1.0, 1.0]));
-        assert!(m[4].is_emissive() && m[4].gpu.emission == [4.0; 3]);
-    }
-
-    #[test]
-    fn explicit_bsdf_key_and_parameters() {
-        let (m, w) = mtl("newmtl a\nKd 0.3 0.3 0.3\nKs 0.5 0.5 0.5\ntrilab_bsdf ashikhmin-shirley nu=200 nv=20\n\
-             newmtl b\ntrilab_bsdf oren-nayar sigma=0.35\nillum 3\n");
-        assert!(w.is_empty(), "{w:?}");
-        assert_eq!(m[0].kind, BsdfKind::AshikhminShirley);
-        assert_eq!((m[0].gpu.exponent, m[0].gpu.exponent_v), (200.0, 20.0));
-        assert_eq!(m[1].kind, BsdfKind::OrenNayar);
-        assert_eq!(m[1].gpu.sigma, 0.35);
-    }
-
-    #[test]
-    fn unsupported_requests_warn_with_file_material_and_key() {
-        let (m, w) = mtl("newmtl skin\nKd 1 0 0\nmap_Kd skin.png\nd 0.5\nsheen 0.3\nillum 10\n\
-             newmtl x\ntrilab_bsdf velvet\nnewmtl y\ntrilab_bsdf glass roughness=0.1\n");
-        assert_eq!(m[0].kind, BsdfKind::Lambert);
-        let has = |needle: &str| w.iter().any(|l| l.starts_with("x.mtl:") && l.contains(needle));
-        assert!(has(":3: material `skin`: `map_Kd` skin.png: textures are not supported"), "{w:?}");
-        assert!(has(":4: material `skin`: `d` 0.5: partial transparency"), "{w:?}");
-        assert!(has(":5: material `skin`: `sheen` is not supported"), "{w:?}");
-        assert!(has(":6: material `skin`: `illum` 10 is not supported"), "{w:?}");
-        assert!(has(":8: material `x`: `trilab_bsdf` unknown BSDF `velvet`"), "{w:?}");
-        assert!(has(":10: material `y`: `trilab_bsdf` parameter `roughness=0.1` does not apply to glass"), "{w:?}");
-        assert_eq!(w.len(), 6, "{w:?}");
-    }
-
-    /// Values no exporter can mean are refused naming the file, the line, the material and the
-    /// key; values a BSDF cannot render are clamped with a warning naming the same.
-    #[test]
-    fn out_of_range_values_are_refused_or_clamped_by_rule() {
-        for (text, line, needle) in [
-            ("newmtl a\nKe inf 1 1\n", 2, "material `a`: `Ke` inf 1 1: every MTL number must be finite"),
-            ("newmtl a\nKd NaN 0 0\n", 2, "`Kd` NaN 0 0: every MTL number must be finite"),
-            ("newmtl a\nKa 0 0 nan\n", 2, "`Ka`"),
-            ("newmtl a\n\nKs 0.5 0.5 0.5\nNs inf\n", 4, "`Ns` inf"),
-            ("newmtl a\nNi nan\n", 2, "`Ni` NaN"),
-            ("newmtl a\nillum 7\nNi 0\n", 3, "`Ni` 0: a glass needs an index of refraction from 0.1 to 10"),
-            ("newmtl a\nNi -1.5\nillum 4\n", 2, "`Ni` -1.5"),
-            ("newmtl a\ntrilab_bsdf glass\nNi 1000\n", 3, "`Ni` 1000"),
-            ("newmtl a\nKd -1 -1 -1\n", 2, "`Kd` -1 -1 -1: a reflectance cannot be negative"),
-            ("newmtl a\nillum 7\nTf 1 -0.5 1\n", 3, "`Tf`"),
-            ("newmtl a\nKe 1 0 -1\n", 2, "`Ke` 1 0 -1: a radiance cannot be negative"),
-            ("newmtl a\nKe 1e30 1e30 1e30\n", 2, "`Ke` 1e30 1e30 1e30: above 1e20"),
-            ("newmtl a\nNs -3\n", 2, "`Ns` -3"),
-            ("newmtl a\nd 1.5\n", 2, "`d` 1.5"),
-            ("newmtl a\nTr -0.1\n", 2, "`Tr` -0.1"),
-            ("newmtl a\nTf inf\n", 2, "`Tf` inf inf inf"),
-            ("newmtl a\ntrilab_bsdf glass ior=0\n", 2, "parameter `ior=0`: 0: a glass needs"),
-            ("newmtl a\ntrilab_bsdf oren-nayar sigma=-1\n", 2, "parameter `sigma=-1` cannot be negative"),
-            ("newmtl a\ntrilab_bsdf phong exponent=inf\n", 2, "parameter `exponent=inf`: every MTL number"),
-            ("newmtl ok\nKd 1 1 1\nnewmtl b\nKd 0 0 0\nKd 0 nan 0\n", 5, "material `b`"),
-        ] {
-            let e = load(text).err().unwrap_or_else(|| panic!("{text:?} was accepted")).to_string();
-            assert!(e.starts_with(&format!("x.mtl:{line}: ")) && e.contains(needle), "{text:?}: {e}");
-        }
-
-        // Ni is read by glass only: exporters write `Ni 0` on opaque materials.
-        let (m, w) = mtl("newmtl a\nKd 0.5 0.5 0.5\nNi 0\n");
-        assert!(w.is_empty() && m[0].kind == BsdfKind::Lambert, "{w:?}");
-        // ... and `ior=` replaces it.
-        let (m, _) = mtl("newmtl a\ntrilab_bsdf glass ior=1.2\nNi 0\n");
-        assert_eq!(m[0].gpu.ior, 1.2);
-
-        let (m, w) = mtl("newmtl a\nKd 2 0.5 1\nnewmtl b\nillum 3\nKs 1.5 1 1\nnewmtl c\nKs 0.1 0.1 0.1\nNs 1e9\n");
-        assert_eq!(m[0].gpu.diffuse, [1.0, 0.5, 1.0]);
-        assert_eq!(m[1].gpu.specular, [1.0; 3]);
-        assert_eq!((m[2].gpu.exponent, m[2].gpu.exponent_v), (MAX_EXPONENT, MAX_EXPONENT));
-        assert!(w[0].starts_with("x.mtl:2: material `a`: `Kd` 2 0.5 1: above 1"), "{w:?}");
-        assert!(w[1].starts_with("x.mtl:5: material `b`: `Ks` 1.5 1 1: above 1"), "{w:?}");
-        assert!(w[2].starts_with("x.mtl:8: material `c`: `Ns` 1e9: above 1e6"), "{w:?}");
-        assert_eq!(w.len(), 3, "{w:?}");
-        // Unread values are not clamped aloud: Kd of a mirror.
-        let (_, w) = mtl("newmtl a\nillum 3\nKd 5 5 5\n");
-        assert!(w.is_empty(), "{w:?}");
-        // Every accepted material holds finite, non-negative numbers.
-        for m in &m {
-            let g = m.gpu;
-            let all = [g.diffuse, g.specular, g.emission].concat();
-            let all = [&all[..], &[g.exponent, g.exponent_v, g.ior, g.sigma]].concat();
-            assert!(all.iter().all(|x| x.is_finite() && *x >= 0.0), "{g:?}");
-        }
-    }
-
-    /// Ashikhmin-Shirley nv falls back to Ns, not to nu (as before the value rules).
-    #[test]
-    fn anisotropic_exponents_keep_their_sources() {
-        let (m, w) = mtl("newmtl a\nNs 30\ntrilab_bsdf ashikhmin-shirley nu=200\n");
-        assert!(w.is_empty(), "{w:?}");
-        assert_eq!((m[0].gpu.exponent, m[0].gpu.exponent_v), (200.0, 30.0));
     }
 }

@@ -348,9 +348,49 @@ fn name_empty(text: &mut Cow<'_, str>, key: &str) -> Vec<usize> {
     unnamed
 }
 
+/// `text` with each line `edit` gives a replacement for (it is called with the 0-based line
+/// number and the line without its end) replaced by that, line for line, so every line number a
+/// message gives stays the file's own. Borrowed when no line changes; one pass either way.
+pub(super) fn edit_lines<'a>(text: &'a str, mut edit: impl FnMut(usize, &str) -> Option<String>) -> Cow<'a, str> {
+    let mut out: Option<String> = None;
+    let mut start = 0;
+    for (n, raw) in text.split_inclusive('\n').enumerate() {
+        let line = raw.strip_suffix('\n').unwrap_or(raw);
+        let line = line.strip_suffix('\r').unwrap_or(line);
+        match (edit(n, line), &mut out) {
+            (Some(new), out) => {
+                let out = out.get_or_insert_with(|| {
+                    let mut s = String::with_capacity(text.len());
+                    s.push_str(&text[..start]);
+                    s
+                });
+                out.push_str(&new);
+                out.push('\n');
+            }
+            (None, Some(out)) => out.push_str(raw),
+            (None, None) => {}
+        }
+        start += raw.len();
+    }
+    out.map_or(Cow::Borrowed(text), Cow::Owned)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn edited_lines_keep_their_numbers_and_untouched_text_is_borrowed() {
+        let text = "a\r\nb\nc\r\nd";
+        assert!(matches!(edit_lines(text, |_, _| None), Cow::Borrowed(_)));
+        let seen = std::cell::RefCell::new(vec![]);
+        let out = edit_lines(text, |n, l| {
+            seen.borrow_mut().push(l.to_owned());
+            (n == 1 || n == 3).then(|| l.to_uppercase())
+        });
+        assert_eq!(seen.into_inner(), ["a", "b", "c", "d"]);
+        assert_eq!(out, "a\r\nB\nc\r\nD\n");
+    }
 
     fn obj(bytes: &[u8]) -> Result<Decoded<'_>> {
         decode(Path::new("t.obj"), bytes, Format::Obj)
