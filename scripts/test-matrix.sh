@@ -45,6 +45,9 @@ nosse | sse | sse2 | sse3 | ssse3 | sse4.1) small=$GALLIUM_OVERRIDE_CPU_CAPS ;;
 esac
 
 start=$SECONDS
+# What the suite pass's lavapipe compiles for (each width pass names its own).
+compiles_for=$(cargo run --release --quiet -- devices | grep -m1 'compiles for (CPU):' | sed 's/^ *compiles for (CPU): *//')
+echo "test-matrix: lavapipe compiles for: ${compiles_for:-(no lavapipe found)}"
 pass suite cargo test --release --no-fail-fast
 pass lp128 ./scripts/test-width.sh 128
 # A smaller CPU that is no smaller than the suite pass's (a host without AVX-512, or an outer
@@ -62,5 +65,6 @@ pass gate ./scripts/ci-gate.sh
 
 echo
 echo "test-matrix: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//'), $(nproc) CPUs; $((SECONDS - start)) s in all"
+echo "test-matrix: the suite's lavapipe compiles for: ${compiles_for:-(no lavapipe found)}"
 printf '  %s\n' "${results[@]}"
 exit $failed
