@@ -18,6 +18,8 @@
 //! - [`render`]: the path tracer.
 //! - [`services`]: what the commands share: validation against the reference, ray sets,
 //!   provenance, plots, result folders, shards, peers, the roofline, driver statistics.
+//! - [`matrix`]: the experiment's axes, their defaults and the device's and registry's filters;
+//!   the commands loop over its cells.
 //! - [`commands`]: one room per command (bench, study, accuracy, profile, ab, compare, ...),
 //!   each a library call returning a typed report; the CLI (`src/cli/`, in the binary) calls these.
 
@@ -47,6 +49,7 @@ pub mod conditioning;
 pub mod pipeline;
 pub mod render;
 pub mod services;
+pub mod matrix;
 pub mod commands;
 
 pub use error::{Error, Result};

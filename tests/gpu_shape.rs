@@ -93,7 +93,7 @@ fn without_ray_query_the_bench_runs_the_ray_tracing_pipeline_and_notes_the_rest(
         assert!(!ctx.enabled().ray_query && ctx.enabled().ray_tracing_pipeline, "{:?}", ctx.enabled());
         let o = BenchOptions {
             scenes: vec!["bunny".into()],
-            methods: vec![trilab::encoding::Method::Mt],
+            axes: trilab::matrix::KernelAxes { methods: vec![trilab::encoding::Method::Mt], ..Default::default() },
             sizes: RaySetSizes { width: 24, height: 18, diffuse_per_hit: 1, random_rays: 500, ..Default::default() },
             repeat: 1,
             ray_query: true,

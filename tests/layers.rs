@@ -46,8 +46,10 @@ const LAYERS: &[&str] = &[
     "pipeline",
     // The path tracer.
     "render",
-    // What the commands share, then the commands: each in its own room.
+    // What the commands share, the experiment matrix they loop over, then the commands: each in
+    // its own room.
     "services",
+    "matrix",
     "commands",
 ];
 

@@ -7,6 +7,7 @@ use trilab::bvh::NodeOrder;
 use trilab::commands::bench::{self, BenchOptions, BenchReport};
 use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::Result;
+use trilab::matrix::KernelAxes;
 use trilab::rays::order::RayOrder;
 use trilab::services::peers::TinybvhLayout;
 use trilab::services::results::Results;
@@ -179,7 +180,14 @@ fn measure(a: BenchArgs, files: (Option<PathBuf>, Option<PathBuf>)) -> Result<()
     TraceArg::device(&ctx);
     let o = BenchOptions {
         scenes,
-        methods: a.methods.or_device(&ctx),
+        axes: KernelAxes {
+            methods: a.methods.or_device(&ctx),
+            layouts: a.layouts,
+            traversals: a.traversals,
+            access: a.scene_access,
+            node_orders: distinct_node_orders(a.node_orders),
+            orders: a.orders,
+        },
         build: a.bvh.options(),
         repeat: a.repeat,
         sizes: a.rays.sizes(),
@@ -187,15 +195,6 @@ fn measure(a: BenchArgs, files: (Option<PathBuf>, Option<PathBuf>)) -> Result<()
         embree: a.embree,
         tinybvh: a.tinybvh,
         tinybvh_layouts: a.tinybvh_layouts,
-        scene_access: a.scene_access,
-        layouts: if a.layouts.is_empty() { vec![Layout::DEFAULT] } else { a.layouts },
-        traversals: if a.traversals.is_empty() { vec![Traversal::DEFAULT] } else { a.traversals },
-        orders: if a.orders.is_empty() { vec![RayOrder::DEFAULT] } else { a.orders },
-        node_orders: if a.node_orders.is_empty() {
-            vec![NodeOrder::DEFAULT]
-        } else {
-            distinct_node_orders(a.node_orders)
-        },
         ray_query: a.ray_query.runs(&ctx),
         ray_tracing_pipeline: a.ray_tracing_pipeline.runs(&ctx),
         shard: a.shard.shard,

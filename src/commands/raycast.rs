@@ -311,7 +311,7 @@ fn trace_ours(
     let plan = host.plan(ctx, &request)?;
     let kind = if req.any_hit { Raycast::Any } else { Raycast::Closest };
     // A traversal without this kernel, or that the device cannot run, is refused before upload.
-    plan.method.traversal_kernel(kind, plan.access, plan.layout, plan.traversal)?;
+    plan.key(kind).source()?;
     ctx.capabilities().traversal(plan.traversal)?;
     if let Some(r) = &plan.auto {
         note(&format!("--method auto picked {}:", plan.method));

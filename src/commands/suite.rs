@@ -23,6 +23,7 @@ use crate::commands::{accuracy, bench, devices, profile, study};
 use crate::encoding::{Layout, Method};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
+use crate::matrix::KernelAxes;
 use crate::named::{named_enum, Named};
 use crate::report::{Report, Table};
 use crate::services::calibration;
@@ -99,7 +100,7 @@ pub const PROBE_REFERENCE_S: f64 = 0.4;
 pub fn probe_options() -> bench::BenchOptions {
     bench::BenchOptions {
         scenes: vec![PathBuf::from("bunny")],
-        methods: Method::paper(),
+        axes: KernelAxes { methods: Method::paper(), ..Default::default() },
         repeat: 3,
         sizes: RaySetSizes { width: 160, height: 120, diffuse_per_hit: 1, random_rays: 20_000, ..Default::default() },
         ray_query: false,
@@ -111,7 +112,7 @@ pub fn probe_options() -> bench::BenchOptions {
 fn bench_size(scenes: &[&str], w: u32, h: u32, diffuse: u32, random: usize, repeat: usize) -> bench::BenchOptions {
     bench::BenchOptions {
         scenes: scenes.iter().map(PathBuf::from).collect(),
-        methods: Method::ALL.to_vec(),
+        axes: KernelAxes { methods: Method::ALL.to_vec(), ..Default::default() },
         repeat,
         sizes: RaySetSizes { width: w, height: h, diffuse_per_hit: diffuse, random_rays: random, ..Default::default() },
         ..Default::default()
@@ -163,9 +164,10 @@ pub fn ladder(part: Part) -> Vec<Size> {
                        layouts bvh2, bvh4, bvh8, cwbvh, qbvh4",
                 reference_s: 900.0,
                 measured: false,
-                options: PartOptions::Bench(Box::new(bench::BenchOptions {
-                    layouts: Layout::ALL.to_vec(),
-                    ..bench_size(&all, 800, 600, 8, 1_000_000, 5)
+                options: PartOptions::Bench(Box::new({
+                    let mut b = bench_size(&all, 800, 600, 8, 1_000_000, 5);
+                    b.axes.layouts = Layout::ALL.to_vec();
+                    b
                 })),
             },
         ],
@@ -284,7 +286,7 @@ pub fn with_layouts(mut ladder: Vec<Size>, layouts: &[Layout]) -> Vec<Size> {
     }
     for size in &mut ladder {
         let before = match &mut size.options {
-            PartOptions::Bench(b) => std::mem::replace(&mut b.layouts, layouts.to_vec()).len(),
+            PartOptions::Bench(b) => std::mem::replace(&mut b.axes.layouts, layouts.to_vec()).len(),
             PartOptions::Study(s) => std::mem::replace(&mut s.layouts, layouts.to_vec()).len(),
             PartOptions::Accuracy(_) | PartOptions::Profile(_) => continue,
         };
@@ -618,9 +620,9 @@ fn run_part(
     match options {
         PartOptions::Bench(b) => {
             let mut b = (**b).clone();
-            b.methods = crate::conditioning::available_methods(&ctx.capabilities())
+            b.axes.methods = crate::conditioning::available_methods(&ctx.capabilities())
                 .into_iter()
-                .filter(|m| b.methods.contains(m))
+                .filter(|m| b.axes.methods.contains(m))
                 .collect();
             // The driver peers as `trilab bench`'s `auto`: on wherever the device is not a CPU.
             b.ray_query = !ctx.capabilities().is_cpu();
@@ -865,13 +867,13 @@ mod tests {
             for (p, w) in plain.iter().zip(&wide) {
                 // The size's own layouts (none given: the binary tree alone).
                 let before = match &p.options {
-                    PartOptions::Bench(b) => b.layouts.len().max(1) as f64,
+                    PartOptions::Bench(b) => b.axes.layouts.len().max(1) as f64,
                     PartOptions::Study(s) => s.layouts.len().max(1) as f64,
                     _ => 1.0,
                 };
                 let scaled = p.reference_s * 3.0 / before;
                 match &w.options {
-                    PartOptions::Bench(b) => assert_eq!(b.layouts, three),
+                    PartOptions::Bench(b) => assert_eq!(b.axes.layouts, three),
                     PartOptions::Study(s) => assert_eq!(s.layouts, three),
                     _ => {
                         assert_eq!(w.reference_s, p.reference_s, "{}", w.name);

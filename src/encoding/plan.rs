@@ -18,7 +18,7 @@
 //! and `shaderInt64`; else storage buffers (the `*_sb` variants: one binding holds
 //! `maxStorageBufferRange` bytes; SwiftShader, issue 38).
 
-use super::{Layout, Method};
+use super::{Layout, Method, Raycast, Traversal};
 use crate::bvh::{Bvh, BvhNode};
 use crate::error::{Error, Result, TooLarge};
 use crate::named::named_enum;
@@ -416,6 +416,35 @@ impl MemoryPlan {
             (SceneAccess::Storage, _) => storage(),
             (SceneAccess::Auto, Some(_)) if address_missing.is_none() => address(),
             (SceneAccess::Auto, Some(_)) => storage(),
+        }
+    }
+
+    /// [`MemoryPlan::choose`] for the ray-casting kernels of `layout` and `traversal`: the one
+    /// place a scene's access path is decided. `auto` may pick a path the traversal has no
+    /// kernel for (the storage path a device prefers, or needs for a large scene, where coop and
+    /// persistent have only texel kernels): then the texel path where the scene fits it, else
+    /// the missing kernel named.
+    pub fn choose_for_kernel(
+        &self,
+        scene: &str,
+        requested: SceneAccess,
+        limits: &DeviceLimits,
+        layout: Layout,
+        traversal: Traversal,
+    ) -> Result<AccessPath> {
+        let access = self.choose(scene, requested, limits)?;
+        let has = |a| self.method.traversal_kernel(Raycast::Closest, a, layout, traversal).is_ok();
+        if requested != SceneAccess::Auto || has(access) {
+            return Ok(access);
+        }
+        match self.choose(scene, SceneAccess::Texel, limits) {
+            Ok(texel) if has(texel) => Ok(texel),
+            _ => Err(Error::Unsupported(format!(
+                "scene `{scene}` does not fit this device's texel buffers, and the {traversal} traversal on {layout} \
+                 has no kernel on the {} path it would take ({traversal} has: {})",
+                access.name(),
+                super::traversal_support(traversal)
+            ))),
         }
     }
 

@@ -153,29 +153,7 @@ impl<'m> HostScene<'m> {
         let memory = MemoryPlan::of(method, &self.counts()).with_layout(request.layout);
         let access = match request.without_address {
             Some(why) => memory.choose_without_address(&self.name, request.access, limits, why)?,
-            None => memory.choose(&self.name, request.access, limits)?,
-        };
-        // `auto` may pick a path the traversal has no kernel for (the storage path a device
-        // prefers, or needs for a large scene, where coop and persistent have only texel
-        // kernels): then the texel path where the scene fits it, else the missing kernel named.
-        let has = |a| method.traversal_kernel(Raycast::Closest, a, request.layout, request.traversal).is_ok();
-        let access = match (request.access, request.without_address) {
-            (SceneAccess::Auto, None) if !has(access) => match memory.choose(&self.name, SceneAccess::Texel, limits) {
-                Ok(texel) if has(texel) => texel,
-                _ => {
-                    return Err(Error::Unsupported(format!(
-                        "scene `{}` does not fit this device's texel buffers, and the {} traversal on {} has no \
-                         kernel on the {} path it would take ({} has: {})",
-                        self.name,
-                        request.traversal,
-                        request.layout,
-                        access.name(),
-                        request.traversal,
-                        crate::encoding::traversal_support(request.traversal)
-                    )))
-                }
-            },
-            _ => access,
+            None => memory.choose_for_kernel(&self.name, request.access, limits, request.layout, request.traversal)?,
         };
         Ok(ScenePlan {
             host: self,
@@ -273,6 +251,11 @@ impl<'m> ScenePlan<'_, 'm> {
 }
 
 impl ScenePlan<'_, '_> {
+    /// The key of its ray-casting kernel computing `kind` (what [`DeviceScene::key`] will be).
+    pub fn key(&self, kind: Raycast) -> RaycastKey {
+        RaycastKey { method: self.method, kind, access: self.access, layout: self.layout, traversal: self.traversal }
+    }
+
     /// The scene's buffers as its kernels bind them, kept on the host: what
     /// [`ScenePlan::upload`] uploads (`trilab repro` writes them to files). Not on the address
     /// path, whose buffers hold device addresses.
@@ -388,10 +371,15 @@ pub struct DeviceScene {
 }
 
 impl DeviceScene {
-    /// The ray-casting kernel computing `kind` over this scene (its method, its access path,
-    /// its layout, its traversal); an error where there is no such kernel.
+    /// The key of its ray-casting kernel computing `kind`: its method, access path, layout and
+    /// traversal, fixed when the scene was planned (the one place a scene's kernel is named).
+    pub fn key(&self, kind: Raycast) -> RaycastKey {
+        RaycastKey { method: self.method, kind, access: self.access, layout: self.layout, traversal: self.traversal }
+    }
+
+    /// That kernel's source; an error where there is no such kernel.
     pub fn kernel_source(&self, kind: Raycast) -> Result<&'static KernelSource> {
-        self.method.traversal_kernel(kind, self.access, self.layout, self.traversal)
+        self.key(kind).source()
     }
 
     /// That kernel, created once per context; an error where the device cannot run the
@@ -448,8 +436,7 @@ impl DeviceScene {
     /// The key of `kernel` when it is one of this scene's ray-casting kernels (its method, path,
     /// layout and traversal; any kind), else an error.
     pub fn check_kernel(&self, kernel: &Kernel) -> Result<RaycastKey> {
-        let scene = (self.method, self.access, self.layout, self.traversal);
-        let key = RaycastKey::of(kernel.source).filter(|k| (k.method, k.access, k.layout, k.traversal) == scene);
+        let key = RaycastKey::of(kernel.source).filter(|k| *k == self.key(k.kind));
         key.ok_or_else(|| {
             Error::Usage(format!(
                 "kernel {} cannot read scene `{}` ({} on the {} path, {} layout)",

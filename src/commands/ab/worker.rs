@@ -16,10 +16,11 @@ use std::path::{Path, PathBuf};
 
 use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
-use crate::commands::bench::{path_of, BenchCell, CellTracer};
+use crate::commands::bench::{BenchCell, CellTracer};
 use crate::encoding::{Layout, Method, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, Kernel, RaycastOptions};
+use crate::matrix::{KernelAxes, KernelCell};
 use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
 use crate::rays::{self, Ray};
 use crate::reference::RefHit;
@@ -188,20 +189,20 @@ fn load_and_serve(
     let t = std::time::Instant::now();
     // Each scene with the layout its cells are named by (the workload's; `runs_layout` may run another).
     let mut scenes: Vec<(usize, (Layout, DeviceScene))> = vec![];
+    let axes = KernelAxes {
+        methods: w.methods.clone(),
+        layouts: w.layouts.clone(),
+        traversals: w.traversals.clone(),
+        access: vec![w.scene_access],
+        ..Default::default()
+    };
     for (i, host) in hosts.iter().enumerate() {
-        for &m in &w.methods {
-            for &l in &w.layouts {
-                for &tr in &w.traversals {
-                    // A traversal a layout has no kernel for is left out (bench's rule); `auto`
-                    // is checked as the texel path, as bench checks it.
-                    let run = w.runs_layout.unwrap_or(l);
-                    let has = |l| m.traversal_kernel(Raycast::Closest, path_of(w.scene_access), l, tr).is_ok();
-                    if !has(l) || !has(run) {
-                        continue;
-                    }
-                    let request = SceneRequest::new(m).access(w.scene_access).layout(run).traversal(tr);
-                    scenes.push((i, (l, host.upload(ctx, &request)?)));
-                }
+        for cell in axes.kernels() {
+            // The layout the side runs in the cells named by the workload's (`runs_layout`:
+            // `--b-layout`) needs its kernel too.
+            let run = KernelCell { layout: w.runs_layout.unwrap_or(cell.layout), ..cell };
+            if run.exists() {
+                scenes.push((i, (cell.layout, host.upload(ctx, &run.request())?)));
             }
         }
     }

@@ -11,7 +11,7 @@ mod report;
 mod run;
 
 pub use crate::services::efficiency::RooflineEfficiency;
-pub use plan::{path_of, plan_cells, BenchCell, BenchOptions, BenchRecipe, CellTracer};
+pub use plan::{plan_cells, BenchCell, BenchOptions, BenchRecipe, CellTracer};
 pub use report::{rows, BenchReport, BenchRow, Tracer};
 pub use run::{for_device, run};
 
@@ -245,8 +245,11 @@ mod tests {
     fn every_row_fills_one_planned_cell_peers_included() {
         let o = BenchOptions {
             scenes: vec![PathBuf::from("bunny")],
-            methods: vec![Method::Mt],
-            layouts: vec![Layout::Bvh2, Layout::Bvh4],
+            axes: crate::matrix::KernelAxes {
+                methods: vec![Method::Mt],
+                layouts: vec![Layout::Bvh2, Layout::Bvh4],
+                ..Default::default()
+            },
             ..BenchOptions::default()
         };
         let plan = plan_cells(&o, &[Peer::RayQuery, Peer::RayTracingPipeline], &[PeerKind::Embree.to_string()]);

@@ -5,9 +5,10 @@
 use std::path::PathBuf;
 
 use crate::bvh::{BuildOptions, NodeOrder};
-use crate::encoding::{AccessPath, Layout, Method, Raycast, SceneAccess, Traversal};
+use crate::encoding::{AccessPath, Layout, Method, Traversal};
 use crate::error::Result;
 use crate::gpu::Peer;
+use crate::matrix::KernelAxes;
 use crate::rays::order::RayOrder;
 use crate::services::peers::TinybvhLayout;
 use crate::services::rayset::{RaySet, RaySetSizes};
@@ -16,7 +17,13 @@ use crate::services::shard::{Shard, Split};
 #[derive(Clone, Debug)]
 pub struct BenchOptions {
     pub scenes: Vec<PathBuf>,
-    pub methods: Vec<Method>,
+    /// The kernel axes crossed: methods, layouts, traversals, access paths, node orders and ray
+    /// orders (`matrix`: an empty axis is its default alone). Each method is timed on each
+    /// layout with each traversal that has a kernel for it (a combination without one is left
+    /// out with a note); several access paths, node orders and ray orders are timed side by
+    /// side (a reordering's host time, the sort and putting the hits back, is part of its
+    /// kernel time).
+    pub axes: KernelAxes,
     /// The BVH every method's encoding shares.
     pub build: BuildOptions,
     pub warmup: usize,
@@ -37,20 +44,6 @@ pub struct BenchOptions {
     pub ray_query: bool,
     /// Add the driver's ray tracing pipeline as a peer row where the device has it.
     pub ray_tracing_pipeline: bool,
-    /// How the kernels read each scene (`encoding::plan`; `auto`: texel buffers when they fit);
-    /// several are timed side by side (texel and address: what the address path costs).
-    pub scene_access: Vec<SceneAccess>,
-    /// BVH node layouts, each method timed on each, side by side in one run (default: bvh2).
-    pub layouts: Vec<Layout>,
-    /// Traversals, each method and layout timed with each that has a kernel for it (default:
-    /// while-if); a combination without a kernel is left out with a note.
-    pub traversals: Vec<Traversal>,
-    /// The orders each set is dispatched in (default: as given), side by side: a reordering's
-    /// host time (the sort, and putting the hits back) is part of its kernel time.
-    pub orders: Vec<RayOrder>,
-    /// The node orders each layout's buffer is laid out in (`bvh::order`; default: as built),
-    /// each one more set of scenes timed side by side with the others.
-    pub node_orders: Vec<NodeOrder>,
     /// Run only this shard's scenes ([`BenchOptions::split`]): a scene is the unit, so its
     /// methods, layouts and peers stay interleaved side by side in one run.
     pub shard: Option<Shard>,
@@ -60,32 +53,11 @@ pub struct BenchOptions {
     pub roofline: Option<crate::services::roofline::RooflineOptions>,
 }
 
-/// A list option's values, or its default alone when the list is empty (every axis of a bench
-/// run: layout, traversal, access, node order and ray order default to the one the kernels had
-/// before the axis existed).
-pub(super) fn or_default<T: Clone + Default>(v: &[T]) -> Vec<T> {
-    if v.is_empty() {
-        vec![T::default()]
-    } else {
-        v.to_vec()
-    }
-}
-
-/// The path a kernel for `access` is looked up on before the scene is planned: `auto` takes the
-/// texel path wherever the scene fits one binding.
-pub fn path_of(access: SceneAccess) -> AccessPath {
-    match access {
-        SceneAccess::Address => AccessPath::Address,
-        SceneAccess::Storage => AccessPath::Storage,
-        SceneAccess::Auto | SceneAccess::Texel => AccessPath::Texel,
-    }
-}
-
 impl Default for BenchOptions {
     fn default() -> Self {
         BenchOptions {
             scenes: vec![],
-            methods: Method::ALL.to_vec(),
+            axes: KernelAxes { methods: Method::ALL.to_vec(), ..Default::default() },
             build: BuildOptions::new(crate::defaults::LEAF_SIZE),
             warmup: 1,
             repeat: crate::defaults::REPEAT,
@@ -97,11 +69,6 @@ impl Default for BenchOptions {
             batch_rays: crate::defaults::BATCH_RAYS,
             ray_query: true,
             ray_tracing_pipeline: true,
-            scene_access: vec![SceneAccess::DEFAULT],
-            layouts: vec![Layout::DEFAULT],
-            traversals: vec![Traversal::DEFAULT],
-            orders: vec![RayOrder::DEFAULT],
-            node_orders: vec![NodeOrder::DEFAULT],
             shard: None,
             roofline: None,
         }
@@ -121,25 +88,26 @@ pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<cr
         .copied()
         .filter(|&set| o.rays_dir.is_some() || !sizes.why_empty(set).starts_with("--"))
         .collect();
+    let kernels = o.axes.kernels();
     let mut cells = vec![];
     for scene in &o.scenes {
         let name = crate::scene::scene_name(scene);
         for set in &sets {
-            for (m, l, t, a) in o.kernels() {
-                for node_order in o.node_orders() {
-                    for &order in &o.orders() {
-                        let tracer = CellTracer::Method {
-                            method: m,
-                            layout: l,
-                            leaf: o.build.max_leaf_size,
-                            sah_group: Some(o.build.sah_group),
-                            traversal: t,
-                            node_order,
-                            order,
-                            access: path_of(a),
-                        };
-                        cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
-                    }
+            for k in &kernels {
+                for order in o.axes.orders() {
+                    let tracer = CellTracer::Method {
+                        method: k.method,
+                        layout: k.layout,
+                        leaf: o.build.max_leaf_size,
+                        sah_group: Some(o.build.sah_group),
+                        traversal: k.traversal,
+                        node_order: k.node_order,
+                        order,
+                        // `auto` names no path in the plan (coordinates never name texel): the
+                        // row names the one the scene took.
+                        access: k.planned_path().unwrap_or(AccessPath::Texel),
+                    };
+                    cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
                 }
             }
             let peers = driver.iter().map(Peer::to_string).chain(peers.iter().cloned());
@@ -165,62 +133,6 @@ impl BenchOptions {
              this run has {} scene(s)",
             self.scenes.len()
         ))
-    }
-
-    /// Every (method, layout, traversal, access) timed: the options' combinations that have a
-    /// closest-hit kernel (`auto` is checked as the texel path, which it takes wherever a scene
-    /// fits one binding; a traversal's support does not depend on the method:
-    /// `encoding::variants`' test holds it).
-    pub fn kernels(&self) -> Vec<(Method, Layout, Traversal, SceneAccess)> {
-        let mut out = vec![];
-        for &m in &self.methods {
-            for (l, t, a) in self.combinations() {
-                if m.traversal_kernel(Raycast::Closest, path_of(a), l, t).is_ok() {
-                    out.push((m, l, t, a));
-                }
-            }
-        }
-        out
-    }
-
-    /// Every layout x traversal x access asked for, defaults where a list is empty.
-    fn combinations(&self) -> Vec<(Layout, Traversal, SceneAccess)> {
-        let (traversals, access) = (or_default(&self.traversals), or_default(&self.scene_access));
-        let mut out = vec![];
-        for l in or_default(&self.layouts) {
-            for &t in &traversals {
-                for &a in &access {
-                    out.push((l, t, a));
-                }
-            }
-        }
-        out
-    }
-
-    /// The traversal x layout x access combinations asked for that have no kernel, one note each.
-    pub fn kernel_notes(&self) -> Vec<String> {
-        let Some(&m) = self.methods.first() else { return vec![] };
-        self.combinations()
-            .into_iter()
-            .filter(|&(l, t, a)| m.traversal_kernel(Raycast::Closest, path_of(a), l, t).is_err())
-            .map(|(l, t, a)| {
-                format!(
-                    "{t} traversal on {l} ({} path): not run, no kernel ({t} has: {})",
-                    path_of(a).name(),
-                    crate::encoding::traversal_support(t)
-                )
-            })
-            .collect()
-    }
-
-    /// The node orders, the built one alone when none was asked for.
-    pub fn node_orders(&self) -> Vec<NodeOrder> {
-        or_default(&self.node_orders)
-    }
-
-    /// The ray orders, the default alone when none was asked for.
-    pub fn orders(&self) -> Vec<RayOrder> {
-        or_default(&self.orders)
     }
 
     /// Whether the options ask for the driver peer `peer` (`--ray-query`,

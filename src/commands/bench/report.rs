@@ -91,42 +91,18 @@ pub(super) fn built_order(o: &Option<NodeOrder>) -> bool {
     o.is_none_or(|o| o == NodeOrder::DEFAULT)
 }
 
-/// A kernel's name: the method, then its layout (where given and not bvh2: progress lines; the
-/// tables give the layout a column), traversal, node order, ray order and access path where
-/// they are not the defaults (`quad-unit bvh4 while-while treelets nodes octant-origin address`).
-pub(super) fn kernel_label(
-    method: Method,
-    layout: Option<Layout>,
-    traversal: Traversal,
-    node_order: NodeOrder,
-    order: RayOrder,
-    access: AccessPath,
-) -> String {
-    let mut s = method.to_string();
-    if let Some(l) = layout.filter(|&l| l != Layout::DEFAULT) {
-        s += &format!(" {l}");
-    }
-    if traversal != Traversal::default() {
-        s += &format!(" {traversal}");
-    }
-    if node_order != NodeOrder::default() {
-        s += &format!(" {node_order} nodes");
-    }
-    if order != RayOrder::default() {
-        s += &format!(" {order}");
-    }
-    if access != AccessPath::Texel {
-        s += &format!(" {}", access.name());
-    }
-    s
-}
-
 impl BenchRow {
-    /// How the peer comparison names our row ([`kernel_label`]).
+    /// How the peer comparison names our row (the tables give the layout a column).
     pub(super) fn label(&self, method: Method) -> String {
-        let access = self.scene_access.unwrap_or(AccessPath::Texel);
-        let (t, n, o) = (self.traversal, self.node_order, self.order);
-        kernel_label(method, None, t.unwrap_or_default(), n.unwrap_or_default(), o.unwrap_or_default(), access)
+        crate::matrix::KernelLabel {
+            method,
+            layout: None,
+            traversal: self.traversal.unwrap_or_default(),
+            node_order: self.node_order.unwrap_or_default(),
+            order: self.order.unwrap_or_default(),
+            access: self.scene_access.unwrap_or(AccessPath::Texel),
+        }
+        .to_string()
     }
 }
 

@@ -6,13 +6,14 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::plan::{or_default, path_of, BenchOptions};
-use super::report::{kernel_label, rate, row, BenchReport, Tracer};
+use super::plan::BenchOptions;
+use super::report::{rate, row, BenchReport, Tracer};
 use crate::agreement::compare_closest;
-use crate::encoding::{Raycast, SceneAccess};
+use crate::encoding::Raycast;
 use crate::error::{Error, Result};
 use crate::gpu::{AccelStats, AccelStructure, Context, Kernel, Peer, PeerTracer, RaycastOptions};
-use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
+use crate::matrix::{KernelCell, KernelLabel};
+use crate::pipeline::{DeviceScene, HostScene};
 use crate::rays::order::RayOrder;
 use crate::rays::{self, Ray};
 use crate::reference::RefHit;
@@ -29,24 +30,10 @@ use crate::trace;
 /// The driver's peers get batches of about this long per submit.
 const PEER_SUBMIT_MS: f64 = 500.0;
 
-/// Which capabilities of the device the options can use: methods, traversals and access paths
-/// it lacks are dropped with a note each (an error when nothing is left).
+/// The options with what the device cannot run left out (`matrix::KernelAxes::for_device`),
+/// a note each.
 pub fn for_device(ctx: &Context, o: &BenchOptions, notes: &mut Vec<String>) -> Result<BenchOptions> {
-    use crate::gpu::Capabilities;
-    let caps = ctx.capabilities();
-    let mut o = o.clone();
-    o.methods = caps.keep("methods", &o.methods, Capabilities::method, notes)?;
-    o.traversals = caps.keep("traversals", &or_default(&o.traversals), Capabilities::traversal, notes)?;
-    o.scene_access = caps.keep(
-        "scene access paths",
-        &or_default(&o.scene_access),
-        |c, a| match a {
-            SceneAccess::Auto => Ok(()),
-            a => c.access(path_of(a)),
-        },
-        notes,
-    )?;
-    Ok(o)
+    Ok(BenchOptions { axes: o.axes.for_device(&ctx.capabilities(), notes)?, ..o.clone() })
 }
 
 pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
@@ -78,7 +65,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
     let peer_names: Vec<String> = programs.iter().map(|p| p.kind.to_string()).collect();
     let driver_peers: Vec<Peer> = driver.iter().map(PeerTracer::peer).collect();
     report.plan = super::plan_cells(o, &driver_peers, &peer_names);
-    for note in o.kernel_notes() {
+    for note in o.axes.notes() {
         progress(&note);
         report.notes.push(note);
     }
@@ -232,10 +219,7 @@ fn upload_kernels(
     progress: &mut impl FnMut(&str),
 ) -> Result<Vec<DeviceScene>> {
     let mut scenes: Vec<DeviceScene> = vec![];
-    let requests = o.kernels().into_iter().flat_map(|(m, l, t, a)| {
-        o.node_orders().into_iter().map(move |n| SceneRequest::new(m).access(a).layout(l).traversal(t).node_order(n))
-    });
-    for req in requests {
+    for req in o.axes.kernels().iter().map(KernelCell::request) {
         match host.upload(ctx, &req) {
             Ok(s) => scenes.push(s),
             Err(Error::Unsupported(why)) => {
@@ -291,15 +275,19 @@ fn kernel_rows(
 ) -> Result<(f64, Vec<PeerResult>)> {
     let SetUnderTest { name, mesh, set, rays, ref_hits } = *on;
     let mut best: f64 = 0.0;
-    let label = |scene: &DeviceScene, order: RayOrder| {
-        let (m, l, t, n) = (scene.method, Some(scene.layout), scene.traversal, scene.node_order);
-        kernel_label(m, l, t, n, order, scene.access)
+    let label = |scene: &DeviceScene, order: RayOrder| KernelLabel {
+        method: scene.method,
+        layout: Some(scene.layout),
+        traversal: scene.traversal,
+        node_order: scene.node_order,
+        order,
+        access: scene.access,
     };
     let jobs: Vec<Job> = k
         .scenes
         .iter()
         .zip(k.kernels)
-        .flat_map(|(scene, kernel)| o.orders().into_iter().map(move |order| (scene, kernel, order)))
+        .flat_map(|(scene, kernel)| o.axes.orders().into_iter().map(move |order| (scene, kernel, order)))
         .map(|(scene, kernel, order)| Job { scene, kernel, rays, ref_hits, order })
         .collect();
     let mut peer_rounds: Vec<PeerRound> = (programs.iter().enumerate())
@@ -322,7 +310,7 @@ fn kernel_rows(
     let mut counts: Vec<Option<Option<Vec<crate::gpu::TraversalCounts>>>> = vec![None; k.scenes.len()];
     // The order each ray order dispatched the rays in, sorted once for every kernel's
     // lanes busy (which rays share a subgroup).
-    let orders = o.orders();
+    let orders = o.axes.orders();
     let mut dispatched: Vec<Option<Option<Vec<u32>>>> = vec![None; orders.len()];
     for (job, m) in jobs.iter().zip(measured) {
         let (scene, order) = (job.scene, job.order);

@@ -61,11 +61,10 @@ pub fn measure(ctx: &Context, r: &BenchThreads) -> Result<Vec<ThreadMeasurement>
     let cpu = ctx.capabilities().is_cpu();
     let o = BenchOptions {
         scenes: vec![r.scene.clone()],
-        methods: r.methods.clone(),
+        axes: crate::matrix::KernelAxes { methods: r.methods.clone(), layouts: vec![r.layout], ..Default::default() },
         build: crate::bvh::BuildOptions::new(r.leaf_size),
         repeat: r.repeat,
         rays_dir: Some(r.rays_dir.clone()),
-        layouts: vec![r.layout],
         ray_query: !cpu,
         ray_tracing_pipeline: !cpu,
         ..Default::default()

@@ -193,7 +193,7 @@ pub fn make(ctx: &Context, req: &ReproRequest, mut note: impl FnMut(&str)) -> Re
         return Err(address_refused());
     }
     let kind = if req.any_hit { Raycast::Any } else { Raycast::Closest };
-    let source = plan.method.traversal_kernel(kind, plan.access, plan.layout, plan.traversal)?;
+    let source = plan.key(kind).source()?;
     ctx.capabilities().traversal(plan.traversal)?;
     let needs = replay::needs(source)?;
     let bindings = plan.host_bindings()?;
