@@ -2,13 +2,13 @@
 // trilab:intersector none
 // trilab:variants main lambert=BSDF_MASK:1
 // BSDF probe: runs the dispatcher (bsdf.glsl) on one (material, wo, v)
-// per invocation so that the host can test it (tests/bsdf_probe.rs, src/bsdf.rs).
+// per invocation so that the host can test it (tests/bsdf_probe.rs, src/render/bsdf.rs).
 //   mode 0, sample: v = u; writes the sample (wi, pdf, weight, flags) and, at the sampled wi,
 //                   f = bsdf_eval and eval_pdf = bsdf_pdf (consistency checks).
 //   mode 1, eval:   v = wi; writes wi = v, f = bsdf_eval, pdf = eval_pdf = bsdf_pdf.
 // Variants: `main` compiles every kind in; `lambert` only Lambert (BSDF_MASK = 1), to test that
 // excluded kinds evaluate to 0 and never sample.
-// Rust twins: trilab::bsdf::{ProbeIn, ProbeOut, ProbePush}.
+// Rust twins: trilab::render::bsdf::{ProbeIn, ProbeOut, ProbePush}.
 #extension GL_GOOGLE_include_directive : require
 
 #include "shared.glsl"

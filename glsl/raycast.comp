@@ -77,7 +77,7 @@ void main() {
     uint borrow = clock_end.x < clock_start.x ? 1u : 0u;
     uint hi = clock_end.y - clock_start.y - borrow;
     // 0xFFFFFFFE: the clock read lower at the end than at the start (stepped back);
-    // 0xFFFFFFFF: end - start did not fit 32 bits (src/harness/profile/clock.rs).
+    // 0xFFFFFFFF: end - start did not fit 32 bits (src/commands/profile/clock.rs).
     bool back = clock_end.y < clock_start.y || (clock_end.y == clock_start.y && clock_end.x < clock_start.x);
     cycles[i] = back ? 0xFFFFFFFEu : hi == 0u ? clock_end.x - clock_start.x : 0xFFFFFFFFu;
 #endif

@@ -43,7 +43,7 @@ struct BvhNode {
 // for both paths.
 // - Default (texel path): a storage texel buffer, read with imageLoad (the reasons above).
 //   One binding holds at most maxTexelBufferElements texels (2^27 on lavapipe and NVIDIA).
-// - SCENE_ADDRESS (the raycast kernels' `*_bda` variants; src/gpu/plan.rs picks them when a
+// - SCENE_ADDRESS (the raycast kernels' `*_bda` variants; src/encoding/plan.rs picks them when a
 //   buffer exceeds that limit): the same binding is a uniform block holding the buffer's device
 //   address, and loads go through GL_EXT_buffer_reference (no per-binding size limit). The
 //   kernel must enable GL_EXT_buffer_reference itself (raycast.comp does). Indices stay 32-bit:

@@ -25,7 +25,7 @@
 #                                          a rerun on the same GPU) is refused, naming the files
 #                                          the archive would overwrite and which git tracks:
 #                                          results are never overwritten; move the folder away
-#                                          first (git mv results/D results/D-before) or unpack
+#                                          first (git mv results/<device> results/<device>-before) or unpack
 #                                          into another ROOT.
 #
 # What travels (.travel/, one `carry` path; the tracked tree travels by itself):

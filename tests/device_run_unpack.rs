@@ -366,8 +366,8 @@ fn a_device_name_that_would_escape_results_is_refused() {
         assert!(!s.root.join("results/ok").exists(), "{name}: the sound device was unpacked before the refusal");
     }
 
-    // A device is the one folder right under results/: `results/a/b/...` is device `a` with a
-    // folder `b`, unpacked under results/a/ and nowhere else.
+    // A device is the one folder right under results/ (`results/<device>/<folder>/...`): `a/b/run.log`
+    // there is device `a` with a folder `b`, unpacked into device `a`'s folder and nowhere else.
     let before = listing(s.top());
     let a = s.archive("a-b.tar.gz", &[Entry::File("results/a/b/run.log", "a run")]);
     let o = s.unpack(&a);

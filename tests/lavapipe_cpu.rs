@@ -27,7 +27,7 @@ fn observe(caps: Option<&str>) -> (serde_json::Value, BTreeSet<String>, u32) {
     let (text, _) = run(&["devices"], None, &env, 60);
     ok(&text);
     let stdout = String::from_utf8_lossy(&text.stdout).to_string();
-    // Mesa prints `util_cpu_caps.has_avx2 = 1` lines (src/util/u_cpu_detect.c) to stdout.
+    // `util_cpu_caps.has_avx2 = 1` lines (from Mesa's src/util/u_cpu_detect.c) go to stdout.
     let dumped: BTreeSet<String> = stdout
         .lines()
         .filter_map(|l| l.strip_prefix("util_cpu_caps."))

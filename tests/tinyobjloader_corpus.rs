@@ -2,8 +2,8 @@
 //! (`tests/data/tinyobjloader/`, its README says from where), each loaded through the library's
 //! scene loader on its own thread with a wall-clock limit. Each file loads with the triangles
 //! its faces give by the fan rule (a face of n >= 3 vertices is n - 2 triangles), or is refused
-//! with an error naming the file and, where one line is at fault, the line: where tinyobjloader
-//! refuses it (its `tests/tester.cc`), and where a file gives nothing to trace. The expected
+//! with an error naming the file and, where one line is at fault, the line: where
+//! tinyobjloader's `tests/tester.cc` refuses it, and where a file gives nothing to trace. The expected
 //! outcomes below were written from each file's text; docs/obj-mtl.md lists them with why, and
 //! must list the same outcomes.
 

@@ -9,7 +9,7 @@
 // scaled by 1 / eta^2: the path tracer carries radiance divided by n^2 (the "basic radiance",
 // invariant along a refracted ray), which equals radiance wherever the medium is air, i.e. at
 // the camera and at every light outside glass. This is pbrt's TransportMode::Importance rule; a
-// light inside glass would be seen n^2 too bright. src/bsdf.rs's reference does the same.
+// light inside glass would be seen n^2 too bright. src/render/bsdf.rs's glass_reference does the same.
 // Reads: diffuse (transmission tint), specular (reflection tint), ior. Delta: sample only.
 #ifndef TRILAB_BSDF_GLASS
 #define TRILAB_BSDF_GLASS

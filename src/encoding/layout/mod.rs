@@ -13,8 +13,9 @@
 //! everything that lists layouts (the CLI's values, `bench --layouts`, the study) reads
 //! [`Layout::ALL`].
 //!
-//! The paper's binary tree, `bvh2`, has no layout file: its nodes are the encoding's own
-//! (`bvh::BvhNode`, 32 bytes), uploaded as they are. Every other layout's node buffer replaces
+//! The paper's binary tree, `bvh2`, has no node format of its own: its nodes are the encoding's
+//! own (`bvh::BvhNode`, 32 bytes; `types.glsl`'s `BvhNode`), uploaded as they are, and
+//! `glsl/layout/bvh2.glsl`, the default layout, holds its step. Every other layout's node buffer replaces
 //! them at `BINDING_NODES`; the triangles, slot ids and leaves (first unit, count) are the
 //! encoding's, unchanged.
 
@@ -64,7 +65,7 @@ pub struct NodeFootprint {
 #[derive(Clone, Copy, Debug)]
 pub struct LayoutSpec {
     /// Command-line name (`--layout`), also `glsl/layout/<name>.glsl` and the kernels' variant
-    /// suffix (`closest_<name>`); `bvh2` has no file and no suffix.
+    /// suffix (`closest_<name>`); `bvh2`, the default, has no suffix.
     pub name: &'static str,
     /// Column title in tables and plots.
     pub title: &'static str,
