@@ -338,14 +338,7 @@ pub fn recommend(
     let mut reasons = Vec::new();
     let recentre = cond.should_recentre();
     if recentre {
-        reasons.push(format!(
-            "recentre: the scene's centre is {:.3e} from the origin, {:.1}x its size; translating it to its \
-             centre in f64 raises the bits across the smallest edge from {:.1} to {:.1}",
-            cond.centre_distance,
-            cond.centre_distance / cond.extent.max(f64::MIN_POSITIVE),
-            cond.edge_bits,
-            cond.edge_bits_recentred
-        ));
+        reasons.push(recentre_reason(cond));
     }
     let bits = cond.effective_edge_bits();
     let points: Vec<&FrontierPoint> = frontier.points.iter().filter(|p| available.contains(&p.method)).collect();
@@ -369,20 +362,7 @@ pub fn recommend(
              and t error on a closed mesh translated at least that far (translation.csv)"
         ));
     }
-    // Per method: (leaks, p99 t ULPs) at this magnitude; None if never measured that far.
-    let judged: Vec<(&FrontierPoint, Option<(f64, f64)>)> = points
-        .iter()
-        .map(|p| {
-            (
-                *p,
-                if p.method == Method::F64 {
-                    Some((p.leaks_per_million, p.t_ulps_p99))
-                } else {
-                    frontier.at_magnitude(p, q)
-                },
-            )
-        })
-        .collect();
+    let judged = judged_at(&points, frontier, q);
     let qualifies = |(p, at): &(&FrontierPoint, Option<(f64, f64)>)| {
         (f32_ok || p.method == Method::F64)
             && at.is_some_and(|(l, t)| l <= target.max_leaks_per_million && t <= target.max_t_ulps)
@@ -393,33 +373,12 @@ pub fn recommend(
         .max_by(|a, b| a.0.mrays.total_cmp(&b.0.mrays))
         .map(|j| (j.0, j.1.unwrap()));
     let (method, meets) = match best {
-        Some((p, (leaks, t))) => {
-            reasons.push(format!(
-                "{}: the fastest method meeting the target ({leaks} leaks per 10^6 <= {}, p99 t error {t} ULPs <= {}) \
-                 at {:.2} Mrays/s ({})",
-                p.method, target.max_leaks_per_million, target.max_t_ulps, p.mrays, frontier.source
-            ));
-            for (o, at) in judged.iter().filter(|(o, _)| o.mrays > p.mrays) {
-                let why = match at {
-                    _ if !f32_ok => "f32 cannot resolve the scene".to_owned(),
-                    Some((l, t)) => format!("{l} leaks per 10^6, p99 t error {t} ULPs"),
-                    None => "never measured this far from the origin".to_owned(),
-                };
-                reasons.push(format!("  faster but rejected: {} ({:.2} Mrays/s): {why}", o.method, o.mrays));
-            }
+        Some((p, at)) => {
+            reasons.extend(chosen_reasons(p, at, target, frontier, &judged, f32_ok));
             (p.method, true)
         }
         None => {
-            // Most accurate: fewest leaks, then smallest t error.
-            let fallback = points
-                .iter()
-                .filter(|p| f32_ok || p.method == Method::F64)
-                .min_by(|a, b| {
-                    (a.leaks_per_million, a.t_ulps_p99).partial_cmp(&(b.leaks_per_million, b.t_ulps_p99)).unwrap()
-                })
-                .or_else(|| points.iter().min_by(|a, b| a.leaks_per_million.total_cmp(&b.leaks_per_million)))
-                .map(|p| p.method)
-                .unwrap_or(Method::Mt);
+            let fallback = most_accurate(&points, f32_ok);
             if missing.is_empty() {
                 reasons
                     .push(format!("no available method meets the target; {fallback} is the most accurate available"));
@@ -452,6 +411,79 @@ pub fn recommend(
         missing_from_frontier: missing,
         reasons,
     }
+}
+
+/// Why the scene is recentred: how far its centre is from the origin, and the bits across its
+/// smallest edge that translating it gains.
+fn recentre_reason(cond: &Conditioning) -> String {
+    format!(
+        "recentre: the scene's centre is {:.3e} from the origin, {:.1}x its size; translating it to its \
+         centre in f64 raises the bits across the smallest edge from {:.1} to {:.1}",
+        cond.centre_distance,
+        cond.centre_distance / cond.extent.max(f64::MIN_POSITIVE),
+        cond.edge_bits,
+        cond.edge_bits_recentred
+    )
+}
+
+/// Per method: (leaks, p99 t ULPs) at magnitude `q` (f64's as measured); None if never
+/// measured that far.
+fn judged_at<'a>(
+    points: &[&'a FrontierPoint],
+    frontier: &Frontier,
+    q: f64,
+) -> Vec<(&'a FrontierPoint, Option<(f64, f64)>)> {
+    points
+        .iter()
+        .map(|p| {
+            (
+                *p,
+                if p.method == Method::F64 {
+                    Some((p.leaks_per_million, p.t_ulps_p99))
+                } else {
+                    frontier.at_magnitude(p, q)
+                },
+            )
+        })
+        .collect()
+}
+
+/// Why `p` is chosen (the fastest meeting `target`, with its leaks and t error `at`), and why
+/// each faster method of `judged` is rejected.
+fn chosen_reasons(
+    p: &FrontierPoint,
+    (leaks, t): (f64, f64),
+    target: &Target,
+    frontier: &Frontier,
+    judged: &[(&FrontierPoint, Option<(f64, f64)>)],
+    f32_ok: bool,
+) -> Vec<String> {
+    let mut reasons = vec![format!(
+        "{}: the fastest method meeting the target ({leaks} leaks per 10^6 <= {}, p99 t error {t} ULPs <= {}) \
+         at {:.2} Mrays/s ({})",
+        p.method, target.max_leaks_per_million, target.max_t_ulps, p.mrays, frontier.source
+    )];
+    for (o, at) in judged.iter().filter(|(o, _)| o.mrays > p.mrays) {
+        let why = match at {
+            _ if !f32_ok => "f32 cannot resolve the scene".to_owned(),
+            Some((l, t)) => format!("{l} leaks per 10^6, p99 t error {t} ULPs"),
+            None => "never measured this far from the origin".to_owned(),
+        };
+        reasons.push(format!("  faster but rejected: {} ({:.2} Mrays/s): {why}", o.method, o.mrays));
+    }
+    reasons
+}
+
+/// The most accurate method of `points` (f64 alone where f32 cannot resolve the scene): fewest
+/// leaks, then smallest t error.
+fn most_accurate(points: &[&FrontierPoint], f32_ok: bool) -> Method {
+    points
+        .iter()
+        .filter(|p| f32_ok || p.method == Method::F64)
+        .min_by(|a, b| (a.leaks_per_million, a.t_ulps_p99).partial_cmp(&(b.leaks_per_million, b.t_ulps_p99)).unwrap())
+        .or_else(|| points.iter().min_by(|a, b| a.leaks_per_million.total_cmp(&b.leaks_per_million)))
+        .map(|p| p.method)
+        .unwrap_or(Method::Mt)
 }
 
 /// `--method`: a method, or `auto` (the recommendation for the scene and device).

@@ -324,7 +324,7 @@ fn only_the_worker_service_runs_trilab_again() {
         ("rows.rs", "checks a rows file's schema before reading the line typed"),
         ("rays/sidecar.rs", "a ray file's free-form settings"),
         ("commands/make_rays.rs", "writes those settings"),
-        ("commands/merge/mod.rs", "its tests read merge.json"),
+        ("commands/merge/tests.rs", "its tests read merge.json"),
         ("commands/ab/mod.rs", "the Vulkan loader's ICD file; another build's provenance, carried as it wrote it"),
         ("services/worker/protocol.rs", "another build's provenance in `ready`, read through ProvenanceFields"),
         ("cli/dump.rs", "prints clap's command tree as JSON"),

@@ -172,74 +172,11 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
     let exts = instance.enumerate_device_extension_properties(pd).unwrap_or_default();
     let api = base.api_version;
     let has = |n: &CStr| has_extension(&exts, n);
-
-    let mut v11 = vk::PhysicalDeviceVulkan11Properties::default();
-    let mut v12 = vk::PhysicalDeviceVulkan12Properties::default();
-    let mut ssc = vk::PhysicalDeviceSubgroupSizeControlProperties::default();
-    let mut m4 = vk::PhysicalDeviceMaintenance4Properties::default();
-    let has_m4 = has(ash::khr::maintenance4::NAME);
-    let mut rtp_props = vk::PhysicalDeviceRayTracingPipelinePropertiesKHR::default();
-    let has_rtp = has(ash::khr::ray_tracing_pipeline::NAME)
-        && has(ash::khr::acceleration_structure::NAME)
-        && api >= vk::API_VERSION_1_2;
-    // trilab's instances ask for Vulkan 1.2, so a device's effective version is at most 1.2 and
-    // subgroup size control needs the extension even where the device has Vulkan 1.3.
-    let has_ssc = has(ash::ext::subgroup_size_control::NAME);
-    let mut props2 = vk::PhysicalDeviceProperties2::default();
-    if api >= vk::API_VERSION_1_2 {
-        props2 = props2.push_next(&mut v11).push_next(&mut v12);
-        if has_ssc {
-            props2 = props2.push_next(&mut ssc);
-        }
-        if has_m4 {
-            props2 = props2.push_next(&mut m4);
-        }
-        if has_rtp {
-            props2 = props2.push_next(&mut rtp_props);
-        }
-        instance.get_physical_device_properties2(pd, &mut props2);
-    }
-
-    let mut clock = vk::PhysicalDeviceShaderClockFeaturesKHR::default();
-    let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
-    let mut rtp = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default();
-    let mut pep = vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default();
-    let mut sscf = vk::PhysicalDeviceSubgroupSizeControlFeatures::default();
-    let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
-    let has_clock = has(ash::khr::shader_clock::NAME);
-    let has_rq = has(ash::khr::ray_query::NAME) && has(ash::khr::acceleration_structure::NAME);
-    let has_pep = has(ash::khr::pipeline_executable_properties::NAME);
-    let mut f2 = vk::PhysicalDeviceFeatures2::default();
-    if api >= vk::API_VERSION_1_2 {
-        f2 = f2.push_next(&mut f12);
-    }
-    if has_clock {
-        f2 = f2.push_next(&mut clock);
-    }
-    if has_rq {
-        f2 = f2.push_next(&mut rq);
-    }
-    if has_rtp {
-        f2 = f2.push_next(&mut rtp);
-    }
-    if has_pep {
-        f2 = f2.push_next(&mut pep);
-    }
-    if has_ssc {
-        f2 = f2.push_next(&mut sscf);
-    }
-    instance.get_physical_device_features2(pd, &mut f2);
-    let features = f2.features;
-
-    let families = instance.get_physical_device_queue_family_properties(pd);
-    let compute_family = families
-        .iter()
-        .position(|f| {
-            f.queue_flags.contains(vk::QueueFlags::COMPUTE) && !f.queue_flags.contains(vk::QueueFlags::GRAPHICS)
-        })
-        .or_else(|| families.iter().position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE)))
-        .map(|i| i as u32);
-    let ts_bits = compute_family.map(|f| families[f as usize].timestamp_valid_bits).unwrap_or(0);
+    let ext = Extensions::of(&exts, api);
+    let Properties { v11, v12, ssc, m4, rtp: rtp_props } = Properties::query(instance, pd, api, &ext);
+    let Features { clock, rq, rtp, pep, sscf, f12, features } = Features::query(instance, pd, api, &ext);
+    let Extensions { ssc: has_ssc, m4: has_m4, rtp: has_rtp, clock: has_clock, rq: has_rq, pep: has_pep } = ext;
+    let (compute_family, ts_bits) = compute_queue(instance, pd);
 
     let unusable_reason = if api < vk::API_VERSION_1_2 {
         Some(format!("Vulkan {} < 1.2", version(api)))
@@ -250,14 +187,6 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
     };
     let driver_info = cstr(&v12.driver_info);
     let limits = base.limits;
-    let memory = instance.get_physical_device_memory_properties(pd);
-    let device_local_heap_bytes = memory
-        .memory_heaps_as_slice()
-        .iter()
-        .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
-        .map(|h| h.size)
-        .max()
-        .unwrap_or(0);
     DeviceInfo {
         index,
         name: cstr(&base.device_name),
@@ -288,35 +217,18 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         timestamp_period_ns: limits.timestamp_period,
         pipeline_statistics_query: features.pipeline_statistics_query == vk::TRUE,
         ray_query: has_rq && rq.ray_query == vk::TRUE,
-        ray_tracing_pipeline: (has_rtp && rtp.ray_tracing_pipeline == vk::TRUE).then_some(
-            RayTracingPipelineProperties {
-                shader_group_handle_size: rtp_props.shader_group_handle_size,
-                shader_group_handle_alignment: rtp_props.shader_group_handle_alignment,
-                shader_group_base_alignment: rtp_props.shader_group_base_alignment,
-                max_shader_group_stride: rtp_props.max_shader_group_stride,
-                max_ray_recursion_depth: rtp_props.max_ray_recursion_depth,
-                max_ray_dispatch_invocation_count: rtp_props.max_ray_dispatch_invocation_count,
-            },
-        ),
+        ray_tracing_pipeline: (has_rtp && rtp.ray_tracing_pipeline == vk::TRUE)
+            .then(|| RayTracingPipelineProperties::of(&rtp_props)),
         pipeline_executable_properties: has_pep && pep.pipeline_executable_info == vk::TRUE,
         shader_float64: features.shader_float64 == vk::TRUE,
         shader_int64: features.shader_int64 == vk::TRUE,
         buffer_device_address: f12.buffer_device_address == vk::TRUE,
-        float_controls: FloatControls {
-            denorm_behavior_independence: format!("{:?}", v12.denorm_behavior_independence),
-            rounding_mode_independence: format!("{:?}", v12.rounding_mode_independence),
-            signed_zero_inf_nan_preserve_f32: v12.shader_signed_zero_inf_nan_preserve_float32 == vk::TRUE,
-            signed_zero_inf_nan_preserve_f64: v12.shader_signed_zero_inf_nan_preserve_float64 == vk::TRUE,
-            denorm_preserve_f32: v12.shader_denorm_preserve_float32 == vk::TRUE,
-            denorm_flush_to_zero_f32: v12.shader_denorm_flush_to_zero_float32 == vk::TRUE,
-            rounding_mode_rte_f32: v12.shader_rounding_mode_rte_float32 == vk::TRUE,
-            rounding_mode_rtz_f32: v12.shader_rounding_mode_rtz_float32 == vk::TRUE,
-        },
+        float_controls: FloatControls::of(&v12),
         max_storage_buffer_range: limits.max_storage_buffer_range,
         max_texel_buffer_elements: limits.max_texel_buffer_elements,
         max_memory_allocation_size: v11.max_memory_allocation_size,
         max_buffer_size: has_m4.then_some(m4.max_buffer_size),
-        device_local_heap_bytes,
+        device_local_heap_bytes: device_local_heap_bytes(instance, pd),
         memory_budget: has(ash::ext::memory_budget::NAME),
         min_storage_buffer_offset_alignment: limits.min_storage_buffer_offset_alignment,
         max_compute_workgroup_invocations: limits.max_compute_work_group_invocations,
@@ -328,6 +240,187 @@ pub(crate) unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, ind
         execution: Execution::of(&cstr(&base.device_name), &format!("{:?}", v12.driver_id)),
         // lavapipe's JIT compiles for this CPU as Mesa sees it (gpu::lavapipe_cpu).
         compiles_for: (v12.driver_id == vk::DriverId::MESA_LLVMPIPE).then(super::LavapipeCpu::current).flatten(),
+    }
+}
+
+/// The extensions whose properties or features [`query`] chains in.
+#[derive(Clone, Copy)]
+struct Extensions {
+    /// `VK_EXT_subgroup_size_control`.
+    ssc: bool,
+    /// `VK_KHR_maintenance4`.
+    m4: bool,
+    /// `VK_KHR_ray_tracing_pipeline` and `VK_KHR_acceleration_structure`, on Vulkan 1.2.
+    rtp: bool,
+    /// `VK_KHR_shader_clock`.
+    clock: bool,
+    /// `VK_KHR_ray_query` and `VK_KHR_acceleration_structure`.
+    rq: bool,
+    /// `VK_KHR_pipeline_executable_properties`.
+    pep: bool,
+}
+
+impl Extensions {
+    fn of(exts: &[vk::ExtensionProperties], api: u32) -> Extensions {
+        let has = |n: &CStr| has_extension(exts, n);
+        Extensions {
+            // trilab's instances ask for Vulkan 1.2, so a device's effective version is at most
+            // 1.2 and subgroup size control needs the extension even where the device has
+            // Vulkan 1.3.
+            ssc: has(ash::ext::subgroup_size_control::NAME),
+            m4: has(ash::khr::maintenance4::NAME),
+            rtp: has(ash::khr::ray_tracing_pipeline::NAME)
+                && has(ash::khr::acceleration_structure::NAME)
+                && api >= vk::API_VERSION_1_2,
+            clock: has(ash::khr::shader_clock::NAME),
+            rq: has(ash::khr::ray_query::NAME) && has(ash::khr::acceleration_structure::NAME),
+            pep: has(ash::khr::pipeline_executable_properties::NAME),
+        }
+    }
+}
+
+/// The property structures [`query`] reads (each left at its default where the device lacks
+/// it, and all of them below Vulkan 1.2). Their `p_next` is not followed.
+struct Properties {
+    v11: vk::PhysicalDeviceVulkan11Properties<'static>,
+    v12: vk::PhysicalDeviceVulkan12Properties<'static>,
+    ssc: vk::PhysicalDeviceSubgroupSizeControlProperties<'static>,
+    m4: vk::PhysicalDeviceMaintenance4Properties<'static>,
+    rtp: vk::PhysicalDeviceRayTracingPipelinePropertiesKHR<'static>,
+}
+
+impl Properties {
+    /// # Safety
+    /// As [`query`].
+    unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, api: u32, ext: &Extensions) -> Properties {
+        let mut v11 = vk::PhysicalDeviceVulkan11Properties::default();
+        let mut v12 = vk::PhysicalDeviceVulkan12Properties::default();
+        let mut ssc = vk::PhysicalDeviceSubgroupSizeControlProperties::default();
+        let mut m4 = vk::PhysicalDeviceMaintenance4Properties::default();
+        let mut rtp = vk::PhysicalDeviceRayTracingPipelinePropertiesKHR::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default();
+        if api >= vk::API_VERSION_1_2 {
+            props2 = props2.push_next(&mut v11).push_next(&mut v12);
+            if ext.ssc {
+                props2 = props2.push_next(&mut ssc);
+            }
+            if ext.m4 {
+                props2 = props2.push_next(&mut m4);
+            }
+            if ext.rtp {
+                props2 = props2.push_next(&mut rtp);
+            }
+            instance.get_physical_device_properties2(pd, &mut props2);
+        }
+        Properties { v11, v12, ssc, m4, rtp }
+    }
+}
+
+/// The feature structures [`query`] reads (each left at its default where the device lacks
+/// it), and the core features. Their `p_next` is not followed.
+struct Features {
+    clock: vk::PhysicalDeviceShaderClockFeaturesKHR<'static>,
+    rq: vk::PhysicalDeviceRayQueryFeaturesKHR<'static>,
+    rtp: vk::PhysicalDeviceRayTracingPipelineFeaturesKHR<'static>,
+    pep: vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR<'static>,
+    sscf: vk::PhysicalDeviceSubgroupSizeControlFeatures<'static>,
+    f12: vk::PhysicalDeviceVulkan12Features<'static>,
+    features: vk::PhysicalDeviceFeatures,
+}
+
+impl Features {
+    /// # Safety
+    /// As [`query`].
+    unsafe fn query(instance: &ash::Instance, pd: vk::PhysicalDevice, api: u32, ext: &Extensions) -> Features {
+        let mut clock = vk::PhysicalDeviceShaderClockFeaturesKHR::default();
+        let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
+        let mut rtp = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default();
+        let mut pep = vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default();
+        let mut sscf = vk::PhysicalDeviceSubgroupSizeControlFeatures::default();
+        let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
+        let mut f2 = vk::PhysicalDeviceFeatures2::default();
+        if api >= vk::API_VERSION_1_2 {
+            f2 = f2.push_next(&mut f12);
+        }
+        if ext.clock {
+            f2 = f2.push_next(&mut clock);
+        }
+        if ext.rq {
+            f2 = f2.push_next(&mut rq);
+        }
+        if ext.rtp {
+            f2 = f2.push_next(&mut rtp);
+        }
+        if ext.pep {
+            f2 = f2.push_next(&mut pep);
+        }
+        if ext.ssc {
+            f2 = f2.push_next(&mut sscf);
+        }
+        instance.get_physical_device_features2(pd, &mut f2);
+        let features = f2.features;
+        Features { clock, rq, rtp, pep, sscf, f12, features }
+    }
+}
+
+/// The queue family used for compute (a compute-only family first) and its timestamps' valid
+/// bits (0 without one).
+///
+/// # Safety
+/// As [`query`].
+unsafe fn compute_queue(instance: &ash::Instance, pd: vk::PhysicalDevice) -> (Option<u32>, u32) {
+    let families = instance.get_physical_device_queue_family_properties(pd);
+    let compute_family = families
+        .iter()
+        .position(|f| {
+            f.queue_flags.contains(vk::QueueFlags::COMPUTE) && !f.queue_flags.contains(vk::QueueFlags::GRAPHICS)
+        })
+        .or_else(|| families.iter().position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE)))
+        .map(|i| i as u32);
+    let ts_bits = compute_family.map(|f| families[f as usize].timestamp_valid_bits).unwrap_or(0);
+    (compute_family, ts_bits)
+}
+
+/// The size of the largest DEVICE_LOCAL memory heap.
+///
+/// # Safety
+/// As [`query`].
+unsafe fn device_local_heap_bytes(instance: &ash::Instance, pd: vk::PhysicalDevice) -> u64 {
+    let memory = instance.get_physical_device_memory_properties(pd);
+    memory
+        .memory_heaps_as_slice()
+        .iter()
+        .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+        .map(|h| h.size)
+        .max()
+        .unwrap_or(0)
+}
+
+impl FloatControls {
+    fn of(v12: &vk::PhysicalDeviceVulkan12Properties) -> FloatControls {
+        FloatControls {
+            denorm_behavior_independence: format!("{:?}", v12.denorm_behavior_independence),
+            rounding_mode_independence: format!("{:?}", v12.rounding_mode_independence),
+            signed_zero_inf_nan_preserve_f32: v12.shader_signed_zero_inf_nan_preserve_float32 == vk::TRUE,
+            signed_zero_inf_nan_preserve_f64: v12.shader_signed_zero_inf_nan_preserve_float64 == vk::TRUE,
+            denorm_preserve_f32: v12.shader_denorm_preserve_float32 == vk::TRUE,
+            denorm_flush_to_zero_f32: v12.shader_denorm_flush_to_zero_float32 == vk::TRUE,
+            rounding_mode_rte_f32: v12.shader_rounding_mode_rte_float32 == vk::TRUE,
+            rounding_mode_rtz_f32: v12.shader_rounding_mode_rtz_float32 == vk::TRUE,
+        }
+    }
+}
+
+impl RayTracingPipelineProperties {
+    fn of(p: &vk::PhysicalDeviceRayTracingPipelinePropertiesKHR) -> RayTracingPipelineProperties {
+        RayTracingPipelineProperties {
+            shader_group_handle_size: p.shader_group_handle_size,
+            shader_group_handle_alignment: p.shader_group_handle_alignment,
+            shader_group_base_alignment: p.shader_group_base_alignment,
+            max_shader_group_stride: p.max_shader_group_stride,
+            max_ray_recursion_depth: p.max_ray_recursion_depth,
+            max_ray_dispatch_invocation_count: p.max_ray_dispatch_invocation_count,
+        }
     }
 }
 

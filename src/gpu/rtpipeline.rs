@@ -190,25 +190,38 @@ fn merged_layout(
     Ok((bindings, push))
 }
 
+/// A stage of the pipeline: its source, stage flag and SPIR-V words.
+type Stage = (&'static RtShaderSource, vk::ShaderStageFlags, Vec<u32>);
+
+/// The three groups, in group order (the SBT regions' order): 0 ray generation, 1 miss, 2 the
+/// triangle hit group with the closest-hit stage.
+fn groups() -> [vk::RayTracingShaderGroupCreateInfoKHR<'static>; 3] {
+    let general = |stage: u32| {
+        vk::RayTracingShaderGroupCreateInfoKHR::default()
+            .ty(vk::RayTracingShaderGroupTypeKHR::GENERAL)
+            .general_shader(stage)
+            .closest_hit_shader(vk::SHADER_UNUSED_KHR)
+            .any_hit_shader(vk::SHADER_UNUSED_KHR)
+            .intersection_shader(vk::SHADER_UNUSED_KHR)
+    };
+    [
+        general(0),
+        general(1),
+        vk::RayTracingShaderGroupCreateInfoKHR::default()
+            .ty(vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP)
+            .general_shader(vk::SHADER_UNUSED_KHR)
+            .closest_hit_shader(2)
+            .any_hit_shader(vk::SHADER_UNUSED_KHR)
+            .intersection_shader(vk::SHADER_UNUSED_KHR),
+    ]
+}
+
 impl RtPipeline {
     /// The pipeline of the closest-hit variant, or with `any_hit` the occlusion one (the first
     /// hit the driver accepts ends the trace); [`Error::Unsupported`] where the context has no
     /// ray tracing pipeline.
     pub fn new(ctx: &Context, any_hit: bool) -> Result<RtPipeline> {
-        let props = match ctx.info().ray_tracing_pipeline {
-            Some(p) if ctx.enabled().ray_tracing_pipeline => p,
-            _ => {
-                return Err(ctx.capabilities().peer(super::Peer::RayTracingPipeline).err().map_or_else(
-                    || {
-                        Error::Unsupported(format!(
-                            "ray tracing pipeline: no properties reported by {}",
-                            ctx.info().name
-                        ))
-                    },
-                    Error::from,
-                ))
-            }
-        };
+        let props = Self::properties(ctx)?;
         let sbt_layout = SbtLayout::new(&props).ok_or_else(|| {
             Error::Unsupported(format!(
                 "ray tracing pipeline: no shader binding table fits {}'s properties {props:?}",
@@ -216,18 +229,7 @@ impl RtPipeline {
             ))
         })?;
         let (variant, name) = if any_hit { ("any", "raytrace.any") } else { ("closest", "raytrace.closest") };
-        // Group order: 0 ray generation, 1 miss, 2 the hit group (SBT regions in that order).
-        let sources = [
-            find_stage("raygen", "rgen", variant)?,
-            find_stage("miss", "rmiss", "main")?,
-            find_stage("closest", "rchit", "main")?,
-        ];
-        let mut stages = Vec::new();
-        for src in sources {
-            let words = src.words();
-            ctx.check_capabilities(src.name, &words)?;
-            stages.push((src, stage_flag(src)?, words));
-        }
+        let stages = Self::stages(ctx, variant)?;
         let (bindings, push) = merged_layout(&stages)?;
 
         let d = &ctx.device;
@@ -246,14 +248,67 @@ impl RtPipeline {
             pipeline: vk::Pipeline::null(),
             sbt: None,
         };
-        let what = |s: &str| format!("{s} for {name}");
-        for (_, _, words) in &stages {
+        p.create_modules(&stages)?;
+        p.create_layouts(&bindings, push)?;
+        p.create_pipeline(&stages)?;
+        p.upload_table(ctx, &sbt_layout, &props)?;
+        Ok(p)
+    }
+
+    /// The device's ray tracing pipeline properties, where the context enabled the pipeline.
+    fn properties(ctx: &Context) -> Result<RayTracingPipelineProperties> {
+        match ctx.info().ray_tracing_pipeline {
+            Some(p) if ctx.enabled().ray_tracing_pipeline => Ok(p),
+            _ => Err(ctx.capabilities().peer(super::Peer::RayTracingPipeline).err().map_or_else(
+                || Error::Unsupported(format!("ray tracing pipeline: no properties reported by {}", ctx.info().name)),
+                Error::from,
+            )),
+        }
+    }
+
+    /// The three stages of `variant` in group order, each checked against the context's
+    /// capabilities.
+    fn stages(ctx: &Context, variant: &str) -> Result<Vec<Stage>> {
+        let sources = [
+            find_stage("raygen", "rgen", variant)?,
+            find_stage("miss", "rmiss", "main")?,
+            find_stage("closest", "rchit", "main")?,
+        ];
+        let mut stages = Vec::new();
+        for src in sources {
+            let words = src.words();
+            ctx.check_capabilities(src.name, &words)?;
+            stages.push((src, stage_flag(src)?, words));
+        }
+        Ok(stages)
+    }
+
+    /// What a failing Vulkan call `s` was doing.
+    fn what(&self, s: &str) -> String {
+        format!("{s} for {}", self.name)
+    }
+
+    /// A shader module per stage.
+    fn create_modules(&mut self, stages: &[Stage]) -> Result<()> {
+        for (_, _, words) in stages {
             let info = vk::ShaderModuleCreateInfo::default().code(words);
             // SAFETY: the words are a SPIR-V module compiled for Vulkan 1.2 by build.rs whose
             // capabilities the context enabled (checked above); destroyed by Drop.
-            let module = unsafe { d.raw.create_shader_module(&info, None) }.during(&what("vkCreateShaderModule"))?;
-            p.modules.push(module);
+            let module = unsafe { self.device.raw.create_shader_module(&info, None) }
+                .during(&self.what("vkCreateShaderModule"))?;
+            self.modules.push(module);
         }
+        Ok(())
+    }
+
+    /// The descriptor-set layout of the stages' bindings, and the pipeline layout with it and
+    /// the push-constant range.
+    #[allow(clippy::type_complexity)]
+    fn create_layouts(
+        &mut self,
+        bindings: &BTreeMap<u32, (vk::DescriptorType, vk::ShaderStageFlags)>,
+        push: Option<((u32, u32), vk::ShaderStageFlags)>,
+    ) -> Result<()> {
         let layout_bindings: Vec<vk::DescriptorSetLayoutBinding> = bindings
             .iter()
             .map(|(&binding, &(ty, stages))| {
@@ -266,54 +321,41 @@ impl RtPipeline {
             .collect();
         let set_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&layout_bindings);
         // SAFETY: valid device and create info; destroyed by Drop.
-        p.set_layout = unsafe { d.raw.create_descriptor_set_layout(&set_info, None) }
-            .during(&what("vkCreateDescriptorSetLayout"))?;
+        self.set_layout = unsafe { self.device.raw.create_descriptor_set_layout(&set_info, None) }
+            .during(&self.what("vkCreateDescriptorSetLayout"))?;
         let ranges: Vec<vk::PushConstantRange> = push
             .iter()
             .map(|&((offset, size), stages)| {
                 vk::PushConstantRange::default().stage_flags(stages).offset(offset).size(size)
             })
             .collect();
-        let set_layouts = [p.set_layout];
+        let set_layouts = [self.set_layout];
         let pl_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges);
         // SAFETY: the set layout is alive; destroyed by Drop.
-        p.pipeline_layout =
-            unsafe { d.raw.create_pipeline_layout(&pl_info, None) }.during(&what("vkCreatePipelineLayout"))?;
+        self.pipeline_layout = unsafe { self.device.raw.create_pipeline_layout(&pl_info, None) }
+            .during(&self.what("vkCreatePipelineLayout"))?;
+        Ok(())
+    }
 
+    /// The pipeline of the stages' modules in [`groups`], recursion depth 1.
+    fn create_pipeline(&mut self, stages: &[Stage]) -> Result<()> {
         let stage_infos: Vec<vk::PipelineShaderStageCreateInfo> = stages
             .iter()
-            .zip(&p.modules)
+            .zip(&self.modules)
             .map(|((_, flag, _), &module)| {
                 vk::PipelineShaderStageCreateInfo::default().stage(*flag).module(module).name(c"main")
             })
             .collect();
-        let general = |stage: u32| {
-            vk::RayTracingShaderGroupCreateInfoKHR::default()
-                .ty(vk::RayTracingShaderGroupTypeKHR::GENERAL)
-                .general_shader(stage)
-                .closest_hit_shader(vk::SHADER_UNUSED_KHR)
-                .any_hit_shader(vk::SHADER_UNUSED_KHR)
-                .intersection_shader(vk::SHADER_UNUSED_KHR)
-        };
-        let groups = [
-            general(0),
-            general(1),
-            vk::RayTracingShaderGroupCreateInfoKHR::default()
-                .ty(vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP)
-                .general_shader(vk::SHADER_UNUSED_KHR)
-                .closest_hit_shader(2)
-                .any_hit_shader(vk::SHADER_UNUSED_KHR)
-                .intersection_shader(vk::SHADER_UNUSED_KHR),
-        ];
+        let groups = groups();
         let info = [vk::RayTracingPipelineCreateInfoKHR::default()
             .stages(&stage_infos)
             .groups(&groups)
             .max_pipeline_ray_recursion_depth(1)
-            .layout(p.pipeline_layout)];
+            .layout(self.pipeline_layout)];
         // SAFETY: modules and layout are alive; no deferred operation or cache; the create info
         // lives for the call. Recursion depth 1 <= maxRayRecursionDepth (at least 1 by spec).
-        p.pipeline = unsafe {
-            p.loader.create_ray_tracing_pipelines(
+        self.pipeline = unsafe {
+            self.loader.create_ray_tracing_pipelines(
                 vk::DeferredOperationKHR::null(),
                 vk::PipelineCache::null(),
                 &info,
@@ -321,18 +363,28 @@ impl RtPipeline {
             )
         }
         .map_err(|(_, e)| e)
-        .during(&what("vkCreateRayTracingPipelinesKHR"))?[0];
+        .during(&self.what("vkCreateRayTracingPipelinesKHR"))?[0];
+        Ok(())
+    }
 
-        let handle_bytes = groups.len() * sbt_layout.handle_size as usize;
+    /// The shader binding table of the pipeline's group handles, uploaded, and its regions.
+    fn upload_table(
+        &mut self,
+        ctx: &Context,
+        sbt_layout: &SbtLayout,
+        props: &RayTracingPipelineProperties,
+    ) -> Result<()> {
+        let groups = groups().len();
+        let handle_bytes = groups * sbt_layout.handle_size as usize;
         // SAFETY: the pipeline has exactly these 3 groups; the size is 3 handles.
         let handles =
-            unsafe { p.loader.get_ray_tracing_shader_group_handles(p.pipeline, 0, groups.len() as u32, handle_bytes) }
-                .during(&what("vkGetRayTracingShaderGroupHandlesKHR"))?;
+            unsafe { self.loader.get_ray_tracing_shader_group_handles(self.pipeline, 0, groups as u32, handle_bytes) }
+                .during(&self.what("vkGetRayTracingShaderGroupHandlesKHR"))?;
         let (sbt, address) =
-            upload_sbt(ctx, &sbt_layout, &sbt_layout.fill(&handles), props.shader_group_base_alignment)?;
-        p.regions = sbt_layout.regions(address);
-        p.sbt = Some(sbt);
-        Ok(p)
+            upload_sbt(ctx, sbt_layout, &sbt_layout.fill(&handles), props.shader_group_base_alignment)?;
+        self.regions = sbt_layout.regions(address);
+        self.sbt = Some(sbt);
+        Ok(())
     }
 }
 

@@ -10,7 +10,8 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::{
-    output, render, EnvSpec, KernelChoice, PartialRender, Progress, RenderFailure, RenderSettings, RenderTarget, Sky,
+    output, render, EnvSpec, KernelChoice, PartialRender, Progress, RenderFailure, RenderResult, RenderSettings,
+    RenderTarget, Sky,
 };
 use crate::bvh::BuildOptions;
 use crate::conditioning::{MethodChoice, Recommendation};
@@ -250,20 +251,7 @@ pub fn run(
     on_pass: &mut dyn FnMut(&Progress),
     note: &mut dyn FnMut(&str),
 ) -> Result<RenderReport> {
-    if req.out.extension().and_then(|e| e.to_str()) != Some("exr") {
-        return Err(Error::Usage(format!("--out {}: the output must be an .exr file", req.out.display())));
-    }
-    check_exposure(req.exposure).map_err(|e| Error::Usage(format!("--exposure {e}")))?;
-    if !(req.submit_ms > 0.0 && req.submit_ms.is_finite()) {
-        return Err(Error::Usage(format!("--submit-ms {}: must be a positive number of milliseconds", req.submit_ms)));
-    }
-    if !(req.checkpoint_secs >= 0.0 && req.checkpoint_secs.is_finite()) {
-        return Err(Error::Usage(format!("--checkpoint-secs {}: must be a finite number >= 0", req.checkpoint_secs)));
-    }
-    // The image read back (RGBA f32) and written (RGB f32): 28 bytes a pixel at least.
-    let pixels = u64::from(req.width) * u64::from(req.height);
-    let option = format!("--width {} --height {}", req.width, req.height);
-    crate::memory::check(&[crate::memory::Need::new(option, "pixels", Some(pixels), 28)])?;
+    check_request(req)?;
     let (png, json) = output::sidecar_paths(&req.out);
     let mesh = load_obj(&req.scene)?;
     for out in [&req.out, &png, &json] {
@@ -291,46 +279,7 @@ pub fn run(
             note(&format!("  {line}"));
         }
     }
-    let info = ctx.info();
-    let c = &settings.camera;
-    let mut report = RenderReport {
-        scene: req.scene.display().to_string(),
-        scene_sha256: output::scene_hash(&mesh),
-        triangles: mesh.triangle_count(),
-        method: target.device.method,
-        method_choice: req.method.to_string(),
-        layout: target.device.layout,
-        auto: target.device.auto.clone(),
-        build: req.build,
-        kernel: target.kernel.source.name,
-        kernel_choice: req.kernel,
-        bsdfs_in_kernel: target.kernel.bsdfs(),
-        bsdfs_in_scene: BsdfKind::in_mask(target.scene.bsdf_mask).map(|k| k.name()).collect(),
-        settings: settings.clone(),
-        camera_choice: req.camera.to_string(),
-        environment: env.to_string(),
-        camera: CameraRecord {
-            eye: c.eye.to_array(),
-            forward: c.forward.to_array(),
-            up: c.up.to_array(),
-            fov_y_degrees: c.fov_y.to_degrees(),
-        },
-        emissive_triangles: target.scene.light_count,
-        gpu_scene_bytes: target.gpu_bytes(),
-        device: info.name.clone(),
-        driver: info.driver_label(),
-        build_ms,
-        warnings: mesh.warnings.clone(),
-        spp_done: 0,
-        checkpoint: false,
-        interrupted: false,
-        failed: None,
-        seconds: None,
-        submits: None,
-        wall_ms: None,
-        finished: None,
-        out: req.out.clone(),
-    };
+    let mut report = RenderReport::before(ctx, req, &mesh, &target, &settings, env, build_ms);
     let outputs =
         Outputs { exr: &req.out, png, json, width: settings.width, height: settings.height, exposure: req.exposure };
     let mut last_checkpoint = Instant::now();
@@ -361,20 +310,7 @@ pub fn run(
     report.spp_done = result.spp;
     report.interrupted = result.interrupted;
     (report.submits, report.wall_ms) = (Some(result.submits), Some(result.wall_ms));
-    report.finished = Some(Finished {
-        gpu_ms: result.gpu_ms,
-        samples: result.samples(),
-        samples_per_second: result.samples_per_second(),
-        closest_rays: result.closest_rays,
-        shadow_rays: result.shadow_rays,
-        mrays_per_second: result.mrays_per_second(),
-        ray_definition: RAY_DEFINITION,
-        dropped_samples_nan_or_inf: result.dropped_samples,
-        seconds: result.seconds(),
-        width: result.width,
-        height: result.height,
-        spp_asked: settings.spp,
-    });
+    report.finished = Some(Finished::of(&result, settings.spp));
     outputs.write(&result.accum, result.spp, &report)?;
     if result.dropped_samples > 0 {
         note(&format!(
@@ -383,4 +319,97 @@ pub fn run(
         ));
     }
     Ok(report)
+}
+
+/// Refuses, before any work, an output that is not an EXR, an exposure, submit time or
+/// checkpoint interval that cannot be meant, and an image larger than the memory holds.
+fn check_request(req: &RenderRequest) -> Result<()> {
+    if req.out.extension().and_then(|e| e.to_str()) != Some("exr") {
+        return Err(Error::Usage(format!("--out {}: the output must be an .exr file", req.out.display())));
+    }
+    check_exposure(req.exposure).map_err(|e| Error::Usage(format!("--exposure {e}")))?;
+    if !(req.submit_ms > 0.0 && req.submit_ms.is_finite()) {
+        return Err(Error::Usage(format!("--submit-ms {}: must be a positive number of milliseconds", req.submit_ms)));
+    }
+    if !(req.checkpoint_secs >= 0.0 && req.checkpoint_secs.is_finite()) {
+        return Err(Error::Usage(format!("--checkpoint-secs {}: must be a finite number >= 0", req.checkpoint_secs)));
+    }
+    // The image read back (RGBA f32) and written (RGB f32): 28 bytes a pixel at least.
+    let pixels = u64::from(req.width) * u64::from(req.height);
+    let option = format!("--width {} --height {}", req.width, req.height);
+    crate::memory::check(&[crate::memory::Need::new(option, "pixels", Some(pixels), 28)])
+}
+
+impl RenderReport {
+    /// The sidecar before the first pass: the request, the scene as rendered, no sample yet.
+    fn before(
+        ctx: &Context,
+        req: &RenderRequest,
+        mesh: &crate::scene::Mesh,
+        target: &RenderTarget,
+        settings: &RenderSettings,
+        env: EnvSpec,
+        build_ms: f64,
+    ) -> RenderReport {
+        let info = ctx.info();
+        let c = &settings.camera;
+        RenderReport {
+            scene: req.scene.display().to_string(),
+            scene_sha256: output::scene_hash(mesh),
+            triangles: mesh.triangle_count(),
+            method: target.device.method,
+            method_choice: req.method.to_string(),
+            layout: target.device.layout,
+            auto: target.device.auto.clone(),
+            build: req.build,
+            kernel: target.kernel.source.name,
+            kernel_choice: req.kernel,
+            bsdfs_in_kernel: target.kernel.bsdfs(),
+            bsdfs_in_scene: BsdfKind::in_mask(target.scene.bsdf_mask).map(|k| k.name()).collect(),
+            settings: settings.clone(),
+            camera_choice: req.camera.to_string(),
+            environment: env.to_string(),
+            camera: CameraRecord {
+                eye: c.eye.to_array(),
+                forward: c.forward.to_array(),
+                up: c.up.to_array(),
+                fov_y_degrees: c.fov_y.to_degrees(),
+            },
+            emissive_triangles: target.scene.light_count,
+            gpu_scene_bytes: target.gpu_bytes(),
+            device: info.name.clone(),
+            driver: info.driver_label(),
+            build_ms,
+            warnings: mesh.warnings.clone(),
+            spp_done: 0,
+            checkpoint: false,
+            interrupted: false,
+            failed: None,
+            seconds: None,
+            submits: None,
+            wall_ms: None,
+            finished: None,
+            out: req.out.clone(),
+        }
+    }
+}
+
+impl Finished {
+    /// The rates of a render that ran to its end (or to an interrupt) of `spp_asked` asked.
+    fn of(result: &RenderResult, spp_asked: u32) -> Finished {
+        Finished {
+            gpu_ms: result.gpu_ms,
+            samples: result.samples(),
+            samples_per_second: result.samples_per_second(),
+            closest_rays: result.closest_rays,
+            shadow_rays: result.shadow_rays,
+            mrays_per_second: result.mrays_per_second(),
+            ray_definition: RAY_DEFINITION,
+            dropped_samples_nan_or_inf: result.dropped_samples,
+            seconds: result.seconds(),
+            width: result.width,
+            height: result.height,
+            spp_asked,
+        }
+    }
 }

@@ -161,205 +161,312 @@ impl Material {
         // The material of a `newmtl` without a name (Blender 2.61) is named "" and called so.
         let name =
             if m.name == super::text::NO_NAME { String::new() } else { super::text::shown(&m.name).into_owned() };
-        let label = label(&m.name);
-        let place = |key: &str| match lines.get(key) {
-            Some(line) => format!("{}:{line}", mtl.display()),
-            None => mtl.display().to_string(),
+        let mut msgs = Messages { mtl, lines, label: label(&m.name), warnings };
+        let extra = ExtraStatements::read(m, &mut msgs);
+        check_colours(m, extra.tf, &msgs)?;
+        check_scalars(m, extra.tr, &msgs)?;
+        if let Some(t) = extra.tr.filter(|&t| t != 0.0) {
+            msgs.warn("Tr", format!("{t}: partial transparency is not supported; rendered opaque"));
+        }
+        warn_textures(m, &mut msgs);
+        let kind = choose_bsdf(m, &extra.explicit, &mut msgs);
+        if !kind.is_delta() && m.dissolve.is_some_and(|d| d < 1.0) {
+            msgs.warn("d", format!("{}: partial transparency is not supported; rendered opaque", m.dissolve.unwrap()));
+        }
+        let params = match &extra.explicit {
+            Some((_, params)) => BsdfParams::read(kind, params, &mut msgs)?,
+            None => BsdfParams::default(),
         };
-        let mut warn = |key: &str, problem: String| {
-            warnings.push(format!("{}: {label}: `{key}` {problem}", place(key)));
+        let gpu = gpu_material(m, kind, extra.tf, &params, &mut msgs)?;
+        if matches!(kind, BsdfKind::Phong | BsdfKind::BlinnPhong)
+            && (0..3).any(|c| gpu.diffuse[c] + gpu.specular[c] > 1.0)
+        {
+            msgs.warn("Ks", "Kd + Ks exceeds 1 in some channel: the BSDF reflects more than it receives".into());
+        }
+        Ok(Material { name, kind, gpu })
+    }
+}
+
+/// Where [`Material::from_mtl`]'s messages point: the MTL file, the line of each key, the
+/// material as messages call it; warnings go onto the caller's list.
+struct Messages<'a> {
+    mtl: &'a Path,
+    lines: &'a MtlLines,
+    label: String,
+    warnings: &'a mut Vec<String>,
+}
+
+impl Messages<'_> {
+    /// A warning that `key` of this material `problem`.
+    fn warn(&mut self, key: &str, problem: String) {
+        let place = match self.lines.get(key) {
+            Some(line) => format!("{}:{line}", self.mtl.display()),
+            None => self.mtl.display().to_string(),
         };
-        let refuse = |key: &str, problem: String| {
-            Error::bad_input(mtl, lines.get(key).copied(), format!("{label}: `{key}` {problem}"))
-        };
-        let black = |c: Option<[f32; 3]>| c.is_none_or(|c| c.iter().all(|&x| x == 0.0));
-        let mut tf: Option<[f32; 3]> = None;
-        let mut tr: Option<f32> = None;
-        let mut explicit: Option<(BsdfKind, String)> = None;
+        self.warnings.push(format!("{place}: {}: `{key}` {problem}", self.label));
+    }
+
+    /// The error refusing `key` of this material for `problem`.
+    fn refuse(&self, key: &str, problem: String) -> Error {
+        Error::bad_input(self.mtl, self.lines.get(key).copied(), format!("{}: `{key}` {problem}", self.label))
+    }
+
+    /// An albedo the BSDF reads, each channel clamped to 1 (warned about).
+    fn albedo(&mut self, key: &str, c: [f32; 3]) -> [f32; 3] {
+        if c.iter().any(|&x| x > 1.0) {
+            self.warn(
+                key,
+                format!(
+                    "{}: above 1 in some channel, a surface that reflects more light than it receives; clamped to 1",
+                    c.map(num).join(" ")
+                ),
+            );
+        }
+        c.map(|x| x.min(1.0))
+    }
+
+    /// A specular exponent the BSDF reads, clamped to [`MAX_EXPONENT`] (warned about).
+    fn clamp_exponent(&mut self, key: &str, shown: &str, v: f32) -> f32 {
+        if v > MAX_EXPONENT {
+            self.warn(
+                key,
+                format!("{shown}: above {MAX_EXPONENT:e}, which f32 directions cannot resolve; clamped to it"),
+            );
+        }
+        v.min(MAX_EXPONENT)
+    }
+}
+
+/// The statements tobj leaves in `unknown_param` that trilab reads (`Tf`, `Tr`, `trilab_bsdf`);
+/// every other one is warned about and ignored.
+struct ExtraStatements {
+    tf: Option<[f32; 3]>,
+    tr: Option<f32>,
+    /// `trilab_bsdf`: the BSDF named and its parameters as written.
+    explicit: Option<(BsdfKind, String)>,
+}
+
+impl ExtraStatements {
+    /// Reads them in key order, warning about each statement ignored.
+    fn read(m: &tobj::Material, msgs: &mut Messages) -> ExtraStatements {
+        let mut extra = ExtraStatements { tf: None, tr: None, explicit: None };
         let mut keys: Vec<(&String, &String)> = m.unknown_param.iter().collect();
         keys.sort();
         for (k, v) in keys {
             match k.as_str() {
                 "Tf" => match parse_rgb(v) {
-                    Some(c) => tf = Some(c),
-                    None => warn("Tf", format!("`{v}` is not a colour (one or three numbers); ignored")),
+                    Some(c) => extra.tf = Some(c),
+                    None => msgs.warn("Tf", format!("`{v}` is not a colour (one or three numbers); ignored")),
                 },
                 "trilab_bsdf" => {
                     let mut words = v.split_whitespace();
                     match words.next().map(str::parse::<BsdfKind>) {
-                        Some(Ok(kind)) => explicit = Some((kind, words.collect::<Vec<_>>().join(" "))),
-                        Some(Err(e)) => warn("trilab_bsdf", format!("{e}; using illum instead")),
-                        None => warn("trilab_bsdf", "names no BSDF; using illum instead".into()),
+                        Some(Ok(kind)) => extra.explicit = Some((kind, words.collect::<Vec<_>>().join(" "))),
+                        Some(Err(e)) => msgs.warn("trilab_bsdf", format!("{e}; using illum instead")),
+                        None => msgs.warn("trilab_bsdf", "names no BSDF; using illum instead".into()),
                     }
                 }
                 "Tr" => match v.trim().parse::<f32>() {
-                    Ok(t) => tr = Some(t),
-                    Err(_) => warn("Tr", format!("`{v}` is not a number; ignored")),
+                    Ok(t) => extra.tr = Some(t),
+                    Err(_) => msgs.warn("Tr", format!("`{v}` is not a number; ignored")),
                 },
                 other if is_texture_statement(other) => {
-                    warn(other, format!("{}: textures are not supported; ignored", super::text::shown(v)))
+                    msgs.warn(other, format!("{}: textures are not supported; ignored", super::text::shown(v)))
                 }
                 // tinyobjloader reads `Kt` as `Tf`; the spec has no `Kt`.
-                "Kt" => {
-                    warn("Kt", "is not an MTL statement (tinyobjloader reads it as `Tf`; write `Tf`); ignored".into())
-                }
+                "Kt" => msgs
+                    .warn("Kt", "is not an MTL statement (tinyobjloader reads it as `Tf`; write `Tf`); ignored".into()),
                 pbr @ ("Pr" | "Pm" | "Ps" | "Pc" | "Pcr" | "aniso" | "anisor") => {
-                    warn(pbr, "(a PBR extension) is not supported; ignored".into())
+                    msgs.warn(pbr, "(a PBR extension) is not supported; ignored".into())
                 }
-                other => warn(other, "is not supported; ignored".into()),
+                other => msgs.warn(other, "is not supported; ignored".into()),
             }
         }
-
-        // Values that cannot be meant, whichever BSDF reads them (docs/formats.md).
-        for (key, colour) in [("Ka", m.ambient), ("Kd", m.diffuse), ("Ks", m.specular), ("Ke", m.emissive), ("Tf", tf)]
-        {
-            let Some(c) = colour else { continue };
-            let shown = c.map(num).join(" ");
-            if c.iter().any(|x| !x.is_finite()) {
-                return Err(refuse(key, format!("{shown}: every MTL number must be finite")));
-            }
-            if key != "Ka" && c.iter().any(|&x| x < 0.0) {
-                let what = if key == "Ke" { "radiance" } else { "reflectance" };
-                return Err(refuse(key, format!("{shown}: a {what} cannot be negative")));
-            }
-            if key == "Ke" && c.iter().any(|&x| x > MAX_EMISSION) {
-                return Err(refuse(
-                    key,
-                    format!("{shown}: above {MAX_EMISSION:e}, the most emitted radiance the image's f32 sums hold"),
-                ));
-            }
-        }
-        for (key, value) in [("Ns", m.shininess), ("Ni", m.optical_density), ("d", m.dissolve), ("Tr", tr)] {
-            let Some(v) = value else { continue };
-            if !v.is_finite() {
-                return Err(refuse(key, format!("{}: every MTL number must be finite", num(v))));
-            }
-            match key {
-                "Ns" if v < 0.0 => {
-                    return Err(refuse(key, format!("{}: a specular exponent cannot be negative", num(v))))
-                }
-                "d" | "Tr" if !(0.0..=1.0).contains(&v) => {
-                    return Err(refuse(
-                        key,
-                        format!("{}: a fraction (0 to 1) of opacity or transparency is needed", num(v)),
-                    ))
-                }
-                _ => {}
-            }
-        }
-        if let Some(t) = tr.filter(|&t| t != 0.0) {
-            warn("Tr", format!("{t}: partial transparency is not supported; rendered opaque"));
-        }
-
-        for (key, tex) in [
-            ("map_Ka", &m.ambient_texture),
-            ("map_Kd", &m.diffuse_texture),
-            ("map_Ks", &m.specular_texture),
-            ("map_Bump", &m.normal_texture),
-            ("map_Ns", &m.shininess_texture),
-            ("map_d", &m.dissolve_texture),
-        ] {
-            if let Some(t) = tex {
-                warn(key, format!("{}: textures are not supported; ignored", super::text::shown(t)));
-            }
-        }
-        let ks = m.specular;
-        let kind = match (&explicit, m.illumination_model) {
-            (Some((k, _)), _) => *k,
-            (None, Some(0 | 1)) => BsdfKind::Lambert,
-            (None, Some(2) | None) if black(ks) => BsdfKind::Lambert,
-            (None, Some(2) | None) => BsdfKind::BlinnPhong,
-            (None, Some(3 | 5 | 8)) => BsdfKind::Mirror,
-            (None, Some(4 | 6 | 7 | 9)) => BsdfKind::Glass,
-            (None, Some(i)) => {
-                warn("illum", format!("{i} is not supported; rendered as Lambert (Kd)"));
-                BsdfKind::Lambert
-            }
-        };
-        if !kind.is_delta() && m.dissolve.is_some_and(|d| d < 1.0) {
-            warn("d", format!("{}: partial transparency is not supported; rendered opaque", m.dissolve.unwrap()));
-        }
-        // `trilab_bsdf` parameters: name=number; numbers as every MTL number.
-        let (mut exponent_u, mut exponent_v, mut sigma, mut ior) = (None, None, None, None);
-        if let Some((_, params)) = &explicit {
-            for p in params.split_whitespace() {
-                let parsed = p.split_once('=').and_then(|(k, v)| Some((k, v.parse::<f32>().ok()?)));
-                let Some((param, value)) = parsed else {
-                    warn("trilab_bsdf", format!("parameter `{p}` is not name=number; ignored"));
-                    continue;
-                };
-                if !value.is_finite() {
-                    return Err(refuse("trilab_bsdf", format!("parameter `{p}`: every MTL number must be finite")));
-                }
-                let slot = match (kind, param) {
-                    (BsdfKind::Phong | BsdfKind::BlinnPhong, "exponent")
-                    | (BsdfKind::AshikhminShirley, "exponent" | "nu") => &mut exponent_u,
-                    (BsdfKind::AshikhminShirley, "nv") => &mut exponent_v,
-                    (BsdfKind::OrenNayar, "sigma") => &mut sigma,
-                    (BsdfKind::Glass, "ior") => &mut ior,
-                    _ => {
-                        warn("trilab_bsdf", format!("parameter `{p}` does not apply to {kind}; ignored"));
-                        continue;
-                    }
-                };
-                if value < 0.0 {
-                    return Err(refuse("trilab_bsdf", format!("parameter `{p}` cannot be negative")));
-                }
-                if param == "ior" && !IOR_RANGE.contains(&value) {
-                    return Err(refuse("trilab_bsdf", format!("parameter `{p}`: {}", ior_problem(value))));
-                }
-                *slot = Some((p, value));
-            }
-        }
-
-        // What the BSDF reads, clamped to what it can render (each clamp warned about).
-        let mut gpu = GpuMaterial::new(kind);
-        gpu.emission = m.emissive.unwrap_or([0.0; 3]);
-        match kind {
-            BsdfKind::Lambert | BsdfKind::OrenNayar => {
-                gpu.diffuse = albedo(&mut warn, "Kd", m.diffuse.unwrap_or([0.8; 3]));
-                gpu.specular = [0.0; 3];
-                gpu.sigma = sigma.map_or(0.0, |s| s.1);
-            }
-            BsdfKind::Phong | BsdfKind::BlinnPhong | BsdfKind::AshikhminShirley => {
-                gpu.diffuse = albedo(&mut warn, "Kd", m.diffuse.unwrap_or([0.8; 3]));
-                gpu.specular = albedo(&mut warn, "Ks", ks.unwrap_or([0.0; 3]));
-                // Ns gives what no parameter does (nv of Ashikhmin-Shirley defaults to Ns, not nu).
-                let ns = m.shininess.unwrap_or(1.0);
-                let ns_read = exponent_u.is_none() || (kind == BsdfKind::AshikhminShirley && exponent_v.is_none());
-                let ns = if ns_read { clamp_exponent(&mut warn, "Ns", &num(ns), ns) } else { ns.min(MAX_EXPONENT) };
-                let mut given = |e: Option<(&str, f32)>| {
-                    e.map_or(ns, |(p, v)| clamp_exponent(&mut warn, "trilab_bsdf", &format!("parameter `{p}`"), v))
-                };
-                gpu.exponent = given(exponent_u);
-                gpu.exponent_v = given(exponent_v);
-            }
-            BsdfKind::Glass => {
-                gpu.diffuse = albedo(&mut warn, "Tf", tf.unwrap_or([1.0; 3]));
-                gpu.specular = albedo(&mut warn, "Ks", ks.filter(|c| c.iter().any(|&x| x > 0.0)).unwrap_or([1.0; 3]));
-                gpu.ior = match ior {
-                    Some((_, v)) => v,
-                    None => {
-                        let ni = m.optical_density.unwrap_or(1.5);
-                        if !IOR_RANGE.contains(&ni) {
-                            return Err(refuse("Ni", ior_problem(ni)));
-                        }
-                        ni
-                    }
-                };
-            }
-            BsdfKind::Mirror => {
-                gpu.diffuse = [0.0; 3];
-                gpu.specular = albedo(&mut warn, "Ks", ks.filter(|c| c.iter().any(|&x| x > 0.0)).unwrap_or([1.0; 3]));
-            }
-        }
-        if matches!(kind, BsdfKind::Phong | BsdfKind::BlinnPhong)
-            && (0..3).any(|c| gpu.diffuse[c] + gpu.specular[c] > 1.0)
-        {
-            warn("Ks", "Kd + Ks exceeds 1 in some channel: the BSDF reflects more than it receives".into());
-        }
-        Ok(Material { name, kind, gpu })
+        extra
     }
+}
+
+/// Refuses a colour that cannot be meant, whichever BSDF reads it (docs/formats.md): not
+/// finite, a negative reflectance or radiance, or more radiance than [`MAX_EMISSION`].
+fn check_colours(m: &tobj::Material, tf: Option<[f32; 3]>, msgs: &Messages) -> Result<()> {
+    for (key, colour) in [("Ka", m.ambient), ("Kd", m.diffuse), ("Ks", m.specular), ("Ke", m.emissive), ("Tf", tf)] {
+        let Some(c) = colour else { continue };
+        let shown = c.map(num).join(" ");
+        if c.iter().any(|x| !x.is_finite()) {
+            return Err(msgs.refuse(key, format!("{shown}: every MTL number must be finite")));
+        }
+        if key != "Ka" && c.iter().any(|&x| x < 0.0) {
+            let what = if key == "Ke" { "radiance" } else { "reflectance" };
+            return Err(msgs.refuse(key, format!("{shown}: a {what} cannot be negative")));
+        }
+        if key == "Ke" && c.iter().any(|&x| x > MAX_EMISSION) {
+            return Err(msgs.refuse(
+                key,
+                format!("{shown}: above {MAX_EMISSION:e}, the most emitted radiance the image's f32 sums hold"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a scalar that cannot be meant, whichever BSDF reads it (docs/formats.md): not
+/// finite, a negative `Ns`, a `d` or `Tr` outside 0 to 1.
+fn check_scalars(m: &tobj::Material, tr: Option<f32>, msgs: &Messages) -> Result<()> {
+    for (key, value) in [("Ns", m.shininess), ("Ni", m.optical_density), ("d", m.dissolve), ("Tr", tr)] {
+        let Some(v) = value else { continue };
+        if !v.is_finite() {
+            return Err(msgs.refuse(key, format!("{}: every MTL number must be finite", num(v))));
+        }
+        match key {
+            "Ns" if v < 0.0 => {
+                return Err(msgs.refuse(key, format!("{}: a specular exponent cannot be negative", num(v))))
+            }
+            "d" | "Tr" if !(0.0..=1.0).contains(&v) => {
+                return Err(
+                    msgs.refuse(key, format!("{}: a fraction (0 to 1) of opacity or transparency is needed", num(v)))
+                )
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Warns about each texture tobj read into its own field (the others are in `unknown_param`).
+fn warn_textures(m: &tobj::Material, msgs: &mut Messages) {
+    for (key, tex) in [
+        ("map_Ka", &m.ambient_texture),
+        ("map_Kd", &m.diffuse_texture),
+        ("map_Ks", &m.specular_texture),
+        ("map_Bump", &m.normal_texture),
+        ("map_Ns", &m.shininess_texture),
+        ("map_d", &m.dissolve_texture),
+    ] {
+        if let Some(t) = tex {
+            msgs.warn(key, format!("{}: textures are not supported; ignored", super::text::shown(t)));
+        }
+    }
+}
+
+/// The BSDF: `trilab_bsdf`'s where given, else `illum`'s (a black or absent `Ks` makes
+/// Blinn-Phong Lambert); an `illum` trilab does not render is Lambert, warned about.
+fn choose_bsdf(m: &tobj::Material, explicit: &Option<(BsdfKind, String)>, msgs: &mut Messages) -> BsdfKind {
+    let black = |c: Option<[f32; 3]>| c.is_none_or(|c| c.iter().all(|&x| x == 0.0));
+    match (explicit, m.illumination_model) {
+        (Some((k, _)), _) => *k,
+        (None, Some(0 | 1)) => BsdfKind::Lambert,
+        (None, Some(2) | None) if black(m.specular) => BsdfKind::Lambert,
+        (None, Some(2) | None) => BsdfKind::BlinnPhong,
+        (None, Some(3 | 5 | 8)) => BsdfKind::Mirror,
+        (None, Some(4 | 6 | 7 | 9)) => BsdfKind::Glass,
+        (None, Some(i)) => {
+            msgs.warn("illum", format!("{i} is not supported; rendered as Lambert (Kd)"));
+            BsdfKind::Lambert
+        }
+    }
+}
+
+/// `trilab_bsdf`'s parameters that apply to the BSDF, each with the parameter as written.
+#[derive(Default)]
+struct BsdfParams<'p> {
+    /// `exponent=` (Phong, Blinn-Phong, Ashikhmin-Shirley) or `nu=` (Ashikhmin-Shirley).
+    exponent_u: Option<(&'p str, f32)>,
+    /// `nv=` (Ashikhmin-Shirley).
+    exponent_v: Option<(&'p str, f32)>,
+    /// `sigma=` (Oren-Nayar).
+    sigma: Option<(&'p str, f32)>,
+    /// `ior=` (glass).
+    ior: Option<(&'p str, f32)>,
+}
+
+impl<'p> BsdfParams<'p> {
+    /// Reads `name=number ...` for `kind`: numbers as every MTL number; a parameter that is not
+    /// name=number or does not apply to `kind` is warned about and ignored.
+    fn read(kind: BsdfKind, params: &'p str, msgs: &mut Messages) -> Result<BsdfParams<'p>> {
+        let mut out = BsdfParams::default();
+        for p in params.split_whitespace() {
+            let parsed = p.split_once('=').and_then(|(k, v)| Some((k, v.parse::<f32>().ok()?)));
+            let Some((param, value)) = parsed else {
+                msgs.warn("trilab_bsdf", format!("parameter `{p}` is not name=number; ignored"));
+                continue;
+            };
+            if !value.is_finite() {
+                return Err(msgs.refuse("trilab_bsdf", format!("parameter `{p}`: every MTL number must be finite")));
+            }
+            let slot = match (kind, param) {
+                (BsdfKind::Phong | BsdfKind::BlinnPhong, "exponent")
+                | (BsdfKind::AshikhminShirley, "exponent" | "nu") => &mut out.exponent_u,
+                (BsdfKind::AshikhminShirley, "nv") => &mut out.exponent_v,
+                (BsdfKind::OrenNayar, "sigma") => &mut out.sigma,
+                (BsdfKind::Glass, "ior") => &mut out.ior,
+                _ => {
+                    msgs.warn("trilab_bsdf", format!("parameter `{p}` does not apply to {kind}; ignored"));
+                    continue;
+                }
+            };
+            if value < 0.0 {
+                return Err(msgs.refuse("trilab_bsdf", format!("parameter `{p}` cannot be negative")));
+            }
+            if param == "ior" && !IOR_RANGE.contains(&value) {
+                return Err(msgs.refuse("trilab_bsdf", format!("parameter `{p}`: {}", ior_problem(value))));
+            }
+            *slot = Some((p, value));
+        }
+        Ok(out)
+    }
+}
+
+/// What the BSDF of `kind` reads, clamped to what it can render (each clamp warned about).
+fn gpu_material(
+    m: &tobj::Material,
+    kind: BsdfKind,
+    tf: Option<[f32; 3]>,
+    params: &BsdfParams,
+    msgs: &mut Messages,
+) -> Result<GpuMaterial> {
+    let ks = m.specular;
+    let mut gpu = GpuMaterial::new(kind);
+    gpu.emission = m.emissive.unwrap_or([0.0; 3]);
+    match kind {
+        BsdfKind::Lambert | BsdfKind::OrenNayar => {
+            gpu.diffuse = msgs.albedo("Kd", m.diffuse.unwrap_or([0.8; 3]));
+            gpu.specular = [0.0; 3];
+            gpu.sigma = params.sigma.map_or(0.0, |s| s.1);
+        }
+        BsdfKind::Phong | BsdfKind::BlinnPhong | BsdfKind::AshikhminShirley => {
+            gpu.diffuse = msgs.albedo("Kd", m.diffuse.unwrap_or([0.8; 3]));
+            gpu.specular = msgs.albedo("Ks", ks.unwrap_or([0.0; 3]));
+            // Ns gives what no parameter does (nv of Ashikhmin-Shirley defaults to Ns, not nu).
+            let ns = m.shininess.unwrap_or(1.0);
+            let ns_read =
+                params.exponent_u.is_none() || (kind == BsdfKind::AshikhminShirley && params.exponent_v.is_none());
+            let ns = if ns_read { msgs.clamp_exponent("Ns", &num(ns), ns) } else { ns.min(MAX_EXPONENT) };
+            let mut given = |e: Option<(&str, f32)>| {
+                e.map_or(ns, |(p, v)| msgs.clamp_exponent("trilab_bsdf", &format!("parameter `{p}`"), v))
+            };
+            gpu.exponent = given(params.exponent_u);
+            gpu.exponent_v = given(params.exponent_v);
+        }
+        BsdfKind::Glass => {
+            gpu.diffuse = msgs.albedo("Tf", tf.unwrap_or([1.0; 3]));
+            gpu.specular = msgs.albedo("Ks", ks.filter(|c| c.iter().any(|&x| x > 0.0)).unwrap_or([1.0; 3]));
+            gpu.ior = match params.ior {
+                Some((_, v)) => v,
+                None => {
+                    let ni = m.optical_density.unwrap_or(1.5);
+                    if !IOR_RANGE.contains(&ni) {
+                        return Err(msgs.refuse("Ni", ior_problem(ni)));
+                    }
+                    ni
+                }
+            };
+        }
+        BsdfKind::Mirror => {
+            gpu.diffuse = [0.0; 3];
+            gpu.specular = msgs.albedo("Ks", ks.filter(|c| c.iter().any(|&x| x > 0.0)).unwrap_or([1.0; 3]));
+        }
+    }
+    Ok(gpu)
 }
 
 /// How messages call the material named `name` as tobj holds it: the material of a `newmtl`
@@ -406,28 +513,6 @@ fn num(x: f32) -> String {
     } else {
         x.to_string()
     }
-}
-
-/// An albedo the BSDF reads, each channel clamped to 1 (warned about).
-fn albedo(warn: &mut impl FnMut(&str, String), key: &str, c: [f32; 3]) -> [f32; 3] {
-    if c.iter().any(|&x| x > 1.0) {
-        warn(
-            key,
-            format!(
-                "{}: above 1 in some channel, a surface that reflects more light than it receives; clamped to 1",
-                c.map(num).join(" ")
-            ),
-        );
-    }
-    c.map(|x| x.min(1.0))
-}
-
-/// A specular exponent the BSDF reads, clamped to [`MAX_EXPONENT`] (warned about).
-fn clamp_exponent(warn: &mut impl FnMut(&str, String), key: &str, shown: &str, v: f32) -> f32 {
-    if v > MAX_EXPONENT {
-        warn(key, format!("{shown}: above {MAX_EXPONENT:e}, which f32 directions cannot resolve; clamped to it"));
-    }
-    v.min(MAX_EXPONENT)
 }
 
 /// `r g b` or a single grey value.

@@ -195,17 +195,7 @@ pub struct RooflineReport {
 /// Runs the sweep on `ctx`'s device; `progress` gets a line per stage.
 pub fn run(ctx: &Context, o: &RooflineOptions, mut progress: impl FnMut(&str)) -> Result<RooflineReport> {
     o.check()?;
-    // Each access path once, where it was first named (a repeated one would be two cells of
-    // one name, each timed in half the rounds); sizes are deduplicated below.
-    let mut o = o.clone();
-    let mut seen = vec![];
-    o.access.retain(|a| {
-        !seen.contains(a) && {
-            seen.push(*a);
-            true
-        }
-    });
-    let o = &o;
+    let o = &each_access_once(o);
     let info = ctx.info();
     let most = info.max_compute_workgroup_count[0] as u64 * crate::shared::WORKGROUP_SIZE as u64;
     if o.invocations as u64 > most {
@@ -214,20 +204,64 @@ pub fn run(ctx: &Context, o: &RooflineOptions, mut progress: impl FnMut(&str)) -
             o.invocations, info.name
         )));
     }
+    let Uploaded { data, hosts, skipped } = upload(ctx, o, &mut progress)?;
+    let cells: Vec<(usize, RooflineAccess)> = (0..data.len())
+        .flat_map(|i| o.access.iter().map(move |&a| (i, a)))
+        .filter(|&(i, a)| data[i].1.why_not(a).is_none())
+        .collect();
+    if cells.is_empty() {
+        let what = if data.is_empty() { "every size of --sizes" } else { "every path of --access at every size" };
+        return Err(Error::Unsupported(format!(
+            "roofline: nothing to measure on {} ({what} skipped): {}",
+            info.name,
+            skipped.iter().map(|s| format!("{}: {}", show_size(s.bytes), s.why)).collect::<Vec<_>>().join("; ")
+        )));
+    }
+    let sample = warm_up_and_check(ctx, o, &data, &hosts, &cells, &mut progress)?;
+    drop(hosts);
+    let (ms, timed_on_gpu) = timed_rounds(ctx, o, &data, &cells, &mut progress)?;
+    let measured = summarise(o, &data, &cells, ms)?;
+    let mut provenance = Provenance::of(ctx);
+    provenance.timed_on_gpu = timed_on_gpu;
+    Ok(RooflineReport { provenance, options: o.clone(), measured, skipped, checked_invocations: sample.len() as u32 })
+}
+
+/// `o` with each access path once, where it was first named (a repeated one would be two
+/// cells of one name, each timed in half the rounds); sizes are deduplicated by [`upload`].
+fn each_access_once(o: &RooflineOptions) -> RooflineOptions {
+    let mut o = o.clone();
+    let mut seen = vec![];
+    o.access.retain(|a| {
+        !seen.contains(a) && {
+            seen.push(*a);
+            true
+        }
+    });
+    o
+}
+
+/// The working sets on the device: (bytes, nodes uploaded), each one's nodes on the host (for
+/// the checksums), and the sizes and paths skipped with why.
+struct Uploaded {
+    data: Vec<(u64, RooflineData)>,
+    hosts: Vec<Vec<kernel::RooflineNode>>,
+    skipped: Vec<Skipped>,
+}
+
+/// Makes and uploads each size's nodes, ascending, skipping a size the device or host cannot
+/// hold. Every size stays on the device for the whole sweep (the rounds interleave them): keep
+/// to 3/4 of the device-local heap (and of its budget left now, where the driver reports one),
+/// and each size's host copy to the memory available now.
+fn upload(ctx: &Context, o: &RooflineOptions, progress: &mut impl FnMut(&str)) -> Result<Uploaded> {
     let mut sizes = o.sizes.clone();
     sizes.sort_unstable();
     sizes.dedup();
-    // Every size stays on the device for the whole sweep (the rounds interleave them): keep to
-    // 3/4 of the device-local heap (and of its budget left now, where the driver reports one),
-    // and each size's host copy to the memory available now.
     let limits = ctx.limits()?;
     let heap = limits.device_local_bytes.min(limits.budget_bytes.unwrap_or(u64::MAX));
     let budget = heap / 4 * 3;
     let host = crate::memory::available();
     let mut resident = 0u64;
-    let mut skipped = vec![];
-    let mut data: Vec<(u64, RooflineData)> = vec![];
-    let mut hosts: Vec<Vec<kernel::RooflineNode>> = vec![];
+    let mut up = Uploaded { data: vec![], hosts: vec![], skipped: vec![] };
     for &bytes in &sizes {
         let largest = limits.max_memory_allocation_size.min(limits.max_buffer_size.unwrap_or(u64::MAX));
         let why = if bytes > largest {
@@ -246,7 +280,7 @@ pub fn run(ctx: &Context, o: &RooflineOptions, mut progress: impl FnMut(&str)) -
             None
         };
         if let Some(why) = why {
-            skipped.push(Skipped { bytes, access: None, why });
+            up.skipped.push(Skipped { bytes, access: None, why });
             continue;
         }
         progress(&format!("roofline: {} ({} nodes)", show_size(bytes), bytes / NODE_BYTES));
@@ -255,41 +289,39 @@ pub fn run(ctx: &Context, o: &RooflineOptions, mut progress: impl FnMut(&str)) -
         resident += bytes;
         for &access in &o.access {
             if let Some(why) = d.why_not(access) {
-                skipped.push(Skipped { bytes, access: Some(access), why: why.to_owned() });
+                up.skipped.push(Skipped { bytes, access: Some(access), why: why.to_owned() });
             }
         }
-        // The host copy is kept only where the checksums are checked against it (below).
-        data.push((bytes, d));
-        hosts.push(nodes);
+        // The host copy is kept only where the checksums are checked against it.
+        up.data.push((bytes, d));
+        up.hosts.push(nodes);
     }
-    let cells: Vec<(usize, RooflineAccess)> = (0..data.len())
-        .flat_map(|i| o.access.iter().map(move |&a| (i, a)))
-        .filter(|&(i, a)| data[i].1.why_not(a).is_none())
-        .collect();
-    if cells.is_empty() {
-        let what = if data.is_empty() { "every size of --sizes" } else { "every path of --access at every size" };
-        return Err(Error::Unsupported(format!(
-            "roofline: nothing to measure on {} ({what} skipped): {}",
-            info.name,
-            skipped.iter().map(|s| format!("{}: {}", show_size(s.bytes), s.why)).collect::<Vec<_>>().join("; ")
-        )));
-    }
-    let push = |i: usize| RooflinePush {
-        mask: (data[i].1.nodes - 1) as u32,
-        steps: o.steps,
-        count: o.invocations,
-        seed: o.seed,
-    };
-    // Warm-up rounds, the first of which checks every cell's checksums against the CPU's walk
-    // over a sample of invocations.
+    Ok(up)
+}
+
+/// The push constant of a dispatch over `d`'s nodes.
+fn push_of(o: &RooflineOptions, d: &RooflineData) -> RooflinePush {
+    RooflinePush { mask: (d.nodes - 1) as u32, steps: o.steps, count: o.invocations, seed: o.seed }
+}
+
+/// Warm-up rounds, the first of which checks every cell's checksums against the CPU's walk
+/// over a sample of invocations (returned).
+fn warm_up_and_check(
+    ctx: &Context,
+    o: &RooflineOptions,
+    data: &[(u64, RooflineData)],
+    hosts: &[Vec<kernel::RooflineNode>],
+    cells: &[(usize, RooflineAccess)],
+    progress: &mut impl FnMut(&str),
+) -> Result<Vec<u32>> {
     let stride = (o.invocations / CHECKED.min(o.invocations)).max(1);
     let sample: Vec<u32> = (0..o.invocations).step_by(stride as usize).collect();
     for w in 0..o.warmup.max(1) {
-        for &(i, access) in &cells {
+        for &(i, access) in cells {
             let checks = w == 0;
-            let t = kernel::run(ctx, &data[i].1, access, &push(i), 0, 1, checks)?;
+            let t = kernel::run(ctx, &data[i].1, access, &push_of(o, &data[i].1), 0, 1, checks)?;
             if let Some(got) = t.checksums {
-                let p = push(i);
+                let p = push_of(o, &data[i].1);
                 let nodes = &hosts[i];
                 if let Some(&bad) =
                     sample.iter().find(|&&inv| got[inv as usize] != kernel::reference_one(nodes, &p, inv))
@@ -308,21 +340,44 @@ pub fn run(ctx: &Context, o: &RooflineOptions, mut progress: impl FnMut(&str)) -
             progress(&format!("roofline: checksums of {} cells equal the CPU's walk", cells.len()));
         }
     }
-    drop(hosts);
-    let mut ms: BTreeMap<(usize, RooflineAccess), Vec<f64>> = BTreeMap::new();
+    Ok(sample)
+}
+
+/// Each cell's dispatch times (milliseconds), by (size index, access path).
+type Times = BTreeMap<(usize, RooflineAccess), Vec<f64>>;
+
+/// The timed rounds: every cell once a round, the cell that opens a round rotating; and
+/// whether every dispatch was timed on the GPU.
+fn timed_rounds(
+    ctx: &Context,
+    o: &RooflineOptions,
+    data: &[(u64, RooflineData)],
+    cells: &[(usize, RooflineAccess)],
+    progress: &mut impl FnMut(&str),
+) -> Result<(Times, bool)> {
+    let mut ms: Times = BTreeMap::new();
     let mut timed_on_gpu = true;
     for round in 0..o.rounds {
         progress(&format!("roofline: round {}/{}", round + 1, o.rounds));
-        // The cell that opens a round rotates.
         for k in 0..cells.len() {
             let (i, access) = cells[(k + round) % cells.len()];
-            let t = kernel::run(ctx, &data[i].1, access, &push(i), 0, 1, false)?;
+            let t = kernel::run(ctx, &data[i].1, access, &push_of(o, &data[i].1), 0, 1, false)?;
             timed_on_gpu &= t.timed_on_gpu;
             ms.entry((i, access)).or_default().extend(t.ms);
         }
     }
+    Ok((ms, timed_on_gpu))
+}
+
+/// Each cell's node steps per second over its timed rounds.
+fn summarise(
+    o: &RooflineOptions,
+    data: &[(u64, RooflineData)],
+    cells: &[(usize, RooflineAccess)],
+    mut ms: Times,
+) -> Result<Vec<Measured>> {
     let steps = o.invocations as f64 * o.steps as f64;
-    let measured = cells
+    cells
         .iter()
         .map(|&(i, access)| {
             let times = ms.remove(&(i, access)).unwrap_or_default();
@@ -337,10 +392,7 @@ pub fn run(ctx: &Context, o: &RooflineOptions, mut progress: impl FnMut(&str)) -
                 ms: times,
             })
         })
-        .collect::<Result<Vec<_>>>()?;
-    let mut provenance = Provenance::of(ctx);
-    provenance.timed_on_gpu = timed_on_gpu;
-    Ok(RooflineReport { provenance, options: o.clone(), measured, skipped, checked_invocations: sample.len() as u32 })
+        .collect()
 }
 
 /// The power-of-two working sets around `bytes` (the one at or below it and the one above; one

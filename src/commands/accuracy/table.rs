@@ -570,6 +570,29 @@ pub fn float_controls_table(report: &AccuracyReport) -> Table {
 
 /// `accuracy.md`.
 pub fn markdown(report: &AccuracyReport, plots: &[Plot]) -> String {
+    let mut s = header(report);
+    if !report.meshes.is_empty() {
+        s += &meshes_sections(report);
+    }
+    if !report.self_hits.is_empty() {
+        s += &self_hits_section(report);
+    }
+    if !report.extremes.is_empty() {
+        s += &extremes_section(report);
+    }
+    if !report.frontier.is_empty() {
+        s += &frontier_section(report);
+    }
+    for plot in plots {
+        let name = plot.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let _ = writeln!(s, "![{}]({name})\n", plot.title);
+    }
+    s
+}
+
+/// The title, the run (provenance, workload, layouts, methods unsupported) and the device's
+/// float controls.
+fn header(report: &AccuracyReport) -> String {
     let p = &report.provenance;
     let o = &report.options;
     let mut s = String::new();
@@ -612,107 +635,112 @@ pub fn markdown(report: &AccuracyReport, plots: &[Plot]) -> String {
         let _ = writeln!(s, "- **{m}: unsupported** on this device ({why}); not measured.");
     }
     let _ = writeln!(s, "\n## Float controls of the device\n\n{}", float_controls_table(report).to_markdown());
+    s
+}
 
-    if !report.meshes.is_empty() {
-        let mut t = Table::new(["mesh", "triangles", "closed (proof)", "origins", "rejected origins"]);
-        for m in &report.meshes {
-            let closed = m.closed.as_ref().map_or_else(|e| format!("no: {e}"), |_| "yes".into());
-            t.row([
-                m.name.clone(),
-                m.triangles.to_string(),
-                closed,
-                m.origins.to_string(),
-                m.rejected_origins.to_string(),
-            ]);
-        }
-        let _ = writeln!(s, "## Closed meshes\n\nEvery undirected edge in exactly two triangles with opposite orientation; origins proven inside by the f64 winding number on the rounded mesh.\n\n{}", t.to_markdown());
-        for (name, tris, closed) in &report.real_scenes {
-            let _ = writeln!(
-                s,
-                "- {name} ({tris} triangles): {}",
-                closed.as_ref().map_or_else(
-                    |e| format!("not closed, not used for leaks: {e}"),
-                    |_| "proven closed, used for leaks".into()
-                )
-            );
-        }
+/// The closed meshes, then the leaks, leaks per layout, false hits and errors measured on them.
+fn meshes_sections(report: &AccuracyReport) -> String {
+    let mut s = String::new();
+    let mut t = Table::new(["mesh", "triangles", "closed (proof)", "origins", "rejected origins"]);
+    for m in &report.meshes {
+        let closed = m.closed.as_ref().map_or_else(|e| format!("no: {e}"), |_| "yes".into());
+        t.row([m.name.clone(), m.triangles.to_string(), closed, m.origins.to_string(), m.rejected_origins.to_string()]);
+    }
+    let _ = writeln!(s, "## Closed meshes\n\nEvery undirected edge in exactly two triangles with opposite orientation; origins proven inside by the f64 winding number on the rounded mesh.\n\n{}", t.to_markdown());
+    for (name, tris, closed) in &report.real_scenes {
         let _ = writeln!(
             s,
-            "\n## Leaks per 10^6 rays\n\nA leak is a ray from a proven-inside origin that hits nothing.\n\n{}",
-            leaks_table(report).to_markdown()
-        );
-        if names_layouts(report) {
-            let _ = writeln!(
-                s,
-                "## Leaks per node layout\n\nThe same leak rays traced with each layout's kernels (same leaves, \
-                 only the nodes and their traversal differ); every leaf size, mesh and kind together. A \
-                 watertight triangle test stays leak-free only if the layout's box test never culls a box the \
-                 ray touches (its conservative test).\n\n{}",
-                layouts_table(report).to_markdown()
-            );
-            if let Some(w) = watertight_on_layouts(report) {
-                let _ = writeln!(s, "{w}\n");
-            }
-        }
-        let _ = writeln!(
-            s,
-            "## False hits\n\nRays aimed at points d x edge length outside silhouette edges, across the line of \
-             sight (from a viewpoint outside), kept where the f64 reference misses; cells are GPU hits / rays.\n\n{}",
-            false_hits_table(report).to_markdown()
-        );
-        let _ = writeln!(
-            s,
-            "## t and barycentric error against the f64 reference\n\nOver every leak ray where GPU and reference \
-             hit the same triangle; t error in f32 ULPs of t_ref, barycentric error max(|du|, |dv|).\n\n{}",
-            errors_table(report).to_markdown()
+            "- {name} ({tris} triangles): {}",
+            closed.as_ref().map_or_else(
+                |e| format!("not closed, not used for leaks: {e}"),
+                |_| "proven closed, used for leaks".into()
+            )
         );
     }
-    if !report.self_hits.is_empty() {
-        let rays = report.self_hits.iter().map(|r| r.rays).min().unwrap_or(0);
+    let _ = writeln!(
+        s,
+        "\n## Leaks per 10^6 rays\n\nA leak is a ray from a proven-inside origin that hits nothing.\n\n{}",
+        leaks_table(report).to_markdown()
+    );
+    if names_layouts(report) {
         let _ = writeln!(
             s,
-            "## Self-intersection\n\nSecondary rays (cosine hemisphere, tmin = 0) from hit points reconstructed in \
-             f32 from the barycentrics on an icosphere scaled by 10^k; at least {rays} rays per cell. Cells: rays \
-             that hit the triangle they left (in parentheses, when more: rays that hit anything within 1e-4 of \
-             the scene's extent). Recommended scheme: **{}** (`offset::RECOMMENDED`).\n\n{}",
-            RECOMMENDED.name(),
-            self_hits_table(report).to_markdown()
+            "## Leaks per node layout\n\nThe same leak rays traced with each layout's kernels (same leaves, \
+             only the nodes and their traversal differ); every leaf size, mesh and kind together. A \
+             watertight triangle test stays leak-free only if the layout's box test never culls a box the \
+             ray touches (its conservative test).\n\n{}",
+            layouts_table(report).to_markdown()
         );
-        let inside = report.self_hits.iter().map(|r| r.inside_rays).min().unwrap_or(0);
-        let _ = writeln!(
-            s,
-            "Escaped: of the secondary rays spawned on the inside of the closed icosphere (at least {inside} per \
-             cell), those that hit nothing, so the offset moved the origin out through the surface.\n\n{}",
-            escaped_table(report).to_markdown()
-        );
-    }
-    if !report.extremes.is_empty() {
-        let _ = writeln!(s, "## Extremes (leaf {FIXED_LEAF})\n");
-        for (kind, what) in [
-            ("scale", "Icosphere (closed) scaled by 10^k; leak rays (random, vertex, edge) must all hit."),
-            ("translate", "Icosphere (closed) translated by 10^k x (1, 0.7, 0.3); leak rays must all hit."),
-            ("grazing", "A 16 x 16 grid (rotated), rays at the given angle to its plane; the reference judges."),
-            ("sliver", "A strip of 64 slivers (long edge 1, aspect ratio 10^k) covering a rectangle; rays aimed into it."),
-            ("size", "A 4 x 4 grid scaled by 10^k (tiny and huge triangles), rays at 0.5 rad."),
-            ("degenerate", "A grid with zero-area (collinear, repeated-index, repeated-position) triangles mixed in; rays aimed at them. They must never be hit."),
-        ] {
-            if report.extremes.iter().any(|r| r.kind == kind) {
-                let _ = writeln!(s, "### {kind}\n\n{what}\n\n{}", extremes_table(report, kind).to_markdown());
-            }
+        if let Some(w) = watertight_on_layouts(report) {
+            let _ = writeln!(s, "{w}\n");
         }
     }
-    if !report.frontier.is_empty() {
-        let _ = writeln!(
-            s,
-            "## Frontier\n\nSpeed on {} bunny diffuse rays (leaf {FIXED_LEAF}) against leaks and false hits per 10^6 and \
-             t error (leaf {FIXED_LEAF}, closed meshes).\n\n{}",
-            report.frontier_rays,
-            frontier_table(report).to_markdown()
-        );
+    let _ = writeln!(
+        s,
+        "## False hits\n\nRays aimed at points d x edge length outside silhouette edges, across the line of \
+         sight (from a viewpoint outside), kept where the f64 reference misses; cells are GPU hits / rays.\n\n{}",
+        false_hits_table(report).to_markdown()
+    );
+    let _ = writeln!(
+        s,
+        "## t and barycentric error against the f64 reference\n\nOver every leak ray where GPU and reference \
+         hit the same triangle; t error in f32 ULPs of t_ref, barycentric error max(|du|, |dv|).\n\n{}",
+        errors_table(report).to_markdown()
+    );
+    s
+}
+
+/// The self-intersection study: self-hits and escapes per scheme and scale.
+fn self_hits_section(report: &AccuracyReport) -> String {
+    let mut s = String::new();
+    let rays = report.self_hits.iter().map(|r| r.rays).min().unwrap_or(0);
+    let _ = writeln!(
+        s,
+        "## Self-intersection\n\nSecondary rays (cosine hemisphere, tmin = 0) from hit points reconstructed in \
+         f32 from the barycentrics on an icosphere scaled by 10^k; at least {rays} rays per cell. Cells: rays \
+         that hit the triangle they left (in parentheses, when more: rays that hit anything within 1e-4 of \
+         the scene's extent). Recommended scheme: **{}** (`offset::RECOMMENDED`).\n\n{}",
+        RECOMMENDED.name(),
+        self_hits_table(report).to_markdown()
+    );
+    let inside = report.self_hits.iter().map(|r| r.inside_rays).min().unwrap_or(0);
+    let _ = writeln!(
+        s,
+        "Escaped: of the secondary rays spawned on the inside of the closed icosphere (at least {inside} per \
+         cell), those that hit nothing, so the offset moved the origin out through the surface.\n\n{}",
+        escaped_table(report).to_markdown()
+    );
+    s
+}
+
+/// The extreme cases, a table per kind measured.
+fn extremes_section(report: &AccuracyReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "## Extremes (leaf {FIXED_LEAF})\n");
+    for (kind, what) in [
+        ("scale", "Icosphere (closed) scaled by 10^k; leak rays (random, vertex, edge) must all hit."),
+        ("translate", "Icosphere (closed) translated by 10^k x (1, 0.7, 0.3); leak rays must all hit."),
+        ("grazing", "A 16 x 16 grid (rotated), rays at the given angle to its plane; the reference judges."),
+        ("sliver", "A strip of 64 slivers (long edge 1, aspect ratio 10^k) covering a rectangle; rays aimed into it."),
+        ("size", "A 4 x 4 grid scaled by 10^k (tiny and huge triangles), rays at 0.5 rad."),
+        ("degenerate", "A grid with zero-area (collinear, repeated-index, repeated-position) triangles mixed in; rays aimed at them. They must never be hit."),
+    ] {
+        if report.extremes.iter().any(|r| r.kind == kind) {
+            let _ = writeln!(s, "### {kind}\n\n{what}\n\n{}", extremes_table(report, kind).to_markdown());
+        }
     }
-    for plot in plots {
-        let name = plot.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let _ = writeln!(s, "![{}]({name})\n", plot.title);
-    }
+    s
+}
+
+/// The frontier: speed against leaks, false hits and t error.
+fn frontier_section(report: &AccuracyReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "## Frontier\n\nSpeed on {} bunny diffuse rays (leaf {FIXED_LEAF}) against leaks and false hits per 10^6 and \
+         t error (leaf {FIXED_LEAF}, closed meshes).\n\n{}",
+        report.frontier_rays,
+        frontier_table(report).to_markdown()
+    );
     s
 }

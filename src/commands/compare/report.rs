@@ -309,6 +309,20 @@ impl CompareReport {
 
 impl Report for CompareReport {
     fn to_text(&self) -> String {
+        let mut s = self.sides_text();
+        s += &self.rule_text();
+        s += &self.changes_text();
+        s += &self.timings_text();
+        s += &self.counts_and_correctness_text();
+        s += &self.verdict_text();
+        s
+    }
+}
+
+/// [`CompareReport::to_text`]'s parts, in their order.
+impl CompareReport {
+    /// Each side: its path, rows, files, commands, sources and host; then the warnings.
+    fn sides_text(&self) -> String {
         let mut s = String::new();
         for (name, side) in [("BASE", &self.base), ("NEW ", &self.new)] {
             s += &format!(
@@ -326,7 +340,12 @@ impl Report for CompareReport {
         for w in &self.warnings {
             s += &format!("warning: {w}\n");
         }
-        s += &match self.timing_rule {
+        s
+    }
+
+    /// The rule the timings were judged by.
+    fn rule_text(&self) -> String {
+        match self.timing_rule {
             TimingRule::Calibrated => format!(
                 "rule: timings calibrated: (1) a command's timings as a whole, by their speed over the host \
                  calibration's (a fixed CPU workload measured around them in each run), fail when slower beyond {c} %; \
@@ -349,7 +368,12 @@ impl Report for CompareReport {
                  overlap, and is printed beyond {} %; every count and correctness change is printed\n\n",
                 self.threshold_pct
             ),
-        };
+        }
+    }
+
+    /// The changed figures, then the cells compared and those only in one side.
+    fn changes_text(&self) -> String {
+        let mut s = String::new();
         if self.changes.is_empty() {
             s += "no changes to print\n\n";
         } else {
@@ -371,6 +395,14 @@ impl Report for CompareReport {
                 s += &format!("  {name}: ... and {} more\n", list.len() - LIST_MAX);
             }
         }
+        s
+    }
+
+    /// The timings' totals by the rule: not judged (each command's speed, for information),
+    /// calibrated (the commands' and kernels' tables) or raw (each command's speed).
+    fn timings_text(&self) -> String {
+        let mut s = String::new();
+        let t = &self.totals;
         if self.timing_rule == TimingRule::Ignore {
             s += &format!("timings not judged: {}\n", t.timings_not_judged);
             for c in &self.speed {
@@ -387,8 +419,9 @@ impl Report for CompareReport {
                     }
                 );
             }
-        } else {
-            s += &format!(
+            return s;
+        }
+        s += &format!(
             "timings{}: {} faster ({} beyond {} %), {} slower ({} beyond), {} within spread, {} without spread (one run)\n",
             if self.timing_rule == TimingRule::Calibrated { " (each against its command)" } else { "" },
             t.faster,
@@ -399,30 +432,42 @@ impl Report for CompareReport {
             t.within_spread,
             t.no_spread
         );
-            if self.timing_rule == TimingRule::Calibrated {
-                s += &format!("commands' timings as a whole (> 1: NEW faster):\n\n{}\n", self.speed_table().to_text());
-                let shown = self.kernels.iter().filter(|k| k.beyond_threshold).count();
+        if self.timing_rule == TimingRule::Calibrated {
+            s += &self.calibrated_text();
+        } else {
+            for c in &self.speed {
                 s += &format!(
-                "kernels against their command: {} groups, {} slower and {} faster (interval and rounds agreeing), {shown} beyond {} %{}\n",
-                self.kernels.len(),
-                self.kernels.iter().filter(|k| k.verdict == Verdict::Slower).count(),
-                self.kernels.iter().filter(|k| k.verdict == Verdict::Faster).count(),
-                self.threshold_pct,
-                if shown > 0 { ":" } else { "" }
-            );
-                if shown > 0 {
-                    s += &format!("\n{}\n", self.kernels_table().to_text());
-                }
-            } else {
-                for c in &self.speed {
-                    s += &format!(
-                        "speed NEW/BASE, geometric mean of {} timings of {} (> 1: NEW faster): {:.3}\n",
-                        c.timings, c.command, c.geomean_speed
-                    );
-                }
+                    "speed NEW/BASE, geometric mean of {} timings of {} (> 1: NEW faster): {:.3}\n",
+                    c.timings, c.command, c.geomean_speed
+                );
             }
         }
-        s += &count_totals(&self.counts);
+        s
+    }
+
+    /// Under the calibrated rule: the commands' speed table and the kernels against their command.
+    fn calibrated_text(&self) -> String {
+        let mut s = format!("commands' timings as a whole (> 1: NEW faster):\n\n{}\n", self.speed_table().to_text());
+        let shown = self.kernels.iter().filter(|k| k.beyond_threshold).count();
+        s += &format!(
+            "kernels against their command: {} groups, {} slower and {} faster (interval and rounds agreeing), {shown} beyond {} %{}\n",
+            self.kernels.len(),
+            self.kernels.iter().filter(|k| k.verdict == Verdict::Slower).count(),
+            self.kernels.iter().filter(|k| k.verdict == Verdict::Faster).count(),
+            self.threshold_pct,
+            if shown > 0 { ":" } else { "" }
+        );
+        if shown > 0 {
+            s += &format!("\n{}\n", self.kernels_table().to_text());
+        }
+        s
+    }
+
+    /// The counts' totals, the identities changed, the correctness totals and what was not
+    /// judged.
+    fn counts_and_correctness_text(&self) -> String {
+        let t = &self.totals;
+        let mut s = count_totals(&self.counts);
         for i in &self.identities {
             s += &format!(
                 "{} {}: changed in {} of {} cells (an identity: not better or worse)\n",
@@ -442,7 +487,12 @@ impl Report for CompareReport {
         if t.counts_other_driver > 0 {
             s += &format!("counts of different driver builds, not judged: {}\n", t.counts_other_driver);
         }
-        s += &if self.passed {
+        s
+    }
+
+    /// The verdict, then each repro made.
+    fn verdict_text(&self) -> String {
+        let mut s = if self.passed {
             format!("verdict: pass (no regression beyond {}, no correctness worse)\n", self.thresholds())
         } else {
             format!(

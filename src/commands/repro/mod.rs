@@ -22,10 +22,11 @@ use crate::commands::raycast;
 use crate::conditioning::MethodChoice;
 use crate::encoding::{AccessPath, Layout, Raycast, SceneAccess, Traversal};
 use crate::error::{Error, Result};
-use crate::gpu::Context;
+use crate::gpu::{Context, Needs};
+use crate::kernels::KernelSource;
 use crate::named::named_enum;
-use crate::pipeline::{HostScene, SceneRequest};
-use crate::rays;
+use crate::pipeline::{HostBinding, HostScene, SceneRequest};
+use crate::rays::{self, Hit};
 use crate::report::Report;
 use crate::scene::load_obj;
 use crate::services::provenance::Provenance;
@@ -165,20 +166,7 @@ pub fn refuse_existing(option: &str, dir: &Path) -> Result<()> {
 /// captures the dispatch in a child under GFXReconstruct's layer. Bad input and an existing
 /// `out` are refused before any of it.
 pub fn make(ctx: &Context, req: &ReproRequest, mut note: impl FnMut(&str)) -> Result<MadeReport> {
-    req.build.check()?;
-    if req.access == SceneAccess::Address {
-        return Err(address_refused());
-    }
-    if req.first == Some(0) {
-        return Err(Error::Usage("--first 0: a repro needs at least one ray".into()));
-    }
-    let gfxrecon = match req.capture {
-        CaptureChoice::Off => Err("not asked for (--capture off)".to_owned()),
-        _ => Gfxrecon::find().map_err(|e| e.to_string()),
-    };
-    if let (CaptureChoice::Required, Err(why)) = (req.capture, &gfxrecon) {
-        return Err(Error::Unsupported(why.clone()));
-    }
+    let gfxrecon = check_and_find_capture(req)?;
     let staged = folder::Staged::new(&req.out)?;
     let mesh = load_obj(&req.scene)?;
     let mut rays = rays::read_rays(&req.rays)?;
@@ -208,40 +196,9 @@ pub fn make(ctx: &Context, req: &ReproRequest, mut note: impl FnMut(&str)) -> Re
         note("warning: the hits disagree with the f64 reference here (the repro keeps them as the expected hits)");
     }
 
-    let words = source.spirv();
-    let manifest_kernel = folder::KernelFile {
-        name: source.name.to_owned(),
-        spirv: staged.write(folder::SPIRV, &words)?,
-        disassembly: folder::DISASSEMBLY.to_owned(),
-        local_size: ctx.kernel(source)?.layout.local_size.0,
-        subgroup_size: ctx.info().subgroup_size,
-        features: needs.features.iter().map(|f| f.name().to_owned()).collect(),
-        full_subgroups: needs.full_subgroups,
-    };
-    let asm = crate::spirv::disassemble(&source.words())
-        .map_err(|m| Error::Spirv { kernel: source.name.into(), message: m })?;
-    staged.write(folder::DISASSEMBLY, asm.as_bytes())?;
-    let bindings_files = bindings
-        .iter()
-        .map(|b| {
-            Ok(folder::BindingFile {
-                binding: b.binding,
-                name: b.name.clone(),
-                texel: b.texel,
-                data: staged.write(&folder::binding_file(b), &b.bytes)?,
-            })
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let provenance = Provenance::of(ctx);
     let mut manifest = folder::Manifest {
         format: folder::FORMAT.to_owned(),
-        made: folder::Made {
-            trilab: format!("trilab {}", env!("CARGO_PKG_VERSION")),
-            commit: provenance.commit.clone(),
-            date: provenance.date.clone(),
-            device: ctx.info().name.clone(),
-            driver: ctx.info().driver_label(),
-        },
+        made: made_here(ctx),
         cell: folder::Cell {
             scene: host.name.clone(),
             triangles: mesh.triangle_count(),
@@ -255,8 +212,8 @@ pub fn make(ctx: &Context, req: &ReproRequest, mut note: impl FnMut(&str)) -> Re
             builder: req.build.builder,
             query: if req.any_hit { Query::Any } else { Query::Closest },
         },
-        kernel: manifest_kernel,
-        bindings: bindings_files,
+        kernel: write_kernel(ctx, &staged, source, &needs)?,
+        bindings: write_bindings(&staged, &bindings)?,
         rays: staged.write(folder::RAYS, bytemuck::cast_slice(&rays))?,
         expected: folder::Expected {
             data: staged.write(folder::EXPECTED, bytemuck::cast_slice(&result.hits))?,
@@ -267,31 +224,7 @@ pub fn make(ctx: &Context, req: &ReproRequest, mut note: impl FnMut(&str)) -> Re
         capture: folder::Capture { file: None, note: String::new(), differing: None },
     };
     write_manifest(&staged.dir, &manifest)?;
-
-    manifest.capture = match gfxrecon {
-        Err(why) => folder::Capture { file: None, note: why, differing: None },
-        Ok(g) => {
-            note(&format!("capturing the dispatch with GFXReconstruct {} ...", g.version));
-            let path = staged.dir.join(folder::CAPTURE);
-            match g.capture(&staged.dir, ctx.info().index, &path) {
-                Ok(got) => {
-                    let differing = Differences::of(manifest.cell.query, &result.hits, &got);
-                    let bytes = std::fs::metadata(&path).map_err(|e| Error::io(&path, e))?.len();
-                    folder::Capture {
-                        file: Some(folder::DataFile { file: folder::CAPTURE.to_owned(), bytes }),
-                        note: format!("GFXReconstruct {}", g.version),
-                        differing: Some(differing.rays - differing.identical),
-                    }
-                }
-                Err(e) if req.capture == CaptureChoice::Required => return Err(e),
-                Err(e) => {
-                    let _ = std::fs::remove_file(&path);
-                    note(&format!("warning: no capture: {e}"));
-                    folder::Capture { file: None, note: format!("the capture failed: {e}"), differing: None }
-                }
-            }
-        }
-    };
+    manifest.capture = capture(ctx, req, &staged, gfxrecon, manifest.cell.query, &result.hits, &mut note)?;
     write_manifest(&staged.dir, &manifest)?;
     std::fs::write(staged.dir.join(folder::README), readme::text(&manifest))
         .map_err(|e| Error::io(&staged.dir.join(folder::README), e))?;
@@ -307,6 +240,113 @@ pub fn make(ctx: &Context, req: &ReproRequest, mut note: impl FnMut(&str)) -> Re
         capture: manifest.capture.clone(),
         bytes,
         features: manifest.kernel.features.clone(),
+    })
+}
+
+/// Refuses a request that cannot make a repro, before any work, and finds GFXReconstruct: the
+/// reason there is none where the capture is not required.
+fn check_and_find_capture(req: &ReproRequest) -> Result<std::result::Result<Gfxrecon, String>> {
+    req.build.check()?;
+    if req.access == SceneAccess::Address {
+        return Err(address_refused());
+    }
+    if req.first == Some(0) {
+        return Err(Error::Usage("--first 0: a repro needs at least one ray".into()));
+    }
+    let gfxrecon = match req.capture {
+        CaptureChoice::Off => Err("not asked for (--capture off)".to_owned()),
+        _ => Gfxrecon::find().map_err(|e| e.to_string()),
+    };
+    if let (CaptureChoice::Required, Err(why)) = (req.capture, &gfxrecon) {
+        return Err(Error::Unsupported(why.clone()));
+    }
+    Ok(gfxrecon)
+}
+
+/// Who made the repro: this trilab, its commit, the date, the device and its driver.
+fn made_here(ctx: &Context) -> folder::Made {
+    let provenance = Provenance::of(ctx);
+    folder::Made {
+        trilab: format!("trilab {}", env!("CARGO_PKG_VERSION")),
+        commit: provenance.commit.clone(),
+        date: provenance.date.clone(),
+        device: ctx.info().name.clone(),
+        driver: ctx.info().driver_label(),
+    }
+}
+
+/// Writes the kernel's SPIR-V and its disassembly into the folder; what the manifest says of it.
+fn write_kernel(
+    ctx: &Context,
+    staged: &folder::Staged,
+    source: &'static KernelSource,
+    needs: &Needs,
+) -> Result<folder::KernelFile> {
+    let words = source.spirv();
+    let kernel = folder::KernelFile {
+        name: source.name.to_owned(),
+        spirv: staged.write(folder::SPIRV, &words)?,
+        disassembly: folder::DISASSEMBLY.to_owned(),
+        local_size: ctx.kernel(source)?.layout.local_size.0,
+        subgroup_size: ctx.info().subgroup_size,
+        features: needs.features.iter().map(|f| f.name().to_owned()).collect(),
+        full_subgroups: needs.full_subgroups,
+    };
+    let asm = crate::spirv::disassemble(&source.words())
+        .map_err(|m| Error::Spirv { kernel: source.name.into(), message: m })?;
+    staged.write(folder::DISASSEMBLY, asm.as_bytes())?;
+    Ok(kernel)
+}
+
+/// Writes each scene buffer into the folder; what the manifest says of them.
+fn write_bindings(staged: &folder::Staged, bindings: &[HostBinding]) -> Result<Vec<folder::BindingFile>> {
+    bindings
+        .iter()
+        .map(|b| {
+            Ok(folder::BindingFile {
+                binding: b.binding,
+                name: b.name.clone(),
+                texel: b.texel,
+                data: staged.write(&folder::binding_file(b), &b.bytes)?,
+            })
+        })
+        .collect()
+}
+
+/// Captures the dispatch from the folder's files with GFXReconstruct where it was found, and
+/// compares the capture's hits with the expected ones. A failed capture is a note, unless the
+/// capture is required.
+fn capture(
+    ctx: &Context,
+    req: &ReproRequest,
+    staged: &folder::Staged,
+    gfxrecon: std::result::Result<Gfxrecon, String>,
+    query: Query,
+    expected: &[Hit],
+    note: &mut impl FnMut(&str),
+) -> Result<folder::Capture> {
+    let g = match gfxrecon {
+        Err(why) => return Ok(folder::Capture { file: None, note: why, differing: None }),
+        Ok(g) => g,
+    };
+    note(&format!("capturing the dispatch with GFXReconstruct {} ...", g.version));
+    let path = staged.dir.join(folder::CAPTURE);
+    Ok(match g.capture(&staged.dir, ctx.info().index, &path) {
+        Ok(got) => {
+            let differing = Differences::of(query, expected, &got);
+            let bytes = std::fs::metadata(&path).map_err(|e| Error::io(&path, e))?.len();
+            folder::Capture {
+                file: Some(folder::DataFile { file: folder::CAPTURE.to_owned(), bytes }),
+                note: format!("GFXReconstruct {}", g.version),
+                differing: Some(differing.rays - differing.identical),
+            }
+        }
+        Err(e) if req.capture == CaptureChoice::Required => return Err(e),
+        Err(e) => {
+            let _ = std::fs::remove_file(&path);
+            note(&format!("warning: no capture: {e}"));
+            folder::Capture { file: None, note: format!("the capture failed: {e}"), differing: None }
+        }
     })
 }
 
