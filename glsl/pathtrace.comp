@@ -1,6 +1,6 @@
 #version 460
-// trilab:variants all lambert=BSDF_MASK:0x1 oren_nayar=BSDF_MASK:0x2 phong=BSDF_MASK:0x4 blinn_phong=BSDF_MASK:0x8 ashikhmin_shirley=BSDF_MASK:0x10 glass=BSDF_MASK:0x20 mirror=BSDF_MASK:0x40 all_sb=SCENE_STORAGE
-// trilab:layouts all all_sb
+// trilab:variants all lambert=BSDF_MASK:0x1 oren_nayar=BSDF_MASK:0x2 phong=BSDF_MASK:0x4 blinn_phong=BSDF_MASK:0x8 ashikhmin_shirley=BSDF_MASK:0x10 glass=BSDF_MASK:0x20 mirror=BSDF_MASK:0x40 all_storage=SCENE_STORAGE
+// trilab:layouts all all_storage
 // Unidirectional path tracer, one pixel per invocation, `pc.sample_count` samples per dispatch
 // accumulated in sample order (so the image does not depend on how samples are batched).
 //
@@ -17,7 +17,7 @@
 //
 // Variants: `all` carries every BSDF; the others carry one each (BSDF_MASK). SPEC_BSDF_MASK,
 // a specialisation constant, narrows `all` to a scene's set at pipeline creation, so the driver
-// drops the BSDFs the scene does not use. `all_sb` (SCENE_STORAGE, issue 38) reads the scene,
+// drops the BSDFs the scene does not use. `all_storage` (SCENE_STORAGE, issue 38) reads the scene,
 // the shading records and the lights from storage buffers instead of texel buffers
 // (glsl/types.glsl): for devices whose texel buffers are too small for the scene (SwiftShader).
 #extension GL_GOOGLE_include_directive : require

@@ -1,6 +1,6 @@
 #version 460
-// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS clock=SHADER_CLOCK closest_bda=SCENE_ADDRESS any_bda=ANY_HIT,SCENE_ADDRESS stats_bda=TRAVERSAL_STATS,SCENE_ADDRESS clock_bda=SHADER_CLOCK,SCENE_ADDRESS closest_sb=SCENE_STORAGE any_sb=ANY_HIT,SCENE_STORAGE stats_sb=TRAVERSAL_STATS,SCENE_STORAGE closest_ww=WHILE_WHILE any_ww=ANY_HIT,WHILE_WHILE stats_ww=TRAVERSAL_STATS,WHILE_WHILE
-// trilab:layouts closest any stats clock closest_bda any_bda stats_bda clock_bda closest_sb any_sb stats_sb
+// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS clock=SHADER_CLOCK closest_address=SCENE_ADDRESS any_address=ANY_HIT,SCENE_ADDRESS stats_address=TRAVERSAL_STATS,SCENE_ADDRESS clock_address=SHADER_CLOCK,SCENE_ADDRESS closest_storage=SCENE_STORAGE any_storage=ANY_HIT,SCENE_STORAGE stats_storage=TRAVERSAL_STATS,SCENE_STORAGE closest_ww=WHILE_WHILE any_ww=ANY_HIT,WHILE_WHILE stats_ww=TRAVERSAL_STATS,WHILE_WHILE
+// trilab:layouts closest any stats clock closest_address any_address stats_address clock_address closest_storage any_storage stats_storage
 // Ray casting: one ray per invocation, closest hit (t, u, v, OBJ triangle id) or, with ANY_HIT,
 // any hit in [tmin, tmax] (occlusion). The intersector is chosen per variant by build.rs.
 // With TRAVERSAL_STATS (closest hit) it also writes each ray's traversal work (counts.glsl).
@@ -8,13 +8,13 @@
 // around the trace written per ray to BINDING_CYCLES (needs VK_KHR_shader_clock's
 // shaderSubgroupClock). Lanes in lock-step read the same clock, so on SIMD hardware a ray's
 // count is its subgroup's.
-// SCENE_ADDRESS (`*_bda`: each of the four above): the scene is read through buffer device
+// SCENE_ADDRESS (`*_address`: each of the four above): the scene is read through buffer device
 // addresses instead of storage texel buffers (types.glsl), for scenes beyond
 // maxTexelBufferElements.
-// SCENE_STORAGE (`*_sb`: closest, any and stats): the scene is read from storage buffers
+// SCENE_STORAGE (`*_storage`: closest, any and stats): the scene is read from storage buffers
 // (types.glsl), for devices whose texel buffers are small and which lack shaderInt64
 // (SwiftShader: 65,536 texels, no Int64; issue 38).
-// Each of the eight once more per layout in glsl/layout/ (`closest_bvh4`, `any_bda_bvh8`, ...):
+// Each of the eight once more per layout in glsl/layout/ (`closest_bvh4`, `any_address_bvh8`, ...):
 // that layout's traversal (WIDE_LAYOUT), whose nodes the pipeline binds at BINDING_NODES in
 // place of the binary ones.
 // WHILE_WHILE (`closest_ww`, `any_ww`, `stats_ww`; binary nodes): Aila & Laine's while-while

@@ -16,9 +16,9 @@
 //   texel    a storage texel buffer (rgba32ui) read with imageLoad: trilab's texel path
 //   storage  a readonly storage buffer of uvec4
 //   address  GL_EXT_buffer_reference: a uniform block at the binding holds the buffer's device
-//            address, as the raycast kernels' `*_bda` variants (types.glsl, SCENE_ADDRESS); a
+//            address, as the raycast kernels' `*_address` variants (types.glsl, SCENE_ADDRESS); a
 //            16-byte texel loaded as two 64-bit words, as they load it
-//   address32  the same, a texel loaded as one uvec4 (four 32-bit words): the `*_bda` kernels'
+//   address32  the same, a texel loaded as one uvec4 (four 32-bit words): the `*_address` kernels'
 //            form before issue 27, which llvmpipe gathers once per component
 // Rust twin: trilab::gpu::roofline (RooflinePush, nodes, reference).
 #extension GL_GOOGLE_include_directive : require

@@ -43,17 +43,17 @@ struct BvhNode {
 // for both paths.
 // - Default (texel path): a storage texel buffer, read with imageLoad (the reasons above).
 //   One binding holds at most maxTexelBufferElements texels (2^27 on lavapipe and NVIDIA).
-// - SCENE_ADDRESS (the raycast kernels' `*_bda` variants; src/encoding/plan.rs picks them when a
+// - SCENE_ADDRESS (the raycast kernels' `*_address` variants; src/encoding/plan.rs picks them when a
 //   buffer exceeds that limit): the same binding is a uniform block holding the buffer's device
 //   address, and loads go through GL_EXT_buffer_reference (no per-binding size limit). The
 //   kernel must enable GL_EXT_buffer_reference itself (raycast.comp does). Indices stay 32-bit:
 //   SPIR-V treats access-chain indices as signed, so a buffer holds at most 2^31 texels here.
-//   A 16-byte texel is loaded as two 64-bit words (so the `*_bda` kernels need shaderInt64):
+//   A 16-byte texel is loaded as two 64-bit words (so the `*_address` kernels need shaderInt64):
 //   llvmpipe turns a global load into one masked gather per component, and on a host whose
 //   gathers cost per element (AMD Zen) four 32-bit gathers per texel made the address path
 //   0.5-0.7x the texel path (issue 27; the roofline probe measures both forms). Two 64-bit
 //   gathers load the same bytes; GPUs load either form in one instruction.
-// - SCENE_STORAGE (the raycast kernels' `*_sb` variants, issue 38): the same binding is a
+// - SCENE_STORAGE (the raycast kernels' `*_storage` variants, issue 38): the same binding is a
 //   readonly storage buffer of 16-byte (or 4-byte) words, loaded as uvec4 (uint). Its limit is
 //   maxStorageBufferRange bytes per binding (1 GiB on SwiftShader, whose texel buffers hold only
 //   65,536 texels), and it needs neither 64-bit integers nor device addresses: the path for

@@ -44,7 +44,7 @@ fn driver_stats_count_each_kernels_machine_code() {
         "--layouts",
         "bvh2,cwbvh",
         "--variants",
-        "closest,closest_bda",
+        "closest,closest_address",
         "--out",
         &out,
         "--asm-dir",
@@ -71,7 +71,7 @@ fn driver_stats_count_each_kernels_machine_code() {
         // The texel path reads the scene through llvmpipe's per-descriptor helpers; the
         // address path reads memory directly.
         let helpers = figure(r, "helper_calls");
-        if k.ends_with("_bda") {
+        if k.ends_with("_address") {
             assert_eq!(helpers, 0.0, "{k}");
         } else {
             assert!(helpers > 0.0, "{k}");

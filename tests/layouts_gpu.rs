@@ -8,7 +8,7 @@
 //! - any-hit (occlusion) answers equal the reference's (a ray is occluded iff it has a closest
 //!   hit) up to the agreement rule's allowance, and the stats kernel's hits equal the closest
 //!   kernel's, its counters plausible for the layout's width;
-//! - the address path (`*_bda`) returns the texel path's hits.
+//! - the address path (`*_address`) returns the texel path's hits.
 //!
 //! `layout_speed_on_the_bunny` (ignored; run it with `--ignored --nocapture`) prints a speed
 //! figure: mt on the bunny's three sets, every layout measured side by side, interleaved, GPU
@@ -125,7 +125,7 @@ fn check_kinds(ctx: &trilab::gpu::Context, mesh: &Mesh) -> Vec<String> {
             // The address path reads the same nodes.
             let bda = host.upload(ctx, &SceneRequest::new(method).layout(layout).access(SceneAccess::Address)).unwrap();
             assert_eq!(bda.access, AccessPath::Address);
-            assert!(bda.kernel_source(Raycast::Closest).unwrap().name.ends_with(&format!(".closest_bda_{layout}")));
+            assert!(bda.kernel_source(Raycast::Closest).unwrap().name.ends_with(&format!(".closest_address_{layout}")));
             let hb = bda.cast(ctx, Raycast::Closest, rays, &common::ONCE).unwrap().hits;
             assert!(hb == closest, "{method} {layout}: the address path's hits differ from the texel path's");
             // So does the storage path (issue 38), every kind it has.
@@ -135,10 +135,10 @@ fn check_kinds(ctx: &trilab::gpu::Context, mesh: &Mesh) -> Vec<String> {
             assert!(sb.kernel_source(Raycast::Clock).is_err(), "{method} {layout}: the storage path has no clock");
             let hs = sb.cast(ctx, Raycast::Closest, rays, &common::ONCE).unwrap().hits;
             assert!(hs == closest, "{method} {layout}: the storage path's hits differ from the texel path's");
-            let any_sb = sb.cast(ctx, Raycast::Any, rays, &common::ONCE).unwrap().hits;
-            assert!(any_sb == any, "{method} {layout}: the storage path's any-hit answers differ");
-            let stats_sb = sb.cast(ctx, Raycast::Stats, rays, &common::ONCE).unwrap();
-            assert!(stats_sb.hits == closest && stats_sb.traversal.as_deref() == Some(&c[..]), "{method} {layout}");
+            let any_storage = sb.cast(ctx, Raycast::Any, rays, &common::ONCE).unwrap().hits;
+            assert!(any_storage == any, "{method} {layout}: the storage path's any-hit answers differ");
+            let stats_storage = sb.cast(ctx, Raycast::Stats, rays, &common::ONCE).unwrap();
+            assert!(stats_storage.hits == closest && stats_storage.traversal.as_deref() == Some(&c[..]), "{method} {layout}");
             lines.push(format!(
                 "{method:>13} {layout}: nodes/ray {inner:.1} (bvh2 {:.1}), boxes/ray {boxes:.1} (bvh2 {:.1}), triangles/ray {tris:.1} (bvh2 {:.1})",
                 mean(&c2, |x| x.inner),

@@ -103,7 +103,7 @@ fn without_64_bit_integers_a_scene_beyond_one_texel_binding_is_read_through_stor
     let (texel, storage) = (render("t.exr", None), render("s.exr", limits));
     assert_eq!(
         (texel["kernel"].as_str(), storage["kernel"].as_str()),
-        (Some("pathtrace.mt.all"), Some("pathtrace.mt.all_sb"))
+        (Some("pathtrace.mt.all"), Some("pathtrace.mt.all_storage"))
     );
     let image = |f: &str| std::fs::read(dir.path().join(f)).unwrap();
     assert!(image("t.exr") == image("s.exr"), "the storage path's image differs from the texel path's");

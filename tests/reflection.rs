@@ -30,7 +30,7 @@ fn scene_bindings(method: Method) -> Vec<u32> {
     method.encode(&mesh, &bvh).buffers().iter().map(|b| b.binding).collect()
 }
 
-/// The texel size of a scene binding read as a storage buffer (the `*_sb` variants, issue 38:
+/// The texel size of a scene binding read as a storage buffer (the `*_storage` variants, issue 38:
 /// `SCENE_STORAGE` in glsl/types.glsl declares each an array of its texels, uvec4 or uint), or
 /// `None` where the binding is no scene buffer: the encoding's texel for its buffers, a vec4 for
 /// the path tracer's shading records and lights.
@@ -87,7 +87,7 @@ fn host_layout(method: &str, binding: u32, storage: bool) -> BufferLayout {
             let l = method_of(glsl).unwrap().intersector().prim_layout;
             array_of(l.size, l.offsets)
         }
-        // raycast's `*_bda` variants: each scene binding is a uniform block holding the scene
+        // raycast's `*_address` variants: each scene binding is a uniform block holding the scene
         // buffer's 8-byte device address (gpu::raycast uploads `address.to_le_bytes()`).
         // roofline's `storage` variant: the nodes as uvec4 texels, two per `RooflineNode`.
         ("none", BINDING_NODES) if storage => BufferLayout { array_stride: Some(16), member_offsets: vec![] },
@@ -194,7 +194,7 @@ fn rust_structs_match_spirv_offsets_and_strides() {
                 assert_eq!(spirv.member_offsets, host_push(k.kernel), "{}: push constants", k.name);
                 continue;
             }
-            let sb = k.variant.contains("_sb");
+            let sb = k.variant.contains("_storage");
             let host = match storage_texel_size(method_of(k.intersector), binding).filter(|_| sb) {
                 Some(texel) => array_of(texel, &[]),
                 None => host_layout(k.intersector, binding, k.kernel == "roofline" && k.variant == "storage"),
@@ -283,10 +283,10 @@ fn kernels_bind_what_the_host_provides() {
                     "address" | "address32" => vk::DescriptorType::UNIFORM_BUFFER,
                     v => panic!("{}: unknown roofline variant {v}", k.name),
                 }
-            } else if texels.contains(b) && k.variant.contains("_bda") {
+            } else if texels.contains(b) && k.variant.contains("_address") {
                 // The address path: a uniform block holding the buffer's device address.
                 vk::DescriptorType::UNIFORM_BUFFER
-            } else if texels.contains(b) && k.variant.contains("_sb") && *b != BINDING_MATERIALS {
+            } else if texels.contains(b) && k.variant.contains("_storage") && *b != BINDING_MATERIALS {
                 // The storage path: the scene (and the path tracer's shading and lights) in
                 // storage buffers; materials stay a texel buffer.
                 vk::DescriptorType::STORAGE_BUFFER

@@ -62,7 +62,7 @@ fn a_repro_made_on_lavapipe_replays_and_checks_the_same_on_three_drivers() {
     let dir = make(tmp.path(), "repro", true, &["--scene-access", "storage"]);
     let m = manifest(&dir);
     assert_eq!(m["format"], "trilab-repro 1");
-    assert_eq!(m["kernel"]["name"], "raycast.mt.closest_sb");
+    assert_eq!(m["kernel"]["name"], "raycast.mt.closest_storage");
     assert_eq!(m["kernel"]["features"], serde_json::json!([]), "{m}");
     assert_eq!(m["capture"]["differing"], 0);
     assert_eq!(m["expected"]["passes"], true);

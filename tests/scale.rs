@@ -1,5 +1,5 @@
 //! Large scenes: memory plans equal the encoded buffers, a scene that does not fit fails before
-//! anything is allocated, the address path (`*_bda` kernels) equals the texel path and the f64
+//! anything is allocated, the address path (`*_address` kernels) equals the texel path and the f64
 //! reference, the planner picks the address path by itself when a buffer exceeds one binding,
 //! and a million-triangle scene casts correctly through it.
 
@@ -124,11 +124,11 @@ fn address_variants_equal_the_texel_variants_and_the_reference_on_the_bunny() {
             }
             let agreement = compare_closest(&mesh, &rays, &hits[1], &reference);
             if !agreement.passes(0.9999) {
-                failures.push(format!("{m} closest_bda vs reference: {}", agreement.summary()));
+                failures.push(format!("{m} closest_address vs reference: {}", agreement.summary()));
             }
             let any = compare_any(&mesh, &rays, &hits[1], &hits[3]);
             if !any.passes() {
-                failures.push(format!("{m} any_bda: {any:?}"));
+                failures.push(format!("{m} any_address: {any:?}"));
             }
         }
         failures

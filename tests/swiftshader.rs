@@ -161,7 +161,7 @@ fn the_path_tracer_on_swiftshader_makes_lavapipes_image() {
     let b: Vec<&str> = b.iter().map(String::as_str).collect();
     let o = on_swiftshader(&b, 300);
     let swiftshader: Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", ok(&o)));
-    assert_eq!(swiftshader["kernel"], "pathtrace.mt.all_sb", "{swiftshader}");
+    assert_eq!(swiftshader["kernel"], "pathtrace.mt.all_storage", "{swiftshader}");
     assert!(swiftshader["device"].as_str().unwrap().contains("SwiftShader"), "{swiftshader}");
     assert!(lavapipe["device"].as_str().unwrap().contains("llvmpipe"), "{lavapipe}");
     let (x, y) = (exr_luminance(&lp), exr_luminance(&ss));

@@ -14,8 +14,8 @@
 //!
 //! The scene's access path ([`AccessPath`]) is chosen here, from what the device offers: storage
 //! texel buffers (the default kernels) when every buffer fits one binding; else buffer device
-//! addresses (the raycast kernels' `*_bda` variants) where the device has `bufferDeviceAddress`
-//! and `shaderInt64`; else storage buffers (the `*_sb` variants: one binding holds
+//! addresses (the raycast kernels' `*_address` variants) where the device has `bufferDeviceAddress`
+//! and `shaderInt64`; else storage buffers (the `*_storage` variants: one binding holds
 //! `maxStorageBufferRange` bytes; SwiftShader, issue 38).
 
 use super::{Layout, Method, Raycast, Traversal};
@@ -125,9 +125,9 @@ named_enum! {
         Auto = "auto" (default),
         /// Storage texel buffers (the default kernels).
         Texel = "texel",
-        /// Buffer device addresses (the `*_bda` kernels; need shaderInt64).
+        /// Buffer device addresses (the `*_address` kernels; need shaderInt64).
         Address = "address",
-        /// Storage buffers (the `*_sb` kernels: closest, any, stats; while-if).
+        /// Storage buffers (the `*_storage` kernels: closest, any, stats; while-if).
         Storage = "storage",
     }
 }

@@ -213,7 +213,7 @@ pub struct PathtraceKey {
     pub method: Method,
     pub bsdfs: BsdfSet,
     pub layout: Layout,
-    /// The texel path, or the storage path (`all_sb`: every BSDF only).
+    /// The texel path, or the storage path (`all_storage`: every BSDF only).
     pub access: AccessPath,
 }
 

@@ -160,7 +160,7 @@ pub struct EnabledFeatures {
     pub shader_float64: bool,
     pub shader_int64: bool,
     /// Vulkan 1.2 `bufferDeviceAddress`: enabled wherever the device has it (ray query and the
-    /// raycast kernels' `*_bda` variants, which read scenes beyond one binding's limit, need it).
+    /// raycast kernels' `*_address` variants, which read scenes beyond one binding's limit, need it).
     pub buffer_device_address: bool,
 }
 

@@ -478,7 +478,7 @@ mod tests {
         l.max_texel_buffer_elements = 200; // unit triangles: 300 texels
         let p = host.plan_for(Method::Unit, None, &SceneRequest::new(Method::Unit), &l).unwrap();
         assert_eq!(p.access, AccessPath::Address);
-        assert_eq!(p.method.raycast_kernel(Raycast::Stats, p.access).variant, "stats_bda");
+        assert_eq!(p.method.raycast_kernel(Raycast::Stats, p.access).variant, "stats_address");
         // A reader without the address path takes storage buffers; beyond those it is refused,
         // and told what helps it.
         let why = "the path tracer reads scenes through texel or storage buffers";

@@ -16,9 +16,9 @@ enum SceneBinding {
     /// A storage texel buffer (the default kernels).
     Texels(TexelBuffer),
     /// The data in a device-address buffer, and a uniform buffer holding its address, bound where
-    /// the texel buffer would be (the `*_bda` kernels).
+    /// the texel buffer would be (the `*_address` kernels).
     Address { data: Buffer, pointer: Buffer },
-    /// A storage buffer (the `*_sb` kernels).
+    /// A storage buffer (the `*_storage` kernels).
     Storage(Buffer),
 }
 

@@ -25,7 +25,7 @@ use crate::shared::{BINDING_ACCUM, BINDING_LIGHTS, BINDING_MATERIALS, BINDING_PA
 /// closest-hit rays, occlusion rays, dropped samples, and one spare.
 const RENDER_COUNTERS: usize = 4;
 
-/// Shading records or lights: a texel buffer, or on the storage path (`all_sb`) a storage buffer.
+/// Shading records or lights: a texel buffer, or on the storage path (`all_storage`) a storage buffer.
 enum Extra {
     Texels(TexelBuffer),
     Storage(Buffer),

@@ -9,7 +9,7 @@
 //! buffer is made from the encoding's binary nodes, the memory plan's bound, the kernel's stack),
 //! and one line of `layouts!` below. build.rs compiles the variants a kernel lists on its
 //! `// trilab:layouts` line once per file in `glsl/layout/` but the default `bvh2.glsl`
-//! (`closest_bvh4`, `any_bda_bvh8`, ...);
+//! (`closest_bvh4`, `any_address_bvh8`, ...);
 //! everything that lists layouts (the CLI's values, `bench --layouts`, the study) reads
 //! [`Layout::ALL`].
 //!

@@ -83,7 +83,7 @@ const END: &str = "@@trilab-driver-stats end ";
 pub struct Selection {
     /// Kernel files (`raycast`, `pathtrace`, `raycast_coop`, ...).
     pub kernels: Vec<String>,
-    /// Variants without their layout suffix (`closest`, `any`, `closest_bda`, `all`, ...).
+    /// Variants without their layout suffix (`closest`, `any`, `closest_address`, `all`, ...).
     pub variants: Vec<String>,
     pub methods: Vec<Method>,
     pub layouts: Vec<Layout>,
@@ -101,7 +101,7 @@ impl Default for Selection {
     }
 }
 
-/// A variant's name without its layout suffix: `closest_bda_bvh4` on bvh4 -> `closest_bda`.
+/// A variant's name without its layout suffix: `closest_address_bvh4` on bvh4 -> `closest_address`.
 pub fn base_variant(k: &KernelSource) -> &'static str {
     k.variant.strip_suffix(&format!("_{}", k.layout)).unwrap_or(k.variant)
 }
@@ -943,7 +943,7 @@ mod tests {
         assert_eq!((base_variant(k), k.layout), ("any", "cwbvh"));
         let pt = kernels_named(&["pathtrace.mt.all"]);
         assert!(raycast_request(pt[0]).unwrap_err().to_string().contains("raycast` kernels only"));
-        let bda = kernels_named(&["raycast.unit.closest_bda_bvh8"]);
+        let bda = kernels_named(&["raycast.unit.closest_address_bvh8"]);
         let r = raycast_request(bda[0]).unwrap();
         assert_eq!((r.access, r.layout, r.traversal), (SceneAccess::Address, Layout::Bvh8, Traversal::WhileIf));
         let ww = kernels_named(&["raycast.mt.any_ww"]);
@@ -956,8 +956,8 @@ mod tests {
 
     #[test]
     fn a_kernel_cell_is_read_back_from_the_coordinates_it_writes() {
-        let k = kernels_named(&["raycast.quad-mt.closest_bda_bvh8"])[0];
-        let want = [("kernel", "raycast"), ("layout", "bvh8"), ("method", "quad-mt"), ("variant", "closest_bda")];
+        let k = kernels_named(&["raycast.quad-mt.closest_address_bvh8"])[0];
+        let want = [("kernel", "raycast"), ("layout", "bvh8"), ("method", "quad-mt"), ("variant", "closest_address")];
         let c = KernelCell::of(k).coordinates();
         assert_eq!(c.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect::<Vec<_>>(), want);
         let read = KernelCell::try_from(&crate::rows::cell(want)).unwrap();
