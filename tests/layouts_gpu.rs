@@ -138,7 +138,10 @@ fn check_kinds(ctx: &trilab::gpu::Context, mesh: &Mesh) -> Vec<String> {
             let any_storage = sb.cast(ctx, Raycast::Any, rays, &common::ONCE).unwrap().hits;
             assert!(any_storage == any, "{method} {layout}: the storage path's any-hit answers differ");
             let stats_storage = sb.cast(ctx, Raycast::Stats, rays, &common::ONCE).unwrap();
-            assert!(stats_storage.hits == closest && stats_storage.traversal.as_deref() == Some(&c[..]), "{method} {layout}");
+            assert!(
+                stats_storage.hits == closest && stats_storage.traversal.as_deref() == Some(&c[..]),
+                "{method} {layout}"
+            );
             lines.push(format!(
                 "{method:>13} {layout}: nodes/ray {inner:.1} (bvh2 {:.1}), boxes/ray {boxes:.1} (bvh2 {:.1}), triangles/ray {tris:.1} (bvh2 {:.1})",
                 mean(&c2, |x| x.inner),

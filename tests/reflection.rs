@@ -82,9 +82,9 @@ fn host_layout(method: &str, binding: u32, storage: bool) -> BufferLayout {
         (_, BINDING_PROBE_NODES) => node(),
         (_, BINDING_PROBE_SLOT_IDS) => array_of(size_of::<u32>(), &[]),
         // The method's primitive struct, as its Rust file declares it (the registry's
-        // `Intersector::prim_layout`).
+        // `Intersector::prim_struct`).
         (glsl, BINDING_PROBE_PRIMS) if method_of(glsl).is_some() => {
-            let l = method_of(glsl).unwrap().intersector().prim_layout;
+            let l = method_of(glsl).unwrap().intersector().prim_struct;
             array_of(l.size, l.offsets)
         }
         // raycast's `*_address` variants: each scene binding is a uniform block holding the scene

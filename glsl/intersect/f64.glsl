@@ -16,7 +16,7 @@
 
 #include "types.glsl"
 
-#include "mt_layout.glsl"
+#include "mt_scene.glsl"
 
 // The layout probe (probe.comp) includes intersectors for their data layout only: no double
 // may be declared then, or its module would need shaderFloat64 for copying integers.

@@ -2,14 +2,14 @@
 // minimum storage ray-triangle intersection", JGT 2(1), 1997): solves
 //   [t u v]^T = 1/(P.E1) [Q.E2, P.T, Q.D]^T,  E1 = V1-V0, E2 = V2-V0, T = O-V0, P = D x E2, Q = T x E1,
 // rejecting as early as the algorithm allows.
-// Data: mt_layout.glsl (the vertex list and one index/material texel per slot). The leaf loop
+// Data: mt_scene.glsl (the vertex list and one index/material texel per slot). The leaf loop
 // that calls it is leaf.glsl's.
 #ifndef TRILAB_INTERSECTOR
 #define TRILAB_INTERSECTOR
 
 #include "types.glsl"
 
-#include "mt_layout.glsl"
+#include "mt_scene.glsl"
 
 bool intersect_triangle(TraceRay r, uint s, float tmax, out float t, out float u, out float v) {
     uvec3 idx = SCENE_TEXEL(mt_triangles, s).xyz;

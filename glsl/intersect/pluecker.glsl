@@ -37,7 +37,7 @@
 // tolerance of one ulp of |U + V + W| does not cover it (the spokes' error grows with the
 // distance from the ray origin, |U + V + W| with the triangle's size).
 //
-// Data: Möller–Trumbore's layout (glsl/mt_layout.glsl), like watertight and f64.
+// Data: Möller–Trumbore's scene buffers (glsl/mt_scene.glsl), like watertight and f64.
 #ifndef TRILAB_INTERSECTOR
 #define TRILAB_INTERSECTOR
 
@@ -46,7 +46,7 @@
 // Ask box.glsl for the conservative box test this test needs.
 #define CONSERVATIVE_TRAVERSAL
 
-#include "mt_layout.glsl"
+#include "mt_scene.glsl"
 
 // The acceptance tolerance, relative to |U + V + W|: one f32 ulp (2^-23).
 const float PLUECKER_ULP = 1.1920928955078125e-7;

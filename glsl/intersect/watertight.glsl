@@ -41,7 +41,7 @@
 // those triangles, so this intersector turns on CONSERVATIVE_TRAVERSAL (box.glsl, after
 // the paper's sec. 5).
 //
-// Data: Möller–Trumbore's layout (glsl/mt_layout.glsl, src/encoding/mt.rs), so a comparison
+// Data: Möller–Trumbore's scene buffers (glsl/mt_scene.glsl, src/encoding/mt.rs), so a comparison
 // with MT measures the arithmetic only.
 #ifndef TRILAB_INTERSECTOR
 #define TRILAB_INTERSECTOR
@@ -51,7 +51,7 @@
 // Ask box.glsl for the conservative box test this test needs.
 #define CONSERVATIVE_TRAVERSAL
 
-#include "mt_layout.glsl"
+#include "mt_scene.glsl"
 
 // v[k] for the per-ray axes. Written as selects rather than `v[k]`: glslang lowers a dynamic
 // index into a vector to a store into a function-local variable and an indexed load (scratch

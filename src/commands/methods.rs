@@ -49,7 +49,7 @@ pub fn run() -> MethodsReport {
                 in_paper: i.in_paper,
                 triangles_per_test: m.group_size(),
                 conservative_traversal: m.conservative_traversal(),
-                prim_bytes: i.prim_layout.size,
+                prim_bytes: i.prim_struct.size,
                 needs: needs.iter().map(|r| r.feature.name()).collect(),
             }
         })

@@ -30,7 +30,7 @@ use std::mem::{offset_of, size_of};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{slot_layout, BufferPlan, Encoding, HostLayout, Intersector, SceneBuffer, SceneCounts};
+use super::{slot_layout, BufferPlan, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
 use crate::shared::{Texel, BINDING_PRIMS, MISS_ID};
@@ -45,7 +45,7 @@ pub const INTERSECTOR: Intersector = Intersector {
     encode,
     plan,
     prim_binding: BINDING_PRIMS,
-    prim_layout: HostLayout {
+    prim_struct: HostStruct {
         size: size_of::<BwTriangle>(),
         offsets: &[offset_of!(BwTriangle, plane), offset_of!(BwTriangle, u_row), offset_of!(BwTriangle, v_row)],
     },

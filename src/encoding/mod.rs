@@ -55,12 +55,12 @@ pub struct Intersector {
     pub prim_binding: u32,
     /// `PRIM_STRUCT`'s host twin: size and member offsets (`tests/reflection.rs` checks them
     /// against the SPIR-V of the layout probe).
-    pub prim_layout: HostLayout,
+    pub prim_struct: HostStruct,
 }
 
 /// A `#[repr(C)]` struct as the host writes it: its size and its members' offsets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct HostLayout {
+pub struct HostStruct {
     pub size: usize,
     pub offsets: &'static [usize],
 }
@@ -302,7 +302,7 @@ impl EncodedScene {
     pub fn prim_structs(&self) -> (&SceneBuffer, usize) {
         let i = self.method.intersector();
         let buffer = self.prims.iter().find(|b| b.binding == i.prim_binding);
-        (buffer.expect("every encoding has its primitive buffer"), i.prim_layout.size)
+        (buffer.expect("every encoding has its primitive buffer"), i.prim_struct.size)
     }
 
     /// Checks what the kernels assume about the data: traversal packs a node's `left_or_first`

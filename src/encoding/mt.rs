@@ -1,13 +1,13 @@
 //! Möller–Trumbore (T. Möller, B. Trumbore, "Fast, minimum storage ray-triangle intersection",
 //! JGT 2(1), 1997), one triangle at a time (`glsl/intersect/mt.glsl`). Its layout, the vertex
-//! list plus one index triple and material per slot (`glsl/mt_layout.glsl`), is also read by the
+//! list plus one index triple and material per slot (`glsl/mt_scene.glsl`), is also read by the
 //! watertight and f64 intersectors, so comparing them with MT measures the arithmetic only.
 
 use std::mem::{offset_of, size_of};
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{slot_layout, BufferPlan, Encoding, HostLayout, Intersector, SceneBuffer, SceneCounts};
+use super::{slot_layout, BufferPlan, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
 use crate::shared::{Texel, BINDING_INDICES, BINDING_PRIMS};
@@ -21,12 +21,12 @@ pub const INTERSECTOR: Intersector = Intersector {
     encode,
     plan,
     prim_binding: BINDING_INDICES,
-    prim_layout: LAYOUT,
+    prim_struct: LAYOUT,
 };
 
 /// [`MtTriangle`]'s layout, shared with the intersectors that read MT's data.
-pub(super) const LAYOUT: HostLayout =
-    HostLayout { size: size_of::<MtTriangle>(), offsets: &[offset_of!(MtTriangle, v), offset_of!(MtTriangle, material)] };
+pub(super) const LAYOUT: HostStruct =
+    HostStruct { size: size_of::<MtTriangle>(), offsets: &[offset_of!(MtTriangle, v), offset_of!(MtTriangle, material)] };
 
 /// GLSL `MtTriangle { uvec3 v; uint material; }` (std430: 16 bytes).
 #[repr(C)]

@@ -16,5 +16,5 @@ pub const INTERSECTOR: Intersector = Intersector {
     encode: mt::encode,
     plan: mt::plan,
     prim_binding: BINDING_INDICES,
-    prim_layout: mt::LAYOUT,
+    prim_struct: mt::LAYOUT,
 };

@@ -6,7 +6,7 @@ use std::mem::{offset_of, size_of};
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{quad_layout, slot_id, BufferPlan, Encoding, HostLayout, Intersector, SceneBuffer, SceneCounts};
+use super::{quad_layout, slot_id, BufferPlan, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
 use crate::shared::{Texel, BINDING_PRIMS};
@@ -20,7 +20,7 @@ pub const INTERSECTOR: Intersector = Intersector {
     encode,
     plan,
     prim_binding: BINDING_PRIMS,
-    prim_layout: HostLayout {
+    prim_struct: HostStruct {
         size: size_of::<QuadMt>(),
         offsets: &[
             offset_of!(QuadMt, v0x),

@@ -7,7 +7,7 @@ use std::mem::{offset_of, size_of};
 use bytemuck::{Pod, Zeroable};
 
 use super::unit::{unit_transform, PAD_ROWS};
-use super::{quad_layout, slot_id, BufferPlan, Encoding, HostLayout, Intersector, SceneBuffer, SceneCounts};
+use super::{quad_layout, slot_id, BufferPlan, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
 use crate::shared::{Texel, BINDING_PRIMS, MISS_ID};
@@ -21,7 +21,7 @@ pub const INTERSECTOR: Intersector = Intersector {
     encode,
     plan,
     prim_binding: BINDING_PRIMS,
-    prim_layout: HostLayout {
+    prim_struct: HostStruct {
         size: size_of::<QuadUnit>(),
         offsets: &[
             offset_of!(QuadUnit, m0x),

@@ -9,7 +9,7 @@ use ash::vk;
 use super::context::{Context, Device, Needs};
 use crate::error::{Error, Result, VkContext};
 use crate::kernels::KernelSource;
-use crate::spirv::reflect::{reads_subgroup_lanes, reflect, KernelLayout};
+use crate::spirv::reflect::{reads_subgroup_lanes, reflect, KernelInterface};
 use crate::spirv::required_features;
 
 /// A compute pipeline with its layouts; destroyed on drop.
@@ -18,7 +18,7 @@ pub struct Kernel {
     /// The registry's kernel it was made from (`encoding::variants::KernelKey::of` gives its key).
     pub source: &'static KernelSource,
     pub name: &'static str,
-    pub layout: KernelLayout,
+    pub layout: KernelInterface,
     module: vk::ShaderModule,
     pub(crate) set_layout: vk::DescriptorSetLayout,
     pub(crate) pipeline_layout: vk::PipelineLayout,
@@ -203,7 +203,7 @@ impl Context {
         &self,
         kernel: &str,
         words: &[u32],
-        layout: &KernelLayout,
+        layout: &KernelInterface,
         options: &PipelineOptions,
     ) -> Result<bool> {
         if !reads_subgroup_lanes(words).map_err(|m| Error::Spirv { kernel: kernel.into(), message: m })? {

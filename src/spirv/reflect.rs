@@ -17,12 +17,12 @@ pub struct DescriptorBinding {
 
 /// What a compute kernel needs from its pipeline layout.
 #[derive(Clone, Debug)]
-pub struct KernelLayout {
+pub struct KernelInterface {
     /// set -> binding -> descriptor.
     pub sets: BTreeMap<u32, BTreeMap<u32, DescriptorBinding>>,
     /// (offset, size) of the push-constant block.
     pub push_constants: Option<(u32, u32)>,
-    /// The workgroup size: the module's default, or after [`KernelLayout::specialize`] the size
+    /// The workgroup size: the module's default, or after [`KernelInterface::specialize`] the size
     /// the pipeline was created with (what dispatches must use).
     pub local_size: (u32, u32, u32),
     /// Specialisation-constant id of each workgroup dimension that has one
@@ -30,7 +30,7 @@ pub struct KernelLayout {
     pub local_size_spec_ids: [Option<u32>; 3],
 }
 
-impl KernelLayout {
+impl KernelInterface {
     /// Applies `(constant_id, value)` pairs, as given at pipeline creation, to the workgroup
     /// size.
     pub fn specialize(&mut self, constants: &[(u32, u32)]) {
@@ -47,7 +47,7 @@ impl KernelLayout {
 /// Descriptor sets (set -> binding -> descriptor) of a module.
 pub type DescriptorSets = BTreeMap<u32, BTreeMap<u32, DescriptorBinding>>;
 
-pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
+pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelInterface> {
     let err = |m: String| Error::Spirv { kernel: kernel.into(), message: m };
     let r = load(kernel, words)?;
     let (sets, push_constants) = resources(kernel, &r)?;
@@ -59,7 +59,7 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<KernelLayout> {
         local_size = (dims[0].0, dims[1].0, dims[2].0);
         local_size_spec_ids = [dims[0].1, dims[1].1, dims[2].1];
     }
-    Ok(KernelLayout { sets, push_constants, local_size, local_size_spec_ids })
+    Ok(KernelInterface { sets, push_constants, local_size, local_size_spec_ids })
 }
 
 /// What any shader stage binds: its descriptor sets and push-constant range (offset, size).

@@ -1,9 +1,9 @@
-// Möller–Trumbore's scene layout (src/encoding/mt.rs), read by every intersector that works on
+// Möller–Trumbore's scene buffers (src/encoding/mt.rs), read by every intersector that works on
 // the plain triangle list: mt, watertight and f64 (so comparing them measures the arithmetic
 // only). The vertex list is one rgba32f texel per vertex (w unused); each triangle slot is one
 // rgba32ui texel (vertex indices, material index), slots in BVH leaf order.
-#ifndef TRILAB_MT_LAYOUT
-#define TRILAB_MT_LAYOUT
+#ifndef TRILAB_MT_SCENE
+#define TRILAB_MT_SCENE
 
 #include "types.glsl"
 
