@@ -13,6 +13,8 @@
 //!   (`VK_KHR_pipeline_executable_properties`), typed: unit, direction, or identity.
 //! - [`buffer`]: named buffers and texel buffers, uploads, downloads, one-shot submits.
 //! - [`descriptors`]: descriptor sets checked against the kernel's reflected bindings.
+//! - [`dispatch`]: what a cast dispatches ([`RayDispatch`]: one batch of rays bound and
+//!   dispatched), our compute kernels as one.
 //! - [`kernel`]: compute pipelines built from SPIR-V reflection.
 //! - [`limits`]: the device's limits as `encoding::plan` checks them (`TRILAB_TEST_LIMITS` lowers them).
 //! - [`markers`]: crash markers (GPU breadcrumbs + dispatch log), device-loss and out-of-memory
@@ -21,7 +23,7 @@
 //! - [`roofline`]: the traversal roofline's pointer chase (`glsl/roofline.comp`), its node
 //!   buffer and its CPU reference.
 //! - [`slowdown`]: a planted slowdown of one kernel (`TRILAB_INJECT_SLOWDOWN`), for tests of the
-//!   regression gate.
+//!   regression gate: a [`RayDispatch`] around the kernel, which [`cast_rays`] installs.
 //! - [`traversal_stats`]: per-ray traversal work from the kernels' `stats` variant.
 //! - [`peer`]: the driver's own ray tracing as peers of our kernels ([`Peer`], [`PeerTracer`]).
 //! - [`rayquery`]: the same ray casting through the driver's ray query, a peer of our kernels.
@@ -36,6 +38,7 @@ pub mod capabilities;
 pub mod commands;
 pub mod context;
 pub mod descriptors;
+pub mod dispatch;
 pub mod device_info;
 pub mod executable;
 pub mod kernel;

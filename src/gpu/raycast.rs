@@ -5,11 +5,10 @@ use std::time::Instant;
 
 use ash::vk;
 
+use super::buffer::Buffer;
 use super::commands::memory_barrier;
 use super::context::Context;
-use super::descriptors::{write_set, DescriptorLayout, DescriptorPool, Resource};
-use super::device_info::DeviceInfo;
-use super::kernel::Kernel;
+use super::descriptors::{write_set, DescriptorPool, Resource};
 use super::slowdown::Slowdown;
 use super::timestamps::Timestamps;
 use super::traversal_stats::TraversalCounts;
@@ -18,13 +17,7 @@ use crate::rays::{Hit, Ray};
 use crate::report::Summary;
 use crate::shared::{BINDING_HITS, BINDING_RAYS, BINDING_RAY_COUNTER, BINDING_TRAVERSAL_STATS};
 
-/// Workgroups of a persistent-threads kernel's dispatch (one that binds `BINDING_RAY_COUNTER`,
-/// glsl/raycast_persistent.comp), fewer where the batch has fewer rays: the invocations loop
-/// over the batch's rays, taking indices from the counter. 64 workgroups of 64 invocations keep
-/// every lavapipe thread busy (it runs one workgroup per thread at a time, and LP_NUM_THREADS is
-/// at most the machine's cores: 8 or more workgroups per thread up to 8 cores) and would fill a
-/// small discrete GPU; the count is a measurement setting, not tuned.
-pub const PERSISTENT_WORKGROUPS: u32 = 64;
+pub use super::dispatch::{Batch, RayDispatch, PERSISTENT_WORKGROUPS};
 
 #[derive(Clone, Debug)]
 pub struct RaycastOptions {
@@ -75,49 +68,6 @@ impl RaycastResult {
     }
 }
 
-/// What [`cast_rays_with`] runs: a pipeline that reads `Ray`s at `BINDING_RAYS` and writes `Hit`s
-/// at `BINDING_HITS` for the batch's sub-ranges, with `Push { uint ray_count; }`. The batching,
-/// descriptor sets, barriers, timestamps, markers, submits and downloads are the caller's; this
-/// is only "bind and dispatch this batch": a compute [`Kernel`] (one invocation per ray, or a
-/// persistent kernel's fixed workgroups), or the ray-tracing pipeline (`gpu::rtpipeline`, one
-/// launch per ray).
-pub trait RayDispatch: DescriptorLayout {
-    /// The pipeline stage its shaders run in (the barriers around each dispatch name it).
-    fn stage(&self) -> vk::PipelineStageFlags;
-
-    /// Most rays one dispatch may hold on `info`'s device (its dispatch limits).
-    fn max_rays(&self, info: &DeviceInfo) -> usize;
-
-    /// Records binding the pipeline with `set` and the push constant `count`, and the dispatch
-    /// of `count` rays.
-    ///
-    /// # Safety
-    /// `cmd` is recording on the pipeline's device; `set` was written for its layout; the
-    /// pipeline, the set and what it binds outlive the command buffer's execution.
-    unsafe fn record_rays(&self, dev: &ash::Device, cmd: vk::CommandBuffer, set: vk::DescriptorSet, count: u32);
-}
-
-impl RayDispatch for Kernel {
-    fn stage(&self) -> vk::PipelineStageFlags {
-        vk::PipelineStageFlags::COMPUTE_SHADER
-    }
-
-    fn max_rays(&self, info: &DeviceInfo) -> usize {
-        info.max_compute_workgroup_count[0] as usize * self.layout.local_size.0 as usize
-    }
-
-    unsafe fn record_rays(&self, dev: &ash::Device, cmd: vk::CommandBuffer, set: vk::DescriptorSet, count: u32) {
-        let local = self.layout.local_size.0;
-        // `Push { uint ray_count; }` in raycast.comp (checked by tests/reflection.rs).
-        // One invocation per ray, or a persistent kernel's fixed workgroups.
-        let groups = match self.bindings().contains_key(&BINDING_RAY_COUNTER) {
-            true => count.div_ceil(local).min(PERSISTENT_WORKGROUPS),
-            false => count.div_ceil(local),
-        };
-        self.record(dev, cmd, set, &count.to_le_bytes(), groups);
-    }
-}
-
 /// Command buffers of one batched run; freed on drop (after all its submits finished).
 struct Dispatch<'a> {
     ctx: &'a Context,
@@ -134,21 +84,32 @@ impl Drop for Dispatch<'_> {
 
 /// Casts `rays` with `kernel` over the bindings `scene` (the same in every batch): `warmup`
 /// untimed runs, then `repeat` timed ones; the hits are those of the last run, and so are the
-/// per-ray traversal counts when `kernel` is a `stats` variant. For every kernel that reads `Ray`s
-/// at `BINDING_RAYS` and writes `Hit`s at `BINDING_HITS` with `Push { uint ray_count; }` (our
-/// ray-casting kernels through `pipeline::DeviceScene`, and the ray-query peer).
+/// per-ray traversal counts when `kernel` is a `stats` variant. For every [`RayDispatch`] that
+/// reads `Ray`s at `BINDING_RAYS` and writes `Hit`s at `BINDING_HITS` with `Push { uint
+/// ray_count; }` (our ray-casting kernels through `pipeline::DeviceScene`, the ray-query peer,
+/// and the ray-tracing-pipeline peer, whose dispatch only binds and launches each batch).
+///
+/// The one place a planted slowdown (`TRILAB_INJECT_SLOWDOWN`, [`super::slowdown`]: tests of
+/// the regression gate and of `ab`) is installed, around `kernel`, when the environment asks
+/// for one; [`cast_rays_with`] is the cast itself.
 pub fn cast_rays(
     ctx: &Context,
-    kernel: &Kernel,
+    kernel: &(impl RayDispatch + ?Sized),
     scene: &[(u32, Resource)],
     rays: &[Ray],
     opts: &RaycastOptions,
 ) -> Result<RaycastResult> {
-    cast_rays_with(ctx, kernel, scene, rays, opts)
+    if let Some(nothing) = nothing_to_cast(kernel, rays, opts)? {
+        return Ok(nothing);
+    }
+    match Slowdown::from_env()? {
+        Some(slowdown) => cast_rays_with(ctx, &slowdown.around(kernel), scene, rays, opts),
+        None => cast_rays_with(ctx, kernel, scene, rays, opts),
+    }
 }
 
-/// [`cast_rays`] with any [`RayDispatch`]: the same batches, bindings, barriers, timestamps and
-/// results, `kernel` only binding and dispatching each batch (the ray-tracing-pipeline peer).
+/// The cast [`cast_rays`] describes, with no planted slowdown: the batches, bindings, barriers,
+/// timestamps, submits and results, `kernel` only binding and dispatching each batch.
 pub fn cast_rays_with(
     ctx: &Context,
     kernel: &(impl RayDispatch + ?Sized),
@@ -156,178 +117,239 @@ pub fn cast_rays_with(
     rays: &[Ray],
     opts: &RaycastOptions,
 ) -> Result<RaycastResult> {
+    if let Some(nothing) = nothing_to_cast(kernel, rays, opts)? {
+        return Ok(nothing);
+    }
+    let batching = Batching::new(ctx, kernel, rays.len(), opts);
+    let buffers = CastBuffers::new(ctx, kernel, rays)?;
+    let (_pool, sets) = descriptor_sets(ctx, kernel, scene, &buffers, &batching)?;
+    let nbatches = batching.count;
+    let queries = Timestamps::new(ctx, nbatches as u32)?;
+    let mut dispatch = Dispatch { ctx, cmds: vec![] };
+    dispatch.cmds = ctx.allocate_command_buffers(nbatches as u32)?;
+    // What each batch's submit runs (the dispatch log and crash markers name it).
+    let what: Vec<String> = (0..nbatches)
+        .map(|bi| {
+            let (first, count) = batching.range(bi);
+            format!("{} batch {}/{nbatches} (rays {first}..{})", kernel.name(), bi + 1, first + count)
+        })
+        .collect();
+    for (bi, (&cmd, &set)) in dispatch.cmds.iter().zip(&sets).enumerate() {
+        let count = batching.range(bi).1 as u32;
+        let batch = Batch { set, count, counter: buffers.counter.as_ref().map(|c| c.raw) };
+        record_batch(ctx, kernel, cmd, &batch, &queries, bi as u32, &what[bi])?;
+    }
+    let (kernel_ms, wall_ms) = timed_runs(ctx, kernel.name(), &dispatch.cmds, &what, &queries, opts)?;
+    let mut downloads = Vec::new();
+    for (_, size, buf) in &buffers.outputs {
+        downloads.push(ctx.download(buf, rays.len() as u64 * size)?);
+    }
+    drop(dispatch);
+    drop(queries);
+    let hits = downloads[0].chunks_exact(16).map(bytemuck::pod_read_unaligned).collect();
+    let traversal = downloads
+        .get(1)
+        .map(|b| b.chunks_exact(std::mem::size_of::<TraversalCounts>()).map(bytemuck::pod_read_unaligned).collect());
+    Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches, traversal })
+}
+
+/// A cast's answer before any work: an error for batches of no ray, and for no ray an empty
+/// result (with empty traversal counts for a `stats` kernel); `None` when there is work.
+fn nothing_to_cast(
+    kernel: &(impl RayDispatch + ?Sized),
+    rays: &[Ray],
+    opts: &RaycastOptions,
+) -> Result<Option<RaycastResult>> {
     if opts.batch_rays == 0 {
         return Err(Error::Usage("--batch-rays 0: a batch holds at least one ray".into()));
     }
     if rays.is_empty() {
         let traversal = kernel.bindings().contains_key(&BINDING_TRAVERSAL_STATS).then(Vec::new);
-        return Ok(RaycastResult { hits: vec![], kernel_ms: vec![], wall_ms: vec![], batches: 0, traversal });
+        return Ok(Some(RaycastResult { hits: vec![], kernel_ms: vec![], wall_ms: vec![], batches: 0, traversal }));
     }
-    let info = ctx.info();
-    let dev = &ctx.device.raw;
-    let stage = kernel.stage();
-    // Batch: within the watchdog budget, the storage-buffer range, the dispatch limit, and a
-    // multiple of 256 rays so every sub-range offset is aligned (256 * 16 B >= any
-    // minStorageBufferOffsetAlignment, which the spec caps at 256).
-    let by_range = info.max_storage_buffer_range as usize / std::mem::size_of::<Ray>();
-    let by_dispatch = kernel.max_rays(info);
-    let batch = (opts.batch_rays.min(by_range).min(by_dispatch) / 256 * 256).max(256);
-    let nbatches = rays.len().div_ceil(batch);
+    Ok(None)
+}
 
-    let ray_buf = ctx.upload("rays", bytemuck::cast_slice(rays), vk::BufferUsageFlags::STORAGE_BUFFER)?;
-    // Per-ray outputs: (binding, bytes per ray, buffer); hits, and the counters of a stats kernel.
-    let output = |name: &str, per_ray: usize| {
-        ctx.create_buffer(
-            name,
-            (rays.len() * per_ray) as u64,
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
-            gpu_allocator::MemoryLocation::GpuOnly,
-        )
-    };
-    let mut outputs = vec![(BINDING_HITS, std::mem::size_of::<Hit>() as u64, output("hits", 16)?)];
-    if kernel.bindings().contains_key(&BINDING_TRAVERSAL_STATS) {
-        let size = std::mem::size_of::<TraversalCounts>();
-        outputs.push((BINDING_TRAVERSAL_STATS, size as u64, output("traversal counts", size)?));
+/// How a cast's rays split into batches: `size` rays each but the last, `count` batches.
+struct Batching {
+    size: usize,
+    count: usize,
+    rays: usize,
+}
+
+impl Batching {
+    /// Batch: within the watchdog budget, the storage-buffer range, the dispatch limit, and a
+    /// multiple of 256 rays so every sub-range offset is aligned (256 * 16 B >= any
+    /// minStorageBufferOffsetAlignment, which the spec caps at 256).
+    fn new(ctx: &Context, kernel: &(impl RayDispatch + ?Sized), rays: usize, opts: &RaycastOptions) -> Batching {
+        let info = ctx.info();
+        let by_range = info.max_storage_buffer_range as usize / std::mem::size_of::<Ray>();
+        let by_dispatch = kernel.max_rays(info);
+        let size = (opts.batch_rays.min(by_range).min(by_dispatch) / 256 * 256).max(256);
+        Batching { size, count: rays.div_ceil(size), rays }
     }
 
-    // A persistent kernel's next-ray counter: one u32, zeroed before each dispatch.
-    let counter = match kernel.bindings().contains_key(&BINDING_RAY_COUNTER) {
-        true => Some(ctx.create_buffer(
-            "ray counter",
-            4,
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
-            gpu_allocator::MemoryLocation::GpuOnly,
-        )?),
-        false => None,
-    };
+    /// Batch `bi`'s first ray and its number of rays.
+    fn range(&self, bi: usize) -> (usize, usize) {
+        let first = bi * self.size;
+        (first, self.size.min(self.rays - first))
+    }
+}
 
-    let (_pool, sets) = DescriptorPool::new(ctx, kernel, nbatches as u32)?;
+/// A cast's buffers: its rays; its per-ray outputs (binding, bytes per ray, buffer): the hits,
+/// and the counters of a stats kernel; a persistent kernel's next-ray counter (one u32, zeroed
+/// before each dispatch).
+struct CastBuffers {
+    rays: Buffer,
+    outputs: Vec<(u32, u64, Buffer)>,
+    counter: Option<Buffer>,
+}
+
+impl CastBuffers {
+    fn new(ctx: &Context, kernel: &(impl RayDispatch + ?Sized), rays: &[Ray]) -> Result<CastBuffers> {
+        let ray_buf = ctx.upload("rays", bytemuck::cast_slice(rays), vk::BufferUsageFlags::STORAGE_BUFFER)?;
+        let output = |name: &str, per_ray: usize| {
+            ctx.create_buffer(
+                name,
+                (rays.len() * per_ray) as u64,
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
+                gpu_allocator::MemoryLocation::GpuOnly,
+            )
+        };
+        let mut outputs = vec![(BINDING_HITS, std::mem::size_of::<Hit>() as u64, output("hits", 16)?)];
+        if kernel.bindings().contains_key(&BINDING_TRAVERSAL_STATS) {
+            let size = std::mem::size_of::<TraversalCounts>();
+            outputs.push((BINDING_TRAVERSAL_STATS, size as u64, output("traversal counts", size)?));
+        }
+        let counter = match kernel.bindings().contains_key(&BINDING_RAY_COUNTER) {
+            true => Some(ctx.create_buffer(
+                "ray counter",
+                4,
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+                gpu_allocator::MemoryLocation::GpuOnly,
+            )?),
+            false => None,
+        };
+        Ok(CastBuffers { rays: ray_buf, outputs, counter })
+    }
+}
+
+/// One descriptor set per batch: `scene`'s bindings, the batch's ranges of the rays and the
+/// outputs, and the counter.
+fn descriptor_sets<'c>(
+    ctx: &'c Context,
+    kernel: &(impl RayDispatch + ?Sized),
+    scene: &[(u32, Resource)],
+    buffers: &CastBuffers,
+    batching: &Batching,
+) -> Result<(DescriptorPool<'c>, Vec<vk::DescriptorSet>)> {
+    let (pool, sets) = DescriptorPool::new(ctx, kernel, batching.count as u32)?;
     for (bi, &set) in sets.iter().enumerate() {
-        let first = (bi * batch) as u64;
-        let count = batch.min(rays.len() - bi * batch) as u64;
+        let (first, count) = batching.range(bi);
+        let (first, count) = (first as u64, count as u64);
         let mut resources: Vec<(u32, Resource)> = scene.to_vec();
-        resources.push((BINDING_RAYS, Resource::Buffer { buffer: &ray_buf, offset: first * 32, range: count * 32 }));
-        for (binding, size, buf) in &outputs {
+        resources
+            .push((BINDING_RAYS, Resource::Buffer { buffer: &buffers.rays, offset: first * 32, range: count * 32 }));
+        for (binding, size, buf) in &buffers.outputs {
             resources.push((*binding, Resource::Buffer { buffer: buf, offset: first * size, range: count * size }));
         }
-        if let Some(c) = &counter {
+        if let Some(c) = &buffers.counter {
             resources.push((BINDING_RAY_COUNTER, Resource::Buffer { buffer: c, offset: 0, range: 4 }));
         }
         write_set(ctx, kernel, set, &resources)?;
     }
-    // A planted slowdown (tests of the regression gate and of `ab`): this kernel's dispatch
-    // recorded about F times.
-    let slowdown = Slowdown::from_env()?;
-    let timestamps = Timestamps::supported(ctx);
-    let queries = Timestamps::new(ctx, nbatches as u32)?;
-    let mut dispatch = Dispatch { ctx, cmds: vec![] };
+    Ok((pool, sets))
+}
 
-    dispatch.cmds = ctx.allocate_command_buffers(nbatches as u32)?;
-    // What each batch's submit runs (the dispatch log and crash markers name it).
-    let what: Vec<String> = (0..nbatches)
-        .map(|bi| {
-            let first = bi * batch;
-            let end = (first + batch).min(rays.len());
-            format!("{} batch {}/{nbatches} (rays {first}..{end})", kernel.name(), bi + 1)
-        })
-        .collect();
-    for (bi, (&cmd, &set)) in dispatch.cmds.iter().zip(&sets).enumerate() {
-        let count = batch.min(rays.len() - bi * batch) as u32;
-        let q = bi as u32;
-        // SAFETY: recording into freshly allocated command buffers; every object referenced
-        // outlives the submits (all waited for before this function returns).
-        unsafe {
-            dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default()).during("recording a dispatch")?;
-            queries.reset(dev, cmd, q);
-            if let Some(c) = &counter {
-                // The previous dispatch's atomics finish before the counter is zeroed (the
-                // barrier below makes the zero visible to this dispatch).
-                memory_barrier(
-                    dev,
-                    cmd,
-                    (
-                        vk::PipelineStageFlags::COMPUTE_SHADER,
-                        vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
-                    ),
-                    (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
-                );
-                dev.cmd_fill_buffer(cmd, c.raw, 0, 4, 0);
-            }
-            // The previous run's dispatch wrote the same output ranges (and uploads came before).
+/// Records `batch` into `cmd` (a fresh command buffer): timestamp pair `q` reset, a persistent
+/// kernel's counter zeroed, the barriers, and the kernel's batch between the crash marker
+/// `what` and the timestamps.
+fn record_batch(
+    ctx: &Context,
+    kernel: &(impl RayDispatch + ?Sized),
+    cmd: vk::CommandBuffer,
+    batch: &Batch,
+    queries: &Timestamps,
+    q: u32,
+    what: &str,
+) -> Result<()> {
+    let dev = &ctx.device.raw;
+    let stage = kernel.stage();
+    // SAFETY: recording into a freshly allocated command buffer; every object referenced
+    // outlives the submits (all waited for before `cast_rays_with` returns).
+    unsafe {
+        dev.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default()).during("recording a dispatch")?;
+        queries.reset(dev, cmd, q);
+        if let Some(c) = batch.counter {
+            // The previous dispatch's atomics finish before the counter is zeroed (the
+            // barrier below makes the zero visible to this dispatch).
             memory_barrier(
                 dev,
                 cmd,
-                (
-                    vk::PipelineStageFlags::COMPUTE_SHADER | stage | vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE,
-                ),
-                (stage, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
+                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
+                (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
             );
-            let marker = ctx.mark_begin(dev, cmd, what[bi].clone());
-            let compute = stage == vk::PipelineStageFlags::COMPUTE_SHADER;
-            if !compute {
-                // The markers order "begun" before the compute stage: this stage comes after.
-                memory_barrier(
-                    dev,
-                    cmd,
-                    (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::empty()),
-                    (stage, vk::AccessFlags::empty()),
-                );
-            }
-            queries.start(dev, cmd, q);
-            kernel.record_rays(dev, cmd, set, count);
-            let repeats = Slowdown::repeats_for(slowdown.as_ref(), kernel.name(), count);
-            let again = (1..repeats.whole).map(|_| count).chain((repeats.partial > 0).then_some(repeats.partial));
-            for rays in again {
-                // The same dispatch again over the same outputs, or over its first `rays` (and,
-                // for a persistent kernel, a counter zeroed again): the previous one's writes
-                // and atomics finish first.
-                let shader = (stage, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
-                if let Some(c) = &counter {
-                    memory_barrier(
-                        dev,
-                        cmd,
-                        shader,
-                        (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
-                    );
-                    dev.cmd_fill_buffer(cmd, c.raw, 0, 4, 0);
-                    memory_barrier(
-                        dev,
-                        cmd,
-                        (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
-                        shader,
-                    );
-                } else {
-                    memory_barrier(dev, cmd, shader, shader);
-                }
-                kernel.record_rays(dev, cmd, set, rays);
-            }
-            if !compute {
-                // Hands the outputs to the compute stage, where the markers and the downloads
-                // (`buffer::read_back`) expect the last shader writes.
-                memory_barrier(
-                    dev,
-                    cmd,
-                    (stage, vk::AccessFlags::SHADER_WRITE),
-                    (
-                        vk::PipelineStageFlags::COMPUTE_SHADER,
-                        vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
-                    ),
-                );
-            }
-            queries.end(dev, cmd, q);
-            ctx.mark_end(dev, cmd, marker);
-            dev.end_command_buffer(cmd).during("recording a dispatch")?;
+            dev.cmd_fill_buffer(cmd, c, 0, 4, 0);
         }
+        // The previous run's dispatch wrote the same output ranges (and uploads came before).
+        memory_barrier(
+            dev,
+            cmd,
+            (
+                vk::PipelineStageFlags::COMPUTE_SHADER | stage | vk::PipelineStageFlags::TRANSFER,
+                vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE,
+            ),
+            (stage, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
+        );
+        let marker = ctx.mark_begin(dev, cmd, what.to_owned());
+        let compute = stage == vk::PipelineStageFlags::COMPUTE_SHADER;
+        if !compute {
+            // The markers order "begun" before the compute stage: this stage comes after.
+            memory_barrier(
+                dev,
+                cmd,
+                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::empty()),
+                (stage, vk::AccessFlags::empty()),
+            );
+        }
+        queries.start(dev, cmd, q);
+        kernel.record_batch(dev, cmd, batch);
+        if !compute {
+            // Hands the outputs to the compute stage, where the markers and the downloads
+            // (`buffer::read_back`) expect the last shader writes.
+            memory_barrier(
+                dev,
+                cmd,
+                (stage, vk::AccessFlags::SHADER_WRITE),
+                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE),
+            );
+        }
+        queries.end(dev, cmd, q);
+        ctx.mark_end(dev, cmd, marker);
+        dev.end_command_buffer(cmd).during("recording a dispatch")?;
     }
+    Ok(())
+}
 
+/// Submits the recorded batches `opts.warmup` times untimed, then `opts.repeat` (at least once)
+/// timed, each submit waited for; every run goes on the trace. Each timed run's GPU time (the
+/// sum over its batches; none where the device has no timestamps) and host wall time, ms.
+fn timed_runs(
+    ctx: &Context,
+    kernel: &str,
+    cmds: &[vk::CommandBuffer],
+    what: &[String],
+    queries: &Timestamps,
+    opts: &RaycastOptions,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let timestamps = Timestamps::supported(ctx);
     let mut kernel_ms = Vec::new();
     let mut wall_ms = Vec::new();
     let runs = opts.warmup + opts.repeat.max(1);
     let tracing = crate::trace::on();
     for run in 0..runs {
         let t0 = Instant::now();
-        for (&cmd, what) in dispatch.cmds.iter().zip(&what) {
+        for (&cmd, what) in cmds.iter().zip(what) {
             ctx.submit_and_wait(cmd, what)?;
         }
         let wall = t0.elapsed().as_secs_f64() * 1e3;
@@ -338,7 +360,7 @@ pub fn cast_rays_with(
             false => None,
         };
         if tracing {
-            trace_run(kernel.name(), t0, wall, batch_ms.as_deref(), run, warm_up);
+            trace_run(kernel, t0, wall, batch_ms.as_deref(), run, warm_up);
         }
         if warm_up {
             continue;
@@ -348,17 +370,7 @@ pub fn cast_rays_with(
             kernel_ms.push(ms.iter().sum());
         }
     }
-    let mut downloads = Vec::new();
-    for (_, size, buf) in &outputs {
-        downloads.push(ctx.download(buf, rays.len() as u64 * size)?);
-    }
-    drop(dispatch);
-    drop(queries);
-    let hits = downloads[0].chunks_exact(16).map(bytemuck::pod_read_unaligned).collect();
-    let traversal = downloads
-        .get(1)
-        .map(|b| b.chunks_exact(std::mem::size_of::<TraversalCounts>()).map(bytemuck::pod_read_unaligned).collect());
-    Ok(RaycastResult { hits, kernel_ms, wall_ms, batches: nbatches, traversal })
+    Ok((kernel_ms, wall_ms))
 }
 
 /// The labels a dispatch's name in the trace is made of, in this order (the pipeline's, then the

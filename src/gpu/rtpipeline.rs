@@ -3,7 +3,7 @@
 //! reads the same `Ray`s, `traceRayEXT` walks the driver's acceleration structure
 //! ([`AccelStructure`], the same one ray query traces), `closest.rchit` and `miss.rmiss` fill the
 //! same `Hit`s. Batched, timed and validated exactly as [`super::raycast`]: [`raycast_rtp`] hands
-//! [`cast_rays_with`] an [`RtPipeline`] that binds and launches each batch.
+//! [`cast_rays`] an [`RtPipeline`] that binds and launches each batch.
 //!
 //! It exists because NVIDIA's datacenter GPUs (H100, H200) expose the ray tracing pipeline but
 //! not ray query. Selected with `trilab raycast --peer ray-tracing-pipeline`, reported as its own
@@ -30,7 +30,7 @@ use super::commands::memory_barrier;
 use super::context::{Context, Device};
 use super::descriptors::{DescriptorLayout, Resource};
 use super::device_info::{DeviceInfo, RayTracingPipelineProperties};
-use super::raycast::{batch_for_with, cast_rays_with, RayDispatch, RaycastOptions, RaycastResult};
+use super::raycast::{batch_for_with, cast_rays, RayDispatch, RaycastOptions, RaycastResult};
 use crate::error::{Error, Result, VkContext};
 use crate::kernels::{find_rt, RtShaderSource};
 use crate::rays::Ray;
@@ -487,7 +487,7 @@ pub fn pipeline(ctx: &Context, any_hit: bool) -> Result<RtPipeline> {
 
 /// Casts `rays` through `accel` with `pipeline`: `warmup` untimed runs, then `repeat` timed ones,
 /// exactly as [`super::raycast`] and [`super::rayquery::raycast_rq`] (the same
-/// [`cast_rays_with`]). Hits carry OBJ triangle ids and the driver's barycentrics.
+/// [`cast_rays`]). Hits carry OBJ triangle ids and the driver's barycentrics.
 pub fn raycast_rtp(
     ctx: &Context,
     pipeline: &RtPipeline,
@@ -497,7 +497,7 @@ pub fn raycast_rtp(
 ) -> Result<RaycastResult> {
     ctx.capabilities().peer(super::Peer::RayTracingPipeline)?;
     let resources = [(BINDING_TLAS, Resource::Accel(accel)), (BINDING_SLOT_IDS, Resource::Texels(accel.prim_ids()))];
-    cast_rays_with(ctx, pipeline, &resources, rays, opts)
+    cast_rays(ctx, pipeline, &resources, rays, opts)
 }
 
 /// [`super::rayquery::batch_for`] for the ray tracing pipeline: most rays per submit such that

@@ -6,7 +6,19 @@
 //! and only the time grows. This is what a kernel that slowed alone looks like to `trilab
 //! compare` and `trilab ab`, made without editing a shader. A fractional factor's true size
 //! depends on how costly the first rays are against the rest; `ab` measures it.
+//!
+//! The slowdown is a [`RayDispatch`] around the real kernel ([`Slowed`]), installed by
+//! `gpu::cast_rays` alone when the variable is set; the batched dispatch itself
+//! (`gpu::cast_rays_with`) knows nothing of it.
 
+use std::collections::BTreeMap;
+
+use ash::vk;
+
+use super::commands::memory_barrier;
+use super::descriptors::DescriptorLayout;
+use super::device_info::DeviceInfo;
+use super::dispatch::{Batch, RayDispatch};
 use crate::error::{Error, Result};
 
 /// The environment variable `gpu::cast_rays` reads.
@@ -68,6 +80,69 @@ impl Slowdown {
             Some(s) => {
                 Repeats { whole: s.factor.floor() as u32, partial: (s.factor.fract() * count as f64).round() as u32 }
             }
+        }
+    }
+
+    /// `kernel` under this slowdown (recorded once where the slowdown does not name it).
+    pub fn around<K: RayDispatch + ?Sized>(self, kernel: &K) -> Slowed<'_, K> {
+        Slowed { kernel, slowdown: self }
+    }
+}
+
+/// A kernel under a planted slowdown: the same bindings, stage and limits, and each batch's
+/// dispatch recorded as [`Slowdown::repeats_for`] says, between the batch's timestamps.
+pub struct Slowed<'a, K: ?Sized> {
+    kernel: &'a K,
+    slowdown: Slowdown,
+}
+
+impl<K: RayDispatch + ?Sized> DescriptorLayout for Slowed<'_, K> {
+    fn name(&self) -> &'static str {
+        self.kernel.name()
+    }
+
+    fn bindings(&self) -> BTreeMap<u32, vk::DescriptorType> {
+        self.kernel.bindings()
+    }
+
+    fn set_layout(&self) -> vk::DescriptorSetLayout {
+        self.kernel.set_layout()
+    }
+}
+
+impl<K: RayDispatch + ?Sized> RayDispatch for Slowed<'_, K> {
+    fn stage(&self) -> vk::PipelineStageFlags {
+        self.kernel.stage()
+    }
+
+    fn max_rays(&self, info: &DeviceInfo) -> usize {
+        self.kernel.max_rays(info)
+    }
+
+    unsafe fn record_rays(&self, dev: &ash::Device, cmd: vk::CommandBuffer, set: vk::DescriptorSet, count: u32) {
+        self.kernel.record_rays(dev, cmd, set, count);
+    }
+
+    /// The kernel's batch, then its dispatch again: `whole - 1` more times over all the batch's
+    /// rays, then once over its first `partial`.
+    unsafe fn record_batch(&self, dev: &ash::Device, cmd: vk::CommandBuffer, batch: &Batch) {
+        self.kernel.record_batch(dev, cmd, batch);
+        let repeats = Slowdown::repeats_for(Some(&self.slowdown), self.kernel.name(), batch.count);
+        let again = (1..repeats.whole).map(|_| batch.count).chain((repeats.partial > 0).then_some(repeats.partial));
+        let stage = self.kernel.stage();
+        for rays in again {
+            // The same dispatch again over the same outputs, or over its first `rays` (and,
+            // for a persistent kernel, a counter zeroed again): the previous one's writes
+            // and atomics finish first.
+            let shader = (stage, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
+            if let Some(c) = batch.counter {
+                memory_barrier(dev, cmd, shader, (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE));
+                dev.cmd_fill_buffer(cmd, c, 0, 4, 0);
+                memory_barrier(dev, cmd, (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE), shader);
+            } else {
+                memory_barrier(dev, cmd, shader, shader);
+            }
+            self.kernel.record_rays(dev, cmd, batch.set, rays);
         }
     }
 }

@@ -42,5 +42,5 @@ pub fn cast(
     let scene = BoundScene::upload(ctx, access, bindings)?;
     let resources: Vec<_> = scene.resources().collect();
     let opts = RaycastOptions { warmup: 0, repeat: 1, batch_rays: rays.len() };
-    cast_rays(ctx, &kernel, &resources, rays, &opts)
+    cast_rays(ctx, &*kernel, &resources, rays, &opts)
 }
