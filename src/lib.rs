@@ -3,7 +3,7 @@
 //! Data flows one way, and so do imports: every module imports only modules listed before it
 //! here (`tests/layers.rs` checks it; `ARCHITECTURE.md` explains the layers).
 //!
-//! - Ground floor: each axis's default ([`defaults`]), the environment variables read ([`env`]), [`error`], atomic output ([`io`]), the run's timeline ([`trace`], `--trace`), the processes trilab starts ([`children`]), tables and summaries ([`report`]), the host CPU a run ran on ([`host`]), the result rows `compare` and `merge` read ([`rows`]), named
+//! - Ground floor: each axis's default ([`defaults`]), the environment variables read ([`env`]), [`error`], atomic output ([`io`]), the run's timeline ([`trace`], `--timeline`), the processes trilab starts ([`children`]), tables and summaries ([`report`]), the host CPU a run ran on ([`host`]), the result rows `compare` and `merge` read ([`rows`]), named
 //!   option values ([`named`]), the constants shared with GLSL ([`shared`]), the kernel registry
 //!   ([`kernels`]) and SPIR-V counts, reflection and capabilities ([`spirv`]).
 //! - [`scene`]: OBJ/MTL and synthetic meshes; [`rays`]: ray and hit files, cameras, ray sets,
@@ -27,7 +27,7 @@ pub mod defaults;
 pub mod env;
 pub mod error;
 pub mod io;
-pub mod trace;
+pub mod timeline;
 pub mod children;
 pub mod memory;
 pub mod report;

@@ -171,7 +171,7 @@ impl<'a> Reference<'a> {
 
     /// Traces every ray on all cores, in order.
     pub fn trace_all(&self, rays: &[Ray], any: bool) -> Vec<RefHit> {
-        let _span = crate::trace::span("reference", "f64 reference").with("rays", rays.len()).with("any_hit", any);
+        let _span = crate::timeline::span("reference", "f64 reference").with("rays", rays.len()).with("any_hit", any);
         rays.par_iter().map(|r| self.trace(r, any)).collect()
     }
 }

@@ -1,6 +1,6 @@
 //! One output option for every command that writes files: `--out DIR` is declared once
 //! (`OutArgs` in src/cli/mod.rs, each command naming its files in its help), and so are
-//! `--shard I/N` (`ShardArg`) and `--trace FILE` (`TraceArg`); every command makes its `--out`
+//! `--shard I/N` (`ShardArg`) and `--timeline FILE` (`TimelineArg`); every command makes its `--out`
 //! folder when it is missing, and refuses a file given as the folder before any work.
 
 mod common;
@@ -32,13 +32,13 @@ fn out_and_shard_are_declared_once() {
     }
     assert!(
         own.is_empty(),
-        "declare --out through OutArgs/ReportOutArgs, --shard through ShardArg and --trace through TraceArg:\n{}",
+        "declare --out through OutArgs/ReportOutArgs, --shard through ShardArg and --timeline through TimelineArg:\n{}",
         own.join("\n")
     );
     let text = std::fs::read_to_string(dir.join("mod.rs")).unwrap();
     assert_eq!(text.matches("pub struct OutArgs").count(), 1);
     assert_eq!(text.matches("pub struct ShardArg").count(), 1);
-    assert_eq!(text.matches("pub struct TraceArg").count(), 1);
+    assert_eq!(text.matches("pub struct TimelineArg").count(), 1);
 }
 
 /// Every command that writes a folder of files makes `--out` when it is missing, parents too.

@@ -21,7 +21,7 @@ const LAYERS: &[&str] = &[
     "env",
     "error",
     "io",
-    "trace",
+    "timeline",
     "children",
     "memory",
     "report",

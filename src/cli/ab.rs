@@ -12,7 +12,7 @@ use trilab::named::Named;
 use trilab::services::rayset::{RaySet, RaySetSizes};
 
 use super::choice::choice;
-use super::{scenes_help, signals, GpuArgs, JsonArg, LeafSizeArg, TraceArg};
+use super::{scenes_help, signals, GpuArgs, JsonArg, LeafSizeArg, TimelineArg};
 
 /// The workload both sides run, in the bench vocabulary (smaller defaults: many rounds).
 #[derive(Args, Clone)]
@@ -231,7 +231,7 @@ pub struct AbArgs {
     #[command(flatten)]
     out: OutArgs,
     #[command(flatten)]
-    trace: TraceArg,
+    trace: TimelineArg,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -266,7 +266,7 @@ pub fn run(a: AbArgs) -> Result<()> {
     Ok(())
 }
 
-/// The two sides run and compared, and the report written (`--trace`'s run span covers it):
+/// The two sides run and compared, and the report written (`--timeline`'s run span covers it):
 /// the exit status its verdict asks for.
 fn compare_sides(a: AbArgs) -> Result<u8> {
     // Ctrl-C, SIGTERM or SIGHUP: the workers (each in a process group of its own) get the
@@ -321,7 +321,7 @@ fn compare_sides(a: AbArgs) -> Result<u8> {
         std::thread::park();
     }
     let report = report?;
-    let _span = trilab::trace::span("report", "report writing");
+    let _span = trilab::timeline::span("report", "report writing");
     if let Some(dir) = &a.out.dir {
         ab::write(&report, dir)?;
         eprintln!("wrote {}", dir.display());

@@ -14,7 +14,7 @@ use trilab::services::results::Results;
 
 use super::choice::choice;
 use super::ShardArg;
-use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs, TraceArg};
+use super::{repeat, scenes_help, BuildArgs, GpuArgs, JsonArg, MethodsArg, RaySetArgs, ReportOutArgs, TimelineArg};
 
 /// Ray-casting benchmark: every method on three ray sets, validated, beside peers
 ///
@@ -101,7 +101,7 @@ pub struct BenchArgs {
     #[command(flatten)]
     out: ReportOutArgs,
     #[command(flatten)]
-    trace: TraceArg,
+    trace: TimelineArg,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -169,15 +169,15 @@ pub fn run(a: BenchArgs) -> Result<()> {
     written
 }
 
-/// The bench itself, and its report written (`--trace`'s run span covers it all).
+/// The bench itself, and its report written (`--timeline`'s run span covers it all).
 fn measure(a: BenchArgs, files: (Option<PathBuf>, Option<PathBuf>)) -> Result<()> {
     let (json_out, md_out) = files;
     let scenes = if a.scenes.is_empty() { vec![PathBuf::from("bunny")] } else { a.scenes.clone() };
     let ctx = {
-        let _span = trilab::trace::span("device", "device context");
+        let _span = trilab::timeline::span("device", "device context");
         a.gpu.context()?
     };
-    TraceArg::device(&ctx);
+    TimelineArg::device(&ctx);
     let o = BenchOptions {
         scenes,
         axes: KernelAxes {
@@ -208,7 +208,7 @@ fn measure(a: BenchArgs, files: (Option<PathBuf>, Option<PathBuf>)) -> Result<()
         eprintln!("bench: shard {shard}: {owned} of {} scene(s)", o.scenes.len());
     }
     let report = bench::run(&ctx, &o, |m| eprintln!("  {m}"))?;
-    let _span = trilab::trace::span("report", "report writing");
+    let _span = trilab::timeline::span("report", "report writing");
     a.json.print(&report);
     a.out.create_dir()?;
     report.write(json_out.as_deref(), md_out.as_deref())

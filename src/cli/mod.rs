@@ -287,22 +287,23 @@ pub struct ShardArg {
     pub shard: Option<trilab::rows::Shard>,
 }
 
-/// `--trace FILE`, the one timeline option (`bench`, `suite`, `ab`): the run as Chrome trace JSON
-/// ([`trilab::trace`]), checked before any work as every output is ([`TraceArg::check`]) and
-/// written when the run ends, failed or not ([`TraceArg::finish`]).
+/// `--timeline FILE`, the one timeline option (`bench`, `suite`, `ab`): the run as Chrome trace JSON
+/// ([`trilab::timeline`]), checked before any work as every output is ([`TimelineArg::check`]) and
+/// written when the run ends, failed or not ([`TimelineArg::finish`]).
 #[derive(Args, Clone, Debug, Default)]
-pub struct TraceArg {
+pub struct TimelineArg {
     /// Also write a timeline of the run to FILE as Chrome trace JSON, for https://ui.perfetto.dev
     /// or chrome://tracing (docs/benchmarking.md): host phases (scene load, BVH build, upload,
     /// ray sets, the f64 reference, validation, peers, pipeline compiles, report writing) and
     /// rounds, each dispatch on a GPU track lasting what its GPU timestamps measured; suite: each
     /// part, planned against actual seconds; ab: each side's run of each cell in each round (the
     /// sides' dispatches run in their workers and are not in it)
-    #[arg(long = "trace", id = "trace", value_name = "FILE")]
+    // `--trace`, its name before issue 52, stays as a hidden alias.
+    #[arg(long = "timeline", id = "timeline", alias = "trace", value_name = "FILE")]
     pub file: Option<PathBuf>,
 }
 
-impl TraceArg {
+impl TimelineArg {
     /// Checks FILE before any work: not an existing directory, not one of `inputs`, not one of
     /// the command's own `outputs` (which would overwrite it, or it them), and in a writable
     /// folder, or one that can be made (the `--out` folder, say, made when missing: so is the
@@ -312,14 +313,14 @@ impl TraceArg {
         match (file.parent(), file.file_name()) {
             (Some(dir), Some(name)) if !dir.as_os_str().is_empty() && !dir.exists() => {
                 let name = name.to_string_lossy();
-                trilab::io::check_output("--trace", trilab::io::Output::Dir(dir, &[&name]), inputs)?
+                trilab::io::check_output("--timeline", trilab::io::Output::Dir(dir, &[&name]), inputs)?
             }
-            _ => trilab::io::check_output("--trace", trilab::io::Output::File(file), inputs)?,
+            _ => trilab::io::check_output("--timeline", trilab::io::Output::File(file), inputs)?,
         }
         for out in outputs {
             if trilab::io::same_file(file, out) {
                 return Err(Error::Usage(format!(
-                    "--trace {}: is also the command's output {}; give the trace a file of its own",
+                    "--timeline {}: is also the command's output {}; give the timeline a file of its own",
                     file.display(),
                     out.display()
                 )));
@@ -331,49 +332,49 @@ impl TraceArg {
     /// Starts recording when FILE is given: the process is named `trilab <command>` in the
     /// viewer and the command line goes into the file's `otherData`. Returns the run's span,
     /// which every other host span nests in.
-    pub fn start(&self, command: &str) -> trilab::trace::Span {
+    pub fn start(&self, command: &str) -> trilab::timeline::Span {
         if self.file.is_none() {
-            return trilab::trace::span("command", "");
+            return trilab::timeline::span("command", "");
         }
-        trilab::trace::start(&format!("trilab {command}"));
-        let run = trilab::trace::span("command", format!("trilab {command}"));
+        trilab::timeline::start(&format!("trilab {command}"));
+        let run = trilab::timeline::span("command", format!("trilab {command}"));
         let line: Vec<String> = std::env::args()
             .map(|a| if a.contains(char::is_whitespace) || a.is_empty() { format!("{a:?}") } else { a })
             .collect();
-        trilab::trace::set_other("command_line", line.join(" "));
-        trilab::trace::set_other("commit", trilab::services::provenance::commit());
+        trilab::timeline::set_other("command_line", line.join(" "));
+        trilab::timeline::set_other("commit", trilab::services::provenance::commit());
         run
     }
 
     /// Notes the device and driver in the file's `otherData`.
     pub fn device(ctx: &Context) {
-        if trilab::trace::on() {
+        if trilab::timeline::on() {
             let info = ctx.info();
-            trilab::trace::set_other("device", info.name.clone());
-            trilab::trace::set_other("driver", info.driver_label());
+            trilab::timeline::set_other("device", info.name.clone());
+            trilab::timeline::set_other("driver", info.driver_label());
         }
     }
 
     /// Closes the run's span (its args say how the run ended) and writes FILE; a note names it
     /// and what it holds. The run's own error, if any, is the caller's to return.
-    pub fn finish<T>(&self, run: trilab::trace::Span, result: &Result<T>) -> Result<()> {
+    pub fn finish<T>(&self, run: trilab::timeline::Span, result: &Result<T>) -> Result<()> {
         let Some(file) = &self.file else { return Ok(()) };
         if let Err(e) = result {
             run.arg("error", e.to_string());
         }
         drop(run);
-        let written = TraceArg::write(file)?;
+        let written = TimelineArg::write(file)?;
         note(&format!("trace: {written} in {}", file.display()));
         Ok(())
     }
 
     /// Writes what was recorded to `file` (its folder made when missing), the spans still open
     /// (a run a signal stopped) marked unfinished; recording stops.
-    pub fn write(file: &std::path::Path) -> Result<trilab::trace::Written> {
+    pub fn write(file: &std::path::Path) -> Result<trilab::timeline::Written> {
         if let Some(dir) = file.parent().filter(|d| !d.as_os_str().is_empty()) {
             OutArgs::make(dir)?;
         }
-        trilab::trace::finish(file)
+        trilab::timeline::finish(file)
     }
 }
 

@@ -12,7 +12,7 @@ use trilab::named::Named;
 use trilab::services::driver_stats::CollectOptions;
 
 use super::choice::choice;
-use super::{results_dir, signals, GpuArgs, JsonArg, TraceArg};
+use super::{results_dir, signals, GpuArgs, JsonArg, TimelineArg};
 
 /// What to run once on a new device: every part, scaled to a time budget
 ///
@@ -56,7 +56,7 @@ pub struct SuiteArgs {
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
     #[command(flatten)]
-    trace: TraceArg,
+    trace: TimelineArg,
     #[command(flatten)]
     json: JsonArg,
     #[command(flatten)]
@@ -85,7 +85,7 @@ pub fn run(a: SuiteArgs) -> Result<()> {
         eprintln!("suite: stopped by {}{forwarded}; {}", signals::name(signal), k.describe());
         if let Some(file) = &trace_file {
             // The spans still open (the run, the part under way) end here, marked unfinished.
-            match TraceArg::write(file) {
+            match TimelineArg::write(file) {
                 Ok(w) => eprintln!("suite: trace of the run so far: {w} in {}", file.display()),
                 Err(e) => eprintln!("suite: the trace was not written: {e}"),
             }
@@ -118,10 +118,10 @@ fn run_suite(a: &SuiteArgs, kept: &Mutex<suite::Kept>) -> Result<()> {
     };
     suite::check(&o)?;
     let ctx = {
-        let _span = trilab::trace::span("device", "device context");
+        let _span = trilab::timeline::span("device", "device context");
         a.gpu.context()?
     };
-    TraceArg::device(&ctx);
+    TimelineArg::device(&ctx);
     if !a.no_driver_stats {
         o.driver_stats = Some(CollectOptions {
             exe: this_exe()?,

@@ -30,7 +30,7 @@ use crate::services::calibration;
 use crate::services::provenance::Provenance;
 use crate::services::rayset::RaySetSizes;
 use crate::services::results::Folder;
-use crate::trace;
+use crate::timeline;
 
 named_enum! {
     /// A part of the suite.
@@ -487,12 +487,12 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
     // part's timings are calibrated by the points on either side of it (`trilab compare`).
     progress("calibration: a fixed CPU workload, the host's speed without the driver");
     let workload = calibration::Workload::new();
-    let calibrating = trace::span("calibration", "calibration (fixed CPU workload)");
+    let calibrating = timeline::span("calibration", "calibration (fixed CPU workload)");
     let mut point = workload.measure();
     drop(calibrating);
     let mut calibration_rows = vec![];
 
-    let probing = trace::span("part", "probe (a small bench)").with("reference_s", PROBE_REFERENCE_S);
+    let probing = timeline::span("part", "probe (a small bench)").with("reference_s", PROBE_REFERENCE_S);
     progress("probe: a small bench to scale the parts to the budget");
     let t = Instant::now();
     bench::run(ctx, &probe_options(), |_| {})?;
@@ -514,7 +514,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
         let predicted_s = ladder[size].reference_s * factor;
         // The part's span opens before its line is printed: a run stopped once the line is out
         // has the part in its trace.
-        let span = trace::span_with("part", || format!("part {part}"));
+        let span = timeline::span_with("part", || format!("part {part}"));
         if span.records() {
             span.arg("size", ladder[size].name);
             span.arg("size_step", size);
@@ -556,7 +556,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
         span.arg("took_s", took_s);
         span.arg("completed", failed.is_none());
         drop(span);
-        let calibrating = trace::span("calibration", "calibration (fixed CPU workload)");
+        let calibrating = timeline::span("calibration", "calibration (fixed CPU workload)");
         let after = workload.measure();
         drop(calibrating);
         let calibration = calibration::row(&part.to_string(), &point, &after, &Provenance::of(ctx).source());
@@ -590,7 +590,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
         });
         sections.push((section.0, section.1));
     }
-    let writing = trace::span("report", "summary and suite.json");
+    let writing = timeline::span("report", "summary and suite.json");
     Folder::create(&o.out.join(calibration::COMMAND))?.rows(None, &calibration_rows)?;
     let report = SuiteReport {
         provenance: Provenance::of(ctx),
@@ -631,13 +631,13 @@ fn run_part(
             b.tinybvh = o.tinybvh.clone();
             let r = bench::run(ctx, &b, &mut note)?;
             let (json, md) = (dir.join("bench.json"), dir.join("bench.md"));
-            let _span = trace::span("report", "report writing");
+            let _span = timeline::span("report", "report writing");
             r.write(Some(&json), Some(&md))?;
             Ok((Part::Bench.title().into(), bench_section(&r, "bench/bench.md")))
         }
         PartOptions::Study(s) => {
             let r = study::run(ctx, s, &mut note)?;
-            let _span = trace::span("report", "report writing");
+            let _span = timeline::span("report", "report writing");
             study::write(&r, dir)?;
             Ok((Part::Study.title().into(), study_section(&r)))
         }
@@ -648,7 +648,7 @@ fn run_part(
                 .filter(|m| a.methods.contains(m))
                 .collect();
             let r = accuracy::run(ctx, &a, &mut note)?;
-            let _span = trace::span("report", "report writing");
+            let _span = timeline::span("report", "report writing");
             accuracy::write(&r, dir)?;
             Ok((Part::Accuracy.title().into(), accuracy_section(&r)))
         }
@@ -659,7 +659,7 @@ fn run_part(
             p.driver_stats = o.driver_stats.clone();
             p.sizes.require_all()?;
             let r = profile::run(ctx, &p, Some(dir), &mut note)?;
-            let _span = trace::span("report", "report writing");
+            let _span = timeline::span("report", "report writing");
             profile::write(&r, dir)?;
             Ok((Part::Profile.title().into(), profile_section(&r)))
         }

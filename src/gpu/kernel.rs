@@ -98,7 +98,7 @@ impl Context {
     /// A pipeline with the profiling options of [`PipelineOptions`]; the caller checks that
     /// the device enabled what they need (`Context::enabled`).
     pub fn create_kernel_with(&self, src: &'static KernelSource, options: &PipelineOptions) -> Result<Kernel> {
-        let _span = crate::trace::span_with("pipeline", || format!("pipeline compile {}", src.name));
+        let _span = crate::timeline::span_with("pipeline", || format!("pipeline compile {}", src.name));
         let constants = options.constants;
         let words = src.words();
         self.check_capabilities(src.name, &words)?;

@@ -346,7 +346,7 @@ fn timed_runs(
     let mut kernel_ms = Vec::new();
     let mut wall_ms = Vec::new();
     let runs = opts.warmup + opts.repeat.max(1);
-    let tracing = crate::trace::on();
+    let tracing = crate::timeline::on();
     for run in 0..runs {
         let t0 = Instant::now();
         for (&cmd, what) in cmds.iter().zip(what) {
@@ -383,8 +383,8 @@ const NAME_LABELS: [&str; 7] = ["method", "layout", "traversal", "access", "scen
 /// layout, traversal and access path `pipeline::DeviceScene` sets, the scene, ray set and round
 /// the caller sets), else by the kernel.
 fn trace_run(kernel: &str, at: Instant, wall_ms: f64, batch_ms: Option<&[f64]>, run: usize, warm_up: bool) {
-    use crate::trace::Arg;
-    let labels = crate::trace::current_labels();
+    use crate::timeline::Arg;
+    let labels = crate::timeline::current_labels();
     let parts: Vec<String> = NAME_LABELS
         .iter()
         .filter_map(|&k| {
@@ -411,7 +411,7 @@ fn trace_run(kernel: &str, at: Instant, wall_ms: f64, batch_ms: Option<&[f64]>, 
             args.push(("batch_ms", b.to_vec().into()));
         }
     }
-    crate::trace::complete(crate::trace::GPU, "dispatch", &name, at, dur, args);
+    crate::timeline::complete(crate::timeline::GPU, "dispatch", &name, at, dur, args);
 }
 
 /// Most rays per submit such that one submit takes about `target_ms`: times one untimed run

@@ -220,16 +220,16 @@ impl<'m> ScenePlan<'_, 'm> {
         reader: Option<&'static KernelSource>,
         inspect: impl FnOnce(&EncodedScene),
     ) -> Result<DeviceScene> {
-        let span = crate::trace::span_with("upload", || format!("scene to device: {} {}", self.method, self.layout));
+        let span = crate::timeline::span_with("upload", || format!("scene to device: {} {}", self.method, self.layout));
         if span.records() {
             span.arg("scene", self.host.name.clone());
             span.arg("access", self.access.name());
             span.arg("node_order", self.node_order.to_string());
         }
-        let encode = crate::trace::span("upload", "encode");
+        let encode = crate::timeline::span("upload", "encode");
         let (encoded, wide) = self.encode(inspect)?;
         drop(encode);
-        let copy = crate::trace::span("upload", "buffers to device");
+        let copy = crate::timeline::span("upload", "buffers to device");
         let buffers = SceneBuffers::upload(ctx, &encoded, self.access, reader, wide.as_ref().map(|w| &w.bytes[..]))?;
         drop(copy);
         span.arg("bytes", buffers.bytes());
@@ -421,7 +421,7 @@ impl DeviceScene {
         self.check_kernel(kernel)?;
         let resources: Vec<(u32, Resource)> = self.resources().collect();
         // What the dispatches of this cast are, for the trace's GPU track.
-        let _labels = crate::trace::labels(|| {
+        let _labels = crate::timeline::labels(|| {
             vec![
                 ("method", self.method.to_string().into()),
                 ("layout", self.layout.to_string().into()),

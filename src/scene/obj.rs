@@ -37,7 +37,7 @@ fn max_scene_bytes() -> u64 {
 /// `path` may also be a scene's name (`bunny`), found as [`super::find`] says; the mesh's
 /// `source` is then the file read.
 pub fn load_obj(path: &Path) -> Result<Mesh> {
-    let span = crate::trace::span("scene", "scene load").with("scene", path.display().to_string());
+    let span = crate::timeline::span("scene", "scene load").with("scene", path.display().to_string());
     let mesh = load_mesh(path)?;
     span.arg("triangles", mesh.triangle_count());
     Ok(mesh)

@@ -439,7 +439,7 @@ impl RoundJob for PeerRound<'_> {
             return Ok(());
         }
         let _span =
-            crate::trace::span_with("peer", || format!("peer {}", self.peer.kind)).with("rays", self.set.rays.len());
+            crate::timeline::span_with("peer", || format!("peer {}", self.peer.kind)).with("rays", self.set.rays.len());
         let _ = std::fs::remove_file(&self.hits_file);
         let set = self.set;
         let (rays, n) = (set.rays, set.rays.len());

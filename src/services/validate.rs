@@ -112,11 +112,11 @@ pub fn rounds(jobs: &mut [&mut dyn RoundJob], warmup: usize, repeat: usize) -> s
     for round in 0..warmup + repeat.max(1) {
         // The trace's round: a span on the host, and labels on every dispatch in it.
         let warm_up = round < warmup;
-        let _span = crate::trace::span_with("round", || match warm_up {
+        let _span = crate::timeline::span_with("round", || match warm_up {
             true => format!("round {} (warm-up)", round + 1),
             false => format!("round {}", round + 1),
         });
-        let _labels = crate::trace::labels(|| vec![("round", (round + 1).into()), ("warm_up", warm_up.into())]);
+        let _labels = crate::timeline::labels(|| vec![("round", (round + 1).into()), ("warm_up", warm_up.into())]);
         for k in 0..jobs.len() {
             let i = (k + round) % jobs.len();
             jobs[i].run_once(round >= warmup).map_err(|e| (i, e))?;
@@ -154,7 +154,7 @@ impl<'a> KernelRound<'a> {
 impl RoundJob for KernelRound<'_> {
     fn run_once(&mut self, timed: bool) -> Result<()> {
         let j = self.job;
-        let _span = crate::trace::span_with("cast", || {
+        let _span = crate::timeline::span_with("cast", || {
             let s = j.scene;
             format!("cast {} {} {} {} ({} order)", s.method, s.layout, s.traversal, s.access.name(), j.order)
         })
@@ -169,7 +169,7 @@ impl RoundJob for KernelRound<'_> {
             res.hits = order::unpermute(o, &res.hits);
             host_ms += t.elapsed().as_secs_f64() * 1e3;
         }
-        let validate = crate::trace::span("validate", "validate against the f64 reference");
+        let validate = crate::timeline::span("validate", "validate against the f64 reference");
         let agreement = validate_hits(self.mesh, j.rays, &res.hits, j.ref_hits)?;
         drop(validate);
         if timed {

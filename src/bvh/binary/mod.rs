@@ -34,7 +34,7 @@ impl Bvh {
     /// thread pool (run it inside `ThreadPool::install` to choose the thread count). The tree
     /// is bitwise identical to [`Bvh::build_serial`]'s whatever the pool.
     pub fn build(mesh: &Mesh, options: &BuildOptions) -> Bvh {
-        let span = crate::trace::span("bvh", "BVH build").with("triangles", mesh.triangle_count());
+        let span = crate::timeline::span("bvh", "BVH build").with("triangles", mesh.triangle_count());
         span.arg("leaf_size", options.max_leaf_size);
         let bvh = sah::build(mesh, options);
         span.arg("nodes", bvh.nodes.len());

@@ -76,7 +76,7 @@ pub fn run(o: &AbOptions, mut progress: impl FnMut(&str)) -> Result<AbReport> {
     // The compilers' output, after the rounds: its compiles would time them otherwise.
     set_stage("the driver statistics, after the rounds".into());
     let stats = o.driver_stats.then(|| driver_stats(o, &plan, protocols, tmp.path(), &mut progress));
-    let judging = crate::trace::span("ab", "cells judged (hits compared ray by ray)");
+    let judging = crate::timeline::span("ab", "cells judged (hits compared ray by ray)");
     let invocations = [&a.invocations, &b.invocations].map(Vec::as_slice);
     let cells = judged_cells(o, &plan, &rounds.measured, [&dir_a, &dir_b], stats.as_ref(), invocations)?;
     drop(judging);
@@ -121,7 +121,7 @@ fn driver_stats(
 ) -> [compiled::SideStats; 2] {
     let matched = plan.matched();
     [("A", &o.a), ("B", &o.b)].map(|(name, side)| {
-        let _span = crate::trace::span_on(sides::side_track(name), "ab", "driver statistics");
+        let _span = crate::timeline::span_on(sides::side_track(name), "ab", "driver statistics");
         progress(&format!("side {name}: driver statistics"));
         let s = usize::from(name == "B");
         compiled::collect(o, name, side, protocols[s], &matched[s], &tmp.join(format!("driver-stats-{name}")))

@@ -68,7 +68,7 @@ pub(super) fn run(
 fn paired_round(workers: &mut [Worker; 2], plan: &Plan, measured: &mut Measured, done: &mut [usize; 2]) -> Result<()> {
     let round = done[0];
     set_stage(format!("round {}", round + 1));
-    let _round_span = crate::trace::span_with("round", || format!("round {}", round + 1));
+    let _round_span = crate::timeline::span_with("round", || format!("round {}", round + 1));
     let pairs = plan.pairs();
     let cells_b = plan.cells[1];
     for k in 0..pairs.len() {
@@ -106,12 +106,12 @@ fn widest(judge: Judge, plan: &Plan, measured: &Measured) -> f64 {
 
 /// One side's run of one cell in a paired round, as a span on that side's track of the trace
 /// (`side`: 0 for A): the cell, the round (from 1) and whether the side went first.
-fn trace_side_cell(side: usize, cell: &CellInfo, round: usize, first: bool) -> crate::trace::Span {
+fn trace_side_cell(side: usize, cell: &CellInfo, round: usize, first: bool) -> crate::timeline::Span {
     let name = ["A", "B"][side];
-    if !crate::trace::on() {
-        return crate::trace::span("ab", "");
+    if !crate::timeline::on() {
+        return crate::timeline::span("ab", "");
     }
-    let span = crate::trace::span_on(side_track(name), "ab", format!("{name}: {}", cell.label()));
+    let span = crate::timeline::span_on(side_track(name), "ab", format!("{name}: {}", cell.label()));
     if span.records() {
         span.arg("side", name);
         span.arg("cell", cell.label());
@@ -122,7 +122,7 @@ fn trace_side_cell(side: usize, cell: &CellInfo, round: usize, first: bool) -> c
 }
 
 /// What the side's worker answered for the cell, in its span's args.
-fn trace_answer(span: &crate::trace::Span, r: &CellRound) {
+fn trace_answer(span: &crate::timeline::Span, r: &CellRound) {
     if !span.records() {
         return;
     }

@@ -71,7 +71,7 @@ pub(super) fn start_both(
     for (name, side) in [("A", &o.a), ("B", &o.b)] {
         progress(&format!("side {name}: starting ({})", side.describe()));
         set_stage(format!("side {name}'s start"));
-        let starting = crate::trace::span_on(side_track(name), "ab", "start: worker setup");
+        let starting = crate::timeline::span_on(side_track(name), "ab", "start: worker setup");
         let r = start_side(o, w, name, side, dir)?;
         if starting.records() {
             starting.arg("setup_ms", r.report.setup_ms);
@@ -97,7 +97,7 @@ pub(super) fn start_both(
 /// cells' first-round hits went to.
 pub(super) fn finish_both([a, b]: [Worker; 2]) -> [PathBuf; 2] {
     let dirs = [a.hits_dir.clone(), b.hits_dir.clone()];
-    let ending = crate::trace::span("ab", "the workers end");
+    let ending = crate::timeline::span("ab", "the workers end");
     a.finish();
     b.finish();
     drop(ending);

@@ -24,7 +24,7 @@ pub(super) fn block(
         set_stage(format!("round {}", rounds[side] + 1));
         let w = &mut workers[side];
         let when = in_round(rounds[side], None, *rounds);
-        let span = crate::trace::span_on(side_track(["A", "B"][side]), "ab", "whole round")
+        let span = crate::timeline::span_on(side_track(["A", "B"][side]), "ab", "whole round")
             .with("round", rounds[side] + 1)
             .with("side", ["A", "B"][side]);
         let res = round(w, &when)?;

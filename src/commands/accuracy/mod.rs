@@ -589,13 +589,13 @@ pub fn run(ctx: &Context, o: &AccuracyOptions, mut progress: impl FnMut(&str)) -
     };
     let mut rng = Rng::new(o.seed);
     if o.leak_rays > 0 {
-        let _span = crate::trace::span("section", "leaks and false hits on closed meshes");
+        let _span = crate::timeline::span("section", "leaks and false hits on closed meshes");
         leaks_and_false_hits(ctx, o, user_scenes, &tracers, &mut report, &mut rng, &mut progress)?;
     }
     let fixed = o.runs_fixed_parts();
     if o.self_rays > 0 && fixed {
         for &k in &o.self_scales {
-            let _span = crate::trace::span_with("section", || format!("self-intersection at scale 1e{k}"));
+            let _span = crate::timeline::span_with("section", || format!("self-intersection at scale 1e{k}"));
             let rows = self_intersection(ctx, &tracers, k, o.self_rays, &o.schemes, &mut rng)?;
             for m in tracers.iter().map(|t| t.method) {
                 let line: Vec<String> = rows
@@ -609,11 +609,11 @@ pub fn run(ctx: &Context, o: &AccuracyOptions, mut progress: impl FnMut(&str)) -
         }
     }
     if o.extreme_rays > 0 && fixed {
-        let _span = crate::trace::span("section", "extremes");
+        let _span = crate::timeline::span("section", "extremes");
         extremes(ctx, o, &tracers, &mut report, &mut rng, &mut progress)?;
     }
     if o.bench_width > 0 && o.bench_height > 0 && fixed {
-        let _span = crate::trace::span("section", "speed/accuracy frontier");
+        let _span = crate::timeline::span("section", "speed/accuracy frontier");
         frontier(ctx, o, &tracers, &mut report, &mut progress)?;
     }
     report.seconds = start.elapsed().as_secs_f64();

@@ -25,7 +25,7 @@ use crate::services::provenance::Provenance;
 use crate::services::rayset::{ray_sets, RaySet};
 use crate::services::roofline::RooflineReport;
 use crate::services::validate::{interleaved_with, mrays_summary, Job, RoundJob};
-use crate::trace;
+use crate::timeline;
 
 /// The driver's peers get batches of about this long per submit.
 const PEER_SUBMIT_MS: f64 = 500.0;
@@ -58,7 +58,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
     };
     o.check_shard()?;
     let tmp = tempfile::tempdir().map_err(|e| Error::io(Path::new("temporary directory"), e))?;
-    let checking = trace::span("peer", "peers: check the programs");
+    let checking = timeline::span("peer", "peers: check the programs");
     let programs = peer_programs(o, tmp.path(), &mut report, &mut progress)?;
     drop(checking);
     let driver = driver_tracers(ctx, o, &mut report, &mut progress)?;
@@ -74,8 +74,8 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             continue;
         }
         let name = crate::scene::scene_name(scene_path);
-        let _scene_span = trace::span_with("scene", || format!("scene {name}"));
-        let _scene_label = trace::labels(|| vec![("scene", name.clone().into())]);
+        let _scene_span = timeline::span_with("scene", || format!("scene {name}"));
+        let _scene_label = timeline::labels(|| vec![("scene", name.clone().into())]);
         let mesh = load_obj(scene_path)?;
         // The peers read the scene as we loaded it (same triangles, same ids, any scene spec).
         let scene_obj = tmp.path().join(format!("scene{scene_index}.obj"));
@@ -86,7 +86,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
         let t = Instant::now();
         let host = HostScene::build(&name, &mesh, &o.build)?;
         let reference = host.reference();
-        let making = trace::span("rays", "ray sets");
+        let making = timeline::span("rays", "ray sets");
         let mut sets = ray_sets(&mesh, &name, &reference, &o.sizes, o.rays_dir.as_deref())?;
         drop(making);
         // An empty set has no speed: it is skipped with a note, and the other sets still run.
@@ -99,12 +99,12 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             !rays.is_empty()
         });
         progress(&format!("{name}: ray sets ready in {:.1} s", t.elapsed().as_secs_f64()));
-        let uploading = trace::span("upload", "upload every kernel's scene");
+        let uploading = timeline::span("upload", "upload every kernel's scene");
         let scenes = upload_kernels(ctx, o, &host, &name, &mut report, &mut progress)?;
         drop(uploading);
         let accel = match driver.is_empty() {
             false => {
-                let _span = trace::span("peer", "driver acceleration structure");
+                let _span = timeline::span("peer", "driver acceleration structure");
                 let a = AccelStructure::build(ctx, &mesh)?;
                 progress(&accel_line(&name, &a.stats));
                 report.accel.push((name.clone(), a.stats));
@@ -112,26 +112,26 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             }
             true => None,
         };
-        let compiling = trace::span("pipeline", "pipelines");
+        let compiling = timeline::span("pipeline", "pipelines");
         let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
         drop(compiling);
         // The roofline at every scene's bytes on its access path, before any timing.
         let roofline = match &o.roofline {
             Some(ro) => {
-                let _span = trace::span("roofline", "traversal roofline");
+                let _span = timeline::span("roofline", "traversal roofline");
                 Some(efficiency::scene_roofline(ctx, &scenes, ro, &mut progress)?)
             }
             None => None,
         };
         // Every set's reference before any timing: the f64 traversal fills every core (and
         // rayon's threads linger), which would slow whichever kernel ran next.
-        let referencing = trace::span("reference", "f64 reference of every set");
+        let referencing = timeline::span("reference", "f64 reference of every set");
         let ref_hits: Vec<Vec<RefHit>> = sets.iter().map(|(_, rays)| reference.trace_all(rays, false)).collect();
         drop(referencing);
         for ((set, rays), ref_hits) in sets.iter().zip(&ref_hits) {
             let set = *set;
-            let _set_span = trace::span_with("set", || format!("{name} {set}")).with("rays", rays.len());
-            let _set_label = trace::labels(|| vec![("set", set.to_string().into())]);
+            let _set_span = timeline::span_with("set", || format!("{name} {set}")).with("rays", rays.len());
+            let _set_label = timeline::labels(|| vec![("set", set.to_string().into())]);
             // The peer programs run in the same rounds, each once a round beside every kernel.
             let rays_file = tmp.path().join(format!("scene{scene_index}.{set}.rays"));
             if !programs.is_empty() {
@@ -143,7 +143,7 @@ pub fn run(ctx: &Context, o: &BenchOptions, mut progress: impl FnMut(&str)) -> R
             let (best, results) =
                 kernel_rows(ctx, o, &on, &kernels, &programs, &peer_set, tmp.path(), &mut report, &mut progress)?;
             if let Some(accel) = &accel {
-                let _span = trace::span("peer", "driver peers");
+                let _span = timeline::span("peer", "driver peers");
                 driver_rows(ctx, o, &on, &driver, accel, &mut report, &mut progress)?;
             }
             if !programs.is_empty() {
@@ -294,7 +294,7 @@ fn kernel_rows(
         .map(|(i, p)| PeerRound::new(p, peer_set, tmp.join(format!("peer{i}.hits"))))
         .collect();
     let mut others: Vec<&mut dyn RoundJob> = peer_rounds.iter_mut().map(|p| p as &mut dyn RoundJob).collect();
-    let rounds = trace::span("rounds", "interleaved rounds").with("kernels", jobs.len()).with("peers", others.len());
+    let rounds = timeline::span("rounds", "interleaved rounds").with("kernels", jobs.len()).with("peers", others.len());
     let measured = interleaved_with(ctx, mesh, &jobs, &mut others, o.warmup, o.repeat, o.batch_rays).map_err(
         |(i, e)| match jobs.get(i) {
             Some(j) => Error::Usage(format!("{name} {set} {}: {e}", label(j.scene, j.order))),
@@ -339,7 +339,7 @@ fn kernel_rows(
             let c = match &counts[i] {
                 Some(c) => c,
                 None => {
-                    let _span = trace::span("roofline", "traversal counts (stats kernel)");
+                    let _span = timeline::span("roofline", "traversal counts (stats kernel)");
                     counts[i].insert(efficiency::fetch_counts(ctx, &k.scenes[i], rays, o.batch_rays)?)
                 }
             };

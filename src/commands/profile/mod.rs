@@ -549,7 +549,7 @@ pub fn run(
         })
         .collect();
     let ropts = RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), ..Default::default() };
-    let timing = crate::trace::span("section", "timestamps: every method's rounds interleaved");
+    let timing = crate::timeline::span("section", "timestamps: every method's rounds interleaved");
     let mut section1 = interleaved(ctx, &mesh, &jobs, ropts.warmup, ropts.repeat, ropts.batch_rays)
         .map_err(|(i, e)| {
             let (method, (set, _)) = (o.methods[i / sets.len()], &sets[i % sets.len()]);
@@ -559,7 +559,7 @@ pub fn run(
     drop(jobs);
     drop(timing);
     for (&method, scene) in o.methods.iter().zip(scenes) {
-        let _span = crate::trace::span_with("section", || format!("{method}: clocks, pipeline statistics, sizes"));
+        let _span = crate::timeline::span_with("section", || format!("{method}: clocks, pipeline statistics, sizes"));
         let mut m = MethodRun {
             ctx,
             info,
@@ -594,10 +594,10 @@ pub fn run(
             }
         }
     }
-    let threads = crate::trace::span("section", "LP_NUM_THREADS: trilab bench per thread count (child processes)");
+    let threads = crate::timeline::span("section", "LP_NUM_THREADS: trilab bench per thread count (child processes)");
     let lp_scaling = threads_section(ctx, o, &sets, &mut progress)?;
     drop(threads);
-    let stats = crate::trace::span("section", "driver statistics (child processes)");
+    let stats = crate::timeline::span("section", "driver statistics (child processes)");
     let driver_statistics = driver_stats_section(ctx, o, &profiled_kernels, &mut progress)?;
     drop(stats);
     Ok(ProfileReport {
@@ -796,7 +796,7 @@ fn threads_section(
     );
     for n in counts {
         progress(&format!("LP_NUM_THREADS={n}: running `trilab bench`"));
-        let _span = crate::trace::span_with("child", || format!("child: trilab bench with LP_NUM_THREADS={n}"));
+        let _span = crate::timeline::span_with("child", || format!("child: trilab bench with LP_NUM_THREADS={n}"));
         for m in threads::bench_with_threads(&run, n)? {
             let method: Method = o
                 .methods

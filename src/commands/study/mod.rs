@@ -416,14 +416,14 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
             continue;
         }
         let name = crate::scene::scene_name(path);
-        let _scene_span = crate::trace::span_with("scene", || format!("scene {name}"));
-        let _scene_label = crate::trace::labels(|| vec![("scene", name.clone().into())]);
+        let _scene_span = crate::timeline::span_with("scene", || format!("scene {name}"));
+        let _scene_label = crate::timeline::labels(|| vec![("scene", name.clone().into())]);
         let mesh = load_obj(path)?;
         progress(&format!("{name}: {} triangles; ray sets and f64 reference", mesh.triangle_count()));
         // Ray sets and their reference hits, once per scene (they do not depend on the BVH).
         let reference_scene = HostScene::build(&name, &mesh, &BuildOptions::new(crate::defaults::LEAF_SIZE))?;
         let reference = reference_scene.reference();
-        let making = crate::trace::span("rays", "ray sets");
+        let making = crate::timeline::span("rays", "ray sets");
         let sets: Vec<(RaySet, Vec<crate::rays::Ray>)> =
             RaySet::ALL.iter().map(|&s| Ok((s, s.generate(&mesh, &reference, &o.sizes())?))).collect::<Result<_>>()?;
         drop(making);
@@ -445,10 +445,10 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
                 stopped = Some(why);
                 break 'scenes;
             }
-            let _leaf_span = crate::trace::span_with("leaf", || format!("leaf size {leaf}"));
+            let _leaf_span = crate::timeline::span_with("leaf", || format!("leaf size {leaf}"));
             let host =
                 HostScene::build(&name, &mesh, &BuildOptions { sah_group: o.sah_group, ..BuildOptions::new(leaf) })?;
-            let quality_span = crate::trace::span("bvh", "BVH statistics and EPO");
+            let quality_span = crate::timeline::span("bvh", "BVH statistics and EPO");
             let st = host.bvh.stats_with_epo(&mesh);
             drop(quality_span);
             if st.epo.is_none() {
@@ -480,19 +480,19 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
             for round in 0..=o.repeat.max(1) {
                 progress(&format!("{name} leaf {leaf}: round {round}/{}", o.repeat.max(1)));
                 // Round 0 validates (and warms up); its times do not count.
-                let _round_span = crate::trace::span_with("round", || format!("round {round}"));
+                let _round_span = crate::timeline::span_with("round", || format!("round {round}"));
                 let _round_label =
-                    crate::trace::labels(|| vec![("round", round.into()), ("warm_up", (round == 0).into())]);
+                    crate::timeline::labels(|| vec![("round", round.into()), ("warm_up", (round == 0).into())]);
                 for cell in cells.iter_mut() {
                     let scene = &cell.target.device;
                     let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", label(scene.method, scene.layout));
-                    let rendering = crate::trace::span_with("render", || {
+                    let rendering = crate::timeline::span_with("render", || {
                         format!("path-trace render {}", label(scene.method, scene.layout))
                     });
                     let r = render(ctx, &cell.target, &settings, &mut |_| true)?;
                     drop(rendering);
                     for (si, ((set, rays), refs)) in sets.iter().zip(&ref_hits).enumerate() {
-                        let _set_label = crate::trace::labels(|| vec![("set", set.to_string().into())]);
+                        let _set_label = crate::timeline::labels(|| vec![("set", set.to_string().into())]);
                         let res = scene.cast(ctx, Raycast::Closest, rays, &RaycastOptions::default())?;
                         if round == 0 {
                             // Hits are deterministic: validate once, before any time counts.

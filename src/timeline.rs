@@ -1,4 +1,4 @@
-//! A timeline of a run, written as Chrome trace JSON (`--trace FILE` on `bench`, `suite` and
+//! A timeline of a run, written as Chrome trace JSON (`--timeline FILE` on `bench`, `suite` and
 //! `ab`; it opens in Perfetto's UI, https://ui.perfetto.dev, and in chrome://tracing).
 //!
 //! One recorder per process, off unless a command turns it on ([`start`]): every call below is
@@ -432,7 +432,7 @@ pub fn finish(path: &Path) -> Result<Written> {
     let end = Instant::now();
     ON.store(false, Ordering::Relaxed);
     let Some(mut r) = recorder().take() else {
-        return Err(Error::Usage(format!("--trace {}: nothing was recorded", path.display())));
+        return Err(Error::Usage(format!("--timeline {}: nothing was recorded", path.display())));
     };
     let open: Vec<u64> = r.open.keys().copied().collect();
     let unfinished = open.len();
@@ -474,7 +474,7 @@ pub fn finish(path: &Path) -> Result<Written> {
     );
     let file = TraceFile { traceEvents: &all, displayTimeUnit: "ms", otherData: &other };
     let bytes =
-        serde_json::to_vec(&file).map_err(|e| Error::Usage(format!("--trace: cannot encode the trace: {e}")))?;
+        serde_json::to_vec(&file).map_err(|e| Error::Usage(format!("--timeline: cannot encode the trace: {e}")))?;
     crate::io::write_atomic(path, &bytes)?;
     let span_s = if last > first { (last - first) / 1e6 } else { 0.0 };
     Ok(Written { events: all.len(), span_s, unfinished })

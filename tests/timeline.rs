@@ -1,4 +1,4 @@
-//! `--trace FILE` (issue 41, part 3): the timeline `bench`, `suite` and `ab` write as Chrome trace
+//! `--timeline FILE` (issue 41, part 3): the timeline `bench`, `suite` and `ab` write as Chrome trace
 //! JSON, read back. The file must parse; its complete events have non-negative times and sit
 //! inside the run's span, sorted; on each track the spans nest (a viewer draws nothing else
 //! right); `bench`'s GPU track holds one dispatch per kernel run, each timed one's duration the
@@ -142,7 +142,7 @@ fn a_bench_trace_holds_every_dispatch_with_the_kernel_times_bench_reports() {
         "2",
         "--out",
         &s(&out),
-        "--trace",
+        "--timeline",
         &s(&file),
     ];
     let err = ok(&trilab(&args, 300));
@@ -153,7 +153,7 @@ fn a_bench_trace_holds_every_dispatch_with_the_kernel_times_bench_reports() {
     for key in ["command_line", "commit", "device", "driver"] {
         assert!(t.json["otherData"][key].as_str().is_some_and(|v| !v.is_empty()), "otherData.{key}: {}", t.json);
     }
-    assert!(t.json["otherData"]["command_line"].as_str().unwrap().contains("--trace"));
+    assert!(t.json["otherData"]["command_line"].as_str().unwrap().contains("--timeline"));
     assert_eq!(run["args"].get("error"), None, "the run succeeded: {run}");
 
     // The host phases, on the host track, in the run.
@@ -265,7 +265,7 @@ fn an_ab_trace_has_each_sides_run_of_every_cell_in_every_round() {
         "2",
         "--max-rounds",
         "2",
-        "--trace",
+        "--timeline",
         &s(&file),
         "--json",
     ];
@@ -322,7 +322,7 @@ fn a_stopped_suite_writes_the_trace_of_its_parts_so_far() {
         "--no-driver-stats",
         "--out",
         &s(&out),
-        "--trace",
+        "--timeline",
         &s(&file),
     ];
     let mut r = common::running::Running::start(common::cli::command(&args, None, &[]));
@@ -373,16 +373,16 @@ fn a_trace_file_that_is_a_folder_an_input_or_an_output_is_refused_before_any_wor
     let dir = tempfile::tempdir().unwrap();
     let folder = s(dir.path());
     let small = ["--methods", "mt", "--width", "8", "--height", "8", "--random-rays", "10"];
-    // A folder, for each command that takes --trace.
+    // A folder, for each command that takes --timeline.
     for command in [&["bench"][..], &["suite", "--size", "0"], &["ab", "--rounds", "2"]] {
-        let args: Vec<&str> = [command, &["--trace", &folder]].concat();
-        let e = expect_error(&trilab(&args, 60), &["--trace", &folder, "directory"]);
+        let args: Vec<&str> = [command, &["--timeline", &folder]].concat();
+        let e = expect_error(&trilab(&args, 60), &["--timeline", &folder, "directory"]);
         assert!(!e.contains("bunny:"), "refused before any work: {e}");
     }
     // An input: the scene it reads.
     let scene = s(&scene_file(&dir));
-    let args: Vec<&str> = [&["bench", "--scenes", &scene, "--trace", &scene][..], &small].concat();
-    expect_error(&trilab(&args, 60), &["--trace", "input"]);
+    let args: Vec<&str> = [&["bench", "--scenes", &scene, "--timeline", &scene][..], &small].concat();
+    expect_error(&trilab(&args, 60), &["--timeline", "input"]);
     assert!(
         std::fs::read_to_string(dir.path().join("tri.obj")).unwrap().starts_with("v 0 0 0"),
         "the input is untouched"
@@ -391,11 +391,11 @@ fn a_trace_file_that_is_a_folder_an_input_or_an_output_is_refused_before_any_wor
     let out = dir.path().join("out");
     std::fs::create_dir(&out).unwrap();
     let (dir_arg, json) = (s(&out), s(&out.join("bench.json")));
-    let args: Vec<&str> = [&["bench", "--out", &dir_arg, "--trace", &json][..], &small].concat();
-    expect_error(&trilab(&args, 60), &["--trace", &json, "output"]);
+    let args: Vec<&str> = [&["bench", "--out", &dir_arg, "--timeline", &json][..], &small].concat();
+    expect_error(&trilab(&args, 60), &["--timeline", &json, "output"]);
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "nothing written");
     // A folder that cannot be made: under a file.
     let under = s(&scene_file(&dir).join("t.json"));
-    let args: Vec<&str> = [&["bench", "--trace", &under][..], &small].concat();
-    expect_error(&trilab(&args, 60), &["--trace", "not a folder"]);
+    let args: Vec<&str> = [&["bench", "--timeline", &under][..], &small].concat();
+    expect_error(&trilab(&args, 60), &["--timeline", "not a folder"]);
 }
