@@ -165,15 +165,38 @@ fn load_and_serve(
     say: &Say,
 ) -> Result<()> {
     let meshes: Vec<Mesh> = w.scenes.iter().map(|s| load_obj(s)).collect::<Result<_>>()?;
-    let build = w.build;
     let hosts: Vec<HostScene> = meshes
         .iter()
         .zip(&w.scenes)
-        .map(|(m, s)| HostScene::build(crate::scene::scene_name(s), m, &build))
+        .map(|(m, s)| HostScene::build(crate::scene::scene_name(s), m, &w.build))
         .collect::<Result<_>>()?;
-    // Ray sets and the reference's hits, per scene (the same seeds on both sides: the same rays).
-    let mut sets: Vec<Vec<SetRays>> = vec![];
-    for (host, mesh) in hosts.iter().zip(&meshes) {
+    let sets = scene_sets(w, &hosts, &meshes)?;
+    let t = std::time::Instant::now();
+    let scenes = upload_scenes(ctx, w, &hosts)?;
+    let mut cells = raycast_cells(ctx, w, &hosts, &meshes, &scenes, &sets)?;
+    if w.pathtrace {
+        cells.extend(pathtrace_cells(ctx, w, &hosts, &meshes)?);
+    }
+    if cells.is_empty() {
+        return Err(Error::Usage("the workload has no cells (every ray set empty?)".into()));
+    }
+    warm_up(ctx, w, &cells)?;
+    let (invocations, invocations_note) = invocations(ctx, w, &cells)?;
+    let pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
+    let infos = cells.iter().map(|c| c.info.clone()).collect();
+    let provenance = serde_json::to_value(Provenance::of(ctx)).expect("provenance serialises");
+    say(
+        output,
+        &Message::Ready { protocol: PROTOCOL, provenance, cells: infos, pipeline_ms, invocations, invocations_note },
+    )?;
+    serve_requests(ctx, w, hits_dir, &cells, input, output, say)
+}
+
+/// Per scene, its ray sets the workload asks for (non-empty) with the reference's hits: the same
+/// seeds on both sides, so the same rays.
+fn scene_sets(w: &Workload, hosts: &[HostScene], meshes: &[Mesh]) -> Result<Vec<Vec<SetRays>>> {
+    let mut sets = vec![];
+    for (host, mesh) in hosts.iter().zip(meshes) {
         let reference = host.reference();
         let all = ray_sets(mesh, &host.name, &reference, &w.sizes, None)?;
         sets.push(
@@ -186,9 +209,12 @@ fn load_and_serve(
                 .collect(),
         );
     }
-    let t = std::time::Instant::now();
-    // Each scene with the layout its cells are named by (the workload's; `runs_layout` may run another).
-    let mut scenes: Vec<(usize, (Layout, DeviceScene))> = vec![];
+    Ok(sets)
+}
+
+/// Each scene's kernel cells uploaded (the matrix's cells of the workload's axes), with the
+/// layout its cells are named by: the workload's, where `runs_layout` runs another.
+fn upload_scenes(ctx: &Context, w: &Workload, hosts: &[HostScene]) -> Result<Vec<(usize, (Layout, DeviceScene))>> {
     let axes = KernelAxes {
         methods: w.methods.clone(),
         layouts: w.layouts.clone(),
@@ -196,6 +222,7 @@ fn load_and_serve(
         access: vec![w.scene_access],
         ..Default::default()
     };
+    let mut scenes = vec![];
     for (i, host) in hosts.iter().enumerate() {
         for cell in axes.kernels() {
             // The layout the side runs in the cells named by the workload's (`runs_layout`:
@@ -206,8 +233,20 @@ fn load_and_serve(
             }
         }
     }
+    Ok(scenes)
+}
+
+/// A ray-casting cell per uploaded scene and ray set, named as bench names it.
+fn raycast_cells<'a>(
+    ctx: &Context,
+    w: &Workload,
+    hosts: &[HostScene],
+    meshes: &'a [Mesh],
+    scenes: &'a [(usize, (Layout, DeviceScene))],
+    sets: &'a [Vec<SetRays>],
+) -> Result<Vec<Cell<'a>>> {
     let mut cells = vec![];
-    for (i, (named, scene)) in &scenes {
+    for (i, (named, scene)) in scenes {
         let kernel = scene.kernel(ctx, Raycast::Closest)?;
         for (set, rays, ref_hits) in &sets[*i] {
             let tracer = CellTracer::Method {
@@ -236,60 +275,72 @@ fn load_and_serve(
             cells.push(Cell { info, job });
         }
     }
-    if w.pathtrace {
-        let size = (w.sizes.width, w.sizes.height);
-        for (host, mesh) in hosts.iter().zip(&meshes) {
-            let settings = bench_settings(mesh, size, PATHTRACE_SPP, PATHTRACE_DEPTH, None);
-            let mut scene_mean = None;
-            for &m in &w.methods {
-                for &l in &w.layouts {
-                    let request = SceneRequest::new(m).access(w.scene_access).layout(w.runs_layout.unwrap_or(l));
-                    let target =
-                        RenderTarget::new(ctx, host, request, KernelChoice::Specialised, settings.pixels(), false)?;
-                    // The warm-up render: pipelines compiled, and the scene's image mean.
-                    let first = render(ctx, &target, &settings, &mut |_| true)?;
-                    let mean = summarise_renders(std::slice::from_ref(&first))
-                        .map_err(|e| Error::Usage(format!("{} {m} {l} path trace: {e}", host.name)))?
-                        .image_mean;
-                    let info = CellInfo {
-                        kind: CellKind::Pathtrace,
-                        scene: host.name.clone(),
-                        set: "pathtrace".into(),
-                        method: m.to_string(),
-                        layout: l.to_string(),
-                        traversal: while_if(),
-                        rays: first.samples() as usize,
-                        kernel: target.kernel.source.name.to_string(),
-                        coordinates: crate::rows::cell([
-                            ("scene", host.name.clone()),
-                            ("method", m.to_string()),
-                            ("layout", l.to_string()),
-                            ("samples", first.samples().to_string()),
-                        ]),
-                    };
-                    let scene_mean = *scene_mean.get_or_insert(mean);
-                    let job = Job::Pathtrace { target: Box::new(target), settings: settings.clone(), scene_mean };
-                    cells.push(Cell { info, job });
-                }
+    Ok(cells)
+}
+
+/// A path-trace cell per scene, method and layout, each rendered once (pipelines compiled, the
+/// scene's image mean taken from its first).
+fn pathtrace_cells<'a>(ctx: &Context, w: &Workload, hosts: &[HostScene], meshes: &[Mesh]) -> Result<Vec<Cell<'a>>> {
+    let size = (w.sizes.width, w.sizes.height);
+    let mut cells = vec![];
+    for (host, mesh) in hosts.iter().zip(meshes) {
+        let settings = bench_settings(mesh, size, PATHTRACE_SPP, PATHTRACE_DEPTH, None);
+        let mut scene_mean = None;
+        for &m in &w.methods {
+            for &l in &w.layouts {
+                let request = SceneRequest::new(m).access(w.scene_access).layout(w.runs_layout.unwrap_or(l));
+                let target =
+                    RenderTarget::new(ctx, host, request, KernelChoice::Specialised, settings.pixels(), false)?;
+                // The warm-up render: pipelines compiled, and the scene's image mean.
+                let first = render(ctx, &target, &settings, &mut |_| true)?;
+                let mean = summarise_renders(std::slice::from_ref(&first))
+                    .map_err(|e| Error::Usage(format!("{} {m} {l} path trace: {e}", host.name)))?
+                    .image_mean;
+                let info = CellInfo {
+                    kind: CellKind::Pathtrace,
+                    scene: host.name.clone(),
+                    set: "pathtrace".into(),
+                    method: m.to_string(),
+                    layout: l.to_string(),
+                    traversal: while_if(),
+                    rays: first.samples() as usize,
+                    kernel: target.kernel.source.name.to_string(),
+                    coordinates: crate::rows::cell([
+                        ("scene", host.name.clone()),
+                        ("method", m.to_string()),
+                        ("layout", l.to_string()),
+                        ("samples", first.samples().to_string()),
+                    ]),
+                };
+                let scene_mean = *scene_mean.get_or_insert(mean);
+                let job = Job::Pathtrace { target: Box::new(target), settings: settings.clone(), scene_mean };
+                cells.push(Cell { info, job });
             }
         }
     }
-    if cells.is_empty() {
-        return Err(Error::Usage("the workload has no cells (every ray set empty?)".into()));
-    }
-    // One untimed run of every ray-casting cell: pipelines compiled, caches warm.
+    Ok(cells)
+}
+
+/// One untimed run of every ray-casting cell: pipelines compiled, caches warm.
+fn warm_up(ctx: &Context, w: &Workload, cells: &[Cell]) -> Result<()> {
     let warm = RaycastOptions { warmup: 0, repeat: 1, batch_rays: w.batch_rays };
-    for c in &cells {
+    for c in cells {
         if let Job::Raycast { scene, kernel, rays, .. } = &c.job {
             scene.cast_with(ctx, kernel, rays, &warm)?;
         }
     }
-    let (invocations, invocations_note) = match (w.pipeline_stats, ctx.enabled().pipeline_statistics_query) {
-        (false, _) => (vec![None; cells.len()], None),
-        (true, false) => (vec![None; cells.len()], Some("the device has no pipelineStatisticsQuery".to_owned())),
+    Ok(())
+}
+
+/// Each ray-casting cell's compute-shader invocations, counted once where asked for and the
+/// device has the query; else `None`s, with why when it was asked for.
+fn invocations(ctx: &Context, w: &Workload, cells: &[Cell]) -> Result<(Vec<Option<u64>>, Option<String>)> {
+    match (w.pipeline_stats, ctx.enabled().pipeline_statistics_query) {
+        (false, _) => Ok((vec![None; cells.len()], None)),
+        (true, false) => Ok((vec![None; cells.len()], Some("the device has no pipelineStatisticsQuery".to_owned()))),
         (true, true) => {
             let mut v = vec![];
-            for c in &cells {
+            for c in cells {
                 v.push(match &c.job {
                     Job::Raycast { scene, kernel, rays, .. } => {
                         dispatch_once(ctx, kernel, scene, rays, true)?.compute_shader_invocations
@@ -297,54 +348,29 @@ fn load_and_serve(
                     Job::Pathtrace { .. } => None,
                 });
             }
-            (v, None)
+            Ok((v, None))
         }
-    };
+    }
+}
+
+/// Answers the parent's requests until it says quit: a round of every cell, or one cell.
+fn serve_requests(
+    ctx: &Context,
+    w: &Workload,
+    hits_dir: &Path,
+    cells: &[Cell],
+    input: impl BufRead,
+    output: &mut dyn Write,
+    say: &Say,
+) -> Result<()> {
     // A round's time for a cell is the median of [`RUNS_PER_ROUND`] runs: on a shared host the
     // driver's threads are now and then descheduled, and a single run's time is bimodal.
     let opts = RaycastOptions { warmup: 0, repeat: RUNS_PER_ROUND, batch_rays: w.batch_rays };
-    let pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
-    let infos = cells.iter().map(|c| c.info.clone()).collect();
-    let provenance = serde_json::to_value(Provenance::of(ctx)).expect("provenance serialises");
-    say(
-        output,
-        &Message::Ready { protocol: PROTOCOL, provenance, cells: infos, pipeline_ms, invocations, invocations_note },
-    )?;
     // Whether each cell has run its first timed run (which records its hits or image).
     let mut recorded = vec![false; cells.len()];
-    let mut time_cell = |i: usize| -> Result<CellRound> {
-        let record = |what: &str| hits_dir.join(format!("{i}.{what}"));
+    let mut time = |i: usize| -> Result<CellRound> {
         let first = !std::mem::replace(&mut recorded[i], true);
-        Ok(match &cells[i].job {
-            Job::Raycast { scene, kernel, mesh, rays, ref_hits } => {
-                let res = scene.cast_with(ctx, kernel, rays, &opts)?;
-                let a = compare_closest(mesh, rays, &res.hits, ref_hits);
-                if first {
-                    rays::write_hits(&record("hits"), &res.hits)?;
-                }
-                let valid = a.passes(MIN_AGREEMENT);
-                let ms = if valid { Some(res.time_ms()?.median) } else { None };
-                CellRound { ms, agree: a.agree, unexplained: a.unexplained, invalid: a.invalid.len() }
-            }
-            Job::Pathtrace { target, settings, scene_mean } => {
-                let mut runs = vec![];
-                for _ in 0..RUNS_PER_ROUND {
-                    runs.push(render(ctx, target, settings, &mut |_| true)?);
-                }
-                if first {
-                    write_image(&record("image"), &runs[0])?;
-                }
-                let dropped = runs.iter().map(|r| r.dropped_samples).sum::<u64>() as usize;
-                let checked = summarise_renders(&runs)
-                    .ok()
-                    .filter(|m| check_image_mean(m.image_mean, &mut Some(*scene_mean)).is_ok());
-                let samples = runs[0].samples() as usize;
-                match checked {
-                    Some(m) => CellRound { ms: Some(m.ms.median), agree: samples, unexplained: 0, invalid: 0 },
-                    None => CellRound { ms: None, agree: 0, unexplained: 0, invalid: dropped },
-                }
-            }
-        })
+        time_cell(ctx, &cells[i], &opts, first.then(|| hits_dir.join(i.to_string())).as_deref())
     };
     let mut round = 0usize;
     for line in input.lines() {
@@ -355,7 +381,7 @@ fn load_and_serve(
                 // The cell that opens a round rotates, as in every interleaved harness.
                 for k in 0..cells.len() {
                     let i = (k + round) % cells.len();
-                    results[i] = Some(time_cell(i)?);
+                    results[i] = Some(time(i)?);
                 }
                 round += 1;
                 let cells = results.into_iter().map(|r| r.expect("every cell ran")).collect();
@@ -367,7 +393,7 @@ fn load_and_serve(
                 if i >= cells.len() {
                     return Err(Error::Usage(format!("ab worker: cell {i}: not one of the {} cells", cells.len())));
                 }
-                let r = time_cell(i)?;
+                let r = time(i)?;
                 say(output, &Message::Round { cells: vec![r] })?;
             }
             Request::Quit => return Ok(()),
@@ -377,6 +403,42 @@ fn load_and_serve(
         }
     }
     Ok(())
+}
+
+/// One timed run of a cell (its median over [`RUNS_PER_ROUND`]); `record`: where its first run
+/// writes its hits (`<record>.hits`) or image (`<record>.image`).
+fn time_cell(ctx: &Context, cell: &Cell, opts: &RaycastOptions, record: Option<&Path>) -> Result<CellRound> {
+    let file = |what: &str| record.map(|r| r.with_extension(what));
+    Ok(match &cell.job {
+        Job::Raycast { scene, kernel, mesh, rays, ref_hits } => {
+            let res = scene.cast_with(ctx, kernel, rays, opts)?;
+            let a = compare_closest(mesh, rays, &res.hits, ref_hits);
+            if let Some(path) = file("hits") {
+                rays::write_hits(&path, &res.hits)?;
+            }
+            let valid = a.passes(MIN_AGREEMENT);
+            let ms = if valid { Some(res.time_ms()?.median) } else { None };
+            CellRound { ms, agree: a.agree, unexplained: a.unexplained, invalid: a.invalid.len() }
+        }
+        Job::Pathtrace { target, settings, scene_mean } => {
+            let mut runs = vec![];
+            for _ in 0..RUNS_PER_ROUND {
+                runs.push(render(ctx, target, settings, &mut |_| true)?);
+            }
+            if let Some(path) = file("image") {
+                write_image(&path, &runs[0])?;
+            }
+            let dropped = runs.iter().map(|r| r.dropped_samples).sum::<u64>() as usize;
+            let checked = summarise_renders(&runs)
+                .ok()
+                .filter(|m| check_image_mean(m.image_mean, &mut Some(*scene_mean)).is_ok());
+            let samples = runs[0].samples() as usize;
+            match checked {
+                Some(m) => CellRound { ms: Some(m.ms.median), agree: samples, unexplained: 0, invalid: 0 },
+                None => CellRound { ms: None, agree: 0, unexplained: 0, invalid: dropped },
+            }
+        }
+    })
 }
 
 /// A path-trace cell's image, its pixels' RGBA as little-endian f32, for the parent to compare
