@@ -478,9 +478,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
     let budget_s = o.budget_minutes * 60.0;
     let mut folder = Folder::create(&o.out)?;
     keep(&|k| k.out = o.out.clone());
-    let devices = devices::run()?;
-    folder.put("devices.txt", devices.to_text())?;
-    folder.put("devices.json", devices.to_json())?;
+    write_devices(&mut folder)?;
     keep(&|k| k.devices = true);
 
     // The host's speed without the driver, measured before the probe and after every part: a
@@ -505,13 +503,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
         let predicted_s = ladder[size].reference_s * factor;
         // The part's span opens before its line is printed: a run stopped once the line is out
         // has the part in its trace.
-        let span = timeline::span_with("part", || format!("part {part}"));
-        if span.records() {
-            span.arg("size", ladder[size].name);
-            span.arg("size_step", size);
-            span.arg("share_s", share_s);
-            span.arg("predicted_s", predicted_s);
-        }
+        let span = part_span(part, &ladder[size], size, share_s, predicted_s);
         keep(&|k| k.running = Some(part));
         progress(&format!("{part}: {} (predicted {predicted_s:.0} s of a {share_s:.0} s share)", ladder[size].name));
         let t = Instant::now();
@@ -568,6 +560,26 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
     drop(writing);
     keep(&|k| k.summary = true);
     Ok(report)
+}
+
+/// `trilab devices` into the suite's folder, as text and JSON.
+fn write_devices(folder: &mut Folder) -> Result<()> {
+    let devices = devices::run()?;
+    folder.put("devices.txt", devices.to_text())?;
+    folder.put("devices.json", devices.to_json())?;
+    Ok(())
+}
+
+/// A part's span, with the size it runs at, its share of the budget and the time predicted.
+fn part_span(part: Part, step: &Size, size: usize, share_s: f64, predicted_s: f64) -> timeline::Span {
+    let span = timeline::span_with("part", || format!("part {part}"));
+    if span.records() {
+        span.arg("size", step.name);
+        span.arg("size_step", size);
+        span.arg("share_s", share_s);
+        span.arg("predicted_s", predicted_s);
+    }
+    span
 }
 
 /// One point of the host's speed without the driver, in a span of its own.

@@ -558,12 +558,8 @@ pub fn run(
     if let (Some(dir), Some(scale)) = (out_dir, &heat_scale) {
         write_heat_maps(dir, scale, &primary_cycles, &host.name, o, &mut s)?;
     }
-    let threads = crate::timeline::span("section", "LP_NUM_THREADS: trilab bench per thread count (child processes)");
     let lp_scaling = threads_section(ctx, o, &sets, &mut progress)?;
-    drop(threads);
-    let stats = crate::timeline::span("section", "driver statistics (child processes)");
     let driver_statistics = driver_stats_section(ctx, o, &profiled_kernels, &mut progress)?;
-    drop(stats);
     Ok(ProfileReport {
         tag: DeviceTag::of(info),
         command: o.command.clone(),
@@ -681,6 +677,7 @@ fn driver_stats_section(
     kernels: &[&'static crate::kernels::KernelSource],
     progress: &mut impl FnMut(&str),
 ) -> Result<Section<driver_stats::KernelStats>> {
+    let _span = crate::timeline::span("section", "driver statistics (child processes)");
     let Some(co) = &o.driver_stats else {
         return Ok(Section::new(Status::Skipped, "skipped (--no-driver-stats)"));
     };
@@ -805,6 +802,7 @@ fn threads_section(
     sets: &[(RaySet, Vec<Ray>)],
     progress: &mut impl FnMut(&str),
 ) -> Result<Section<Row<ThreadMeasurement>>> {
+    let _span = crate::timeline::span("section", "LP_NUM_THREADS: trilab bench per thread count (child processes)");
     let info = ctx.info();
     if let Err(u) = ctx.capabilities().statistic(Statistic::ThreadCount) {
         return Ok(Section::new(Status::NotApplicable, format!("{}: {}", u.what, u.why)));
