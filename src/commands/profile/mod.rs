@@ -615,6 +615,7 @@ fn profile_ray_sets(
 
 /// Section 1: the timestamps of every method's rounds on every set, interleaved so that a burst
 /// of other work on the host lands on all of them alike; per method, then per set.
+#[allow(clippy::type_complexity)]
 fn interleaved_timestamps(
     ctx: &Context,
     o: &ProfileOptions,
