@@ -478,28 +478,17 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
     let budget_s = o.budget_minutes * 60.0;
     let mut folder = Folder::create(&o.out)?;
     keep(&|k| k.out = o.out.clone());
-    let devices = devices::run()?;
-    folder.put("devices.txt", devices.to_text())?;
-    folder.put("devices.json", devices.to_json())?;
+    write_devices(&mut folder)?;
     keep(&|k| k.devices = true);
 
     // The host's speed without the driver, measured before the probe and after every part: a
     // part's timings are calibrated by the points on either side of it (`trilab compare`).
     progress("calibration: a fixed CPU workload, the host's speed without the driver");
     let workload = calibration::Workload::new();
-    let calibrating = timeline::span("calibration", "calibration (fixed CPU workload)");
-    let mut point = workload.measure();
-    drop(calibrating);
+    let mut point = calibrate(&workload);
     let mut calibration_rows = vec![];
 
-    let probing = timeline::span("part", "probe (a small bench)").with("reference_s", PROBE_REFERENCE_S);
-    progress("probe: a small bench to scale the parts to the budget");
-    let t = Instant::now();
-    bench::run(ctx, &probe_options(), |_| {})?;
-    let probe_s = t.elapsed().as_secs_f64();
-    probing.arg("took_s", probe_s);
-    drop(probing);
-    let probe = Probe { seconds: probe_s, reference_s: PROBE_REFERENCE_S, factor: probe_s / PROBE_REFERENCE_S };
+    let probe = run_probe(ctx, &mut progress)?;
     let mut factor = probe.factor;
 
     let mut parts = vec![];
@@ -514,51 +503,23 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
         let predicted_s = ladder[size].reference_s * factor;
         // The part's span opens before its line is printed: a run stopped once the line is out
         // has the part in its trace.
-        let span = timeline::span_with("part", || format!("part {part}"));
-        if span.records() {
-            span.arg("size", ladder[size].name);
-            span.arg("size_step", size);
-            span.arg("share_s", share_s);
-            span.arg("predicted_s", predicted_s);
-        }
+        let span = part_span(part, &ladder[size], size, share_s, predicted_s);
         keep(&|k| k.running = Some(part));
         progress(&format!("{part}: {} (predicted {predicted_s:.0} s of a {share_s:.0} s share)", ladder[size].name));
         let t = Instant::now();
         let dir = o.out.join(part.to_string());
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        // A part that cannot run here (seen: the driver statistics on Mesa 22.3.6) is reported
-        // in its section; the rest of the suite still runs and is summarised.
-        let (section, failed) = match run_part(ctx, o, &ladder[size].options, &dir, &mut progress) {
-            Ok(section) => (section, None),
-            Err(e) => {
-                progress(&format!("{part} failed: {e}"));
-                let why = e.to_string();
-                let section = (
-                    format!("{} (did not complete)", part.title()),
-                    format!("`trilab {part}` stopped on this device after {:.0} s: {why}\n", t.elapsed().as_secs_f64()),
-                );
-                (section, Some(why))
-            }
-        };
+        let (section, failed) = run_part_or_say_why(ctx, o, part, &ladder[size].options, &dir, t, &mut progress);
         keep(&|k| {
             k.running = None;
             k.done.push((part, failed.is_none()));
         });
-        // Every file the part left in its folder (the profile's heat maps and every rows.jsonl
-        // included), not only those its writer returned.
-        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-            .map_err(|e| Error::io(&dir, e))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.is_file())
-            .collect();
-        files.sort();
+        let files = part_files(&dir)?;
         let took_s = t.elapsed().as_secs_f64();
         span.arg("took_s", took_s);
         span.arg("completed", failed.is_none());
         drop(span);
-        let calibrating = timeline::span("calibration", "calibration (fixed CPU workload)");
-        let after = workload.measure();
-        drop(calibrating);
+        let after = calibrate(&workload);
         let calibration = calibration::row(&part.to_string(), &point, &after, &Provenance::of(ctx).source());
         let calibration_ms = calibration.figures["cpu_ms"].median;
         calibration_rows.push(calibration);
@@ -572,14 +533,7 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
             part,
             size,
             sizes: ladder.len(),
-            description: match (&ladder[size].options, o.layouts.is_empty()) {
-                (PartOptions::Bench(_) | PartOptions::Study(_), false) => format!(
-                    "{}; on the layouts {} (--layouts)",
-                    ladder[size].name,
-                    o.layouts.iter().map(|l| l.to_string()).collect::<Vec<_>>().join(", ")
-                ),
-                _ => ladder[size].name.to_owned(),
-            },
+            description: part_description(&ladder[size], &o.layouts),
             share_s,
             predicted_s,
             reference_measured: ladder[size].measured,
@@ -606,6 +560,97 @@ pub fn run(ctx: &Context, o: &SuiteOptions, kept: &Mutex<Kept>, mut progress: im
     drop(writing);
     keep(&|k| k.summary = true);
     Ok(report)
+}
+
+/// `trilab devices` into the suite's folder, as text and JSON.
+fn write_devices(folder: &mut Folder) -> Result<()> {
+    let devices = devices::run()?;
+    folder.put("devices.txt", devices.to_text())?;
+    folder.put("devices.json", devices.to_json())?;
+    Ok(())
+}
+
+/// A part's span, with the size it runs at, its share of the budget and the time predicted.
+fn part_span(part: Part, step: &Size, size: usize, share_s: f64, predicted_s: f64) -> timeline::Span {
+    let span = timeline::span_with("part", || format!("part {part}"));
+    if span.records() {
+        span.arg("size", step.name);
+        span.arg("size_step", size);
+        span.arg("share_s", share_s);
+        span.arg("predicted_s", predicted_s);
+    }
+    span
+}
+
+/// One point of the host's speed without the driver, in a span of its own.
+fn calibrate(workload: &calibration::Workload) -> calibration::Point {
+    let calibrating = timeline::span("calibration", "calibration (fixed CPU workload)");
+    let point = workload.measure();
+    drop(calibrating);
+    point
+}
+
+/// The probe: a small bench timed against its reference seconds, the factor that scales every
+/// part to the budget.
+fn run_probe(ctx: &Context, progress: &mut impl FnMut(&str)) -> Result<Probe> {
+    let probing = timeline::span("part", "probe (a small bench)").with("reference_s", PROBE_REFERENCE_S);
+    progress("probe: a small bench to scale the parts to the budget");
+    let t = Instant::now();
+    bench::run(ctx, &probe_options(), |_| {})?;
+    let probe_s = t.elapsed().as_secs_f64();
+    probing.arg("took_s", probe_s);
+    drop(probing);
+    Ok(Probe { seconds: probe_s, reference_s: PROBE_REFERENCE_S, factor: probe_s / PROBE_REFERENCE_S })
+}
+
+/// Runs one part into `dir`: its section and, where it failed, why. A part that cannot run here
+/// (seen: the driver statistics on Mesa 22.3.6) is reported in its section; the rest of the
+/// suite still runs and is summarised.
+fn run_part_or_say_why(
+    ctx: &Context,
+    o: &SuiteOptions,
+    part: Part,
+    options: &PartOptions,
+    dir: &Path,
+    t: Instant,
+    progress: &mut impl FnMut(&str),
+) -> ((String, String), Option<String>) {
+    match run_part(ctx, o, options, dir, progress) {
+        Ok(section) => (section, None),
+        Err(e) => {
+            progress(&format!("{part} failed: {e}"));
+            let why = e.to_string();
+            let section = (
+                format!("{} (did not complete)", part.title()),
+                format!("`trilab {part}` stopped on this device after {:.0} s: {why}\n", t.elapsed().as_secs_f64()),
+            );
+            (section, Some(why))
+        }
+    }
+}
+
+/// Every file the part left in its folder (the profile's heat maps and every rows.jsonl
+/// included), not only those its writer returned; sorted.
+fn part_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .collect();
+    files.sort();
+    Ok(files)
+}
+
+/// The size a part ran at, in words: with `--layouts`, the layouts bench and study ran on.
+fn part_description(step: &Size, layouts: &[Layout]) -> String {
+    match (&step.options, layouts.is_empty()) {
+        (PartOptions::Bench(_) | PartOptions::Study(_), false) => format!(
+            "{}; on the layouts {} (--layouts)",
+            step.name,
+            layouts.iter().map(|l| l.to_string()).collect::<Vec<_>>().join(", ")
+        ),
+        _ => step.name.to_owned(),
+    }
 }
 
 /// Runs one part into `dir`: its summary section (title, Markdown).

@@ -52,6 +52,7 @@ use crate::named::named_enum;
 use crate::pipeline::{HostScene, SceneRequest};
 use crate::rays::offset::{Offset, SurfacePoint};
 use crate::rays::{Camera, Hit, Ray};
+use crate::reference::{RefHit, Reference};
 use crate::report::Summary;
 use crate::scene::Mesh;
 use crate::services::provenance::Provenance;
@@ -630,6 +631,69 @@ fn leaks_and_false_hits(
     rng: &mut Rng,
     progress: &mut impl FnMut(&str),
 ) -> Result<()> {
+    let scenes = leak_scenes(o, user_scenes, report, rng, progress)?;
+    // Per leaf size and method: (all leak rays' GPU hits, reference hits) for the error rows.
+    let mut errors: Vec<ErrorSample> = Vec::new();
+    for scene in &scenes {
+        report.meshes.push(scene.info.clone());
+        if let Err(e) = &scene.info.closed {
+            return Err(Error::Usage(format!("generated mesh {} is not closed: {e}", scene.name)));
+        }
+        let mesh = &scene.mesh;
+        let host4 = build(mesh, FIXED_LEAF);
+        let reference = host4.reference();
+        let probe = probe_rays(o, scene, &reference, rng);
+        let (rays, leak_count) = (&probe.rays, probe.leak_count);
+        let t0 = Instant::now();
+        let ref_hits = reference.trace_all(rays, false);
+        progress(&format!(
+            "{}: {} triangles, {} origins, {} leak + {} false-hit rays; reference in {:.1} s",
+            scene.name,
+            mesh.triangle_count(),
+            scene.origins.len(),
+            leak_count,
+            rays.len() - leak_count,
+            t0.elapsed().as_secs_f64()
+        ));
+        let split = o.split();
+        for (li, &leaf) in o.leaf_sizes.iter().enumerate() {
+            if !split.runs_any(li) {
+                continue; // another shard's leaf size
+            }
+            let host = build(mesh, leaf);
+            let groups = tracers.iter().flat_map(|t| o.layouts.iter().enumerate().map(move |(yi, l)| (t, yi, l)));
+            for (t, _, &layout) in groups.filter(|&(_, yi, _)| split.runs(li, yi)) {
+                let (hits, _) = cast(ctx, t, &host, layout, rays)?;
+                let leaks = tally_parts(report, scene, &probe, (t.method, leaf, layout), &hits, &ref_hits);
+                let pos = match errors.iter().position(|e| e.method == t.method && e.leaf == leaf && e.layout == layout)
+                {
+                    Some(p) => p,
+                    None => {
+                        errors.push(ErrorSample { method: t.method, leaf, layout, tally: TallyBuilder::default() });
+                        errors.len() - 1
+                    }
+                };
+                errors[pos].tally.add(&rays[..leak_count], &hits[..leak_count], &ref_hits[..leak_count], true, &[]);
+                let on = if layout == Layout::DEFAULT { String::new() } else { format!(" on {layout}") };
+                progress(&format!("{} leaf {leaf} {}{on}: {leaks} leaks in {leak_count} rays", scene.name, t.method));
+            }
+        }
+    }
+    for e in errors {
+        report.errors.push(ErrorRow { method: e.method, leaf_size: e.leaf, layout: e.layout, tally: e.tally.finish() });
+    }
+    Ok(())
+}
+
+/// The closed meshes leak rays start inside: the standard ones, the real scenes proven closed
+/// (every real scene is listed in the report, closed or not) and the user's `--scene`s.
+fn leak_scenes(
+    o: &AccuracyOptions,
+    user_scenes: Vec<(String, Mesh)>,
+    report: &mut AccuracyReport,
+    rng: &mut Rng,
+    progress: &mut impl FnMut(&str),
+) -> Result<Vec<LeakScene>> {
     let mut scenes: Vec<LeakScene> = closed::standard_meshes(o.fine_meshes)
         .iter()
         .map(|cm| leak_scene(cm, Placement::IDENTITY, o.origins, rng))
@@ -661,103 +725,78 @@ fn leaks_and_false_hits(
         report.real_scenes.push((scene.name.clone(), scene.info.triangles, scene.info.closed.clone()));
         scenes.push(scene);
     }
-    // Per leaf size and method: (all leak rays' GPU hits, reference hits) for the error rows.
-    let mut errors: Vec<ErrorSample> = Vec::new();
-    for scene in &scenes {
-        report.meshes.push(scene.info.clone());
-        if let Err(e) = &scene.info.closed {
-            return Err(Error::Usage(format!("generated mesh {} is not closed: {e}", scene.name)));
-        }
-        let mesh = &scene.mesh;
-        let host4 = build(mesh, FIXED_LEAF);
-        let reference = host4.reference();
-        // One ray list: leak rays of each kind, then the false-hit rays the reference misses.
-        let mut rays = Vec::new();
-        let mut parts: Vec<(String, usize, usize)> = Vec::new(); // (label, start, len)
-        for kind in LeakKind::ALL {
-            let r = probes::leak_rays(mesh, &scene.origins, kind, o.leak_rays, rng);
-            parts.push((kind.name().into(), rays.len(), r.len()));
-            rays.extend(r);
-        }
-        let leak_count = rays.len();
-        let b = mesh.bounds();
-        let centre = ((b.min + b.max) * 0.5).as_dvec3();
-        let eye = centre + DVec3::new(2.5, 1.5, 3.5) * (b.max - b.min).max_element() as f64;
-        let mut candidates = Vec::new();
-        for &d in &FALSE_HIT_OFFSETS {
-            let r = probes::silhouette_rays(mesh, eye, 10f64.powi(d), o.silhouette_rays, rng);
-            let hits = reference.trace_all(&r, false);
-            let kept: Vec<Ray> = r.iter().zip(&hits).filter(|(_, h)| !h.is_hit()).map(|(r, _)| *r).collect();
-            candidates.push(r.len());
-            parts.push((format!("d{d}"), rays.len(), kept.len()));
-            rays.extend(kept);
-        }
-        let t0 = Instant::now();
-        let ref_hits = reference.trace_all(&rays, false);
-        progress(&format!(
-            "{}: {} triangles, {} origins, {} leak + {} false-hit rays; reference in {:.1} s",
-            scene.name,
-            mesh.triangle_count(),
-            scene.origins.len(),
-            leak_count,
-            rays.len() - leak_count,
-            t0.elapsed().as_secs_f64()
-        ));
-        let split = o.split();
-        for (li, &leaf) in o.leaf_sizes.iter().enumerate() {
-            if !split.runs_any(li) {
-                continue; // another shard's leaf size
-            }
-            let host = build(mesh, leaf);
-            let groups = tracers.iter().flat_map(|t| o.layouts.iter().enumerate().map(move |(yi, l)| (t, yi, l)));
-            for (t, _, &layout) in groups.filter(|&(_, yi, _)| split.runs(li, yi)) {
-                let (hits, _) = cast(ctx, t, &host, layout, &rays)?;
-                let mut leaks = 0;
-                for (pi, (label, s, n)) in parts.iter().enumerate() {
-                    let (r, h, rh) = (&rays[*s..s + n], &hits[*s..s + n], &ref_hits[*s..s + n]);
-                    if pi < LeakKind::ALL.len() {
-                        let tally = Tally::of(r, h, rh, true, &[]);
-                        leaks += tally.leaks;
-                        let kind = LeakKind::ALL[pi];
-                        report.leaks.push(LeakRow {
-                            method: t.method,
-                            leaf_size: leaf,
-                            layout,
-                            mesh: scene.name.clone(),
-                            kind,
-                            tally,
-                        });
-                    } else {
-                        let d_exp: i32 = label[1..].parse().expect("labels are d<exp>");
-                        report.false_hits.push(FalseHitRow {
-                            method: t.method,
-                            leaf_size: leaf,
-                            layout,
-                            mesh: scene.name.clone(),
-                            d_exp,
-                            candidates: candidates[pi - LeakKind::ALL.len()],
-                            tally: Tally::of(r, h, rh, false, &[]),
-                        });
-                    }
-                }
-                let pos = match errors.iter().position(|e| e.method == t.method && e.leaf == leaf && e.layout == layout)
-                {
-                    Some(p) => p,
-                    None => {
-                        errors.push(ErrorSample { method: t.method, leaf, layout, tally: TallyBuilder::default() });
-                        errors.len() - 1
-                    }
-                };
-                errors[pos].tally.add(&rays[..leak_count], &hits[..leak_count], &ref_hits[..leak_count], true, &[]);
-                let on = if layout == Layout::DEFAULT { String::new() } else { format!(" on {layout}") };
-                progress(&format!("{} leaf {leaf} {}{on}: {leaks} leaks in {leak_count} rays", scene.name, t.method));
-            }
+    Ok(scenes)
+}
+
+/// One closed mesh's probe rays in one list: leak rays of each kind, then the false-hit rays
+/// the reference misses.
+struct ProbeRays {
+    rays: Vec<Ray>,
+    /// Each part of `rays`: (label, start, len).
+    parts: Vec<(String, usize, usize)>,
+    /// The leak rays, the first parts.
+    leak_count: usize,
+    /// Per false-hit offset: the silhouette rays made before the reference's misses were kept.
+    candidates: Vec<usize>,
+}
+
+fn probe_rays(o: &AccuracyOptions, scene: &LeakScene, reference: &Reference, rng: &mut Rng) -> ProbeRays {
+    let mesh = &scene.mesh;
+    let mut rays = Vec::new();
+    let mut parts: Vec<(String, usize, usize)> = Vec::new(); // (label, start, len)
+    for kind in LeakKind::ALL {
+        let r = probes::leak_rays(mesh, &scene.origins, kind, o.leak_rays, rng);
+        parts.push((kind.name().into(), rays.len(), r.len()));
+        rays.extend(r);
+    }
+    let leak_count = rays.len();
+    let b = mesh.bounds();
+    let centre = ((b.min + b.max) * 0.5).as_dvec3();
+    let eye = centre + DVec3::new(2.5, 1.5, 3.5) * (b.max - b.min).max_element() as f64;
+    let mut candidates = Vec::new();
+    for &d in &FALSE_HIT_OFFSETS {
+        let r = probes::silhouette_rays(mesh, eye, 10f64.powi(d), o.silhouette_rays, rng);
+        let hits = reference.trace_all(&r, false);
+        let kept: Vec<Ray> = r.iter().zip(&hits).filter(|(_, h)| !h.is_hit()).map(|(r, _)| *r).collect();
+        candidates.push(r.len());
+        parts.push((format!("d{d}"), rays.len(), kept.len()));
+        rays.extend(kept);
+    }
+    ProbeRays { rays, parts, leak_count, candidates }
+}
+
+/// One cell's (method, leaf size, layout) leak and false-hit rows, part by part, into the
+/// report; returns the leaks counted.
+fn tally_parts(
+    report: &mut AccuracyReport,
+    scene: &LeakScene,
+    probe: &ProbeRays,
+    (method, leaf, layout): (Method, u32, Layout),
+    hits: &[Hit],
+    ref_hits: &[RefHit],
+) -> usize {
+    let mut leaks = 0;
+    for (pi, (label, s, n)) in probe.parts.iter().enumerate() {
+        let (r, h, rh) = (&probe.rays[*s..s + n], &hits[*s..s + n], &ref_hits[*s..s + n]);
+        if pi < LeakKind::ALL.len() {
+            let tally = Tally::of(r, h, rh, true, &[]);
+            leaks += tally.leaks;
+            let kind = LeakKind::ALL[pi];
+            report.leaks.push(LeakRow { method, leaf_size: leaf, layout, mesh: scene.name.clone(), kind, tally });
+        } else {
+            let d_exp: i32 = label[1..].parse().expect("labels are d<exp>");
+            report.false_hits.push(FalseHitRow {
+                method,
+                leaf_size: leaf,
+                layout,
+                mesh: scene.name.clone(),
+                d_exp,
+                candidates: probe.candidates[pi - LeakKind::ALL.len()],
+                tally: Tally::of(r, h, rh, false, &[]),
+            });
         }
     }
-    for e in errors {
-        report.errors.push(ErrorRow { method: e.method, leaf_size: e.leaf, layout: e.layout, tally: e.tally.finish() });
-    }
-    Ok(())
+    leaks
 }
 
 /// Cosine-weighted direction about the unit normal `n` (f64, rounded once).

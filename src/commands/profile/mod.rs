@@ -514,14 +514,7 @@ pub fn run(
     let mesh = load_obj(&o.scene)?;
     let host = HostScene::build(&name, &mesh, &o.build)?;
     let reference = host.reference();
-    let sets = ray_sets(&mesh, &name, &reference, &o.sizes, None)?;
-    let refs: Vec<Vec<RefHit>> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
-    let sweep_idx = sets.iter().position(|(s, _)| *s == o.sweep_set).expect("every ray set is made");
-    progress(&format!(
-        "{name}: {} triangles; rays: {}",
-        mesh.triangle_count(),
-        sets.iter().map(|(n, r)| format!("{n} {}", r.len())).collect::<Vec<_>>().join(", ")
-    ));
+    let (sets, refs, sweep_idx) = profile_ray_sets(o, &name, &mesh, &reference, &mut progress)?;
     let mut s = Sections::new(ctx, o);
     let mut primary_cycles: Vec<(Method, Vec<u32>)> = vec![];
     let mut profiled_kernels = vec![];
@@ -535,29 +528,9 @@ pub fn run(
         Some(ro) => Some(efficiency::scene_roofline(ctx, &scenes, ro, &mut progress)?),
         None => None,
     };
-    let jobs: Vec<Job> = scenes
-        .iter()
-        .zip(&kernels)
-        .flat_map(|(scene, kernel)| {
-            sets.iter().zip(&refs).map(move |((_, rays), ref_hits)| Job {
-                scene,
-                kernel,
-                rays,
-                ref_hits,
-                order: crate::rays::order::RayOrder::Given,
-            })
-        })
-        .collect();
     let ropts = RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), ..Default::default() };
-    let timing = crate::timeline::span("section", "timestamps: every method's rounds interleaved");
-    let mut section1 = interleaved(ctx, &mesh, &jobs, ropts.warmup, ropts.repeat, ropts.batch_rays)
-        .map_err(|(i, e)| {
-            let (method, (set, _)) = (o.methods[i / sets.len()], &sets[i % sets.len()]);
-            Error::Usage(format!("{name} {set} {method}: {e}"))
-        })?
-        .into_iter();
-    drop(jobs);
-    drop(timing);
+    let mut section1 =
+        interleaved_timestamps(ctx, o, &name, &mesh, (&scenes, &kernels), (&sets, &refs), &ropts)?.into_iter();
     for (&method, scene) in o.methods.iter().zip(scenes) {
         let _span = crate::timeline::span_with("section", || format!("{method}: clocks, pipeline statistics, sizes"));
         let mut m = MethodRun {
@@ -583,23 +556,10 @@ pub fn run(
     }
     let heat_scale = HeatScale::of(&primary_cycles.iter().map(|(_, c)| c.as_slice()).collect::<Vec<_>>(), 1.0, 99.0);
     if let (Some(dir), Some(scale)) = (out_dir, &heat_scale) {
-        for (method, cycles) in &primary_cycles {
-            let file = format!("heatmap-{method}.png");
-            let title = format!("{method}: shader-clock ticks per primary ray, {}", host.name);
-            let png = clock::heat_map_png(cycles, o.sizes.width, o.sizes.height, scale, &title)?;
-            crate::io::write_atomic(&dir.join(&file), &png)?;
-            for r in s.shader_clock.rows.iter_mut().filter(|r| r.method == *method && r.data.ray_set == RaySet::Primary)
-            {
-                r.data.heat_map = Some(file.clone());
-            }
-        }
+        write_heat_maps(dir, scale, &primary_cycles, &host.name, o, &mut s)?;
     }
-    let threads = crate::timeline::span("section", "LP_NUM_THREADS: trilab bench per thread count (child processes)");
     let lp_scaling = threads_section(ctx, o, &sets, &mut progress)?;
-    drop(threads);
-    let stats = crate::timeline::span("section", "driver statistics (child processes)");
     let driver_statistics = driver_stats_section(ctx, o, &profiled_kernels, &mut progress)?;
-    drop(stats);
     Ok(ProfileReport {
         tag: DeviceTag::of(info),
         command: o.command.clone(),
@@ -632,6 +592,84 @@ pub fn run(
     })
 }
 
+/// The scene's ray sets, their f64 reference hits and the sweep set's index, announced in one
+/// progress line.
+#[allow(clippy::type_complexity)]
+fn profile_ray_sets(
+    o: &ProfileOptions,
+    name: &str,
+    mesh: &Mesh,
+    reference: &crate::reference::Reference,
+    progress: &mut impl FnMut(&str),
+) -> Result<(Vec<(RaySet, Vec<Ray>)>, Vec<Vec<RefHit>>, usize)> {
+    let sets = ray_sets(mesh, name, reference, &o.sizes, None)?;
+    let refs: Vec<Vec<RefHit>> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
+    let sweep_idx = sets.iter().position(|(s, _)| *s == o.sweep_set).expect("every ray set is made");
+    progress(&format!(
+        "{name}: {} triangles; rays: {}",
+        mesh.triangle_count(),
+        sets.iter().map(|(n, r)| format!("{n} {}", r.len())).collect::<Vec<_>>().join(", ")
+    ));
+    Ok((sets, refs, sweep_idx))
+}
+
+/// Section 1: the timestamps of every method's rounds on every set, interleaved so that a burst
+/// of other work on the host lands on all of them alike; per method, then per set.
+#[allow(clippy::type_complexity)]
+fn interleaved_timestamps(
+    ctx: &Context,
+    o: &ProfileOptions,
+    name: &str,
+    mesh: &Mesh,
+    (scenes, kernels): (&[DeviceScene], &[std::sync::Arc<Kernel>]),
+    (sets, refs): (&[(RaySet, Vec<Ray>)], &[Vec<RefHit>]),
+    ropts: &RaycastOptions,
+) -> Result<Vec<Interleaved>> {
+    let jobs: Vec<Job> = scenes
+        .iter()
+        .zip(kernels)
+        .flat_map(|(scene, kernel)| {
+            sets.iter().zip(refs).map(move |((_, rays), ref_hits)| Job {
+                scene,
+                kernel,
+                rays,
+                ref_hits,
+                order: crate::rays::order::RayOrder::Given,
+            })
+        })
+        .collect();
+    let timing = crate::timeline::span("section", "timestamps: every method's rounds interleaved");
+    let section1 = interleaved(ctx, mesh, &jobs, ropts.warmup, ropts.repeat, ropts.batch_rays).map_err(|(i, e)| {
+        let (method, (set, _)) = (o.methods[i / sets.len()], &sets[i % sets.len()]);
+        Error::Usage(format!("{name} {set} {method}: {e}"))
+    })?;
+    drop(jobs);
+    drop(timing);
+    Ok(section1)
+}
+
+/// Section 3's heat maps: one PNG per method of its primary rays' shader-clock ticks, all on
+/// one scale, each named in the method's primary-set rows.
+fn write_heat_maps(
+    dir: &Path,
+    scale: &HeatScale,
+    primary_cycles: &[(Method, Vec<u32>)],
+    scene: &str,
+    o: &ProfileOptions,
+    s: &mut Sections,
+) -> Result<()> {
+    for (method, cycles) in primary_cycles {
+        let file = format!("heatmap-{method}.png");
+        let title = format!("{method}: shader-clock ticks per primary ray, {scene}");
+        let png = clock::heat_map_png(cycles, o.sizes.width, o.sizes.height, scale, &title)?;
+        crate::io::write_atomic(&dir.join(&file), &png)?;
+        for r in s.shader_clock.rows.iter_mut().filter(|r| r.method == *method && r.data.ray_set == RaySet::Primary) {
+            r.data.heat_map = Some(file.clone());
+        }
+    }
+    Ok(())
+}
+
 /// Section 8: the driver statistics of the kernels the timings ran (each method's closest-hit
 /// kernel on the profile's layout and its scene's access path).
 fn driver_stats_section(
@@ -640,6 +678,7 @@ fn driver_stats_section(
     kernels: &[&'static crate::kernels::KernelSource],
     progress: &mut impl FnMut(&str),
 ) -> Result<Section<driver_stats::KernelStats>> {
+    let _span = crate::timeline::span("section", "driver statistics (child processes)");
     let Some(co) = &o.driver_stats else {
         return Ok(Section::new(Status::Skipped, "skipped (--no-driver-stats)"));
     };
@@ -764,6 +803,7 @@ fn threads_section(
     sets: &[(RaySet, Vec<Ray>)],
     progress: &mut impl FnMut(&str),
 ) -> Result<Section<Row<ThreadMeasurement>>> {
+    let _span = crate::timeline::span("section", "LP_NUM_THREADS: trilab bench per thread count (child processes)");
     let info = ctx.info();
     if let Err(u) = ctx.capabilities().statistic(Statistic::ThreadCount) {
         return Ok(Section::new(Status::NotApplicable, format!("{}: {}", u.what, u.why)));

@@ -402,6 +402,23 @@ impl StudyOptions {
     }
 }
 
+/// One (scene, leaf size) group's shared inputs: what every cell of it renders and casts.
+struct Group<'a> {
+    name: &'a str,
+    leaf: u32,
+    mesh: &'a crate::scene::Mesh,
+    sets: &'a [(RaySet, Vec<crate::rays::Ray>)],
+    ref_hits: &'a [Vec<crate::reference::RefHit>],
+    settings: &'a crate::render::RenderSettings,
+}
+
+impl Group<'_> {
+    /// An error or note about one cell, prefixed with the group and the cell.
+    fn what(&self, scene: &crate::pipeline::DeviceScene, s: &str) -> String {
+        format!("{}, leaf {}, {}: {s}", self.name, self.leaf, label(scene.method, scene.layout))
+    }
+}
+
 pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> Result<StudyReport> {
     if o.leaf_sizes.is_empty() || o.methods.is_empty() || o.scenes.is_empty() {
         return Err(Error::Usage("study: need at least one scene, leaf size and method".into()));
@@ -420,15 +437,7 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
         let _scene_label = crate::timeline::labels(|| vec![("scene", name.clone().into())]);
         let mesh = load_obj(path)?;
         progress(&format!("{name}: {} triangles; ray sets and f64 reference", mesh.triangle_count()));
-        // Ray sets and their reference hits, once per scene (they do not depend on the BVH).
-        let reference_scene = HostScene::build(&name, &mesh, &BuildOptions::new(crate::defaults::LEAF_SIZE))?;
-        let reference = reference_scene.reference();
-        let making = crate::timeline::span("rays", "ray sets");
-        let sets: Vec<(RaySet, Vec<crate::rays::Ray>)> =
-            RaySet::ALL.iter().map(|&s| Ok((s, s.generate(&mesh, &reference, &o.sizes())?))).collect::<Result<_>>()?;
-        drop(making);
-        let ref_hits: Vec<_> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
-
+        let (sets, ref_hits) = ray_sets(&name, &mesh, o)?;
         let settings = bench_settings(&mesh, (o.width, o.height), o.spp, o.max_depth, None);
         let mut scene_mean: Option<f64> = None;
 
@@ -448,115 +457,14 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
             let _leaf_span = crate::timeline::span_with("leaf", || format!("leaf size {leaf}"));
             let host =
                 HostScene::build(&name, &mesh, &BuildOptions { sah_group: o.sah_group, ..BuildOptions::new(leaf) })?;
-            let quality_span = crate::timeline::span("bvh", "BVH statistics and EPO");
-            let st = host.bvh.stats_with_epo(&mesh);
-            drop(quality_span);
-            if st.epo.is_none() {
-                progress(&format!("{name} leaf {leaf}: {}", crate::bvh::epo::not_computed(&host.bvh)));
-            }
-            let quality = BvhQuality {
-                nodes: st.nodes,
-                leaves: st.leaves,
-                depth: st.depth,
-                sah_cost: st.sah_cost,
-                epo: st.epo.unwrap_or(f64::NAN),
-                quad_padding: st.quad_padding,
-                build_ms: st.build_ms,
-            };
-            let mut cells = vec![];
-            for &method in &o.methods {
-                for &layout in &o.layouts {
-                    let pixels = settings.pixels();
-                    let request = SceneRequest::new(method).layout(layout);
-                    cells.push(Cell {
-                        target: RenderTarget::new(ctx, &host, request, KernelChoice::Specialised, pixels, true)?,
-                        renders: vec![],
-                        set_ms: vec![vec![]; sets.len()],
-                        set_agreement: vec![0.0; sets.len()],
-                        set_traversal: vec![None; sets.len()],
-                    });
-                }
-            }
+            let group = Group { name: &name, leaf, mesh: &mesh, sets: &sets, ref_hits: &ref_hits, settings: &settings };
+            let quality = bvh_quality(&group, &host, &mut progress);
+            let mut cells = group_cells(ctx, o, &group, &host)?;
             for round in 0..=o.repeat.max(1) {
-                progress(&format!("{name} leaf {leaf}: round {round}/{}", o.repeat.max(1)));
-                // Round 0 validates (and warms up); its times do not count.
-                let _round_span = crate::timeline::span_with("round", || format!("round {round}"));
-                let _round_label =
-                    crate::timeline::labels(|| vec![("round", round.into()), ("warm_up", (round == 0).into())]);
-                for cell in cells.iter_mut() {
-                    let scene = &cell.target.device;
-                    let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", label(scene.method, scene.layout));
-                    let rendering = crate::timeline::span_with("render", || {
-                        format!("path-trace render {}", label(scene.method, scene.layout))
-                    });
-                    let r = render(ctx, &cell.target, &settings, &mut |_| true)?;
-                    drop(rendering);
-                    for (si, ((set, rays), refs)) in sets.iter().zip(&ref_hits).enumerate() {
-                        let _set_label = crate::timeline::labels(|| vec![("set", set.to_string().into())]);
-                        let res = scene.cast(ctx, Raycast::Closest, rays, &RaycastOptions::default())?;
-                        if round == 0 {
-                            // Hits are deterministic: validate once, before any time counts.
-                            let a = validate_hits(&mesh, rays, &res.hits, refs)
-                                .map_err(|e| Error::Usage(what(&format!("{set} rays: {e}"))))?;
-                            cell.set_agreement[si] = a.fraction();
-                            let once = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
-                            let stats = scene.cast(ctx, Raycast::Stats, rays, &once)?;
-                            if crate::rays::differing_hits(&stats.hits, &res.hits) > 0 {
-                                return Err(Error::Usage(what(&format!(
-                                    "{set} rays: the statistics variant's hits differ from the kernel's"
-                                ))));
-                            }
-                            let counts = stats.traversal.expect("a stats kernel returns its counts");
-                            cell.set_traversal[si] = Some(TraversalSummary::of(&counts));
-                        } else {
-                            cell.set_ms[si].push(res.time_ms()?.median);
-                        }
-                    }
-                    if round > 0 {
-                        cell.renders.push(r);
-                    }
-                }
+                run_round(ctx, &group, round, o.repeat.max(1), &mut cells, &mut progress)?;
             }
             for cell in cells {
-                let scene = &cell.target.device;
-                let what = |s: &str| format!("{name}, leaf {leaf}, {}: {s}", label(scene.method, scene.layout));
-                let m = summarise_renders(&cell.renders).map_err(|e| Error::Usage(what(&e.to_string())))?;
-                check_image_mean(m.image_mean, &mut scene_mean).map_err(|e| Error::Usage(what(&e)))?;
-                let set_results = sets
-                    .iter()
-                    .enumerate()
-                    .map(|(si, (set, rays))| {
-                        let ms = Summary::of(&cell.set_ms[si]).expect("at least one timed round");
-                        SetResult {
-                            set: *set,
-                            rays: rays.len(),
-                            kernel_ms: ms,
-                            mrays_per_s: mrays_summary(rays.len(), ms),
-                            agreement: cell.set_agreement[si],
-                            traversal: cell.set_traversal[si].expect("measured in round 0"),
-                        }
-                    })
-                    .collect();
-                progress(&format!(
-                    "{name} leaf {leaf} {}: render {:.3} s, {:.2} Msamples/s",
-                    label(scene.method, scene.layout),
-                    m.ms.median * 1e-3,
-                    m.msamples_per_s.median
-                ));
-                rows.push(StudyRow {
-                    scene: name.clone(),
-                    triangles: mesh.triangle_count(),
-                    leaf_size: leaf,
-                    method: scene.method,
-                    layout: scene.layout,
-                    scene_bytes: scene.bytes,
-                    bvh: quality.clone(),
-                    render: m,
-                    render_kernel: cell.target.kernel.source.name,
-                    raycast_kernel: scene.kernel_source(Raycast::Closest)?.name,
-                    sets: set_results,
-                    provenance: provenance.clone(),
-                });
+                rows.push(study_row(&group, cell, &quality, &provenance, &mut scene_mean, &mut progress)?);
             }
             groups_done += 1;
         }
@@ -576,6 +484,170 @@ pub fn run(ctx: &Context, o: &StudyOptions, mut progress: impl FnMut(&str)) -> R
     }
     report.seconds = started.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// Ray sets and their reference hits, once per scene (they do not depend on the BVH).
+#[allow(clippy::type_complexity)]
+fn ray_sets(
+    name: &str,
+    mesh: &crate::scene::Mesh,
+    o: &StudyOptions,
+) -> Result<(Vec<(RaySet, Vec<crate::rays::Ray>)>, Vec<Vec<crate::reference::RefHit>>)> {
+    let reference_scene = HostScene::build(name, mesh, &BuildOptions::new(crate::defaults::LEAF_SIZE))?;
+    let reference = reference_scene.reference();
+    let making = crate::timeline::span("rays", "ray sets");
+    let sets: Vec<(RaySet, Vec<crate::rays::Ray>)> =
+        RaySet::ALL.iter().map(|&s| Ok((s, s.generate(mesh, &reference, &o.sizes())?))).collect::<Result<_>>()?;
+    drop(making);
+    let ref_hits: Vec<_> = sets.iter().map(|(_, r)| reference.trace_all(r, false)).collect();
+    Ok((sets, ref_hits))
+}
+
+/// The group's BVH statistics and EPO (a progress line when the EPO was not computed).
+fn bvh_quality(group: &Group, host: &HostScene, progress: &mut dyn FnMut(&str)) -> BvhQuality {
+    let quality_span = crate::timeline::span("bvh", "BVH statistics and EPO");
+    let st = host.bvh.stats_with_epo(group.mesh);
+    drop(quality_span);
+    if st.epo.is_none() {
+        progress(&format!("{} leaf {}: {}", group.name, group.leaf, crate::bvh::epo::not_computed(&host.bvh)));
+    }
+    BvhQuality {
+        nodes: st.nodes,
+        leaves: st.leaves,
+        depth: st.depth,
+        sah_cost: st.sah_cost,
+        epo: st.epo.unwrap_or(f64::NAN),
+        quad_padding: st.quad_padding,
+        build_ms: st.build_ms,
+    }
+}
+
+/// One cell per method and layout, each scene on the device, nothing measured yet.
+fn group_cells(ctx: &Context, o: &StudyOptions, group: &Group, host: &HostScene) -> Result<Vec<Cell>> {
+    let sets = group.sets.len();
+    let mut cells = vec![];
+    for &method in &o.methods {
+        for &layout in &o.layouts {
+            let pixels = group.settings.pixels();
+            let request = SceneRequest::new(method).layout(layout);
+            cells.push(Cell {
+                target: RenderTarget::new(ctx, host, request, KernelChoice::Specialised, pixels, true)?,
+                renders: vec![],
+                set_ms: vec![vec![]; sets],
+                set_agreement: vec![0.0; sets],
+                set_traversal: vec![None; sets],
+            });
+        }
+    }
+    Ok(cells)
+}
+
+/// One round over every cell of the group: a render and a cast of every ray set each.
+fn run_round(
+    ctx: &Context,
+    group: &Group,
+    round: usize,
+    rounds: usize,
+    cells: &mut [Cell],
+    progress: &mut dyn FnMut(&str),
+) -> Result<()> {
+    progress(&format!("{} leaf {}: round {round}/{rounds}", group.name, group.leaf));
+    // Round 0 validates (and warms up); its times do not count.
+    let _round_span = crate::timeline::span_with("round", || format!("round {round}"));
+    let _round_label = crate::timeline::labels(|| vec![("round", round.into()), ("warm_up", (round == 0).into())]);
+    for cell in cells.iter_mut() {
+        let scene = &cell.target.device;
+        let rendering =
+            crate::timeline::span_with("render", || format!("path-trace render {}", label(scene.method, scene.layout)));
+        let r = render(ctx, &cell.target, group.settings, &mut |_| true)?;
+        drop(rendering);
+        cast_sets(ctx, group, round, cell)?;
+        if round > 0 {
+            cell.renders.push(r);
+        }
+    }
+    Ok(())
+}
+
+/// One cell's casts of every ray set in a round: round 0 validates them and counts their
+/// traversal, the later rounds time them.
+fn cast_sets(ctx: &Context, group: &Group, round: usize, cell: &mut Cell) -> Result<()> {
+    let scene = &cell.target.device;
+    for (si, ((set, rays), refs)) in group.sets.iter().zip(group.ref_hits).enumerate() {
+        let _set_label = crate::timeline::labels(|| vec![("set", set.to_string().into())]);
+        let res = scene.cast(ctx, Raycast::Closest, rays, &RaycastOptions::default())?;
+        if round == 0 {
+            // Hits are deterministic: validate once, before any time counts.
+            let a = validate_hits(group.mesh, rays, &res.hits, refs)
+                .map_err(|e| Error::Usage(group.what(scene, &format!("{set} rays: {e}"))))?;
+            cell.set_agreement[si] = a.fraction();
+            let once = RaycastOptions { warmup: 0, repeat: 1, ..Default::default() };
+            let stats = scene.cast(ctx, Raycast::Stats, rays, &once)?;
+            if crate::rays::differing_hits(&stats.hits, &res.hits) > 0 {
+                return Err(Error::Usage(
+                    group.what(scene, &format!("{set} rays: the statistics variant's hits differ from the kernel's")),
+                ));
+            }
+            let counts = stats.traversal.expect("a stats kernel returns its counts");
+            cell.set_traversal[si] = Some(TraversalSummary::of(&counts));
+        } else {
+            cell.set_ms[si].push(res.time_ms()?.median);
+        }
+    }
+    Ok(())
+}
+
+/// A measured cell as the report's row: its renders summarised and checked against the
+/// scene's image mean, its ray sets' times, agreement and traversal.
+fn study_row(
+    group: &Group,
+    cell: Cell,
+    quality: &BvhQuality,
+    provenance: &Provenance,
+    scene_mean: &mut Option<f64>,
+    progress: &mut dyn FnMut(&str),
+) -> Result<StudyRow> {
+    let scene = &cell.target.device;
+    let m = summarise_renders(&cell.renders).map_err(|e| Error::Usage(group.what(scene, &e.to_string())))?;
+    check_image_mean(m.image_mean, scene_mean).map_err(|e| Error::Usage(group.what(scene, &e)))?;
+    let set_results = group
+        .sets
+        .iter()
+        .enumerate()
+        .map(|(si, (set, rays))| {
+            let ms = Summary::of(&cell.set_ms[si]).expect("at least one timed round");
+            SetResult {
+                set: *set,
+                rays: rays.len(),
+                kernel_ms: ms,
+                mrays_per_s: mrays_summary(rays.len(), ms),
+                agreement: cell.set_agreement[si],
+                traversal: cell.set_traversal[si].expect("measured in round 0"),
+            }
+        })
+        .collect();
+    progress(&format!(
+        "{} leaf {} {}: render {:.3} s, {:.2} Msamples/s",
+        group.name,
+        group.leaf,
+        label(scene.method, scene.layout),
+        m.ms.median * 1e-3,
+        m.msamples_per_s.median
+    ));
+    Ok(StudyRow {
+        scene: group.name.to_string(),
+        triangles: group.mesh.triangle_count(),
+        leaf_size: group.leaf,
+        method: scene.method,
+        layout: scene.layout,
+        scene_bytes: scene.bytes,
+        bvh: quality.clone(),
+        render: m,
+        render_kernel: cell.target.kernel.source.name,
+        raycast_kernel: scene.kernel_source(Raycast::Closest)?.name,
+        sets: set_results,
+        provenance: provenance.clone(),
+    })
 }
 
 /// The report's scenes, in the order they were run.
