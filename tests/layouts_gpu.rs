@@ -131,7 +131,7 @@ fn check_kinds(ctx: &trilab::gpu::Context, mesh: &Mesh) -> Vec<String> {
             // So does the storage path (issue 38), every kind it has.
             let sb = host.upload(ctx, &SceneRequest::new(method).layout(layout).access(SceneAccess::Storage)).unwrap();
             assert_eq!(sb.access, AccessPath::Storage);
-            assert!(sb.kernel_source(Raycast::Closest).unwrap().name.ends_with(&format!(".closest_sb_{layout}")));
+            assert!(sb.kernel_source(Raycast::Closest).unwrap().name.ends_with(&format!(".closest_storage_{layout}")));
             assert!(sb.kernel_source(Raycast::Clock).is_err(), "{method} {layout}: the storage path has no clock");
             let hs = sb.cast(ctx, Raycast::Closest, rays, &common::ONCE).unwrap().hits;
             assert!(hs == closest, "{method} {layout}: the storage path's hits differ from the texel path's");
