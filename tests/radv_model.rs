@@ -46,7 +46,9 @@ fn the_model_gives_radvs_subgroups_per_simd_for_every_committed_kernel() {
         let n = |c: &str| r[col(c)].parse::<f64>().unwrap_or(0.0) as u32;
         let chip: Chip = r[col("chip")].parse().unwrap();
         let name = format!("{}.{}.{}", &r[col("kernel")], &r[col("method")], {
-            let v = &r[col("variant")];
+            // results/radv was compiled before the access-path variants took the command line's
+            // words (issue 52: `_bda` is `_address`, `_sb` is `_storage`).
+            let v = &r[col("variant")].replace("_bda", "_address").replace("_sb", "_storage");
             let l = &r[col("layout")];
             if l == "bvh2" {
                 v.to_owned()

@@ -379,6 +379,8 @@ fn a_trace_file_that_is_a_folder_an_input_or_an_output_is_refused_before_any_wor
         let e = expect_error(&trilab(&args, 60), &["--timeline", &folder, "directory"]);
         assert!(!e.contains("bunny:"), "refused before any work: {e}");
     }
+    // `--trace`, the option's name before issue 52, is the same option.
+    expect_error(&trilab(&["bench", "--trace", &folder], 60), &["--timeline", &folder, "directory"]);
     // An input: the scene it reads.
     let scene = s(&scene_file(&dir));
     let args: Vec<&str> = [&["bench", "--scenes", &scene, "--timeline", &scene][..], &small].concat();
