@@ -231,8 +231,16 @@ impl BuildCell {
 pub fn plan_cells(o: &BuildBenchOptions, triangles: &[usize]) -> Vec<crate::rows::Cell> {
     let max_threads = o.threads.iter().max().copied().unwrap_or(1);
     let mut cells = vec![];
-    for (scene, &n) in o.scenes.iter().zip(triangles) {
-        let name = crate::scene::scene_name(scene);
+    // The matrix's groups: each scene at the one leaf size; a build-bench's other axes are its
+    // own (builders and thread counts, and the layouts' conversions, which run no kernel).
+    let groups = crate::matrix::Experiment {
+        scenes: o.scenes.clone(),
+        leaf_sizes: vec![o.build.max_leaf_size],
+        ..Default::default()
+    }
+    .groups();
+    for (group, &n) in groups.iter().zip(triangles) {
+        let name = group.scene_name().unwrap_or_default();
         let mut builds: Vec<(&str, usize)> = o.threads.iter().map(|&t| ("trilab-binned", t)).collect();
         if o.serial {
             builds.push(("trilab-serial", 1));

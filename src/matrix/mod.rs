@@ -1,8 +1,10 @@
 //! The experiment matrix: the axes a measurement crosses, in one place.
 //!
-//! A command that measures kernels (bench, ab's sides, ...) names the values it was asked for on
-//! each axis ([`KernelAxes`]: methods, layouts, traversals, access paths, node orders, ray
-//! orders) and loops over the cells this module gives it ([`KernelCell`]). Here, and nowhere
+//! A command that measures kernels (bench, the study, accuracy, profile, ab's sides, ...) names
+//! the values it was asked for on each axis ([`Experiment`]: scenes, leaf sizes, ray sets, and the
+//! kernel axes [`KernelAxes`]: methods, layouts, traversals, access paths, node orders, ray
+//! orders) and loops over the cells this module gives it ([`Cell`], [`KernelCell`]), mapping
+//! each to its own typed cell (`BenchCell`, `StudyCell`, ...) for its rows. Here, and nowhere
 //! else:
 //!
 //! - each axis's default is applied, once: an axis left empty takes its typed default
@@ -11,6 +13,8 @@
 //!   `gpu::Capabilities` gives ([`KernelAxes::for_device`]);
 //! - the registry's filter: a combination without a compiled kernel is left out with a note
 //!   ([`KernelAxes::kernels`], [`KernelAxes::notes`]);
+//! - the crossing, in one order: group (scene x leaf size, what a shard takes), ray set, kernel,
+//!   ray order ([`Experiment::cells`]);
 //! - a cell's name in progress lines and tables ([`KernelLabel`]).
 //!
 //! The access path a cell's scene is read through is not decided here: `--scene-access auto`
@@ -19,6 +23,8 @@
 
 mod axes;
 mod cell;
+mod experiment;
 
 pub use axes::KernelAxes;
 pub use cell::{KernelCell, KernelLabel};
+pub use experiment::{Cell, Experiment, Group};

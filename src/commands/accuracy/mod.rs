@@ -48,6 +48,7 @@ use crate::bvh::{BuildOptions, Bvh};
 use crate::encoding::{AccessPath, Layout, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, RaycastOptions};
+use crate::matrix::{Experiment, KernelAxes};
 use crate::named::named_enum;
 use crate::pipeline::{HostScene, SceneRequest};
 use crate::rays::offset::{Offset, SurfacePoint};
@@ -162,6 +163,16 @@ impl AccuracyOptions {
 }
 
 impl AccuracyOptions {
+    /// The leak sweep's matrix for `methods`: no scene (the closed meshes are the part's own),
+    /// each leaf size, each method on each layout (`bvh2` where none is named).
+    pub fn leak_experiment(&self, methods: &[Method]) -> Experiment {
+        Experiment {
+            leaf_sizes: self.leaf_sizes.clone(),
+            kernels: KernelAxes { methods: methods.to_vec(), layouts: self.layouts.clone(), ..Default::default() },
+            ..Default::default()
+        }
+    }
+
     /// The layout of the frontier (and its leaf size [`FIXED_LEAF`]): `bvh2` when measured.
     pub fn frontier_layout(&self) -> Layout {
         if self.layouts.contains(&Layout::DEFAULT) || self.layouts.is_empty() {
@@ -205,13 +216,13 @@ impl AccuracyOptions {
 pub fn plan_cells(o: &AccuracyOptions, methods: &[Method]) -> Vec<crate::rows::Cell> {
     let mut methods = methods.to_vec();
     methods.sort_by_key(|m| m.to_string());
+    let leaks = o.leak_experiment(&methods).cells();
     let mut cells = vec![];
     for m in &methods {
-        if o.leak_rays > 0 {
-            for leaf in &o.leaf_sizes {
-                for layout in &o.layouts {
-                    cells.push(AccuracyCell::Leaks { method: *m, leaf: *leaf, layout: *layout, rays: o.leak_rays });
-                }
+        if o.leak_rays > 0 && !o.leaf_sizes.is_empty() {
+            for c in leaks.iter().filter(|c| c.kernel.method == *m) {
+                let (leaf, layout) = (c.group.leaf, c.kernel.layout);
+                cells.push(AccuracyCell::Leaks { method: *m, leaf, layout, rays: o.leak_rays });
             }
         }
         if o.extreme_rays > 0 {
@@ -632,6 +643,7 @@ fn leaks_and_false_hits(
     progress: &mut impl FnMut(&str),
 ) -> Result<()> {
     let scenes = leak_scenes(o, user_scenes, report, rng, progress)?;
+    let cells = o.leak_experiment(&tracers.iter().map(|t| t.method).collect::<Vec<_>>()).cells();
     // Per leaf size and method: (all leak rays' GPU hits, reference hits) for the error rows.
     let mut errors: Vec<ErrorSample> = Vec::new();
     for scene in &scenes {
@@ -656,13 +668,16 @@ fn leaks_and_false_hits(
             t0.elapsed().as_secs_f64()
         ));
         let split = o.split();
-        for (li, &leaf) in o.leaf_sizes.iter().enumerate() {
+        for same in cells.chunk_by(|a, b| a.group == b.group) {
+            let (li, leaf) = (same[0].group.leaf_index, same[0].group.leaf);
             if !split.runs_any(li) {
                 continue; // another shard's leaf size
             }
             let host = build(mesh, leaf);
-            let groups = tracers.iter().flat_map(|t| o.layouts.iter().enumerate().map(move |(yi, l)| (t, yi, l)));
-            for (t, _, &layout) in groups.filter(|&(_, yi, _)| split.runs(li, yi)) {
+            let layout_index = |l| o.layouts.iter().position(|&x| x == l).unwrap_or(0);
+            for c in same.iter().filter(|c| split.runs(li, layout_index(c.kernel.layout))) {
+                let Some(t) = tracers.iter().find(|t| t.method == c.kernel.method) else { continue };
+                let layout = c.kernel.layout;
                 let (hits, _) = cast(ctx, t, &host, layout, rays)?;
                 let leaks = tally_parts(report, scene, &probe, (t.method, leaf, layout), &hits, &ref_hits);
                 let pos = match errors.iter().position(|e| e.method == t.method && e.leaf == leaf && e.layout == layout)

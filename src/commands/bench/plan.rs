@@ -8,7 +8,7 @@ use crate::bvh::{BuildOptions, NodeOrder};
 use crate::encoding::{AccessPath, Layout, Method, Traversal};
 use crate::error::Result;
 use crate::gpu::Peer;
-use crate::matrix::KernelAxes;
+use crate::matrix::{Experiment, KernelAxes};
 use crate::rays::order::RayOrder;
 use crate::services::peers::TinybvhLayout;
 use crate::services::rayset::{RaySet, RaySetSizes};
@@ -75,52 +75,53 @@ impl Default for BenchOptions {
     }
 }
 
-/// Every cell of the whole bench matrix (all shards), with the coordinates [`rows`] gives them
-/// except `rays`: a set's ray count is measured, not chosen (the diffuse set's depends on the
-/// primary hits), so a plan names a cell by scene, set and method/layout/leaf or peer, and a row
-/// fills it when it agrees on those ([`crate::rows::plan_matches`]). A set the options leave empty
-/// (`--random-rays 0`) is not planned; `driver`: the driver peers the run has (ray query, the ray
+/// Every cell of the whole bench matrix (all shards): the matrix's cells
+/// ([`BenchOptions::experiment`]) as [`BenchCell`]s, and per scene and set the peers, with the
+/// coordinates [`rows`] gives them except `rays`: a set's ray count is measured, not chosen (the
+/// diffuse set's depends on the primary hits), so a plan names a cell by scene, set and
+/// method/layout/leaf or peer, and a row fills it when it agrees on those
+/// ([`crate::rows::plan_matches`]). `driver`: the driver peers the run has (ray query, the ray
 /// tracing pipeline); `peers`: the peer programs that passed their probe.
 pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<crate::rows::Cell> {
-    let sizes = o.sizes;
-    let sets: Vec<RaySet> = <RaySet as crate::named::Named>::ALL
-        .iter()
-        .copied()
-        .filter(|&set| o.rays_dir.is_some() || !sizes.why_empty(set).starts_with("--"))
-        .collect();
-    let kernels = o.axes.kernels();
-    let mut cells = vec![];
-    for scene in &o.scenes {
-        let name = crate::scene::scene_name(scene);
-        for set in &sets {
-            for k in &kernels {
-                for order in o.axes.orders() {
-                    let tracer = CellTracer::Method {
-                        method: k.method,
-                        layout: k.layout,
-                        leaf: o.build.max_leaf_size,
-                        sah_group: Some(o.build.sah_group),
-                        traversal: k.traversal,
-                        node_order: k.node_order,
-                        order,
-                        // `auto` names no path in the plan (coordinates never name texel): the
-                        // row names the one the scene took.
-                        access: k.planned_path().unwrap_or(AccessPath::Texel),
-                    };
-                    cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
-                }
-            }
-            let peers = driver.iter().map(Peer::to_string).chain(peers.iter().cloned());
-            for peer in peers {
-                let tracer = CellTracer::Peer(peer);
-                cells.push(BenchCell { scene: name.clone(), set: *set, rays: None, tracer }.coordinates());
-            }
+    let experiment = o.experiment();
+    if experiment.sets.is_empty() {
+        return vec![]; // every set empty: nothing to measure (the run refuses it)
+    }
+    let cells = experiment.cells();
+    let peers: Vec<String> = driver.iter().map(Peer::to_string).chain(peers.iter().cloned()).collect();
+    let mut out = vec![];
+    // The matrix lists a (scene, set)'s kernels together; its peers follow them.
+    for same in cells.chunk_by(|a, b| (&a.group, a.set) == (&b.group, b.set)) {
+        let first = BenchCell::of(&same[0], &o.build);
+        let (scene, set) = (first.scene, first.set);
+        for c in same {
+            out.push(BenchCell::of(c, &o.build).coordinates());
+        }
+        for peer in &peers {
+            let tracer = CellTracer::Peer(peer.clone());
+            out.push(BenchCell { scene: scene.clone(), set, rays: None, tracer }.coordinates());
         }
     }
-    cells
+    out
 }
 
 impl BenchOptions {
+    /// The experiment's axes: the scenes, the one leaf size of `build`, the ray sets the sizes
+    /// leave non-empty (every set where `rays_dir` gives the rays), the kernel axes.
+    pub fn experiment(&self) -> Experiment {
+        let sets = <RaySet as crate::named::Named>::ALL
+            .iter()
+            .copied()
+            .filter(|&set| self.rays_dir.is_some() || !self.sizes.why_empty(set).starts_with("--"))
+            .collect();
+        Experiment {
+            scenes: self.scenes.clone(),
+            leaf_sizes: vec![self.build.max_leaf_size],
+            sets,
+            kernels: self.axes.clone(),
+        }
+    }
+
     /// The matrix as its shards split it: a shard takes whole scenes.
     pub fn split(&self) -> Split {
         Split::new(self.shard, self.scenes.len(), 1)
@@ -200,6 +201,29 @@ pub enum CellTracer {
 }
 
 impl BenchCell {
+    /// A matrix cell of a bench built with `build` (a bench crosses ray sets: a cell without
+    /// one is the primary set's). `auto` names no path in the plan (coordinates never name
+    /// texel): the row names the one the scene took.
+    pub fn of(c: &crate::matrix::Cell, build: &BuildOptions) -> BenchCell {
+        let k = c.kernel;
+        let tracer = CellTracer::Method {
+            method: k.method,
+            layout: k.layout,
+            leaf: c.group.leaf,
+            sah_group: Some(build.sah_group),
+            traversal: k.traversal,
+            node_order: k.node_order,
+            order: c.order,
+            access: k.planned_path().unwrap_or(AccessPath::Texel),
+        };
+        BenchCell {
+            scene: c.group.scene_name().unwrap_or_default(),
+            set: c.set.unwrap_or(RaySet::Primary),
+            rays: None,
+            tracer,
+        }
+    }
+
     /// The cell whose [`coordinates`](BenchCell::coordinates) are `c`, or what in them no bench
     /// cell has (an unknown coordinate, a value that does not parse).
     pub fn parse(c: &crate::rows::Cell) -> std::result::Result<BenchCell, String> {

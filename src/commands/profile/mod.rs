@@ -34,7 +34,7 @@ use crate::bvh::BuildOptions;
 use crate::encoding::{AccessPath, Layout, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, DeviceInfo, EnabledFeatures, Kernel, PipelineOptions, RaycastOptions, Statistic};
-use crate::pipeline::{DeviceScene, HostScene, SceneRequest};
+use crate::pipeline::{DeviceScene, HostScene};
 use crate::rays::{Hit, Ray};
 use crate::reference::RefHit;
 use crate::report::Summary;
@@ -51,6 +51,7 @@ pub use clock::{CycleStats, HeatScale};
 pub use threads::ThreadMeasurement;
 
 use crate::gpu::executable;
+use crate::matrix::{KernelAxes, KernelCell};
 pub use crate::rays::differing_hits;
 pub use crate::report::Status;
 use crate::services::driver_stats;
@@ -103,6 +104,14 @@ impl Default for ProfileOptions {
             driver_stats: None,
             roofline: None,
         }
+    }
+}
+
+impl ProfileOptions {
+    /// The kernel cells profiled: each method on the one layout, in the order asked
+    /// (`crate::matrix`: the registry's filter).
+    pub fn kernels(&self) -> Vec<KernelCell> {
+        KernelAxes { methods: self.methods.clone(), layouts: vec![self.layout], ..Default::default() }.kernels()
     }
 }
 
@@ -508,6 +517,16 @@ pub fn run(
 ) -> Result<ProfileReport> {
     o.sizes.require_all()?;
     o.sizes.check_memory()?;
+    let cells = o.kernels();
+    if cells.len() != o.methods.len() {
+        let has: Vec<Method> = cells.iter().map(|c| c.method).collect();
+        let missing: Vec<String> = o.methods.iter().filter(|m| !has.contains(m)).map(|m| m.to_string()).collect();
+        return Err(crate::error::Error::Usage(format!(
+            "profile --layout {}: no ray-casting kernel for {}",
+            o.layout,
+            missing.join(", ")
+        )));
+    }
     let info = ctx.info();
     let host_load_before = load_average();
     let name = crate::scene::scene_name(&o.scene);
@@ -520,8 +539,7 @@ pub fn run(
     let mut profiled_kernels = vec![];
     // Section 1 first, every method's rounds on every set interleaved, so that a burst of other
     // work on the host lands on all of them alike; the other sections per method after it.
-    let scenes: Vec<DeviceScene> =
-        o.methods.iter().map(|&m| host.upload(ctx, &SceneRequest::new(m).layout(o.layout))).collect::<Result<_>>()?;
+    let scenes: Vec<DeviceScene> = cells.iter().map(|c| host.upload(ctx, &c.request())).collect::<Result<_>>()?;
     let kernels = scenes.iter().map(|s| s.kernel(ctx, Raycast::Closest)).collect::<Result<Vec<_>>>()?;
     // The roofline at the scenes' bytes on their access paths, before any timing.
     let roofline = match &o.roofline {

@@ -36,8 +36,9 @@ use crate::bvh::BuildOptions;
 use crate::encoding::{Layout, Method, Raycast};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, RaycastOptions, TraversalSummary};
+use crate::matrix::{Experiment, KernelAxes};
 use crate::named::{named_enum, Named};
-use crate::pipeline::{HostScene, SceneRequest};
+use crate::pipeline::HostScene;
 use crate::render::{render, KernelChoice, RenderTarget};
 use crate::report::Summary;
 use crate::rows::{self as result_rows, Better, Figure, Plan, Row};
@@ -193,21 +194,21 @@ impl StudyOptions {
         Split::new(self.shard, self.scenes.len(), self.leaf_sizes.len())
     }
 
+    /// The experiment's axes: scenes, leaf sizes and the kernel axes (methods, layouts); no
+    /// ray-set axis: a study cell measures every set (and the path tracer).
+    pub fn experiment(&self) -> Experiment {
+        Experiment {
+            scenes: self.scenes.clone(),
+            leaf_sizes: self.leaf_sizes.clone(),
+            sets: vec![],
+            kernels: KernelAxes { methods: self.methods.clone(), layouts: self.layouts.clone(), ..Default::default() },
+        }
+    }
+
     /// Every cell of the whole matrix (all shards), in the study's order: scene, leaf size,
     /// method, layout.
     pub fn plan_cells(&self) -> Vec<result_rows::Cell> {
-        let mut cells = vec![];
-        for scene in &self.scenes {
-            let name = crate::scene::scene_name(scene);
-            for &leaf in &self.leaf_sizes {
-                for &method in &self.methods {
-                    for &layout in &self.layouts {
-                        cells.push(StudyCell { scene: name.clone(), leaf, method, layout }.coordinates());
-                    }
-                }
-            }
-        }
-        cells
+        self.experiment().cells().iter().map(|c| StudyCell::of(c).coordinates()).collect()
     }
 
     /// How this workload relates to the paper's, in words (stated in every output).
@@ -246,6 +247,16 @@ pub struct StudyCell {
 }
 
 impl StudyCell {
+    /// A matrix cell of the study.
+    pub fn of(c: &crate::matrix::Cell) -> StudyCell {
+        StudyCell {
+            scene: c.group.scene_name().unwrap_or_default(),
+            leaf: c.group.leaf,
+            method: c.kernel.method,
+            layout: c.kernel.layout,
+        }
+    }
+
     /// The cell's coordinates, as `rows.jsonl` names them: `scene`, `leaf`, `method`, `layout`.
     pub fn coordinates(&self) -> result_rows::Cell {
         result_rows::cell([
@@ -525,19 +536,16 @@ fn bvh_quality(group: &Group, host: &HostScene, progress: &mut dyn FnMut(&str)) 
 /// One cell per method and layout, each scene on the device, nothing measured yet.
 fn group_cells(ctx: &Context, o: &StudyOptions, group: &Group, host: &HostScene) -> Result<Vec<Cell>> {
     let sets = group.sets.len();
+    let pixels = group.settings.pixels();
     let mut cells = vec![];
-    for &method in &o.methods {
-        for &layout in &o.layouts {
-            let pixels = group.settings.pixels();
-            let request = SceneRequest::new(method).layout(layout);
-            cells.push(Cell {
-                target: RenderTarget::new(ctx, host, request, KernelChoice::Specialised, pixels, true)?,
-                renders: vec![],
-                set_ms: vec![vec![]; sets],
-                set_agreement: vec![0.0; sets],
-                set_traversal: vec![None; sets],
-            });
-        }
+    for kernel in o.experiment().kernels.kernels() {
+        cells.push(Cell {
+            target: RenderTarget::new(ctx, host, kernel.request(), KernelChoice::Specialised, pixels, true)?,
+            renders: vec![],
+            set_ms: vec![vec![]; sets],
+            set_agreement: vec![0.0; sets],
+            set_traversal: vec![None; sets],
+        });
     }
     Ok(cells)
 }
