@@ -1,5 +1,5 @@
 #version 460
-// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS clock=SHADER_CLOCK closest_address=SCENE_ADDRESS any_address=ANY_HIT,SCENE_ADDRESS stats_address=TRAVERSAL_STATS,SCENE_ADDRESS clock_address=SHADER_CLOCK,SCENE_ADDRESS closest_storage=SCENE_STORAGE any_storage=ANY_HIT,SCENE_STORAGE stats_storage=TRAVERSAL_STATS,SCENE_STORAGE closest_ww=WHILE_WHILE any_ww=ANY_HIT,WHILE_WHILE stats_ww=TRAVERSAL_STATS,WHILE_WHILE
+// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS clock=SHADER_CLOCK closest_address=SCENE_ADDRESS any_address=ANY_HIT,SCENE_ADDRESS stats_address=TRAVERSAL_STATS,SCENE_ADDRESS clock_address=SHADER_CLOCK,SCENE_ADDRESS closest_storage=SCENE_STORAGE any_storage=ANY_HIT,SCENE_STORAGE stats_storage=TRAVERSAL_STATS,SCENE_STORAGE closest_while_while=WHILE_WHILE any_while_while=ANY_HIT,WHILE_WHILE stats_while_while=TRAVERSAL_STATS,WHILE_WHILE
 // trilab:layouts closest any stats clock closest_address any_address stats_address clock_address closest_storage any_storage stats_storage
 // Ray casting: one ray per invocation, closest hit (t, u, v, OBJ triangle id) or, with ANY_HIT,
 // any hit in [tmin, tmax] (occlusion). The intersector is chosen per variant by build.rs.
@@ -17,7 +17,7 @@
 // Each of the eight once more per layout in glsl/layout/ (`closest_bvh4`, `any_address_bvh8`, ...):
 // that layout's traversal (WIDE_LAYOUT), whose nodes the pipeline binds at BINDING_NODES in
 // place of the binary ones.
-// WHILE_WHILE (`closest_ww`, `any_ww`, `stats_ww`; binary nodes): Aila & Laine's while-while
+// WHILE_WHILE (`closest_while_while`, `any_while_while`, `stats_while_while`; binary nodes): Aila & Laine's while-while
 // traversal with leaf postponing (glsl/traversal/while_while.glsl) in place of while-if.
 #extension GL_GOOGLE_include_directive : require
 #ifdef SHADER_CLOCK

@@ -1,7 +1,7 @@
 // trace(): one ray per invocation through the variant's layout, for the kernels that cast or
 // shoot rays one per invocation (raycast.comp, pathtrace.comp). The loop is the variant's
 // traversal: while-if (traversal/while_if.glsl, every layout), while-while with leaf postponing
-// (traversal/while_while.glsl, the `*_ww` variants of the binary nodes, WHILE_WHILE), or the
+// (traversal/while_while.glsl, the `*_while_while` variants of the binary nodes, WHILE_WHILE), or the
 // layout's own (LAYOUT_TRACE: cwbvh).
 //
 // void trace(TraceRay r, inout HitState h, bool any_hit): traces `r`, updating `h` (h.t must

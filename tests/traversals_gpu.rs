@@ -1,5 +1,5 @@
 //! The traversals beside while-if on the GPU (issue 15, "traversals worth measuring"):
-//! while-while with leaf postponing (`*_ww` variants of raycast.comp, glsl/traversal/while_while.glsl,
+//! while-while with leaf postponing (`*_while_while` variants of raycast.comp, glsl/traversal/while_while.glsl,
 //! binary nodes), the subgroup-cooperative kernel (glsl/raycast_coop.comp; bvh2, bvh4, bvh8, qbvh4)
 //! and persistent threads with dynamic ray fetch (glsl/raycast_persistent.comp; bvh2, bvh4, bvh8,
 //! qbvh4, closest).

@@ -1,7 +1,7 @@
-// "While-while" traversal of the binary BVH with leaf postponing (the `*_ww` variants of
+// "While-while" traversal of the binary BVH with leaf postponing (the `*_while_while` variants of
 // raycast.comp, WHILE_WHILE): Aila & Laine, "Understanding the Efficiency of Ray Traversal on
 // GPUs", HPG 2009, sec. 3 (while-while, postponed leaves), as in their 2012 kernels' structure.
-// Included by traverse.glsl in place of while-if for the binary nodes (raycast.comp's `*_ww`
+// Included by traverse.glsl in place of while-if for the binary nodes (raycast.comp's `*_while_while`
 // variants); the step is the layout's (layout_visit), the stack stack.glsl's (a sentinel at the
 // bottom, popped without a distance test), the box test and the leaf loop every traversal's.
 //

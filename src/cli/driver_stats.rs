@@ -42,7 +42,7 @@ pub struct DriverStatsArgs {
     #[arg(long, value_name = "K,...", value_delimiter = ',')]
     kernels: Vec<String>,
     /// Variants without their layout suffix, comma-separated (`closest`, `any`, `stats`,
-    /// `closest_address`, `closest_ww`, ...), or `all`; a kernel without the variant is left out.
+    /// `closest_address`, `closest_while_while`, ...), or `all`; a kernel without the variant is left out.
     /// Default: `closest,any` on lavapipe, `all` where the compiler reports statistics.
     #[arg(long, value_name = "V,...", value_delimiter = ',')]
     variants: Vec<String>,

@@ -946,7 +946,7 @@ mod tests {
         let bda = kernels_named(&["raycast.unit.closest_address_bvh8"]);
         let r = raycast_request(bda[0]).unwrap();
         assert_eq!((r.access, r.layout, r.traversal), (SceneAccess::Address, Layout::Bvh8, Traversal::WhileIf));
-        let ww = kernels_named(&["raycast.mt.any_ww"]);
+        let ww = kernels_named(&["raycast.mt.any_while_while"]);
         assert_eq!(raycast_request(ww[0]).unwrap().traversal, Traversal::WhileWhile);
         let bad = Selection { kernels: vec!["nope".into()], ..Selection::default() };
         assert!(bad.kernels().unwrap_err().to_string().contains("no kernel `nope`"));
