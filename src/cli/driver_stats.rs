@@ -8,8 +8,9 @@ use trilab::commands::profile::Status;
 use trilab::encoding::{Layout, Method};
 use trilab::error::{Error, Result};
 use trilab::gpu::Statistic;
+use trilab::matrix::TargetAxes;
 use trilab::named::Named;
-use trilab::services::driver_stats::target::{parse_targets, MesaBuild};
+use trilab::services::driver_stats::target::MesaBuild;
 use trilab::services::driver_stats::{self, CollectOptions, Selection, TargetOptions};
 use trilab::services::results::Folder;
 
@@ -132,11 +133,10 @@ pub fn run(a: DriverStatsArgs) -> Result<()> {
 /// device is opened here.
 fn run_targets(a: DriverStatsArgs) -> Result<()> {
     let exe = trilab::services::worker::this_exe()?;
-    let mesa = if a.mesa.is_empty() { vec![MesaBuild::Installed] } else { a.mesa.clone() };
-    let spec = a.targets.clone().unwrap_or_default();
-    let targets = parse_targets(&spec, &mesa).map_err(Error::Usage)?;
+    let axes = TargetAxes::parse(a.targets.as_deref().unwrap_or_default(), &a.mesa).map_err(Error::Usage)?;
+    let targets = axes.targets().map_err(Error::Usage)?;
     // Every Mesa build is found before any work.
-    for m in &mesa {
+    for m in &axes.mesa() {
         m.icd()?;
     }
     let methods = if a.methods.methods.is_empty() { Method::ALL.to_vec() } else { a.methods.methods.clone() };

@@ -17,6 +17,9 @@
 //!   ray order ([`Experiment::cells`]);
 //! - a cell's name in progress lines and tables ([`KernelLabel`]).
 //!
+//! The GPU targets that `driver-stats --targets` and the study compile for through RADV's null
+//! device are an axis too ([`TargetAxes`]: chips, compilers, subgroup sizes, Mesa builds).
+//!
 //! The access path a cell's scene is read through is not decided here: `--scene-access auto`
 //! leaves it to the scene's memory plan (`encoding::plan::MemoryPlan::choose`, the one place it
 //! is chosen), so a planned `auto` cell names no path, and its row names the one taken.
@@ -24,7 +27,9 @@
 mod axes;
 mod cell;
 mod experiment;
+mod targets;
 
 pub use axes::KernelAxes;
 pub use cell::{KernelCell, KernelLabel};
 pub use experiment::{Cell, Experiment, Group};
+pub use targets::{TargetAxes, TargetItem, DEFAULT_CHIPS};

@@ -29,6 +29,7 @@ use serde::Serialize;
 
 use crate::encoding::{Layout, Method, SceneCounts};
 use crate::gpu::amd::Chip;
+use crate::matrix::{TargetAxes, TargetItem};
 use crate::report::{Status, Table};
 use crate::services::driver_stats::report::names;
 use crate::services::driver_stats::target::{Compiler, GpuTarget, MesaBuild};
@@ -60,17 +61,17 @@ pub struct CompiledOptions {
 }
 
 impl CompiledOptions {
-    /// The targets: [`CHIPS`] with ACO at wave64, the installed Mesa.
+    /// The targets: [`CHIPS`] with ACO at wave64, the installed Mesa (the axes' default).
     pub fn targets() -> Vec<GpuTarget> {
-        CHIPS
+        let items = CHIPS
             .iter()
-            .map(|c| GpuTarget {
+            .map(|c| TargetItem {
                 chip: Chip::named(c).expect("known chips"),
-                compiler: Compiler::Aco,
-                wave: 64,
-                mesa: MesaBuild::Installed,
+                compiler: Some(Compiler::Aco),
+                wave: Some(64),
             })
-            .collect()
+            .collect();
+        TargetAxes { items, mesa: vec![] }.targets().expect("every chip compiles at wave64")
     }
 }
 
@@ -381,6 +382,21 @@ pub fn verdict(model: &[ModelRow]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_study_compiles_its_chips_with_aco_at_wave64_on_the_installed_mesa() {
+        let t: Vec<String> = CompiledOptions::targets().iter().map(|t| t.to_string()).collect();
+        assert_eq!(
+            t,
+            [
+                "pitcairn:aco:64@installed",
+                "polaris10:aco:64@installed",
+                "navi21:aco:64@installed",
+                "navi31:aco:64@installed",
+                "gfx1201:aco:64@installed"
+            ]
+        );
+    }
 
     #[test]
     fn table_4_gives_quad_unit_about_0_83_of_mt() {

@@ -11,6 +11,9 @@
 //! [`Request::CompileKernels`]: each kernel compiled once, with its statistics
 //! ([`super::statistic`]) or the reason it cannot be compiled there. A worker that dies (a chip
 //! this Mesa build does not know aborts in RADV) fails its target, named, and the others go on.
+//!
+//! Which targets a run compiles for (the `--targets` items, their defaults, their crossing) is
+//! the experiment matrix's: `src/matrix/targets.rs`.
 
 use std::ffi::OsString;
 use std::fmt;
@@ -181,66 +184,6 @@ impl fmt::Display for GpuTarget {
     }
 }
 
-/// The chips `--targets default` compiles for: the paper's HD 7850 (pitcairn, GCN 1), then one
-/// chip of each later generation: Polaris (GCN 4), Vega (GCN 5), RDNA 2, RDNA 3, RDNA 4.
-pub const DEFAULT_CHIPS: [&str; 6] = ["pitcairn", "polaris10", "vega10", "navi21", "navi31", "gfx1201"];
-
-/// Reads `--targets`: comma-separated `CHIP[:COMPILER[:WAVE]]` (a part left out is every
-/// compiler, or every subgroup size the chip allows), or `default` ([`DEFAULT_CHIPS`], every
-/// compiler and size), crossed with each Mesa build. An error names the part that is wrong
-/// (an unknown chip, wave32 on GCN) before any work starts.
-pub fn parse_targets(spec: &str, mesa: &[MesaBuild]) -> std::result::Result<Vec<GpuTarget>, String> {
-    let mut out = vec![];
-    let items: Vec<String> = spec
-        .split(',')
-        .map(|s| s.trim().to_owned())
-        .filter(|s| !s.is_empty())
-        .flat_map(|s| if s == "default" { DEFAULT_CHIPS.iter().map(|c| c.to_string()).collect() } else { vec![s] })
-        .collect();
-    if items.is_empty() {
-        return Err("--targets: no target given".into());
-    }
-    for m in mesa {
-        for item in &items {
-            let mut parts = item.split(':');
-            let chip: Chip = parts.next().unwrap_or_default().parse().map_err(|e| format!("--targets {item}: {e}"))?;
-            let compilers = match parts.next() {
-                None | Some("") => Compiler::ALL.to_vec(),
-                Some(c) => vec![c.parse::<Compiler>().map_err(|e| format!("--targets {item}: {e}"))?],
-            };
-            let waves = match parts.next() {
-                None | Some("") => chip.subgroup_sizes().to_vec(),
-                Some(w) => {
-                    let w: u32 = w
-                        .trim_start_matches("wave")
-                        .parse()
-                        .map_err(|_| format!("--targets {item}: subgroup size `{w}` is not a number"))?;
-                    if !chip.subgroup_sizes().contains(&w) {
-                        return Err(format!(
-                            "--targets {item}: {chip} ({}) compiles compute kernels at {} lanes only",
-                            chip.gfx.architecture(),
-                            chip.subgroup_sizes().iter().map(|s| s.to_string()).collect::<Vec<_>>().join(" or ")
-                        ));
-                    }
-                    vec![w]
-                }
-            };
-            if let Some(rest) = parts.next() {
-                return Err(format!("--targets {item}: `{rest}` after CHIP:COMPILER:WAVE"));
-            }
-            for &compiler in &compilers {
-                for &wave in &waves {
-                    let t = GpuTarget { chip, compiler, wave, mesa: m.clone() };
-                    if !out.contains(&t) {
-                        out.push(t);
-                    }
-                }
-            }
-        }
-    }
-    Ok(out)
-}
-
 impl GpuTarget {
     /// The worker that compiles for this target: this executable with the environment that
     /// makes the target (the RADV ICD, the chip, the compiler, no shader cache, none of the
@@ -328,40 +271,11 @@ impl GpuTarget {
 mod tests {
     use super::*;
 
-    fn names(ts: &[GpuTarget]) -> Vec<String> {
-        ts.iter().map(|t| t.to_string()).collect()
-    }
-
     #[test]
-    fn targets_expand_to_every_compiler_and_size_a_chip_allows() {
-        let t = parse_targets("pitcairn", &[MesaBuild::Installed]).unwrap();
-        assert_eq!(names(&t), ["pitcairn:aco:64@installed", "pitcairn:llvm:64@installed"]);
-        let t = parse_targets("navi31:aco", &[MesaBuild::Installed, MesaBuild::Stock]).unwrap();
-        assert_eq!(
-            names(&t),
-            ["navi31:aco:32@installed", "navi31:aco:64@installed", "navi31:aco:32@stock", "navi31:aco:64@stock"]
-        );
-        let t = parse_targets("navi21:llvm:wave32, navi21:llvm:32", &[MesaBuild::Installed]).unwrap();
-        assert_eq!(names(&t), ["navi21:llvm:32@installed"]);
-        // The default set: 3 GCN chips x 2 compilers + 3 RDNA chips x 2 compilers x 2 sizes.
-        let t = parse_targets("default", &[MesaBuild::Installed]).unwrap();
-        assert_eq!(t.len(), 3 * 2 + 3 * 2 * 2);
-        assert_eq!(t[0].chip.name, "pitcairn");
-    }
-
-    #[test]
-    fn a_wrong_target_is_named_before_any_work() {
-        let e = parse_targets("pitcairn:aco:32", &[MesaBuild::Installed]).unwrap_err();
-        assert!(e.contains("pitcairn (GCN 1) compiles compute kernels at 64 lanes only"), "{e}");
-        let e = parse_targets("navi99", &[MesaBuild::Installed]).unwrap_err();
-        assert!(e.contains("--targets navi99: no chip `navi99`"), "{e}");
-        let e = parse_targets("navi31:gcc", &[MesaBuild::Installed]).unwrap_err();
-        assert!(e.contains("no compiler `gcc`"), "{e}");
-        let e = parse_targets("navi31:aco:64:x", &[MesaBuild::Installed]).unwrap_err();
-        assert!(e.contains("`x` after"), "{e}");
-        assert!(parse_targets(" , ", &[MesaBuild::Installed]).is_err());
+    fn a_mesa_build_is_installed_stock_or_an_icd_file() {
         assert!("nope".parse::<MesaBuild>().unwrap_err().contains("installed, stock"));
         assert_eq!("x/radv.json".parse::<MesaBuild>().unwrap(), MesaBuild::Icd("x/radv.json".into()));
+        assert_eq!("stock".parse::<MesaBuild>().unwrap(), MesaBuild::Stock);
     }
 
     #[test]
