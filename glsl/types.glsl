@@ -43,8 +43,8 @@ struct BvhNode {
 // for both paths.
 // - Default (texel path): a storage texel buffer, read with imageLoad (the reasons above).
 //   One binding holds at most maxTexelBufferElements texels (2^27 on lavapipe and NVIDIA).
-// - SCENE_ADDRESS (the raycast kernels' `*_address` variants; src/encoding/plan.rs picks them when a
-//   buffer exceeds that limit): the same binding is a uniform block holding the buffer's device
+// - SCENE_ADDRESS (the raycast kernels' `*_address` variants; src/encoding/placement.rs picks
+//   them when a buffer exceeds that limit): the same binding is a uniform block holding the buffer's device
 //   address, and loads go through GL_EXT_buffer_reference (no per-binding size limit). The
 //   kernel must enable GL_EXT_buffer_reference itself (raycast.comp does). Indices stay 32-bit:
 //   SPIR-V treats access-chain indices as signed, so a buffer holds at most 2^31 texels here.

@@ -22,7 +22,7 @@ pub const ENV_VARS: &[EnvVar] = &[
     EnvVar { name: "TRILAB_MAX_SCENE_BYTES", help: "most bytes of OBJ text read after decompression (default 2 GiB)" },
     EnvVar {
         name: "TRILAB_MAX_MEMORY",
-        help: "bytes a command may plan to allocate (default: MemAvailable); larger sizes are refused",
+        help: "bytes a command may allocate, checked before it does (default: MemAvailable); larger sizes are refused",
     },
     EnvVar { name: "TRILAB_COMMIT", help: "the commit recorded in reports instead of the working directory's (a copy without .git; the gate's base build)" },
     EnvVar {

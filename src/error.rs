@@ -58,8 +58,8 @@ pub enum Error {
     #[error("{what} did not finish within {seconds} s")]
     Timeout { what: String, seconds: f64 },
 
-    /// A scene's GPU memory plan (`encoding::plan`) does not fit the device: found before anything
-    /// is allocated.
+    /// A scene's GPU memory placement (`encoding::placement`) does not fit the device: found
+    /// before anything is allocated.
     #[error("{0}")]
     SceneTooLarge(Box<TooLarge>),
 

@@ -10,7 +10,7 @@
 //!   spawn offsets; [`bvh`]: the SAH build, 32-byte nodes.
 //! - The CPU's truth: the f64 [`reference`], [`agreement`] with it, [`traversal`] (the
 //!   kernels' loop mirrored on the CPU).
-//! - [`encoding`]: the intersectors, one unit each (layout, encoder, memory plan), their
+//! - [`encoding`]: the intersectors, one unit each (layout, encoder, memory placement), their
 //!   registry and [`encoding::Method`].
 //! - [`gpu`]: device, buffers, pipelines, dispatch, timestamps, faults, the driver's ray query.
 //! - [`conditioning`]: a scene's conditioning and the method it needs (`--method auto`).

@@ -369,7 +369,7 @@ fn raycast_and_render_method_auto_say_what_they_picked() {
     assert_eq!(j["method"], j["auto"]["method"], "{j}");
 }
 
-/// A render whose buffers cannot fit is refused by the plan before anything is encoded or
+/// A render whose buffers cannot fit is refused by its placement before anything is encoded or
 /// allocated, naming the buffer and the limit; nothing is written.
 #[test]
 fn a_render_that_cannot_fit_is_refused_before_upload() {

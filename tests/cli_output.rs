@@ -69,7 +69,7 @@ fn every_command_makes_a_missing_out_folder() {
         ),
         ("spirv", &["spirv"], "instruction_counts.csv"),
         ("man", &["man"], "trilab.1"),
-        ("scale", &["scale", "--plan-only"], "scale.json"),
+        ("scale", &["scale", "--placement-only"], "scale.json"),
         (
             "roofline",
             &["roofline", "--sizes", "16K", "--rounds", "1", "--invocations", "4096", "--steps", "8"],
@@ -97,7 +97,7 @@ fn a_file_as_out_is_refused_by_name() {
     let tmp = tempfile::tempdir().unwrap();
     let file = tmp.path().join("a-file");
     std::fs::write(&file, "keep me").unwrap();
-    for args in [&["bench", "--scenes", "cornell", "--methods", "mt"][..], &["spirv"], &["scale", "--plan-only"]] {
+    for args in [&["bench", "--scenes", "cornell", "--methods", "mt"][..], &["spirv"], &["scale", "--placement-only"]] {
         let mut argv: Vec<&str> = args.to_vec();
         argv.extend(["--out", file.to_str().unwrap()]);
         let o = trilab(&argv, 120);

@@ -117,6 +117,7 @@ fn one_vocabulary_with_the_old_spellings_hidden() {
         ("trilab scale", "reference-rays", "validate"),
         ("trilab scale", "ray-count", "rays"),
         ("trilab scale", "ray-set", "ray-kind"),
+        ("trilab scale", "placement-only", "plan-only"),
         ("trilab accuracy", "leak-rays", "rays"),
         ("trilab rays random", "random-rays", "count"),
         ("trilab rays diffuse", "diffuse-per-hit", "per-hit"),

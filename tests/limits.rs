@@ -141,7 +141,7 @@ fn every_command_reads_a_scene_beyond_one_binding_through_addresses() {
     all_address(&paths(&bench["rows"], "scene_access"), "bench");
     assert_eq!(bench["rows"].as_array().unwrap().len(), 9);
 
-    // scale: the plan's choice is in each row, and the sample agrees with the reference.
+    // scale: the placement's choice is in each row, and the sample agrees with the reference.
     let o = trilab(
         &[
             "scale",
@@ -275,7 +275,7 @@ fn the_path_tracer_refuses_a_scene_beyond_one_storage_binding_in_every_command_t
         }
         messages.push(line);
     }
-    // One plan, one message: every command refuses in the same words.
+    // One placement, one message: every command refuses in the same words.
     assert!(messages.windows(2).all(|w| w[0] == w[1]), "{messages:#?}");
     // Nothing was written: the refusal comes before any work.
     assert!(!dir.path().join("x.exr").exists() && !dir.path().join("study/study.json").exists());

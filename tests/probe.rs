@@ -22,8 +22,8 @@ fn texel_loaders_return_exactly_what_the_encoders_wrote() {
             for method in Method::ALL {
                 // The encoding as uploaded, kept for the comparison.
                 let mut enc = None;
-                let plan = host.plan(ctx, &SceneRequest::new(method)).unwrap();
-                let scene = plan.upload_with(ctx, None, |e| enc = Some(e.clone())).unwrap();
+                let placement = host.place(ctx, &SceneRequest::new(method)).unwrap();
+                let scene = placement.upload_with(ctx, None, |e| enc = Some(e.clone())).unwrap();
                 let enc = enc.unwrap();
                 let kernel = ctx.create_kernel(method.probe_kernel()).unwrap();
                 let (prims, size) = enc.prim_structs();

@@ -24,9 +24,9 @@ fn small(mesh: &Mesh, w: u32, h: u32, spp: u32) -> RenderSettings {
 fn render_mesh(ctx: &Context, mesh: &Mesh, method: Method, s: &RenderSettings) -> RenderResult {
     let host = HostScene::build("test", mesh, &BuildOptions::new(4)).unwrap();
     let target = RenderTarget::new(ctx, &host, method.into(), KernelChoice::Specialised, s.pixels(), false).unwrap();
-    let plan = &target.device.plan;
-    let slot_ids = plan.buffers.iter().find(|b| b.name == "slot ids").unwrap().bytes;
-    assert_eq!(target.device.bytes as u64, plan.bytes() - slot_ids, "uploads all but the slot id table");
+    let placement = &target.device.placement;
+    let slot_ids = placement.buffers.iter().find(|b| b.name == "slot ids").unwrap().bytes;
+    assert_eq!(target.device.bytes as u64, placement.bytes() - slot_ids, "uploads all but the slot id table");
     let r = render::render(ctx, &target, s, &mut |_| true).unwrap();
     assert_eq!(r.spp, s.spp);
     assert!(!r.interrupted);

@@ -255,7 +255,7 @@ fn profile_with_roofline_adds_each_kernels_share_of_it() {
 }
 
 /// Sizes a path cannot hold are skipped naming the limit, and the other paths still run
-/// (`TRILAB_TEST_LIMITS` lowers the device's limits as the scene planner's tests do).
+/// (`TRILAB_TEST_LIMITS` lowers the device's limits as the scene placement's tests do).
 #[test]
 fn sizes_past_a_paths_limit_are_skipped_naming_it() {
     let dir = tempfile::tempdir().unwrap();

@@ -1,13 +1,13 @@
-//! Large scenes: memory plans equal the encoded buffers, a scene that does not fit fails before
+//! Large scenes: memory placements equal the encoded buffers, a scene that does not fit fails before
 //! anything is allocated, the address path (`*_address` kernels) equals the texel path and the f64
-//! reference, the planner picks the address path by itself when a buffer exceeds one binding,
+//! reference, the placement picks the address path by itself when a buffer exceeds one binding,
 //! and a million-triangle scene casts correctly through it.
 
 mod common;
 
 use trilab::agreement::{compare_any, compare_closest};
 use trilab::bvh::{BuildOptions, Bvh};
-use trilab::encoding::{AccessPath, DeviceLimits, MemoryPlan, Method, Raycast, SceneAccess};
+use trilab::encoding::{AccessPath, DeviceLimits, Method, Placement, Raycast, SceneAccess};
 use trilab::error::Error;
 use trilab::gpu::{ContextOptions, RaycastOptions};
 use trilab::pipeline::{HostScene, SceneRequest};
@@ -40,19 +40,19 @@ fn sheet(k: u32) -> Mesh {
 }
 
 #[test]
-fn plans_equal_the_encoded_buffer_sizes_on_the_bunny() {
+fn placements_equal_the_encoded_buffer_sizes_on_the_bunny() {
     let mesh = common::bunny();
     for leaf in [1, 4, 7] {
         let bvh = Bvh::build(&mesh, &BuildOptions::new(leaf));
         for m in Method::ALL {
-            let plan = MemoryPlan::for_bvh(m, &mesh, &bvh);
+            let placement = Placement::for_bvh(m, &mesh, &bvh);
             let enc = m.encode(&mesh, &bvh);
             let want: Vec<(&str, u32, u64)> =
                 enc.buffers().iter().map(|b| (b.name, b.binding, b.bytes.len() as u64)).collect();
-            let got: Vec<(&str, u32, u64)> = plan.buffers.iter().map(|b| (b.name, b.binding, b.bytes)).collect();
+            let got: Vec<(&str, u32, u64)> = placement.buffers.iter().map(|b| (b.name, b.binding, b.bytes)).collect();
             assert_eq!(got, want, "{m} leaf {leaf}");
-            assert_eq!(plan.bytes(), enc.gpu_bytes() as u64, "{m} leaf {leaf}");
-            assert_eq!(MemoryPlan::of_encoded(&enc).buffers, plan.buffers, "{m} leaf {leaf}");
+            assert_eq!(placement.bytes(), enc.gpu_bytes() as u64, "{m} leaf {leaf}");
+            assert_eq!(Placement::of_encoded(&enc).buffers, placement.buffers, "{m} leaf {leaf}");
         }
     }
 }
@@ -65,31 +65,31 @@ fn a_scene_that_does_not_fit_fails_before_upload_and_one_that_fits_uploads() {
         let bvh = &host.bvh;
         let real = ctx.limits().unwrap();
         for m in [Method::Mt, Method::QuadUnit] {
-            let plan = MemoryPlan::for_bvh(m, &mesh, bvh);
+            let placement = Placement::for_bvh(m, &mesh, bvh);
             // Fits as the device is.
-            let path = plan.choose("bunny", SceneAccess::Auto, &real).unwrap();
+            let path = placement.choose("bunny", SceneAccess::Auto, &real).unwrap();
             assert_eq!(path, AccessPath::Texel);
             let gpu = host.upload(ctx, &SceneRequest::new(m)).unwrap();
             assert_eq!(gpu.access, path);
-            assert_eq!(gpu.bytes as u64, plan.gpu_bytes());
+            assert_eq!(gpu.bytes as u64, placement.gpu_bytes());
             // A device with less memory than the scene: the error names everything.
-            let small = DeviceLimits { budget_bytes: Some(plan.gpu_bytes() / 2), ..real };
-            let e = plan.choose("bunny", SceneAccess::Auto, &small).unwrap_err();
+            let small = DeviceLimits { budget_bytes: Some(placement.gpu_bytes() / 2), ..real };
+            let e = placement.choose("bunny", SceneAccess::Auto, &small).unwrap_err();
             assert!(matches!(e, Error::SceneTooLarge(_)), "{e}");
             let msg = e.to_string();
-            for want in ["bunny", m.name(), "all scene buffers", &plan.gpu_bytes().to_string(), "budget", "try"] {
+            for want in ["bunny", m.name(), "all scene buffers", &placement.gpu_bytes().to_string(), "budget", "try"] {
                 assert!(msg.contains(want), "`{want}` missing from: {msg}");
             }
             // Buffers beyond one texel binding, with no address path: storage buffers; beyond one
             // storage binding too: names the buffer and the limit.
             let tight = DeviceLimits { max_texel_buffer_elements: 1000, buffer_device_address: false, ..real };
-            assert_eq!(host.plan_for(m, None, &SceneRequest::new(m), &tight).unwrap().access, AccessPath::Storage);
+            assert_eq!(host.place_for(m, None, &SceneRequest::new(m), &tight).unwrap().access, AccessPath::Storage);
             let tight = DeviceLimits { max_storage_buffer_range: 16000, ..tight };
-            let msg = host.plan_for(m, None, &SceneRequest::new(m), &tight).err().expect("does not fit").to_string();
+            let msg = host.place_for(m, None, &SceneRequest::new(m), &tight).err().expect("does not fit").to_string();
             assert!(msg.contains("maxStorageBufferRange") && msg.contains("16000"), "{msg}");
             // Forced texel path over the limit suggests the address path.
             let tight = DeviceLimits { max_texel_buffer_elements: 1000, ..real };
-            let msg = plan.choose("bunny", SceneAccess::Texel, &tight).unwrap_err().to_string();
+            let msg = placement.choose("bunny", SceneAccess::Texel, &tight).unwrap_err().to_string();
             assert!(msg.contains("--scene-access address"), "{msg}");
         }
     });
@@ -159,17 +159,17 @@ fn a_million_triangles_through_the_automatically_chosen_address_path_match_the_r
     assert!(any.passes(), "{any:?}");
 }
 
-/// `trilab scale --plan-only` names each layout's node bytes per triangle: the binary tree's
+/// `trilab scale --placement-only` names each layout's node bytes per triangle: the binary tree's
 /// exactly, every wide layout's a bound that holds the node buffer really built from the bunny's
 /// tree.
 #[test]
-fn plan_only_prices_every_layouts_nodes() {
+fn placement_only_prices_every_layouts_nodes() {
     use trilab::encoding::Layout;
     use trilab::named::Named;
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("scale");
     let o = common::cli::trilab(
-        &["scale", "--scenes", "bunny", "--plan-only", "--methods", "mt", "--out", out.to_str().unwrap()],
+        &["scale", "--scenes", "bunny", "--placement-only", "--methods", "mt", "--out", out.to_str().unwrap()],
         300,
     );
     common::cli::ok(&o);
@@ -189,7 +189,7 @@ fn plan_only_prices_every_layouts_nodes() {
     assert_eq!(bytes(Layout::Bvh2), bvh.nodes.len() as u64 * 32);
     for &l in Layout::ALL.iter().filter(|&&l| l != Layout::Bvh2) {
         let built = l.nodes(&bvh.nodes, &bvh.options).unwrap().expect("a wide layout builds its nodes");
-        assert!(built.bytes.len() as u64 <= bytes(l), "{l}: built {} > planned {}", built.bytes.len(), bytes(l));
+        assert!(built.bytes.len() as u64 <= bytes(l), "{l}: built {} > placed {}", built.bytes.len(), bytes(l));
     }
     let md = std::fs::read_to_string(out.join("scale.md")).unwrap();
     assert!(md.contains("## Node bytes per layout") && md.contains("| bunny | 69451 | bvh8 |"), "{md}");

@@ -23,8 +23,9 @@ pub struct KernelArgs {
     /// Occlusion query: any hit in [tmin, tmax] instead of the closest.
     #[arg(long)]
     pub any_hit: bool,
-    /// How the kernels read the scene: `auto` plans its GPU memory and uses texel buffers when
-    /// every buffer fits one binding, else buffer device addresses (the JSON says which).
+    /// How the kernels read the scene: `auto` places the scene in GPU memory and uses texel
+    /// buffers when every buffer fits one binding, else buffer device addresses (the JSON says
+    /// which).
     #[arg(long, value_parser = choice::<SceneAccess>(), default_value_t = SceneAccess::DEFAULT)]
     pub scene_access: SceneAccess,
     /// BVH node layout: `bvh2` (the paper's binary tree) or a wide one (`trilab methods` lists

@@ -12,9 +12,9 @@ use trilab::services::rayset::RaySet;
 use super::choice::choice;
 use super::{repeat, results_dir, GpuArgs, JsonArg, LeafSizeArg, MethodsArg};
 
-/// Large scenes: GPU memory plan, load, build and upload times, a validated cast
+/// Large scenes: memory placement, load, build and upload times, a validated cast
 ///
-/// Large scenes: load and BVH-build times, each method's GPU memory plan (bytes per buffer and
+/// Large scenes: load and BVH-build times, each method's GPU memory placement (bytes per buffer and
 /// per triangle, access path), upload and a timed, validated cast; writes scale.csv/json/md.
 #[derive(Args)]
 #[command(mut_arg("out", |a| a.help("Output directory for scale.csv/json/md; default results/<device>/scale/")))]
@@ -49,9 +49,10 @@ pub struct ScaleArgs {
     /// Seed of the ray set.
     #[arg(long, value_name = "N", default_value_t = trilab::defaults::SEED)]
     seed: u64,
-    /// Only the memory plan (bytes per triangle, access path): no upload, no cast.
-    #[arg(long)]
-    plan_only: bool,
+    /// Only the memory placement (bytes per triangle, access path): no upload, no cast (was
+    /// `--plan-only`).
+    #[arg(long, alias = "plan-only")]
+    placement_only: bool,
     #[command(flatten)]
     out: OutArgs,
     #[command(flatten)]
@@ -80,7 +81,7 @@ pub fn run(a: ScaleArgs) -> Result<()> {
         scene_access: a.scene_access,
         batch_rays: a.batch_rays,
         seed: a.seed,
-        plan_only: a.plan_only,
+        placement_only: a.placement_only,
     };
     let report = scale::run(&ctx, &o, |m| eprintln!("  {m}"))?;
     if a.json.json {

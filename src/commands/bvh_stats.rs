@@ -1,6 +1,6 @@
 //! `trilab bvh`: the BVH of a scene at each leaf size, binned and full-sweep SAH: nodes, depth,
 //! leaf sizes, SAH cost, end-point overlap, build time and speed, and each method's GPU scene
-//! size (from its memory plan); with `--layouts` or `--node-orders`, per node layout of the
+//! size (from its memory placement); with `--layouts` or `--node-orders`, per node layout of the
 //! binned tree its bytes per triangle (nodes, and nodes + each method's leaf bytes) and per node
 //! order the locality of a descent (`bvh::order::Locality`).
 
@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use serde::ser::{Serialize, SerializeStruct, Serializer};
 
 use crate::bvh::{BuildOptions, Builder, Bvh, BvhStats, Locality, NodeOrder, PAPER_LEAF_SIZES};
-use crate::encoding::{Layout, MemoryPlan, Method, SceneCounts};
+use crate::encoding::{Layout, Method, Placement, SceneCounts};
 use crate::error::Error;
 use crate::error::Result;
 use crate::pipeline::HostScene;
@@ -43,7 +43,7 @@ pub struct LayoutBytes {
     /// The node buffer's bytes (cwbvh's leaf table included) over the triangles in the tree.
     pub node_bytes_per_triangle: f64,
     /// Per method, the node buffer plus the method's leaf bytes (primitives and slot ids, from
-    /// its memory plan), over the triangles: what the kernels read per triangle. Every method's
+    /// its memory placement), over the triangles: what the kernels read per triangle. Every method's
     /// encoding has the same tree (a Quad encoding renumbers leaf starts only), so the node
     /// buffer is the same for each.
     pub bytes_per_triangle: BTreeMap<String, f64>,
@@ -57,8 +57,8 @@ pub fn leaf_bytes_per_triangle(counts: &SceneCounts) -> BTreeMap<String, f64> {
     Method::ALL
         .iter()
         .map(|&m| {
-            let plan = MemoryPlan::of(m, counts);
-            let leaf: u64 = plan.buffers.iter().filter(|b| b.binding != BINDING_NODES).map(|b| b.bytes).sum();
+            let placement = Placement::of(m, counts);
+            let leaf: u64 = placement.buffers.iter().filter(|b| b.binding != BINDING_NODES).map(|b| b.bytes).sum();
             (m.name().to_owned(), leaf as f64 / tris)
         })
         .collect()
@@ -164,7 +164,7 @@ pub fn run_with_layouts(
             let host = HostScene::build(crate::scene::scene_name(scene), &mesh, &options)?;
             let counts = host.counts();
             let gpu_scene_bytes =
-                Method::ALL.iter().map(|&m| (m.name().to_owned(), MemoryPlan::of(m, &counts).bytes())).collect();
+                Method::ALL.iter().map(|&m| (m.name().to_owned(), Placement::of(m, &counts).bytes())).collect();
             let stats = host.bvh.stats_with_epo(&mesh);
             if stats.epo.is_none() {
                 warnings.push(format!("leaf {leaf}, {}: {}", stats.builder, crate::bvh::epo::not_computed(&host.bvh)));

@@ -297,7 +297,7 @@ pub fn run(ctx: &Context, req: &RaycastRequest, mut note: impl FnMut(&str)) -> R
     })
 }
 
-/// Our kernels, through the scene pipeline: one plan picks the access path, and the kernel
+/// Our kernels, through the scene pipeline: one placement picks the access path, and the kernel
 /// comes from the scene uploaded for it.
 fn trace_ours(
     ctx: &Context,
@@ -308,18 +308,18 @@ fn trace_ours(
     note: &mut impl FnMut(&str),
 ) -> Result<Traced> {
     let request = SceneRequest::new(req.method).access(req.access).layout(req.layout).traversal(req.traversal);
-    let plan = host.plan(ctx, &request)?;
+    let placement = host.place(ctx, &request)?;
     let kind = if req.any_hit { Raycast::Any } else { Raycast::Closest };
     // A traversal without this kernel, or that the device cannot run, is refused before upload.
-    plan.key(kind).source()?;
-    ctx.capabilities().traversal(plan.traversal)?;
-    if let Some(r) = &plan.auto {
-        note(&format!("--method auto picked {}:", plan.method));
+    placement.key(kind).source()?;
+    ctx.capabilities().traversal(placement.traversal)?;
+    if let Some(r) = &placement.auto {
+        note(&format!("--method auto picked {}:", placement.method));
         for line in &r.reasons {
             note(&format!("  {line}"));
         }
     }
-    let scene = plan.upload(ctx)?;
+    let scene = placement.upload(ctx)?;
     if let Some(first) = scene.unrepresentable.first() {
         note(&format!(
             "warning: {} triangles cannot be represented by {} (their map overflows f32) and are never hit, e.g. id {first}",

@@ -1,11 +1,11 @@
 //! `trilab scale`: large scenes end to end. Per scene: load (time), BVH build (time, Mtris/s);
-//! per method: the GPU memory plan (bytes per buffer and per triangle, path-tracer extras
+//! per method: the GPU memory placement (bytes per buffer and per triangle, path-tracer extras
 //! apart), the access path it picks, upload, a timed cast (GPU timestamps: warm-up + repeats,
 //! median/min/max Mrays/s), a sample of hits validated against the CPU f64 reference, peak
 //! host RSS. Writes scale.csv, scale.json and scale.md (atomically, `io::write_atomic`).
-//! `--plan-only` stops after the plan: the bytes-per-triangle table without touching the GPU's
-//! memory. Beside it, per scene, every node layout's node buffer as the memory plan prices it
-//! ([`crate::encoding::MemoryPlan::with_layout`]): the methods' rows are the binary tree's.
+//! `--placement-only` stops after the placement: the bytes-per-triangle table without touching
+//! the GPU's memory. Beside it, per scene, every node layout's node buffer as the placement
+//! prices it ([`crate::encoding::Placement::with_layout`]): the methods' rows are the binary tree's.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -14,14 +14,14 @@ use serde::Serialize;
 
 use crate::agreement::compare_closest;
 use crate::bvh::BuildOptions;
-use crate::encoding::plan::check_rays;
-use crate::encoding::{DeviceLimits, Layout, MemoryPlan, Method, Raycast, SceneAccess};
+use crate::encoding::placement::check_rays;
+use crate::encoding::{DeviceLimits, Layout, Method, Placement, Raycast, SceneAccess};
 use crate::error::{Error, Result};
 use crate::gpu::{Context, RaycastOptions};
 use crate::named::Named;
-use crate::pipeline::{HostScene, ScenePlan, SceneRequest};
+use crate::pipeline::{HostScene, ScenePlacement, SceneRequest};
 use crate::rays::{random_rays, Ray};
-use crate::render::plan::extras_for as pathtrace_extras_for;
+use crate::render::placement::extras_for as pathtrace_extras_for;
 use crate::report::Summary;
 use crate::services::rayset::RaySet;
 use crate::shared::BINDING_NODES;
@@ -46,8 +46,8 @@ pub struct ScaleOptions {
     pub scene_access: SceneAccess,
     pub batch_rays: usize,
     pub seed: u64,
-    /// Plan only: no upload, no cast.
-    pub plan_only: bool,
+    /// Placement only: no upload, no cast.
+    pub placement_only: bool,
 }
 
 /// One scene x method.
@@ -59,7 +59,7 @@ pub struct ScaleRow {
     pub leaf_size: u32,
     /// "texel", "address", or the reason it does not fit.
     pub access: String,
-    /// (buffer, bytes) as planned.
+    /// (buffer, bytes) as placed.
     pub buffers: Vec<(String, u64)>,
     pub scene_bytes: u64,
     pub bytes_per_triangle: f64,
@@ -85,10 +85,10 @@ pub struct ScaleRow {
     pub peak_rss_bytes: Option<u64>,
 }
 
-/// One scene's node buffer in one layout, as the memory plan prices it (a bound from counts;
+/// One scene's node buffer in one layout, as the memory placement prices it (a bound from counts;
 /// the same for every method: leaves are the encoding's units, the nodes are the tree's).
 #[derive(Clone, Debug, Serialize)]
-pub struct LayoutPlanRow {
+pub struct LayoutPlacementRow {
     pub scene: String,
     pub triangles: u64,
     pub layout: Layout,
@@ -104,17 +104,17 @@ pub struct ScaleReport {
     pub ray_kind: RayKind,
     pub rows: Vec<ScaleRow>,
     /// Every layout's node buffer per scene.
-    pub layouts: Vec<LayoutPlanRow>,
+    pub layouts: Vec<LayoutPlacementRow>,
 }
 
-/// Every layout's planned node buffer for a scene of `counts`.
-pub fn layout_plans(scene: &str, counts: &crate::encoding::SceneCounts) -> Vec<LayoutPlanRow> {
+/// Every layout's placed node buffer for a scene of `counts`.
+pub fn layout_placements(scene: &str, counts: &crate::encoding::SceneCounts) -> Vec<LayoutPlacementRow> {
     Layout::ALL
         .iter()
         .map(|&layout| {
-            let plan = MemoryPlan::of(Method::Mt, counts).with_layout(layout);
-            let node_bytes = plan.buffers.iter().filter(|b| b.binding == BINDING_NODES).map(|b| b.bytes).sum();
-            LayoutPlanRow {
+            let placement = Placement::of(Method::Mt, counts).with_layout(layout);
+            let node_bytes = placement.buffers.iter().filter(|b| b.binding == BINDING_NODES).map(|b| b.bytes).sum();
+            LayoutPlacementRow {
                 scene: scene.to_owned(),
                 triangles: counts.triangles,
                 layout,
@@ -157,10 +157,11 @@ fn make_rays(host: &HostScene, o: &ScaleOptions) -> Result<Vec<Ray>> {
 
 /// Runs the sweep; `progress` gets one line per step.
 pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<ScaleReport> {
-    // The ray set and its hits, on the host before they go to the device (a plan casts none).
+    // The ray set and its hits, on the host before they go to the device (none with
+    // --placement-only).
     let each = crate::memory::RAY_BYTES + crate::memory::HIT_BYTES;
     let rays = crate::memory::Need::new(format!("--ray-count {}", o.rays), "rays", Some(o.rays as u64), each);
-    if !o.plan_only {
+    if !o.placement_only {
         crate::memory::check(&[rays])?;
     }
     let limits = ctx.limits()?;
@@ -181,8 +182,8 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
             "{name}: BVH (leaf {}) in {bvh_s:.2} s, {bvh_mtris_per_s:.2} Mtris/s",
             o.build.max_leaf_size
         ));
-        layouts.extend(layout_plans(&name, &host.counts()));
-        let rays = if o.plan_only { vec![] } else { make_rays(&host, o)? };
+        layouts.extend(layout_placements(&name, &host.counts()));
+        let rays = if o.placement_only { vec![] } else { make_rays(&host, o)? };
         let sample: Vec<usize> = if rays.is_empty() {
             vec![]
         } else {
@@ -192,21 +193,22 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
         let sample_rays: Vec<Ray> = sample.iter().map(|&i| rays[i]).collect();
         let reference = (!sample_rays.is_empty()).then(|| host.reference().trace_all(&sample_rays, false));
         for &m in &o.methods {
-            let plan = crate::encoding::MemoryPlan::of(m, &host.counts());
+            let placement = Placement::of(m, &host.counts());
             // The path tracer's own buffers beyond the scene, without an image.
-            let extra_bytes: u64 = pathtrace_extras_for(&mesh, m, crate::encoding::AccessPath::Texel, &plan.counts, 0)
-                .iter()
-                .map(|(b, _)| b.bytes)
-                .sum();
+            let extra_bytes: u64 =
+                pathtrace_extras_for(&mesh, m, crate::encoding::AccessPath::Texel, &placement.counts, 0)
+                    .iter()
+                    .map(|(b, _)| b.bytes)
+                    .sum();
             let mut row = ScaleRow {
                 scene: name.clone(),
                 triangles,
                 method: m,
                 leaf_size: o.build.max_leaf_size,
                 access: String::new(),
-                buffers: plan.buffers.iter().map(|b| (b.name.to_owned(), b.bytes)).collect(),
-                scene_bytes: plan.bytes(),
-                bytes_per_triangle: plan.bytes_per_triangle(),
+                buffers: placement.buffers.iter().map(|b| (b.name.to_owned(), b.bytes)).collect(),
+                scene_bytes: placement.bytes(),
+                bytes_per_triangle: placement.bytes_per_triangle(),
                 pathtrace_extra_bytes: extra_bytes,
                 pathtrace_extra_bytes_per_triangle: extra_bytes as f64 / triangles.max(1) as f64,
                 load_s,
@@ -223,7 +225,7 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
                 validation_passes: None,
                 peak_rss_bytes: None,
             };
-            let planned = match host.plan_for(m, None, &SceneRequest::new(m).access(o.scene_access), &limits) {
+            let placed = match host.place_for(m, None, &SceneRequest::new(m).access(o.scene_access), &limits) {
                 Ok(p) => p,
                 Err(e @ Error::SceneTooLarge(_)) => {
                     progress(&format!("{name} {m}: {e}"));
@@ -234,10 +236,10 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
                 }
                 Err(e) => return Err(e),
             };
-            let access = planned.access;
+            let access = placed.access;
             row.access = access.name().to_owned();
-            if !o.plan_only {
-                cast(ctx, planned, &rays, &sample, reference.as_deref(), o, &mut row)?;
+            if !o.placement_only {
+                cast(ctx, placed, &rays, &sample, reference.as_deref(), o, &mut row)?;
                 progress(&format!(
                     "{name} {m}: {} path, {:.1} B/tri, {} Mrays/s, validation {}",
                     access.name(),
@@ -260,21 +262,21 @@ pub fn run(ctx: &Context, o: &ScaleOptions, progress: impl Fn(&str)) -> Result<S
     })
 }
 
-/// Uploads the planned scene, casts `rays` (timed), and checks the `sample` of them against the
+/// Uploads the placed scene, casts `rays` (timed), and checks the `sample` of them against the
 /// f64 `reference` hits.
 fn cast(
     ctx: &Context,
-    planned: ScenePlan,
+    placed: ScenePlacement,
     rays: &[Ray],
     sample: &[usize],
     reference: Option<&[crate::reference::RefHit]>,
     o: &ScaleOptions,
     row: &mut ScaleRow,
 ) -> Result<()> {
-    let ray_bytes = check_rays(rays.len() as u64, false, &planned.limits)?;
-    let mesh = planned.mesh();
+    let ray_bytes = check_rays(rays.len() as u64, false, &placed.limits)?;
+    let mesh = placed.mesh();
     let t = Instant::now();
-    let scene = planned.upload(ctx)?;
+    let scene = placed.upload(ctx)?;
     row.upload_s = Some(t.elapsed().as_secs_f64());
     row.gpu_bytes = Some(scene.bytes as u64 + ray_bytes);
     let opts = RaycastOptions { warmup: o.warmup, repeat: o.repeat.max(1), batch_rays: o.batch_rays };
@@ -314,7 +316,7 @@ pub fn default_scenes() -> Vec<String> {
 }
 
 impl ScaleReport {
-    /// Every row validated (or plan-only).
+    /// Every row validated (or placement only).
     pub fn passes(&self) -> bool {
         self.rows.iter().all(|r| r.validation_passes != Some(false))
     }
@@ -416,7 +418,7 @@ impl ScaleReport {
             );
         }
         if !self.layouts.is_empty() {
-            s += "\n## Node bytes per layout\n\nThe node buffer of each layout as the memory plan prices it \
+            s += "\n## Node bytes per layout\n\nThe node buffer of each layout as the memory placement prices it \
                   (a bound from counts, the same for every method; the rows above are the binary tree's, `bvh2`). \
                   A wide layout replaces `bvh nodes` above by its own buffer.\n\n";
             s += "| scene | triangles | layout | node bytes | node B/tri |\n|---|---:|---|---:|---:|\n";

@@ -30,7 +30,7 @@ use std::mem::{offset_of, size_of};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{slot_layout, BufferPlan, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
+use super::{slot_layout, BufferPlacement, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
 use crate::shared::{Texel, BINDING_PRIMS, MISS_ID};
@@ -43,7 +43,7 @@ pub const INTERSECTOR: Intersector = Intersector {
             column: 9 coefficients + the column (48 B per triangle).",
     in_paper: false,
     encode,
-    plan,
+    placement,
     prim_binding: BINDING_PRIMS,
     prim_struct: HostStruct {
         size: size_of::<BwTriangle>(),
@@ -103,8 +103,8 @@ pub fn bw_transform(a: DVec3, b: DVec3, c: DVec3) -> Option<BwTriangle> {
 }
 
 /// One map per slot.
-fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
-    vec![BufferPlan::new("baldwin-weber triangles", BINDING_PRIMS, Texel::Rgba32Float, c.slots, size_of::<BwTriangle>())]
+fn placement(c: &SceneCounts) -> Vec<BufferPlacement> {
+    vec![BufferPlacement::new("baldwin-weber triangles", BINDING_PRIMS, Texel::Rgba32Float, c.slots, size_of::<BwTriangle>())]
 }
 
 fn encode(mesh: &Mesh, bvh: &Bvh) -> Encoding {

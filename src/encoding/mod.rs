@@ -3,16 +3,16 @@
 //! An intersector is one unit: `glsl/intersect/<glsl>.glsl` holds its primitive test (the leaf
 //! loop, hit update and any-hit exit are `glsl/leaf.glsl`'s), and `src/encoding/<name>.rs`
 //! holds everything the host knows about it in one [`Intersector`]: names and title, its layout
-//! types, encoder and memory plan, and the host layout of its primitive struct (checked against
-//! the SPIR-V by `tests/reflection.rs`). What the GLSL states itself (triangles per primitive,
+//! types, encoder and memory placement, and the host layout of its primitive struct (checked
+//! against the SPIR-V by `tests/reflection.rs`). What the GLSL states itself (triangles per primitive,
 //! conservative traversal) is read from it by build.rs ([`crate::kernels::facts`]). The registry
 //! below lists the intersectors, one line each; [`Method`] is generated from it, and everything
 //! that lists methods (the CLI's values, plots, claims, reflection tests, `trilab spirv`,
 //! `trilab methods` and the README's list) reads it.
 //!
 //! Every encoding also uploads the nodes (32 B each) and a slot -> OBJ triangle id table (4 B
-//! per slot), so hits report OBJ ids whatever order the BVH stores triangles in; [`plan`] sizes
-//! all of it from counts alone.
+//! per slot), so hits report OBJ ids whatever order the BVH stores triangles in; [`placement`]
+//! sizes all of it from counts alone.
 //!
 //! Adding an intersector: `glsl/intersect/<glsl>.glsl`, `src/encoding/<name>.rs` with its
 //! `INTERSECTOR`, and one line in `registry!` below; then `trilab spirv --out spirv` and
@@ -20,10 +20,10 @@
 
 pub mod variants;
 pub mod layout;
-pub mod plan;
+pub mod placement;
 
 pub use layout::{Layout, LayoutNodes, LayoutSpec, NodeFootprint};
-pub use plan::{AccessPath, BufferPlan, DeviceLimits, MemoryPlan, SceneAccess, SceneCounts};
+pub use placement::{AccessPath, BufferPlacement, DeviceLimits, Placement, SceneAccess, SceneCounts};
 pub use variants::{
     support as traversal_support, BsdfSet, PathtraceKey, Raycast, RaycastKey, Traversal, COOP_SUBGROUP_OPERATIONS,
 };
@@ -50,7 +50,7 @@ pub struct Intersector {
     pub encode: fn(&Mesh, &Bvh) -> Encoding,
     /// The buffers `encode` writes beyond the nodes and slot ids, from counts alone (so a scene
     /// can be refused before anything is encoded); a test holds the two equal.
-    pub plan: fn(&SceneCounts) -> Vec<BufferPlan>,
+    pub placement: fn(&SceneCounts) -> Vec<BufferPlacement>,
     /// The binding of the buffer of `PRIM_STRUCT`s (what `load_prim` reads).
     pub prim_binding: u32,
     /// `PRIM_STRUCT`'s host twin: size and member offsets (`tests/reflection.rs` checks them

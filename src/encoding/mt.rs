@@ -7,7 +7,7 @@ use std::mem::{offset_of, size_of};
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{slot_layout, BufferPlan, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
+use super::{slot_layout, BufferPlacement, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
 use crate::shared::{Texel, BINDING_INDICES, BINDING_PRIMS};
@@ -19,7 +19,7 @@ pub const INTERSECTOR: Intersector = Intersector {
     about: "Möller–Trumbore, one triangle at a time (vertex list + 16-byte index triple per triangle).",
     in_paper: true,
     encode,
-    plan,
+    placement,
     prim_binding: BINDING_INDICES,
     prim_struct: LAYOUT,
 };
@@ -39,10 +39,10 @@ pub struct MtTriangle {
 const _: () = assert!(std::mem::size_of::<MtTriangle>() == 16);
 
 /// MT's buffers: the vertex list (an empty mesh still uploads one vertex) and a triangle per slot.
-pub(super) fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
+pub(super) fn placement(c: &SceneCounts) -> Vec<BufferPlacement> {
     vec![
-        BufferPlan::new("mt vertices", BINDING_PRIMS, Texel::Rgba32Float, c.vertices.max(1), 16),
-        BufferPlan::new("mt triangles", BINDING_INDICES, Texel::Rgba32Uint, c.slots, size_of::<MtTriangle>()),
+        BufferPlacement::new("mt vertices", BINDING_PRIMS, Texel::Rgba32Float, c.vertices.max(1), 16),
+        BufferPlacement::new("mt triangles", BINDING_INDICES, Texel::Rgba32Uint, c.slots, size_of::<MtTriangle>()),
     ]
 }
 

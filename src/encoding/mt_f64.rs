@@ -14,7 +14,7 @@ pub const INTERSECTOR: Intersector = Intersector {
             to f32 (a GPU reference; needs shaderFloat64).",
     in_paper: false,
     encode: mt::encode,
-    plan: mt::plan,
+    placement: mt::placement,
     prim_binding: BINDING_INDICES,
     prim_struct: mt::LAYOUT,
 };

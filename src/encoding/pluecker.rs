@@ -15,7 +15,7 @@ pub const INTERSECTOR: Intersector = Intersector {
             side products about the ray origin, FMA-free, two-sided, conservative traversal; no leaks through edges (at vertices a few).",
     in_paper: false,
     encode: mt::encode,
-    plan: mt::plan,
+    placement: mt::placement,
     prim_binding: BINDING_INDICES,
     prim_struct: mt::LAYOUT,
 };

@@ -6,7 +6,7 @@ use std::mem::{offset_of, size_of};
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{quad_layout, slot_id, BufferPlan, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
+use super::{quad_layout, slot_id, BufferPlacement, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
 use crate::shared::{Texel, BINDING_PRIMS};
@@ -18,7 +18,7 @@ pub const INTERSECTOR: Intersector = Intersector {
     about: "Möller–Trumbore on four triangles at once (SoA quads, 144 B per quad).",
     in_paper: true,
     encode,
-    plan,
+    placement,
     prim_binding: BINDING_PRIMS,
     prim_struct: HostStruct {
         size: size_of::<QuadMt>(),
@@ -54,8 +54,8 @@ pub struct QuadMt {
 const _: () = assert!(std::mem::size_of::<QuadMt>() == 144);
 
 /// One struct per quad.
-fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
-    vec![BufferPlan::new("quad mt", BINDING_PRIMS, Texel::Rgba32Float, c.quads, size_of::<QuadMt>())]
+fn placement(c: &SceneCounts) -> Vec<BufferPlacement> {
+    vec![BufferPlacement::new("quad mt", BINDING_PRIMS, Texel::Rgba32Float, c.quads, size_of::<QuadMt>())]
 }
 
 fn encode(mesh: &Mesh, bvh: &Bvh) -> Encoding {

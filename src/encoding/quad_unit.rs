@@ -7,7 +7,7 @@ use std::mem::{offset_of, size_of};
 use bytemuck::{Pod, Zeroable};
 
 use super::unit::{unit_transform, PAD_ROWS};
-use super::{quad_layout, slot_id, BufferPlan, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
+use super::{quad_layout, slot_id, BufferPlacement, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
 use crate::shared::{Texel, BINDING_PRIMS, MISS_ID};
@@ -19,7 +19,7 @@ pub const INTERSECTOR: Intersector = Intersector {
     about: "Woop's unit triangle on four at once (SoA quads, 192 B per quad).",
     in_paper: true,
     encode,
-    plan,
+    placement,
     prim_binding: BINDING_PRIMS,
     prim_struct: HostStruct {
         size: size_of::<QuadUnit>(),
@@ -62,8 +62,8 @@ pub struct QuadUnit {
 const _: () = assert!(std::mem::size_of::<QuadUnit>() == 192);
 
 /// One struct per quad.
-fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
-    vec![BufferPlan::new("quad unit", BINDING_PRIMS, Texel::Rgba32Float, c.quads, size_of::<QuadUnit>())]
+fn placement(c: &SceneCounts) -> Vec<BufferPlacement> {
+    vec![BufferPlacement::new("quad unit", BINDING_PRIMS, Texel::Rgba32Float, c.quads, size_of::<QuadUnit>())]
 }
 
 fn encode(mesh: &Mesh, bvh: &Bvh) -> Encoding {

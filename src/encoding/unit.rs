@@ -8,7 +8,7 @@ use std::mem::{offset_of, size_of};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{slot_layout, BufferPlan, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
+use super::{slot_layout, BufferPlacement, Encoding, HostStruct, Intersector, SceneBuffer, SceneCounts};
 use crate::bvh::{Bvh, PAD_SLOT};
 use crate::scene::Mesh;
 use crate::shared::{Texel, BINDING_PRIMS};
@@ -20,7 +20,7 @@ pub const INTERSECTOR: Intersector = Intersector {
     about: "Woop's unit triangle, one at a time (48-byte affine map per triangle).",
     in_paper: true,
     encode,
-    plan,
+    placement,
     prim_binding: BINDING_PRIMS,
     prim_struct: HostStruct {
         size: size_of::<UnitTriangle>(),
@@ -62,8 +62,8 @@ pub fn unit_transform(a: DVec3, b: DVec3, c: DVec3) -> Option<[[f32; 4]; 3]> {
 }
 
 /// One map per slot.
-fn plan(c: &SceneCounts) -> Vec<BufferPlan> {
-    vec![BufferPlan::new("unit triangles", BINDING_PRIMS, Texel::Rgba32Float, c.slots, size_of::<UnitTriangle>())]
+fn placement(c: &SceneCounts) -> Vec<BufferPlacement> {
+    vec![BufferPlacement::new("unit triangles", BINDING_PRIMS, Texel::Rgba32Float, c.slots, size_of::<UnitTriangle>())]
 }
 
 fn encode(mesh: &Mesh, bvh: &Bvh) -> Encoding {

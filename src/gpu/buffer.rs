@@ -202,7 +202,7 @@ impl Context {
     }
 
     /// Uploads `bytes` into a buffer the kernels reach by its device address (the scene's
-    /// address path, `encoding::plan`); returns the buffer and its address.
+    /// address path, `encoding::placement`); returns the buffer and its address.
     pub fn upload_addressed(&self, name: &str, bytes: &[u8]) -> Result<(Buffer, vk::DeviceAddress)> {
         if !self.enabled().buffer_device_address {
             return Err(Error::Unsupported(format!(

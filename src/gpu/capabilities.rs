@@ -200,7 +200,7 @@ impl<'a> Capabilities<'a> {
         }
     }
 
-    /// A scene access path (whether a scene fits it is the memory plan's question).
+    /// A scene access path (whether a scene fits it is the memory placement's question).
     pub fn access(&self, a: AccessPath) -> Result<(), Unsupported> {
         let what = format!("--scene-access {}", a.name());
         match a {

@@ -50,7 +50,7 @@ pub struct ContextOptions {
     /// `gpu::markers`). `Context::new` also reads `TRILAB_INJECT_FAULT` when this is `None`.
     pub inject_fault: Option<Fault>,
     /// Device limits lowered for tests, as `TRILAB_TEST_LIMITS` gives them
-    /// (`encoding::DeviceLimits::with_overrides`): every memory plan on this context is checked
+    /// (`encoding::DeviceLimits::with_overrides`): every memory placement on this context is checked
     /// against them. `Context::new` reads the variable when this is `None`.
     pub test_limits: Option<String>,
     /// Enable only what one kernel needs (`trilab repro`: a capture whose `vkCreateDevice`

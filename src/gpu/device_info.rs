@@ -85,7 +85,7 @@ pub struct DeviceInfo {
     pub max_buffer_size: Option<u64>,
     /// Size of the largest DEVICE_LOCAL memory heap.
     pub device_local_heap_bytes: u64,
-    /// `VK_EXT_memory_budget` is supported (the planner then reads the heap's current budget).
+    /// `VK_EXT_memory_budget` is supported (a placement then reads the heap's current budget).
     pub memory_budget: bool,
     pub min_storage_buffer_offset_alignment: u64,
     pub max_compute_workgroup_invocations: u32,

@@ -1,4 +1,4 @@
-//! A device's limits as the memory planner (`encoding::plan`) checks them.
+//! A device's limits as the memory placement (`encoding::placement`) checks them.
 
 use ash::vk;
 

@@ -16,7 +16,7 @@
 //! - [`dispatch`]: what a cast dispatches ([`RayDispatch`]: one batch of rays bound and
 //!   dispatched), our compute kernels as one.
 //! - [`kernel`]: compute pipelines built from SPIR-V reflection.
-//! - [`limits`]: the device's limits as `encoding::plan` checks them (`TRILAB_TEST_LIMITS` lowers them).
+//! - [`limits`]: the device's limits as `encoding::placement` checks them (`TRILAB_TEST_LIMITS` lowers them).
 //! - [`markers`]: crash markers (GPU breadcrumbs + dispatch log), device-loss and out-of-memory
 //!   errors that name the dispatch, fault injection for testing them.
 //! - [`raycast`]: batched ray casting with timestamp queries.

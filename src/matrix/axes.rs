@@ -73,7 +73,7 @@ impl KernelAxes {
         o.access = caps.keep(
             "scene access paths",
             &o.access,
-            // `auto` runs anywhere: the scene's plan takes a path the device has.
+            // `auto` runs anywhere: the scene's placement takes a path the device has.
             |c, a| match KernelCell::paths(a) {
                 [one] => c.access(*one),
                 _ => Ok(()),
@@ -179,7 +179,7 @@ mod tests {
 
     #[test]
     fn auto_is_kept_wherever_some_path_has_the_kernel() {
-        // What makes the registry's filter for `auto` exact before a scene is planned: every
+        // What makes the registry's filter for `auto` exact before a scene is placed: every
         // method, layout and traversal with a kernel on any path has one on the texel path,
         // which auto takes wherever the scene fits it.
         for m in Method::ALL {

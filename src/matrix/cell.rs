@@ -29,7 +29,7 @@ impl KernelCell {
     }
 
     /// The paths a scene asked for as `access` may be read through: the one named, or for
-    /// `auto` any of them (the scene's memory plan chooses; `encoding::plan`).
+    /// `auto` any of them (the scene's memory placement chooses; `encoding::placement`).
     pub fn paths(access: SceneAccess) -> &'static [AccessPath] {
         match access {
             SceneAccess::Auto => &AccessPath::ALL,

@@ -21,8 +21,8 @@
 //! device are an axis too ([`TargetAxes`]: chips, compilers, subgroup sizes, Mesa builds).
 //!
 //! The access path a cell's scene is read through is not decided here: `--scene-access auto`
-//! leaves it to the scene's memory plan (`encoding::plan::MemoryPlan::choose`, the one place it
-//! is chosen), so a planned `auto` cell names no path, and its row names the one taken.
+//! leaves it to the scene's memory placement (`encoding::placement::Placement::choose`, the one
+//! place it is chosen), so a planned `auto` cell names no path, and its row names the one taken.
 
 mod axes;
 mod cell;

@@ -2,13 +2,13 @@
 //! device with its kernels:
 //!
 //! mesh → BVH ([`HostScene::build`], once per mesh and build options, shared by every method) →
-//! method, or `auto` ([`conditioning::resolve`]) → memory plan, checked against the device's limits,
-//! and the access path, chosen once ([`HostScene::plan`] → [`ScenePlan`]) → encoding → upload
-//! ([`ScenePlan::upload`] → [`DeviceScene`]) → kernels ([`DeviceScene::kernel`]), which always
-//! read the scene through the path it was uploaded for.
+//! method, or `auto` ([`conditioning::resolve`]) → memory placement, checked against the
+//! device's limits, and the access path, chosen once ([`HostScene::place`] → [`ScenePlacement`])
+//! → encoding → upload ([`ScenePlacement::upload`] → [`DeviceScene`]) → kernels
+//! ([`DeviceScene::kernel`]), which always read the scene through the path it was uploaded for.
 //!
-//! Nothing else uploads a scene. A scene that cannot fit is refused at the plan, before anything
-//! is encoded or allocated, with [`Error::SceneTooLarge`] naming the buffer and the limit, the
+//! Nothing else uploads a scene. A scene that cannot fit is refused at its placement, before
+//! anything is encoded or allocated, with [`Error::SceneTooLarge`] naming the buffer and the limit, the
 //! same way in every command; `TRILAB_TEST_LIMITS` (or [`ContextOptions::test_limits`]) lowers the
 //! device's limits so tests can show it.
 //!
@@ -20,10 +20,10 @@ use std::sync::Arc;
 
 use crate::bvh::{BuildOptions, Bvh, NodeOrder};
 use crate::conditioning::{self, MethodChoice, Recommendation};
-use crate::encoding::plan::check_extras;
+use crate::encoding::placement::check_extras;
 use crate::encoding::{
-    AccessPath, BufferPlan, DeviceLimits, EncodedScene, Layout, LayoutNodes, MemoryPlan, Method, Raycast, RaycastKey,
-    SceneAccess, SceneCounts, Traversal,
+    AccessPath, BufferPlacement, DeviceLimits, EncodedScene, Layout, LayoutNodes, Method, Placement, Raycast,
+    RaycastKey, SceneAccess, SceneCounts, Traversal,
 };
 use crate::error::{Error, Result};
 use crate::gpu::raycast::cast_rays;
@@ -52,8 +52,8 @@ pub struct SceneRequest {
     /// How the kernels read the scene: `auto` takes texel buffers when every buffer fits one
     /// binding, else buffer device addresses.
     pub access: SceneAccess,
-    /// A reader of the scene without the address path (the path tracer), and why: the plan takes
-    /// texel or storage buffers, and a "does not fit" error says what helps that reader.
+    /// A reader of the scene without the address path (the path tracer), and why: the placement
+    /// takes texel or storage buffers, and a "does not fit" error says what helps that reader.
     pub without_address: Option<&'static str>,
     /// The node layout the kernels read ([`Layout::DEFAULT`] unless asked): a wide layout binds its
     /// nodes, made from the encoding's binary nodes, where the binary ones would be; every
@@ -124,7 +124,7 @@ impl<'m> HostScene<'m> {
         HostScene { name: name.into(), mesh, bvh }
     }
 
-    /// The counts every method's memory plan is made of.
+    /// The counts every method's memory placement is made of.
     pub fn counts(&self) -> SceneCounts {
         SceneCounts::of(self.mesh, &self.bvh)
     }
@@ -134,28 +134,28 @@ impl<'m> HostScene<'m> {
         Reference::new(self.mesh, &self.bvh)
     }
 
-    /// Resolves the method, plans every buffer of its encoding and chooses the access path,
+    /// Resolves the method, places every buffer of its encoding and chooses the access path,
     /// against `ctx`'s limits; nothing is encoded or allocated.
-    pub fn plan(&self, ctx: &Context, request: &SceneRequest) -> Result<ScenePlan<'_, 'm>> {
+    pub fn place(&self, ctx: &Context, request: &SceneRequest) -> Result<ScenePlacement<'_, 'm>> {
         let (method, auto) = conditioning::resolve(request.method, self.mesh, &ctx.capabilities(), None)?;
-        self.plan_for(method, auto, request, &ctx.limits()?)
+        self.place_for(method, auto, request, &ctx.limits()?)
     }
 
-    /// [`HostScene::plan`] for a resolved method against given limits (no device needed: the
-    /// bytes-per-triangle tables of `trilab scale --plan-only` and unit tests).
-    pub fn plan_for(
+    /// [`HostScene::place`] for a resolved method against given limits (no device needed: the
+    /// bytes-per-triangle tables of `trilab scale --placement-only` and unit tests).
+    pub fn place_for(
         &self,
         method: Method,
         auto: Option<Recommendation>,
         request: &SceneRequest,
         limits: &DeviceLimits,
-    ) -> Result<ScenePlan<'_, 'm>> {
-        let memory = MemoryPlan::of(method, &self.counts()).with_layout(request.layout);
+    ) -> Result<ScenePlacement<'_, 'm>> {
+        let memory = Placement::of(method, &self.counts()).with_layout(request.layout);
         let access = match request.without_address {
             Some(why) => memory.choose_without_address(&self.name, request.access, limits, why)?,
             None => memory.choose_for_kernel(&self.name, request.access, limits, request.layout, request.traversal)?,
         };
-        Ok(ScenePlan {
+        Ok(ScenePlacement {
             host: self,
             method,
             auto,
@@ -168,22 +168,22 @@ impl<'m> HostScene<'m> {
         })
     }
 
-    /// [`HostScene::plan`] then [`ScenePlan::upload`]: `request`'s scene on the device.
+    /// [`HostScene::place`] then [`ScenePlacement::upload`]: `request`'s scene on the device.
     pub fn upload(&self, ctx: &Context, request: &SceneRequest) -> Result<DeviceScene> {
-        self.plan(ctx, request)?.upload(ctx)
+        self.place(ctx, request)?.upload(ctx)
     }
 }
 
-/// A method's encoding of a [`HostScene`], planned: what it will allocate and how the kernels
+/// A method's encoding of a [`HostScene`], placed: what it will allocate and how the kernels
 /// will read it.
-pub struct ScenePlan<'h, 'm> {
+pub struct ScenePlacement<'h, 'm> {
     host: &'h HostScene<'m>,
     pub method: Method,
     /// Why `auto` picked the method (`None` when it was given).
     pub auto: Option<Recommendation>,
-    pub memory: MemoryPlan,
+    pub memory: Placement,
     pub access: AccessPath,
-    /// The node layout. The memory plan prices its node buffer by the layout's bound from
+    /// The node layout. The memory placement prices its node buffer by the layout's bound from
     /// counts; the built buffer and the stack it needs are checked again before upload.
     pub layout: Layout,
     /// How the ray-casting kernels walk the tree.
@@ -194,15 +194,15 @@ pub struct ScenePlan<'h, 'm> {
     pub limits: DeviceLimits,
 }
 
-impl<'m> ScenePlan<'_, 'm> {
-    /// The mesh being planned.
+impl<'m> ScenePlacement<'_, 'm> {
+    /// The mesh being placed.
     pub fn mesh(&self) -> &'m Mesh {
         self.host.mesh
     }
 
     /// Checks buffers a higher layer will upload beside the scene (the path tracer's), each with
     /// whether it is a storage buffer bound whole, against the same limits.
-    pub fn check_extras(&self, extras: &[(BufferPlan, bool)]) -> Result<()> {
+    pub fn check_extras(&self, extras: &[(BufferPlacement, bool)]) -> Result<()> {
         check_extras(&self.host.name, self.method, extras, &self.limits)
     }
 
@@ -241,7 +241,7 @@ impl<'m> ScenePlan<'_, 'm> {
             node_order: self.node_order,
             leaf_size: encoded.leaf_size,
             auto: self.auto,
-            plan: self.memory,
+            placement: self.memory,
             access: self.access,
             unrepresentable: encoded.unrepresentable,
             bytes: buffers.bytes(),
@@ -250,14 +250,14 @@ impl<'m> ScenePlan<'_, 'm> {
     }
 }
 
-impl ScenePlan<'_, '_> {
+impl ScenePlacement<'_, '_> {
     /// The key of its ray-casting kernel computing `kind` (what [`DeviceScene::key`] will be).
     pub fn key(&self, kind: Raycast) -> RaycastKey {
         RaycastKey { method: self.method, kind, access: self.access, layout: self.layout, traversal: self.traversal }
     }
 
     /// The scene's buffers as its kernels bind them, kept on the host: what
-    /// [`ScenePlan::upload`] uploads (`trilab repro` writes them to files). Not on the address
+    /// [`ScenePlacement::upload`] uploads (`trilab repro` writes them to files). Not on the address
     /// path, whose buffers hold device addresses.
     pub fn host_bindings(&self) -> Result<Vec<HostBinding>> {
         if self.access == AccessPath::Address {
@@ -331,7 +331,7 @@ impl ScenePlan<'_, '_> {
     }
 }
 
-/// Scene buffers kept on the host ([`ScenePlan::host_bindings`]), uploaded again for `access`
+/// Scene buffers kept on the host ([`ScenePlacement::host_bindings`]), uploaded again for `access`
 /// (texel or storage): what a repro's dispatch binds.
 pub struct BoundScene(SceneBuffers);
 
@@ -346,7 +346,7 @@ impl BoundScene {
     }
 }
 
-/// A method's encoding of a scene on the device, read through the access path it was planned
+/// A method's encoding of a scene on the device, read through the access path it was placed
 /// for; its kernels come from it.
 pub struct DeviceScene {
     pub name: String,
@@ -361,7 +361,7 @@ pub struct DeviceScene {
     pub leaf_size: u32,
     /// Why `auto` picked the method (`None` when it was given).
     pub auto: Option<Recommendation>,
-    pub plan: MemoryPlan,
+    pub placement: Placement,
     pub access: AccessPath,
     /// Triangles the encoding could not represent (their map overflows f32): never hit.
     pub unrepresentable: Vec<u32>,
@@ -372,7 +372,7 @@ pub struct DeviceScene {
 
 impl DeviceScene {
     /// The key of its ray-casting kernel computing `kind`: its method, access path, layout and
-    /// traversal, fixed when the scene was planned (the one place a scene's kernel is named).
+    /// traversal, fixed when the scene was placed (the one place a scene's kernel is named).
     pub fn key(&self, kind: Raycast) -> RaycastKey {
         RaycastKey { method: self.method, kind, access: self.access, layout: self.layout, traversal: self.traversal }
     }
@@ -457,7 +457,7 @@ mod tests {
 
     use crate::scene::test_grid as grid;
 
-    use crate::encoding::plan::tests::limits;
+    use crate::encoding::placement::tests::limits;
 
     #[test]
     fn bad_build_options_are_refused_before_building() {
@@ -472,26 +472,26 @@ mod tests {
         let m = grid(100);
         let host = HostScene::build("grid", &m, &BuildOptions::new(4)).unwrap();
         let mut l = limits();
-        let p = host.plan_for(Method::Unit, None, &SceneRequest::new(Method::Unit), &l).unwrap();
+        let p = host.place_for(Method::Unit, None, &SceneRequest::new(Method::Unit), &l).unwrap();
         assert_eq!(p.access, AccessPath::Texel);
         assert_eq!(p.method.raycast_kernel(Raycast::Closest, p.access).variant, "closest");
         l.max_texel_buffer_elements = 200; // unit triangles: 300 texels
-        let p = host.plan_for(Method::Unit, None, &SceneRequest::new(Method::Unit), &l).unwrap();
+        let p = host.place_for(Method::Unit, None, &SceneRequest::new(Method::Unit), &l).unwrap();
         assert_eq!(p.access, AccessPath::Address);
         assert_eq!(p.method.raycast_kernel(Raycast::Stats, p.access).variant, "stats_address");
         // A reader without the address path takes storage buffers; beyond those it is refused,
         // and told what helps it.
         let why = "the path tracer reads scenes through texel or storage buffers";
         let r = SceneRequest::new(Method::Unit).without_address(why);
-        assert_eq!(host.plan_for(Method::Unit, None, &r, &l).unwrap().access, AccessPath::Storage);
+        assert_eq!(host.place_for(Method::Unit, None, &r, &l).unwrap().access, AccessPath::Storage);
         l.max_storage_buffer_range = 200 * 16;
-        match host.plan_for(Method::Unit, None, &r, &l) {
+        match host.place_for(Method::Unit, None, &r, &l) {
             Err(Error::SceneTooLarge(t)) => {
                 assert!(t.hint.ends_with(&format!("({why})")), "{}", t.hint);
                 assert_eq!((t.scene.as_str(), t.buffer.as_str()), ("grid", "unit triangles"));
             }
             Err(e) => panic!("expected SceneTooLarge, got {e}"),
-            Ok(_) => panic!("expected SceneTooLarge, got a plan"),
+            Ok(_) => panic!("expected SceneTooLarge, got a placement"),
         }
     }
 }

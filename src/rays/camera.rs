@@ -2,8 +2,8 @@
 //! the Embree peer's 3/4 view (every benchmark's camera, so committed measurements stay
 //! comparable), or one given by eye, target, up and field of view.
 //!
-//! Placement is computed in f64 from the scene's bounds, and a camera that f32 (the ray files'
-//! and the GPU's precision) cannot hold is refused with the scene's bounds in the message.
+//! Eye and target are computed in f64 from the scene's bounds, and a camera that f32 (the ray
+//! files' and the GPU's precision) cannot hold is refused with the scene's bounds in the message.
 
 use std::fmt;
 use std::str::FromStr;

@@ -14,7 +14,7 @@ pub mod bsdf;
 pub mod env;
 pub mod output;
 mod passes;
-pub mod plan;
+pub mod placement;
 pub mod rng;
 pub mod session;
 
@@ -453,7 +453,7 @@ pub struct RenderTarget {
 }
 
 impl RenderTarget {
-    /// Plans `host` for `request` (a method or `auto`, and the node layout) with the path tracer's own buffers for an image of
+    /// Places `host` for `request` (a method or `auto`, and the node layout) with the path tracer's own buffers for an image of
     /// `pixels` (refusing, before anything is encoded, what does not fit), picks the kernel for
     /// its materials (`choice`), and uploads it. With `raycast_too` every buffer of the scene is
     /// uploaded, so that the ray-casting kernels can read it as well (the study).
@@ -465,18 +465,24 @@ impl RenderTarget {
         pixels: u64,
         raycast_too: bool,
     ) -> Result<RenderTarget> {
-        let plan = host.plan(ctx, &request.without_address(plan::NO_ADDRESS))?;
-        plan.check_extras(&plan::extras_for(host.mesh, plan.method, plan.access, &plan.memory.counts, pixels))?;
+        let placed = host.place(ctx, &request.without_address(placement::NO_ADDRESS))?;
+        placed.check_extras(&placement::extras_for(
+            host.mesh,
+            placed.method,
+            placed.access,
+            &placed.memory.counts,
+            pixels,
+        ))?;
         let kernel = PathtraceKernel::choose_for(
-            plan.method,
-            plan.layout,
-            plan.access,
+            placed.method,
+            placed.layout,
+            placed.access,
             RenderScene::bsdf_mask(host.mesh),
             choice,
         );
         let reader = if raycast_too { None } else { Some(kernel.source) };
         let mut scene = None;
-        let device = plan.upload_with(ctx, reader, |e| scene = Some(RenderScene::new(host.mesh, e)))?;
+        let device = placed.upload_with(ctx, reader, |e| scene = Some(RenderScene::new(host.mesh, e)))?;
         Ok(RenderTarget { device, scene: scene.expect("upload_with hands over the encoding"), kernel })
     }
 

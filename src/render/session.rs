@@ -263,7 +263,7 @@ pub fn run(
     let (settings, env) = settings(req, &mesh, note)?;
     let t_build = Instant::now();
     let host = HostScene::build(crate::scene::scene_name(&req.scene), &mesh, &req.build)?;
-    // The plan refuses, before anything is encoded, a scene or image that cannot fit.
+    // The placement refuses, before anything is encoded, a scene or image that cannot fit.
     let target = RenderTarget::new(
         ctx,
         &host,

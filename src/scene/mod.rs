@@ -112,7 +112,7 @@ impl Mesh {
     }
 }
 
-/// A test mesh of `n` small slanted triangles on a 17-wide grid (unit tests of the planners and
+/// A test mesh of `n` small slanted triangles on a 17-wide grid (unit tests of the placement and
 /// the pipeline build trees over it).
 #[cfg(test)]
 pub(crate) fn test_grid(n: u32) -> Mesh {

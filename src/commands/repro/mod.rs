@@ -176,16 +176,17 @@ pub fn make(ctx: &Context, req: &ReproRequest, mut note: impl FnMut(&str)) -> Re
     }
     let host = HostScene::build(crate::scene::scene_name(&req.scene), &mesh, &req.build)?;
     let request = SceneRequest::new(req.method).access(req.access).layout(req.layout).traversal(req.traversal);
-    let plan = host.plan(ctx, &request)?;
-    if plan.access == AccessPath::Address {
+    let placement = host.place(ctx, &request)?;
+    if placement.access == AccessPath::Address {
         return Err(address_refused());
     }
     let kind = if req.any_hit { Raycast::Any } else { Raycast::Closest };
-    let source = plan.key(kind).source()?;
-    ctx.capabilities().traversal(plan.traversal)?;
+    let source = placement.key(kind).source()?;
+    ctx.capabilities().traversal(placement.traversal)?;
     let needs = replay::needs(source)?;
-    let bindings = plan.host_bindings()?;
-    let (method, access, layout, traversal) = (plan.method, plan.access, plan.layout, plan.traversal);
+    let bindings = placement.host_bindings()?;
+    let (method, access, layout, traversal) =
+        (placement.method, placement.access, placement.layout, placement.traversal);
 
     // The expected hits: this device, from the buffers the folder keeps, every ray in one
     // dispatch, as the replay casts them.

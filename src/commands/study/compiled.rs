@@ -111,10 +111,10 @@ pub struct ModelRow {
 
 /// Dependent fetch rounds per primitive a method's data takes: the length of its chain of
 /// buffers (MT's index triples point into its vertex list: 2; a self-contained triangle or
-/// quad: 1), read from the method's memory plan.
+/// quad: 1), read from the method's memory placement.
 pub fn rounds_per_primitive(m: Method) -> usize {
     let one = SceneCounts { triangles: 1, vertices: 3, nodes: 1, slots: 1, quads: 1 };
-    (m.intersector().plan)(&one).len()
+    (m.intersector().placement)(&one).len()
 }
 
 /// Dependent fetch rounds per diffuse ray for `m` in `report` at leaf size 4 on the binary tree,

@@ -14,6 +14,6 @@ pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
     buffer: "bvh nodes",
     build: None,
     locality: None,
-    plan_bytes: |c| c.nodes * std::mem::size_of::<BvhNode>() as u64,
+    placement_bytes: |c| c.nodes * std::mem::size_of::<BvhNode>() as u64,
     stack_size: STACK_SIZE,
 };

@@ -16,6 +16,6 @@ pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
     buffer: "bvh4 nodes",
     build: Some(wide_nodes::<4>),
     locality: Some(wide_locality::<4>),
-    plan_bytes: |c| inner_nodes(c) * std::mem::size_of::<Bvh4Node>() as u64,
+    placement_bytes: |c| inner_nodes(c) * std::mem::size_of::<Bvh4Node>() as u64,
     stack_size: BVH4_STACK_SIZE,
 };

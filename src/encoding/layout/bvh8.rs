@@ -16,6 +16,6 @@ pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
     buffer: "bvh8 nodes",
     build: Some(wide_nodes::<8>),
     locality: Some(wide_locality::<8>),
-    plan_bytes: |c| inner_nodes(c) * std::mem::size_of::<Bvh8Node>() as u64,
+    placement_bytes: |c| inner_nodes(c) * std::mem::size_of::<Bvh8Node>() as u64,
     stack_size: BVH8_STACK_SIZE,
 };

@@ -42,7 +42,7 @@ pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
     locality: Some(locality),
     // The nodes, then one 4-byte leaf-table entry per binary leaf (at most half the binary
     // nodes, rounded up), padded to a whole texel.
-    plan_bytes: |c| {
+    placement_bytes: |c| {
         let words = inner_nodes(c) * 4 * CW_NODE_TEXELS as u64 + c.nodes.div_ceil(2);
         words.div_ceil(4) * 16
     },

@@ -6,7 +6,7 @@
 //! and the box test are every layout's, so every intersector runs on every layout, and every
 //! traversal drives the step), `src/encoding/layout/<name>.rs`
 //! holds everything the host knows about it in one [`LayoutSpec`] (names, node size, how its node
-//! buffer is made from the encoding's binary nodes, the memory plan's bound, the kernel's stack),
+//! buffer is made from the encoding's binary nodes, the placement's bound, the kernel's stack),
 //! and one line of `layouts!` below. build.rs compiles the variants a kernel lists on its
 //! `// trilab:layouts` line once per file in `glsl/layout/` but the default `bvh2.glsl`
 //! (`closest_bvh4`, `any_address_bvh8`, ...);
@@ -28,7 +28,7 @@ mod qbvh4;
 use crate::bvh::{Aabb, BuildOptions, BvhNode, Locality, NodeOrder, NodeTree};
 use crate::named::Named;
 
-use super::plan::SceneCounts;
+use super::placement::SceneCounts;
 
 /// A node buffer made for a layout.
 #[derive(Clone, Debug, Default)]
@@ -75,7 +75,7 @@ pub struct LayoutSpec {
     pub width: u32,
     /// Bytes per node (what the node buffer costs per node).
     pub node_bytes: usize,
-    /// The node buffer's name in memory plans and errors.
+    /// The node buffer's name in placements and errors.
     pub buffer: &'static str,
     /// The node buffer from the encoding's binary nodes (leaves in the encoding's units), or
     /// `None` for the binary nodes themselves; an error where the tree cannot be represented
@@ -84,9 +84,9 @@ pub struct LayoutSpec {
     /// The locality of a buffer `build` made (`None` with `build`: the binary nodes are read
     /// directly).
     pub locality: Option<NodeLocality>,
-    /// An upper bound of the node buffer's bytes from counts alone, for the memory plan (a
+    /// An upper bound of the node buffer's bytes from counts alone, for the scene's placement (a
     /// test holds every built buffer within it).
-    pub plan_bytes: fn(&SceneCounts) -> u64,
+    pub placement_bytes: fn(&SceneCounts) -> u64,
     /// Entries of the kernel's traversal stack: a tree that could need more is refused before
     /// anything is uploaded.
     pub stack_size: u32,
@@ -342,10 +342,10 @@ mod tests {
         assert!("bvh3".parse::<Layout>().unwrap_err().contains("bvh2"));
     }
 
-    /// The memory plan's bound holds every built node buffer, over leaf sizes and tree shapes
+    /// The placement's bound holds every built node buffer, over leaf sizes and tree shapes
     /// (one leaf, a few, thousands), and the buffer is whole texels of whole nodes.
     #[test]
-    fn the_plan_bounds_every_node_buffer() {
+    fn the_placement_bounds_every_node_buffer() {
         for n in [1, 3, 40, 2000] {
             let mesh = grid(n);
             for leaf in [1, 4, 16] {
@@ -358,7 +358,7 @@ mod tests {
                 };
                 for &l in Layout::ALL {
                     let Some(built) = l.nodes(&bvh.nodes, &bvh.options).unwrap() else { continue };
-                    let bound = (l.spec().plan_bytes)(&counts);
+                    let bound = (l.spec().placement_bytes)(&counts);
                     assert!(
                         built.bytes.len() as u64 <= bound,
                         "{l} n={n} leaf={leaf}: {} > {bound}",

@@ -42,6 +42,6 @@ pub(super) const LAYOUT: LayoutSpec = LayoutSpec {
     buffer: "qbvh4 nodes",
     build: Some(build),
     locality: Some(locality),
-    plan_bytes: |c| inner_nodes(c) * std::mem::size_of::<QNode4>() as u64,
+    placement_bytes: |c| inner_nodes(c) * std::mem::size_of::<QNode4>() as u64,
     stack_size: BVH4_STACK_SIZE,
 };

@@ -1,9 +1,9 @@
-//! GPU memory plans: every buffer a scene (and a ray set) needs, computed from counts alone,
+//! GPU memory placement: every buffer a scene (and a ray set) needs, computed from counts alone,
 //! before anything is encoded or allocated, and checked against the device's limits. A scene
 //! that cannot fit gets [`Error::SceneTooLarge`] naming the buffer, what it needs and what the
 //! device allows, never a crash or a driver out-of-memory. The limits are plain data here
-//! ([`DeviceLimits`]); `gpu` reads a device's, and higher layers (the path tracer) plan their own
-//! buffers with [`BufferPlan`] and check them with [`check_extras`].
+//! ([`DeviceLimits`]); `gpu` reads a device's, and higher layers (the path tracer) place their own
+//! buffers with [`BufferPlacement`] and check them with [`check_extras`].
 //!
 //! Limits checked, per buffer: `maxTexelBufferElements` (texel path: one storage texel buffer per
 //! scene buffer), 2^31 texels (address path: the kernels index with signed 32-bit integers,
@@ -31,7 +31,7 @@ pub const MAX_ADDRESS_TEXELS: u64 = 1 << 31;
 /// Most nodes and triangle slots the kernels address (27-bit indices).
 const MAX_NODE_INDEX: u64 = crate::encoding::MAX_NODE_INDEX as u64;
 
-/// What the planner checks against: a device's limits (`gpu::Context::limits` reads them), or
+/// What a placement is checked against: a device's limits (`gpu::Context::limits` reads them), or
 /// smaller ones made for tests ([`DeviceLimits::with_overrides`], which `Context::limits` applies
 /// from `TRILAB_TEST_LIMITS`) to exercise the address path and the "does not fit" paths.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -171,9 +171,9 @@ impl AccessPath {
     }
 }
 
-/// One planned buffer.
+/// One placed buffer.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct BufferPlan {
+pub struct BufferPlacement {
     /// The encoder's name for it (`SceneBuffer::name`).
     pub name: &'static str,
     pub binding: u32,
@@ -183,10 +183,10 @@ pub struct BufferPlan {
     pub texel_size: u64,
 }
 
-impl BufferPlan {
+impl BufferPlacement {
     /// `count` structs of `struct_size` bytes read as `texel`s.
-    pub fn new(name: &'static str, binding: u32, texel: Texel, count: u64, struct_size: usize) -> BufferPlan {
-        BufferPlan { name, binding, bytes: count * struct_size as u64, texel_size: texel.size() as u64 }
+    pub fn new(name: &'static str, binding: u32, texel: Texel, count: u64, struct_size: usize) -> BufferPlacement {
+        BufferPlacement { name, binding, bytes: count * struct_size as u64, texel_size: texel.size() as u64 }
     }
 
     /// Texels bound (at least one: a view cannot be empty).
@@ -200,7 +200,7 @@ impl BufferPlan {
     }
 }
 
-/// The counts a plan is made of (what the BVH and the mesh say, nothing encoded).
+/// The counts a placement is made of (what the BVH and the mesh say, nothing encoded).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct SceneCounts {
     pub triangles: u64,
@@ -227,18 +227,18 @@ impl SceneCounts {
 
 /// Every buffer one method's encoding of a scene uploads.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct MemoryPlan {
+pub struct Placement {
     pub method: Method,
-    /// The node layout whose node buffer is planned ([`MemoryPlan::with_layout`]).
+    /// The node layout whose node buffer is placed ([`Placement::with_layout`]).
     pub layout: Layout,
     pub counts: SceneCounts,
-    pub buffers: Vec<BufferPlan>,
+    pub buffers: Vec<BufferPlacement>,
 }
 
-impl MemoryPlan {
-    /// The plan of `method`'s encoding (`Method::encode`) for a scene of `counts`, in the order
-    /// `EncodedScene::buffers` lists them.
-    pub fn of(method: Method, c: &SceneCounts) -> MemoryPlan {
+impl Placement {
+    /// The placement of `method`'s encoding (`Method::encode`) for a scene of `counts`, in the
+    /// order `EncodedScene::buffers` lists them.
+    pub fn of(method: Method, c: &SceneCounts) -> Placement {
         // Slots come in whole primitives: the Quad forms pad every leaf to whole quads.
         let slot_ids = match method.group_size() {
             1 => c.slots,
@@ -246,21 +246,27 @@ impl MemoryPlan {
             n => unreachable!("build.rs allows 1 or 4 triangles per primitive, not {n}"),
         };
         let mut buffers = vec![
-            BufferPlan::new("bvh nodes", BINDING_NODES, Texel::Rgba32Uint, c.nodes, std::mem::size_of::<BvhNode>()),
-            BufferPlan::new("slot ids", BINDING_SLOT_IDS, Texel::R32Uint, slot_ids, 4),
+            BufferPlacement::new(
+                "bvh nodes",
+                BINDING_NODES,
+                Texel::Rgba32Uint,
+                c.nodes,
+                std::mem::size_of::<BvhNode>(),
+            ),
+            BufferPlacement::new("slot ids", BINDING_SLOT_IDS, Texel::R32Uint, slot_ids, 4),
         ];
-        buffers.extend((method.intersector().plan)(c));
-        MemoryPlan { method, layout: Layout::DEFAULT, counts: *c, buffers }
+        buffers.extend((method.intersector().placement)(c));
+        Placement { method, layout: Layout::DEFAULT, counts: *c, buffers }
     }
 
-    /// This plan with `layout`'s node buffer in place of the binary nodes, priced by the
-    /// layout's bound from counts ([`super::LayoutSpec::plan_bytes`]; the built buffer is checked
-    /// against the limits again before it is uploaded).
-    pub fn with_layout(mut self, layout: Layout) -> MemoryPlan {
+    /// This placement with `layout`'s node buffer in place of the binary nodes, priced by the
+    /// layout's bound from counts ([`super::LayoutSpec::placement_bytes`]; the built buffer is
+    /// checked against the limits again before it is uploaded).
+    pub fn with_layout(mut self, layout: Layout) -> Placement {
         let spec = layout.spec();
-        let bytes = (spec.plan_bytes)(&self.counts);
+        let bytes = (spec.placement_bytes)(&self.counts);
         for b in self.buffers.iter_mut().filter(|b| b.binding == BINDING_NODES) {
-            *b = BufferPlan {
+            *b = BufferPlacement {
                 name: spec.buffer,
                 binding: BINDING_NODES,
                 bytes,
@@ -271,12 +277,12 @@ impl MemoryPlan {
         self
     }
 
-    /// The plan of an already encoded scene (its real buffer sizes).
-    pub fn of_encoded(scene: &crate::encoding::EncodedScene) -> MemoryPlan {
-        let buffers: Vec<BufferPlan> = scene
+    /// The placement of an already encoded scene (its real buffer sizes).
+    pub fn of_encoded(scene: &crate::encoding::EncodedScene) -> Placement {
+        let buffers: Vec<BufferPlacement> = scene
             .buffers()
             .into_iter()
-            .map(|b| BufferPlan {
+            .map(|b| BufferPlacement {
                 name: b.name,
                 binding: b.binding,
                 bytes: b.bytes.len() as u64,
@@ -290,10 +296,10 @@ impl MemoryPlan {
             slots: scene.slot_ids.len() as u64,
             ..Default::default()
         };
-        MemoryPlan { method: scene.method, layout: Layout::DEFAULT, counts, buffers }
+        Placement { method: scene.method, layout: Layout::DEFAULT, counts, buffers }
     }
 
-    pub fn for_bvh(method: Method, mesh: &Mesh, bvh: &Bvh) -> MemoryPlan {
+    pub fn for_bvh(method: Method, mesh: &Mesh, bvh: &Bvh) -> Placement {
         Self::of(method, &SceneCounts::of(mesh, bvh))
     }
 
@@ -304,7 +310,7 @@ impl MemoryPlan {
 
     /// Bytes allocated on the GPU (empty buffers get one texel).
     pub fn gpu_bytes(&self) -> u64 {
-        self.buffers.iter().map(BufferPlan::gpu_bytes).sum()
+        self.buffers.iter().map(BufferPlacement::gpu_bytes).sum()
     }
 
     pub fn bytes_per_triangle(&self) -> f64 {
@@ -354,7 +360,7 @@ impl MemoryPlan {
             ));
         }
         let over_texel = self.buffers.iter().find(|b| b.texels() > limits.max_texel_buffer_elements);
-        let texel_err = |b: &BufferPlan, hint: &str| {
+        let texel_err = |b: &BufferPlacement, hint: &str| {
             err(
                 b.name,
                 format!("{} texels", b.texels()),
@@ -419,7 +425,7 @@ impl MemoryPlan {
         }
     }
 
-    /// [`MemoryPlan::choose`] for the ray-casting kernels of `layout` and `traversal`: the one
+    /// [`Placement::choose`] for the ray-casting kernels of `layout` and `traversal`: the one
     /// place a scene's access path is decided. `auto` may pick a path the traversal has no
     /// kernel for (the storage path a device prefers, or needs for a large scene, where coop and
     /// persistent have only texel kernels): then the texel path where the scene fits it, else
@@ -448,7 +454,7 @@ impl MemoryPlan {
         }
     }
 
-    /// [`MemoryPlan::choose`] for a reader without the address path (`why` says which, e.g.
+    /// [`Placement::choose`] for a reader without the address path (`why` says which, e.g.
     /// "the path tracer reads scenes through texel or storage buffers"): texel buffers where the
     /// scene fits them, else storage buffers; the hint of a "does not fit" error then names what
     /// helps it, not `--scene-access`, and says why.
@@ -481,7 +487,12 @@ impl MemoryPlan {
 /// lights, materials and image) against the limit of the binding each is read through: one
 /// storage texel buffer (`maxTexelBufferElements`), or, with `storage`, one storage buffer bound
 /// whole (`maxStorageBufferRange`).
-pub fn check_extras(scene: &str, method: Method, extras: &[(BufferPlan, bool)], limits: &DeviceLimits) -> Result<()> {
+pub fn check_extras(
+    scene: &str,
+    method: Method,
+    extras: &[(BufferPlacement, bool)],
+    limits: &DeviceLimits,
+) -> Result<()> {
     for (b, storage) in extras {
         let (limit, name) = if *storage {
             (limits.max_storage_buffer_range, "maxStorageBufferRange")
@@ -544,18 +555,19 @@ pub(crate) mod tests {
     use crate::scene::test_grid as grid;
 
     #[test]
-    fn plan_equals_the_encoded_buffers() {
+    fn placement_equals_the_encoded_buffers() {
         let m = grid(203);
         for leaf in [1, 3, 4, 7] {
             let bvh = Bvh::build(&m, &BuildOptions::new(leaf));
             for method in Method::ALL {
-                let plan = MemoryPlan::for_bvh(method, &m, &bvh);
+                let placement = Placement::for_bvh(method, &m, &bvh);
                 let enc = method.encode(&m, &bvh);
                 let got: Vec<(&str, u32, u64)> =
                     enc.buffers().iter().map(|b| (b.name, b.binding, b.bytes.len() as u64)).collect();
-                let want: Vec<(&str, u32, u64)> = plan.buffers.iter().map(|b| (b.name, b.binding, b.bytes)).collect();
+                let want: Vec<(&str, u32, u64)> =
+                    placement.buffers.iter().map(|b| (b.name, b.binding, b.bytes)).collect();
                 assert_eq!(got, want, "{method} leaf {leaf}");
-                assert_eq!(plan.bytes(), enc.gpu_bytes() as u64);
+                assert_eq!(placement.bytes(), enc.gpu_bytes() as u64);
             }
         }
     }
@@ -564,40 +576,40 @@ pub(crate) mod tests {
     fn auto_picks_texels_then_addresses_then_fails() {
         let m = grid(100);
         let bvh = Bvh::build(&m, &BuildOptions::new(4));
-        let plan = MemoryPlan::for_bvh(Method::Unit, &m, &bvh);
+        let placement = Placement::for_bvh(Method::Unit, &m, &bvh);
         let mut l = limits();
-        assert_eq!(plan.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Texel);
+        assert_eq!(placement.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Texel);
         l.max_texel_buffer_elements = 200; // unit triangles: 3 texels each, 300 in all (nodes 130)
-        assert_eq!(plan.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Address);
-        let e = plan.choose("grid", SceneAccess::Texel, &l).unwrap_err().to_string();
+        assert_eq!(placement.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Address);
+        let e = placement.choose("grid", SceneAccess::Texel, &l).unwrap_err().to_string();
         assert!(e.contains("unit triangles") && e.contains("300 texels") && e.contains("200"), "{e}");
         // Without device addresses or 64-bit integers (SwiftShader), auto takes storage buffers.
         for (no, feature) in [("buffer_device_address=0", "bufferDeviceAddress"), ("shader_int64=0", "shaderInt64")] {
             let l = l.with_overrides(no).unwrap();
-            assert_eq!(plan.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Storage, "{no}");
-            let e = plan.choose("grid", SceneAccess::Address, &l).unwrap_err().to_string();
+            assert_eq!(placement.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Storage, "{no}");
+            let e = placement.choose("grid", SceneAccess::Address, &l).unwrap_err().to_string();
             assert!(e.contains(feature) && e.contains("--scene-access storage"), "{e}");
         }
         // ... unless a buffer is beyond one storage binding: 300 texels of 16 bytes.
         l.max_storage_buffer_range = 299 * 16;
         let l = l.with_overrides("shader_int64=0").unwrap();
-        let e = plan.choose("grid", SceneAccess::Auto, &l).unwrap_err().to_string();
+        let e = placement.choose("grid", SceneAccess::Auto, &l).unwrap_err().to_string();
         assert!(e.contains("unit triangles") && e.contains("4800 bytes") && e.contains("maxStorageBufferRange"), "{e}");
-        assert!(matches!(plan.choose("grid", SceneAccess::Storage, &l), Err(Error::SceneTooLarge(_))));
+        assert!(matches!(placement.choose("grid", SceneAccess::Storage, &l), Err(Error::SceneTooLarge(_))));
         // A device that prefers storage buffers (SwiftShader) gets them wherever they fit, and
         // the texel path where they do not.
         let mut l = DeviceLimits { preferred_access: AccessPath::Storage, ..limits() };
-        assert_eq!(plan.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Storage);
-        assert_eq!(plan.choose("grid", SceneAccess::Texel, &l).unwrap(), AccessPath::Texel);
+        assert_eq!(placement.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Storage);
+        assert_eq!(placement.choose("grid", SceneAccess::Texel, &l).unwrap(), AccessPath::Texel);
         l.max_storage_buffer_range = 16;
-        assert_eq!(plan.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Texel);
+        assert_eq!(placement.choose("grid", SceneAccess::Auto, &l).unwrap(), AccessPath::Texel);
         let mut l = limits();
         l.budget_bytes = Some(1000);
-        let e = plan.choose("grid", SceneAccess::Auto, &l).unwrap_err().to_string();
+        let e = placement.choose("grid", SceneAccess::Auto, &l).unwrap_err().to_string();
         assert!(e.contains("budget") && e.contains("grid") && e.contains("unit"), "{e}");
         let mut l = limits();
         l.max_buffer_size = Some(4096);
-        let e = plan.choose("grid", SceneAccess::Address, &l).unwrap_err().to_string();
+        let e = placement.choose("grid", SceneAccess::Address, &l).unwrap_err().to_string();
         assert!(e.contains("maxBufferSize") && e.contains("unit triangles"), "{e}");
     }
 
