@@ -49,7 +49,10 @@ fn the_model_gives_radvs_subgroups_per_simd_for_every_committed_kernel() {
             // results/radv was compiled before the access-path variants took the command line's
             // and traversals' words (issue 52: `_bda` is `_address`, `_sb` is `_storage`, `_ww` is
             // `_while_while`).
-            let v = &r[col("variant")].replace("_bda", "_address").replace("_sb", "_storage").replace("_ww", "_while_while");
+            let v = &r[col("variant")]
+                .replace("_bda", "_address")
+                .replace("_sb", "_storage")
+                .replace("_ww", "_while_while");
             let l = &r[col("layout")];
             if l == "bvh2" {
                 v.to_owned()
