@@ -7,7 +7,10 @@ Prints, for the working tree (or the tree of git revision REV):
 - src/'s files and lines, and src/commands' share of them;
 - the 10 largest files of src/;
 - the 10 longest Rust functions of src/ (lines from `fn` to its closing brace);
-- the places that plan an experiment's cells (a `fn plan_cells` or `fn kernel_label`).
+- the places that plan an experiment's cells (a `fn plan_cells` or `fn kernel_label`), each
+  marked by whether it maps the matrix's cells (`crate::matrix`) or crosses axes itself, and
+  which axes its body still loops over (a `for` over scenes, leaf sizes, methods, layouts or
+  traversals).
 
 It reads the files as text: a function's length is found by matching braces outside string and
 character literals and comments, which is exact for rustfmt-formatted code.
@@ -24,6 +27,7 @@ FN = re.compile(r"^\s*(?:pub(?:\([^)]*\))?\s+)?(?:const\s+)?(?:async\s+)?(?:unsa
 MOD_DECL = re.compile(r"^\s*(?:pub(?:\([^)]*\))?\s+)?mod\s+([A-Za-z_][A-Za-z0-9_]*)\s*\{")
 IMPL = re.compile(r"^\s*(?:unsafe\s+)?impl\b(?:<[^{]*?>)?\s+(?:[^{]*?\s+for\s+)?([A-Za-z_][A-Za-z0-9_:<>, ]*)")
 PLANNERS = re.compile(r"\bfn\s+(plan_cells|kernel_label)\b")
+AXIS_LOOP = re.compile(r"\bfor\b[^{]*\bin\b[^{]*\b(scenes|leaf_sizes|methods|layouts|traversals)\b")
 
 
 def files(rev):
@@ -141,10 +145,18 @@ def main():
         n = text.count("\n")
         sizes.append((path, n))
         fns.extend((name, path, first, length) for name, first, length in functions(path, text))
-        for i, line in enumerate(text.splitlines()):
+        lines = text.splitlines()
+        spans = {first: length for _, first, length in functions(path, text)}
+        for i, line in enumerate(lines):
             m = PLANNERS.search(line)
             if m and not line.lstrip().startswith("//"):
-                planners.append(f"{path}:{i + 1} {m.group(1)}")
+                body = lines[i:i + spans.get(i + 1, 1)]
+                looped = sorted({a.group(1) for b in body for a in [AXIS_LOOP.search(b)] if a})
+                matrix = any(re.search(r"experiment\(|Experiment\b|\.cells\(\)|matrix::", b) for b in body)
+                how = "maps the matrix's cells" if matrix else "crosses no axis" if not looped else "crosses axes itself"
+                if looped:
+                    how += f"; loops over {', '.join(looped)}" if matrix else f" ({', '.join(looped)})"
+                planners.append(f"{path}:{i + 1} {m.group(1)}: {how}")
     total = sum(n for _, n in sizes)
     commands = [(p, n) for p, n in sizes if p.startswith("src/commands/")]
     cmd_lines = sum(n for _, n in commands)
