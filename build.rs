@@ -294,7 +294,8 @@ fn kernel_name(kernel: &str, method: &str, variant: &str) -> String {
 /// - `raycast*.comp`: the kind (`ANY_HIT`: any, `TRAVERSAL_STATS`: stats, `SHADER_CLOCK`:
 ///   clock, none: closest), the access path (`SCENE_ADDRESS`: address, `SCENE_STORAGE`:
 ///   storage, none: texel) and the traversal (the kernel file: `raycast_coop` coop,
-///   `raycast_persistent` persistent; in `raycast`, `WHILE_WHILE` while-while, else while-if).
+///   `raycast_persistent` persistent, `raycast_packet` packet; in `raycast`, `WHILE_WHILE`
+///   while-while, else while-if).
 /// - `pathtrace.comp`: the BSDFs (`BSDF_MASK`: the one its variant names, none: all of them)
 ///   and the access path.
 /// - `probe.comp`: the method's layout probe.
@@ -324,7 +325,7 @@ fn kernel_key(kernel: &str, method: &str, v: &Variant) -> Result<Option<String>,
         "Texel"
     };
     match kernel {
-        "raycast" | "raycast_coop" | "raycast_persistent" => {
+        "raycast" | "raycast_coop" | "raycast_persistent" | "raycast_packet" => {
             unknown(&["ANY_HIT", "TRAVERSAL_STATS", "SHADER_CLOCK", "SCENE_ADDRESS", "SCENE_STORAGE", "WHILE_WHILE"])?;
             let kinds: Vec<&str> = [("ANY_HIT", "Any"), ("TRAVERSAL_STATS", "Stats"), ("SHADER_CLOCK", "Clock")]
                 .into_iter()
@@ -341,6 +342,7 @@ fn kernel_key(kernel: &str, method: &str, v: &Variant) -> Result<Option<String>,
                 ("raycast", true) => "WhileWhile",
                 ("raycast_coop", false) => "Coop",
                 ("raycast_persistent", false) => "Persistent",
+                ("raycast_packet", false) => "Packet",
                 _ => return Err("WHILE_WHILE is raycast.comp's".into()),
             };
             Ok(Some(format!(

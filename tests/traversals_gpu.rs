@@ -60,9 +60,9 @@ fn every_traversal_equals_while_if_ray_for_ray() {
         let combos = combos();
         // Every layout has its while-if, bvh2 while-while, and the layouts that give a step
         // (glsl/layout_interface.glsl: all but cwbvh, whose traversal is its own) the cooperative
-        // kernel and persistent threads.
+        // kernel, persistent threads and packets.
         let stepped = Layout::ALL.len() - 1;
-        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 2 * stepped, "{combos:?}");
+        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 3 * stepped, "{combos:?}");
         let mut lines = vec![];
         for method in Method::ALL {
             for &layout in Layout::ALL {
@@ -162,7 +162,7 @@ fn stats_and_occlusion_follow_the_algorithm() {
                 let mut scene = host.upload(ctx, &SceneRequest::new(method).layout(layout)).unwrap();
                 let wi = scene.cast(ctx, Raycast::Stats, rays, &common::ONCE).unwrap();
                 let cw = wi.traversal.unwrap();
-                for t in [Traversal::WhileWhile, Traversal::Coop] {
+                for t in [Traversal::WhileWhile, Traversal::Coop, Traversal::Packet] {
                     scene.traversal = t;
                     if scene.kernel_source(Raycast::Stats).is_err() {
                         continue;
@@ -180,6 +180,19 @@ fn stats_and_occlusion_follow_the_algorithm() {
                                 assert!(
                                     a.leaves >= b.leaves && a.inner >= b.inner && a.triangles >= b.triangles,
                                     "{method} {t} ray {i}: {a:?} against while-if's {b:?}"
+                                );
+                            }
+                        }
+                        // A lane counts the nodes and leaves its own ray takes part in; the
+                        // packet visits the children in the order nearest to any lane, not to
+                        // this ray, so a ray may find its closest hit sooner or later than
+                        // while-if does: no order between the counts. Every ray that hits
+                        // tested a triangle, and a ray that misses the tree counted nothing.
+                        Traversal::Packet => {
+                            for (i, (a, h)) in c.iter().zip(&closest).enumerate() {
+                                assert!(
+                                    !h.is_hit() || a.triangles > 0,
+                                    "{method} {layout} {t} ray {i}: a hit without a triangle tested: {a:?}"
                                 );
                             }
                         }
@@ -202,7 +215,7 @@ fn stats_and_occlusion_follow_the_algorithm() {
                             }
                         }
                     }
-                    if t == Traversal::WhileWhile {
+                    if matches!(t, Traversal::WhileWhile | Traversal::Packet) {
                         let any = scene.cast(ctx, Raycast::Any, rays, &common::ONCE).unwrap().hits;
                         let wrong_any = any.iter().zip(&ref_hits).filter(|(a, r)| a.is_hit() != r.is_hit()).count();
                         let wrong = closest.iter().zip(&ref_hits).filter(|(a, r)| a.is_hit() != r.is_hit()).count();
@@ -233,7 +246,8 @@ fn stats_and_occlusion_follow_the_algorithm() {
 
 /// `raycast --traversal` from the command line: every traversal's hit file is byte-identical to
 /// while-if's and passes the f64 check; the cooperative kernel does so at subgroup size 8 and,
-/// with lavapipe's 128-bit vectors, 4 (the report says which); what has no kernel is refused.
+/// with lavapipe's 128-bit vectors, 4 (the report says which), and packets at 4, 8 and 16 lanes;
+/// what has no kernel is refused.
 #[test]
 fn raycast_takes_the_traversal_from_the_command_line() {
     let dir = tempfile::tempdir().unwrap();
@@ -250,6 +264,14 @@ fn raycast_takes_the_traversal_from_the_command_line() {
     runs.push(("bvh8", "coop", vec![]));
     runs.push(("bvh2", "persistent", vec![]));
     runs.push(("bvh4", "persistent", vec![]));
+    // Packets at lavapipe's three widths: 8 lanes (the host's default here), 4 and 16.
+    for layout in ["bvh2", "bvh4", "bvh8", "qbvh4"] {
+        runs.push((layout, "packet", vec![]));
+    }
+    runs.push(("bvh2", "packet", vec![("LP_NATIVE_VECTOR_WIDTH", "128")]));
+    runs.push(("qbvh4", "packet", vec![("LP_NATIVE_VECTOR_WIDTH", "128")]));
+    runs.push(("bvh2", "packet", vec![("LP_NATIVE_VECTOR_WIDTH", "512")]));
+    runs.push(("bvh8", "packet", vec![("LP_NATIVE_VECTOR_WIDTH", "512")]));
     for (layout, traversal, env) in runs {
         let name = format!("{layout}-{traversal}-{}.hits", env.len());
         let v = cast(layout, traversal, &env, &name);

@@ -26,6 +26,7 @@ pub use layout::{Layout, LayoutNodes, LayoutSpec, NodeFootprint};
 pub use placement::{AccessPath, BufferPlacement, DeviceLimits, Placement, SceneAccess, SceneCounts};
 pub use variants::{
     support as traversal_support, BsdfSet, PathtraceKey, Raycast, RaycastKey, Traversal, COOP_SUBGROUP_OPERATIONS,
+    PACKET_SUBGROUP_OPERATIONS,
 };
 
 use crate::bvh::{Bvh, BvhNode, PAD_SLOT};

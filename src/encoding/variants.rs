@@ -52,12 +52,19 @@ named_enum! {
         /// workgroups, each invocation takes ray indices from an atomic counter and starts the
         /// next ray inside the traversal loop (glsl/raycast_persistent.comp).
         Persistent = "persistent",
+        /// Packets: the subgroup's lanes walk one path together, each with its own ray, on one
+        /// shared stack, so a node's loads are uniform (Wald et al., EG 2001;
+        /// glsl/raycast_packet.comp).
+        Packet = "packet",
     }
 }
 
 /// `VkSubgroupFeatureFlags` the cooperative kernel uses: basic, vote, arithmetic, ballot,
 /// shuffle.
 pub const COOP_SUBGROUP_OPERATIONS: u32 = 0x1 | 0x2 | 0x4 | 0x8 | 0x10;
+
+/// `VkSubgroupFeatureFlags` the packet kernel uses: basic, vote, arithmetic, ballot.
+pub const PACKET_SUBGROUP_OPERATIONS: u32 = 0x1 | 0x2 | 0x4 | 0x8;
 
 /// A ray-casting kernel by what it computes and how: the key the pipeline asks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -340,15 +347,17 @@ mod tests {
         // The other traversals: while-while on the binary nodes (closest, any, stats), the
         // cooperative kernel on every layout that gives a step, all but cwbvh (closest, stats; it
         // reads their node formats through layout_interface.glsl, and cwbvh's traversal is its
-        // own); persistent threads on the same layouts (closest); texel path only.
+        // own); persistent threads on the same layouts (closest); packets on the same layouts
+        // (closest, any, stats); texel path only.
         for m in Method::ALL {
             for &layout in Layout::ALL {
                 for &kind in Raycast::ALL {
-                    for t in [Traversal::WhileWhile, Traversal::Coop, Traversal::Persistent] {
+                    for t in [Traversal::WhileWhile, Traversal::Coop, Traversal::Persistent, Traversal::Packet] {
                         let k = m.traversal_kernel(kind, AccessPath::Texel, layout, t);
                         let expected = match t {
                             Traversal::WhileWhile => layout == Layout::Bvh2 && kind != Raycast::Clock,
                             Traversal::Persistent => layout != Layout::Cwbvh && kind == Raycast::Closest,
+                            Traversal::Packet => layout != Layout::Cwbvh && kind != Raycast::Clock,
                             _ => matches!(kind, Raycast::Closest | Raycast::Stats) && layout != Layout::Cwbvh,
                         };
                         assert_eq!(k.is_ok(), expected, "{m} {layout} {kind} {t}");
@@ -399,6 +408,7 @@ mod tests {
         assert_eq!(studied.iter().filter(|k| k.kernel == "rayquery").count(), 2);
         assert_eq!(support(Traversal::Persistent), "bvh2, bvh4, bvh8, qbvh4; texel path; closest");
         assert_eq!(support(Traversal::WhileWhile), "bvh2; texel path; closest, any, stats");
+        assert_eq!(support(Traversal::Packet), "bvh2, bvh4, bvh8, qbvh4; texel path; closest, any, stats");
         assert_eq!(
             support(Traversal::WhileIf),
             "bvh2, bvh4, bvh8, cwbvh, qbvh4; texel, address, storage paths; closest, any, stats, clock"

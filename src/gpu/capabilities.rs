@@ -16,7 +16,7 @@
 use std::fmt;
 
 use super::{DeviceInfo, EnabledFeatures, Peer};
-use crate::encoding::{AccessPath, Method, Raycast, Traversal, COOP_SUBGROUP_OPERATIONS};
+use crate::encoding::{AccessPath, Method, Raycast, Traversal, COOP_SUBGROUP_OPERATIONS, PACKET_SUBGROUP_OPERATIONS};
 use crate::kernels::KernelSource;
 use crate::named::Named;
 
@@ -228,7 +228,7 @@ impl<'a> Capabilities<'a> {
     }
 
     /// A traversal: the cooperative kernel needs subgroup operations in compute shaders and at
-    /// least four lanes.
+    /// least four lanes; the packet kernel needs subgroup operations.
     pub fn traversal(&self, t: Traversal) -> Result<(), Unsupported> {
         let (size, ops) = (self.info.subgroup_size, self.info.subgroup_operations);
         let what = format!("--traversal {t}");
@@ -243,6 +243,13 @@ impl<'a> Capabilities<'a> {
             Traversal::Coop if size < 4 => {
                 self.no(what, format!("it needs a subgroup of at least 4 lanes (the device has {size})"))
             }
+            Traversal::Packet if ops & PACKET_SUBGROUP_OPERATIONS != PACKET_SUBGROUP_OPERATIONS => self.no(
+                what,
+                format!(
+                    "it needs subgroup basic, vote, arithmetic and ballot operations in compute shaders (the \
+                     device has {ops:#x})"
+                ),
+            ),
             _ => Ok(()),
         }
     }

@@ -593,9 +593,10 @@ const CHILD_RAYS: usize = 256;
 
 /// The method, layout, access path and traversal of a `raycast` kernel variant (its key).
 fn raycast_request(k: &KernelSource) -> Result<SceneRequest> {
-    let key = RaycastKey::of(k).filter(|_| k.kernel == "raycast").ok_or_else(|| {
+    let key = RaycastKey::of(k).ok_or_else(|| {
         Error::Usage(format!(
-            "{}: driver-stats dispatches `raycast` kernels only (lavapipe compiles a shader at its first dispatch)",
+            "{}: driver-stats dispatches ray-casting kernels only, `raycast*` (lavapipe compiles a shader at its \
+             first dispatch)",
             k.name
         ))
     })?;
@@ -942,7 +943,7 @@ mod tests {
         let k = ks.iter().find(|k| k.name == "raycast.quad-mt.any_cwbvh").unwrap();
         assert_eq!((base_variant(k), k.layout), ("any", "cwbvh"));
         let pt = kernels_named(&["pathtrace.mt.all"]);
-        assert!(raycast_request(pt[0]).unwrap_err().to_string().contains("raycast` kernels only"));
+        assert!(raycast_request(pt[0]).unwrap_err().to_string().contains("ray-casting kernels only"));
         let bda = kernels_named(&["raycast.unit.closest_address_bvh8"]);
         let r = raycast_request(bda[0]).unwrap();
         assert_eq!((r.access, r.layout, r.traversal), (SceneAccess::Address, Layout::Bvh8, Traversal::WhileIf));
