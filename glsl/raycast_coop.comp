@@ -87,65 +87,7 @@ float coop_take_f(bool mine, float x) {
 #error "raycast_coop.comp drives a layout's step; cwbvh's traversal is its own (`// trilab:layouts(stepped)` leaves it out)"
 #endif
 
-#ifdef LAYOUT_NODE_TEXELS
-// The node's texels spread over the lanes: lane k holds texels k, k + S, k + 2S, k + 3S.
-struct CoopTexels {
-    uvec4 t0, t1, t2, t3;
-};
-
-CoopTexels coop_load(uint node) {
-    uint s = gl_SubgroupSize;
-    uint k = gl_SubgroupInvocationID;
-    uint base = LAYOUT_NODE_TEXELS * node;
-    // Only the node's own texels: with S > LAYOUT_NODE_TEXELS lanes (16 for bvh4, 32 for bvh8) the
-    // lanes beyond load nothing (never the next node, never past the buffer's end).
-    CoopTexels c;
-    c.t0 = uvec4(0u);
-    c.t1 = uvec4(0u);
-    c.t2 = uvec4(0u);
-    c.t3 = uvec4(0u);
-    if (k < LAYOUT_NODE_TEXELS) {
-        c.t0 = SCENE_TEXEL(scene_nodes, base + k);
-    }
-    if (s + k < LAYOUT_NODE_TEXELS) {
-        c.t1 = SCENE_TEXEL(scene_nodes, base + s + k);
-    }
-    if (2u * s + k < LAYOUT_NODE_TEXELS) {
-        c.t2 = SCENE_TEXEL(scene_nodes, base + 2u * s + k);
-    }
-    if (3u * s + k < LAYOUT_NODE_TEXELS) {
-        c.t3 = SCENE_TEXEL(scene_nodes, base + 3u * s + k);
-    }
-    return c;
-}
-
-// Texel `t` of the node, from the lane that loaded it. subgroupShuffle returns `src` as the
-// SOURCE lane computed it, so the block (which of t0..t3) must be the same in every lane: it is
-// passed in, computed from the field alone (uniform), never from a lane's child index.
-uvec4 coop_texel(CoopTexels c, uint block, uint t) {
-    uvec4 src = block == 0u ? c.t0 : block == 1u ? c.t1 : block == 2u ? c.t2 : c.t3;
-    return subgroupShuffle(src, t % gl_SubgroupSize);
-}
-
-// Field `f` (0..7: min x, y, z, max x, y, z, child, count) of child `ch` (ch >= LAYOUT_WIDTH:
-// any in-node value, the caller marks it unoccupied), where the layout keeps it
-// (layout_field_texel). A field's texels for all children lie in one block (bvh8's at 2f and
-// 2f + 1, as S is even), so the block is taken from child 0's.
-uint coop_field(CoopTexels c, uint ch, uint f) {
-    return coop_texel(c, layout_field_texel(f, 0u) / gl_SubgroupSize, layout_field_texel(f, ch))[ch & 3u];
-}
-
-NodeChild coop_child(CoopTexels c, uint ch) {
-    NodeChild o;
-    o.bmin = uintBitsToFloat(uvec3(coop_field(c, ch, 0u), coop_field(c, ch, 1u), coop_field(c, ch, 2u)));
-    o.bmax = uintBitsToFloat(uvec3(coop_field(c, ch, 3u), coop_field(c, ch, 4u), coop_field(c, ch, 5u)));
-    uint kid = coop_field(c, ch, 6u);
-    uint cnt = coop_field(c, ch, 7u);
-    o.occupied = ch < LAYOUT_WIDTH && kid != EMPTY_CHILD;
-    o.entry = LEAF_ENTRY(kid, cnt);
-    return o;
-}
-#endif
+#include "node_spread.glsl"
 
 // Slab test of a child: its entry distance, or -inf where it is missed or not there.
 float coop_test(BoxRay b, NodeChild c, float tfar) {
@@ -246,8 +188,8 @@ void coop_trace(TraceRay r, inout HitState h) {
             uint e1 = 0u;
             uint occupied = 0u;
 #ifdef LAYOUT_NODE_TEXELS
-            CoopTexels tex = coop_load(first);
-            NodeChild c0 = coop_child(tex, k);
+            SpreadTexels tex = spread_load(first);
+            NodeChild c0 = spread_child(tex, k);
 #else
             NodeChild c0 = layout_child(first, k);
 #endif
@@ -256,7 +198,7 @@ void coop_trace(TraceRay r, inout HitState h) {
             occupied += c0.occupied ? 1u : 0u;
 #ifdef LAYOUT_NODE_TEXELS
             if (s < LAYOUT_WIDTH) {
-                NodeChild c1 = coop_child(tex, k + s);
+                NodeChild c1 = spread_child(tex, k + s);
                 t1 = coop_test(b, c1, h.t);
                 e1 = c1.entry;
                 occupied += c1.occupied ? 1u : 0u;

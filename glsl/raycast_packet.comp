@@ -1,6 +1,6 @@
 #version 460
-// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS
-// trilab:layouts(stepped) closest any stats
+// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS closest_storage=SCENE_STORAGE any_storage=ANY_HIT,SCENE_STORAGE stats_storage=TRAVERSAL_STATS,SCENE_STORAGE
+// trilab:layouts(stepped) closest any stats closest_storage any_storage stats_storage
 // Packet ray casting (`--traversals packet`): the lanes of a subgroup walk ONE path through the
 // tree together, each with its own ray, and share one stack (Wald, Slusallek, Benthin & Wagner,
 // "Interactive Rendering with Coherent Ray Tracing", EG 2001: coherent packets; on GPUs,
@@ -24,15 +24,16 @@
 //
 // Its weakness is incoherent rays: the subgroup visits the union of its lanes' paths. The
 // layouts: every layout that gives a step (layout_interface.glsl: bvh2, bvh4, bvh8, qbvh4), not
-// cwbvh, whose traversal is its own. Needs subgroup basic, vote, arithmetic and ballot
+// cwbvh, whose traversal is its own. Needs subgroup basic, vote, arithmetic, ballot and shuffle
 // operations (the host checks them: gpu::Capabilities::traversal). Any subgroup width: no lane
-// returns early (lanes past the dispatch's rays carry no ray), and nothing depends on the
-// width.
+// returns early (lanes past the dispatch's rays carry no ray; the wide layouts' spread loads
+// need every lane, which the host's full subgroups give).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_vote : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_shuffle : require
 
 #include "types.glsl"
 
@@ -64,21 +65,22 @@ layout(local_size_x_id = SPEC_ID_WORKGROUP_SIZE, local_size_x = WORKGROUP_SIZE, 
 
 #define PACKET_INF uintBitsToFloat(0x7f800000u)
 
-// Child `ch` of inner node `node` (the same in every lane).
-NodeChild packet_child(uint node, uint ch) {
 #ifdef LAYOUT_NODE_TEXELS
-    WideQuad q = wide_load(node, ch / 4u);
-    uint k = ch & 3u;
-    NodeChild c;
-    c.bmin = vec3(q.mnx[k], q.mny[k], q.mnz[k]);
-    c.bmax = vec3(q.mxx[k], q.mxy[k], q.mxz[k]);
-    c.entry = LEAF_ENTRY(q.kid[k], q.cnt[k]);
-    c.occupied = q.kid[k] != EMPTY_CHILD;
-    return c;
+// The structure-of-arrays layouts (bvh4, bvh8): the node's texels loaded once, spread over the
+// lanes, each child's fields taken from the lane that loaded them (node_spread.glsl): one
+// texel load per lane per node where every lane loading every field makes LAYOUT_NODE_TEXELS
+// (on lavapipe each is a per-lane loop: gallivm loads a dynamically uniform address lane by
+// lane, docs/bvh.md).
+#include "node_spread.glsl"
+#define PacketNode SpreadTexels
+#define packet_node(node) spread_load(node)
+#define packet_child(n, node, ch) spread_child(n, ch)
 #else
-    return layout_child(node, ch);
+// The layouts that give a lane one child (bvh2, qbvh4: layout_child), the same in every lane.
+#define PacketNode uint
+#define packet_node(node) (node)
+#define packet_child(n, node, ch) layout_child(node, ch)
 #endif
-}
 
 // Traces each lane's `r` (`alive`: the lane has a ray) with the whole subgroup on one path,
 // updating the lane's `h` (h.t must start at the ray's tmax).
@@ -115,8 +117,9 @@ void packet_trace(TraceRay r, inout HitState h, bool alive, bool any_hit) {
             float near_t[LAYOUT_WIDTH];
             uint entry[LAYOUT_WIDTH];
             uint hit_children = 0u;
+            PacketNode node = packet_node(first);
             for (uint ch = 0u; ch < LAYOUT_WIDTH; ++ch) {
-                NodeChild c = packet_child(first, ch);
+                NodeChild c = packet_child(node, first, ch);
                 float tn = PACKET_INF;
                 if (want && c.occupied) {
                     COUNT_BOXES(1u);

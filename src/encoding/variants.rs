@@ -63,8 +63,8 @@ named_enum! {
 /// shuffle.
 pub const COOP_SUBGROUP_OPERATIONS: u32 = 0x1 | 0x2 | 0x4 | 0x8 | 0x10;
 
-/// `VkSubgroupFeatureFlags` the packet kernel uses: basic, vote, arithmetic, ballot.
-pub const PACKET_SUBGROUP_OPERATIONS: u32 = 0x1 | 0x2 | 0x4 | 0x8;
+/// `VkSubgroupFeatureFlags` the packet kernel uses: basic, vote, arithmetic, ballot, shuffle.
+pub const PACKET_SUBGROUP_OPERATIONS: u32 = 0x1 | 0x2 | 0x4 | 0x8 | 0x10;
 
 /// A ray-casting kernel by what it computes and how: the key the pipeline asks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -348,7 +348,7 @@ mod tests {
         // cooperative kernel on every layout that gives a step, all but cwbvh (closest, stats; it
         // reads their node formats through layout_interface.glsl, and cwbvh's traversal is its
         // own); persistent threads on the same layouts (closest); packets on the same layouts
-        // (closest, any, stats); texel path only.
+        // (closest, any, stats; texel and storage paths); the others on the texel path only.
         for m in Method::ALL {
             for &layout in Layout::ALL {
                 for &kind in Raycast::ALL {
@@ -366,7 +366,16 @@ mod tests {
                             reached.push(k.name);
                         }
                         assert!(m.traversal_kernel(kind, AccessPath::Address, layout, t).is_err());
-                        assert!(m.traversal_kernel(kind, AccessPath::Storage, layout, t).is_err());
+                        // Packets read storage buffers too (uniform loads: issue 53).
+                        let storage = m.traversal_kernel(kind, AccessPath::Storage, layout, t);
+                        assert_eq!(
+                            storage.is_ok(),
+                            expected && t == Traversal::Packet,
+                            "{m} {layout} {kind} {t} storage"
+                        );
+                        if let Ok(k) = storage {
+                            reached.push(k.name);
+                        }
                     }
                 }
             }
@@ -408,7 +417,7 @@ mod tests {
         assert_eq!(studied.iter().filter(|k| k.kernel == "rayquery").count(), 2);
         assert_eq!(support(Traversal::Persistent), "bvh2, bvh4, bvh8, qbvh4; texel path; closest");
         assert_eq!(support(Traversal::WhileWhile), "bvh2; texel path; closest, any, stats");
-        assert_eq!(support(Traversal::Packet), "bvh2, bvh4, bvh8, qbvh4; texel path; closest, any, stats");
+        assert_eq!(support(Traversal::Packet), "bvh2, bvh4, bvh8, qbvh4; texel, storage paths; closest, any, stats");
         assert_eq!(
             support(Traversal::WhileIf),
             "bvh2, bvh4, bvh8, cwbvh, qbvh4; texel, address, storage paths; closest, any, stats, clock"

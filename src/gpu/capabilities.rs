@@ -246,7 +246,7 @@ impl<'a> Capabilities<'a> {
             Traversal::Packet if ops & PACKET_SUBGROUP_OPERATIONS != PACKET_SUBGROUP_OPERATIONS => self.no(
                 what,
                 format!(
-                    "it needs subgroup basic, vote, arithmetic and ballot operations in compute shaders (the \
+                    "it needs subgroup basic, vote, arithmetic, ballot and shuffle operations in compute shaders (the \
                      device has {ops:#x})"
                 ),
             ),
