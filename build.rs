@@ -294,8 +294,8 @@ fn kernel_name(kernel: &str, method: &str, variant: &str) -> String {
 /// - `raycast*.comp`: the kind (`ANY_HIT`: any, `TRAVERSAL_STATS`: stats, `SHADER_CLOCK`:
 ///   clock, none: closest), the access path (`SCENE_ADDRESS`: address, `SCENE_STORAGE`:
 ///   storage, none: texel) and the traversal (the kernel file: `raycast_coop` coop,
-///   `raycast_persistent` persistent, `raycast_packet` packet; in `raycast`, `WHILE_WHILE`
-///   while-while, else while-if).
+///   `raycast_persistent` persistent, `raycast_packet` packet or with `HYBRID` hybrid; in
+///   `raycast`, `WHILE_WHILE` while-while, else while-if).
 /// - `pathtrace.comp`: the BSDFs (`BSDF_MASK`: the one its variant names, none: all of them)
 ///   and the access path.
 /// - `probe.comp`: the method's layout probe.
@@ -326,7 +326,15 @@ fn kernel_key(kernel: &str, method: &str, v: &Variant) -> Result<Option<String>,
     };
     match kernel {
         "raycast" | "raycast_coop" | "raycast_persistent" | "raycast_packet" => {
-            unknown(&["ANY_HIT", "TRAVERSAL_STATS", "SHADER_CLOCK", "SCENE_ADDRESS", "SCENE_STORAGE", "WHILE_WHILE"])?;
+            unknown(&[
+                "ANY_HIT",
+                "TRAVERSAL_STATS",
+                "SHADER_CLOCK",
+                "SCENE_ADDRESS",
+                "SCENE_STORAGE",
+                "WHILE_WHILE",
+                "HYBRID",
+            ])?;
             let kinds: Vec<&str> = [("ANY_HIT", "Any"), ("TRAVERSAL_STATS", "Stats"), ("SHADER_CLOCK", "Clock")]
                 .into_iter()
                 .filter(|(m, _)| has(m))
@@ -337,13 +345,14 @@ fn kernel_key(kernel: &str, method: &str, v: &Variant) -> Result<Option<String>,
                 [k] => k,
                 _ => return Err(format!("more than one kind: {kinds:?}")),
             };
-            let traversal = match (kernel, has("WHILE_WHILE")) {
-                ("raycast", false) => "WhileIf",
-                ("raycast", true) => "WhileWhile",
-                ("raycast_coop", false) => "Coop",
-                ("raycast_persistent", false) => "Persistent",
-                ("raycast_packet", false) => "Packet",
-                _ => return Err("WHILE_WHILE is raycast.comp's".into()),
+            let traversal = match (kernel, has("WHILE_WHILE"), has("HYBRID")) {
+                ("raycast", false, false) => "WhileIf",
+                ("raycast", true, false) => "WhileWhile",
+                ("raycast_coop", false, false) => "Coop",
+                ("raycast_persistent", false, false) => "Persistent",
+                ("raycast_packet", false, false) => "Packet",
+                ("raycast_packet", false, true) => "Hybrid",
+                _ => return Err("WHILE_WHILE is raycast.comp's, HYBRID raycast_packet.comp's".into()),
             };
             Ok(Some(format!(
                 "KernelKey::Raycast(RaycastKey {{ method: Method::{method}, kind: Raycast::{kind}, access: \

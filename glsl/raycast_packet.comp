@@ -1,6 +1,6 @@
 #version 460
-// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS closest_storage=SCENE_STORAGE any_storage=ANY_HIT,SCENE_STORAGE stats_storage=TRAVERSAL_STATS,SCENE_STORAGE
-// trilab:layouts(stepped) closest any stats closest_storage any_storage stats_storage
+// trilab:variants closest any=ANY_HIT stats=TRAVERSAL_STATS closest_storage=SCENE_STORAGE any_storage=ANY_HIT,SCENE_STORAGE stats_storage=TRAVERSAL_STATS,SCENE_STORAGE closest_hybrid=HYBRID any_hybrid=ANY_HIT,HYBRID stats_hybrid=TRAVERSAL_STATS,HYBRID
+// trilab:layouts(stepped) closest any stats closest_storage any_storage stats_storage closest_hybrid any_hybrid stats_hybrid
 // Packet ray casting (`--traversals packet`): the lanes of a subgroup walk ONE path through the
 // tree together, each with its own ray, and share one stack (Wald, Slusallek, Benthin & Wagner,
 // "Interactive Rendering with Coherent Ray Tracing", EG 2001: coherent packets; on GPUs,
@@ -22,7 +22,13 @@
 // out, and a leaf its ray does not enter holds no hit for it; only the order of the leaves
 // differs, which changes the hit only between triangles at exactly the same distance.
 //
-// Its weakness is incoherent rays: the subgroup visits the union of its lanes' paths. The
+// Its weakness is incoherent rays: the subgroup visits the union of its lanes' paths. HYBRID
+// (`*_hybrid`, `--traversals hybrid`; Benthin, Wald, Woop, Ernst & Mark, "Combining Single and
+// Packet-Ray Tracing for Arbitrary Ray Distributions on the Intel MIC Architecture", TVCG 2012):
+// packets while at least HYBRID_MIN_PERCENT of the lanes that hold a ray take part in the node,
+// then every lane goes on alone with while-if (traversal/while_if.glsl's loop) from where the
+// packet was, on the same stack: its entries are already the lane's, with its own distances.
+// The
 // layouts: every layout that gives a step (layout_interface.glsl: bvh2, bvh4, bvh8, qbvh4), not
 // cwbvh, whose traversal is its own. Needs subgroup basic, vote, arithmetic, ballot and shuffle
 // operations (the host checks them: gpu::Capabilities::traversal). Any subgroup width: no lane
@@ -46,6 +52,14 @@ layout(push_constant) uniform Push {
 
 #include "intersector.glsl"
 #include "bvh.glsl"
+#ifdef HYBRID
+#include "traversal/while_if.glsl"
+#ifndef HYBRID_MIN_PERCENT
+// The switch point: as soon as one lane with a ray has no part in the node. Of the two tried on
+// the bunny's bvh4 (docs/bvh.md), 100 beat 50 on random rays (1.53 against 0.93 Mrays/s).
+#define HYBRID_MIN_PERCENT 100u
+#endif
+#endif
 
 #ifdef TRAVERSAL_STATS
 layout(std430, set = 0, binding = BINDING_TRAVERSAL_STATS) writeonly buffer Counts { TraversalCounts counts[]; };
@@ -99,6 +113,17 @@ void packet_trace(TraceRay r, inout HitState h, bool alive, bool any_hit) {
         uint count = LEAF_ENTRY_COUNT(current);
         uint first = LEAF_ENTRY_FIRST(current);
         bool want = alive && mine <= h.t;
+#ifdef HYBRID
+        // Too few lanes left in the packet: each goes on alone (its entry, or the stack's).
+        uint busy = subgroupAdd(want ? 1u : 0u);
+        uint live = subgroupAdd(alive ? 1u : 0u);
+        if (busy * 100u < live * HYBRID_MIN_PERCENT) {
+            if (alive && (want || stack_pop_nearest(h.t, current))) {
+                while_if_from(r, h, b, current, any_hit);
+            }
+            return;
+        }
+#endif
         bool visit = false;
         if (count > 0u) {
             if (want) {

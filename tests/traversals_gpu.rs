@@ -60,9 +60,9 @@ fn every_traversal_equals_while_if_ray_for_ray() {
         let combos = combos();
         // Every layout has its while-if, bvh2 while-while, and the layouts that give a step
         // (glsl/layout_interface.glsl: all but cwbvh, whose traversal is its own) the cooperative
-        // kernel, persistent threads and packets.
+        // kernel, persistent threads, packets and the hybrid.
         let stepped = Layout::ALL.len() - 1;
-        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 3 * stepped, "{combos:?}");
+        assert_eq!(combos.len(), Layout::ALL.len() + 1 + 4 * stepped, "{combos:?}");
         let mut lines = vec![];
         for method in Method::ALL {
             for &layout in Layout::ALL {
@@ -162,7 +162,7 @@ fn stats_and_occlusion_follow_the_algorithm() {
                 let mut scene = host.upload(ctx, &SceneRequest::new(method).layout(layout)).unwrap();
                 let wi = scene.cast(ctx, Raycast::Stats, rays, &common::ONCE).unwrap();
                 let cw = wi.traversal.unwrap();
-                for t in [Traversal::WhileWhile, Traversal::Coop, Traversal::Packet] {
+                for t in [Traversal::WhileWhile, Traversal::Coop, Traversal::Packet, Traversal::Hybrid] {
                     scene.traversal = t;
                     if scene.kernel_source(Raycast::Stats).is_err() {
                         continue;
@@ -188,7 +188,7 @@ fn stats_and_occlusion_follow_the_algorithm() {
                         // this ray, so a ray may find its closest hit sooner or later than
                         // while-if does: no order between the counts. Every ray that hits
                         // tested a triangle, and a ray that misses the tree counted nothing.
-                        Traversal::Packet => {
+                        Traversal::Packet | Traversal::Hybrid => {
                             for (i, (a, h)) in c.iter().zip(&closest).enumerate() {
                                 assert!(
                                     !h.is_hit() || a.triangles > 0,
@@ -215,7 +215,7 @@ fn stats_and_occlusion_follow_the_algorithm() {
                             }
                         }
                     }
-                    if matches!(t, Traversal::WhileWhile | Traversal::Packet) {
+                    if matches!(t, Traversal::WhileWhile | Traversal::Packet | Traversal::Hybrid) {
                         let any = scene.cast(ctx, Raycast::Any, rays, &common::ONCE).unwrap().hits;
                         let wrong_any = any.iter().zip(&ref_hits).filter(|(a, r)| a.is_hit() != r.is_hit()).count();
                         let wrong = closest.iter().zip(&ref_hits).filter(|(a, r)| a.is_hit() != r.is_hit()).count();
@@ -272,6 +272,9 @@ fn raycast_takes_the_traversal_from_the_command_line() {
     runs.push(("qbvh4", "packet", vec![("LP_NATIVE_VECTOR_WIDTH", "128")]));
     runs.push(("bvh2", "packet", vec![("LP_NATIVE_VECTOR_WIDTH", "512")]));
     runs.push(("bvh8", "packet", vec![("LP_NATIVE_VECTOR_WIDTH", "512")]));
+    runs.push(("bvh2", "hybrid", vec![]));
+    runs.push(("bvh4", "hybrid", vec![("LP_NATIVE_VECTOR_WIDTH", "128")]));
+    runs.push(("bvh8", "hybrid", vec![("LP_NATIVE_VECTOR_WIDTH", "512")]));
     for (layout, traversal, env) in runs {
         let name = format!("{layout}-{traversal}-{}.hits", env.len());
         let v = cast(layout, traversal, &env, &name);

@@ -8,14 +8,9 @@
 #ifndef TRILAB_WHILE_IF
 #define TRILAB_WHILE_IF
 
-void trace(TraceRay r, inout HitState h, bool any_hit) {
-    LayoutRoot root = layout_root();
-    BoxRay b;
-    if (!ray_enter(r, h, root, b)) {
-        return;
-    }
-    uint current = root.entry;
-    stack_size = 0u;
+// The loop from entry `current` (its box hit, not beyond h.t) with the stack as it is: the rest
+// of a ray's traversal (raycast_packet.comp's hybrid hands each lane over to it).
+void while_if_from(TraceRay r, inout HitState h, BoxRay b, uint current, bool any_hit) {
     while (true) {
         uint count = LEAF_ENTRY_COUNT(current);
         uint first = LEAF_ENTRY_FIRST(current);
@@ -34,6 +29,16 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
             return;
         }
     }
+}
+
+void trace(TraceRay r, inout HitState h, bool any_hit) {
+    LayoutRoot root = layout_root();
+    BoxRay b;
+    if (!ray_enter(r, h, root, b)) {
+        return;
+    }
+    stack_size = 0u;
+    while_if_from(r, h, b, root.entry, any_hit);
 }
 
 #endif

@@ -72,7 +72,7 @@ pub struct BenchArgs {
     /// each, side by side in one run (default: bvh2).
     #[arg(long, value_name = "L,...", value_parser = choice::<Layout>(), value_delimiter = ',')]
     layouts: Vec<Layout>,
-    /// Traversals, comma-separated (`while-if`, `while-while`, `coop`, `persistent`, `packet`): every
+    /// Traversals, comma-separated (`while-if`, `while-while`, `coop`, `persistent`, `packet`, `hybrid`): every
     /// method and layout is timed with each that has a kernel for it, side by side in one run; a
     /// traversal x layout without one is left out with a note (default: while-if).
     #[arg(long, value_name = "T,...", value_parser = choice::<Traversal>(), value_delimiter = ',')]

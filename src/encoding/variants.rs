@@ -56,6 +56,9 @@ named_enum! {
         /// shared stack, so a node's loads are uniform (Wald et al., EG 2001;
         /// glsl/raycast_packet.comp).
         Packet = "packet",
+        /// Packets while enough lanes take part in a node, then each ray alone with while-if on
+        /// the same stack (Benthin et al., TVCG 2012; glsl/raycast_packet.comp's HYBRID).
+        Hybrid = "hybrid",
     }
 }
 
@@ -352,12 +355,18 @@ mod tests {
         for m in Method::ALL {
             for &layout in Layout::ALL {
                 for &kind in Raycast::ALL {
-                    for t in [Traversal::WhileWhile, Traversal::Coop, Traversal::Persistent, Traversal::Packet] {
+                    for t in [
+                        Traversal::WhileWhile,
+                        Traversal::Coop,
+                        Traversal::Persistent,
+                        Traversal::Packet,
+                        Traversal::Hybrid,
+                    ] {
                         let k = m.traversal_kernel(kind, AccessPath::Texel, layout, t);
                         let expected = match t {
                             Traversal::WhileWhile => layout == Layout::Bvh2 && kind != Raycast::Clock,
                             Traversal::Persistent => layout != Layout::Cwbvh && kind == Raycast::Closest,
-                            Traversal::Packet => layout != Layout::Cwbvh && kind != Raycast::Clock,
+                            Traversal::Packet | Traversal::Hybrid => layout != Layout::Cwbvh && kind != Raycast::Clock,
                             _ => matches!(kind, Raycast::Closest | Raycast::Stats) && layout != Layout::Cwbvh,
                         };
                         assert_eq!(k.is_ok(), expected, "{m} {layout} {kind} {t}");
@@ -418,6 +427,7 @@ mod tests {
         assert_eq!(support(Traversal::Persistent), "bvh2, bvh4, bvh8, qbvh4; texel path; closest");
         assert_eq!(support(Traversal::WhileWhile), "bvh2; texel path; closest, any, stats");
         assert_eq!(support(Traversal::Packet), "bvh2, bvh4, bvh8, qbvh4; texel, storage paths; closest, any, stats");
+        assert_eq!(support(Traversal::Hybrid), "bvh2, bvh4, bvh8, qbvh4; texel path; closest, any, stats");
         assert_eq!(
             support(Traversal::WhileIf),
             "bvh2, bvh4, bvh8, cwbvh, qbvh4; texel, address, storage paths; closest, any, stats, clock"

@@ -243,13 +243,15 @@ impl<'a> Capabilities<'a> {
             Traversal::Coop if size < 4 => {
                 self.no(what, format!("it needs a subgroup of at least 4 lanes (the device has {size})"))
             }
-            Traversal::Packet if ops & PACKET_SUBGROUP_OPERATIONS != PACKET_SUBGROUP_OPERATIONS => self.no(
-                what,
-                format!(
+            Traversal::Packet | Traversal::Hybrid if ops & PACKET_SUBGROUP_OPERATIONS != PACKET_SUBGROUP_OPERATIONS => {
+                self.no(
+                    what,
+                    format!(
                     "it needs subgroup basic, vote, arithmetic, ballot and shuffle operations in compute shaders (the \
                      device has {ops:#x})"
                 ),
-            ),
+                )
+            }
             _ => Ok(()),
         }
     }
