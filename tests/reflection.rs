@@ -158,7 +158,7 @@ fn host_layout(method: &str, binding: u32, storage: bool) -> BufferLayout {
 /// bsdf_probe a `ProbePush` (mode, count).
 fn host_push(kernel: &str) -> Vec<u32> {
     match kernel {
-        "raycast" | "raycast_coop" | "raycast_persistent" | "rayquery" => vec![0],
+        "raycast" | "raycast_coop" | "raycast_persistent" | "raycast_packet" | "rayquery" => vec![0],
         "probe" => vec![0, 4, 8],
         "pathtrace" => vec![
             offset_of!(PathtracePush, sample_first) as u32,
@@ -213,7 +213,7 @@ fn rust_structs_match_spirv_offsets_and_strides() {
             ("pathtrace" | "rng_probe" | "subgroup_probe", _) => 1,
             // roofline: its push constants only (nodes are uvec4 texels, checksums u32).
             ("roofline", _) => 0,
-            ("raycast" | "raycast_coop", v) if v.starts_with("stats") => 3,
+            ("raycast" | "raycast_coop" | "raycast_packet", v) if v.starts_with("stats") => 3,
             _ => 2,
         })
         .sum();
@@ -243,7 +243,7 @@ fn kernels_bind_what_the_host_provides() {
             ("subgroup_probe", _) => vec![BINDING_SUBGROUP_PROBE_TEXELS],
             // roofline's nodes: a texel buffer, a storage buffer or an address (below).
             ("roofline", _) => vec![BINDING_NODES],
-            ("raycast" | "raycast_coop" | "raycast_persistent", Some(_)) => scene,
+            ("raycast" | "raycast_coop" | "raycast_persistent" | "raycast_packet", Some(_)) => scene,
             // The driver's structure replaces ours; the BLAS primitive -> OBJ id table remains.
             ("rayquery", _) => vec![BINDING_SLOT_IDS],
             // The path tracer shades by slot and never reads the slot -> OBJ id table.
@@ -259,12 +259,12 @@ fn kernels_bind_what_the_host_provides() {
         };
         let accels = if k.kernel == "rayquery" { vec![BINDING_TLAS] } else { vec![] };
         let buffers = match (k.kernel, k.variant) {
-            ("raycast" | "raycast_coop", v) if v.starts_with("stats") => {
+            ("raycast" | "raycast_coop" | "raycast_packet", v) if v.starts_with("stats") => {
                 vec![BINDING_RAYS, BINDING_HITS, BINDING_TRAVERSAL_STATS]
             }
             ("raycast", v) if v.starts_with("clock") => vec![BINDING_RAYS, BINDING_HITS, BINDING_CYCLES],
             ("raycast_persistent", _) => vec![BINDING_RAYS, BINDING_HITS, BINDING_RAY_COUNTER],
-            ("raycast" | "raycast_coop" | "rayquery", _) => vec![BINDING_RAYS, BINDING_HITS],
+            ("raycast" | "raycast_coop" | "raycast_packet" | "rayquery", _) => vec![BINDING_RAYS, BINDING_HITS],
             ("pathtrace", _) => vec![BINDING_PARAMS, BINDING_ACCUM, BINDING_STATS],
             ("bsdf_probe", _) => vec![BINDING_BSDF_PROBE_IN, BINDING_BSDF_PROBE_OUT],
             ("rng_probe", _) => vec![BINDING_RNG_PROBE_OUT],
@@ -352,7 +352,7 @@ fn clock_variant_adds_only_the_cycles_buffer() {
 fn raycast_workgroup_size_is_a_specialisation_constant() {
     for k in KERNELS {
         let mut l = reflect(k.name, &k.words()).unwrap();
-        if !matches!(k.kernel, "raycast" | "raycast_coop" | "raycast_persistent") {
+        if !matches!(k.kernel, "raycast" | "raycast_coop" | "raycast_persistent" | "raycast_packet") {
             assert_eq!(l.local_size_spec_ids, [None; 3], "{}", k.name);
             continue;
         }
