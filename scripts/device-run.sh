@@ -36,14 +36,16 @@
 #                     layout needs; not -march=native, the GPU machine's CPU is another) with
 #                     OpenCL, and its .cl kernels
 #   COMMIT            the commit packed (TRILAB_COMMIT there, where there is no .git)
-# Budget: the tracked tree, ../shared, and .travel/ together under 58 MiB (the device tool
-# refuses 64 MiB; 56 until issue 50's results/radv/ and its code brought the whole to 56.8 MiB).
+# Budget: the tracked tree, ../shared, and .travel/ together under 60 MiB (the device tool
+# refuses 64 MiB; 56 until issue 50's results/radv/ and its code brought the whole to 56.8 MiB,
+# 58 until issue 53's packet and hybrid kernels, 288 of them, 1.9 MiB deflated in the binary,
+# brought it to 59.5 MiB, of which 52.4 MiB travel).
 # `../shared` does not travel (the device tool sends the checkout only) but is counted, as a run
 # that needs a shared scene would carry it.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 travel=$root/.travel
-BUDGET_MIB=58
+BUDGET_MIB=60
 ARCHIVE_MAX=$((16 * 1024 * 1024))
 LAYOUTS=bvh2,bvh4,qbvh4,cwbvh
 # The repros' scene: 2,000 triangles, a repro of 0.4 MB (docs/repro.md).

@@ -1,7 +1,7 @@
 //! The tracked tree travels to a lent GPU: the device tool copies the working tree (tracked
 //! files, `../shared/`, and what a run carries: the stripped binary, the Vulkan loaders, the
 //! tinybvh peer) and refuses more than 64 MiB in all. `scripts/device-run.sh pack` checks the
-//! whole at 58 MiB; this test holds the part that grows with every commit, the tracked tree.
+//! whole at 60 MiB; this test holds the part that grows with every commit, the tracked tree.
 //!
 //! Counted: the size in bytes of every file `git ls-files` lists, as it is in the working tree
 //! (what the device tool copies), summed. Budget: [`TREE_BUDGET_MIB`] MiB (20.3 MiB at issue 23:
