@@ -274,6 +274,25 @@ mod tests {
     }
 
     #[test]
+    fn peers_are_planned_where_no_kernel_of_the_matrix_runs() {
+        // cwbvh has no cooperative kernel: the matrix has no kernel cell, the peers still run.
+        let o = BenchOptions {
+            scenes: vec![PathBuf::from("bunny")],
+            axes: crate::matrix::KernelAxes {
+                methods: vec![Method::Mt],
+                layouts: vec![Layout::Cwbvh],
+                traversals: vec!["coop".parse::<Traversal>().unwrap()],
+                ..Default::default()
+            },
+            ..BenchOptions::default()
+        };
+        assert!(o.axes.kernels().is_empty());
+        let plan = plan_cells(&o, &[], &[PeerKind::Embree.to_string()]);
+        assert_eq!(plan.len(), 3, "Embree on each of the three sets: {plan:?}");
+        assert!(plan.iter().all(|c| c.get("peer").map(String::as_str) == Some("embree3")), "{plan:?}");
+    }
+
+    #[test]
     fn a_bench_shard_takes_whole_scenes_and_no_more_shards_than_scenes() {
         let shard = |s: &str| Some(s.parse::<Shard>().unwrap());
         let o = BenchOptions {

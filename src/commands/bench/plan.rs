@@ -84,22 +84,19 @@ impl Default for BenchOptions {
 /// tracing pipeline); `peers`: the peer programs that passed their probe.
 pub fn plan_cells(o: &BenchOptions, driver: &[Peer], peers: &[String]) -> Vec<crate::rows::Cell> {
     let experiment = o.experiment();
-    if experiment.sets.is_empty() {
-        return vec![]; // every set empty: nothing to measure (the run refuses it)
-    }
     let cells = experiment.cells();
     let peers: Vec<String> = driver.iter().map(Peer::to_string).chain(peers.iter().cloned()).collect();
     let mut out = vec![];
-    // The matrix lists a (scene, set)'s kernels together; its peers follow them.
-    for same in cells.chunk_by(|a, b| (&a.group, a.set) == (&b.group, b.set)) {
-        let first = BenchCell::of(&same[0], &o.build);
-        let (scene, set) = (first.scene, first.set);
-        for c in same {
-            out.push(BenchCell::of(c, &o.build).coordinates());
-        }
-        for peer in &peers {
-            let tracer = CellTracer::Peer(peer.clone());
-            out.push(BenchCell { scene: scene.clone(), set, rays: None, tracer }.coordinates());
+    // Per scene and set, the matrix's kernels, then the peers (who run where no kernel does).
+    for group in experiment.groups() {
+        for &set in &experiment.sets {
+            let here = cells.iter().filter(|c| c.group == group && c.set == Some(set));
+            out.extend(here.filter_map(|c| BenchCell::of(c, &o.build)).map(|c| c.coordinates()));
+            let scene = group.scene_name().unwrap_or_default();
+            for peer in &peers {
+                let tracer = CellTracer::Peer(peer.clone());
+                out.push(BenchCell { scene: scene.clone(), set, rays: None, tracer }.coordinates());
+            }
         }
     }
     out
@@ -201,10 +198,11 @@ pub enum CellTracer {
 }
 
 impl BenchCell {
-    /// A matrix cell of a bench built with `build` (a bench crosses ray sets: a cell without
-    /// one is the primary set's). `auto` names no path in the plan (coordinates never name
-    /// texel): the row names the one the scene took.
-    pub fn of(c: &crate::matrix::Cell, build: &BuildOptions) -> BenchCell {
+    /// A matrix cell of a bench built with `build`; none for a cell without a ray set (a bench
+    /// measures per set). `auto` names no path in the plan (coordinates never name texel): the
+    /// row names the one the scene took.
+    pub fn of(c: &crate::matrix::Cell, build: &BuildOptions) -> Option<BenchCell> {
+        let set = c.set?;
         let k = c.kernel;
         let tracer = CellTracer::Method {
             method: k.method,
@@ -216,12 +214,7 @@ impl BenchCell {
             order: c.order,
             access: k.planned_path().unwrap_or(AccessPath::Texel),
         };
-        BenchCell {
-            scene: c.group.scene_name().unwrap_or_default(),
-            set: c.set.unwrap_or(RaySet::Primary),
-            rays: None,
-            tracer,
-        }
+        Some(BenchCell { scene: c.group.scene_name().unwrap_or_default(), set, rays: None, tracer })
     }
 
     /// The cell whose [`coordinates`](BenchCell::coordinates) are `c`, or what in them no bench
