@@ -18,6 +18,15 @@
 #define BVH8_STACK_SIZE 96
 // Node groups of the cwbvh traversal's stack (glsl/layout/cwbvh.glsl; CwBvh::stack_bound).
 #define CWBVH_STACK_SIZE 32
+// Entries every per-lane stack array has room for, whatever its layout's bound: 65 four-byte
+// entries are 260 bytes, past the 256 bytes up to which RADV (Mesa's AMD driver, ACO and LLVM
+// alike) keeps an indexed local array in registers, as an if-ladder over every entry. Held there,
+// bvh4's, qbvh4's and cwbvh's stacks took 180-228 VGPRs, one subgroup per SIMD on GCN and LLVM
+// spilling; in scratch, 56-96 VGPRs and 2-4 subgroups (results/radv/stack-53/). The stack's
+// entries and distances stay two arrays of scalars: one array of pairs measured 1.1-2.5x slower
+// on lavapipe. No layout's bound changes: the host still refuses a tree deeper than its layout's.
+#define STACK_MIN_ENTRIES 65
+#define STACK_CAPACITY(bound) ((bound) < STACK_MIN_ENTRIES ? STACK_MIN_ENTRIES : (bound))
 
 // The packed entry every traversal keeps of a node once its box was tested (its stacks hold
 // these), and the cwbvh leaf table's entries: (first << LEAF_ENTRY_COUNT_BITS) | count, where

@@ -6,7 +6,9 @@
 // Private globals: one stack per invocation, like trav_counts (counts.glsl); after inlining,
 // the driver holds them as the locals they replace. LAYOUT_STACK_SIZE entries, defined by the
 // layout before this file: the host refuses a tree whose stack bound exceeds its layout's
-// (LayoutNodes::stack_bound) before anything is uploaded, so no push is checked.
+// (LayoutNodes::stack_bound) before anything is uploaded, so no push is checked. Each array has
+// room for at least STACK_MIN_ENTRIES (shared.glsl), so that a GPU's compiler keeps it in
+// scratch memory and not in registers.
 #ifndef TRILAB_STACK
 #define TRILAB_STACK
 
@@ -14,8 +16,8 @@
 #error "stack.glsl: the layout defines LAYOUT_STACK_SIZE before including it"
 #endif
 
-uint stack_entry[LAYOUT_STACK_SIZE];
-float stack_t[LAYOUT_STACK_SIZE];
+uint stack_entry[STACK_CAPACITY(LAYOUT_STACK_SIZE)];
+float stack_t[STACK_CAPACITY(LAYOUT_STACK_SIZE)];
 uint stack_size;
 
 void stack_push(uint entry, float tnear) {

@@ -345,3 +345,52 @@ fn the_gate_holds_the_radv_counts_exactly_and_only_for_the_same_mesa() {
         .any(|w| w.as_str().unwrap().contains("differ by the driver alone, so they are not judged"));
     assert!(warned, "{r}");
 }
+
+/// Issue 53's register target for the per-ray (while-if) kernels: on GCN with ACO every layout's
+/// closest- and any-hit kernel keeps at least 2 subgroups per SIMD (at most 128 VGPRs), and
+/// LLVM's backend spills nothing where it caps a subgroup at 128 VGPRs (navi31, wave64). Before
+/// the stack's arrays were sized past RADV's 256-byte line (glsl/shared.glsl,
+/// STACK_MIN_ENTRIES), bvh4's, qbvh4's and cwbvh's stacks were held in registers: 180-228 VGPRs,
+/// one subgroup on GCN, and 141-322 VGPRs spilled by LLVM (results/radv/stack-53/).
+#[test]
+fn while_if_kernels_fit_two_subgroups_on_gcn_and_llvm_does_not_spill() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = s(dir.path());
+    let args = [
+        "driver-stats",
+        "--targets",
+        "pitcairn:aco:64,navi31:llvm:64",
+        "--kernels",
+        "raycast",
+        "--variants",
+        "closest,any",
+        "--out",
+        &out,
+    ];
+    ok(&run(&args, None, &[], 300).0);
+    let csv = std::fs::read_to_string(dir.path().join("driver-stats.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let (chip, compiler, layout, variant, method) =
+        (col("chip"), col("compiler"), col("layout"), col("variant"), col("method"));
+    let (sg, spilled, refused) = (col("subgroups_per_simd"), col("spilled_vgprs"), col("refused"));
+    let mut seen = std::collections::BTreeSet::new();
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f[refused], "", "a kernel was refused: {line}");
+        let what = format!("{} {} {} {} {}", f[chip], f[compiler], f[method], f[layout], f[variant]);
+        let n = |i: usize| f[i].parse::<u32>().unwrap_or_else(|_| panic!("{what}: column {} is `{}`", header[i], f[i]));
+        if f[chip] == "pitcairn" {
+            assert!(n(sg) >= 2, "{what}: {} subgroup(s) per SIMD", n(sg));
+        } else {
+            assert_eq!(n(spilled), 0, "{what}: {} VGPRs spilled", n(spilled));
+        }
+        seen.insert((f[chip].to_owned(), f[layout].to_owned()));
+    }
+    for c in ["pitcairn", "navi31"] {
+        for l in ["bvh2", "bvh4", "bvh8", "cwbvh", "qbvh4"] {
+            assert!(seen.contains(&(c.to_owned(), l.to_owned())), "{c} {l} was compiled: {seen:?}");
+        }
+    }
+}

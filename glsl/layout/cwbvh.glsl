@@ -82,8 +82,8 @@ void trace(TraceRay r, inout HitState h, bool any_hit) {
     ray_enter(r, h, layout_root(), b);
     bvec3 neg = lessThan(r.dir, vec3(0.0));
     uint oct_inv = 7u ^ (uint(neg.x) | uint(neg.y) << 1u | uint(neg.z) << 2u);
-    uint stack_base[CWBVH_STACK_SIZE];
-    uint stack_mask[CWBVH_STACK_SIZE];
+    uint stack_base[STACK_CAPACITY(CWBVH_STACK_SIZE)];
+    uint stack_mask[STACK_CAPACITY(CWBVH_STACK_SIZE)];
     uint sp = 0u;
     // The root group: node 0 alone (bit 31, imask 0).
     uint group_base = 0u;
