@@ -18,6 +18,12 @@ named_enum! {
         /// origins (in Morton order), stably: lanes of one subgroup start close together and
         /// head the same way, and within a cell rays keep the set's order.
         OctantOrigin = "octant-origin",
+        /// Screen tiles: by the 2D Morton code of where each ray's direction crosses the plane
+        /// across the set's mean direction (a gnomonic projection). A pinhole camera's rays cross
+        /// it on the image's pixel grid, so a primary set is traced in nested square tiles and
+        /// every power-of-two run of lanes (4 to 64) covers a compact block of pixels; other sets
+        /// are grouped by where they head. Rays heading away from the mean come last.
+        Tiles = "tiles",
     }
 }
 
@@ -28,6 +34,7 @@ impl RayOrder {
         match self {
             RayOrder::Given => None,
             RayOrder::OctantOrigin => Some(sort_by_key(&octant_origin_keys(rays))),
+            RayOrder::Tiles => Some(sort_by_key(&tile_keys(rays))),
         }
     }
 }
@@ -58,6 +65,56 @@ fn octant_origin_keys(rays: &[Ray]) -> Vec<u32> {
             octant << (3 * CELL_BITS) | spread3(q(0)) | spread3(q(1)) << 1 | spread3(q(2)) << 2
         })
         .collect()
+}
+
+/// Bits per axis of a ray's position on the tiles' plane: 15, so that the key (with the
+/// heading-away bit above the 30-bit Morton code) sorts in four 9-bit passes.
+const TILE_BITS: u32 = 15;
+
+/// Each ray's tile key: the Morton code of its direction's crossing of the plane one unit along
+/// the set's mean direction `m` (coordinates `(d.u, d.v) / d.m` for a basis `u, v` across `m`,
+/// quantised over the set's bounds), with bit 30 set for a ray whose direction does not head
+/// along `m` (`d.m <= 0`, or not finite) so that those sort last.
+fn tile_keys(rays: &[Ray]) -> Vec<u32> {
+    use glam::Vec3;
+    use rayon::prelude::*;
+    let sum: Vec3 = rays.iter().map(|r| Vec3::from_array(r.dir)).filter(|d| d.is_finite()).sum();
+    let m = sum.try_normalize().unwrap_or(Vec3::Z);
+    let (u, v) = m.any_orthonormal_pair();
+    let plane = |d: [f32; 3]| {
+        let d = Vec3::from_array(d);
+        let along = d.dot(m);
+        let p = [d.dot(u) / along, d.dot(v) / along];
+        (along > 0.0 && p.iter().all(|x| x.is_finite())).then_some(p)
+    };
+    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    for p in rays.iter().filter_map(|r| plane(r.dir)) {
+        for a in 0..2 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    // One scale for both axes, so that a Morton block is square on the image.
+    let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let scale = if extent > 0.0 { ((1u32 << TILE_BITS) - 1) as f32 / extent } else { 0.0 };
+    rays.par_iter()
+        .map(|r| match plane(r.dir) {
+            Some(p) => {
+                let q = |a: usize| ((p[a] - lo[a]) * scale).round() as u32;
+                spread2(q(0)) | spread2(q(1)) << 1
+            }
+            None => 1 << (2 * TILE_BITS),
+        })
+        .collect()
+}
+
+/// The low [`TILE_BITS`] bits of `x` spread to every other bit (bit i to bit 2i).
+fn spread2(x: u32) -> u32 {
+    let mut x = x & ((1 << TILE_BITS) - 1);
+    x = (x | x << 8) & 0x00ff00ff;
+    x = (x | x << 4) & 0x0f0f0f0f;
+    x = (x | x << 2) & 0x33333333;
+    (x | x << 1) & 0x55555555
 }
 
 /// The low [`CELL_BITS`] bits of `x` spread to every third bit (bit i to bit 3i).
@@ -171,6 +228,59 @@ mod tests {
         let hits: Vec<f32> = traced.iter().map(|r| r.origin[0]).collect();
         let back = unpermute(&order, &hits);
         assert_eq!(back, (0..10).map(|i| i as f32).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn tiles_keep_a_subgroup_of_a_pinhole_image_in_a_compact_block() {
+        // A 64 x 48 pinhole image, row by row, looking down -z with a 60 degree field: pixel
+        // (x, y)'s direction crosses the plane z = -1 at a point on a uniform grid.
+        let (w, h) = (64usize, 48usize);
+        let rays: Vec<Ray> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                let d = glam::Vec3::new((2.0 * x / w as f32 - 1.0) * 0.77, (1.0 - 2.0 * y / h as f32) * 0.58, -1.0);
+                ray([1.0, 2.0, 3.0], d.normalize().to_array())
+            })
+            .collect();
+        let order = RayOrder::Tiles.permutation(&rays).unwrap();
+        let mut seen = order.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..(w * h) as u32).collect::<Vec<_>>(), "a permutation");
+        // Each run of 16 lanes spans few pixels in x and in y; in the given order it is a row
+        // segment 16 pixels wide.
+        let span = |group: &[u32]| {
+            let xs = group.iter().map(|&i| i as usize % w);
+            let ys = group.iter().map(|&i| i as usize / w);
+            (xs.clone().max().unwrap() - xs.min().unwrap() + 1) * (ys.clone().max().unwrap() - ys.min().unwrap() + 1)
+        };
+        let given: Vec<u32> = (0..(w * h) as u32).collect();
+        let mean = |o: &[u32]| o.chunks(16).map(span).sum::<usize>() as f64 / (w * h / 16) as f64;
+        assert_eq!(mean(&given), 16.0);
+        // Square Morton blocks on a grid whose sides are multiples of 4: 4 x 4 tiles, up to a
+        // rounding step at a block's edge.
+        assert!(mean(&order) <= 18.0, "16 lanes cover {} pixels' box on average", mean(&order));
+        let widest = order.chunks(16).map(span).max().unwrap();
+        assert!(widest <= 32, "the widest group of 16 spans a box of {widest} pixels");
+        // A 4-lane run is a 2 x 2 block (a 2 x 3 box at most).
+        assert!(order.chunks(4).all(|g| span(g) <= 6));
+    }
+
+    #[test]
+    fn tiles_put_rays_heading_away_last_and_survive_nan() {
+        let rays = vec![
+            ray([0.0; 3], [0.0, 0.0, -1.0]),
+            ray([0.0; 3], [0.0, 0.0, 1.0]),
+            ray([0.0; 3], [f32::NAN, 0.0, -1.0]),
+            ray([0.0; 3], [0.1, 0.0, -1.0]),
+            ray([0.0; 3], [0.0, 0.1, -1.0]),
+        ];
+        let order = RayOrder::Tiles.permutation(&rays).unwrap();
+        // The mean heads down -z (the NaN direction is left out of it); +z and NaN go last, in
+        // the set's order.
+        assert_eq!(&order[3..], &[1, 2]);
+        let mut first = order[..3].to_vec();
+        first.sort_unstable();
+        assert_eq!(first, vec![0, 3, 4]);
     }
 
     #[test]
