@@ -11,7 +11,7 @@
 #ifndef PRIM_TRIANGLES
 #error "TRAVERSAL_STATS needs the intersector's PRIM_TRIANGLES"
 #endif
-// The work trace() did for this invocation's ray (16 bytes; Rust twin gpu::TraversalCounts).
+// The work trace() did for this invocation's ray (24 bytes; Rust twin gpu::TraversalCounts).
 // A leaf's `count` is its triangles (padding slots are not counted in it), and the closest-hit
 // intersectors test every one, so:
 //   inner:     loop iterations at an inner node (each loads and slab-tests both children);
@@ -21,7 +21,10 @@
 //              (PRIM_TRIANGLES: 4 for the Quad intersectors, whose padding lanes are computed
 //              too; equal to `triangles` for the one-triangle intersectors);
 //   boxes:     slab tests: the root's and both children's per inner iteration here; in a wide
-//              layout, each occupied child slot of a visited node (glsl/layout/).
+//              layout, each occupied child slot of a visited node (glsl/layout/);
+//   alone:     nodes (inner and leaf iterations, counted in the two above too) the ray visited
+//              on its own after the hybrid packet traversal let it go (raycast_packet.comp's
+//              HYBRID; 0 in every other kernel): a ray with alone > 0 switched.
 // A ray that misses the root box does no other work (boxes 1, the rest zero).
 // With a wide layout, `inner` counts wide nodes visited.
 struct TraversalCounts {
@@ -30,8 +33,9 @@ struct TraversalCounts {
     uint triangles;
     uint slots;
     uint boxes;
+    uint alone;
 };
-TraversalCounts trav_counts = TraversalCounts(0u, 0u, 0u, 0u, 0u);
+TraversalCounts trav_counts = TraversalCounts(0u, 0u, 0u, 0u, 0u, 0u);
 #define COUNT_INNER() trav_counts.inner += 1u
 #define COUNT_BOXES(n) trav_counts.boxes += (n)
 #define COUNT_LEAF(count)                                                                      \

@@ -244,7 +244,7 @@ void main() {
     }
     HitState my_hit = hit_start(mine.tmax);
 #ifdef TRAVERSAL_STATS
-    TraversalCounts my_counts = TraversalCounts(0u, 0u, 0u, 0u, 0u);
+    TraversalCounts my_counts = TraversalCounts(0u, 0u, 0u, 0u, 0u, 0u);
 #endif
     // Every lane of the subgroup traces each valid lane's ray in turn (no lane returns early:
     // all must take part in every subgroup operation).
@@ -261,7 +261,7 @@ void main() {
         ray.tmax = coop_take_f(owner, mine.tmax);
         HitState h = hit_start(ray.tmax);
 #ifdef TRAVERSAL_STATS
-        trav_counts = TraversalCounts(0u, 0u, 0u, 0u, 0u);
+        trav_counts = TraversalCounts(0u, 0u, 0u, 0u, 0u, 0u);
 #endif
         coop_trace(make_trace_ray(ray), h);
         if (owner) {

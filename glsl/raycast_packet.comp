@@ -119,7 +119,13 @@ void packet_trace(TraceRay r, inout HitState h, bool alive, bool any_hit) {
         uint live = subgroupAdd(alive ? 1u : 0u);
         if (busy * 100u < live * HYBRID_MIN_PERCENT) {
             if (alive && (want || stack_pop_nearest(h.t, current))) {
+#ifdef TRAVERSAL_STATS
+                uint before = trav_counts.inner + trav_counts.leaves;
+#endif
                 while_if_from(r, h, b, current, any_hit);
+#ifdef TRAVERSAL_STATS
+                trav_counts.alone = trav_counts.inner + trav_counts.leaves - before;
+#endif
             }
             return;
         }

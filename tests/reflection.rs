@@ -77,6 +77,7 @@ fn host_layout(method: &str, binding: u32, storage: bool) -> BufferLayout {
                 offset_of!(TraversalCounts, triangles),
                 offset_of!(TraversalCounts, slots),
                 offset_of!(TraversalCounts, boxes),
+                offset_of!(TraversalCounts, alone),
             ],
         ),
         (_, BINDING_PROBE_NODES) => node(),

@@ -166,7 +166,7 @@ fn hand_counted_tree() {
         // Root (inner), then the near leaf with 2 triangles; the far leaf is never entered. Boxes:
         // the root's, then both children's.
         let slots = if m.group_size() == 4 { 4 } else { 2 };
-        assert_eq!(counts[0], TraversalCounts { inner: 1, leaves: 1, triangles: 2, slots, boxes: 3 }, "{m}");
+        assert_eq!(counts[0], TraversalCounts { inner: 1, leaves: 1, triangles: 2, slots, boxes: 3, alone: 0 }, "{m}");
         // Only the root box is tested, and missed.
         assert_eq!(counts[1], TraversalCounts { boxes: 1, ..Default::default() }, "{m}");
     }

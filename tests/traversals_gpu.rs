@@ -162,6 +162,7 @@ fn stats_and_occlusion_follow_the_algorithm() {
                 let mut scene = host.upload(ctx, &SceneRequest::new(method).layout(layout)).unwrap();
                 let wi = scene.cast(ctx, Raycast::Stats, rays, &common::ONCE).unwrap();
                 let cw = wi.traversal.unwrap();
+                assert!(cw.iter().all(|c| c.alone == 0), "{method} {layout} while-if: a ray counted nodes alone");
                 for t in [Traversal::WhileWhile, Traversal::Coop, Traversal::Packet, Traversal::Hybrid] {
                     scene.traversal = t;
                     if scene.kernel_source(Raycast::Stats).is_err() {
@@ -188,12 +189,16 @@ fn stats_and_occlusion_follow_the_algorithm() {
                         // this ray, so a ray may find its closest hit sooner or later than
                         // while-if does: no order between the counts. Every ray that hits
                         // tested a triangle, and a ray that misses the tree counted nothing.
+                        // Only the hybrid lets a ray go on alone, and what it visits alone it
+                        // visits: counted in its inner and leaf iterations too.
                         Traversal::Packet | Traversal::Hybrid => {
                             for (i, (a, h)) in c.iter().zip(&closest).enumerate() {
                                 assert!(
                                     !h.is_hit() || a.triangles > 0,
                                     "{method} {layout} {t} ray {i}: a hit without a triangle tested: {a:?}"
                                 );
+                                let bound = if t == Traversal::Hybrid { a.inner + a.leaves } else { 0 };
+                                assert!(a.alone <= bound, "{method} {layout} {t} ray {i}: alone {a:?}");
                             }
                         }
                         // The same nodes in the same order, one ray at a time (the binary
@@ -242,6 +247,62 @@ fn stats_and_occlusion_follow_the_algorithm() {
         lines
     });
     println!("{}", lines.join("\n"));
+}
+
+/// The hybrid's switch (issue 53 item 2): a subgroup whose lanes all trace the same ray never
+/// leaves the packet (every lane takes part in every node), so no ray switches. One whose lanes
+/// alternate between two parallel rays far apart must part at the first node only one of them
+/// enters: there the lanes of the ray that enters it go on alone from it (`alone` > 0), so at
+/// least half the rays switch (the other ray's lanes too, unless nothing is left for them). The
+/// switch rate of the bunny's random rays lies strictly between none and all.
+#[test]
+fn the_hybrid_switches_when_lanes_part_ways() {
+    common::with_gpu(600, |ctx| {
+        let bunny = common::bunny();
+        let host = HostScene::build("bunny", &bunny, &BuildOptions::new(4)).unwrap();
+        let reference = host.reference();
+        let lanes = ctx.info().subgroup_size as usize;
+        let b = bunny.bounds();
+        let (c, ext) = (b.center(), b.max - b.min);
+        // The same ray in every lane: from in front of the box, at its centre.
+        let same = trilab::rays::Ray {
+            origin: (c + glam::Vec3::new(0.0, 0.0, 2.0 * ext.z)).to_array(),
+            tmin: 0.0,
+            dir: [0.0, 0.0, -1.0],
+            tmax: f32::INFINITY,
+        };
+        let together = vec![same; 4 * lanes];
+        // Lanes alternating between two rays parallel to `same`, 80 % of the box's width apart.
+        let apart: Vec<trilab::rays::Ray> = (0..4 * lanes)
+            .map(|i| {
+                let s = if i % 2 == 0 { 0.4 } else { -0.4 };
+                let origin = c + glam::Vec3::new(s * ext.x, 0.0, 2.0 * ext.z);
+                trilab::rays::Ray { origin: origin.to_array(), ..same }
+            })
+            .collect();
+        let sets = ray_sets(&bunny, "bunny", &reference, &SIZES, None).unwrap();
+        let random = &sets.iter().find(|(s, _)| s.to_string() == "random").unwrap().1;
+        for layout in [Layout::Bvh2, Layout::Bvh4] {
+            let mut scene = host.upload(ctx, &SceneRequest::new(Method::Mt).layout(layout)).unwrap();
+            scene.traversal = Traversal::Hybrid;
+            let stats = |rays: &[trilab::rays::Ray]| {
+                let r = scene.cast(ctx, Raycast::Stats, rays, &common::ONCE).unwrap();
+                let ref_hits = reference.trace_all(rays, false);
+                validate_hits(&bunny, rays, &r.hits, &ref_hits).unwrap_or_else(|e| panic!("{layout}: {e}"));
+                r.traversal.unwrap()
+            };
+            let t = stats(&together);
+            assert!(t.iter().all(|c| c.alone == 0 && c.inner > 0), "{layout}: one ray in every lane switched: {t:?}");
+            let a = stats(&apart);
+            assert!(a.iter().all(|c| c.alone <= c.inner + c.leaves), "{layout}: {:?}", &a[..lanes]);
+            let rate = trilab::gpu::TraversalSummary::of(&a).switched.unwrap();
+            assert!(rate >= 0.5, "{layout}: lanes apart switched at {rate}: {:?}", &a[..lanes]);
+            let r = trilab::gpu::TraversalSummary::of(&stats(random));
+            let rate = r.switched.unwrap();
+            assert!(rate > 0.0 && rate < 1.0, "{layout}: random rays' switch rate {rate}");
+            println!("{layout}: {lanes} lanes, random rays switched {:.1} %", 100.0 * rate);
+        }
+    });
 }
 
 /// `raycast --traversal` from the command line: every traversal's hit file is byte-identical to

@@ -116,6 +116,7 @@ fn gpu_steps(
                 triangles: s.triangles,
                 slots: 0,
                 boxes: 2 * s.inner + 1,
+                alone: 0,
             })
             .collect()
     };

@@ -62,6 +62,16 @@ named_enum! {
     }
 }
 
+impl Traversal {
+    /// The lanes of a subgroup walk one path together (packets, and the hybrid until it lets
+    /// them go), so a ray's walk, and its traversal counts, depend on which rays share its
+    /// subgroup: on the order the rays are dispatched in. Every other traversal walks a ray's
+    /// path whatever its neighbours.
+    pub fn walks_together(self) -> bool {
+        matches!(self, Traversal::Packet | Traversal::Hybrid)
+    }
+}
+
 /// `VkSubgroupFeatureFlags` the cooperative kernel uses: basic, vote, arithmetic, ballot,
 /// shuffle.
 pub const COOP_SUBGROUP_OPERATIONS: u32 = 0x1 | 0x2 | 0x4 | 0x8 | 0x10;

@@ -23,9 +23,13 @@ pub struct TraversalCounts {
     /// Slab tests: the root's and two per inner iteration in the binary tree; in a wide layout
     /// one per occupied child slot of each node visited.
     pub boxes: u32,
+    /// Nodes (inner and leaf iterations, counted in `inner` and `leaves` too) visited on the
+    /// ray's own after the hybrid traversal let it go; 0 in every other kernel. A ray with
+    /// `alone > 0` switched from the packet to per-lane traversal.
+    pub alone: u32,
 }
 
-const _: () = assert!(std::mem::size_of::<TraversalCounts>() == 20);
+const _: () = assert!(std::mem::size_of::<TraversalCounts>() == 24);
 const _: () = assert!(std::mem::align_of::<TraversalCounts>() == 4);
 
 impl TraversalCounts {
@@ -63,6 +67,11 @@ pub struct TraversalSummary {
     pub slots: MeanMax,
     /// Boxes slab-tested.
     pub boxes: MeanMax,
+    /// Nodes visited alone after the hybrid's switch.
+    pub alone: MeanMax,
+    /// The hybrid's switch rate: the share of rays that went on alone (`alone > 0`); 0 for
+    /// every other kernel. `None` for no rays.
+    pub switched: Option<f64>,
 }
 
 impl TraversalSummary {
@@ -75,6 +84,9 @@ impl TraversalSummary {
             triangles: MeanMax::of(counts, |c| c.triangles),
             slots: MeanMax::of(counts, |c| c.slots),
             boxes: MeanMax::of(counts, |c| c.boxes),
+            alone: MeanMax::of(counts, |c| c.alone),
+            switched: (!counts.is_empty())
+                .then(|| counts.iter().filter(|c| c.alone > 0).count() as f64 / counts.len() as f64),
         }
     }
 }
@@ -129,14 +141,20 @@ mod tests {
         assert_eq!(lanes_busy(&[], 8, nodes), None);
         assert_eq!(lanes_busy(&[n(0), n(0)], 8, nodes), None);
         // Fetches are nodes plus triangles.
-        let c = TraversalCounts { inner: 3, leaves: 2, triangles: 7, slots: 8, boxes: 7 };
-        assert_eq!(fetches(&c), 12);
+        let c = TraversalCounts { inner: 3, leaves: 2, triangles: 7, slots: 8, boxes: 7, alone: 4 };
+        assert_eq!(fetches(&c), 12, "the nodes visited alone are counted in inner and leaves already");
     }
 
     #[test]
     fn summary_means_and_maxima() {
-        let c =
-            |inner, leaves, triangles, slots| TraversalCounts { inner, leaves, triangles, slots, boxes: 2 * inner + 1 };
+        let c = |inner, leaves, triangles, slots| TraversalCounts {
+            inner,
+            leaves,
+            triangles,
+            slots,
+            boxes: 2 * inner + 1,
+            alone: leaves / 2,
+        };
         let s = TraversalSummary::of(&[c(3, 1, 4, 4), c(0, 0, 0, 0), c(6, 3, 7, 12)]);
         assert_eq!(s.rays, 3);
         assert_eq!(s.nodes, MeanMax { mean: 13.0 / 3.0, max: 9 });
@@ -144,6 +162,9 @@ mod tests {
         assert_eq!(s.leaves, MeanMax { mean: 4.0 / 3.0, max: 3 });
         assert_eq!(s.triangles, MeanMax { mean: 11.0 / 3.0, max: 7 });
         assert_eq!(s.slots, MeanMax { mean: 16.0 / 3.0, max: 12 });
+        // alone 0, 0, 1: one ray of three switched.
+        assert_eq!(s.alone, MeanMax { mean: 1.0 / 3.0, max: 1 });
+        assert_eq!(s.switched, Some(1.0 / 3.0));
         assert_eq!(TraversalSummary::of(&[]), TraversalSummary::default());
     }
 }

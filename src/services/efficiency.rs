@@ -109,19 +109,30 @@ pub fn scene_roofline(
     Ok(report)
 }
 
-/// A kernel's traversal counts per ray on `rays`, in their order, from its `stats` variant (one
-/// untimed cast); `None` for a traversal without one (persistent threads).
+/// A kernel's traversal counts per ray on `rays`, in the set's order, from its `stats` variant
+/// (one untimed cast) with the rays dispatched in `order` (`order[k]`: the set's index of the
+/// `k`-th ray dispatched; `None`: as given), which changes the counts only of a traversal whose
+/// lanes walk together ([`Traversal::walks_together`]); `None` for a traversal without a `stats`
+/// variant (persistent threads).
+///
+/// [`Traversal::walks_together`]: crate::encoding::Traversal::walks_together
 pub fn fetch_counts(
     ctx: &Context,
     scene: &DeviceScene,
     rays: &[Ray],
+    order: Option<&[u32]>,
     batch_rays: usize,
 ) -> Result<Option<Vec<TraversalCounts>>> {
     if scene.kernel_source(Raycast::Stats).is_err() {
         return Ok(None);
     }
     let once = RaycastOptions { warmup: 0, repeat: 1, batch_rays };
-    Ok(Some(scene.cast(ctx, Raycast::Stats, rays, &once)?.traversal.unwrap_or_default()))
+    let Some(order) = order else {
+        return Ok(Some(scene.cast(ctx, Raycast::Stats, rays, &once)?.traversal.unwrap_or_default()));
+    };
+    let dispatched = crate::rays::order::permute(order, rays);
+    let counts = scene.cast(ctx, Raycast::Stats, &dispatched, &once)?.traversal.unwrap_or_default();
+    Ok(Some(crate::rays::order::unpermute(order, &counts)))
 }
 
 /// `scene`'s kernel against the roofline: its nodes and triangles per ray (`counts`, per ray in

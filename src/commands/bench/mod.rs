@@ -203,6 +203,7 @@ mod tests {
                 invalid: 0,
                 embree_mrays_per_s: None,
                 roofline: None,
+                switched: None,
             }
         };
         let s = |median: f64, min: f64, max: f64| Summary { median, min, max, runs: 5 };

@@ -84,6 +84,11 @@ pub struct BenchRow {
     /// `--roofline`: the kernel's fetches per second against the roofline's at its scene's size.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub roofline: Option<RooflineEfficiency>,
+    /// The hybrid traversal's switch rate: the share of rays that went on alone after the packet
+    /// (its stats kernel on the same rays, dispatched in the row's order); `None` for every
+    /// other traversal.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub switched: Option<f64>,
 }
 
 /// Whether a row's node order is the built one (or it has none): not written.
@@ -234,7 +239,7 @@ impl BenchReport {
     /// ways, the traversal column when a row's traversal is not while-if, the node order column
     /// when a row's nodes are not in the built order, the order and reorder
     /// columns when a row's rays were reordered (`kernel ms` then includes the reordering;
-    /// `reorder ms` is that share).
+    /// `reorder ms` is that share), the `switched %` column when a row is the hybrid's.
     pub fn table(&self) -> Table {
         let traversals = self.rows.iter().any(|r| r.traversal.is_some_and(|t| t != Traversal::default()));
         let orders = self.rows.iter().any(|r| r.order.is_some_and(|o| o != RayOrder::default()));
@@ -244,6 +249,7 @@ impl BenchReport {
         let access =
             self.rows.iter().filter_map(|r| r.scene_access).collect::<std::collections::BTreeSet<_>>().len() > 1;
         let roofline = self.rows.iter().any(|r| r.roofline.is_some());
+        let switched = self.rows.iter().any(|r| r.switched.is_some());
         let mut header = vec!["scene", "rays", "set", "method", "layout"];
         header.extend(access.then_some("access"));
         header.extend(traversals.then_some("traversal"));
@@ -255,6 +261,7 @@ impl BenchReport {
         if roofline {
             header.extend(efficiency::COLUMNS);
         }
+        header.extend(switched.then_some("switched %"));
         let mut t = Table::new(header);
         let or_dash = |s: Option<String>| s.unwrap_or_else(|| "-".into());
         for r in &self.rows {
@@ -284,6 +291,7 @@ impl BenchReport {
             if roofline {
                 cells.extend(RooflineEfficiency::cells(r.roofline.as_ref()));
             }
+            cells.extend(switched.then(|| or_dash(r.switched.map(|s| format!("{:.1}", 100.0 * s)))));
             t.row(cells);
         }
         t
@@ -428,5 +436,6 @@ pub(super) fn row(
         invalid: agreement.invalid.len(),
         embree_mrays_per_s: None,
         roofline: None,
+        switched: None,
     }
 }

@@ -2,6 +2,7 @@
 //! set one interleaved measurement of every kernel and peer program, each validated against the
 //! f64 reference before its speed becomes a row.
 
+use std::collections::hash_map::{Entry, HashMap};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
@@ -9,9 +10,9 @@ use std::time::Instant;
 use super::plan::BenchOptions;
 use super::report::{rate, row, BenchReport, Tracer};
 use crate::agreement::compare_closest;
-use crate::encoding::Raycast;
+use crate::encoding::{Raycast, Traversal};
 use crate::error::{Error, Result};
-use crate::gpu::{AccelStats, AccelStructure, Context, Kernel, Peer, PeerTracer, RaycastOptions};
+use crate::gpu::{AccelStats, AccelStructure, Context, Kernel, Peer, PeerTracer, RaycastOptions, TraversalSummary};
 use crate::matrix::{KernelCell, KernelLabel};
 use crate::pipeline::{DeviceScene, HostScene};
 use crate::rays::order::RayOrder;
@@ -304,10 +305,11 @@ fn kernel_rows(
     drop(rounds);
     drop(others);
     let results: Vec<PeerResult> = peer_rounds.into_iter().map(PeerRound::finish).collect();
-    // Each kernel's traversal counts on this set, cast once however many ray orders it ran
-    // in and whatever its nodes' order (the walk does not depend on either:
-    // tests/node_orders_gpu.rs), on the first scene of that kernel.
-    let mut counts: Vec<Option<Option<Vec<crate::gpu::TraversalCounts>>>> = vec![None; k.scenes.len()];
+    // Each kernel's traversal counts on this set, cast once whatever its nodes' order (the walk
+    // does not depend on it: tests/node_orders_gpu.rs), on the first scene of that kernel; once
+    // per ray order where its lanes walk together (packets: which rays share a subgroup
+    // changes the walk), else once however many orders it ran in.
+    let mut counts: HashMap<(usize, usize), Option<Vec<crate::gpu::TraversalCounts>>> = HashMap::new();
     // The order each ray order dispatched the rays in, sorted once for every kernel's
     // lanes busy (which rays share a subgroup).
     let orders = o.axes.orders();
@@ -332,23 +334,32 @@ fn kernel_rows(
         r.node_order = Some(scene.node_order);
         r.order = Some(order);
         r.reorder_ms = (order != RayOrder::Given).then_some(m.reorder_ms);
-        if let Some(roof) = k.roofline {
+        // The roofline's figures, and the hybrid's switch rate, come from the stats kernel.
+        let switches = scene.traversal == Traversal::Hybrid;
+        if k.roofline.is_some() || switches {
             let kernel = |s: &DeviceScene| (s.method, s.layout, s.traversal, s.access);
             let i =
                 k.scenes.iter().position(|s| kernel(s) == kernel(scene)).expect("a job's scene is one of the scenes");
-            let c = match &counts[i] {
-                Some(c) => c,
-                None => {
-                    let _span = timeline::span("roofline", "traversal counts (stats kernel)");
-                    counts[i].insert(efficiency::fetch_counts(ctx, &k.scenes[i], rays, o.batch_rays)?)
-                }
-            };
             // The lanes a subgroup's rays keep busy depend on which rays share it: the
             // order the kernel got them in (the sort is deterministic).
             let oi = orders.iter().position(|&x| x == order).expect("a job's order is one of the orders");
             let d = dispatched[oi].get_or_insert_with(|| order.permutation(rays));
-            let lanes = ctx.info().subgroup_size;
-            r.roofline = c.as_deref().and_then(|c| efficiency::efficiency(scene, roof, mr, c, lanes, d.as_deref()));
+            let together = scene.traversal.walks_together();
+            let c = match counts.entry((i, if together { oi } else { 0 })) {
+                Entry::Occupied(e) => e.into_mut(),
+                Entry::Vacant(e) => {
+                    let _span = timeline::span("counts", "traversal counts (stats kernel)");
+                    let cast_in = if together { d.as_deref() } else { None };
+                    e.insert(efficiency::fetch_counts(ctx, &k.scenes[i], rays, cast_in, o.batch_rays)?)
+                }
+            };
+            if let Some(roof) = k.roofline {
+                let lanes = ctx.info().subgroup_size;
+                r.roofline = c.as_deref().and_then(|c| efficiency::efficiency(scene, roof, mr, c, lanes, d.as_deref()));
+            }
+            if switches {
+                r.switched = c.as_deref().and_then(|c| TraversalSummary::of(c).switched);
+            }
         }
         report.rows.push(r);
     }

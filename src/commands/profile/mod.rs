@@ -424,7 +424,7 @@ impl<P: FnMut(&str)> MethodRun<'_, P> {
     /// (from `ms`); `None` without the flag, or where the kernel or roofline has no figure.
     fn efficiency(&self, rays: &[Ray], ms: Summary) -> Result<Option<RooflineEfficiency>> {
         let Some(roof) = self.roofline else { return Ok(None) };
-        let counts = efficiency::fetch_counts(self.ctx, &self.scene, rays, self.ropts.batch_rays)?;
+        let counts = efficiency::fetch_counts(self.ctx, &self.scene, rays, None, self.ropts.batch_rays)?;
         let lanes = self.ctx.info().subgroup_size;
         Ok(counts
             .and_then(|c| efficiency::efficiency(&self.scene, roof, mrays_summary(rays.len(), ms), &c, lanes, None)))
