@@ -30,7 +30,13 @@
 //!   image view and calls from the shader; **host calls** through a register loaded with an
 //!   absolute address (`movabsq $..., %rax; callq *%rax`: C functions of the driver, such as
 //!   the coroutine's memory hooks); **direct calls** (`callq 0x...`);
-//! - **stack bytes**: the frame the function reserves (`subq $N, %rsp`, the largest).
+//! - **stack bytes**: the frame the function reserves (`subq $N, %rsp`, the largest);
+//! - how the shader loads memory other than its stack (issue 53: are a packet's node loads
+//!   scalar?): **gathers**, the hardware's per-lane loads (`vpgatherdd`, `vgatherdps`, ...);
+//!   **lane loads**, a lane's value loaded into one element of a vector (`vpinsrd $3, (%rax),
+//!   %xmm0`, `vinsertps`, `vpinsrq`: a gather LLVM wrote out lane by lane); **broadcast
+//!   loads**, one value loaded into every lane (`vpbroadcastd (%rax), %ymm0`, `vbroadcastss`:
+//!   a load from an address the same in every lane, the scalar load a GPU would issue).
 
 use serde::Serialize;
 
@@ -126,6 +132,14 @@ pub struct AsmStats {
     pub host_calls: u64,
     /// The largest stack frame a function reserves, bytes.
     pub stack_bytes: u64,
+    /// Hardware gathers (`vpgatherdd`, `vgatherdps`, ...).
+    pub gathers: u64,
+    /// Inserts of one element loaded from memory other than the stack (`vpinsrd`, `vinsertps`,
+    /// `vpinsrq` with a memory source): a gather written out lane by lane.
+    pub lane_loads: u64,
+    /// Broadcasts from memory other than the stack (`vpbroadcastd`, `vbroadcastss`, ...): one
+    /// load for every lane, from an address the same in all of them.
+    pub broadcast_loads: u64,
 }
 
 impl std::ops::AddAssign for AsmStats {
@@ -141,6 +155,9 @@ impl std::ops::AddAssign for AsmStats {
         self.table_calls += o.table_calls;
         self.host_calls += o.host_calls;
         self.stack_bytes = self.stack_bytes.max(o.stack_bytes);
+        self.gathers += o.gathers;
+        self.lane_loads += o.lane_loads;
+        self.broadcast_loads += o.broadcast_loads;
     }
 }
 
@@ -218,6 +235,25 @@ fn slots_read(f: &FunctionDump) -> std::collections::HashSet<&str> {
     read
 }
 
+/// A memory operand off the stack (`(%rax)`, `16(%rdx,%rcx,4)`; AT&T memory operands are the
+/// ones with parentheses): its base register is not `%rsp` or `%rbp` (the stack's slots and
+/// the shader's local arrays, `3616(%rsp,%rcx,4)`, are not).
+fn is_memory(op: &str) -> bool {
+    let Some((_, inside)) = op.split_once('(') else { return false };
+    !op.starts_with('*') && !inside.starts_with("%rsp") && !inside.starts_with("%rbp")
+}
+
+/// A load into one element of a vector: `[v]pinsr{b,w,d,q}`, `[v]insertps`.
+fn is_lane_insert(m: &str) -> bool {
+    let m = m.strip_prefix('v').unwrap_or(m);
+    matches!(m, "pinsrb" | "pinsrw" | "pinsrd" | "pinsrq" | "insertps")
+}
+
+/// A load of one value into every lane: `vpbroadcast{b,w,d,q}`, `vbroadcastss`, `vbroadcastsd`.
+fn is_broadcast(m: &str) -> bool {
+    matches!(m, "vpbroadcastb" | "vpbroadcastw" | "vpbroadcastd" | "vpbroadcastq" | "vbroadcastss" | "vbroadcastsd")
+}
+
 /// The counts of one function.
 pub fn stats(f: &FunctionDump) -> AsmStats {
     let mut s = AsmStats { instructions: f.instructions.len() as u64, ..Default::default() };
@@ -227,6 +263,13 @@ pub fn stats(f: &FunctionDump) -> AsmStats {
         let m = ins.mnemonic.as_str();
         let ops = operands(&ins.operands);
         let (first, last) = (ops.first().map(|o| bare(o)), ops.last().map(|o| bare(o)));
+        if m.contains("gather") {
+            s.gathers += 1;
+        } else if is_lane_insert(m) && ops.iter().any(|o| is_memory(bare(o))) {
+            s.lane_loads += 1;
+        } else if is_broadcast(m) && first.is_some_and(is_memory) {
+            s.broadcast_loads += 1;
+        }
         if m.starts_with("call") {
             s.calls += 1;
             let target = ops.first().copied().unwrap_or("");
@@ -347,7 +390,10 @@ mod tests {
         let fs = parse(DUMP).unwrap();
         let s = |n| stats(function(&fs, n));
         // count.awk: instructions=47 vector_spills=5 stack_stores=0 vector_reloads=10
-        // folded_reloads=0 ... calls=2 table_calls=1 host_calls=0 stack_bytes=352
+        // folded_reloads=0 ... calls=2 table_calls=1 host_calls=0 stack_bytes=352; loads by an
+        // awk of their own (a memory operand whose base is not %rsp/%rbp): none in the first
+        // `sample` (the later three have a broadcast load each), cs_co_variant's lane loads 24
+        // and broadcast loads 40, no gathers
         let want = AsmStats {
             instructions: 47,
             vector_spills: 5,
@@ -379,6 +425,9 @@ mod tests {
             table_calls: 11,
             host_calls: 1,
             stack_bytes: 5696,
+            gathers: 0,
+            lane_loads: 24,
+            broadcast_loads: 40,
         };
         assert_eq!(s("cs_co_variant"), want);
         let k = kernel(&fs).unwrap();
@@ -418,7 +467,8 @@ mod tests {
         // 19 instructions; stores to 1312, 1280 and 352 (%rsp): only 352 is read back at a fixed
         // offset here (0x17bb), so 1 spill and 2 stack stores; reloads from 288 and 352: 2;
         // vandps and vcmpgeps read slots: 2 folded; kmovw to a slot: 1 mask spill; the indexed
-        // cmovel is none of these; one call, through memory.
+        // cmovel is none of these; one call, through memory; vbroadcastss (%rbx): 1 broadcast
+        // load.
         let want = AsmStats {
             instructions: 19,
             vector_spills: 1,
@@ -428,11 +478,33 @@ mod tests {
             mask_spills: 1,
             calls: 1,
             table_calls: 1,
+            broadcast_loads: 1,
             ..Default::default()
         };
         assert_eq!(s, want);
         assert_eq!(kernel(&fs).unwrap().helper_calls, 1);
         assert_eq!(kernel(&parse("sample:\n     0:\tretq\n").unwrap()), None);
+    }
+
+    #[test]
+    fn loads_are_told_apart_by_how_they_fill_the_lanes() {
+        // Two hardware gathers (one masked, AVX-512), three lane loads (memory sources only:
+        // the register insert and the stack-slot insert are not), two broadcast loads (the
+        // register broadcast and the stack-slot broadcast are not).
+        let text = "cs_co_variant:\n\
+            \x20    0:\tvpgatherdd\t%ymm1, (%rax,%ymm2,4), %ymm3\n\
+            \x20    6:\tvgatherdps\t(%rax,%zmm2,4), %zmm3 {%k1}\n\
+            \x20    c:\tvpinsrd\t$1, (%rcx), %xmm0, %xmm0\n\
+            \x20   12:\tvinsertps\t$16, 4(%rdx,%rsi), %xmm0, %xmm0\n\
+            \x20   18:\tpinsrq\t$1, 8(%rdi), %xmm1\n\
+            \x20   1e:\tvpinsrd\t$2, %eax, %xmm0, %xmm0\n\
+            \x20   24:\tvpinsrd\t$3, 16(%rsp,%rcx,4), %xmm0, %xmm0\n\
+            \x20   2a:\tvpbroadcastd\t(%r8), %ymm4\n\
+            \x20   30:\tvbroadcastss\t12(%r9), %zmm5\n\
+            \x20   36:\tvpbroadcastd\t%xmm4, %ymm4\n\
+            \x20   3c:\tvbroadcastss\t32(%rsp), %ymm6\n";
+        let s = stats(&parse(text).unwrap()[0]);
+        assert_eq!((s.gathers, s.lane_loads, s.broadcast_loads), (2, 3, 2), "{s:?}");
     }
 
     #[test]

@@ -704,6 +704,9 @@ fn kernel_row(k: &KernelStats, source: &crate::rows::Source) -> Row {
             ("calls", t.calls, "calls"),
             ("helper_calls", a.helper_calls, "calls"),
             ("stack_bytes", t.stack_bytes, "bytes"),
+            ("gathers", t.gathers, "loads"),
+            ("lane_loads", t.lane_loads, "loads"),
+            ("broadcast_loads", t.broadcast_loads, "loads"),
         ] {
             row = row.with(name, Figure::count(v as f64, unit));
         }
@@ -731,6 +734,9 @@ pub fn table(kernels: &[KernelStats]) -> crate::report::Table {
         "helper calls",
         "calls",
         "stack bytes",
+        "gathers",
+        "lane loads",
+        "broadcast loads",
     ]);
     for k in kernels {
         let Some(a) = &k.lavapipe else { continue };
@@ -748,6 +754,9 @@ pub fn table(kernels: &[KernelStats]) -> crate::report::Table {
             a.helper_calls.to_string(),
             t_.calls.to_string(),
             t_.stack_bytes.to_string(),
+            t_.gathers.to_string(),
+            t_.lane_loads.to_string(),
+            t_.broadcast_loads.to_string(),
         ]);
     }
     t
@@ -757,7 +766,10 @@ pub fn table(kernels: &[KernelStats]) -> crate::report::Table {
 pub const LEGEND: &str = "\nvector spills: xmm/ymm/zmm stores to fixed stack slots that are read back; vector reloads: \
      loads from them (moves and folded operands); stack stores: vector stores to slots never read back at a fixed offset \
      (local arrays' zero fill); helper calls: calls from the shader's body through a descriptor's function table \
-     (llvmpipe's texel-fetch/image/size helpers); stack bytes: the largest frame. Counts are static (code size), not \
+     (llvmpipe's texel-fetch/image/size helpers); stack bytes: the largest frame; gathers: hardware gathers \
+     (vpgatherdd, ...); lane loads: one lane's element loaded from memory (vpinsrd, vinsertps: a gather written \
+     out lane by lane); broadcast loads: one load into every lane (vpbroadcastd, vbroadcastss: an address the same \
+     in all lanes, a GPU's scalar load); neither counts the stack or the helpers' own loads. Counts are static (code size), not \
      executed instructions.\n";
 
 /// `driver-stats.json`, `driver-stats.md` (the text report), `rows.jsonl` (no plan).
