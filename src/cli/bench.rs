@@ -9,7 +9,7 @@ use trilab::encoding::{Layout, SceneAccess, Traversal};
 use trilab::error::Result;
 use trilab::matrix::KernelAxes;
 use trilab::rays::order::RayOrder;
-use trilab::services::peers::TinybvhLayout;
+use trilab::services::peers::{EmbreeApi, TinybvhLayout};
 use trilab::services::results::Results;
 
 use super::choice::choice;
@@ -39,10 +39,16 @@ pub struct BenchArgs {
     /// Read <scene>.{primary,diffuse,random}.rays from this directory instead of generating.
     #[arg(long, value_name = "DIR")]
     rays_dir: Option<PathBuf>,
-    /// The Embree peer (`embree_rays` from scripts/embree-peer.sh), run on the same rays; its
-    /// hits are checked against the f64 reference before its speed counts.
+    /// The Embree peer (`embree_rays` from scripts/embree-peer.sh), run on the same rays with
+    /// each of --embree-apis; its hits are checked against the f64 reference before its speed
+    /// counts.
     #[arg(long, value_name = "FILE")]
     embree: Option<PathBuf>,
+    /// Embree's calls, comma-separated, each run as its own peer, named `embree3` (ray1),
+    /// `embree3 packet8`, `embree3 packet16` (default: ray1,packet8). A packet width the library
+    /// does not run natively is an error before any work.
+    #[arg(long, value_name = "A,...", value_parser = choice::<EmbreeApi>(), value_delimiter = ',', requires = "embree")]
+    embree_apis: Vec<EmbreeApi>,
     /// The tinybvh peer (`tinybvh_rays` from scripts/tinybvh-peer.sh), run on the same rays in
     /// each of --tinybvh-layouts; its hits are checked against the f64 reference before its speed
     /// counts. An ocl-* layout without OpenCL is skipped with a note.
@@ -193,6 +199,7 @@ fn measure(a: BenchArgs, files: (Option<PathBuf>, Option<PathBuf>)) -> Result<()
         sizes: a.rays.sizes(),
         rays_dir: a.rays_dir,
         embree: a.embree,
+        embree_apis: a.embree_apis,
         tinybvh: a.tinybvh,
         tinybvh_layouts: a.tinybvh_layouts,
         ray_query: a.ray_query.runs(&ctx),

@@ -33,7 +33,8 @@ pub struct SuiteArgs {
     /// The parts to run, comma-separated (default: all).
     #[arg(long, value_name = "P,...", value_parser = choice::<Part>(), value_delimiter = ',')]
     parts: Vec<Part>,
-    /// Embree peer executable for the bench (scripts/embree-peer.sh builds it).
+    /// Embree peer executable for the bench (scripts/embree-peer.sh builds it), run with bench's
+    /// default calls: rtcIntersect1 and rtcIntersect8.
     #[arg(long, value_name = "FILE")]
     embree: Option<PathBuf>,
     /// tinybvh peer executable for the bench (scripts/tinybvh-peer.sh builds it).

@@ -761,7 +761,8 @@ fn bench_section(r: &bench::BenchReport, link: &str) -> String {
     let mut s = format!("{}\n\n{}", r.header(), t.to_markdown());
     if !r.peers.is_empty() {
         s += &format!(
-            "\nSpeed target (trilab / peer):\n\n{}",
+            "\nSpeed target (trilab / peer). {}\n\n{}",
+            crate::services::peer_report::target_note(),
             crate::services::peer_report::target_table(&r.peers).to_markdown()
         );
     }

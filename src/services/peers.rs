@@ -1,5 +1,6 @@
-//! Peer programs on trilab's own ray files: Embree 3 (`embree_rays`, scripts/embree-peer.sh) and
-//! tinybvh (`tinybvh_rays`, scripts/tinybvh-peer.sh; its CPU layouts and its OpenCL kernels).
+//! Peer programs on trilab's own ray files: Embree 3 (`embree_rays`, scripts/embree-peer.sh; its
+//! single-ray call and its 8- and 16-wide packet calls) and tinybvh (`tinybvh_rays`,
+//! scripts/tinybvh-peer.sh; its CPU layouts and its OpenCL kernels).
 //! Each is run as a separate process on the scene (written as a plain OBJ, so its triangle ids
 //! are ours) and the ray file a bench row traced, prints one `key=value` line, and writes a hit
 //! file (docs/formats.md). Bench starts it once in every one of its interleaved rounds, beside
@@ -11,7 +12,9 @@
 //! exits non-zero, prints no readable result line, or traces another number of rays. The one
 //! exception is an OpenCL layout (`ocl-*`) whose program says it has no OpenCL (not compiled in,
 //! no platform or device, a kernel that does not build): that layout is skipped, with the reason
-//! as a note, and the others still run. [`probe`] finds all of this on a small scene first.
+//! as a note, and the others still run. An Embree packet width the library does not run natively
+//! is an error (the program refuses it), never skipped: it was asked for. [`probe`] finds all of
+//! this on a small scene first.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -56,23 +59,67 @@ impl TinybvhLayout {
     }
 }
 
-/// Which peer: Embree's `rtcIntersect1`, or one tinybvh layout.
+named_enum! {
+    /// An Embree 3 call that traces the rays; `embree_rays` runs each as a mode of its own
+    /// ([`EmbreeApi::mode`]).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    pub enum EmbreeApi: "Embree API" {
+        /// rtcIntersect1: one ray per call (`embree_rays trace`), over threads.
+        Ray1 = "ray1",
+        /// rtcIntersect8: packets of 8 consecutive rays of the file (`embree_rays trace8`), over
+        /// threads; needs a library and CPU with native 8-wide packets.
+        Packet8 = "packet8",
+        /// rtcIntersect16: packets of 16 consecutive rays of the file (`embree_rays trace16`), over
+        /// threads; needs native 16-wide packets (AVX-512).
+        Packet16 = "packet16",
+    }
+}
+
+impl EmbreeApi {
+    /// `bench --embree`'s calls when none are named: the single-ray call and 8-wide packets
+    /// (issue 53's targets are against those two; 16-wide only when asked for).
+    pub const DEFAULT: [EmbreeApi; 2] = [EmbreeApi::Ray1, EmbreeApi::Packet8];
+
+    /// The `embree_rays` mode that traces with it.
+    pub fn mode(self) -> &'static str {
+        match self {
+            EmbreeApi::Ray1 => "trace",
+            EmbreeApi::Packet8 => "trace8",
+            EmbreeApi::Packet16 => "trace16",
+        }
+    }
+
+    /// Rays per call.
+    pub fn width(self) -> usize {
+        match self {
+            EmbreeApi::Ray1 => 1,
+            EmbreeApi::Packet8 => 8,
+            EmbreeApi::Packet16 => 16,
+        }
+    }
+}
+
+/// Which peer: one of Embree's calls, or one tinybvh layout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PeerKind {
-    Embree,
+    Embree(EmbreeApi),
     Tinybvh(TinybvhLayout),
 }
 
+/// `embree3` (rtcIntersect1: the name it always had, so older results and plans still match),
+/// `embree3 packet8`, `embree3 packet16`, `tinybvh cpu-bvh8`.
 impl std::fmt::Display for PeerKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            PeerKind::Embree => f.write_str("embree3"),
+            PeerKind::Embree(EmbreeApi::Ray1) => f.write_str("embree3"),
+            PeerKind::Embree(api) => write!(f, "embree3 {api}"),
             PeerKind::Tinybvh(l) => write!(f, "tinybvh {l}"),
         }
     }
 }
 
-/// Serialises as its name (`embree3`, `tinybvh cpu-bvh8`).
+/// Serialises as its name (`embree3`, `embree3 packet8`, `tinybvh cpu-bvh8`).
 impl Serialize for PeerKind {
     fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
         s.collect_str(self)
@@ -93,22 +140,26 @@ const PEER_TIMEOUT: Duration = Duration::from_secs(900);
 const PROBE_RAYS: usize = 256;
 
 impl PeerProgram {
-    /// What errors call it: `tinybvh peer /x/tinybvh_rays (layout ocl-bvh2)`.
+    /// What errors call it: `tinybvh peer /x/tinybvh_rays (layout ocl-bvh2)`, `Embree peer
+    /// /x/embree_rays (api packet8, rtcIntersect8)`; rtcIntersect1's is `Embree peer /x/embree_rays`.
     pub fn describe(&self) -> String {
         match self.kind {
-            PeerKind::Embree => format!("Embree peer {}", self.program.display()),
+            PeerKind::Embree(EmbreeApi::Ray1) => format!("Embree peer {}", self.program.display()),
+            PeerKind::Embree(api) => {
+                format!("Embree peer {} (api {api}, rtcIntersect{})", self.program.display(), api.width())
+            }
             PeerKind::Tinybvh(l) => format!("tinybvh peer {} (layout {l})", self.program.display()),
         }
     }
 
-    /// `PROGRAM trace [LAYOUT] SCENE RAYS HITS 1`: one traced run per process (its `REPEAT`
-    /// argument), so each of bench's rounds starts it once.
+    /// `PROGRAM trace [LAYOUT] SCENE RAYS HITS 1` (Embree's packets: `trace8`, `trace16`): one
+    /// traced run per process (its `REPEAT` argument), so each of bench's rounds starts it once.
     fn command(&self, scene: &Path, rays: &Path, hits: &Path) -> Command {
         let mut c = Command::new(&self.program);
-        c.arg("trace");
-        if let PeerKind::Tinybvh(l) = self.kind {
-            c.arg(l.name());
-        }
+        match self.kind {
+            PeerKind::Embree(api) => c.arg(api.mode()),
+            PeerKind::Tinybvh(l) => c.arg("trace").arg(l.name()),
+        };
         c.arg(scene).arg(rays).arg(hits).arg("1");
         c
     }
@@ -126,8 +177,15 @@ impl PeerProgram {
                     return Ok(Traced::NoOpenCl(reason));
                 }
             }
+            // A packet width the library does not run: say which option asked for it.
+            let hint = match self.kind {
+                PeerKind::Embree(api) if api != EmbreeApi::Ray1 && stderr.contains("not supported") => {
+                    format!(" (leave {api} out of --embree-apis)")
+                }
+                _ => String::new(),
+            };
             return Err(Error::Usage(format!(
-                "{} failed ({}): {}",
+                "{} failed ({}): {}{hint}",
                 self.describe(),
                 out.status,
                 tail(&format!("{stdout}{stderr}"))
@@ -140,6 +198,18 @@ impl PeerProgram {
         if let (PeerKind::Tinybvh(l), Some(said)) = (self.kind, &line.layout) {
             if said != l.name() {
                 return Err(Error::Usage(format!("{}: its line names layout `{said}`", self.describe())));
+            }
+        }
+        // A packet mode's line names its call (`embree3 packet8 ...`): a program that ignored the
+        // mode and traced one ray at a time must not be timed as packets.
+        if let PeerKind::Embree(api) = self.kind {
+            if api != EmbreeApi::Ray1 && !line.words.iter().any(|w| w == api.name()) {
+                return Err(Error::Usage(format!(
+                    "{}: its result line does not name `{api}` (an embree_rays without packet modes? \
+                     rebuild it with scripts/embree-peer.sh): `{}`",
+                    self.describe(),
+                    line.words.join(" ")
+                )));
             }
         }
         let hits =
@@ -164,8 +234,9 @@ fn tail(text: &str) -> String {
     text.lines().rev().map(str::trim).find(|l| !l.is_empty()).unwrap_or("(no output)").to_owned()
 }
 
-/// What a peer's result line says (`key=value` words; other words are ignored). Embree:
-/// `embree3 default threads=2 tris=.. rays=.. hits=.. build_ms=.. best_s=.. mrays_per_s=..`;
+/// What a peer's result line says (`key=value` words, and the other words in `words`). Embree:
+/// `embree3 default threads=2 tris=.. rays=.. hits=.. build_ms=.. best_s=.. mrays_per_s=..`
+/// (rtcIntersect1), `embree3 packet8 threads=2 ...` (rtcIntersect8; `packet16`: rtcIntersect16);
 /// tinybvh: `layout=cpu-bvh8 scene=.. rays=.. build_ms=.. trace_ms=.. mrays_per_s=.. threads=..
 /// hits=.. median_ms=.. repeats=.. builder=..`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -178,6 +249,8 @@ pub struct PeerLine {
     pub median_ms: Option<f64>,
     pub build_ms: Option<f64>,
     pub threads: Option<u32>,
+    /// Its words without `=`, in order (`["embree3", "packet8"]`).
+    pub words: Vec<String>,
 }
 
 /// Reads the one line of a peer's stdout that carries `mrays_per_s=`. An error (naming the
@@ -235,6 +308,7 @@ pub fn parse_line(stdout: &str) -> std::result::Result<PeerLine, String> {
         median_ms: non_negative("median_ms")?,
         build_ms: non_negative("build_ms")?,
         threads: num(&seen, "threads", line)?,
+        words: line.split_whitespace().filter(|w| !w.contains('=')).map(str::to_owned).collect(),
     })
 }
 
@@ -296,19 +370,36 @@ impl PeerResult {
     }
 }
 
-/// The peers a bench runs: the Embree program (if any), then one per tinybvh layout.
-pub fn programs(embree: Option<&Path>, tinybvh: Option<&Path>, layouts: &[TinybvhLayout]) -> Vec<PeerProgram> {
-    let mut v: Vec<PeerProgram> =
-        embree.map(|p| PeerProgram { kind: PeerKind::Embree, program: p.to_owned() }).into_iter().collect();
-    if let Some(p) = tinybvh {
-        let layouts = if layouts.is_empty() { &TinybvhLayout::DEFAULT[..] } else { layouts };
+/// The peers a bench runs: the Embree program once per call in `apis` (empty:
+/// [`EmbreeApi::DEFAULT`]), then the tinybvh program once per layout in `layouts` (empty:
+/// [`TinybvhLayout::DEFAULT`]); each in the order given, a value named twice once.
+pub fn programs(
+    embree: Option<&Path>,
+    apis: &[EmbreeApi],
+    tinybvh: Option<&Path>,
+    layouts: &[TinybvhLayout],
+) -> Vec<PeerProgram> {
+    fn each<T: Copy + PartialEq>(
+        given: &[T],
+        default: &[T],
+        kind: impl Fn(T) -> PeerKind,
+        p: &Path,
+    ) -> Vec<PeerProgram> {
+        let given = if given.is_empty() { default } else { given };
         let mut seen = vec![];
-        for &l in layouts {
-            if !seen.contains(&l) {
-                seen.push(l);
-                v.push(PeerProgram { kind: PeerKind::Tinybvh(l), program: p.to_owned() });
+        for &x in given {
+            if !seen.contains(&x) {
+                seen.push(x);
             }
         }
+        seen.into_iter().map(|x| PeerProgram { kind: kind(x), program: p.to_owned() }).collect()
+    }
+    let mut v = vec![];
+    if let Some(p) = embree {
+        v.extend(each(apis, &EmbreeApi::DEFAULT, PeerKind::Embree, p));
+    }
+    if let Some(p) = tinybvh {
+        v.extend(each(layouts, &TinybvhLayout::DEFAULT, PeerKind::Tinybvh, p));
     }
     v
 }
@@ -548,6 +639,113 @@ mod tests {
             (e.mrays_per_s, e.rays, e.layout, e.median_ms, e.threads),
             (25.0, Some(480_000), None, None, Some(2))
         );
+        assert_eq!(e.words, ["embree3", "default"]);
+    }
+
+    #[test]
+    fn reads_embrees_packet_lines() {
+        let p = parse_line(
+            "embree3 packet8 threads=2 tris=69451 rays=480003 hits=122306 build_ms=85.1 best_s=0.0200 \
+             mrays_per_s=24.00\n",
+        )
+        .unwrap();
+        assert_eq!((p.mrays_per_s, p.rays, p.threads, p.build_ms), (24.0, Some(480_003), Some(2), Some(85.1)));
+        assert_eq!(p.words, ["embree3", "packet8"]);
+        let p = parse_line("embree3 packet16 robust threads=16 rays=7 mrays_per_s=1.50\n").unwrap();
+        assert_eq!((p.mrays_per_s, p.rays, p.threads), (1.5, Some(7), Some(16)));
+        assert_eq!(p.words, ["embree3", "packet16", "robust"]);
+    }
+
+    #[test]
+    fn embree_apis_name_their_mode_width_and_peer() {
+        assert_eq!(EmbreeApi::ALL.iter().map(|a| a.name()).collect::<Vec<_>>(), ["ray1", "packet8", "packet16"]);
+        assert_eq!(EmbreeApi::DEFAULT, [EmbreeApi::Ray1, EmbreeApi::Packet8]);
+        assert_eq!("PACKET16".parse::<EmbreeApi>(), Ok(EmbreeApi::Packet16));
+        assert!("packet4".parse::<EmbreeApi>().unwrap_err().contains("ray1, packet8, packet16"));
+        let names: Vec<String> = EmbreeApi::ALL.iter().map(|&a| PeerKind::Embree(a).to_string()).collect();
+        assert_eq!(names, ["embree3", "embree3 packet8", "embree3 packet16"], "ray1 keeps the old name");
+        let json = serde_json::to_string(&PeerKind::Embree(EmbreeApi::Packet8)).unwrap();
+        assert_eq!(json, "\"embree3 packet8\"");
+        let p = PeerProgram { kind: PeerKind::Embree(EmbreeApi::Packet16), program: "/x/embree_rays".into() };
+        assert_eq!(p.describe(), "Embree peer /x/embree_rays (api packet16, rtcIntersect16)");
+        let p = PeerProgram { kind: PeerKind::Embree(EmbreeApi::Ray1), program: "/x/embree_rays".into() };
+        assert_eq!(p.describe(), "Embree peer /x/embree_rays");
+    }
+
+    /// The arguments a peer is started with, after the program.
+    fn args(kind: PeerKind) -> Vec<String> {
+        let p = PeerProgram { kind, program: "/x/peer".into() };
+        let c = p.command(Path::new("s.obj"), Path::new("r.rays"), Path::new("h.hits"));
+        assert_eq!(c.get_program(), "/x/peer");
+        c.get_args().map(|a| a.to_string_lossy().into_owned()).collect()
+    }
+
+    #[test]
+    fn each_api_and_layout_is_started_with_its_mode() {
+        let tail = ["s.obj", "r.rays", "h.hits", "1"];
+        for (kind, head) in [
+            (PeerKind::Embree(EmbreeApi::Ray1), vec!["trace"]),
+            (PeerKind::Embree(EmbreeApi::Packet8), vec!["trace8"]),
+            (PeerKind::Embree(EmbreeApi::Packet16), vec!["trace16"]),
+            (PeerKind::Tinybvh(TinybvhLayout::OclCwbvh), vec!["trace", "ocl-cwbvh"]),
+        ] {
+            let want: Vec<&str> = head.into_iter().chain(tail).collect();
+            assert_eq!(args(kind), want, "{kind}");
+        }
+    }
+
+    #[test]
+    fn programs_run_embree_once_per_api_then_tinybvh() {
+        let names = |p: Vec<PeerProgram>| p.iter().map(|p| p.kind.to_string()).collect::<Vec<_>>();
+        let (e, t) = (Some(Path::new("e")), Some(Path::new("t")));
+        assert_eq!(names(programs(e, &[], None, &[])), ["embree3", "embree3 packet8"], "the default calls");
+        let all = [EmbreeApi::Packet16, EmbreeApi::Ray1, EmbreeApi::Packet16, EmbreeApi::Packet8];
+        let p = programs(e, &all, t, &[TinybvhLayout::CpuBvh8]);
+        assert_eq!(names(p.clone()), ["embree3 packet16", "embree3", "embree3 packet8", "tinybvh cpu-bvh8"]);
+        assert!(p[..3].iter().all(|p| p.program == Path::new("e")) && p[3].program == Path::new("t"));
+        assert!(programs(None, &all, None, &[]).is_empty(), "no program, no peer");
+    }
+
+    /// A fake `embree_rays` (a shell script) traced as `api` on 4 rays: the error, if any.
+    #[cfg(unix)]
+    fn fake_trace(api: EmbreeApi, body: &str) -> Result<()> {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let prog = dir.path().join("embree_rays");
+        std::fs::write(&prog, format!("#!/bin/sh\n{body}")).unwrap();
+        std::fs::set_permissions(&prog, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let p = PeerProgram { kind: PeerKind::Embree(api), program: prog };
+        let hits = dir.path().join("h.hits");
+        p.trace(Path::new("s.obj"), Path::new("r.rays"), &hits, 4).map(|_| ())
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_packet_peer_must_name_its_call_and_an_unsupported_width_says_which_option() {
+        // Writes 4 misses (t = inf, prim = ~0) and prints `embree3 $WORD`.
+        let ok = |word: &str| {
+            format!(
+                "for i in 1 2 3 4; do printf '\\000\\000\\200\\177\\377\\377\\377\\377\\0\\0\\0\\0\\0\\0\\0\\0'; done > \"$4\"\n\
+                 echo \"embree3 {word} threads=1 rays=4 mrays_per_s=1.00\"\n"
+            )
+        };
+        fake_trace(EmbreeApi::Packet8, &ok("packet8")).unwrap();
+        fake_trace(EmbreeApi::Ray1, &ok("default")).unwrap();
+        let e = fake_trace(EmbreeApi::Packet8, &ok("default")).unwrap_err().to_string();
+        assert!(e.contains("(api packet8, rtcIntersect8)") && e.contains("does not name `packet8`"), "{e}");
+        let e = fake_trace(EmbreeApi::Packet16, &ok("packet8")).unwrap_err().to_string();
+        assert!(e.contains("does not name `packet16`"), "{e}");
+        let refuse = "echo 'embree_rays: trace16 (rtcIntersect16, 16-wide packets) is not supported by this Embree \
+                      library on this CPU' >&2; exit 3\n";
+        let e = fake_trace(EmbreeApi::Packet16, refuse).unwrap_err().to_string();
+        for needle in
+            ["api packet16", "embree_rays", "exit status: 3", "not supported", "leave packet16 out of --embree-apis"]
+        {
+            assert!(e.contains(needle), "`{needle}` not in: {e}");
+        }
+        // An embree_rays without packet modes: its own error, naming the API.
+        let e = fake_trace(EmbreeApi::Packet8, "echo \"unknown mode $1\" >&2; exit 2\n").unwrap_err().to_string();
+        assert!(e.contains("api packet8") && e.contains("unknown mode trace8") && !e.contains("leave"), "{e}");
     }
 
     #[test]
@@ -577,10 +775,10 @@ mod tests {
         let ocl: Vec<_> = TinybvhLayout::ALL.iter().filter(|l| l.is_opencl()).map(|l| l.name()).collect();
         assert_eq!(ocl, ["ocl-bvh2", "ocl-cwbvh"]);
         assert_eq!("OCL-CWBVH".parse::<TinybvhLayout>(), Ok(TinybvhLayout::OclCwbvh));
-        let p = programs(Some(Path::new("e")), Some(Path::new("t")), &[]);
+        let p = programs(Some(Path::new("e")), &[EmbreeApi::Ray1], Some(Path::new("t")), &[]);
         let names: Vec<String> = p.iter().map(|p| p.kind.to_string()).collect();
         assert_eq!(names, ["embree3", "tinybvh cpu-bvh8", "tinybvh ocl-bvh2", "tinybvh ocl-cwbvh"]);
-        let p = programs(None, Some(Path::new("t")), &[TinybvhLayout::CpuBvh, TinybvhLayout::CpuBvh]);
+        let p = programs(None, &[], Some(Path::new("t")), &[TinybvhLayout::CpuBvh, TinybvhLayout::CpuBvh]);
         assert_eq!(p.len(), 1, "a layout named twice runs once");
     }
 

@@ -28,7 +28,7 @@ mod tests {
     use crate::gpu::Peer;
 
     use crate::services::peer_report::{PeerComparison, TrilabBest};
-    use crate::services::peers::{PeerKind, PeerOutcome};
+    use crate::services::peers::{EmbreeApi, PeerKind, PeerOutcome};
     use crate::services::provenance::Provenance;
     use crate::services::rayset::{RaySet, RaySetSizes};
     use crate::services::shard::Shard;
@@ -214,7 +214,7 @@ mod tests {
             row(Tracer::Peer(Peer::RayTracingPipeline), None, s(800.0, 790.0, 850.0), 0.9990),
         ];
         let embree = crate::services::peers::PeerResult {
-            peer: PeerKind::Embree,
+            peer: PeerKind::Embree(EmbreeApi::Ray1),
             outcome: PeerOutcome::Timed {
                 mrays_per_s: 21.5,
                 mrays_per_s_min: 20.0,
@@ -253,7 +253,11 @@ mod tests {
             },
             ..BenchOptions::default()
         };
-        let plan = plan_cells(&o, &[Peer::RayQuery, Peer::RayTracingPipeline], &[PeerKind::Embree.to_string()]);
+        let plan = plan_cells(
+            &o,
+            &[Peer::RayQuery, Peer::RayTracingPipeline],
+            &[PeerKind::Embree(EmbreeApi::Ray1).to_string()],
+        );
         // 3 sets x (2 layouts + the two driver rows + Embree).
         assert_eq!(plan.len(), 3 * 5);
         let rows = rows(&report());
@@ -288,7 +292,7 @@ mod tests {
             ..BenchOptions::default()
         };
         assert!(o.axes.kernels().is_empty());
-        let plan = plan_cells(&o, &[], &[PeerKind::Embree.to_string()]);
+        let plan = plan_cells(&o, &[], &[PeerKind::Embree(EmbreeApi::Ray1).to_string()]);
         assert_eq!(plan.len(), 3, "Embree on each of the three sets: {plan:?}");
         assert!(plan.iter().all(|c| c.get("peer").map(String::as_str) == Some("embree3")), "{plan:?}");
     }

@@ -10,7 +10,7 @@ use crate::error::Result;
 use crate::gpu::Peer;
 use crate::matrix::{Experiment, KernelAxes};
 use crate::rays::order::RayOrder;
-use crate::services::peers::TinybvhLayout;
+use crate::services::peers::{EmbreeApi, TinybvhLayout};
 use crate::services::rayset::{RaySet, RaySetSizes};
 use crate::services::shard::{Shard, Split};
 
@@ -35,6 +35,8 @@ pub struct BenchOptions {
     pub rays_dir: Option<PathBuf>,
     /// The Embree peer program (`embree_rays`), run on the same ray files.
     pub embree: Option<PathBuf>,
+    /// Its calls, each its own peer (empty: [`EmbreeApi::DEFAULT`]); only with `embree`.
+    pub embree_apis: Vec<EmbreeApi>,
     /// The tinybvh peer program (`tinybvh_rays`), run on the same ray files.
     pub tinybvh: Option<PathBuf>,
     /// Its layouts (empty: [`TinybvhLayout::DEFAULT`]).
@@ -64,6 +66,7 @@ impl Default for BenchOptions {
             sizes: RaySetSizes::default(),
             rays_dir: None,
             embree: None,
+            embree_apis: vec![],
             tinybvh: None,
             tinybvh_layouts: vec![],
             batch_rays: crate::defaults::BATCH_RAYS,

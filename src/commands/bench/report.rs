@@ -206,10 +206,11 @@ impl BenchReport {
         let mut s = format!("{}\n\n{}", self.header(), table(self.table()));
         if !self.peers.is_empty() {
             s += &format!(
-                "\n{}\n\n{}\n{} target (trilab / peer):\n\n{}",
+                "\n{}\n\n{}\n{} target (trilab / peer). {}\n\n{}",
                 peer_report::PEER_NOTE,
                 table(peer_report::peer_table(&self.peers)),
                 if markdown { "Speed" } else { "speed" },
+                peer_report::target_note(),
                 table(peer_report::target_table(&self.peers))
             );
             for note in peer_report::peer_notes(&self.peers) {

@@ -21,7 +21,7 @@ use crate::reference::RefHit;
 use crate::scene::{load_obj, Mesh};
 use crate::services::efficiency;
 use crate::services::peer_report::{PeerComparison, TrilabBest};
-use crate::services::peers::{self, PeerKind, PeerProgram, PeerResult, PeerRound, PeerSet};
+use crate::services::peers::{self, EmbreeApi, PeerKind, PeerProgram, PeerResult, PeerRound, PeerSet};
 use crate::services::provenance::Provenance;
 use crate::services::rayset::{ray_sets, RaySet};
 use crate::services::roofline::RooflineReport;
@@ -163,13 +163,16 @@ fn peer_programs(
     report: &mut BenchReport,
     progress: &mut impl FnMut(&str),
 ) -> Result<Vec<PeerProgram>> {
+    if o.embree.is_none() && !o.embree_apis.is_empty() {
+        return Err(Error::Usage("--embree-apis: Embree's calls need the Embree peer (--embree FILE)".into()));
+    }
     if let Some(p) = &o.embree {
         peers::check_program("--embree", p)?;
     }
     if let Some(p) = &o.tinybvh {
         peers::check_program("--tinybvh", p)?;
     }
-    let programs = peers::programs(o.embree.as_deref(), o.tinybvh.as_deref(), &o.tinybvh_layouts);
+    let programs = peers::programs(o.embree.as_deref(), &o.embree_apis, o.tinybvh.as_deref(), &o.tinybvh_layouts);
     if !programs.is_empty() {
         progress(&format!("checking {} peer(s) on a small scene", programs.len()));
     }
@@ -408,7 +411,7 @@ fn driver_rows(
 }
 
 /// The peer programs' results on a set beside trilab's fastest row of it: each row learns
-/// Embree's rate, and the report one comparison.
+/// Embree's rtcIntersect1 rate, and the report one comparison.
 fn compare_with_peers(
     on: &SetUnderTest,
     best: f64,
@@ -420,7 +423,8 @@ fn compare_with_peers(
     for r in &results {
         progress(&format!("{name} {set} {}", r.progress(best)));
     }
-    if let Some(e) = results.iter().find(|r| r.peer == PeerKind::Embree).and_then(|r| r.mrays_per_s()) {
+    if let Some(e) = results.iter().find(|r| r.peer == PeerKind::Embree(EmbreeApi::Ray1)).and_then(|r| r.mrays_per_s())
+    {
         for r in report.rows.iter_mut().filter(|r| r.scene == name && r.ray_set == set) {
             r.embree_mrays_per_s = Some(e);
         }
