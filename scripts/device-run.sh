@@ -246,7 +246,9 @@ run() {
   # Every traversal on every layout, bench-validated against the f64 reference before it reports:
   # the subgroup-cooperative, packet and hybrid kernels at the GPU's own subgroup width (32 on
   # NVIDIA), which lavapipe (4-16 lanes) and the CPU lane model cannot show on real hardware
-  # (issue 53: do packets pay where loads of a uniform address are scalar?). Skipped in a run
+  # (issue 53: do packets pay where loads of a uniform address are scalar? do tiles of primary
+  # rays help a 32-lane packet? do the per-ray kernels with their stacks in scratch, sized for
+  # AMD's registers (results/radv/stack-53/), run well on NVIDIA?). Skipped in a run
   # under 4 minutes (the rehearsal); at most 90 s. Its folder joins the device's after the suite.
   local trav_s=90
   if [ "$(left)" -ge 240 ]; then
@@ -255,6 +257,7 @@ run() {
     (cd "$work" && timeout -s INT -k 10 "$trav_s" "$exe" bench --scene-dir "$root/scenes" \
       --scenes bunny,dragon --methods mt,quad-unit,watertight --repeat 5 \
       --traversals while-if,while-while,coop,persistent,packet,hybrid --layouts bvh2,bvh4,qbvh4,bvh8,cwbvh \
+      --orders given,tiles \
       --out "$work/extra/traversals" >> "$log" 2>&1) || rc=$?
     case $rc in
       0) say "traversals bench completed" ;;

@@ -34,9 +34,11 @@
 //! - how the shader loads memory other than its stack (issue 53: are a packet's node loads
 //!   scalar?): **gathers**, the hardware's per-lane loads (`vpgatherdd`, `vgatherdps`, ...);
 //!   **lane loads**, a lane's value loaded into one element of a vector (`vpinsrd $3, (%rax),
-//!   %xmm0`, `vinsertps`, `vpinsrq`: a gather LLVM wrote out lane by lane); **broadcast
-//!   loads**, one value loaded into every lane (`vpbroadcastd (%rax), %ymm0`, `vbroadcastss`:
-//!   a load from an address the same in every lane, the scalar load a GPU would issue).
+//!   %xmm0`, `vinsertps`, `vpinsrq`, or a broadcast load whose register a blend within the next
+//!   [`BLEND_WINDOW`] instructions takes one lane of: `vpbroadcastd (%rax,%rsi,4), %ymm2` ...
+//!   `vpblendd $16, %ymm2, %ymm5, %ymm5`, how gallivm writes a gather out lane by lane into a
+//!   256-bit register); **broadcast loads**, the other broadcasts from memory, one value for
+//!   every lane (an address the same in every lane: the scalar load a GPU would issue).
 
 use serde::Serialize;
 
@@ -254,12 +256,21 @@ fn is_broadcast(m: &str) -> bool {
     matches!(m, "vpbroadcastb" | "vpbroadcastw" | "vpbroadcastd" | "vpbroadcastq" | "vbroadcastss" | "vbroadcastsd")
 }
 
+/// How far after a broadcast load a blend of its register makes it a lane load.
+pub const BLEND_WINDOW: usize = 8;
+
+/// A blend of vector elements (`vpblendd`, `vblendps`, AVX-512's `vpblendmd`, ...).
+fn is_blend(m: &str) -> bool {
+    let m = m.strip_prefix('v').unwrap_or(m);
+    m.starts_with("pblend") || m.starts_with("blend")
+}
+
 /// The counts of one function.
 pub fn stats(f: &FunctionDump) -> AsmStats {
     let mut s = AsmStats { instructions: f.instructions.len() as u64, ..Default::default() };
     let read = slots_read(f);
     let mut prev: Option<&Instruction> = None;
-    for ins in &f.instructions {
+    for (at, ins) in f.instructions.iter().enumerate() {
         let m = ins.mnemonic.as_str();
         let ops = operands(&ins.operands);
         let (first, last) = (ops.first().map(|o| bare(o)), ops.last().map(|o| bare(o)));
@@ -268,7 +279,16 @@ pub fn stats(f: &FunctionDump) -> AsmStats {
         } else if is_lane_insert(m) && ops.iter().any(|o| is_memory(bare(o))) {
             s.lane_loads += 1;
         } else if is_broadcast(m) && first.is_some_and(is_memory) {
-            s.broadcast_loads += 1;
+            let reg = last.unwrap_or("");
+            let blended = f.instructions[at + 1..].iter().take(BLEND_WINDOW).any(|n| {
+                let ops = operands(&n.operands);
+                is_blend(&n.mnemonic) && ops[..ops.len().saturating_sub(1)].iter().any(|o| bare(o) == reg)
+            });
+            if blended {
+                s.lane_loads += 1;
+            } else {
+                s.broadcast_loads += 1;
+            }
         }
         if m.starts_with("call") {
             s.calls += 1;
@@ -391,9 +411,10 @@ mod tests {
         let s = |n| stats(function(&fs, n));
         // count.awk: instructions=47 vector_spills=5 stack_stores=0 vector_reloads=10
         // folded_reloads=0 ... calls=2 table_calls=1 host_calls=0 stack_bytes=352; loads by an
-        // awk of their own (a memory operand whose base is not %rsp/%rbp): none in the first
-        // `sample` (the later three have a broadcast load each), cs_co_variant's lane loads 24
-        // and broadcast loads 40, no gathers
+        // script of their own (a memory operand whose base is not %rsp/%rbp; a broadcast whose
+        // register a blend of the next 8 instructions reads is a lane load): none in the first
+        // `sample`, cs_co_variant's lane loads 56 (24 inserts, 32 blended broadcasts) and
+        // broadcast loads 8, no gathers
         let want = AsmStats {
             instructions: 47,
             vector_spills: 5,
@@ -426,8 +447,8 @@ mod tests {
             host_calls: 1,
             stack_bytes: 5696,
             gathers: 0,
-            lane_loads: 24,
-            broadcast_loads: 40,
+            lane_loads: 56,
+            broadcast_loads: 8,
         };
         assert_eq!(s("cs_co_variant"), want);
         let k = kernel(&fs).unwrap();
@@ -488,9 +509,10 @@ mod tests {
 
     #[test]
     fn loads_are_told_apart_by_how_they_fill_the_lanes() {
-        // Two hardware gathers (one masked, AVX-512), three lane loads (memory sources only:
-        // the register insert and the stack-slot insert are not), two broadcast loads (the
-        // register broadcast and the stack-slot broadcast are not).
+        // Two hardware gathers (one masked, AVX-512), four lane loads (memory sources only:
+        // the register insert and the stack-slot insert are not; the broadcast at 0x42 is
+        // blended into one lane of %ymm5 at 0x4c), two broadcast loads (the register broadcast
+        // and the stack-slot broadcast are not; no blend takes a lane of %ymm4).
         let text = "cs_co_variant:\n\
             \x20    0:\tvpgatherdd\t%ymm1, (%rax,%ymm2,4), %ymm3\n\
             \x20    6:\tvgatherdps\t(%rax,%zmm2,4), %zmm3 {%k1}\n\
@@ -502,9 +524,14 @@ mod tests {
             \x20   2a:\tvpbroadcastd\t(%r8), %ymm4\n\
             \x20   30:\tvbroadcastss\t12(%r9), %zmm5\n\
             \x20   36:\tvpbroadcastd\t%xmm4, %ymm4\n\
-            \x20   3c:\tvbroadcastss\t32(%rsp), %ymm6\n";
+            \x20   3c:\tvbroadcastss\t32(%rsp), %ymm6\n\
+            \x20   42:\tvpbroadcastd\t(%rax,%rsi,4), %ymm2\n\
+            \x20   48:\tjmp\t4\n\
+            \x20   4a:\tvpxor\t%xmm2, %xmm2, %xmm2\n\
+            \x20   4c:\tvpblendd\t$16, %ymm2, %ymm5, %ymm5\n\
+            \x20   52:\tvpblendd\t$1, %ymm9, %ymm5, %ymm5\n";
         let s = stats(&parse(text).unwrap()[0]);
-        assert_eq!((s.gathers, s.lane_loads, s.broadcast_loads), (2, 3, 2), "{s:?}");
+        assert_eq!((s.gathers, s.lane_loads, s.broadcast_loads), (2, 4, 2), "{s:?}");
     }
 
     #[test]
