@@ -189,3 +189,51 @@ fn the_suite_smoke_run_completes_on_swiftshader() {
     let profile = std::fs::read_to_string(out.join("profile/profile.md")).unwrap();
     assert!(profile.contains("machine code (GALLIVM_DEBUG=asm): printed only by lavapipe, not"), "{profile}");
 }
+
+/// Issue 53: packets and the hybrid at SwiftShader's 4 lanes (its own JIT, not Mesa's), on both
+/// of its scene paths where they have kernels: every ray of every set passes the f64 check, and
+/// each hybrid row says how many rays left the packet.
+#[test]
+fn packets_and_the_hybrid_pass_the_f64_check_at_four_lanes() {
+    let args = [
+        "bench",
+        "--scenes",
+        "synth:soup:2000",
+        "--methods",
+        "mt,unit",
+        "--layouts",
+        "bvh2,bvh4",
+        "--traversals",
+        "packet,hybrid",
+        "--scene-access",
+        "texel,storage",
+        "--width",
+        "48",
+        "--height",
+        "36",
+        "--diffuse-per-hit",
+        "1",
+        "--random-rays",
+        "2000",
+        "--repeat",
+        "1",
+    ];
+    let v = SWIFTSHADER.json(&args, 300);
+    assert_eq!(v["settings"]["subgroup_size"], "4", "{}", v["settings"]);
+    let rows = v["rows"].as_array().unwrap_or_else(|| panic!("no rows: {v}"));
+    // Packets on both paths, the hybrid on the texel path (its only one): 3 x 2 layouts x 2
+    // methods x 3 sets.
+    assert_eq!(rows.len(), 3 * 2 * 2 * 3, "{v}");
+    for r in rows {
+        assert_eq!(r["unexplained_disagreements"], 0, "{r}");
+        assert_eq!(r["invalid"], 0, "{r}");
+        assert!(r["agreement"].as_f64().unwrap() >= 0.999, "{r}");
+        let switched = r["switched"].as_f64();
+        match r["traversal"].as_str().unwrap() {
+            "hybrid" => assert!(switched.is_some_and(|s| s > 0.0 && s <= 1.0), "{r}"),
+            "packet" => assert!(switched.is_none(), "{r}"),
+            t => panic!("{t} was not asked for: {r}"),
+        }
+    }
+    assert!(v["notes"].to_string().contains("hybrid traversal on bvh2 (storage path): not run"), "{}", v["notes"]);
+}
