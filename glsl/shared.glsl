@@ -23,7 +23,7 @@
 // alike) keeps an indexed local array in registers, as an if-ladder over every entry. Held there,
 // bvh4's, qbvh4's and cwbvh's stacks took 180-228 VGPRs, one subgroup per SIMD on GCN and LLVM
 // spilling; in scratch, 56-96 VGPRs and 2-4 subgroups (results/radv/stack-53/). The stack's
-// entries and distances stay two arrays of scalars: one array of pairs measured 1.1-2.5x slower
+// entries and distances stay two arrays of scalars: one array of pairs measured 1.08-2.57x slower
 // on lavapipe. No layout's bound changes: the host still refuses a tree deeper than its layout's.
 #define STACK_MIN_ENTRIES 65
 #define STACK_CAPACITY(bound) ((bound) < STACK_MIN_ENTRIES ? STACK_MIN_ENTRIES : (bound))
