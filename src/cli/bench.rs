@@ -83,7 +83,7 @@ pub struct BenchArgs {
     /// traversal x layout without one is left out with a note (default: while-if).
     #[arg(long, value_name = "T,...", value_parser = choice::<Traversal>(), value_delimiter = ',')]
     traversals: Vec<Traversal>,
-    /// Orders to dispatch each ray set in, comma-separated (`given`, `octant-origin`), timed
+    /// Orders to dispatch each ray set in, comma-separated (`given`, `octant-origin`, `tiles`), timed
     /// side by side: a reordering's host time (sorting the rays, putting the hits back) counts in
     /// its kernel time and is shown as `reorder ms` (default: given).
     #[arg(long, value_name = "O,...", value_parser = choice::<RayOrder>(), value_delimiter = ',')]
